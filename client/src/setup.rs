@@ -1,0 +1,130 @@
+//! Turning command-line flags into one validated [`Config`].
+//!
+//! Every offline command takes the same model and initial-state flags. They are applied on top of
+//! a config file or a preset and then validated once, so a bad flag gets the same field-naming
+//! message as a bad file entry.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use control::config::ModelKind;
+use control::Config;
+use std::path::PathBuf;
+
+#[derive(Args, Debug, Clone)]
+pub struct ModelArgs {
+    /// TOML config file (see `chaosctl config --preset paper` for every key).
+    #[arg(long, conflicts_with = "preset")]
+    pub config: Option<PathBuf>,
+    /// Built-in set-up: paper, paper-eq11, paper-obstacle, paper-floating.
+    #[arg(long)]
+    pub preset: Option<String>,
+    /// Pyragas gain μ (≥ 0).
+    #[arg(long)]
+    pub mu: Option<f64>,
+    /// Pyragas delay τ (s).
+    #[arg(long)]
+    pub tau: Option<f64>,
+    /// Time the delayed feedback switches on (s).
+    #[arg(long = "t-on")]
+    pub t_on: Option<f64>,
+    /// Integration step (s).
+    #[arg(long)]
+    pub dt: Option<f64>,
+    /// Initial joint angles, comma-separated (rad).
+    #[arg(long, value_parser = parse_list, allow_hyphen_values = true)]
+    pub q0: Option<Vec<f64>>,
+    /// Initial joint rates, comma-separated (rad/s).
+    #[arg(long, value_parser = parse_list, allow_hyphen_values = true)]
+    pub qd0: Option<Vec<f64>>,
+    /// Plant model: fixed or floating.
+    #[arg(long, value_parser = parse_model)]
+    pub model: Option<ModelKind>,
+}
+
+/// Parses `a,b,c` into numbers, naming the bad item.
+pub fn parse_list(s: &str) -> Result<Vec<f64>, String> {
+    s.split(',')
+        .map(|x| {
+            let x = x.trim();
+            x.parse::<f64>().map_err(|_| {
+                format!("{x:?} is not a number (expected a comma-separated list like 0,1.57,1.57)")
+            })
+        })
+        .collect()
+}
+
+fn parse_model(s: &str) -> Result<ModelKind, String> {
+    match s {
+        "fixed" => Ok(ModelKind::Fixed),
+        "floating" => Ok(ModelKind::Floating),
+        _ => Err(format!("{s:?} is not a model (expected fixed or floating)")),
+    }
+}
+
+impl ModelArgs {
+    /// The base config (file or preset, default `paper`) with the flags applied, not yet validated.
+    pub fn base(&self) -> Result<Config> {
+        let cfg = match (&self.config, &self.preset) {
+            (Some(path), _) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("cannot read config file {}", path.display()))?;
+                Config::from_toml_str(&text).with_context(|| format!("in {}", path.display()))?
+            }
+            (None, Some(p)) => Config::preset(p)?,
+            (None, None) => Config::preset("paper")?,
+        };
+        Ok(cfg)
+    }
+
+    /// Applies the overrides and validates.
+    pub fn apply(&self, mut cfg: Config) -> Result<Config> {
+        if let Some(v) = self.mu {
+            cfg.feedback.mu = v;
+        }
+        if let Some(v) = self.tau {
+            cfg.feedback.tau = v;
+            if v > cfg.feedback.max_tau && v.is_finite() {
+                cfg.feedback.max_tau = v;
+            }
+        }
+        if let Some(v) = self.t_on {
+            cfg.feedback.t_on = v;
+        }
+        if let Some(v) = self.dt {
+            cfg.sim.dt = v;
+        }
+        if let Some(v) = &self.q0 {
+            cfg.sim.q0 = Some(v.clone());
+        }
+        if let Some(v) = &self.qd0 {
+            cfg.sim.qd0 = Some(v.clone());
+        }
+        if let Some(m) = self.model {
+            cfg.arm.model = m;
+        }
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    pub fn load(&self) -> Result<Config> {
+        self.apply(self.base()?)
+    }
+}
+
+/// Rejects a duration the config cannot run.
+pub fn set_duration(cfg: &mut Config, duration: Option<f64>, transient: Option<f64>) -> Result<()> {
+    if let Some(d) = duration {
+        if !(d.is_finite() && d > 0.0) {
+            bail!("--duration {d}: must be a finite number of seconds > 0");
+        }
+        cfg.sim.duration = d;
+        if transient.is_none() && cfg.sim.transient > d {
+            cfg.sim.transient = d / 2.0;
+        }
+    }
+    if let Some(t) = transient {
+        cfg.sim.transient = t;
+    }
+    cfg.validate()?;
+    Ok(())
+}

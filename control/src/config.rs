@@ -1,0 +1,629 @@
+//! The configuration model: one TOML file describes the arm, task, controller, feedback and run.
+//!
+//! Parsing and validation are separate steps, as in ripgrep's low/high args: a file is parsed
+//! into [`Config`] (unknown keys are errors, so typos cannot silently fall back to defaults), then
+//! [`Config::validate`] checks every field and names the first bad one with its allowed range.
+//! Nothing downstream re-checks; the runtime types built from a validated config are trusted.
+//!
+//! Every default is SCIENCE.md's; the `paper*` presets reproduce the paper's set-ups.
+
+use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
+use crate::law::{LawParams, Secondary};
+use crate::secondary::{Obstacle, ObstacleSet, PotentialWeights, MAX_OBSTACLES};
+use crate::sim::ArmState;
+use crate::task::Circle;
+use serde::{Deserialize, Serialize};
+use std::f64::consts::FRAC_PI_2;
+
+/// Largest supported arm (also the size of the wire samples' arrays).
+pub const MAX_JOINTS: usize = 6;
+/// Smallest supported arm.
+pub const MIN_JOINTS: usize = 2;
+
+/// A configuration that cannot be used, naming the offending field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot parse config: {0}")]
+    Parse(String),
+    #[error("invalid config: {field} = {value}: {expected}")]
+    Invalid {
+        field: String,
+        value: String,
+        expected: String,
+    },
+    #[error("unknown preset {0:?} (known presets: {known})", known = PRESETS.join(", "))]
+    UnknownPreset(String),
+}
+
+fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
+    ConfigError::Invalid {
+        field: field.to_string(),
+        value: format!("{value:?}"),
+        expected: expected.to_string(),
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum ModelKind {
+    #[default]
+    Fixed,
+    Floating,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum SecondaryKind {
+    None,
+    #[default]
+    Manipulability,
+    Obstacles,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ArmConfig {
+    pub model: ModelKind,
+    /// Link lengths l_j (m); their number is the arm size n.
+    pub links: Vec<f64>,
+    /// Floating base only: base mass m₀ (kg). The paper's 1 kg puts the circle out of reach of
+    /// the system's centre of mass; 200 kg is chaosd's default.
+    pub base_mass: f64,
+    /// Floating base only: base inertia I₀ (kg·m²).
+    pub base_inertia: f64,
+    /// Floating base only: distance l₀ from the base's centre of mass to joint 1 (m).
+    pub base_offset: f64,
+    /// Link masses (kg); default 1 kg each.
+    pub link_masses: Option<Vec<f64>>,
+    /// Link inertias (kg·m²); default 0.1·(n + 1 − j), which is the paper's (0.3, 0.2, 0.1).
+    pub link_inertias: Option<Vec<f64>>,
+}
+
+impl Default for ArmConfig {
+    fn default() -> Self {
+        Self {
+            model: ModelKind::Fixed,
+            links: vec![1.0; 3],
+            base_mass: 200.0,
+            base_inertia: 200.0,
+            base_offset: 1.0,
+            link_masses: None,
+            link_inertias: None,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TaskConfig {
+    pub center: [f64; 2],
+    pub radius: f64,
+    pub period: f64,
+}
+
+impl Default for TaskConfig {
+    fn default() -> Self {
+        Self {
+            center: [1.0, 2.0],
+            radius: 0.5,
+            period: 1.0,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleConfig {
+    pub center: [f64; 2],
+    pub radius: f64,
+    #[serde(default = "default_margin")]
+    pub margin: f64,
+}
+
+fn default_margin() -> f64 {
+    0.1
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControlConfig {
+    /// Position gain K_p (eq. 1's text: 40; eq. 11 swaps K_p and K_v, see the `paper-eq11` preset).
+    pub kp: f64,
+    /// Velocity gain K_v.
+    pub kv: f64,
+    /// Null-space gain α.
+    pub alpha: f64,
+    pub secondary: SecondaryKind,
+    pub obstacles: Vec<ObstacleConfig>,
+    pub w1: f64,
+    pub w2: f64,
+    /// σ_min below which damped least squares starts.
+    pub damping_threshold: f64,
+    /// Damping λ at σ_min = 0.
+    pub damping_max: f64,
+    /// Tracking error (m) above which tracking counts as lost.
+    pub track_loss: f64,
+}
+
+impl Default for ControlConfig {
+    fn default() -> Self {
+        Self {
+            kp: 40.0,
+            kv: 15.0,
+            alpha: 1.0,
+            secondary: SecondaryKind::Manipulability,
+            obstacles: Vec::new(),
+            w1: 2.0,
+            w2: 2.0,
+            damping_threshold: 0.05,
+            damping_max: 0.05,
+            track_loss: 0.05,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FeedbackConfig {
+    /// Pyragas gain μ (≥ 0; chaosd uses the stabilising sign −μ[q̇(t) − q̇(t−τ)]).
+    pub mu: f64,
+    /// Delay τ (s).
+    pub tau: f64,
+    /// Switch-on time t_on (s).
+    pub t_on: f64,
+    /// Master switch.
+    pub enabled: bool,
+    /// Capacity of the delay line (s): the largest τ a running daemon accepts.
+    pub max_tau: f64,
+}
+
+impl Default for FeedbackConfig {
+    fn default() -> Self {
+        Self {
+            mu: 0.0,
+            tau: 1.0,
+            t_on: 5.0,
+            enabled: true,
+            max_tau: 2.0,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimConfig {
+    /// Integration step (s).
+    pub dt: f64,
+    /// Simulated time (s).
+    pub duration: f64,
+    /// Statistics skip this initial transient (s).
+    pub transient: f64,
+    /// Initial joint angles (rad); default the paper's (0, π/2, π/2), cut or padded with zeros.
+    pub q0: Option<Vec<f64>>,
+    /// Initial joint rates (rad/s); default zero.
+    pub qd0: Option<Vec<f64>>,
+    /// Initial base attitude φ (rad), floating base only.
+    pub phi0: f64,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            dt: 1e-3,
+            duration: 300.0,
+            transient: 20.0,
+            q0: None,
+            qd0: None,
+            phi0: 0.0,
+        }
+    }
+}
+
+/// The whole file. `[daemon]` and `[plant]` are owned and validated by those programs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    pub arm: ArmConfig,
+    pub task: TaskConfig,
+    pub control: ControlConfig,
+    pub feedback: FeedbackConfig,
+    pub sim: SimConfig,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub daemon: Option<toml::Table>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub plant: Option<toml::Table>,
+}
+
+/// Names accepted by [`Config::preset`].
+pub const PRESETS: &[&str] = &["paper", "paper-eq11", "paper-obstacle", "paper-floating"];
+
+/// The obstacle of the `paper-obstacle` preset (the paper gives none; this one sits where the
+/// uncontrolled self-motion sweeps the arm's middle links).
+pub const PAPER_OBSTACLE: ([f64; 2], f64) = ([0.0, 1.6], 0.25);
+
+impl Config {
+    /// A named set-up. `paper`: fixed base, eq. 1 gains, manipulability, τ = T = 1 s, t_on = 5 s.
+    pub fn preset(name: &str) -> Result<Self, ConfigError> {
+        let mut c = Config::default();
+        match name {
+            "paper" => {}
+            "paper-eq11" => {
+                c.control.kp = 15.0;
+                c.control.kv = 40.0;
+            }
+            "paper-obstacle" => {
+                c.control.secondary = SecondaryKind::Obstacles;
+                c.control.obstacles = vec![ObstacleConfig {
+                    center: PAPER_OBSTACLE.0,
+                    radius: PAPER_OBSTACLE.1,
+                    margin: 0.1,
+                }];
+            }
+            "paper-floating" => {
+                c.arm.model = ModelKind::Floating;
+            }
+            other => return Err(ConfigError::UnknownPreset(other.to_string())),
+        }
+        Ok(c)
+    }
+
+    /// Parses TOML text (no validation; call [`Config::validate`]).
+    pub fn from_toml_str(text: &str) -> Result<Self, ConfigError> {
+        toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))
+    }
+
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Parses and validates.
+    pub fn parse(text: &str) -> Result<Self, ConfigError> {
+        let c = Self::from_toml_str(text)?;
+        c.validate()?;
+        Ok(c)
+    }
+
+    /// Arm size n.
+    pub fn n(&self) -> usize {
+        self.arm.links.len()
+    }
+
+    pub fn link_masses(&self) -> Vec<f64> {
+        self.arm
+            .link_masses
+            .clone()
+            .unwrap_or_else(|| vec![1.0; self.n()])
+    }
+
+    pub fn link_inertias(&self) -> Vec<f64> {
+        let n = self.n();
+        self.arm
+            .link_inertias
+            .clone()
+            .unwrap_or_else(|| (0..n).map(|j| 0.1 * (n - j) as f64).collect())
+    }
+
+    pub fn q0(&self) -> Vec<f64> {
+        self.sim.q0.clone().unwrap_or_else(|| {
+            let paper = [0.0, FRAC_PI_2, FRAC_PI_2];
+            (0..self.n())
+                .map(|i| paper.get(i).copied().unwrap_or(0.0))
+                .collect()
+        })
+    }
+
+    pub fn qd0(&self) -> Vec<f64> {
+        self.sim.qd0.clone().unwrap_or_else(|| vec![0.0; self.n()])
+    }
+
+    /// Checks every field; the error names the first bad one and its allowed range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let n = self.n();
+        if !(MIN_JOINTS..=MAX_JOINTS).contains(&n) {
+            return Err(invalid(
+                "arm.links",
+                &self.arm.links,
+                &format!("must list {MIN_JOINTS} to {MAX_JOINTS} link lengths"),
+            ));
+        }
+        for (i, l) in self.arm.links.iter().enumerate() {
+            positive(&format!("arm.links[{i}]"), *l, 100.0)?;
+        }
+        positive("arm.base_mass", self.arm.base_mass, 1e9)?;
+        positive("arm.base_inertia", self.arm.base_inertia, 1e9)?;
+        range("arm.base_offset", self.arm.base_offset, 0.0, 100.0)?;
+        for (name, v) in [
+            ("arm.link_masses", &self.arm.link_masses),
+            ("arm.link_inertias", &self.arm.link_inertias),
+        ] {
+            if let Some(v) = v {
+                same_len(name, v, n)?;
+                for (i, x) in v.iter().enumerate() {
+                    positive(&format!("{name}[{i}]"), *x, 1e9)?;
+                }
+            }
+        }
+        finite_vec("task.center", &self.task.center)?;
+        positive("task.radius", self.task.radius, 100.0)?;
+        positive("task.period", self.task.period, 1e4)?;
+
+        let c = &self.control;
+        range("control.kp", c.kp, 0.0, 1e6)?;
+        range("control.kv", c.kv, 0.0, 1e6)?;
+        range("control.alpha", c.alpha, -1e3, 1e3)?;
+        range("control.w1", c.w1, 0.0, 1e6)?;
+        range("control.w2", c.w2, 0.0, 1e6)?;
+        positive("control.damping_threshold", c.damping_threshold, 10.0)?;
+        positive("control.damping_max", c.damping_max, 10.0)?;
+        positive("control.track_loss", c.track_loss, 100.0)?;
+        if c.obstacles.len() > MAX_OBSTACLES {
+            return Err(invalid(
+                "control.obstacles",
+                format!("{} obstacles", c.obstacles.len()),
+                &format!("at most {MAX_OBSTACLES}"),
+            ));
+        }
+        for (i, o) in c.obstacles.iter().enumerate() {
+            validate_obstacle(&format!("control.obstacles[{i}]"), o)?;
+        }
+        if c.secondary == SecondaryKind::Obstacles && c.obstacles.is_empty() {
+            return Err(invalid(
+                "control.obstacles",
+                "[]",
+                "secondary = \"obstacles\" needs at least one [[control.obstacles]] entry",
+            ));
+        }
+
+        let f = &self.feedback;
+        let s = &self.sim;
+        range("sim.dt", s.dt, 1e-5, 0.1)?;
+        positive("sim.duration", s.duration, 1e7)?;
+        range("sim.transient", s.transient, 0.0, s.duration)?;
+        range("feedback.mu", f.mu, 0.0, 100.0)?;
+        range("feedback.max_tau", f.max_tau, s.dt, 60.0)?;
+        if !(f.tau.is_finite() && f.tau >= s.dt && f.tau <= f.max_tau) {
+            return Err(invalid(
+                "feedback.tau",
+                f.tau,
+                &format!(
+                    "must be between sim.dt = {} s and feedback.max_tau = {} s",
+                    s.dt, f.max_tau
+                ),
+            ));
+        }
+        range("feedback.t_on", f.t_on, 0.0, 1e9)?;
+        for (name, v) in [("sim.q0", &s.q0), ("sim.qd0", &s.qd0)] {
+            if let Some(v) = v {
+                same_len(name, v, n)?;
+                finite_vec(name, v)?;
+            }
+        }
+        range("sim.phi0", s.phi0, -1e6, 1e6)?;
+        Ok(())
+    }
+
+    /// The control-law parameter block (the config must be valid).
+    pub fn law_params(&self) -> LawParams {
+        let c = &self.control;
+        LawParams {
+            task: Circle {
+                center: Vec2::new(self.task.center[0], self.task.center[1]),
+                radius: self.task.radius,
+                period: self.task.period,
+            },
+            kp: c.kp,
+            kv: c.kv,
+            alpha: c.alpha,
+            secondary: match c.secondary {
+                SecondaryKind::None => Secondary::None,
+                SecondaryKind::Manipulability => Secondary::Manipulability,
+                SecondaryKind::Obstacles => Secondary::Obstacles,
+            },
+            obstacles: c
+                .obstacles
+                .iter()
+                .map(ObstacleConfig::to_obstacle)
+                .collect::<ObstacleSet>(),
+            weights: PotentialWeights { w1: c.w1, w2: c.w2 },
+            damping_threshold: c.damping_threshold,
+            damping_max: c.damping_max,
+            mu: self.feedback.mu,
+            tau: self.feedback.tau,
+            t_on: self.feedback.t_on,
+            feedback: self.feedback.enabled,
+            track_loss: c.track_loss,
+        }
+    }
+
+    /// The arm model with N joints (N must equal `self.n()`).
+    pub fn model<const N: usize>(&self) -> ArmModel<N> {
+        assert_eq!(N, self.n(), "arm size mismatch");
+        let links = to_array(&self.arm.links);
+        match self.arm.model {
+            ModelKind::Fixed => ArmModel::Fixed(FixedArm::new(links)),
+            ModelKind::Floating => ArmModel::Floating(FloatingArm {
+                links,
+                link_masses: to_array(&self.link_masses()),
+                link_inertias: to_array(&self.link_inertias()),
+                base_mass: self.arm.base_mass,
+                base_inertia: self.arm.base_inertia,
+                base_offset: self.arm.base_offset,
+            }),
+        }
+    }
+
+    pub fn initial_state<const N: usize>(&self) -> ArmState<N> {
+        ArmState {
+            q: VecN::<N>::from_column_slice(&self.q0()),
+            qd: VecN::<N>::from_column_slice(&self.qd0()),
+            phi: if self.arm.model == ModelKind::Floating {
+                self.sim.phi0
+            } else {
+                0.0
+            },
+        }
+    }
+}
+
+impl ObstacleConfig {
+    pub fn to_obstacle(&self) -> Obstacle {
+        Obstacle {
+            center: Vec2::new(self.center[0], self.center[1]),
+            radius: self.radius,
+            margin: self.margin,
+        }
+    }
+}
+
+/// Checks one obstacle (also used for obstacles added to a running daemon).
+pub fn validate_obstacle(field: &str, o: &ObstacleConfig) -> Result<(), ConfigError> {
+    finite_vec(&format!("{field}.center"), &o.center)?;
+    positive(&format!("{field}.radius"), o.radius, 100.0)?;
+    range(&format!("{field}.margin"), o.margin, 0.0, 100.0)
+}
+
+fn to_array<const N: usize>(v: &[f64]) -> [f64; N] {
+    let mut a = [0.0; N];
+    a.copy_from_slice(v);
+    a
+}
+
+fn positive(field: &str, v: f64, max: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v > 0.0 && v <= max {
+        Ok(())
+    } else {
+        Err(invalid(
+            field,
+            v,
+            &format!("must be a finite number > 0 and ≤ {max}"),
+        ))
+    }
+}
+
+fn range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(invalid(
+            field,
+            v,
+            &format!("must be a finite number in [{lo}, {hi}]"),
+        ))
+    }
+}
+
+fn finite_vec(field: &str, v: &[f64]) -> Result<(), ConfigError> {
+    match v.iter().position(|x| !x.is_finite()) {
+        None => Ok(()),
+        Some(i) => Err(invalid(&format!("{field}[{i}]"), v[i], "must be finite")),
+    }
+}
+
+fn same_len(field: &str, v: &[f64], n: usize) -> Result<(), ConfigError> {
+    if v.len() == n {
+        Ok(())
+    } else {
+        Err(invalid(
+            field,
+            v,
+            &format!("must have {n} entries, one per link (arm.links has {n})"),
+        ))
+    }
+}
+
+/// Runs `$body` with `$N` bound to the arm size `$n` as a const generic (2 ..= MAX_JOINTS).
+///
+/// The math is monomorphised per arm size so every matrix has a fixed size; this is the one place
+/// a runtime size becomes a type.
+#[macro_export]
+macro_rules! with_dof {
+    ($n:expr, $N:ident => $body:expr) => {
+        match $n {
+            2 => {
+                const $N: usize = 2;
+                $body
+            }
+            3 => {
+                const $N: usize = 3;
+                $body
+            }
+            4 => {
+                const $N: usize = 4;
+                $body
+            }
+            5 => {
+                const $N: usize = 5;
+                $body
+            }
+            6 => {
+                const $N: usize = 6;
+                $body
+            }
+            other => panic!("unsupported arm size {other}: validate the config first"),
+        }
+    };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_validate() {
+        for p in PRESETS {
+            Config::preset(p).unwrap().validate().unwrap();
+        }
+        assert!(matches!(
+            Config::preset("nope"),
+            Err(ConfigError::UnknownPreset(_))
+        ));
+    }
+
+    #[test]
+    fn round_trips_through_toml() {
+        let c = Config::preset("paper-obstacle").unwrap();
+        let back = Config::parse(&c.to_toml_string()).unwrap();
+        assert_eq!(c, back);
+    }
+
+    #[test]
+    fn errors_name_the_field() {
+        let e = Config::parse("[control]\nkp = -3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("control.kp") && e.contains("-3"), "{e}");
+        let e = Config::parse("[control]\nkpp = 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("kpp"), "{e}");
+        let e = Config::parse("[feedback]\ntau = 5.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("feedback.tau") && e.contains("max_tau"), "{e}");
+        let e = Config::parse("[sim]\nq0 = [1.0, 2.0]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sim.q0") && e.contains("3 entries"), "{e}");
+        let e = Config::parse("[arm]\nlinks = [1.0]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("arm.links"), "{e}");
+        let e = Config::parse("[control]\nsecondary = \"obstacles\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("control.obstacles"), "{e}");
+        let e = Config::parse("[task]\nradius = nan\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("task.radius"), "{e}");
+        let e = Config::parse("this is not toml").unwrap_err().to_string();
+        assert!(e.starts_with("cannot parse config"), "{e}");
+    }
+
+    #[test]
+    fn default_inertias_are_the_papers() {
+        let c = Config::default();
+        assert_eq!(c.link_inertias(), vec![0.30000000000000004, 0.2, 0.1]);
+        assert_eq!(c.q0(), vec![0.0, FRAC_PI_2, FRAC_PI_2]);
+    }
+}

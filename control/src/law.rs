@@ -1,0 +1,205 @@
+//! The resolved-acceleration control law of SCIENCE.md §2 (eqs. 1, 11, 13).
+//!
+//! q̈ = J⁺(p̈_d + K_v(ṗ_d − Jq̇) + K_p(p_d − p) − J̇q̇) + α(I − J⁺J)η − μ[q̇(t) − q̇(t−τ)]
+//!
+//! [`LawParams`] is a small `Copy` block with no dimension parameter: the daemon swaps a whole
+//! validated block at a tick boundary, and the offline tools share exactly the same code. The
+//! evaluation is a few hundred flops on the stack; it never allocates and never produces NaN from
+//! finite inputs (damped least squares near singularities, a non-finite guard at the end).
+
+use crate::arm::{ArmModel, Jac, Kinematics, Vec2, VecN};
+use crate::secondary::{self, ObstacleSet, PotentialWeights};
+use crate::task::Circle;
+use nalgebra::Matrix2;
+
+/// Which secondary task drives the null space.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Secondary {
+    None,
+    /// η = +∇w, w = √det(JJᵀ) (eq. 1).
+    #[default]
+    Manipulability,
+    /// η = −∇h, the obstacle potential (eqs. 7-10).
+    Obstacles,
+}
+
+/// Every tunable of the control law.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LawParams {
+    pub task: Circle,
+    /// Position-error gain K_p.
+    pub kp: f64,
+    /// Velocity-error gain K_v.
+    pub kv: f64,
+    /// Null-space gain α.
+    pub alpha: f64,
+    pub secondary: Secondary,
+    pub obstacles: ObstacleSet,
+    pub weights: PotentialWeights,
+    /// Damped least squares starts when σ_min(J) falls below this.
+    pub damping_threshold: f64,
+    /// λ at σ_min = 0.
+    pub damping_max: f64,
+    /// Pyragas gain μ ≥ 0.
+    pub mu: f64,
+    /// Pyragas delay τ (s).
+    pub tau: f64,
+    /// Feedback is active for t ≥ t_on.
+    pub t_on: f64,
+    /// Master switch for the delayed feedback (the daemon's `dfc on|off`).
+    pub feedback: bool,
+    /// Tracking error (m) above which tracking counts as lost.
+    pub track_loss: f64,
+}
+
+/// Status bits of one evaluation.
+pub mod flags {
+    /// Damped least squares was active (σ_min below the threshold).
+    pub const SINGULAR: u32 = 1 << 0;
+    /// The target is outside the annular workspace around joint 1.
+    pub const OUT_OF_REACH: u32 = 1 << 1;
+    /// Tracking error above the configured limit.
+    pub const TRACK_LOST: u32 = 1 << 2;
+    /// Some link is inside an obstacle's safety zone.
+    pub const IN_SAFETY_ZONE: u32 = 1 << 3;
+    /// The delayed feedback term was applied.
+    pub const FEEDBACK_ACTIVE: u32 = 1 << 4;
+    /// The raw command was not finite and was replaced by zero acceleration.
+    pub const NONFINITE: u32 = 1 << 5;
+}
+
+/// The command and what the controller learnt while computing it.
+#[derive(Clone, Copy, Debug)]
+pub struct ControlOutput<const N: usize> {
+    pub qdd: VecN<N>,
+    pub p: Vec2,
+    pub p_desired: Vec2,
+    pub tracking_error: f64,
+    pub sigma_min: f64,
+    /// The damping λ used (0 away from singularities).
+    pub damping: f64,
+    /// Secondary-task value: w for manipulability, h for obstacles, 0 otherwise.
+    pub secondary_value: f64,
+    /// |q̇(t) − q̇(t − τ)|: the Pyragas residual, whether or not the feedback is on.
+    pub period_residual: f64,
+    /// Obstacle clearance (m, negative: penetration); +∞ without obstacles.
+    pub clearance: f64,
+    /// Base attitude rate (floating model).
+    pub base_rate: f64,
+    pub flags: u32,
+}
+
+impl LawParams {
+    /// Whether the delayed term applies at time t.
+    #[inline]
+    pub fn feedback_active(&self, t: f64) -> bool {
+        self.feedback && self.mu != 0.0 && t >= self.t_on
+    }
+}
+
+/// Smallest singular value of a 2×n matrix from the 2×2 Gram matrix.
+#[inline]
+fn sigma_min(a: &Matrix2<f64>) -> f64 {
+    let m = 0.5 * (a[(0, 0)] + a[(1, 1)]);
+    let d = 0.5 * (a[(0, 0)] - a[(1, 1)]);
+    let r = (d * d + a[(0, 1)] * a[(0, 1)]).sqrt();
+    (m - r).max(0.0).sqrt()
+}
+
+/// Evaluates the law at time `t` for state (φ, q, q̇) with delayed velocity q̇(t − τ).
+///
+/// `kin` is scratch; on return it holds the kinematics at the state.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate<const N: usize>(
+    params: &LawParams,
+    model: &ArmModel<N>,
+    t: f64,
+    phi: f64,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+    qd_delayed: &VecN<N>,
+    kin: &mut Kinematics<N>,
+) -> ControlOutput<N> {
+    model.kinematics(phi, q, qd, kin);
+    let target = params.task.at(t);
+    let j: &Jac<N> = &kin.j;
+    let mut flag = 0u32;
+
+    // Damped pseudo-inverse J⁺ = Jᵀ(JJᵀ + λ²I)⁻¹.
+    let a = j * j.transpose();
+    let smin = sigma_min(&a);
+    let mut lambda2 = 0.0;
+    if smin < params.damping_threshold {
+        let r = smin / params.damping_threshold;
+        lambda2 = (1.0 - r * r) * params.damping_max * params.damping_max;
+        flag |= flags::SINGULAR;
+    }
+    let m = a + Matrix2::identity() * lambda2;
+    let det = m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)];
+    let minv = Matrix2::new(m[(1, 1)], -m[(0, 1)], -m[(1, 0)], m[(0, 0)]) / det;
+    let jpinv = j.transpose() * minv;
+
+    let err = target.p - kin.p;
+    let task_acc = target.a + (target.v - j * qd) * params.kv + err * params.kp - kin.jdot_qd;
+    let mut qdd = jpinv * task_acc;
+
+    let mut secondary_value = 0.0;
+    let eta = match params.secondary {
+        Secondary::None => None,
+        Secondary::Manipulability => {
+            let (w, g) = model.manipulability(q, kin);
+            secondary_value = w;
+            Some(g)
+        }
+        Secondary::Obstacles => {
+            let (h, g) = secondary::potential(kin, &params.obstacles, params.weights);
+            secondary_value = h;
+            Some(-g)
+        }
+    };
+    if let Some(eta) = eta {
+        // α(I − J⁺J)η without forming the n×n projector.
+        qdd += (eta - jpinv * (j * eta)) * params.alpha;
+    }
+
+    let diff = qd - qd_delayed;
+    if params.feedback_active(t) {
+        qdd -= diff * params.mu;
+        flag |= flags::FEEDBACK_ACTIVE;
+    }
+
+    let (clearance, in_zone) = if params.obstacles.is_empty() {
+        (f64::INFINITY, false)
+    } else {
+        secondary::clearance(kin, &params.obstacles)
+    };
+    if in_zone {
+        flag |= flags::IN_SAFETY_ZONE;
+    }
+    let tracking_error = err.norm();
+    if !(tracking_error <= params.track_loss) {
+        flag |= flags::TRACK_LOST;
+    }
+    let from_base = (target.p - kin.points[0]).norm();
+    if from_base > model.reach() || from_base < model.inner_reach() {
+        flag |= flags::OUT_OF_REACH;
+    }
+    if !qdd.iter().all(|v| v.is_finite()) {
+        qdd = VecN::<N>::zeros();
+        flag |= flags::NONFINITE;
+    }
+    ControlOutput {
+        qdd,
+        p: kin.p,
+        p_desired: target.p,
+        tracking_error,
+        sigma_min: smin,
+        damping: lambda2.sqrt(),
+        secondary_value,
+        period_residual: diff.norm(),
+        clearance,
+        base_rate: kin.base_rate,
+        flags: flag,
+    }
+}

@@ -1,0 +1,23 @@
+//! chaosd's pure-math core.
+//!
+//! **Architecture invariant:** this crate does no I/O, spawns no threads, reads no clock and knows
+//! nothing of iceoryx2. It is the single implementation of the arm models and the control law that
+//! the offline tools, the real-time daemon and the simulated plant all share, so an offline result
+//! and a live run can never disagree because of duplicated math. The step paths (`law::evaluate`,
+//! `Simulation::step`, `DelayLine::push/sample`) never allocate; `tests/no_alloc.rs` proves it.
+
+pub mod arm;
+pub mod config;
+pub mod delay;
+pub mod dual;
+pub mod law;
+pub mod secondary;
+pub mod sim;
+pub mod task;
+
+pub use arm::{ArmModel, FixedArm, FloatingArm, Jac, Kinematics, Vec2, VecN};
+pub use config::{Config, ConfigError, MAX_JOINTS, MIN_JOINTS};
+pub use delay::DelayLine;
+pub use law::{ControlOutput, LawParams, Secondary};
+pub use sim::{ArmState, RunStats, Simulation, Summary};
+pub use task::Circle;

@@ -1,0 +1,183 @@
+//! Secondary tasks for the null space: the obstacle-avoidance potential of SCIENCE.md §2.
+//!
+//! The potential is a sum of one-sided quadratic penalties, so its gradient is written out by
+//! the chain rule over the joint positions and their Jacobians, which both arm models provide.
+//! Obstacles live in a fixed-capacity array so a parameter block stays `Copy` and can be handed to
+//! the real-time loop without allocating.
+
+use crate::arm::{Jac, Kinematics, Vec2, VecN};
+
+/// The most obstacles one parameter block holds.
+pub const MAX_OBSTACLES: usize = 16;
+
+/// A circular obstacle O_i with radius r_i and safety margin s_i.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Obstacle {
+    pub center: Vec2,
+    pub radius: f64,
+    pub margin: f64,
+}
+
+impl Default for Obstacle {
+    fn default() -> Self {
+        Self {
+            center: Vec2::zeros(),
+            radius: 0.0,
+            margin: 0.0,
+        }
+    }
+}
+
+/// Up to [`MAX_OBSTACLES`] obstacles, stored inline.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct ObstacleSet {
+    items: [Obstacle; MAX_OBSTACLES],
+    len: usize,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("at most {MAX_OBSTACLES} obstacles are supported")]
+pub struct ObstaclesFull;
+
+impl ObstacleSet {
+    pub fn new() -> Self {
+        Self::default()
+    }
+    pub fn push(&mut self, o: Obstacle) -> Result<usize, ObstaclesFull> {
+        if self.len == MAX_OBSTACLES {
+            return Err(ObstaclesFull);
+        }
+        self.items[self.len] = o;
+        self.len += 1;
+        Ok(self.len - 1)
+    }
+    /// Removes obstacle `i`, keeping the order of the rest.
+    pub fn remove(&mut self, i: usize) -> Option<Obstacle> {
+        if i >= self.len {
+            return None;
+        }
+        let o = self.items[i];
+        self.items.copy_within(i + 1..self.len, i);
+        self.len -= 1;
+        Some(o)
+    }
+    pub fn as_slice(&self) -> &[Obstacle] {
+        &self.items[..self.len]
+    }
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+}
+
+impl FromIterator<Obstacle> for ObstacleSet {
+    /// Collects up to [`MAX_OBSTACLES`]; callers validate the count first.
+    fn from_iter<I: IntoIterator<Item = Obstacle>>(iter: I) -> Self {
+        let mut s = Self::new();
+        for o in iter.into_iter().take(MAX_OBSTACLES) {
+            let _ = s.push(o);
+        }
+        s
+    }
+}
+
+/// Weights W₁ (link-distance terms) and W₂ (joint-distance terms).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PotentialWeights {
+    pub w1: f64,
+    pub w2: f64,
+}
+
+#[inline(always)]
+fn cross(a: Vec2, b: Vec2) -> f64 {
+    a.x * b.y - a.y * b.x
+}
+
+/// Link j's end points and their Jacobians.
+#[inline(always)]
+fn link<const N: usize>(kin: &Kinematics<N>, j: usize) -> (Vec2, Vec2, &Jac<N>, &Jac<N>) {
+    if j + 1 < N {
+        (
+            kin.points[j],
+            kin.points[j + 1],
+            &kin.point_jac[j],
+            &kin.point_jac[j + 1],
+        )
+    } else {
+        (kin.points[j], kin.p, &kin.point_jac[j], &kin.ee_jac)
+    }
+}
+
+/// The potential h(q) and its gradient ∇h (at fixed base attitude).
+pub fn potential<const N: usize>(
+    kin: &Kinematics<N>,
+    obstacles: &ObstacleSet,
+    w: PotentialWeights,
+) -> (f64, VecN<N>) {
+    let mut h = 0.0;
+    let mut grad = VecN::<N>::zeros();
+    for o in obstacles.as_slice() {
+        let reach = o.radius + o.margin;
+        for j in 0..N {
+            let (a, b, ja, jb) = link(kin, j);
+            // F¹: distance to the line of link j, when the foot lies on the link.
+            let d = b - a;
+            let l2 = d.norm_squared();
+            if l2 > 0.0 {
+                let rel = o.center - a;
+                let t = rel.dot(&d) / l2;
+                if (0.0..=1.0).contains(&t) {
+                    let l = l2.sqrt();
+                    let sigma = cross(d, rel);
+                    let e = sigma.abs() / l - reach;
+                    if e < 0.0 {
+                        h += 0.5 * w.w1 * e * e;
+                        let sgn = sigma.signum() / l;
+                        for k in 0..N {
+                            let dd = jb.column(k) - ja.column(k);
+                            let da = ja.column(k).into_owned();
+                            // The link length is constant, so only σ moves.
+                            let dsigma = cross(dd, rel) - cross(d, da);
+                            grad[k] += w.w1 * e * sgn * dsigma;
+                        }
+                    }
+                }
+            }
+            // F²: distance to joint j+1 (P_2 … P_{n+1}).
+            let rel = b - o.center;
+            let d2 = rel.norm();
+            let e = d2 - reach;
+            if e < 0.0 && d2 > 0.0 {
+                h += 0.5 * w.w2 * e * e;
+                let g = jb.transpose() * (rel / d2);
+                grad += g * (w.w2 * e);
+            }
+        }
+    }
+    (h, grad)
+}
+
+/// Smallest distance from an obstacle's surface to the arm (negative: penetration), and
+/// whether any part of the arm is inside an obstacle's safety zone r_i + s_i.
+pub fn clearance<const N: usize>(kin: &Kinematics<N>, obstacles: &ObstacleSet) -> (f64, bool) {
+    let mut min = f64::INFINITY;
+    let mut in_zone = false;
+    for o in obstacles.as_slice() {
+        for j in 0..N {
+            let (a, b, _, _) = link(kin, j);
+            let d = b - a;
+            let l2 = d.norm_squared();
+            let t = if l2 > 0.0 {
+                ((o.center - a).dot(&d) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let dist = (a + d * t - o.center).norm();
+            min = min.min(dist - o.radius);
+            in_zone |= dist < o.radius + o.margin;
+        }
+    }
+    (min, in_zone)
+}

@@ -1,0 +1,311 @@
+//! The deterministic in-process simulation: plant model and control law coupled by the
+//! conventions of SCIENCE.md §3.
+//!
+//! The plant here is the kinematic one of the paper: the commanded q̈ is the joint acceleration,
+//! and for the floating base φ follows φ̇ = −H_b⁻¹H_bm q̇. The control law is evaluated at every RK4
+//! stage, reading q̇(s − τ) from the delay line, which holds q̇ at every grid time. Time is always
+//! `step_index · dt`, never accumulated, so two runs with the same inputs are bit-identical and a
+//! run is reproducible from its config alone.
+
+use crate::arm::{ArmModel, Kinematics, VecN};
+use crate::delay::DelayLine;
+use crate::law::{self, flags, ControlOutput, LawParams};
+
+/// A state an explicit Runge-Kutta method can combine.
+pub trait OdeState: Copy {
+    /// self + h·k
+    fn add_scaled(&self, k: &Self, h: f64) -> Self;
+}
+
+/// One classical RK4 step of size `dt`. `f(c, x)` is the derivative at stage fraction c ∈ {0, ½, 1}.
+#[inline]
+pub fn rk4_step<S: OdeState>(x: &S, dt: f64, mut f: impl FnMut(f64, &S) -> S) -> S {
+    let k1 = f(0.0, x);
+    let k2 = f(0.5, &x.add_scaled(&k1, 0.5 * dt));
+    let k3 = f(0.5, &x.add_scaled(&k2, 0.5 * dt));
+    let k4 = f(1.0, &x.add_scaled(&k3, dt));
+    x.add_scaled(&k1, dt / 6.0)
+        .add_scaled(&k2, dt / 3.0)
+        .add_scaled(&k3, dt / 3.0)
+        .add_scaled(&k4, dt / 6.0)
+}
+
+/// Joint angles, joint rates and (floating base) the base attitude.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ArmState<const N: usize> {
+    pub q: VecN<N>,
+    pub qd: VecN<N>,
+    pub phi: f64,
+}
+
+impl<const N: usize> OdeState for ArmState<N> {
+    #[inline(always)]
+    fn add_scaled(&self, k: &Self, h: f64) -> Self {
+        Self {
+            q: self.q + k.q * h,
+            qd: self.qd + k.qd * h,
+            phi: self.phi + k.phi * h,
+        }
+    }
+}
+
+impl<const N: usize> ArmState<N> {
+    pub fn is_finite(&self) -> bool {
+        self.phi.is_finite() && self.q.iter().chain(self.qd.iter()).all(|v| v.is_finite())
+    }
+}
+
+/// The time derivative of the kinematic plant under a commanded acceleration.
+#[inline]
+pub fn plant_derivative<const N: usize>(
+    x: &ArmState<N>,
+    qdd: &VecN<N>,
+    base_rate: f64,
+) -> ArmState<N> {
+    ArmState {
+        q: x.qd,
+        qd: *qdd,
+        phi: base_rate,
+    }
+}
+
+/// A closed-loop simulation. Owns its delay line (sized once) and scratch; `step` allocates nothing.
+#[derive(Clone, Debug)]
+pub struct Simulation<const N: usize> {
+    pub model: ArmModel<N>,
+    pub params: LawParams,
+    dt: f64,
+    delay: DelayLine<N>,
+    step_index: u64,
+    state: ArmState<N>,
+    kin: Kinematics<N>,
+}
+
+impl<const N: usize> Simulation<N> {
+    /// `max_tau` fixes the delay-line capacity; `params.tau` may later change up to it.
+    pub fn new(
+        model: ArmModel<N>,
+        params: LawParams,
+        dt: f64,
+        initial: ArmState<N>,
+        max_tau: f64,
+    ) -> Self {
+        let max_tau = max_tau.max(params.tau);
+        Self {
+            model,
+            params,
+            dt,
+            delay: DelayLine::new(max_tau / dt, initial.qd),
+            step_index: 0,
+            state: initial,
+            kin: Kinematics::default(),
+        }
+    }
+
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+    pub fn step_index(&self) -> u64 {
+        self.step_index
+    }
+    pub fn time(&self) -> f64 {
+        self.step_index as f64 * self.dt
+    }
+    pub fn state(&self) -> &ArmState<N> {
+        &self.state
+    }
+    pub fn state_mut(&mut self) -> &mut ArmState<N> {
+        &mut self.state
+    }
+    pub fn delay(&self) -> &DelayLine<N> {
+        &self.delay
+    }
+    pub fn delay_mut(&mut self) -> &mut DelayLine<N> {
+        &mut self.delay
+    }
+
+    /// Advances one step of dt. Returns the control output at the start of the step (time t_k).
+    pub fn step(&mut self) -> ControlOutput<N> {
+        let k = self.step_index as f64;
+        self.delay.push(self.state.qd);
+        let tau_steps = self.params.tau / self.dt;
+        let (dt, model, params, delay) = (self.dt, &self.model, &self.params, &self.delay);
+        let kin = &mut self.kin;
+        let mut first = None;
+        self.state = rk4_step(&self.state, dt, |c, x| {
+            let s = (k + c) * dt;
+            let delayed = delay.sample(k + c - tau_steps);
+            let out = law::evaluate(params, model, s, x.phi, &x.q, &x.qd, &delayed, kin);
+            if first.is_none() {
+                first = Some(out);
+            }
+            plant_derivative(x, &out.qdd, out.base_rate)
+        });
+        self.step_index += 1;
+        first.expect("rk4 evaluates stage 1")
+    }
+}
+
+/// Windowed statistics of a run, accumulated step by step without allocation.
+#[derive(Clone, Debug)]
+pub struct RunStats<const N: usize> {
+    period: f64,
+    dt: f64,
+    transient: f64,
+    t_on: f64,
+    end: f64,
+    feedback_used: bool,
+    history: DelayLine<N>,
+    pub steps_after_transient: u64,
+    sq_err: f64,
+    pub max_tracking_error: f64,
+    pub track_lost_steps: u64,
+    pub first_track_loss: Option<f64>,
+    pub singular_steps: u64,
+    pub out_of_reach_steps: u64,
+    pub nonfinite_steps: u64,
+    pub min_clearance: f64,
+    pub safety_zone_steps: u64,
+    before: (f64, u64),
+    after: (f64, u64),
+    strobe: [Option<ArmState<N>>; 2],
+    next_strobe: u64,
+}
+
+/// The human summary of a run (SCIENCE.md units: m, rad, s).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Summary {
+    pub duration: f64,
+    pub transient: f64,
+    pub rms_tracking_error: f64,
+    pub max_tracking_error: f64,
+    pub track_lost_fraction: f64,
+    pub first_track_loss: Option<f64>,
+    pub singular_fraction: f64,
+    pub out_of_reach_fraction: f64,
+    pub nonfinite_steps: u64,
+    /// Mean |q̇(t) − q̇(t − T)| over the 10 periods before feedback switches on (None if too short).
+    pub period_residual_before: Option<f64>,
+    /// The same over the last 10 periods of the run.
+    pub period_residual_final: Option<f64>,
+    /// |x(kT) − x((k−1)T)| at the last two stroboscopic samples.
+    pub strobe_return: Option<f64>,
+    pub min_clearance: Option<f64>,
+    pub time_in_safety_zone: f64,
+}
+
+impl<const N: usize> RunStats<N> {
+    /// Statistics for a run of `duration` s whose transient lasts `transient` s.
+    pub fn new(
+        params: &LawParams,
+        dt: f64,
+        duration: f64,
+        transient: f64,
+        initial: &ArmState<N>,
+    ) -> Self {
+        let period = params.task.period;
+        Self {
+            period,
+            dt,
+            transient,
+            t_on: params.t_on,
+            end: duration,
+            feedback_used: params.feedback && params.mu != 0.0,
+            history: DelayLine::new(period / dt, initial.qd),
+            steps_after_transient: 0,
+            sq_err: 0.0,
+            max_tracking_error: 0.0,
+            track_lost_steps: 0,
+            first_track_loss: None,
+            singular_steps: 0,
+            out_of_reach_steps: 0,
+            nonfinite_steps: 0,
+            min_clearance: f64::INFINITY,
+            safety_zone_steps: 0,
+            before: (0.0, 0),
+            after: (0.0, 0),
+            strobe: [None, None],
+            next_strobe: 0,
+        }
+    }
+
+    /// Records the state at grid step `k` (time k·dt) and the control output computed there.
+    pub fn record(&mut self, k: u64, x: &ArmState<N>, out: &ControlOutput<N>) {
+        let t = k as f64 * self.dt;
+        self.history.push(x.qd);
+        let back = self.history.sample(k as f64 - self.period / self.dt);
+        let resid = (x.qd - back).norm();
+        let w = 10.0 * self.period;
+        if t >= self.period {
+            let before_end = if self.feedback_used {
+                self.t_on
+            } else {
+                f64::INFINITY
+            };
+            if t < before_end && t >= before_end - w {
+                self.before.0 += resid;
+                self.before.1 += 1;
+            }
+            if t >= self.end - w {
+                self.after.0 += resid;
+                self.after.1 += 1;
+            }
+        }
+        if (k as f64) * self.dt >= self.next_strobe as f64 * self.period {
+            self.strobe = [self.strobe[1], Some(*x)];
+            self.next_strobe += 1;
+        }
+        self.min_clearance = self.min_clearance.min(out.clearance);
+        if out.flags & flags::IN_SAFETY_ZONE != 0 {
+            self.safety_zone_steps += 1;
+        }
+        if out.flags & flags::NONFINITE != 0 {
+            self.nonfinite_steps += 1;
+        }
+        if t < self.transient {
+            return;
+        }
+        self.steps_after_transient += 1;
+        self.sq_err += out.tracking_error * out.tracking_error;
+        self.max_tracking_error = self.max_tracking_error.max(out.tracking_error);
+        if out.flags & flags::TRACK_LOST != 0 {
+            self.track_lost_steps += 1;
+            self.first_track_loss.get_or_insert(t);
+        }
+        if out.flags & flags::SINGULAR != 0 {
+            self.singular_steps += 1;
+        }
+        if out.flags & flags::OUT_OF_REACH != 0 {
+            self.out_of_reach_steps += 1;
+        }
+    }
+
+    pub fn summary(&self) -> Summary {
+        let n = self.steps_after_transient.max(1) as f64;
+        let mean = |(s, c): (f64, u64)| if c > 0 { Some(s / c as f64) } else { None };
+        let strobe_return = match self.strobe {
+            [Some(a), Some(b)] => {
+                let dq = b.q - a.q;
+                let dqd = b.qd - a.qd;
+                Some((dq.norm_squared() + dqd.norm_squared()).sqrt())
+            }
+            _ => None,
+        };
+        Summary {
+            duration: self.end,
+            transient: self.transient,
+            rms_tracking_error: (self.sq_err / n).sqrt(),
+            max_tracking_error: self.max_tracking_error,
+            track_lost_fraction: self.track_lost_steps as f64 / n,
+            first_track_loss: self.first_track_loss,
+            singular_fraction: self.singular_steps as f64 / n,
+            out_of_reach_fraction: self.out_of_reach_steps as f64 / n,
+            nonfinite_steps: self.nonfinite_steps,
+            period_residual_before: mean(self.before),
+            period_residual_final: mean(self.after),
+            strobe_return,
+            min_clearance: self.min_clearance.is_finite().then_some(self.min_clearance),
+            time_in_safety_zone: self.safety_zone_steps as f64 * self.dt,
+        }
+    }
+}
