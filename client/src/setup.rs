@@ -32,17 +32,21 @@ pub struct ModelArgs {
     pub dt: Option<f64>,
     /// Initial joint angles, comma-separated (rad).
     #[arg(long, value_parser = parse_list, allow_hyphen_values = true)]
-    pub q0: Option<Vec<f64>>,
+    pub q0: Option<FloatList>,
     /// Initial joint rates, comma-separated (rad/s).
     #[arg(long, value_parser = parse_list, allow_hyphen_values = true)]
-    pub qd0: Option<Vec<f64>>,
+    pub qd0: Option<FloatList>,
     /// Plant model: fixed or floating.
     #[arg(long, value_parser = parse_model)]
     pub model: Option<ModelKind>,
 }
 
+/// A comma-separated list of numbers given as one argument.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FloatList(pub Vec<f64>);
+
 /// Parses `a,b,c` into numbers, naming the bad item.
-pub fn parse_list(s: &str) -> Result<Vec<f64>, String> {
+pub fn parse_list(s: &str) -> Result<FloatList, String> {
     s.split(',')
         .map(|x| {
             let x = x.trim();
@@ -50,7 +54,8 @@ pub fn parse_list(s: &str) -> Result<Vec<f64>, String> {
                 format!("{x:?} is not a number (expected a comma-separated list like 0,1.57,1.57)")
             })
         })
-        .collect()
+        .collect::<Result<Vec<_>, _>>()
+        .map(FloatList)
 }
 
 fn parse_model(s: &str) -> Result<ModelKind, String> {
@@ -94,10 +99,10 @@ impl ModelArgs {
             cfg.sim.dt = v;
         }
         if let Some(v) = &self.q0 {
-            cfg.sim.q0 = Some(v.clone());
+            cfg.sim.q0 = Some(v.0.clone());
         }
         if let Some(v) = &self.qd0 {
-            cfg.sim.qd0 = Some(v.clone());
+            cfg.sim.qd0 = Some(v.0.clone());
         }
         if let Some(m) = self.model {
             cfg.arm.model = m;

@@ -10,7 +10,7 @@
 use crate::arm::{ArmModel, Jac, Kinematics, Vec2, VecN};
 use crate::secondary::{self, ObstacleSet, PotentialWeights};
 use crate::task::Circle;
-use nalgebra::Matrix2;
+use nalgebra::{Matrix2, SMatrix};
 
 /// Which secondary task drives the null space.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -106,6 +106,23 @@ fn sigma_min(a: &Matrix2<f64>) -> f64 {
     (m - r).max(0.0).sqrt()
 }
 
+/// The damped pseudo-inverse J⁺ = Jᵀ(JJᵀ + λ²I)⁻¹ with λ² = (1 − (σ_min/ε)²) λ_max² below the
+/// threshold ε and 0 above it. Returns (J⁺, σ_min, λ). Finite for every finite J when λ_max > 0.
+#[inline]
+pub fn damped_pinv<const N: usize>(j: &Jac<N>, threshold: f64, lambda_max: f64) -> (SMatrix<f64, N, 2>, f64, f64) {
+    let a = j * j.transpose();
+    let smin = sigma_min(&a);
+    let mut lambda2 = 0.0;
+    if smin < threshold {
+        let r = smin / threshold;
+        lambda2 = (1.0 - r * r) * lambda_max * lambda_max;
+    }
+    let m = a + Matrix2::identity() * lambda2;
+    let det = m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)];
+    let minv = Matrix2::new(m[(1, 1)], -m[(0, 1)], -m[(1, 0)], m[(0, 0)]) / det;
+    (j.transpose() * minv, smin, lambda2.sqrt())
+}
+
 /// Evaluates the law at time `t` for state (φ, q, q̇) with delayed velocity q̇(t − τ).
 ///
 /// `kin` is scratch; on return it holds the kinematics at the state.
@@ -126,20 +143,10 @@ pub fn evaluate<const N: usize>(
     let j: &Jac<N> = &kin.j;
     let mut flag = 0u32;
 
-    // Damped pseudo-inverse J⁺ = Jᵀ(JJᵀ + λ²I)⁻¹.
-    let a = j * j.transpose();
-    let smin = sigma_min(&a);
-    let mut lambda2 = 0.0;
-    if smin < params.damping_threshold {
-        let r = smin / params.damping_threshold;
-        lambda2 = (1.0 - r * r) * params.damping_max * params.damping_max;
+    let (jpinv, smin, lambda) = damped_pinv(j, params.damping_threshold, params.damping_max);
+    if lambda > 0.0 {
         flag |= flags::SINGULAR;
     }
-    let m = a + Matrix2::identity() * lambda2;
-    let det = m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)];
-    let minv = Matrix2::new(m[(1, 1)], -m[(0, 1)], -m[(1, 0)], m[(0, 0)]) / det;
-    let jpinv = j.transpose() * minv;
-
     let err = target.p - kin.p;
     let task_acc = target.a + (target.v - j * qd) * params.kv + err * params.kp - kin.jdot_qd;
     let mut qdd = jpinv * task_acc;
@@ -195,7 +202,7 @@ pub fn evaluate<const N: usize>(
         p_desired: target.p,
         tracking_error,
         sigma_min: smin,
-        damping: lambda2.sqrt(),
+        damping: lambda,
         secondary_value,
         period_residual: diff.norm(),
         clearance,

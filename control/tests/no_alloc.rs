@@ -1,0 +1,87 @@
+//! Proves the step paths allocate nothing: a counting global allocator, armed per thread.
+//!
+//! It lives in its own test binary because a `#[global_allocator]` applies to the whole binary.
+
+use control::law::evaluate;
+use control::{with_dof, Config, DelayLine, Kinematics, Simulation, VecN};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+struct Counting;
+
+thread_local! {
+    static ARMED: Cell<bool> = const { Cell::new(false) };
+    static COUNT: Cell<u64> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        let _ = ARMED.try_with(|a| {
+            if a.get() {
+                COUNT.with(|c| c.set(c.get() + 1));
+            }
+        });
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new: usize) -> *mut u8 {
+        let _ = ARMED.try_with(|a| {
+            if a.get() {
+                COUNT.with(|c| c.set(c.get() + 1));
+            }
+        });
+        unsafe { System.realloc(ptr, layout, new) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// Number of allocations `f` makes on this thread.
+fn allocations(f: impl FnOnce()) -> u64 {
+    COUNT.with(|c| c.set(0));
+    ARMED.with(|a| a.set(true));
+    f();
+    ARMED.with(|a| a.set(false));
+    COUNT.with(|c| c.get())
+}
+
+#[test]
+fn the_counter_sees_allocations() {
+    // Guards against a counter that can never fire.
+    let n = allocations(|| {
+        let v: Vec<u8> = Vec::with_capacity(std::hint::black_box(64));
+        std::hint::black_box(v);
+    });
+    assert_eq!(n, 1);
+}
+
+#[test]
+fn control_step_and_rk4_step_allocate_nothing() {
+    for preset in ["paper", "paper-obstacle", "paper-floating"] {
+        let mut cfg = Config::preset(preset).unwrap();
+        cfg.feedback.mu = 1.0;
+        cfg.feedback.t_on = 0.1;
+        with_dof!(cfg.n(), N => {
+            let params = cfg.law_params();
+            let model = cfg.model::<N>();
+            let mut sim = Simulation::new(model, params, cfg.sim.dt, cfg.initial_state(), cfg.feedback.max_tau);
+            let mut kin = Kinematics::<N>::default();
+            let mut delay = DelayLine::<N>::new(1000.0, VecN::<N>::zeros());
+            let n = allocations(|| {
+                for _ in 0..2000 {
+                    std::hint::black_box(sim.step());
+                }
+                let x = *sim.state();
+                for _ in 0..100 {
+                    delay.push(x.qd);
+                    let d = delay.sample(delay.len() as f64 - 10.5);
+                    std::hint::black_box(evaluate(&params, &model, 1.0, x.phi, &x.q, &x.qd, &d, &mut kin));
+                }
+            });
+            assert_eq!(n, 0, "{preset}: the step path allocated {n} times");
+        });
+    }
+}
