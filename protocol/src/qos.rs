@@ -1,0 +1,304 @@
+//! The iceoryx2 quality-of-service settings of every chaosd service, and the only functions that
+//! open those services.
+//!
+//! iceoryx2 fixes a service's capacities when the first process *creates* it. A later process
+//! that *opens* it only has to ask for no more than that: an opener asking for a smaller buffer
+//! is accepted silently and gets the creator's values. So whichever of daemon and plant starts
+//! first would decide the queue depths. The `open_*` functions here therefore apply one set of
+//! constants and then check that the service they got matches them exactly
+//! ([`ServiceError::QosMismatch`]). The payload type name (with [`crate::WIRE_VERSION`]), size
+//! and alignment, and the overflow behaviour, are compared by iceoryx2 itself.
+//!
+//! ## Why these numbers (state and command)
+//!
+//! * `history_size = 1`: a subscriber that joins late (a monitor, a restarted daemon) gets the
+//!   latest sample, never a backlog. iceoryx2 delivers it on the publisher's next send.
+//! * `subscriber_max_buffer_size = 4`: the consumer drains its queue every tick and keeps only
+//!   the newest sample. Four slots let it run up to three periods late and still see, and count,
+//!   every sample; more would only keep staler data around.
+//! * `subscriber_max_borrowed_samples = 2`: a subscriber may hold the sample it is using while it
+//!   receives the next one.
+//! * `safe_overflow = true`: when a queue is full the oldest entry is overwritten. The real-time
+//!   publisher never waits for a slow, stopped or SIGKILLed subscriber (iceoryx2's default
+//!   without overflow is to retry until the sample is delivered).
+//! * `max_publishers = 1`: one writer per namespace, enforced by iceoryx2. A second plant or
+//!   daemon started in the same namespace fails at start-up with `ExceedsMaxSupportedPublishers`
+//!   instead of interleaving two streams. A process that restarts after a crash still gets the
+//!   slot: by default `NodeBuilder::create` removes the resources of dead nodes first, which
+//!   frees the old publisher. A graceful restart must wait for the old process to exit (or
+//!   retry for a moment).
+//! * `max_subscribers = 8`: the peer, a live monitor, a recorder, and room for spares. A dead
+//!   subscriber keeps its slot until its node is cleaned up.
+//! * `max_nodes = 16`: more than enough nodes for the processes above.
+
+use core::fmt::{self, Debug};
+
+use iceoryx2::node::Node;
+use iceoryx2::prelude::{EventId, PortFactory as _, ServiceName, ZeroCopySend};
+use iceoryx2::service::builder::event::EventOpenOrCreateError;
+use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenOrCreateError;
+use iceoryx2::service::port_factory::{event, publish_subscribe};
+
+use crate::names::ServiceNames;
+use crate::sample::{CommandSample, StateSample};
+
+/// The opened state service (plant publishes, daemon subscribes).
+pub type StateService<S> = publish_subscribe::PortFactory<S, StateSample, ()>;
+/// The opened command service (daemon publishes, plant subscribes).
+pub type CommandService<S> = publish_subscribe::PortFactory<S, CommandSample, ()>;
+/// The opened event service.
+pub type EventsService<S> = event::PortFactory<S>;
+
+/// Settings of a publish-subscribe service.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PubSubQos {
+    pub history_size: usize,
+    pub subscriber_max_buffer_size: usize,
+    pub subscriber_max_borrowed_samples: usize,
+    pub max_publishers: usize,
+    pub max_subscribers: usize,
+    pub max_nodes: usize,
+    pub safe_overflow: bool,
+}
+
+/// QoS of the state service. See the module docs for the reasoning.
+pub const STATE_QOS: PubSubQos = PubSubQos {
+    history_size: 1,
+    subscriber_max_buffer_size: 4,
+    subscriber_max_borrowed_samples: 2,
+    max_publishers: 1,
+    max_subscribers: 8,
+    max_nodes: 16,
+    safe_overflow: true,
+};
+
+/// QoS of the command service: the same trade-offs as the state service.
+pub const COMMAND_QOS: PubSubQos = STATE_QOS;
+
+/// Settings of an event service.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EventQos {
+    pub max_notifiers: usize,
+    pub max_listeners: usize,
+    pub max_nodes: usize,
+    pub event_id_max_value: usize,
+    /// Event emitted to listeners when a notifier's node is found dead and cleaned up.
+    pub notifier_dead_event: usize,
+}
+
+/// QoS of the event service: plant, daemon, a benchmark and a spare on each side.
+pub const EVENTS_QOS: EventQos = EventQos {
+    max_notifiers: 4,
+    max_listeners: 4,
+    max_nodes: 16,
+    event_id_max_value: event_ids::MAX,
+    notifier_dead_event: event_ids::PEER_DIED,
+};
+
+/// Event ids used on the event service.
+pub mod event_ids {
+    /// The plant published a new [`crate::StateSample`].
+    pub const STATE_PUBLISHED: usize = 1;
+    /// The daemon published a new [`crate::CommandSample`].
+    pub const COMMAND_PUBLISHED: usize = 2;
+    /// Emitted by iceoryx2 when the node of a notifier was found dead and cleaned up.
+    pub const PEER_DIED: usize = 3;
+    /// Largest id the service accepts (keeps the listener's bit set small).
+    pub const MAX: usize = 15;
+}
+
+/// Which chaosd service an error is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Channel {
+    State,
+    Command,
+    Events,
+}
+
+impl fmt::Display for Channel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Channel::State => "state",
+            Channel::Command => "command",
+            Channel::Events => "events",
+        })
+    }
+}
+
+/// Why a chaosd service could not be opened.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ServiceError {
+    #[error("the {channel} service name is not a valid iceoryx2 service name")]
+    InvalidName { channel: Channel },
+    /// `IncompatibleTypes` here means the peer was built with another wire version.
+    #[error("cannot open or create the {channel} service: {source}")]
+    PubSub {
+        channel: Channel,
+        source: PublishSubscribeOpenOrCreateError,
+    },
+    #[error("cannot open or create the {channel} service: {source}")]
+    Event {
+        channel: Channel,
+        source: EventOpenOrCreateError,
+    },
+    #[error(
+        "the {channel} service already exists with {setting} = {found}, but this build uses \
+         {expected}; it was created by another chaosd build, so stop that or use another namespace"
+    )]
+    QosMismatch {
+        channel: Channel,
+        setting: &'static str,
+        found: usize,
+        expected: usize,
+    },
+}
+
+fn service_name(name: &str, channel: Channel) -> Result<ServiceName, ServiceError> {
+    ServiceName::new(name).map_err(|_| ServiceError::InvalidName { channel })
+}
+
+fn expect(
+    channel: Channel,
+    setting: &'static str,
+    found: usize,
+    expected: usize,
+) -> Result<(), ServiceError> {
+    if found == expected {
+        Ok(())
+    } else {
+        Err(ServiceError::QosMismatch {
+            channel,
+            setting,
+            found,
+            expected,
+        })
+    }
+}
+
+fn open_pubsub<S, T>(
+    node: &Node<S>,
+    name: &str,
+    channel: Channel,
+    qos: &PubSubQos,
+) -> Result<publish_subscribe::PortFactory<S, T, ()>, ServiceError>
+where
+    S: iceoryx2::service::Service,
+    T: Debug + ZeroCopySend,
+{
+    let service = node
+        .service_builder(&service_name(name, channel)?)
+        .publish_subscribe::<T>()
+        .history_size(qos.history_size)
+        .subscriber_max_buffer_size(qos.subscriber_max_buffer_size)
+        .subscriber_max_borrowed_samples(qos.subscriber_max_borrowed_samples)
+        .max_publishers(qos.max_publishers)
+        .max_subscribers(qos.max_subscribers)
+        .max_nodes(qos.max_nodes)
+        .enable_safe_overflow(qos.safe_overflow)
+        .open_or_create()
+        .map_err(|source| ServiceError::PubSub { channel, source })?;
+
+    let found = service.static_config();
+    expect(
+        channel,
+        "history_size",
+        found.history_size(),
+        qos.history_size,
+    )?;
+    expect(
+        channel,
+        "subscriber_max_buffer_size",
+        found.subscriber_max_buffer_size(),
+        qos.subscriber_max_buffer_size,
+    )?;
+    expect(
+        channel,
+        "subscriber_max_borrowed_samples",
+        found.subscriber_max_borrowed_samples(),
+        qos.subscriber_max_borrowed_samples,
+    )?;
+    expect(
+        channel,
+        "max_publishers",
+        found.max_publishers(),
+        qos.max_publishers,
+    )?;
+    expect(
+        channel,
+        "max_subscribers",
+        found.max_subscribers(),
+        qos.max_subscribers,
+    )?;
+    expect(channel, "max_nodes", found.max_nodes(), qos.max_nodes)?;
+    // iceoryx2 already refuses a different overflow behaviour; keep the check anyway.
+    expect(
+        channel,
+        "safe_overflow",
+        usize::from(found.has_safe_overflow()),
+        usize::from(qos.safe_overflow),
+    )?;
+    Ok(service)
+}
+
+/// Opens (or creates) `chaosd/<ns>/state` with [`STATE_QOS`].
+pub fn open_state_service<S: iceoryx2::service::Service>(
+    node: &Node<S>,
+    names: &ServiceNames,
+) -> Result<StateService<S>, ServiceError> {
+    open_pubsub(node, names.state(), Channel::State, &STATE_QOS)
+}
+
+/// Opens (or creates) `chaosd/<ns>/command` with [`COMMAND_QOS`].
+pub fn open_command_service<S: iceoryx2::service::Service>(
+    node: &Node<S>,
+    names: &ServiceNames,
+) -> Result<CommandService<S>, ServiceError> {
+    open_pubsub(node, names.command(), Channel::Command, &COMMAND_QOS)
+}
+
+/// Opens (or creates) `chaosd/<ns>/events` with [`EVENTS_QOS`].
+pub fn open_events_service<S: iceoryx2::service::Service>(
+    node: &Node<S>,
+    names: &ServiceNames,
+) -> Result<EventsService<S>, ServiceError> {
+    const CHANNEL: Channel = Channel::Events;
+    let qos = &EVENTS_QOS;
+    let service = node
+        .service_builder(&service_name(names.events(), CHANNEL)?)
+        .event()
+        .max_notifiers(qos.max_notifiers)
+        .max_listeners(qos.max_listeners)
+        .max_nodes(qos.max_nodes)
+        .event_id_max_value(qos.event_id_max_value)
+        .notifier_dead_event(EventId::new(qos.notifier_dead_event))
+        .disable_notifier_created_event()
+        .disable_notifier_dropped_event()
+        .open_or_create()
+        .map_err(|source| ServiceError::Event {
+            channel: CHANNEL,
+            source,
+        })?;
+
+    let found = service.static_config();
+    expect(
+        CHANNEL,
+        "max_notifiers",
+        found.max_notifiers(),
+        qos.max_notifiers,
+    )?;
+    expect(
+        CHANNEL,
+        "max_listeners",
+        found.max_listeners(),
+        qos.max_listeners,
+    )?;
+    expect(CHANNEL, "max_nodes", found.max_nodes(), qos.max_nodes)?;
+    expect(
+        CHANNEL,
+        "event_id_max_value",
+        found.event_id_max_value(),
+        qos.event_id_max_value,
+    )?;
+    Ok(service)
+}

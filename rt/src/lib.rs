@@ -1,0 +1,14 @@
+//! Real-time plumbing shared by the daemon, the plant and the benchmarks.
+//!
+//! Each of these runs a fixed-rate loop on absolute deadlines, asks the kernel for real-time
+//! scheduling, stops on SIGINT/SIGTERM and writes latency histograms. Keeping that in one crate
+//! means the daemon and the plant wait, measure and report in exactly the same way, and the
+//! benchmarks measure the code the daemon really runs.
+
+pub mod clock;
+pub mod hist;
+pub mod setup;
+pub mod signal;
+
+pub use clock::{wait_until, WaitStrategy};
+pub use protocol::monotonic_ns;

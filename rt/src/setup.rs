@@ -1,0 +1,87 @@
+//! Asking the kernel for real-time treatment, and saying plainly what it refused.
+//!
+//! SCHED_FIFO and mlockall need privileges (CAP_SYS_NICE, RLIMIT_MEMLOCK) that a developer
+//! machine or container often lacks. chaosd then still runs, warns once, and at least sets the
+//! timer slack to its minimum so sleeps wake as close to the deadline as an ordinary thread can.
+
+use serde::Serialize;
+
+/// What to ask for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RtRequest {
+    /// Core to pin the calling thread to.
+    pub core: Option<usize>,
+    /// SCHED_FIFO priority (1..=99); 0 keeps the normal scheduler.
+    pub priority: u8,
+    /// mlockall(MCL_CURRENT | MCL_FUTURE).
+    pub lock_memory: bool,
+}
+
+/// What was granted.
+#[derive(Clone, Debug, Default, Serialize, PartialEq, Eq)]
+pub struct RtReport {
+    pub pinned_core: Option<usize>,
+    pub sched_fifo: Option<u8>,
+    pub memory_locked: bool,
+    pub timer_slack_ns: Option<u64>,
+    pub warnings: Vec<String>,
+}
+
+impl RtReport {
+    pub fn one_line(&self) -> String {
+        format!(
+            "core {}, {}, memory {}",
+            self.pinned_core.map(|c| c.to_string()).unwrap_or_else(|| "unpinned".into()),
+            self.sched_fifo.map(|p| format!("SCHED_FIFO {p}")).unwrap_or_else(|| "SCHED_OTHER (timer slack 1 ns)".into()),
+            if self.memory_locked { "locked" } else { "not locked" }
+        )
+    }
+}
+
+fn errno_text() -> String {
+    std::io::Error::last_os_error().to_string()
+}
+
+/// Applies `req` to the calling thread (and, for mlockall, the process).
+pub fn apply(req: RtRequest) -> RtReport {
+    let mut r = RtReport::default();
+    if let Some(core) = req.core {
+        let ids = core_affinity::get_core_ids().unwrap_or_default();
+        match ids.into_iter().find(|c| c.id == core) {
+            Some(id) if core_affinity::set_for_current(id) => r.pinned_core = Some(core),
+            Some(_) => r.warnings.push(format!("could not pin to core {core}")),
+            None => r.warnings.push(format!("core {core} does not exist or is not allowed; running unpinned")),
+        }
+    }
+    if req.priority > 0 {
+        let param = libc::sched_param { sched_priority: i32::from(req.priority) };
+        // SAFETY: valid param pointer; pid 0 is the calling thread.
+        let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+        if rc == 0 {
+            r.sched_fifo = Some(req.priority);
+        } else {
+            r.warnings.push(format!(
+                "SCHED_FIFO priority {} refused ({}); running with the normal scheduler",
+                req.priority,
+                errno_text()
+            ));
+        }
+    }
+    if req.lock_memory {
+        // SAFETY: plain syscall with flag arguments.
+        let rc = unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) };
+        if rc == 0 {
+            r.memory_locked = true;
+        } else {
+            r.warnings.push(format!("mlockall refused ({}); pages may fault in the loop", errno_text()));
+        }
+    }
+    if r.sched_fifo.is_none() {
+        // SAFETY: PR_SET_TIMERSLACK takes an unsigned long; 1 ns is the minimum.
+        let rc = unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong, 0, 0, 0) };
+        if rc == 0 {
+            r.timer_slack_ns = Some(1);
+        }
+    }
+    r
+}
