@@ -18,7 +18,11 @@ pub enum WaitStrategy {
 }
 
 impl WaitStrategy {
-    pub const ALL: [WaitStrategy; 3] = [WaitStrategy::Sleep, WaitStrategy::Hybrid, WaitStrategy::Spin];
+    pub const ALL: [WaitStrategy; 3] = [
+        WaitStrategy::Sleep,
+        WaitStrategy::Hybrid,
+        WaitStrategy::Spin,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -36,17 +40,29 @@ impl std::str::FromStr for WaitStrategy {
             "sleep" => Ok(WaitStrategy::Sleep),
             "hybrid" => Ok(WaitStrategy::Hybrid),
             "spin" => Ok(WaitStrategy::Spin),
-            _ => Err(format!("{s:?} is not a wait strategy (expected sleep, hybrid or spin)")),
+            _ => Err(format!(
+                "{s:?} is not a wait strategy (expected sleep, hybrid or spin)"
+            )),
         }
     }
 }
 
 /// Sleeps until the absolute CLOCK_MONOTONIC time `deadline_ns` (a no-op if it has passed).
 pub fn sleep_until(deadline_ns: u64) {
-    let ts = libc::timespec { tv_sec: (deadline_ns / 1_000_000_000) as libc::time_t, tv_nsec: (deadline_ns % 1_000_000_000) as libc::c_long };
+    let ts = libc::timespec {
+        tv_sec: (deadline_ns / 1_000_000_000) as libc::time_t,
+        tv_nsec: (deadline_ns % 1_000_000_000) as libc::c_long,
+    };
     loop {
         // SAFETY: `ts` is a valid timespec; a null remainder is allowed with TIMER_ABSTIME.
-        let rc = unsafe { libc::clock_nanosleep(libc::CLOCK_MONOTONIC, libc::TIMER_ABSTIME, &ts, std::ptr::null_mut()) };
+        let rc = unsafe {
+            libc::clock_nanosleep(
+                libc::CLOCK_MONOTONIC,
+                libc::TIMER_ABSTIME,
+                &ts,
+                std::ptr::null_mut(),
+            )
+        };
         if rc != libc::EINTR {
             return;
         }
@@ -88,7 +104,11 @@ pub struct Schedule {
 impl Schedule {
     /// A schedule whose first deadline is one period from `start_ns`.
     pub fn new(period_ns: u64, start_ns: u64) -> Self {
-        Self { period_ns, next_ns: start_ns + period_ns, overruns: 0 }
+        Self {
+            period_ns,
+            next_ns: start_ns + period_ns,
+            overruns: 0,
+        }
     }
 
     pub fn period_ns(&self) -> u64 {
@@ -138,6 +158,9 @@ mod tests {
             assert!(woke >= d, "{w:?} woke early");
         }
         assert_eq!("hybrid".parse::<WaitStrategy>(), Ok(WaitStrategy::Hybrid));
-        assert!("fast".parse::<WaitStrategy>().unwrap_err().contains("sleep, hybrid or spin"));
+        assert!("fast"
+            .parse::<WaitStrategy>()
+            .unwrap_err()
+            .contains("sleep, hybrid or spin"));
     }
 }

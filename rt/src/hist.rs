@@ -61,7 +61,11 @@ impl Percentiles {
 /// Writes the percentile distribution of a ns histogram in µs, in HdrHistogram's `.hgrm` format.
 pub fn write_hgrm(h: &Histogram<u64>, out: &mut impl Write) -> std::io::Result<()> {
     const SCALE: f64 = 1000.0; // ns → µs
-    writeln!(out, "{:>12} {:>14} {:>10} {:>14}\n", "Value", "Percentile", "TotalCount", "1/(1-Percentile)")?;
+    writeln!(
+        out,
+        "{:>12} {:>14} {:>10} {:>14}\n",
+        "Value", "Percentile", "TotalCount", "1/(1-Percentile)"
+    )?;
     if !h.is_empty() {
         // TotalCount is cumulative: the number of values at or below this row's value.
         let mut total = 0u64;
@@ -70,16 +74,36 @@ pub fn write_hgrm(h: &Histogram<u64>, out: &mut impl Write) -> std::io::Result<(
             let q = v.quantile_iterated_to();
             let value = v.value_iterated_to() as f64 / SCALE;
             if q < 1.0 {
-                writeln!(out, "{:12.3} {:2.12} {:10} {:14.2}", value, q, total, 1.0 / (1.0 - q))?;
+                writeln!(
+                    out,
+                    "{:12.3} {:2.12} {:10} {:14.2}",
+                    value,
+                    q,
+                    total,
+                    1.0 / (1.0 - q)
+                )?;
             } else {
                 writeln!(out, "{:12.3} {:2.12} {:10}", value, q, total)?;
             }
         }
     }
-    let (mean, sd, max) = if h.is_empty() { (0.0, 0.0, 0.0) } else { (h.mean() / SCALE, h.stdev() / SCALE, h.max() as f64 / SCALE) };
+    let (mean, sd, max) = if h.is_empty() {
+        (0.0, 0.0, 0.0)
+    } else {
+        (h.mean() / SCALE, h.stdev() / SCALE, h.max() as f64 / SCALE)
+    };
     writeln!(out, "#[Mean    = {mean:12.3}, StdDeviation   = {sd:12.3}]")?;
-    writeln!(out, "#[Max     = {max:12.3}, Total count    = {:12}]", h.len())?;
-    writeln!(out, "#[Buckets = {:12}, SubBuckets     = {:12}]", h.buckets(), h.distinct_values())?;
+    writeln!(
+        out,
+        "#[Max     = {max:12.3}, Total count    = {:12}]",
+        h.len()
+    )?;
+    writeln!(
+        out,
+        "#[Buckets = {:12}, SubBuckets     = {:12}]",
+        h.buckets(),
+        h.distinct_values()
+    )?;
     Ok(())
 }
 
@@ -91,7 +115,12 @@ pub fn save_hgrm(h: &Histogram<u64>, path: &Path) -> std::io::Result<()> {
 }
 
 /// Writes several tagged histograms as one V2 interval log (one interval each, covering the run).
-pub fn save_hlog(entries: &[(&str, &Histogram<u64>)], start: SystemTime, duration: Duration, path: &Path) -> std::io::Result<()> {
+pub fn save_hlog(
+    entries: &[(&str, &Histogram<u64>)],
+    start: SystemTime,
+    duration: Duration,
+    path: &Path,
+) -> std::io::Result<()> {
     let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
     let mut ser = V2DeflateSerializer::new();
     {
@@ -103,8 +132,10 @@ pub fn save_hlog(entries: &[(&str, &Histogram<u64>)], start: SystemTime, duratio
             .begin_log_with(&mut f, &mut ser)
             .map_err(std::io::Error::other)?;
         for (tag, h) in entries {
-            let tag = Tag::new(tag).ok_or_else(|| std::io::Error::other(format!("bad histogram tag {tag:?}")))?;
-            w.write_histogram(h, Duration::ZERO, duration, Some(tag)).map_err(|e| std::io::Error::other(format!("{e:?}")))?;
+            let tag = Tag::new(tag)
+                .ok_or_else(|| std::io::Error::other(format!("bad histogram tag {tag:?}")))?;
+            w.write_histogram(h, Duration::ZERO, duration, Some(tag))
+                .map_err(|e| std::io::Error::other(format!("{e:?}")))?;
         }
     }
     f.flush()
@@ -141,7 +172,10 @@ mod tests {
         let text = String::from_utf8(text).unwrap();
         assert!(text.contains("Percentile"));
         assert!(text.contains("Total count    =            4"), "{text}");
-        let last = text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()).last().unwrap();
+        let last = text
+            .lines()
+            .rfind(|l| !l.starts_with('#') && !l.trim().is_empty())
+            .unwrap();
         assert!(last.trim_start().starts_with("100.0"), "{last}");
         let total: u64 = last.split_whitespace().nth(2).unwrap().parse().unwrap();
         assert_eq!(total, 4, "the last row's TotalCount is cumulative: {last}");
@@ -149,7 +183,13 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("rt-hist-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("t.hlog");
-        save_hlog(&[("lateness", &h)], SystemTime::now(), Duration::from_secs(3), &path).unwrap();
+        save_hlog(
+            &[("lateness", &h)],
+            SystemTime::now(),
+            Duration::from_secs(3),
+            &path,
+        )
+        .unwrap();
         let bytes = std::fs::read(&path).unwrap();
         let mut found = 0;
         for e in IntervalLogIterator::new(&bytes) {

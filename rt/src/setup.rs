@@ -31,9 +31,17 @@ impl RtReport {
     pub fn one_line(&self) -> String {
         format!(
             "core {}, {}, memory {}",
-            self.pinned_core.map(|c| c.to_string()).unwrap_or_else(|| "unpinned".into()),
-            self.sched_fifo.map(|p| format!("SCHED_FIFO {p}")).unwrap_or_else(|| "SCHED_OTHER (timer slack 1 ns)".into()),
-            if self.memory_locked { "locked" } else { "not locked" }
+            self.pinned_core
+                .map(|c| c.to_string())
+                .unwrap_or_else(|| "unpinned".into()),
+            self.sched_fifo
+                .map(|p| format!("SCHED_FIFO {p}"))
+                .unwrap_or_else(|| "SCHED_OTHER (timer slack 1 ns)".into()),
+            if self.memory_locked {
+                "locked"
+            } else {
+                "not locked"
+            }
         )
     }
 }
@@ -50,11 +58,15 @@ pub fn apply(req: RtRequest) -> RtReport {
         match ids.into_iter().find(|c| c.id == core) {
             Some(id) if core_affinity::set_for_current(id) => r.pinned_core = Some(core),
             Some(_) => r.warnings.push(format!("could not pin to core {core}")),
-            None => r.warnings.push(format!("core {core} does not exist or is not allowed; running unpinned")),
+            None => r.warnings.push(format!(
+                "core {core} does not exist or is not allowed; running unpinned"
+            )),
         }
     }
     if req.priority > 0 {
-        let param = libc::sched_param { sched_priority: i32::from(req.priority) };
+        let param = libc::sched_param {
+            sched_priority: i32::from(req.priority),
+        };
         // SAFETY: valid param pointer; pid 0 is the calling thread.
         let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
         if rc == 0 {
@@ -73,7 +85,10 @@ pub fn apply(req: RtRequest) -> RtReport {
         if rc == 0 {
             r.memory_locked = true;
         } else {
-            r.warnings.push(format!("mlockall refused ({}); pages may fault in the loop", errno_text()));
+            r.warnings.push(format!(
+                "mlockall refused ({}); pages may fault in the loop",
+                errno_text()
+            ));
         }
     }
     if r.sched_fifo.is_none() {
