@@ -185,7 +185,7 @@ pub fn evaluate<const N: usize>(
         flag |= flags::IN_SAFETY_ZONE;
     }
     let tracking_error = err.norm();
-    if !(tracking_error <= params.track_loss) {
+    if tracking_error.is_nan() || tracking_error > params.track_loss {
         flag |= flags::TRACK_LOST;
     }
     let from_base = (target.p - kin.points[0]).norm();

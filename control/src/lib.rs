@@ -6,6 +6,9 @@
 //! and a live run can never disagree because of duplicated math. The step paths (`law::evaluate`,
 //! `Simulation::step`, `DelayLine::push/sample`) never allocate; `tests/no_alloc.rs` proves it.
 
+// Index loops mirror the subscripts of the equations (q_j, l_j, column k of J) and are kept.
+#![allow(clippy::needless_range_loop)]
+
 pub mod arm;
 pub mod config;
 pub mod delay;

@@ -1,0 +1,185 @@
+//! The `[daemon]` table, and loading a whole file for the daemon.
+//!
+//! The daemon refuses a bad file at start-up with one message naming the field, before it touches
+//! shared memory or the scheduler (ripgrep's validate-then-run). The `[plant]` table belongs to the
+//! plant process and is checked there; the daemon never needs it.
+
+use control::config::ConfigError;
+use control::Config;
+use rt::WaitStrategy;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DaemonConfig {
+    /// Service-name namespace: several systems can share a machine under different namespaces.
+    pub namespace: String,
+    /// Control rate (Hz), 100 to 10 000.
+    pub rate_hz: f64,
+    /// How to wait for each deadline: sleep, hybrid or spin.
+    pub wait: WaitStrategy,
+    /// Hybrid wait: spin this long before the deadline (µs).
+    pub spin_us: f64,
+    /// Core to pin the control thread to (none: unpinned).
+    pub core: Option<usize>,
+    /// SCHED_FIFO priority 1..=99, or 0 for the normal scheduler.
+    pub priority: u8,
+    /// mlockall the process.
+    pub lock_memory: bool,
+    /// Periods without a fresh state before the daemon enters HOLD.
+    pub hold_after: u32,
+    /// A state older than this (ms) is stale and not used.
+    pub stale_ms: f64,
+    /// Where histograms, the summary and recordings go.
+    pub output_dir: PathBuf,
+    /// Seconds between live status lines (0: none).
+    pub report_every_s: f64,
+    /// Seconds between sweeps for dead iceoryx2 nodes.
+    pub cleanup_every_s: f64,
+    /// Capacity of the loop → reporter telemetry queue (ticks).
+    pub telemetry_queue: usize,
+}
+
+impl Default for DaemonConfig {
+    fn default() -> Self {
+        Self {
+            namespace: protocol::DEFAULT_NAMESPACE.to_string(),
+            rate_hz: 1000.0,
+            wait: WaitStrategy::Hybrid,
+            spin_us: 50.0,
+            core: Some(1),
+            priority: 50,
+            lock_memory: true,
+            hold_after: 20,
+            stale_ms: 5.0,
+            output_dir: PathBuf::from("out/chaosd"),
+            report_every_s: 2.0,
+            cleanup_every_s: 1.0,
+            telemetry_queue: 16_384,
+        }
+    }
+}
+
+fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
+    ConfigError::Invalid { field: format!("daemon.{field}"), value: format!("{value:?}"), expected: expected.into() }
+}
+
+impl DaemonConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        protocol::validate_namespace(&self.namespace).map_err(|e| invalid("namespace", &self.namespace, &e.to_string()))?;
+        if !(self.rate_hz.is_finite() && (100.0..=10_000.0).contains(&self.rate_hz)) {
+            return Err(invalid("rate_hz", self.rate_hz, "must be between 100 and 10000 Hz"));
+        }
+        let period_us = 1e6 / self.rate_hz;
+        if !(self.spin_us.is_finite() && self.spin_us >= 0.0 && self.spin_us <= period_us) {
+            return Err(invalid("spin_us", self.spin_us, &format!("must be between 0 and the period ({period_us} µs)")));
+        }
+        if self.priority > 99 {
+            return Err(invalid("priority", self.priority, "must be 0 (normal scheduler) or a SCHED_FIFO priority 1..=99"));
+        }
+        if let Some(c) = self.core {
+            if c >= 1024 {
+                return Err(invalid("core", c, "must be a CPU index below 1024"));
+            }
+        }
+        if !(1..=100_000).contains(&self.hold_after) {
+            return Err(invalid("hold_after", self.hold_after, "must be between 1 and 100000 periods"));
+        }
+        if !(self.stale_ms.is_finite() && self.stale_ms > 0.0 && self.stale_ms <= 10_000.0) {
+            return Err(invalid("stale_ms", self.stale_ms, "must be > 0 and ≤ 10000 ms"));
+        }
+        if self.output_dir.as_os_str().is_empty() {
+            return Err(invalid("output_dir", &self.output_dir, "must not be empty"));
+        }
+        if !(self.report_every_s.is_finite() && self.report_every_s >= 0.0 && self.report_every_s <= 3600.0) {
+            return Err(invalid("report_every_s", self.report_every_s, "must be between 0 and 3600 s"));
+        }
+        if !(self.cleanup_every_s.is_finite() && self.cleanup_every_s >= 0.1 && self.cleanup_every_s <= 3600.0) {
+            return Err(invalid("cleanup_every_s", self.cleanup_every_s, "must be between 0.1 and 3600 s"));
+        }
+        if !(64..=1 << 22).contains(&self.telemetry_queue) {
+            return Err(invalid("telemetry_queue", self.telemetry_queue, "must be between 64 and 4194304"));
+        }
+        Ok(())
+    }
+
+    pub fn period_ns(&self) -> u64 {
+        (1e9 / self.rate_hz).round() as u64
+    }
+}
+
+/// Everything the daemon runs from.
+#[derive(Clone, Debug)]
+pub struct DaemonSetup {
+    pub system: Config,
+    pub daemon: DaemonConfig,
+}
+
+impl DaemonSetup {
+    /// Splits a parsed file into the system and `[daemon]` parts and validates both.
+    pub fn from_config(system: Config) -> Result<Self, ConfigError> {
+        system.validate()?;
+        let daemon: DaemonConfig = match &system.daemon {
+            Some(t) => t.clone().try_into().map_err(|e: toml::de::Error| ConfigError::Parse(format!("in [daemon]: {e}")))?,
+            None => DaemonConfig::default(),
+        };
+        let s = Self { system, daemon };
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// Re-validates after command-line overrides.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.system.validate()?;
+        self.daemon.validate()?;
+        // The delay line is filled once per tick, so τ must span at least one tick.
+        let dt = 1.0 / self.daemon.rate_hz;
+        if self.system.feedback.tau < dt {
+            return Err(ConfigError::Invalid {
+                field: "feedback.tau".into(),
+                value: format!("{}", self.system.feedback.tau),
+                expected: format!("must be at least one control period ({dt} s at daemon.rate_hz = {})", self.daemon.rate_hz),
+            });
+        }
+        Ok(())
+    }
+
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("cannot read config file {}: {e}", path.display()))?;
+        let cfg = Config::from_toml_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        Self::from_config(cfg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+    }
+
+    /// The whole file, with the effective `[daemon]` table, for the plant and for the record.
+    pub fn to_toml(&self) -> String {
+        let mut c = self.system.clone();
+        c.daemon = toml::Table::try_from(&self.daemon).ok();
+        c.to_toml_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_errors_name_the_field() {
+        let s = DaemonSetup::from_config(Config::default()).unwrap();
+        assert_eq!(s.daemon.period_ns(), 1_000_000);
+        let bad = |t: &str| DaemonSetup::from_config(Config::parse(t).unwrap()).unwrap_err().to_string();
+        assert!(bad("[daemon]\nrate_hz = 50\n").contains("daemon.rate_hz"));
+        assert!(bad("[daemon]\nwait = \"nap\"\n").contains("nap"));
+        assert!(bad("[daemon]\nnamespace = \"a b\"\n").contains("daemon.namespace"));
+        assert!(bad("[daemon]\npriority = 120\n").contains("daemon.priority"));
+        assert!(bad("[daemon]\nbogus = 1\n").contains("bogus"));
+        assert!(bad("[daemon]\nrate_hz = 100\n[feedback]\ntau = 0.005\n").contains("feedback.tau"));
+    }
+
+    #[test]
+    fn round_trips() {
+        let s = DaemonSetup::from_config(Config::default()).unwrap();
+        let back = DaemonSetup::from_config(Config::parse(&s.to_toml()).unwrap()).unwrap();
+        assert_eq!(back.daemon, s.daemon);
+    }
+}

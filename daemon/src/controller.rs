@@ -1,0 +1,316 @@
+//! One control tick, apart from the transport: validate the newest state, keep the delay line,
+//! run the law, decide the command.
+//!
+//! Following rapier's pipeline, persistent state (delay line, sequence tracking, mode, counters)
+//! lives here and the loop only moves samples in and out, so the tick can be driven by a test with
+//! a mock clock, and its allocation-freedom proven without shared memory in the way.
+
+use control::law::evaluate;
+use control::{ArmModel, ControlOutput, DelayLine, Kinematics, LawParams, VecN};
+use protocol::{CommandSample, Mode, StateSample};
+use serde::Serialize;
+
+/// Counters of everything the loop saw. Small and `Copy`, so a snapshot rides along with
+/// every telemetry record.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Counters {
+    pub ticks: u64,
+    pub commands: u64,
+    pub fresh_states: u64,
+    pub rejected_invalid: u64,
+    pub rejected_stale: u64,
+    pub rejected_out_of_order: u64,
+    pub holds_entered: u64,
+    pub plant_restarts: u64,
+    pub overruns: u64,
+    pub telemetry_dropped: u64,
+    pub ipc_errors: u64,
+    pub params_applied: u64,
+}
+
+/// Why a received state was not used.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rejection {
+    Invalid(protocol::SampleError),
+    Stale { age_ns: u64 },
+    OutOfOrder { seq: u64, last: u64 },
+}
+
+/// What one tick decided.
+#[derive(Clone, Copy, Debug)]
+pub struct TickOutcome<const N: usize> {
+    pub mode: Mode,
+    /// The command to publish, if any.
+    pub command: Option<CommandSample>,
+    /// The law's output when it ran.
+    pub output: Option<ControlOutput<N>>,
+    /// Age of the state used (ns).
+    pub state_age_ns: Option<u64>,
+    pub rejection: Option<Rejection>,
+    /// The mode changed on this tick.
+    pub mode_changed: bool,
+    pub plant_restarted: bool,
+}
+
+/// Tick-independent settings.
+#[derive(Clone, Copy, Debug)]
+pub struct ControllerSettings {
+    pub rate_hz: f64,
+    pub hold_after: u32,
+    pub stale_ns: u64,
+    pub daemon_id: u64,
+}
+
+pub struct Controller<const N: usize> {
+    model: ArmModel<N>,
+    params: LawParams,
+    settings: ControllerSettings,
+    dt: f64,
+    delay: DelayLine<N>,
+    kin: Kinematics<N>,
+    tick: u64,
+    mode: Mode,
+    plant_id: u64,
+    last_seq: Option<u64>,
+    last_qd: Option<VecN<N>>,
+    missed: u32,
+    next_command_seq: u64,
+    pub counters: Counters,
+}
+
+impl<const N: usize> Controller<N> {
+    /// `max_tau` fixes the delay-line capacity for the daemon's whole life.
+    pub fn new(model: ArmModel<N>, params: LawParams, max_tau: f64, settings: ControllerSettings) -> Self {
+        let dt = 1.0 / settings.rate_hz;
+        Self {
+            model,
+            params,
+            settings,
+            dt,
+            delay: DelayLine::new(max_tau.max(params.tau) / dt, VecN::<N>::zeros()),
+            kin: Kinematics::default(),
+            tick: 0,
+            mode: Mode::Hold,
+            plant_id: 0,
+            last_seq: None,
+            last_qd: None,
+            missed: 0,
+            next_command_seq: 0,
+            counters: Counters::default(),
+        }
+    }
+
+    pub fn params(&self) -> &LawParams {
+        &self.params
+    }
+
+    /// The largest τ the delay line can serve (s).
+    pub fn max_tau(&self) -> f64 {
+        self.delay.max_delay_steps() * self.dt
+    }
+
+    /// Swaps in a validated parameter block (at a tick boundary; no allocation).
+    pub fn set_params(&mut self, p: LawParams) {
+        self.params = p;
+        self.counters.params_applied += 1;
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// Controller time (s): the task and t_on run on the tick grid from the daemon's start.
+    pub fn time(&self) -> f64 {
+        self.tick as f64 * self.dt
+    }
+
+    fn accept(&mut self, s: &StateSample, now_ns: u64) -> Result<bool, Rejection> {
+        s.validate(N).map_err(Rejection::Invalid)?;
+        let mut restarted = false;
+        if s.plant_id != self.plant_id {
+            // A new plant process: its sequence restarts and its history is not ours.
+            restarted = self.plant_id != 0;
+            self.plant_id = s.plant_id;
+            self.last_seq = None;
+        } else if let Some(last) = self.last_seq {
+            if s.seq <= last {
+                return Err(Rejection::OutOfOrder { seq: s.seq, last });
+            }
+        }
+        let age = now_ns.saturating_sub(s.stamp_ns);
+        if age > self.settings.stale_ns {
+            return Err(Rejection::Stale { age_ns: age });
+        }
+        Ok(restarted)
+    }
+
+    /// One tick at time `now_ns` with the newest received state, if any.
+    pub fn tick(&mut self, newest: Option<&StateSample>, now_ns: u64) -> TickOutcome<N> {
+        let mut out = TickOutcome {
+            mode: self.mode,
+            command: None,
+            output: None,
+            state_age_ns: None,
+            rejection: None,
+            mode_changed: false,
+            plant_restarted: false,
+        };
+        let mut fresh = None;
+        if let Some(s) = newest {
+            match self.accept(s, now_ns) {
+                Ok(restarted) => {
+                    if restarted || self.last_qd.is_none() {
+                        let qd = VecN::<N>::from_column_slice(&s.qd[..N]);
+                        self.delay.reset(qd);
+                    }
+                    if restarted {
+                        self.counters.plant_restarts += 1;
+                        out.plant_restarted = true;
+                    }
+                    self.last_seq = Some(s.seq);
+                    self.counters.fresh_states += 1;
+                    out.state_age_ns = Some(now_ns.saturating_sub(s.stamp_ns));
+                    fresh = Some(s);
+                }
+                Err(r) => {
+                    match r {
+                        Rejection::Invalid(_) => self.counters.rejected_invalid += 1,
+                        Rejection::Stale { .. } => self.counters.rejected_stale += 1,
+                        Rejection::OutOfOrder { .. } => self.counters.rejected_out_of_order += 1,
+                    }
+                    out.rejection = Some(r);
+                }
+            }
+        }
+
+        let prev_mode = self.mode;
+        if let Some(s) = fresh {
+            self.missed = 0;
+            self.mode = Mode::Run;
+            let q = VecN::<N>::from_column_slice(&s.q[..N]);
+            let qd = VecN::<N>::from_column_slice(&s.qd[..N]);
+            self.last_qd = Some(qd);
+            self.delay.push(qd);
+            let t = self.time();
+            let delayed = self.delay.sample((self.delay.len() - 1) as f64 - self.params.tau / self.dt);
+            let o = evaluate(&self.params, &self.model, t, s.phi, &q, &qd, &delayed, &mut self.kin);
+            out.output = Some(o);
+            out.command = Some(self.command(Mode::Run, &o.qdd, s, now_ns));
+        } else {
+            self.missed = self.missed.saturating_add(1);
+            if let Some(qd) = self.last_qd {
+                // Keep the delay line on the tick grid through short gaps.
+                self.delay.push(qd);
+            }
+            if self.missed >= self.settings.hold_after && self.mode == Mode::Run {
+                self.mode = Mode::Hold;
+                self.counters.holds_entered += 1;
+            }
+            if self.mode == Mode::Hold && self.last_seq.is_some() {
+                // Tell the plant to hold while its states are missing or unusable.
+                let zero = VecN::<N>::zeros();
+                let last = StateSample { seq: self.last_seq.unwrap_or(0), ..StateSample::default() };
+                out.command = Some(self.command(Mode::Hold, &zero, &last, now_ns));
+            }
+        }
+        out.mode = self.mode;
+        out.mode_changed = prev_mode != self.mode;
+        self.tick += 1;
+        self.counters.ticks += 1;
+        if out.command.is_some() {
+            self.counters.commands += 1;
+        }
+        out
+    }
+
+    /// A braking command for shutdown.
+    pub fn brake_command(&mut self, now_ns: u64) -> CommandSample {
+        let last = StateSample { seq: self.last_seq.unwrap_or(0), ..StateSample::default() };
+        self.command(Mode::Brake, &VecN::<N>::zeros(), &last, now_ns)
+    }
+
+    fn command(&mut self, mode: Mode, qdd: &VecN<N>, answers: &StateSample, now_ns: u64) -> CommandSample {
+        let mut c = CommandSample {
+            seq: self.next_command_seq,
+            state_seq: answers.seq,
+            state_stamp_ns: answers.stamp_ns,
+            stamp_ns: now_ns,
+            daemon_id: self.settings.daemon_id,
+            mode: mode.into(),
+            n: N as u32,
+            qdd: [0.0; protocol::MAX_JOINTS],
+        };
+        c.qdd[..N].copy_from_slice(qdd.as_slice());
+        self.next_command_seq += 1;
+        c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use control::Config;
+
+    fn controller() -> Controller<3> {
+        let cfg = Config::preset("paper").unwrap();
+        let settings = ControllerSettings { rate_hz: 1000.0, hold_after: 5, stale_ns: 5_000_000, daemon_id: 9 };
+        Controller::new(cfg.model::<3>(), cfg.law_params(), 2.0, settings)
+    }
+
+    fn state(seq: u64, stamp: u64) -> StateSample {
+        let mut s = StateSample { seq, stamp_ns: stamp, plant_id: 77, n: 3, ..StateSample::default() };
+        s.q[1] = 1.57;
+        s.q[2] = 1.57;
+        s
+    }
+
+    #[test]
+    fn commands_answer_states_and_hold_then_resume() {
+        let mut c = controller();
+        let now = 1_000_000_000;
+        let o = c.tick(Some(&state(0, now)), now);
+        let cmd = o.command.unwrap();
+        assert_eq!((cmd.state_seq, cmd.mode, cmd.daemon_id), (0, Mode::Run as u32, 9));
+        assert!(cmd.validate(3).is_ok());
+        // Five ticks with nothing fresh: HOLD.
+        let mut modes = vec![];
+        for k in 1..=5 {
+            modes.push(c.tick(None, now + k * 1_000_000).mode);
+        }
+        assert_eq!(modes, [Mode::Run, Mode::Run, Mode::Run, Mode::Run, Mode::Hold]);
+        assert_eq!(c.counters.holds_entered, 1);
+        let t = now + 7_000_000;
+        let o = c.tick(Some(&state(1, t)), t);
+        assert_eq!(o.mode, Mode::Run);
+        assert!(o.mode_changed);
+        assert_eq!(o.command.unwrap().state_seq, 1);
+        assert_eq!(o.command.unwrap().seq, 6, "hold commands were published in between");
+    }
+
+    #[test]
+    fn bad_states_never_reach_the_law() {
+        let mut c = controller();
+        let now = 5_000_000_000;
+        c.tick(Some(&state(10, now)), now);
+        let mut nan = state(11, now);
+        nan.qd[2] = f64::NAN;
+        let o = c.tick(Some(&nan), now);
+        assert!(matches!(o.rejection, Some(Rejection::Invalid(_))));
+        assert!(o.output.is_none() && o.command.is_none());
+        let o = c.tick(Some(&state(10, now)), now);
+        assert!(matches!(o.rejection, Some(Rejection::OutOfOrder { seq: 10, last: 10 })));
+        let o = c.tick(Some(&state(12, now - 6_000_000)), now);
+        assert!(matches!(o.rejection, Some(Rejection::Stale { .. })));
+        let mut wrong_n = state(13, now);
+        wrong_n.n = 4;
+        assert!(matches!(c.tick(Some(&wrong_n), now).rejection, Some(Rejection::Invalid(_))));
+        assert_eq!(c.counters.rejected_invalid, 2);
+        assert_eq!(c.counters.rejected_out_of_order, 1);
+        assert_eq!(c.counters.rejected_stale, 1);
+        // A restarted plant (new id) starts its sequence again and is accepted.
+        let mut s = state(0, now);
+        s.plant_id = 78;
+        let o = c.tick(Some(&s), now);
+        assert!(o.plant_restarted && o.command.is_some());
+    }
+}

@@ -1,0 +1,272 @@
+//! chaosd: the controller service (`run`), the one-command demonstration (`demo`) and a config
+//! checker. `main` maps errors to exit codes; all input is validated before any process starts.
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Parser, Subcommand};
+use control::Config;
+use daemon::config::DaemonSetup;
+use daemon::telemetry::DaemonSummary;
+use rt::WaitStrategy;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitCode, Stdio};
+use std::time::{Duration, Instant};
+
+#[derive(Parser)]
+#[command(name = "chaosd", version, about = "Real-time chaos-control daemon for a redundant planar arm")]
+struct Cli {
+    #[command(subcommand)]
+    command: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Run the controller service until SIGINT/SIGTERM (or --duration).
+    Run {
+        #[command(flatten)]
+        common: Common,
+        /// Stop after this many seconds.
+        #[arg(long)]
+        duration: Option<f64>,
+    },
+    /// Start a plant process and the daemon, run a while with the delayed feedback switched on
+    /// part-way, and print a report.
+    Demo {
+        #[command(flatten)]
+        common: Common,
+        /// Seconds to run.
+        #[arg(long, default_value_t = 20.0)]
+        duration: f64,
+        /// Pyragas gain switched on part-way (default: the config's, or 2.0 if that is 0).
+        #[arg(long)]
+        mu: Option<f64>,
+        /// When the feedback switches on (default: 40 % into the run).
+        #[arg(long = "t-on")]
+        t_on: Option<f64>,
+    },
+    /// Validate a config file and print the effective settings.
+    CheckConfig {
+        #[command(flatten)]
+        common: Common,
+    },
+}
+
+#[derive(Args)]
+struct Common {
+    /// TOML config file.
+    #[arg(long, conflicts_with = "preset")]
+    config: Option<PathBuf>,
+    /// A built-in set-up (paper, paper-eq11, paper-obstacle, paper-floating).
+    #[arg(long)]
+    preset: Option<String>,
+    /// Overrides daemon.namespace.
+    #[arg(long)]
+    namespace: Option<String>,
+    /// Overrides daemon.output_dir.
+    #[arg(long)]
+    output: Option<PathBuf>,
+    /// Overrides daemon.rate_hz.
+    #[arg(long)]
+    rate: Option<f64>,
+    /// Overrides daemon.wait (sleep, hybrid, spin).
+    #[arg(long)]
+    wait: Option<WaitStrategy>,
+}
+
+impl Common {
+    fn setup(&self) -> Result<DaemonSetup> {
+        let mut s = match (&self.config, &self.preset) {
+            (Some(p), _) => DaemonSetup::load(p)?,
+            (None, Some(name)) => DaemonSetup::from_config(Config::preset(name)?)?,
+            (None, None) => DaemonSetup::from_config(Config::preset("paper")?)?,
+        };
+        if let Some(ns) = &self.namespace {
+            s.daemon.namespace = ns.clone();
+        }
+        if let Some(o) = &self.output {
+            s.daemon.output_dir = o.clone();
+        }
+        if let Some(r) = self.rate {
+            s.daemon.rate_hz = r;
+        }
+        if let Some(w) = self.wait {
+            s.daemon.wait = w;
+        }
+        s.validate()?;
+        Ok(s)
+    }
+}
+
+fn check_duration(d: f64) -> Result<()> {
+    if !(d.is_finite() && d > 0.0 && d <= 1e7) {
+        bail!("--duration {d}: must be a finite number of seconds > 0");
+    }
+    Ok(())
+}
+
+/// Kills the child when dropped, on every exit path.
+struct ChildGuard(Option<Child>);
+
+impl ChildGuard {
+    /// SIGTERM, then up to `grace` for a clean exit, then SIGKILL.
+    fn stop(&mut self, grace: Duration) -> Option<std::process::ExitStatus> {
+        let mut child = self.0.take()?;
+        // SAFETY: plain kill(2) on our own child's pid.
+        unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+        let until = Instant::now() + grace;
+        while Instant::now() < until {
+            if let Ok(Some(st)) = child.try_wait() {
+                return Some(st);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = child.kill();
+        child.wait().ok()
+    }
+}
+
+impl Drop for ChildGuard {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.0.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// The file chaosd-plant writes at exit (the daemon reads it as JSON and does not link the plant).
+const PLANT_SUMMARY: &str = "plant-summary.json";
+
+fn plant_exe() -> Result<PathBuf> {
+    let me = std::env::current_exe().context("cannot locate the chaosd executable")?;
+    let p = me.with_file_name("chaosd-plant");
+    if !p.exists() {
+        bail!("{} not found: build both programs with `cargo build --release --bins`", p.display());
+    }
+    Ok(p)
+}
+
+fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> Result<()> {
+    check_duration(duration)?;
+    let mut s = common.setup()?;
+    if common.namespace.is_none() {
+        s.daemon.namespace = format!("demo-{}", std::process::id());
+    }
+    if common.output.is_none() {
+        s.daemon.output_dir = PathBuf::from("out/demo");
+    }
+    s.system.feedback.mu = mu.unwrap_or(if s.system.feedback.mu > 0.0 { s.system.feedback.mu } else { 2.0 });
+    s.system.feedback.t_on = t_on.unwrap_or(0.4 * duration);
+    s.system.feedback.enabled = true;
+    // The plant reads the same file: give it our namespace and output directory.
+    let mut plant = s.system.plant.clone().unwrap_or_default();
+    plant.insert("namespace".into(), s.daemon.namespace.clone().into());
+    plant.insert("output_dir".into(), s.daemon.output_dir.display().to_string().into());
+    s.system.plant = Some(plant);
+    s.validate()?;
+    let out = s.daemon.output_dir.clone();
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    let cfg_path = out.join("config.toml");
+    std::fs::write(&cfg_path, s.to_toml())?;
+    let _ = std::fs::remove_file(out.join(PLANT_SUMMARY));
+
+    let log_path = out.join("plant.log");
+    let log = std::fs::File::create(&log_path)?;
+    let mut guard = ChildGuard(Some(
+        Command::new(plant_exe()?)
+            .arg("--config")
+            .arg(&cfg_path)
+            .args(["--duration", &format!("{}", duration + 10.0)])
+            .stdin(Stdio::null())
+            .stdout(log.try_clone()?)
+            .stderr(log)
+            .spawn()
+            .context("cannot start chaosd-plant")?,
+    ));
+    println!(
+        "chaosd demo: {}-link arm, {} model, {} Hz, plant pid {}, namespace {:?}; μ = {} from t = {:.1} s; {duration} s",
+        s.system.n(),
+        if s.system.arm.model == control::config::ModelKind::Floating { "floating-base" } else { "fixed-base" },
+        s.daemon.rate_hz,
+        guard.0.as_ref().map_or(0, |c| c.id()),
+        s.daemon.namespace,
+        s.system.feedback.mu,
+        s.system.feedback.t_on
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    if let Some(Ok(Some(st))) = guard.0.as_mut().map(|c| c.try_wait()) {
+        let log = std::fs::read_to_string(&log_path).unwrap_or_default();
+        bail!("chaosd-plant exited at start ({st}):\n{log}");
+    }
+    let summary = daemon::service::run(&s, Some(duration), |l| println!("{l}"))?;
+    let status = guard.stop(Duration::from_secs(5));
+    let plant_json = std::fs::read_to_string(out.join(PLANT_SUMMARY)).ok();
+    let plant_summary: Option<serde_json::Value> = plant_json.as_deref().and_then(|t| serde_json::from_str(t).ok());
+    print_report(&s, &summary, plant_summary.as_ref(), &out);
+    if !status.is_some_and(|s| s.success()) {
+        eprintln!("chaosd: warning: the plant did not exit cleanly ({status:?}); see {}", log_path.display());
+    }
+    Ok(())
+}
+
+fn pct(v: &serde_json::Value, key: &str) -> String {
+    let g = |k: &str| v[key][k].as_f64().unwrap_or(f64::NAN);
+    format!("p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs", g("p50_us"), g("p99_us"), g("p999_us"), g("max_us"))
+}
+
+fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::Value>, out: &Path) {
+    let c = &d.counters;
+    println!("\n== chaosd demo report ==");
+    match d.tracking_rms_m {
+        Some(t) => println!("tracking error        RMS {t:.2e} m (after the first 2 s)"),
+        None => println!("tracking error        n/a (no states received)"),
+    }
+    match (d.period_residual_before, d.period_residual_after) {
+        (Some(b), Some(a)) => println!(
+            "period residual       mean |q̇(t) − q̇(t−τ)|: {b:.3} rad/s before feedback → {a:.3} rad/s over the last 5 s with μ = {} ({:.1}× smaller)",
+            s.system.feedback.mu,
+            b / a
+        ),
+        (b, a) => println!("period residual       before {b:?}, after {a:?} (run longer than t_on + 5 s to compare)"),
+    }
+    println!("wake-up lateness      {}", d.lateness.one_line());
+    println!("overruns              {} skipped periods in {} ticks", c.overruns, c.ticks);
+    println!("compute per tick      {}", d.compute.one_line());
+    println!("state age at tick     {}", d.state_age.one_line());
+    if let Some(p) = plant {
+        println!("state → command       {}", pct(p, "state_to_command"));
+        println!("command round trip    {}  (state published → command applied by the plant)", pct(p, "round_trip"));
+    } else {
+        println!("command round trip    n/a (the plant wrote no summary)");
+    }
+    println!(
+        "faults                {} invalid, {} stale, {} out-of-order samples rejected; {} holds; {} plant restarts; {} telemetry records dropped",
+        c.rejected_invalid, c.rejected_stale, c.rejected_out_of_order, c.holds_entered, c.plant_restarts, c.telemetry_dropped
+    );
+    println!("real-time set-up      {}", d.realtime.one_line());
+    println!("histograms            {}/daemon-{{lateness,compute,state-age}}.hgrm, daemon.hlog, plant-{{round-trip,state-to-command,lateness}}.hgrm", out.display());
+    println!("summaries             {}/daemon-summary.json, {}/plant-summary.json", out.display(), out.display());
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Cmd::Run { common, duration } => (|| {
+            if let Some(d) = duration {
+                check_duration(d)?;
+            }
+            let s = common.setup()?;
+            let summary = daemon::service::run(&s, duration, |l| println!("{l}"))?;
+            println!("chaosd: stopped after {:.1} s; lateness {}; files in {}", summary.duration_s, summary.lateness.one_line(), s.daemon.output_dir.display());
+            Ok(())
+        })(),
+        Cmd::Demo { common, duration, mu, t_on } => demo(&common, duration, mu, t_on),
+        Cmd::CheckConfig { common } => common.setup().map(|s| print!("{}", s.to_toml())),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("chaosd: error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,171 @@
+//! The fixed-rate control loop on iceoryx2.
+//!
+//! Thread layout: the calling thread becomes the real-time loop (pinned, SCHED_FIFO when
+//! permitted). A reporter thread turns tick records into histograms and status lines, and a
+//! housekeeping thread sweeps dead iceoryx2 nodes (a SIGKILLed plant's ports) once a second. Both
+//! are spawned before the loop thread raises its own priority, so they stay ordinary threads.
+//!
+//! The tick is: wait for the absolute deadline → drain the state subscriber, keeping the newest →
+//! `Controller::tick` → loan, write, send the command → `try_send` a record. No locks, no waiting
+//! on other threads; the only system calls are the clock, the sleep and iceoryx2's.
+
+use crate::config::DaemonSetup;
+use crate::controller::{Controller, ControllerSettings};
+use crate::telemetry::{DaemonSummary, Reporter, TickRecord};
+use anyhow::{anyhow, Context, Result};
+use control::law::flags as law_flags;
+use control::with_dof;
+use iceoryx2::prelude::{ipc, LogLevel, NodeBuilder, NodeName, SignalHandlingMode};
+use protocol::{monotonic_ns, ServiceNames};
+use rt::clock::Schedule;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// Creates an iceoryx2 node that leaves signals to us and reads no config file from the CWD.
+pub fn node(name: &str) -> Result<iceoryx2::node::Node<ipc::Service>> {
+    iceoryx2::prelude::set_log_level_from_env_or(LogLevel::Error);
+    NodeBuilder::new()
+        .name(&NodeName::new(name).map_err(|e| anyhow!("bad node name {name:?}: {e:?}"))?)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .config(&iceoryx2::config::Config::default())
+        .create::<ipc::Service>()
+        .map_err(|e| anyhow!("cannot create iceoryx2 node: {e:?}"))
+}
+
+/// Runs the daemon until SIGINT/SIGTERM, or for `duration` seconds. `on_line` gets status lines.
+pub fn run(setup: &DaemonSetup, duration: Option<f64>, on_line: impl FnMut(&str) + Send + 'static) -> Result<DaemonSummary> {
+    with_dof!(setup.system.n(), N => run_n::<N>(setup, duration, on_line))
+}
+
+fn run_n<const N: usize>(setup: &DaemonSetup, duration: Option<f64>, on_line: impl FnMut(&str) + Send + 'static) -> Result<DaemonSummary> {
+    let d = setup.daemon.clone();
+    std::fs::create_dir_all(&d.output_dir).with_context(|| format!("cannot create output directory {}", d.output_dir.display()))?;
+    std::fs::write(d.output_dir.join("config.toml"), setup.to_toml()).context("cannot write the effective config")?;
+    let names = ServiceNames::new(&d.namespace).map_err(|e| anyhow!("daemon.namespace: {e}"))?;
+    rt::signal::install();
+
+    // Ordinary threads first.
+    let (tx, rx) = crossbeam::channel::bounded::<TickRecord>(d.telemetry_queue);
+    let reporter = Reporter::new(&d.namespace, d.rate_hz, d.wait.name(), &d.output_dir, d.report_every_s, Default::default());
+    let reporter = std::thread::Builder::new().name("chaosd-report".into()).spawn(move || reporter.run(rx, on_line))?;
+    let running = Arc::new(AtomicBool::new(true));
+    let hk = {
+        let running = running.clone();
+        let every = Duration::from_secs_f64(d.cleanup_every_s);
+        std::thread::Builder::new().name("chaosd-cleanup".into()).spawn(move || {
+            let Ok(node) = node("chaosd-cleanup") else { return };
+            let mut slept = Duration::ZERO;
+            while running.load(Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(50));
+                slept += Duration::from_millis(50);
+                if slept >= every {
+                    slept = Duration::ZERO;
+                    let _ = node.try_cleanup_dead_nodes();
+                }
+            }
+        })?
+    };
+
+    let result = control_loop::<N>(setup, &names, duration, tx);
+    running.store(false, Ordering::Relaxed);
+    let _ = hk.join();
+    let summary = reporter.join().map_err(|_| anyhow!("the reporter thread panicked"))?;
+    let realtime = result?;
+    let mut summary = summary?;
+    summary.realtime = realtime;
+    crate::telemetry::write_summary(&summary, &d.output_dir)?;
+    Ok(summary)
+}
+
+fn control_loop<const N: usize>(
+    setup: &DaemonSetup,
+    names: &ServiceNames,
+    duration: Option<f64>,
+    tx: crossbeam::channel::Sender<TickRecord>,
+) -> Result<rt::setup::RtReport> {
+    let d = &setup.daemon;
+    let node = node("chaosd-daemon")?;
+    let state = protocol::open_state_service(&node, names)?;
+    let subscriber = state.subscriber_builder().create().map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.state()))?;
+    let command = protocol::open_command_service(&node, names)?;
+    let publisher = command.publisher_builder().create().map_err(|e| {
+        anyhow!("cannot publish on {}: {e:?} (is another chaosd already running in namespace {:?}?)", names.command(), names.namespace())
+    })?;
+
+    let settings = ControllerSettings {
+        rate_hz: d.rate_hz,
+        hold_after: d.hold_after,
+        stale_ns: (d.stale_ms * 1e6) as u64,
+        daemon_id: protocol::new_instance_id(),
+    };
+    let mut ctl = Controller::<N>::new(setup.system.model::<N>(), setup.system.law_params(), setup.system.feedback.max_tau, settings);
+
+    let rt_report = rt::setup::apply(rt::setup::RtRequest { core: d.core, priority: d.priority, lock_memory: d.lock_memory });
+    for w in &rt_report.warnings {
+        eprintln!("chaosd: warning: {w}");
+    }
+    eprintln!("chaosd: namespace {:?}, {} Hz, {} wait, {}", names.namespace(), d.rate_hz, d.wait.name(), rt_report.one_line());
+
+    let period = d.period_ns();
+    let spin = (d.spin_us * 1000.0) as u64;
+    let start = monotonic_ns();
+    let end = duration.map(|s| start + (s * 1e9) as u64);
+    let mut sched = Schedule::new(period, start);
+    while !rt::signal::stop_requested() {
+        let deadline = sched.deadline();
+        if end.is_some_and(|e| deadline >= e) {
+            break;
+        }
+        let woke = rt::wait_until(deadline, d.wait, spin);
+        let mut newest = None;
+        loop {
+            match subscriber.receive() {
+                Ok(Some(s)) => newest = Some(*s),
+                Ok(None) => break,
+                Err(_) => {
+                    ctl.counters.ipc_errors += 1;
+                    break;
+                }
+            }
+        }
+        let o = ctl.tick(newest.as_ref(), woke);
+        if let Some(c) = o.command {
+            match publisher.loan_uninit() {
+                Ok(s) => {
+                    if s.write_payload(c).send().is_err() {
+                        ctl.counters.ipc_errors += 1;
+                    }
+                }
+                Err(_) => ctl.counters.ipc_errors += 1,
+            }
+        }
+        let done = monotonic_ns();
+        ctl.counters.overruns += sched.advance(done);
+        let (law, p) = (o.output, ctl.params());
+        let rec = TickRecord {
+            t: ctl.time(),
+            lateness_ns: woke.saturating_sub(deadline),
+            compute_ns: done.saturating_sub(woke),
+            state_age_ns: o.state_age_ns,
+            mode: o.mode,
+            ran_law: law.is_some(),
+            law_flags: law.map_or(0, |l| l.flags),
+            tracking_error: law.map_or(f64::NAN, |l| l.tracking_error),
+            period_residual: law.map_or(f64::NAN, |l| l.period_residual),
+            clearance: law.map_or(f64::INFINITY, |l| l.clearance),
+            mu: p.mu,
+            feedback_active: law.is_some_and(|l| l.flags & law_flags::FEEDBACK_ACTIVE != 0),
+            counters: ctl.counters,
+        };
+        if tx.try_send(rec).is_err() {
+            ctl.counters.telemetry_dropped += 1;
+        }
+    }
+    // Leave the plant braking, not coasting on the last acceleration.
+    let brake = ctl.brake_command(monotonic_ns());
+    if let Ok(s) = publisher.loan_uninit() {
+        let _ = s.write_payload(brake).send();
+    }
+    Ok(rt_report)
+}

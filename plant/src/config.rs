@@ -1,0 +1,108 @@
+//! The `[plant]` table. The plant validates it at start-up and names a bad field, as the daemon
+//! does with `[daemon]`.
+
+use control::config::ConfigError;
+use rt::WaitStrategy;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PlantConfig {
+    /// Must equal the daemon's namespace.
+    pub namespace: String,
+    /// Plant rate (Hz): one integration period and one published state per tick.
+    pub rate_hz: f64,
+    /// RK4 substeps per period.
+    pub substeps: u32,
+    pub wait: WaitStrategy,
+    pub spin_us: f64,
+    pub core: Option<usize>,
+    pub priority: u8,
+    pub lock_memory: bool,
+    /// Without a command for this long (ms) the plant brakes to rest.
+    pub command_timeout_ms: f64,
+    /// Braking deceleration gain: q̈ = −gain · q̇ (1/s).
+    pub brake_gain: f64,
+    pub output_dir: PathBuf,
+}
+
+impl Default for PlantConfig {
+    fn default() -> Self {
+        Self {
+            namespace: protocol::DEFAULT_NAMESPACE.to_string(),
+            rate_hz: 1000.0,
+            substeps: 4,
+            wait: WaitStrategy::Hybrid,
+            spin_us: 50.0,
+            core: Some(0),
+            priority: 50,
+            lock_memory: true,
+            command_timeout_ms: 50.0,
+            brake_gain: 20.0,
+            output_dir: PathBuf::from("out/chaosd"),
+        }
+    }
+}
+
+fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
+    ConfigError::Invalid { field: format!("plant.{field}"), value: format!("{value:?}"), expected: expected.into() }
+}
+
+impl PlantConfig {
+    pub fn from_table(t: Option<&toml::Table>) -> Result<Self, ConfigError> {
+        let c: Self = match t {
+            Some(t) => t.clone().try_into().map_err(|e: toml::de::Error| ConfigError::Parse(format!("in [plant]: {e}")))?,
+            None => Self::default(),
+        };
+        c.validate()?;
+        Ok(c)
+    }
+
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        protocol::validate_namespace(&self.namespace).map_err(|e| invalid("namespace", &self.namespace, &e.to_string()))?;
+        if !(self.rate_hz.is_finite() && (100.0..=20_000.0).contains(&self.rate_hz)) {
+            return Err(invalid("rate_hz", self.rate_hz, "must be between 100 and 20000 Hz"));
+        }
+        if !(1..=100).contains(&self.substeps) {
+            return Err(invalid("substeps", self.substeps, "must be between 1 and 100"));
+        }
+        let period_us = 1e6 / self.rate_hz;
+        if !(self.spin_us.is_finite() && self.spin_us >= 0.0 && self.spin_us <= period_us) {
+            return Err(invalid("spin_us", self.spin_us, &format!("must be between 0 and the period ({period_us} µs)")));
+        }
+        if self.priority > 99 {
+            return Err(invalid("priority", self.priority, "must be 0 (normal scheduler) or a SCHED_FIFO priority 1..=99"));
+        }
+        if !(self.command_timeout_ms.is_finite() && self.command_timeout_ms >= 1.0 && self.command_timeout_ms <= 60_000.0) {
+            return Err(invalid("command_timeout_ms", self.command_timeout_ms, "must be between 1 and 60000 ms"));
+        }
+        if !(self.brake_gain.is_finite() && self.brake_gain > 0.0 && self.brake_gain <= 1e4) {
+            return Err(invalid("brake_gain", self.brake_gain, "must be > 0 and ≤ 10000 1/s"));
+        }
+        if self.output_dir.as_os_str().is_empty() {
+            return Err(invalid("output_dir", &self.output_dir, "must not be empty"));
+        }
+        Ok(())
+    }
+
+    pub fn period_ns(&self) -> u64 {
+        (1e9 / self.rate_hz).round() as u64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validation_names_the_field() {
+        assert!(PlantConfig::from_table(None).is_ok());
+        let t: toml::Table = toml::from_str("rate_hz = 5").unwrap();
+        assert!(PlantConfig::from_table(Some(&t)).unwrap_err().to_string().contains("plant.rate_hz"));
+        let t: toml::Table = toml::from_str("command_timeout_ms = -1").unwrap();
+        assert!(PlantConfig::from_table(Some(&t)).unwrap_err().to_string().contains("plant.command_timeout_ms"));
+        let t: toml::Table = toml::from_str("typo = 1").unwrap();
+        assert!(PlantConfig::from_table(Some(&t)).unwrap_err().to_string().contains("typo"));
+    }
+}

@@ -1,0 +1,121 @@
+//! The simulated arm behind the Plant seam.
+//!
+//! It integrates the same kinematic plant as the offline simulation (`control::sim`): the
+//! commanded q̈ is the joint acceleration, and for the floating base φ̇ = −H_b⁻¹H_bm q̇. The
+//! command is held constant over a period (zero-order hold) and integrated with RK4 in substeps.
+
+use crate::seam::{Actuation, Plant, PlantError};
+use control::sim::{plant_derivative, rk4_step};
+use control::{ArmModel, ArmState, VecN};
+use protocol::{flags, StateSample};
+
+pub struct SimPlant<const N: usize> {
+    model: ArmModel<N>,
+    state: ArmState<N>,
+    substeps: u32,
+    brake_gain: f64,
+    qdd: VecN<N>,
+    braking: bool,
+}
+
+impl<const N: usize> SimPlant<N> {
+    pub fn new(model: ArmModel<N>, initial: ArmState<N>, substeps: u32, brake_gain: f64) -> Self {
+        Self { model, state: initial, substeps: substeps.max(1), brake_gain, qdd: VecN::<N>::zeros(), braking: true }
+    }
+
+    pub fn state(&self) -> &ArmState<N> {
+        &self.state
+    }
+
+    fn base_rate(&self, x: &ArmState<N>) -> f64 {
+        match &self.model {
+            ArmModel::Fixed(_) => 0.0,
+            ArmModel::Floating(a) => a.base_rate(&x.q, &x.qd),
+        }
+    }
+}
+
+impl<const N: usize> Plant for SimPlant<N> {
+    fn n(&self) -> usize {
+        N
+    }
+
+    fn flags(&self) -> u32 {
+        let mut f = flags::SIMULATED;
+        if self.model.is_floating() {
+            f |= flags::FLOATING_BASE;
+        }
+        if self.braking {
+            f |= flags::BRAKING;
+        }
+        f
+    }
+
+    fn activate(&mut self) -> Result<(), PlantError> {
+        Ok(())
+    }
+
+    fn write(&mut self, actuation: Actuation<'_>) {
+        match actuation {
+            Actuation::Accelerate(a) if a.len() == N => {
+                self.qdd = VecN::<N>::from_column_slice(a);
+                self.braking = false;
+            }
+            _ => self.braking = true,
+        }
+    }
+
+    fn read(&mut self, dt: f64, out: &mut StateSample) -> Result<(), PlantError> {
+        let h = dt / self.substeps as f64;
+        for _ in 0..self.substeps {
+            let (braking, gain, qdd) = (self.braking, self.brake_gain, self.qdd);
+            self.state = rk4_step(&self.state, h, |_, x| {
+                let a = if braking { -x.qd * gain } else { qdd };
+                plant_derivative(x, &a, self.base_rate(x))
+            });
+        }
+        if !self.state.is_finite() {
+            return Err(PlantError::Fault("the simulated state became non-finite".into()));
+        }
+        out.n = N as u32;
+        out.phi = self.state.phi;
+        out.q[..N].copy_from_slice(self.state.q.as_slice());
+        out.qd[..N].copy_from_slice(self.state.qd.as_slice());
+        Ok(())
+    }
+
+    fn deactivate(&mut self) {
+        self.braking = true;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use control::Config;
+
+    #[test]
+    fn integrates_commands_and_brakes_to_rest() {
+        let cfg = Config::preset("paper").unwrap();
+        let mut x0: ArmState<3> = cfg.initial_state();
+        x0.qd = VecN::<3>::new(1.0, -2.0, 0.5);
+        let mut p = SimPlant::new(cfg.model::<3>(), x0, 4, 20.0);
+        let mut s = StateSample::default();
+        // Constant acceleration for 0.1 s: q̇ grows by exactly a·t.
+        p.write(Actuation::Accelerate(&[1.0, 0.0, -1.0]));
+        for _ in 0..100 {
+            p.read(1e-3, &mut s).unwrap();
+        }
+        assert!((s.qd[0] - 1.1).abs() < 1e-12 && (s.qd[2] + 0.5).abs() < 1e-12, "{:?}", s.qd);
+        assert_eq!(p.flags() & flags::BRAKING, 0);
+        p.write(Actuation::Brake);
+        for _ in 0..1000 {
+            p.read(1e-3, &mut s).unwrap();
+        }
+        assert!(s.qd[..3].iter().all(|v| v.abs() < 1e-6), "{:?}", s.qd);
+        assert_ne!(p.flags() & flags::BRAKING, 0);
+        // A wrong-length command is not applied: the plant brakes instead.
+        p.write(Actuation::Accelerate(&[1.0]));
+        assert_ne!(p.flags() & flags::BRAKING, 0);
+    }
+}
