@@ -62,21 +62,38 @@ impl Default for DaemonConfig {
 }
 
 fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
-    ConfigError::Invalid { field: format!("daemon.{field}"), value: format!("{value:?}"), expected: expected.into() }
+    ConfigError::Invalid {
+        field: format!("daemon.{field}"),
+        value: format!("{value:?}"),
+        expected: expected.into(),
+    }
 }
 
 impl DaemonConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
-        protocol::validate_namespace(&self.namespace).map_err(|e| invalid("namespace", &self.namespace, &e.to_string()))?;
+        protocol::validate_namespace(&self.namespace)
+            .map_err(|e| invalid("namespace", &self.namespace, &e.to_string()))?;
         if !(self.rate_hz.is_finite() && (100.0..=10_000.0).contains(&self.rate_hz)) {
-            return Err(invalid("rate_hz", self.rate_hz, "must be between 100 and 10000 Hz"));
+            return Err(invalid(
+                "rate_hz",
+                self.rate_hz,
+                "must be between 100 and 10000 Hz",
+            ));
         }
         let period_us = 1e6 / self.rate_hz;
         if !(self.spin_us.is_finite() && self.spin_us >= 0.0 && self.spin_us <= period_us) {
-            return Err(invalid("spin_us", self.spin_us, &format!("must be between 0 and the period ({period_us} µs)")));
+            return Err(invalid(
+                "spin_us",
+                self.spin_us,
+                &format!("must be between 0 and the period ({period_us} µs)"),
+            ));
         }
         if self.priority > 99 {
-            return Err(invalid("priority", self.priority, "must be 0 (normal scheduler) or a SCHED_FIFO priority 1..=99"));
+            return Err(invalid(
+                "priority",
+                self.priority,
+                "must be 0 (normal scheduler) or a SCHED_FIFO priority 1..=99",
+            ));
         }
         if let Some(c) = self.core {
             if c >= 1024 {
@@ -84,22 +101,48 @@ impl DaemonConfig {
             }
         }
         if !(1..=100_000).contains(&self.hold_after) {
-            return Err(invalid("hold_after", self.hold_after, "must be between 1 and 100000 periods"));
+            return Err(invalid(
+                "hold_after",
+                self.hold_after,
+                "must be between 1 and 100000 periods",
+            ));
         }
         if !(self.stale_ms.is_finite() && self.stale_ms > 0.0 && self.stale_ms <= 10_000.0) {
-            return Err(invalid("stale_ms", self.stale_ms, "must be > 0 and ≤ 10000 ms"));
+            return Err(invalid(
+                "stale_ms",
+                self.stale_ms,
+                "must be > 0 and ≤ 10000 ms",
+            ));
         }
         if self.output_dir.as_os_str().is_empty() {
             return Err(invalid("output_dir", &self.output_dir, "must not be empty"));
         }
-        if !(self.report_every_s.is_finite() && self.report_every_s >= 0.0 && self.report_every_s <= 3600.0) {
-            return Err(invalid("report_every_s", self.report_every_s, "must be between 0 and 3600 s"));
+        if !(self.report_every_s.is_finite()
+            && self.report_every_s >= 0.0
+            && self.report_every_s <= 3600.0)
+        {
+            return Err(invalid(
+                "report_every_s",
+                self.report_every_s,
+                "must be between 0 and 3600 s",
+            ));
         }
-        if !(self.cleanup_every_s.is_finite() && self.cleanup_every_s >= 0.1 && self.cleanup_every_s <= 3600.0) {
-            return Err(invalid("cleanup_every_s", self.cleanup_every_s, "must be between 0.1 and 3600 s"));
+        if !(self.cleanup_every_s.is_finite()
+            && self.cleanup_every_s >= 0.1
+            && self.cleanup_every_s <= 3600.0)
+        {
+            return Err(invalid(
+                "cleanup_every_s",
+                self.cleanup_every_s,
+                "must be between 0.1 and 3600 s",
+            ));
         }
         if !(64..=1 << 22).contains(&self.telemetry_queue) {
-            return Err(invalid("telemetry_queue", self.telemetry_queue, "must be between 64 and 4194304"));
+            return Err(invalid(
+                "telemetry_queue",
+                self.telemetry_queue,
+                "must be between 64 and 4194304",
+            ));
         }
         Ok(())
     }
@@ -121,7 +164,10 @@ impl DaemonSetup {
     pub fn from_config(system: Config) -> Result<Self, ConfigError> {
         system.validate()?;
         let daemon: DaemonConfig = match &system.daemon {
-            Some(t) => t.clone().try_into().map_err(|e: toml::de::Error| ConfigError::Parse(format!("in [daemon]: {e}")))?,
+            Some(t) => t
+                .clone()
+                .try_into()
+                .map_err(|e: toml::de::Error| ConfigError::Parse(format!("in [daemon]: {e}")))?,
             None => DaemonConfig::default(),
         };
         let s = Self { system, daemon };
@@ -139,15 +185,20 @@ impl DaemonSetup {
             return Err(ConfigError::Invalid {
                 field: "feedback.tau".into(),
                 value: format!("{}", self.system.feedback.tau),
-                expected: format!("must be at least one control period ({dt} s at daemon.rate_hz = {})", self.daemon.rate_hz),
+                expected: format!(
+                    "must be at least one control period ({dt} s at daemon.rate_hz = {})",
+                    self.daemon.rate_hz
+                ),
             });
         }
         Ok(())
     }
 
     pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("cannot read config file {}: {e}", path.display()))?;
-        let cfg = Config::from_toml_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| anyhow::anyhow!("cannot read config file {}: {e}", path.display()))?;
+        let cfg =
+            Config::from_toml_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         Self::from_config(cfg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
     }
 
@@ -167,7 +218,11 @@ mod tests {
     fn defaults_are_valid_and_errors_name_the_field() {
         let s = DaemonSetup::from_config(Config::default()).unwrap();
         assert_eq!(s.daemon.period_ns(), 1_000_000);
-        let bad = |t: &str| DaemonSetup::from_config(Config::parse(t).unwrap()).unwrap_err().to_string();
+        let bad = |t: &str| {
+            DaemonSetup::from_config(Config::parse(t).unwrap())
+                .unwrap_err()
+                .to_string()
+        };
         assert!(bad("[daemon]\nrate_hz = 50\n").contains("daemon.rate_hz"));
         assert!(bad("[daemon]\nwait = \"nap\"\n").contains("nap"));
         assert!(bad("[daemon]\nnamespace = \"a b\"\n").contains("daemon.namespace"));

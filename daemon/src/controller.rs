@@ -80,7 +80,12 @@ pub struct Controller<const N: usize> {
 
 impl<const N: usize> Controller<N> {
     /// `max_tau` fixes the delay-line capacity for the daemon's whole life.
-    pub fn new(model: ArmModel<N>, params: LawParams, max_tau: f64, settings: ControllerSettings) -> Self {
+    pub fn new(
+        model: ArmModel<N>,
+        params: LawParams,
+        max_tau: f64,
+        settings: ControllerSettings,
+    ) -> Self {
         let dt = 1.0 / settings.rate_hz;
         Self {
             model,
@@ -192,8 +197,19 @@ impl<const N: usize> Controller<N> {
             self.last_qd = Some(qd);
             self.delay.push(qd);
             let t = self.time();
-            let delayed = self.delay.sample((self.delay.len() - 1) as f64 - self.params.tau / self.dt);
-            let o = evaluate(&self.params, &self.model, t, s.phi, &q, &qd, &delayed, &mut self.kin);
+            let delayed = self
+                .delay
+                .sample((self.delay.len() - 1) as f64 - self.params.tau / self.dt);
+            let o = evaluate(
+                &self.params,
+                &self.model,
+                t,
+                s.phi,
+                &q,
+                &qd,
+                &delayed,
+                &mut self.kin,
+            );
             out.output = Some(o);
             out.command = Some(self.command(Mode::Run, &o.qdd, s, now_ns));
         } else {
@@ -209,7 +225,10 @@ impl<const N: usize> Controller<N> {
             if self.mode == Mode::Hold && self.last_seq.is_some() {
                 // Tell the plant to hold while its states are missing or unusable.
                 let zero = VecN::<N>::zeros();
-                let last = StateSample { seq: self.last_seq.unwrap_or(0), ..StateSample::default() };
+                let last = StateSample {
+                    seq: self.last_seq.unwrap_or(0),
+                    ..StateSample::default()
+                };
                 out.command = Some(self.command(Mode::Hold, &zero, &last, now_ns));
             }
         }
@@ -225,11 +244,20 @@ impl<const N: usize> Controller<N> {
 
     /// A braking command for shutdown.
     pub fn brake_command(&mut self, now_ns: u64) -> CommandSample {
-        let last = StateSample { seq: self.last_seq.unwrap_or(0), ..StateSample::default() };
+        let last = StateSample {
+            seq: self.last_seq.unwrap_or(0),
+            ..StateSample::default()
+        };
         self.command(Mode::Brake, &VecN::<N>::zeros(), &last, now_ns)
     }
 
-    fn command(&mut self, mode: Mode, qdd: &VecN<N>, answers: &StateSample, now_ns: u64) -> CommandSample {
+    fn command(
+        &mut self,
+        mode: Mode,
+        qdd: &VecN<N>,
+        answers: &StateSample,
+        now_ns: u64,
+    ) -> CommandSample {
         let mut c = CommandSample {
             seq: self.next_command_seq,
             state_seq: answers.seq,
@@ -253,12 +281,23 @@ mod tests {
 
     fn controller() -> Controller<3> {
         let cfg = Config::preset("paper").unwrap();
-        let settings = ControllerSettings { rate_hz: 1000.0, hold_after: 5, stale_ns: 5_000_000, daemon_id: 9 };
+        let settings = ControllerSettings {
+            rate_hz: 1000.0,
+            hold_after: 5,
+            stale_ns: 5_000_000,
+            daemon_id: 9,
+        };
         Controller::new(cfg.model::<3>(), cfg.law_params(), 2.0, settings)
     }
 
     fn state(seq: u64, stamp: u64) -> StateSample {
-        let mut s = StateSample { seq, stamp_ns: stamp, plant_id: 77, n: 3, ..StateSample::default() };
+        let mut s = StateSample {
+            seq,
+            stamp_ns: stamp,
+            plant_id: 77,
+            n: 3,
+            ..StateSample::default()
+        };
         s.q[1] = 1.57;
         s.q[2] = 1.57;
         s
@@ -270,21 +309,28 @@ mod tests {
         let now = 1_000_000_000;
         let o = c.tick(Some(&state(0, now)), now);
         let cmd = o.command.unwrap();
-        assert_eq!((cmd.state_seq, cmd.mode, cmd.daemon_id), (0, Mode::Run as u32, 9));
+        assert_eq!(
+            (cmd.state_seq, cmd.mode, cmd.daemon_id),
+            (0, Mode::Run as u32, 9)
+        );
         assert!(cmd.validate(3).is_ok());
         // Five ticks with nothing fresh: HOLD.
         let mut modes = vec![];
         for k in 1..=5 {
             modes.push(c.tick(None, now + k * 1_000_000).mode);
         }
-        assert_eq!(modes, [Mode::Run, Mode::Run, Mode::Run, Mode::Run, Mode::Hold]);
+        assert_eq!(
+            modes,
+            [Mode::Run, Mode::Run, Mode::Run, Mode::Run, Mode::Hold]
+        );
         assert_eq!(c.counters.holds_entered, 1);
         let t = now + 7_000_000;
         let o = c.tick(Some(&state(1, t)), t);
         assert_eq!(o.mode, Mode::Run);
         assert!(o.mode_changed);
         assert_eq!(o.command.unwrap().state_seq, 1);
-        assert_eq!(o.command.unwrap().seq, 6, "hold commands were published in between");
+        // Missed ticks in RUN publish nothing; the one HOLD tick published command 1.
+        assert_eq!(o.command.unwrap().seq, 2);
     }
 
     #[test]
@@ -298,12 +344,18 @@ mod tests {
         assert!(matches!(o.rejection, Some(Rejection::Invalid(_))));
         assert!(o.output.is_none() && o.command.is_none());
         let o = c.tick(Some(&state(10, now)), now);
-        assert!(matches!(o.rejection, Some(Rejection::OutOfOrder { seq: 10, last: 10 })));
+        assert!(matches!(
+            o.rejection,
+            Some(Rejection::OutOfOrder { seq: 10, last: 10 })
+        ));
         let o = c.tick(Some(&state(12, now - 6_000_000)), now);
         assert!(matches!(o.rejection, Some(Rejection::Stale { .. })));
         let mut wrong_n = state(13, now);
         wrong_n.n = 4;
-        assert!(matches!(c.tick(Some(&wrong_n), now).rejection, Some(Rejection::Invalid(_))));
+        assert!(matches!(
+            c.tick(Some(&wrong_n), now).rejection,
+            Some(Rejection::Invalid(_))
+        ));
         assert_eq!(c.counters.rejected_invalid, 2);
         assert_eq!(c.counters.rejected_out_of_order, 1);
         assert_eq!(c.counters.rejected_stale, 1);

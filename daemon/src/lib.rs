@@ -11,4 +11,7 @@ pub mod controller;
 pub mod service;
 pub mod telemetry;
 
-const _: () = assert!(control::MAX_JOINTS == protocol::MAX_JOINTS, "control and protocol disagree on MAX_JOINTS");
+const _: () = assert!(
+    control::MAX_JOINTS == protocol::MAX_JOINTS,
+    "control and protocol disagree on MAX_JOINTS"
+);

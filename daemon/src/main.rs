@@ -12,7 +12,11 @@ use std::process::{Child, Command, ExitCode, Stdio};
 use std::time::{Duration, Instant};
 
 #[derive(Parser)]
-#[command(name = "chaosd", version, about = "Real-time chaos-control daemon for a redundant planar arm")]
+#[command(
+    name = "chaosd",
+    version,
+    about = "Real-time chaos-control daemon for a redundant planar arm"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
@@ -140,7 +144,10 @@ fn plant_exe() -> Result<PathBuf> {
     let me = std::env::current_exe().context("cannot locate the chaosd executable")?;
     let p = me.with_file_name("chaosd-plant");
     if !p.exists() {
-        bail!("{} not found: build both programs with `cargo build --release --bins`", p.display());
+        bail!(
+            "{} not found: build both programs with `cargo build --release --bins`",
+            p.display()
+        );
     }
     Ok(p)
 }
@@ -154,13 +161,20 @@ fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> R
     if common.output.is_none() {
         s.daemon.output_dir = PathBuf::from("out/demo");
     }
-    s.system.feedback.mu = mu.unwrap_or(if s.system.feedback.mu > 0.0 { s.system.feedback.mu } else { 2.0 });
+    s.system.feedback.mu = mu.unwrap_or(if s.system.feedback.mu > 0.0 {
+        s.system.feedback.mu
+    } else {
+        2.0
+    });
     s.system.feedback.t_on = t_on.unwrap_or(0.4 * duration);
     s.system.feedback.enabled = true;
     // The plant reads the same file: give it our namespace and output directory.
     let mut plant = s.system.plant.clone().unwrap_or_default();
     plant.insert("namespace".into(), s.daemon.namespace.clone().into());
-    plant.insert("output_dir".into(), s.daemon.output_dir.display().to_string().into());
+    plant.insert(
+        "output_dir".into(),
+        s.daemon.output_dir.display().to_string().into(),
+    );
     s.system.plant = Some(plant);
     s.validate()?;
     let out = s.daemon.output_dir.clone();
@@ -200,17 +214,28 @@ fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> R
     let summary = daemon::service::run(&s, Some(duration), |l| println!("{l}"))?;
     let status = guard.stop(Duration::from_secs(5));
     let plant_json = std::fs::read_to_string(out.join(PLANT_SUMMARY)).ok();
-    let plant_summary: Option<serde_json::Value> = plant_json.as_deref().and_then(|t| serde_json::from_str(t).ok());
+    let plant_summary: Option<serde_json::Value> = plant_json
+        .as_deref()
+        .and_then(|t| serde_json::from_str(t).ok());
     print_report(&s, &summary, plant_summary.as_ref(), &out);
     if !status.is_some_and(|s| s.success()) {
-        eprintln!("chaosd: warning: the plant did not exit cleanly ({status:?}); see {}", log_path.display());
+        eprintln!(
+            "chaosd: warning: the plant did not exit cleanly ({status:?}); see {}",
+            log_path.display()
+        );
     }
     Ok(())
 }
 
 fn pct(v: &serde_json::Value, key: &str) -> String {
     let g = |k: &str| v[key][k].as_f64().unwrap_or(f64::NAN);
-    format!("p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs", g("p50_us"), g("p99_us"), g("p999_us"), g("max_us"))
+    format!(
+        "p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs",
+        g("p50_us"),
+        g("p99_us"),
+        g("p999_us"),
+        g("max_us")
+    )
 }
 
 fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::Value>, out: &Path) {
@@ -229,12 +254,18 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
         (b, a) => println!("period residual       before {b:?}, after {a:?} (run longer than t_on + 5 s to compare)"),
     }
     println!("wake-up lateness      {}", d.lateness.one_line());
-    println!("overruns              {} skipped periods in {} ticks", c.overruns, c.ticks);
+    println!(
+        "overruns              {} skipped periods in {} ticks",
+        c.overruns, c.ticks
+    );
     println!("compute per tick      {}", d.compute.one_line());
     println!("state age at tick     {}", d.state_age.one_line());
     if let Some(p) = plant {
         println!("state → command       {}", pct(p, "state_to_command"));
-        println!("command round trip    {}  (state published → command applied by the plant)", pct(p, "round_trip"));
+        println!(
+            "command round trip    {}  (state published → command applied by the plant)",
+            pct(p, "round_trip")
+        );
     } else {
         println!("command round trip    n/a (the plant wrote no summary)");
     }
@@ -244,7 +275,11 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
     );
     println!("real-time set-up      {}", d.realtime.one_line());
     println!("histograms            {}/daemon-{{lateness,compute,state-age}}.hgrm, daemon.hlog, plant-{{round-trip,state-to-command,lateness}}.hgrm", out.display());
-    println!("summaries             {}/daemon-summary.json, {}/plant-summary.json", out.display(), out.display());
+    println!(
+        "summaries             {}/daemon-summary.json, {}/plant-summary.json",
+        out.display(),
+        out.display()
+    );
 }
 
 fn main() -> ExitCode {
@@ -256,10 +291,20 @@ fn main() -> ExitCode {
             }
             let s = common.setup()?;
             let summary = daemon::service::run(&s, duration, |l| println!("{l}"))?;
-            println!("chaosd: stopped after {:.1} s; lateness {}; files in {}", summary.duration_s, summary.lateness.one_line(), s.daemon.output_dir.display());
+            println!(
+                "chaosd: stopped after {:.1} s; lateness {}; files in {}",
+                summary.duration_s,
+                summary.lateness.one_line(),
+                s.daemon.output_dir.display()
+            );
             Ok(())
         })(),
-        Cmd::Demo { common, duration, mu, t_on } => demo(&common, duration, mu, t_on),
+        Cmd::Demo {
+            common,
+            duration,
+            mu,
+            t_on,
+        } => demo(&common, duration, mu, t_on),
         Cmd::CheckConfig { common } => common.setup().map(|s| print!("{}", s.to_toml())),
     };
     match result {

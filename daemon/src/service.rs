@@ -34,43 +34,68 @@ pub fn node(name: &str) -> Result<iceoryx2::node::Node<ipc::Service>> {
 }
 
 /// Runs the daemon until SIGINT/SIGTERM, or for `duration` seconds. `on_line` gets status lines.
-pub fn run(setup: &DaemonSetup, duration: Option<f64>, on_line: impl FnMut(&str) + Send + 'static) -> Result<DaemonSummary> {
+pub fn run(
+    setup: &DaemonSetup,
+    duration: Option<f64>,
+    on_line: impl FnMut(&str) + Send + 'static,
+) -> Result<DaemonSummary> {
     with_dof!(setup.system.n(), N => run_n::<N>(setup, duration, on_line))
 }
 
-fn run_n<const N: usize>(setup: &DaemonSetup, duration: Option<f64>, on_line: impl FnMut(&str) + Send + 'static) -> Result<DaemonSummary> {
+fn run_n<const N: usize>(
+    setup: &DaemonSetup,
+    duration: Option<f64>,
+    on_line: impl FnMut(&str) + Send + 'static,
+) -> Result<DaemonSummary> {
     let d = setup.daemon.clone();
-    std::fs::create_dir_all(&d.output_dir).with_context(|| format!("cannot create output directory {}", d.output_dir.display()))?;
-    std::fs::write(d.output_dir.join("config.toml"), setup.to_toml()).context("cannot write the effective config")?;
+    std::fs::create_dir_all(&d.output_dir)
+        .with_context(|| format!("cannot create output directory {}", d.output_dir.display()))?;
+    std::fs::write(d.output_dir.join("config.toml"), setup.to_toml())
+        .context("cannot write the effective config")?;
     let names = ServiceNames::new(&d.namespace).map_err(|e| anyhow!("daemon.namespace: {e}"))?;
     rt::signal::install();
 
     // Ordinary threads first.
     let (tx, rx) = crossbeam::channel::bounded::<TickRecord>(d.telemetry_queue);
-    let reporter = Reporter::new(&d.namespace, d.rate_hz, d.wait.name(), &d.output_dir, d.report_every_s, Default::default());
-    let reporter = std::thread::Builder::new().name("chaosd-report".into()).spawn(move || reporter.run(rx, on_line))?;
+    let reporter = Reporter::new(
+        &d.namespace,
+        d.rate_hz,
+        d.wait.name(),
+        &d.output_dir,
+        d.report_every_s,
+        Default::default(),
+    );
+    let reporter = std::thread::Builder::new()
+        .name("chaosd-report".into())
+        .spawn(move || reporter.run(rx, on_line))?;
     let running = Arc::new(AtomicBool::new(true));
     let hk = {
         let running = running.clone();
         let every = Duration::from_secs_f64(d.cleanup_every_s);
-        std::thread::Builder::new().name("chaosd-cleanup".into()).spawn(move || {
-            let Ok(node) = node("chaosd-cleanup") else { return };
-            let mut slept = Duration::ZERO;
-            while running.load(Ordering::Relaxed) {
-                std::thread::sleep(Duration::from_millis(50));
-                slept += Duration::from_millis(50);
-                if slept >= every {
-                    slept = Duration::ZERO;
-                    let _ = node.try_cleanup_dead_nodes();
+        std::thread::Builder::new()
+            .name("chaosd-cleanup".into())
+            .spawn(move || {
+                let Ok(node) = node("chaosd-cleanup") else {
+                    return;
+                };
+                let mut slept = Duration::ZERO;
+                while running.load(Ordering::Relaxed) {
+                    std::thread::sleep(Duration::from_millis(50));
+                    slept += Duration::from_millis(50);
+                    if slept >= every {
+                        slept = Duration::ZERO;
+                        let _ = node.try_cleanup_dead_nodes();
+                    }
                 }
-            }
-        })?
+            })?
     };
 
     let result = control_loop::<N>(setup, &names, duration, tx);
     running.store(false, Ordering::Relaxed);
     let _ = hk.join();
-    let summary = reporter.join().map_err(|_| anyhow!("the reporter thread panicked"))?;
+    let summary = reporter
+        .join()
+        .map_err(|_| anyhow!("the reporter thread panicked"))?;
     let realtime = result?;
     let mut summary = summary?;
     summary.realtime = realtime;
@@ -87,10 +112,17 @@ fn control_loop<const N: usize>(
     let d = &setup.daemon;
     let node = node("chaosd-daemon")?;
     let state = protocol::open_state_service(&node, names)?;
-    let subscriber = state.subscriber_builder().create().map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.state()))?;
+    let subscriber = state
+        .subscriber_builder()
+        .create()
+        .map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.state()))?;
     let command = protocol::open_command_service(&node, names)?;
     let publisher = command.publisher_builder().create().map_err(|e| {
-        anyhow!("cannot publish on {}: {e:?} (is another chaosd already running in namespace {:?}?)", names.command(), names.namespace())
+        anyhow!(
+            "cannot publish on {}: {e:?} (is another chaosd already running in namespace {:?}?)",
+            names.command(),
+            names.namespace()
+        )
     })?;
 
     let settings = ControllerSettings {
@@ -99,13 +131,28 @@ fn control_loop<const N: usize>(
         stale_ns: (d.stale_ms * 1e6) as u64,
         daemon_id: protocol::new_instance_id(),
     };
-    let mut ctl = Controller::<N>::new(setup.system.model::<N>(), setup.system.law_params(), setup.system.feedback.max_tau, settings);
+    let mut ctl = Controller::<N>::new(
+        setup.system.model::<N>(),
+        setup.system.law_params(),
+        setup.system.feedback.max_tau,
+        settings,
+    );
 
-    let rt_report = rt::setup::apply(rt::setup::RtRequest { core: d.core, priority: d.priority, lock_memory: d.lock_memory });
+    let rt_report = rt::setup::apply(rt::setup::RtRequest {
+        core: d.core,
+        priority: d.priority,
+        lock_memory: d.lock_memory,
+    });
     for w in &rt_report.warnings {
         eprintln!("chaosd: warning: {w}");
     }
-    eprintln!("chaosd: namespace {:?}, {} Hz, {} wait, {}", names.namespace(), d.rate_hz, d.wait.name(), rt_report.one_line());
+    eprintln!(
+        "chaosd: namespace {:?}, {} Hz, {} wait, {}",
+        names.namespace(),
+        d.rate_hz,
+        d.wait.name(),
+        rt_report.one_line()
+    );
 
     let period = d.period_ns();
     let spin = (d.spin_us * 1000.0) as u64;

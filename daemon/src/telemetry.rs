@@ -89,7 +89,14 @@ pub struct Reporter {
 }
 
 impl Reporter {
-    pub fn new(namespace: &str, rate_hz: f64, wait: &str, out_dir: &Path, report_every_s: f64, realtime: rt::setup::RtReport) -> Self {
+    pub fn new(
+        namespace: &str,
+        rate_hz: f64,
+        wait: &str,
+        out_dir: &Path,
+        report_every_s: f64,
+        realtime: rt::setup::RtReport,
+    ) -> Self {
         Self {
             namespace: namespace.into(),
             rate_hz,
@@ -154,8 +161,16 @@ impl Reporter {
         let r = self.last?;
         let c = &r.counters;
         let p = Percentiles::of(&self.window_lateness);
-        let track = if self.window_track.1 > 0 { (self.window_track.0 / self.window_track.1 as f64).sqrt() } else { f64::NAN };
-        let resid = if self.window_resid.1 > 0 { self.window_resid.0 / self.window_resid.1 as f64 } else { f64::NAN };
+        let track = if self.window_track.1 > 0 {
+            (self.window_track.0 / self.window_track.1 as f64).sqrt()
+        } else {
+            f64::NAN
+        };
+        let resid = if self.window_resid.1 > 0 {
+            self.window_resid.0 / self.window_resid.1 as f64
+        } else {
+            f64::NAN
+        };
         self.window_lateness.reset();
         self.window_track = (0.0, 0);
         self.window_resid = (0.0, 0);
@@ -181,7 +196,11 @@ impl Reporter {
     }
 
     /// Drains records until the loop closes the channel, then writes the files.
-    pub fn run(mut self, rx: crossbeam::channel::Receiver<TickRecord>, mut on_line: impl FnMut(&str)) -> anyhow::Result<DaemonSummary> {
+    pub fn run(
+        mut self,
+        rx: crossbeam::channel::Receiver<TickRecord>,
+        mut on_line: impl FnMut(&str),
+    ) -> anyhow::Result<DaemonSummary> {
         let start = Instant::now();
         let wall_start = SystemTime::now();
         let mut next_report = self.report_every.map(|d| start + d);
@@ -209,25 +228,56 @@ impl Reporter {
     }
 
     fn finish(self, elapsed: Duration, wall_start: SystemTime) -> anyhow::Result<DaemonSummary> {
-        std::fs::create_dir_all(&self.out_dir)
-            .map_err(|e| anyhow::anyhow!("cannot create output directory {}: {e}", self.out_dir.display()))?;
+        std::fs::create_dir_all(&self.out_dir).map_err(|e| {
+            anyhow::anyhow!(
+                "cannot create output directory {}: {e}",
+                self.out_dir.display()
+            )
+        })?;
         let mut files = Vec::new();
-        for (name, h) in [("lateness", &self.lateness), ("compute", &self.compute), ("state-age", &self.state_age)] {
+        for (name, h) in [
+            ("lateness", &self.lateness),
+            ("compute", &self.compute),
+            ("state-age", &self.state_age),
+        ] {
             let p = self.out_dir.join(format!("daemon-{name}.hgrm"));
-            hist::save_hgrm(h, &p).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", p.display()))?;
+            hist::save_hgrm(h, &p)
+                .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", p.display()))?;
             files.push(p);
         }
         let hlog = self.out_dir.join("daemon.hlog");
-        hist::save_hlog(&[("lateness", &self.lateness), ("compute", &self.compute), ("state-age", &self.state_age)], wall_start, elapsed, &hlog)
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", hlog.display()))?;
+        hist::save_hlog(
+            &[
+                ("lateness", &self.lateness),
+                ("compute", &self.compute),
+                ("state-age", &self.state_age),
+            ],
+            wall_start,
+            elapsed,
+            &hlog,
+        )
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", hlog.display()))?;
         files.push(hlog);
 
         let mean = |secs: &[Second]| {
-            let (s, n) = secs.iter().fold((0.0, 0u64), |(s, n), x| (s + x.resid, n + x.n));
+            let (s, n) = secs
+                .iter()
+                .fold((0.0, 0u64), |(s, n), x| (s + x.resid, n + x.n));
             (n > 0).then(|| s / n as f64)
         };
-        let before: Vec<Second> = self.seconds.iter().enumerate().filter(|(i, s)| *i >= 2 && !s.feedback).map(|(_, s)| *s).collect();
-        let on: Vec<Second> = self.seconds.iter().copied().filter(|s| s.feedback).collect();
+        let before: Vec<Second> = self
+            .seconds
+            .iter()
+            .enumerate()
+            .filter(|(i, s)| *i >= 2 && !s.feedback)
+            .map(|(_, s)| *s)
+            .collect();
+        let on: Vec<Second> = self
+            .seconds
+            .iter()
+            .copied()
+            .filter(|s| s.feedback)
+            .collect();
         let after_from = on.len().saturating_sub(5);
         let counters = self.last.map(|r| r.counters).unwrap_or_default();
         let summary = DaemonSummary {
@@ -240,7 +290,8 @@ impl Reporter {
             lateness: Percentiles::of(&self.lateness),
             compute: Percentiles::of(&self.compute),
             state_age: Percentiles::of(&self.state_age),
-            tracking_rms_m: (self.n_track > 0).then(|| (self.sq_track / self.n_track as f64).sqrt()),
+            tracking_rms_m: (self.n_track > 0)
+                .then(|| (self.sq_track / self.n_track as f64).sqrt()),
             period_residual_before: mean(&before),
             period_residual_after: mean(&on[after_from..]),
             feedback_on_at_s: self.feedback_on_at,
@@ -259,5 +310,6 @@ pub const SUMMARY_FILE: &str = "daemon-summary.json";
 /// Writes the summary once the loop has added what only it knows (the real-time set-up).
 pub fn write_summary(summary: &DaemonSummary, dir: &Path) -> anyhow::Result<()> {
     let json = dir.join(SUMMARY_FILE);
-    std::fs::write(&json, serde_json::to_string_pretty(summary)?).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", json.display()))
+    std::fs::write(&json, serde_json::to_string_pretty(summary)?)
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", json.display()))
 }

@@ -46,13 +46,20 @@ impl Default for PlantConfig {
 }
 
 fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
-    ConfigError::Invalid { field: format!("plant.{field}"), value: format!("{value:?}"), expected: expected.into() }
+    ConfigError::Invalid {
+        field: format!("plant.{field}"),
+        value: format!("{value:?}"),
+        expected: expected.into(),
+    }
 }
 
 impl PlantConfig {
     pub fn from_table(t: Option<&toml::Table>) -> Result<Self, ConfigError> {
         let c: Self = match t {
-            Some(t) => t.clone().try_into().map_err(|e: toml::de::Error| ConfigError::Parse(format!("in [plant]: {e}")))?,
+            Some(t) => t
+                .clone()
+                .try_into()
+                .map_err(|e: toml::de::Error| ConfigError::Parse(format!("in [plant]: {e}")))?,
             None => Self::default(),
         };
         c.validate()?;
@@ -60,25 +67,53 @@ impl PlantConfig {
     }
 
     pub fn validate(&self) -> Result<(), ConfigError> {
-        protocol::validate_namespace(&self.namespace).map_err(|e| invalid("namespace", &self.namespace, &e.to_string()))?;
+        protocol::validate_namespace(&self.namespace)
+            .map_err(|e| invalid("namespace", &self.namespace, &e.to_string()))?;
         if !(self.rate_hz.is_finite() && (100.0..=20_000.0).contains(&self.rate_hz)) {
-            return Err(invalid("rate_hz", self.rate_hz, "must be between 100 and 20000 Hz"));
+            return Err(invalid(
+                "rate_hz",
+                self.rate_hz,
+                "must be between 100 and 20000 Hz",
+            ));
         }
         if !(1..=100).contains(&self.substeps) {
-            return Err(invalid("substeps", self.substeps, "must be between 1 and 100"));
+            return Err(invalid(
+                "substeps",
+                self.substeps,
+                "must be between 1 and 100",
+            ));
         }
         let period_us = 1e6 / self.rate_hz;
         if !(self.spin_us.is_finite() && self.spin_us >= 0.0 && self.spin_us <= period_us) {
-            return Err(invalid("spin_us", self.spin_us, &format!("must be between 0 and the period ({period_us} µs)")));
+            return Err(invalid(
+                "spin_us",
+                self.spin_us,
+                &format!("must be between 0 and the period ({period_us} µs)"),
+            ));
         }
         if self.priority > 99 {
-            return Err(invalid("priority", self.priority, "must be 0 (normal scheduler) or a SCHED_FIFO priority 1..=99"));
+            return Err(invalid(
+                "priority",
+                self.priority,
+                "must be 0 (normal scheduler) or a SCHED_FIFO priority 1..=99",
+            ));
         }
-        if !(self.command_timeout_ms.is_finite() && self.command_timeout_ms >= 1.0 && self.command_timeout_ms <= 60_000.0) {
-            return Err(invalid("command_timeout_ms", self.command_timeout_ms, "must be between 1 and 60000 ms"));
+        if !(self.command_timeout_ms.is_finite()
+            && self.command_timeout_ms >= 1.0
+            && self.command_timeout_ms <= 60_000.0)
+        {
+            return Err(invalid(
+                "command_timeout_ms",
+                self.command_timeout_ms,
+                "must be between 1 and 60000 ms",
+            ));
         }
         if !(self.brake_gain.is_finite() && self.brake_gain > 0.0 && self.brake_gain <= 1e4) {
-            return Err(invalid("brake_gain", self.brake_gain, "must be > 0 and ≤ 10000 1/s"));
+            return Err(invalid(
+                "brake_gain",
+                self.brake_gain,
+                "must be > 0 and ≤ 10000 1/s",
+            ));
         }
         if self.output_dir.as_os_str().is_empty() {
             return Err(invalid("output_dir", &self.output_dir, "must not be empty"));
@@ -99,10 +134,19 @@ mod tests {
     fn validation_names_the_field() {
         assert!(PlantConfig::from_table(None).is_ok());
         let t: toml::Table = toml::from_str("rate_hz = 5").unwrap();
-        assert!(PlantConfig::from_table(Some(&t)).unwrap_err().to_string().contains("plant.rate_hz"));
+        assert!(PlantConfig::from_table(Some(&t))
+            .unwrap_err()
+            .to_string()
+            .contains("plant.rate_hz"));
         let t: toml::Table = toml::from_str("command_timeout_ms = -1").unwrap();
-        assert!(PlantConfig::from_table(Some(&t)).unwrap_err().to_string().contains("plant.command_timeout_ms"));
+        assert!(PlantConfig::from_table(Some(&t))
+            .unwrap_err()
+            .to_string()
+            .contains("plant.command_timeout_ms"));
         let t: toml::Table = toml::from_str("typo = 1").unwrap();
-        assert!(PlantConfig::from_table(Some(&t)).unwrap_err().to_string().contains("typo"));
+        assert!(PlantConfig::from_table(Some(&t))
+            .unwrap_err()
+            .to_string()
+            .contains("typo"));
     }
 }

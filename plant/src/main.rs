@@ -8,7 +8,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "chaosd-plant", version, about = "The chaosd plant process: a simulated arm served over iceoryx2")]
+#[command(
+    name = "chaosd-plant",
+    version,
+    about = "The chaosd plant process: a simulated arm served over iceoryx2"
+)]
 struct Args {
     /// TOML config file (the same file the daemon reads; this process uses [arm], [sim] and [plant]).
     #[arg(long, conflicts_with = "preset")]
@@ -30,7 +34,8 @@ struct Args {
 fn load(args: &Args) -> Result<(Config, PlantConfig)> {
     let system = match (&args.config, &args.preset) {
         (Some(p), _) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("cannot read config file {}", p.display()))?;
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read config file {}", p.display()))?;
             Config::from_toml_str(&text).with_context(|| format!("in {}", p.display()))?
         }
         (None, Some(name)) => Config::preset(name)?,
@@ -47,7 +52,9 @@ fn load(args: &Args) -> Result<(Config, PlantConfig)> {
     plant.validate()?;
     if let Some(d) = args.duration {
         if !(d.is_finite() && d > 0.0) {
-            return Err(anyhow!("--duration {d}: must be a finite number of seconds > 0"));
+            return Err(anyhow!(
+                "--duration {d}: must be a finite number of seconds > 0"
+            ));
         }
     }
     Ok((system, plant))

@@ -46,9 +46,18 @@ pub struct PlantSummary {
 pub const SUMMARY_FILE: &str = "plant-summary.json";
 
 /// Runs `plant` until SIGINT/SIGTERM or for `duration` seconds.
-pub fn run<P: Plant>(plant: &mut P, cfg: &PlantConfig, duration: Option<f64>) -> Result<PlantSummary> {
+pub fn run<P: Plant>(
+    plant: &mut P,
+    cfg: &PlantConfig,
+    duration: Option<f64>,
+) -> Result<PlantSummary> {
     let names = ServiceNames::new(&cfg.namespace).map_err(|e| anyhow!("plant.namespace: {e}"))?;
-    std::fs::create_dir_all(&cfg.output_dir).with_context(|| format!("cannot create output directory {}", cfg.output_dir.display()))?;
+    std::fs::create_dir_all(&cfg.output_dir).with_context(|| {
+        format!(
+            "cannot create output directory {}",
+            cfg.output_dir.display()
+        )
+    })?;
     rt::signal::install();
     iceoryx2::prelude::set_log_level_from_env_or(LogLevel::Error);
     let node = NodeBuilder::new()
@@ -59,19 +68,35 @@ pub fn run<P: Plant>(plant: &mut P, cfg: &PlantConfig, duration: Option<f64>) ->
         .map_err(|e| anyhow!("cannot create iceoryx2 node: {e:?}"))?;
     let state = protocol::open_state_service(&node, &names)?;
     let publisher = state.publisher_builder().create().map_err(|e| {
-        anyhow!("cannot publish on {}: {e:?} (is another plant already running in namespace {:?}?)", names.state(), names.namespace())
+        anyhow!(
+            "cannot publish on {}: {e:?} (is another plant already running in namespace {:?}?)",
+            names.state(),
+            names.namespace()
+        )
     })?;
     let command = protocol::open_command_service(&node, &names)?;
-    let subscriber = command.subscriber_builder().create().map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.command()))?;
+    let subscriber = command
+        .subscriber_builder()
+        .create()
+        .map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.command()))?;
 
     let n = plant.n();
     let plant_id = protocol::new_instance_id();
     plant.activate().map_err(|e| anyhow!("{e}"))?;
-    let rt_report = rt::setup::apply(rt::setup::RtRequest { core: cfg.core, priority: cfg.priority, lock_memory: cfg.lock_memory });
+    let rt_report = rt::setup::apply(rt::setup::RtRequest {
+        core: cfg.core,
+        priority: cfg.priority,
+        lock_memory: cfg.lock_memory,
+    });
     for w in &rt_report.warnings {
         eprintln!("chaosd-plant: warning: {w}");
     }
-    eprintln!("chaosd-plant: namespace {:?}, {} Hz, {}", names.namespace(), cfg.rate_hz, rt_report.one_line());
+    eprintln!(
+        "chaosd-plant: namespace {:?}, {} Hz, {}",
+        names.namespace(),
+        cfg.rate_hz,
+        rt_report.one_line()
+    );
 
     let mut c = PlantCounters::default();
     let (mut to_cmd, mut rtt, mut late) = (hist::new_ns(), hist::new_ns(), hist::new_ns());
@@ -89,7 +114,11 @@ pub fn run<P: Plant>(plant: &mut P, cfg: &PlantConfig, duration: Option<f64>) ->
     let mut current: Option<CommandSample> = None;
     let mut timed_out = false;
     let mut seq = 0u64;
-    let mut sample = StateSample { plant_id, n: n as u32, ..StateSample::default() };
+    let mut sample = StateSample {
+        plant_id,
+        n: n as u32,
+        ..StateSample::default()
+    };
     let mut fault = None;
 
     while !rt::signal::stop_requested() {
@@ -140,7 +169,9 @@ pub fn run<P: Plant>(plant: &mut P, cfg: &PlantConfig, duration: Option<f64>) ->
             timed_out = false;
         }
         match current {
-            Some(cmd) if !silent && cmd.mode == Mode::Run as u32 => plant.write(Actuation::Accelerate(cmd.used_qdd())),
+            Some(cmd) if !silent && cmd.mode == Mode::Run as u32 => {
+                plant.write(Actuation::Accelerate(cmd.used_qdd()))
+            }
             _ => plant.write(Actuation::Brake),
         }
         if let Err(e) = plant.read(dt, &mut sample) {
@@ -165,15 +196,28 @@ pub fn run<P: Plant>(plant: &mut P, cfg: &PlantConfig, duration: Option<f64>) ->
 
     let out = &cfg.output_dir;
     let mut files = Vec::new();
-    for (name, h) in [("state-to-command", &to_cmd), ("round-trip", &rtt), ("lateness", &late)] {
+    for (name, h) in [
+        ("state-to-command", &to_cmd),
+        ("round-trip", &rtt),
+        ("lateness", &late),
+    ] {
         let p = out.join(format!("plant-{name}.hgrm"));
         hist::save_hgrm(h, &p).with_context(|| format!("cannot write {}", p.display()))?;
         files.push(p);
     }
     let hlog = out.join("plant.hlog");
     let elapsed = std::time::Duration::from_nanos(monotonic_ns() - start);
-    hist::save_hlog(&[("state-to-command", &to_cmd), ("round-trip", &rtt), ("lateness", &late)], wall_start, elapsed, &hlog)
-        .with_context(|| format!("cannot write {}", hlog.display()))?;
+    hist::save_hlog(
+        &[
+            ("state-to-command", &to_cmd),
+            ("round-trip", &rtt),
+            ("lateness", &late),
+        ],
+        wall_start,
+        elapsed,
+        &hlog,
+    )
+    .with_context(|| format!("cannot write {}", hlog.display()))?;
     files.push(hlog);
     files.push(out.join(SUMMARY_FILE));
     let summary = PlantSummary {
@@ -187,7 +231,10 @@ pub fn run<P: Plant>(plant: &mut P, cfg: &PlantConfig, duration: Option<f64>) ->
         lateness: Percentiles::of(&late),
         files,
     };
-    std::fs::write(out.join(SUMMARY_FILE), serde_json::to_string_pretty(&summary)?)?;
+    std::fs::write(
+        out.join(SUMMARY_FILE),
+        serde_json::to_string_pretty(&summary)?,
+    )?;
     if let Some(f) = fault {
         return Err(anyhow!("{f}"));
     }

@@ -20,7 +20,14 @@ pub struct SimPlant<const N: usize> {
 
 impl<const N: usize> SimPlant<N> {
     pub fn new(model: ArmModel<N>, initial: ArmState<N>, substeps: u32, brake_gain: f64) -> Self {
-        Self { model, state: initial, substeps: substeps.max(1), brake_gain, qdd: VecN::<N>::zeros(), braking: true }
+        Self {
+            model,
+            state: initial,
+            substeps: substeps.max(1),
+            brake_gain,
+            qdd: VecN::<N>::zeros(),
+            braking: true,
+        }
     }
 
     pub fn state(&self) -> &ArmState<N> {
@@ -75,7 +82,9 @@ impl<const N: usize> Plant for SimPlant<N> {
             });
         }
         if !self.state.is_finite() {
-            return Err(PlantError::Fault("the simulated state became non-finite".into()));
+            return Err(PlantError::Fault(
+                "the simulated state became non-finite".into(),
+            ));
         }
         out.n = N as u32;
         out.phi = self.state.phi;
@@ -106,7 +115,11 @@ mod tests {
         for _ in 0..100 {
             p.read(1e-3, &mut s).unwrap();
         }
-        assert!((s.qd[0] - 1.1).abs() < 1e-12 && (s.qd[2] + 0.5).abs() < 1e-12, "{:?}", s.qd);
+        assert!(
+            (s.qd[0] - 1.1).abs() < 1e-12 && (s.qd[2] + 0.5).abs() < 1e-12,
+            "{:?}",
+            s.qd
+        );
         assert_eq!(p.flags() & flags::BRAKING, 0);
         p.write(Actuation::Brake);
         for _ in 0..1000 {

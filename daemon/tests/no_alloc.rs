@@ -1,0 +1,189 @@
+//! Proves the daemon's tick allocates nothing, with a counting global allocator armed per thread
+//! (its own test binary, because a global allocator applies to the whole binary).
+//!
+//! Two claims, both exact:
+//! 1. `Controller::tick` (validation, mode machine, delay line, control law, command) makes zero
+//!    allocations, on fresh, missing, invalid, stale and restarted-plant inputs.
+//! 2. A whole tick with iceoryx2 in the loop (drain the subscriber, tick, loan → write → send)
+//!    makes exactly one allocation per published command: iceoryx2 0.10's `loan_uninit` creates an
+//!    `Rc` for each sample (`SampleMutUninit::new`). `receive`, `send` and dropping samples make
+//!    none. If a future iceoryx2 removes it, this test fails and the README's note can go.
+
+use control::Config;
+use daemon::controller::{Controller, ControllerSettings};
+use protocol::{monotonic_ns, ServiceNames, StateSample};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+struct Counting;
+
+thread_local! {
+    static ARMED: Cell<bool> = const { Cell::new(false) };
+    static COUNT: Cell<u64> = const { Cell::new(0) };
+}
+
+fn bump() {
+    let _ = ARMED.try_with(|a| {
+        if a.get() {
+            COUNT.with(|c| c.set(c.get() + 1));
+        }
+    });
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        bump();
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new: usize) -> *mut u8 {
+        bump();
+        unsafe { System.realloc(ptr, layout, new) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations(f: impl FnOnce()) -> u64 {
+    COUNT.with(|c| c.set(0));
+    ARMED.with(|a| a.set(true));
+    f();
+    ARMED.with(|a| a.set(false));
+    COUNT.with(|c| c.get())
+}
+
+fn controller(preset: &str) -> Controller<3> {
+    let mut cfg = Config::preset(preset).unwrap();
+    cfg.feedback.mu = 1.0;
+    cfg.feedback.t_on = 0.5;
+    let settings = ControllerSettings {
+        rate_hz: 1000.0,
+        hold_after: 10,
+        stale_ns: 5_000_000,
+        daemon_id: 1,
+    };
+    Controller::new(cfg.model::<3>(), cfg.law_params(), 2.0, settings)
+}
+
+fn state(seq: u64, stamp: u64, plant_id: u64) -> StateSample {
+    let mut s = StateSample {
+        seq,
+        stamp_ns: stamp,
+        plant_id,
+        n: 3,
+        ..StateSample::default()
+    };
+    s.q[1] = 1.57;
+    s.q[2] = 1.57;
+    s.qd[0] = 0.3;
+    s
+}
+
+#[test]
+fn the_counter_sees_allocations() {
+    assert_eq!(
+        allocations(|| drop(std::hint::black_box(Box::new(7u64)))),
+        1
+    );
+}
+
+#[test]
+fn controller_tick_allocates_nothing() {
+    for preset in ["paper", "paper-obstacle", "paper-floating"] {
+        let mut c = controller(preset);
+        let t0 = 1_000_000_000u64;
+        c.tick(Some(&state(0, t0, 5)), t0); // first contact resets the delay line
+        let n = allocations(|| {
+            for k in 1..3000u64 {
+                let now = t0 + k * 1_000_000;
+                let input = match k % 100 {
+                    0..=69 => Some(state(k, now, 5)),
+                    70 => {
+                        let mut s = state(k, now, 5);
+                        s.qd[2] = f64::NAN;
+                        Some(s)
+                    }
+                    71 => Some(state(k, now - 50_000_000, 5)), // stale
+                    72 => Some(state(1, now, 5)),              // out of order
+                    73..=89 => None,                           // a gap long enough for HOLD
+                    _ => Some(state(k, now, 5 + k / 1000)),    // and plant restarts
+                };
+                std::hint::black_box(c.tick(input.as_ref(), now));
+            }
+        });
+        assert_eq!(n, 0, "{preset}: Controller::tick allocated {n} times");
+        assert!(
+            c.counters.holds_entered > 0
+                && c.counters.plant_restarts > 0
+                && c.counters.rejected_invalid > 0
+        );
+    }
+}
+
+#[test]
+fn a_full_ipc_tick_allocates_only_iceoryx2s_loan() {
+    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
+    let node = daemon::service::node("no-alloc-test").unwrap();
+    let ns = format!(
+        "t-noalloc-{}-{}",
+        std::process::id(),
+        monotonic_ns() % 1_000_000_000
+    );
+    let names = ServiceNames::new(&ns).unwrap();
+    let state_svc = protocol::open_state_service(&node, &names).unwrap();
+    let cmd_svc = protocol::open_command_service(&node, &names).unwrap();
+    let plant_pub = state_svc.publisher_builder().create().unwrap();
+    let sub = state_svc.subscriber_builder().create().unwrap();
+    let publisher = cmd_svc.publisher_builder().create().unwrap();
+    let cmd_sub = cmd_svc.subscriber_builder().create().unwrap();
+    let mut c = controller("paper");
+    let mut seq = 0u64;
+    // One daemon tick; the plant's publish happens outside the counted region.
+    let one_tick = |c: &mut Controller<3>| -> bool {
+        let now = monotonic_ns();
+        let mut newest = None;
+        while let Ok(Some(s)) = sub.receive() {
+            newest = Some(*s);
+        }
+        let o = c.tick(newest.as_ref(), now);
+        match o.command {
+            Some(cmd) => {
+                publisher
+                    .loan_uninit()
+                    .unwrap()
+                    .write_payload(cmd)
+                    .send()
+                    .unwrap();
+                true
+            }
+            None => false,
+        }
+    };
+    // Warm up: the first sends set up connections (and allocate for that).
+    for _ in 0..50 {
+        plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
+        seq += 1;
+        one_tick(&mut c);
+        while let Ok(Some(_)) = cmd_sub.receive() {}
+    }
+    let mut published = 0;
+    let mut allocs = 0;
+    for _ in 0..2000 {
+        plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
+        seq += 1;
+        let mut sent = false;
+        allocs += allocations(|| sent = one_tick(&mut c));
+        if sent {
+            published += 1;
+        }
+        while let Ok(Some(_)) = cmd_sub.receive() {}
+    }
+    assert_eq!(published, 2000);
+    assert_eq!(
+        allocs, published,
+        "expected exactly one allocation (iceoryx2's per-loan Rc) per published command"
+    );
+}

@@ -1,0 +1,270 @@
+//! Harness for tests that run the real binaries as separate processes.
+//!
+//! iceoryx2 resources are global on the machine, so every test gets its own namespace. Every
+//! child is owned by a [`Proc`] guard that SIGKILLs it when dropped, so a failing assertion never
+//! leaves a process behind; children also get `PR_SET_PDEATHSIG`, so even a test binary that is
+//! killed takes them along. Waits are bounded and fail with what was seen, never hang. Tests that
+//! spawn processes take [`serial`] so two 2-process systems never compete for the 2 cores.
+
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::{ipc, LogLevel, NodeBuilder, SignalHandlingMode};
+use protocol::{CommandSample, ServiceNames, StateSample};
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::{Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// Serialises process-spawning tests (poisoning from a failed test is ignored).
+pub fn serial() -> MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A namespace no other test, run or machine user shares.
+pub fn unique_namespace(test: &str) -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    format!(
+        "t-{}-{}-{}",
+        test.replace('_', "-").chars().take(24).collect::<String>(),
+        std::process::id(),
+        nanos
+    )
+}
+
+/// The directory holding the built binaries (next to this test executable's `deps/`).
+pub fn bin(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().expect("current exe");
+    let dir = exe.parent().and_then(Path::parent).expect("target dir");
+    let p = dir.join(name);
+    assert!(
+        p.exists(),
+        "{} is missing: run `cargo build --release --bins` before `cargo test --release`",
+        p.display()
+    );
+    p
+}
+
+/// A scratch directory for one test, removed at the end.
+pub struct TempDir(pub PathBuf);
+
+impl TempDir {
+    pub fn new(ns: &str) -> Self {
+        let p = std::env::temp_dir().join(format!("chaosd-{ns}"));
+        std::fs::create_dir_all(&p).expect("temp dir");
+        Self(p)
+    }
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
+
+/// A child process that is killed when dropped.
+pub struct Proc {
+    pub name: String,
+    child: Option<Child>,
+    log: PathBuf,
+}
+
+impl Proc {
+    /// Starts `exe args…` with stdout and stderr going to `<dir>/<name>.log`.
+    pub fn spawn(name: &str, exe: &Path, args: &[&str], dir: &Path) -> Self {
+        let log = dir.join(format!("{name}.log"));
+        let f = std::fs::File::create(&log).expect("log file");
+        let mut cmd = Command::new(exe);
+        cmd.args(args)
+            .stdin(Stdio::null())
+            .stdout(f.try_clone().unwrap())
+            .stderr(f);
+        // SAFETY: prctl is async-signal-safe; it only asks for SIGKILL when the parent dies.
+        unsafe {
+            cmd.pre_exec(|| {
+                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
+                Ok(())
+            });
+        }
+        let child = cmd
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {}: {e}", exe.display()));
+        Self {
+            name: name.into(),
+            child: Some(child),
+            log,
+        }
+    }
+
+    pub fn pid(&self) -> u32 {
+        self.child.as_ref().map_or(0, |c| c.id())
+    }
+
+    pub fn log(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+
+    /// SIGKILL, like a crash.
+    pub fn kill9(&mut self) {
+        if let Some(mut c) = self.child.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+
+    /// SIGTERM and wait for the exit (SIGKILL after `grace`, which fails the test).
+    pub fn terminate(&mut self, grace: Duration) -> ExitStatus {
+        let mut c = self.child.take().expect("process already gone");
+        // SAFETY: kill(2) on our own child.
+        unsafe { libc::kill(c.id() as i32, libc::SIGTERM) };
+        let until = Instant::now() + grace;
+        loop {
+            if let Ok(Some(st)) = c.try_wait() {
+                return st;
+            }
+            if Instant::now() > until {
+                let _ = c.kill();
+                let _ = c.wait();
+                panic!(
+                    "{} ignored SIGTERM for {grace:?}; log:\n{}",
+                    self.name,
+                    self.log()
+                );
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Waits for the process to exit by itself.
+    pub fn wait_exit(&mut self, limit: Duration) -> ExitStatus {
+        let until = Instant::now() + limit;
+        let c = self.child.as_mut().expect("process already gone");
+        loop {
+            if let Ok(Some(st)) = c.try_wait() {
+                self.child = None;
+                return st;
+            }
+            assert!(
+                Instant::now() < until,
+                "{} still running after {limit:?}; log:\n{}",
+                self.name,
+                self.log()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        self.kill9();
+    }
+}
+
+/// A config file for a test system: quiet, normal scheduling, unpinned (tests share 2 cores),
+/// namespaced, writing into the test's directory.
+pub fn write_config(dir: &Path, ns: &str, extra_daemon: &str, extra_top: &str) -> PathBuf {
+    let out = dir.join("out");
+    let text = format!(
+        "{extra_top}\n[daemon]\nnamespace = \"{ns}\"\noutput_dir = \"{out}\"\nwait = \"sleep\"\npriority = 0\nlock_memory = false\nreport_every_s = 0.5\n{extra_daemon}\n\
+         [plant]\nnamespace = \"{ns}\"\noutput_dir = \"{out}\"\nwait = \"sleep\"\npriority = 0\nlock_memory = false\n",
+        out = out.display()
+    );
+    let p = dir.join("config.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Watches a namespace's state and command streams from the test process.
+pub struct Monitor {
+    _node: iceoryx2::node::Node<ipc::Service>,
+    states: Subscriber<ipc::Service, StateSample, ()>,
+    commands: Subscriber<ipc::Service, CommandSample, ()>,
+    pub seen_states: Vec<StateSample>,
+    pub seen_commands: Vec<CommandSample>,
+}
+
+/// Creates a quiet iceoryx2 node for the test process.
+pub fn node() -> iceoryx2::node::Node<ipc::Service> {
+    iceoryx2::prelude::set_log_level(LogLevel::Error);
+    NodeBuilder::new()
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .config(&iceoryx2::config::Config::default())
+        .create::<ipc::Service>()
+        .expect("iceoryx2 node")
+}
+
+impl Monitor {
+    pub fn new(ns: &str) -> Self {
+        let node = node();
+        let names = ServiceNames::new(ns).unwrap();
+        let s = protocol::open_state_service(&node, &names).expect("state service");
+        let c = protocol::open_command_service(&node, &names).expect("command service");
+        let states = s.subscriber_builder().create().expect("state subscriber");
+        let commands = c.subscriber_builder().create().expect("command subscriber");
+        Self {
+            _node: node,
+            states,
+            commands,
+            seen_states: Vec::new(),
+            seen_commands: Vec::new(),
+        }
+    }
+
+    /// Drains both streams into `seen_*`.
+    pub fn poll(&mut self) {
+        while let Ok(Some(s)) = self.states.receive() {
+            self.seen_states.push(*s);
+        }
+        while let Ok(Some(c)) = self.commands.receive() {
+            self.seen_commands.push(*c);
+        }
+    }
+
+    /// Polls until `cond` holds, or fails after `limit` with `what`.
+    pub fn wait_for(
+        &mut self,
+        what: &str,
+        limit: Duration,
+        mut cond: impl FnMut(&Monitor) -> bool,
+    ) {
+        let until = Instant::now() + limit;
+        loop {
+            self.poll();
+            if cond(self) {
+                return;
+            }
+            assert!(
+                Instant::now() < until,
+                "timed out after {limit:?} waiting for {what}; saw {} states (last {:?}) and {} commands (last {:?})",
+                self.seen_states.len(),
+                self.seen_states.last(),
+                self.seen_commands.len(),
+                self.seen_commands.last()
+            );
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    pub fn clear(&mut self) {
+        self.poll();
+        self.seen_states.clear();
+        self.seen_commands.clear();
+    }
+}
+
+/// Reads a JSON summary written by a process.
+pub fn read_json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{} is not JSON: {e}", path.display()))
+}
