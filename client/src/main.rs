@@ -3,6 +3,9 @@
 //! `main` only maps errors to exit codes; each subcommand lives in its own module and validates
 //! all of its input before doing any work.
 
+mod analysis;
+mod online;
+mod plot;
 mod setup;
 mod simulate;
 
@@ -24,6 +27,20 @@ struct Cli {
 enum Command {
     /// Run one deterministic closed-loop simulation and summarise it.
     Simulate(simulate::SimulateArgs),
+    /// Largest Lyapunov exponent of one run (Benettin), with its standard error.
+    Lyapunov(analysis::lyapunov::LyapunovCmd),
+    /// λ_max and Poincaré class over a μ range and several starts, in parallel (the paper's Fig. 6).
+    Sweep(analysis::sweep::SweepCmd),
+    /// Stroboscopic Poincaré section at t = kT: classify (period-p, quasi-periodic, irregular) and plot.
+    Poincare(analysis::poincare::PoincareCmd),
+    /// Period-T orbits by Newton's method, Floquet multipliers, and their stability against μ.
+    Orbits(analysis::orbits::OrbitsCmd),
+    /// Which starts end on a stabilised orbit and which stay chaotic, over starts × μ.
+    Basins(analysis::basins::BasinsCmd),
+    /// Time courses, phase portraits, Poincaré sections of one run as PNG + SVG (Figs. 2-4, 7-9).
+    Figures(analysis::figures::FiguresCmd),
+    #[command(flatten)]
+    Online(online::Online),
     /// Print a preset as a TOML config file to start from.
     Config {
         #[arg(long, default_value = "paper")]
@@ -32,9 +49,22 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // Like any Unix filter: when the reader of our output goes away (`chaosctl ... | head`),
+    // end quietly instead of panicking on the failed write.
+    // SAFETY: restoring the default disposition of SIGPIPE before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Online(c) => return online::run(c),
         Command::Simulate(a) => simulate::run(a),
+        Command::Lyapunov(a) => analysis::lyapunov::run(a),
+        Command::Sweep(a) => analysis::sweep::run(a),
+        Command::Poincare(a) => analysis::poincare::run(a),
+        Command::Orbits(a) => analysis::orbits::run(a),
+        Command::Basins(a) => analysis::basins::run(a),
+        Command::Figures(a) => analysis::figures::run(a),
         Command::Config { preset } => control::Config::preset(&preset)
             .map(|c| print!("{}", c.to_toml_string()))
             .map_err(Into::into),

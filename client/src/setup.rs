@@ -58,7 +58,7 @@ pub fn parse_list(s: &str) -> Result<FloatList, String> {
         .map(FloatList)
 }
 
-fn parse_model(s: &str) -> Result<ModelKind, String> {
+pub fn parse_model(s: &str) -> Result<ModelKind, String> {
     match s {
         "fixed" => Ok(ModelKind::Fixed),
         "floating" => Ok(ModelKind::Floating),

@@ -109,7 +109,11 @@ fn sigma_min(a: &Matrix2<f64>) -> f64 {
 /// The damped pseudo-inverse J⁺ = Jᵀ(JJᵀ + λ²I)⁻¹ with λ² = (1 − (σ_min/ε)²) λ_max² below the
 /// threshold ε and 0 above it. Returns (J⁺, σ_min, λ). Finite for every finite J when λ_max > 0.
 #[inline]
-pub fn damped_pinv<const N: usize>(j: &Jac<N>, threshold: f64, lambda_max: f64) -> (SMatrix<f64, N, 2>, f64, f64) {
+pub fn damped_pinv<const N: usize>(
+    j: &Jac<N>,
+    threshold: f64,
+    lambda_max: f64,
+) -> (SMatrix<f64, N, 2>, f64, f64) {
     let a = j * j.transpose();
     let smin = sigma_min(&a);
     let mut lambda2 = 0.0;

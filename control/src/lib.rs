@@ -9,10 +9,12 @@
 // Index loops mirror the subscripts of the equations (q_j, l_j, column k of J) and are kept.
 #![allow(clippy::needless_range_loop)]
 
+pub mod analysis;
 pub mod arm;
 pub mod config;
 pub mod delay;
 pub mod dual;
+pub mod hold;
 pub mod law;
 pub mod secondary;
 pub mod sim;

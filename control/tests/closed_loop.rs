@@ -5,7 +5,13 @@ use control::{with_dof, ArmState, Config, Kinematics, RunStats, Simulation, VecN
 use proptest::prelude::*;
 
 fn sim3(cfg: &Config) -> Simulation<3> {
-    Simulation::new(cfg.model::<3>(), cfg.law_params(), cfg.sim.dt, cfg.initial_state(), cfg.feedback.max_tau)
+    Simulation::new(
+        cfg.model::<3>(),
+        cfg.law_params(),
+        cfg.sim.dt,
+        cfg.initial_state(),
+        cfg.feedback.max_tau,
+    )
 }
 
 proptest! {
@@ -41,8 +47,14 @@ fn tracking_error_converges_on_the_circle() {
             first.get_or_insert(out.tracking_error);
             last = out.tracking_error;
         }
-        assert!(first.unwrap() > 0.5, "{preset}: the start is far from the circle");
-        assert!(last < 1e-6, "{preset}: tracking error {last} m after {seconds} s");
+        assert!(
+            first.unwrap() > 0.5,
+            "{preset}: the start is far from the circle"
+        );
+        assert!(
+            last < 1e-6,
+            "{preset}: tracking error {last} m after {seconds} s"
+        );
     }
 }
 
@@ -80,7 +92,11 @@ fn identical_runs_are_bit_identical() {
                 sim.step();
             }
             let x = *sim.state();
-            x.q.iter().chain(x.qd.iter()).chain([x.phi].iter()).map(|v| v.to_bits()).collect::<Vec<_>>()
+            x.q.iter()
+                .chain(x.qd.iter())
+                .chain([x.phi].iter())
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>()
         };
         assert_eq!(run(), run(), "{preset}");
     }
@@ -154,7 +170,11 @@ fn pyragas_term_vanishes_on_a_period_tau_orbit() {
         sim.step();
     }
     let out = sim.step();
-    assert!(out.period_residual < 1e-4, "residual {}", out.period_residual);
+    assert!(
+        out.period_residual < 1e-4,
+        "residual {}",
+        out.period_residual
+    );
     let x: ArmState<3> = *sim.state();
     let mut strong = sim.clone();
     strong.params.mu = 3.0;
@@ -162,5 +182,9 @@ fn pyragas_term_vanishes_on_a_period_tau_orbit() {
         sim.step();
         strong.step();
     }
-    assert!((sim.state().q - strong.state().q).norm() < 1e-4, "from {:?}", x.q);
+    assert!(
+        (sim.state().q - strong.state().q).norm() < 1e-4,
+        "from {:?}",
+        x.q
+    );
 }

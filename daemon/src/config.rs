@@ -39,6 +39,19 @@ pub struct DaemonConfig {
     pub cleanup_every_s: f64,
     /// Capacity of the loop → reporter telemetry queue (ticks).
     pub telemetry_queue: usize,
+    /// Rate of the telemetry stream (Hz), 10 to 50.
+    pub telemetry_hz: f64,
+    /// How the plant holds a command between ticks: "first-order" (q̈ and its rate, the
+    /// default) or "zero-order" (constant q̈). See `control::hold` for why it matters.
+    pub hold: Hold,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Hold {
+    #[default]
+    FirstOrder,
+    ZeroOrder,
 }
 
 impl Default for DaemonConfig {
@@ -57,6 +70,8 @@ impl Default for DaemonConfig {
             report_every_s: 2.0,
             cleanup_every_s: 1.0,
             telemetry_queue: 16_384,
+            telemetry_hz: 20.0,
+            hold: Hold::FirstOrder,
         }
     }
 }
@@ -135,6 +150,13 @@ impl DaemonConfig {
                 "cleanup_every_s",
                 self.cleanup_every_s,
                 "must be between 0.1 and 3600 s",
+            ));
+        }
+        if !(self.telemetry_hz.is_finite() && (10.0..=50.0).contains(&self.telemetry_hz)) {
+            return Err(invalid(
+                "telemetry_hz",
+                self.telemetry_hz,
+                "must be between 10 and 50 Hz",
             ));
         }
         if !(64..=1 << 22).contains(&self.telemetry_queue) {

@@ -5,8 +5,8 @@
 //! lives here and the loop only moves samples in and out, so the tick can be driven by a test with
 //! a mock clock, and its allocation-freedom proven without shared memory in the way.
 
-use control::law::evaluate;
-use control::{ArmModel, ControlOutput, DelayLine, Kinematics, LawParams, VecN};
+use control::hold;
+use control::{ArmModel, ArmState, ControlOutput, DelayLine, Kinematics, LawParams, VecN};
 use protocol::{CommandSample, Mode, StateSample};
 use serde::Serialize;
 
@@ -56,6 +56,8 @@ pub struct TickOutcome<const N: usize> {
 #[derive(Clone, Copy, Debug)]
 pub struct ControllerSettings {
     pub rate_hz: f64,
+    /// Send q̈'s rate for a first-order hold.
+    pub first_order_hold: bool,
     pub hold_after: u32,
     pub stale_ns: u64,
     pub daemon_id: u64,
@@ -68,7 +70,12 @@ pub struct Controller<const N: usize> {
     dt: f64,
     delay: DelayLine<N>,
     kin: Kinematics<N>,
-    tick: u64,
+    /// Stamp of the first state ever accepted: controller time 0.
+    t0_stamp: Option<u64>,
+    /// Controller time of the newest accepted state (s).
+    t: f64,
+    /// Grid index (in periods since `t0_stamp`) of the delay line's first sample.
+    delay_origin: i64,
     mode: Mode,
     plant_id: u64,
     last_seq: Option<u64>,
@@ -94,7 +101,9 @@ impl<const N: usize> Controller<N> {
             dt,
             delay: DelayLine::new(max_tau.max(params.tau) / dt, VecN::<N>::zeros()),
             kin: Kinematics::default(),
-            tick: 0,
+            t0_stamp: None,
+            t: 0.0,
+            delay_origin: 0,
             mode: Mode::Hold,
             plant_id: 0,
             last_seq: None,
@@ -124,9 +133,25 @@ impl<const N: usize> Controller<N> {
         self.mode
     }
 
-    /// Controller time (s): the task and t_on run on the tick grid from the daemon's start.
+    /// Controller time (s) of the newest state: the task, t_on and the delay line run on the
+    /// *measurement* time, the state's stamp relative to the first state ever accepted. The law is
+    /// evaluated for the instant the state describes, not for the instant the tick happens to run,
+    /// and the circle's phase does not depend on which process started first.
     pub fn time(&self) -> f64 {
-        self.tick as f64 * self.dt
+        self.t
+    }
+
+    /// Feeds the delay line up to grid index `g`, holding the previous value across gaps.
+    fn feed_delay(&mut self, g: i64, qd: VecN<N>) {
+        let next = self.delay_origin + self.delay.len() as i64;
+        if g < next {
+            return; // two states in one grid slot: the first one stays
+        }
+        let hold = self.last_qd.unwrap_or(qd);
+        for _ in next..g {
+            self.delay.push(hold);
+        }
+        self.delay.push(qd);
     }
 
     fn accept(&mut self, s: &StateSample, now_ns: u64) -> Result<bool, Rejection> {
@@ -164,14 +189,21 @@ impl<const N: usize> Controller<N> {
         if let Some(s) = newest {
             match self.accept(s, now_ns) {
                 Ok(restarted) => {
+                    let t0 = *self.t0_stamp.get_or_insert(s.stamp_ns);
+                    let t = s.stamp_ns.saturating_sub(t0) as f64 * 1e-9;
+                    let g = (t / self.dt).round() as i64;
                     if restarted || self.last_qd.is_none() {
+                        // New history: the delay line restarts at this state (q̇ before it = q̇ now).
                         let qd = VecN::<N>::from_column_slice(&s.qd[..N]);
                         self.delay.reset(qd);
+                        self.delay_origin = g;
+                        self.last_qd = None;
                     }
                     if restarted {
                         self.counters.plant_restarts += 1;
                         out.plant_restarted = true;
                     }
+                    self.t = self.t.max(t);
                     self.last_seq = Some(s.seq);
                     self.counters.fresh_states += 1;
                     out.state_age_ns = Some(now_ns.saturating_sub(s.stamp_ns));
@@ -192,32 +224,30 @@ impl<const N: usize> Controller<N> {
         if let Some(s) = fresh {
             self.missed = 0;
             self.mode = Mode::Run;
-            let q = VecN::<N>::from_column_slice(&s.q[..N]);
-            let qd = VecN::<N>::from_column_slice(&s.qd[..N]);
-            self.last_qd = Some(qd);
-            self.delay.push(qd);
-            let t = self.time();
-            let delayed = self
-                .delay
-                .sample((self.delay.len() - 1) as f64 - self.params.tau / self.dt);
-            let o = evaluate(
+            let x = ArmState {
+                q: VecN::<N>::from_column_slice(&s.q[..N]),
+                qd: VecN::<N>::from_column_slice(&s.qd[..N]),
+                phi: s.phi,
+            };
+            let t = self.t;
+            self.feed_delay((t / self.dt).round() as i64, x.qd);
+            self.last_qd = Some(x.qd);
+            let (delay, origin, dt) = (&self.delay, self.delay_origin as f64, self.dt);
+            let held = hold::command(
                 &self.params,
                 &self.model,
                 t,
-                s.phi,
-                &q,
-                &qd,
-                &delayed,
+                &x,
+                dt,
+                self.settings.first_order_hold,
+                |at| delay.sample(at / dt - origin),
                 &mut self.kin,
             );
+            let o = held.output;
             out.output = Some(o);
-            out.command = Some(self.command(Mode::Run, &o.qdd, s, now_ns));
+            out.command = Some(self.command(Mode::Run, &held.qdd, &held.qddd, s, now_ns));
         } else {
             self.missed = self.missed.saturating_add(1);
-            if let Some(qd) = self.last_qd {
-                // Keep the delay line on the tick grid through short gaps.
-                self.delay.push(qd);
-            }
             if self.missed >= self.settings.hold_after && self.mode == Mode::Run {
                 self.mode = Mode::Hold;
                 self.counters.holds_entered += 1;
@@ -229,12 +259,11 @@ impl<const N: usize> Controller<N> {
                     seq: self.last_seq.unwrap_or(0),
                     ..StateSample::default()
                 };
-                out.command = Some(self.command(Mode::Hold, &zero, &last, now_ns));
+                out.command = Some(self.command(Mode::Hold, &zero, &zero, &last, now_ns));
             }
         }
         out.mode = self.mode;
         out.mode_changed = prev_mode != self.mode;
-        self.tick += 1;
         self.counters.ticks += 1;
         if out.command.is_some() {
             self.counters.commands += 1;
@@ -248,13 +277,15 @@ impl<const N: usize> Controller<N> {
             seq: self.last_seq.unwrap_or(0),
             ..StateSample::default()
         };
-        self.command(Mode::Brake, &VecN::<N>::zeros(), &last, now_ns)
+        let zero = VecN::<N>::zeros();
+        self.command(Mode::Brake, &zero, &zero, &last, now_ns)
     }
 
     fn command(
         &mut self,
         mode: Mode,
         qdd: &VecN<N>,
+        qddd: &VecN<N>,
         answers: &StateSample,
         now_ns: u64,
     ) -> CommandSample {
@@ -267,8 +298,10 @@ impl<const N: usize> Controller<N> {
             mode: mode.into(),
             n: N as u32,
             qdd: [0.0; protocol::MAX_JOINTS],
+            qddd: [0.0; protocol::MAX_JOINTS],
         };
         c.qdd[..N].copy_from_slice(qdd.as_slice());
+        c.qddd[..N].copy_from_slice(qddd.as_slice());
         self.next_command_seq += 1;
         c
     }
@@ -283,6 +316,7 @@ mod tests {
         let cfg = Config::preset("paper").unwrap();
         let settings = ControllerSettings {
             rate_hz: 1000.0,
+            first_order_hold: true,
             hold_after: 5,
             stale_ns: 5_000_000,
             daemon_id: 9,

@@ -8,6 +8,7 @@
 
 pub mod config;
 pub mod controller;
+pub mod requests;
 pub mod service;
 pub mod telemetry;
 

@@ -57,14 +57,9 @@ fn run_n<const N: usize>(
 
     // Ordinary threads first.
     let (tx, rx) = crossbeam::channel::bounded::<TickRecord>(d.telemetry_queue);
-    let reporter = Reporter::new(
-        &d.namespace,
-        d.rate_hz,
-        d.wait.name(),
-        &d.output_dir,
-        d.report_every_s,
-        Default::default(),
-    );
+    let (params_tx, params_rx) = crossbeam::channel::bounded::<control::LawParams>(16);
+    let (rt_tx, rt_rx) = crossbeam::channel::bounded::<rt::setup::RtReport>(1);
+    let reporter = Reporter::new(setup.system.clone(), d.clone(), params_tx, rt_rx)?;
     let reporter = std::thread::Builder::new()
         .name("chaosd-report".into())
         .spawn(move || reporter.run(rx, on_line))?;
@@ -90,7 +85,7 @@ fn run_n<const N: usize>(
             })?
     };
 
-    let result = control_loop::<N>(setup, &names, duration, tx);
+    let result = control_loop::<N>(setup, &names, duration, tx, params_rx, rt_tx);
     running.store(false, Ordering::Relaxed);
     let _ = hk.join();
     let summary = reporter
@@ -108,6 +103,8 @@ fn control_loop<const N: usize>(
     names: &ServiceNames,
     duration: Option<f64>,
     tx: crossbeam::channel::Sender<TickRecord>,
+    params_rx: crossbeam::channel::Receiver<control::LawParams>,
+    rt_tx: crossbeam::channel::Sender<rt::setup::RtReport>,
 ) -> Result<rt::setup::RtReport> {
     let d = &setup.daemon;
     let node = node("chaosd-daemon")?;
@@ -127,6 +124,7 @@ fn control_loop<const N: usize>(
 
     let settings = ControllerSettings {
         rate_hz: d.rate_hz,
+        first_order_hold: d.hold == crate::config::Hold::FirstOrder,
         hold_after: d.hold_after,
         stale_ns: (d.stale_ms * 1e6) as u64,
         daemon_id: protocol::new_instance_id(),
@@ -143,6 +141,7 @@ fn control_loop<const N: usize>(
         priority: d.priority,
         lock_memory: d.lock_memory,
     });
+    let _ = rt_tx.try_send(rt_report.clone());
     for w in &rt_report.warnings {
         eprintln!("chaosd: warning: {w}");
     }
@@ -165,6 +164,10 @@ fn control_loop<const N: usize>(
             break;
         }
         let woke = rt::wait_until(deadline, d.wait, spin);
+        // A validated parameter block from the control service takes effect here, between ticks.
+        if let Ok(p) = params_rx.try_recv() {
+            ctl.set_params(p);
+        }
         let mut newest = None;
         loop {
             match subscriber.receive() {
@@ -202,8 +205,13 @@ fn control_loop<const N: usize>(
             period_residual: law.map_or(f64::NAN, |l| l.period_residual),
             clearance: law.map_or(f64::INFINITY, |l| l.clearance),
             mu: p.mu,
+            tau: p.tau,
+            t_on: p.t_on,
+            feedback_on: p.feedback,
             feedback_active: law.is_some_and(|l| l.flags & law_flags::FEEDBACK_ACTIVE != 0),
             counters: ctl.counters,
+            state: if law.is_some() { newest } else { None },
+            command: o.command,
         };
         if tx.try_send(rec).is_err() {
             ctl.counters.telemetry_dropped += 1;

@@ -3,14 +3,27 @@
 //! The loop hands one small `Copy` record per tick to this thread through a bounded crossbeam
 //! channel with `try_send`, and counts a drop if the queue is full: it never waits. Here the
 //! records become HdrHistograms (wake-up lateness, compute time, state age), per-second windows of
-//! tracking error and period residual, live status lines and, at exit, the files a person or a
-//! tool reads: `.hgrm` percentile text, a V2 `.hlog` and `daemon-summary.json`.
+//! tracking error and period residual, live status lines, the telemetry stream, recordings and,
+//! at exit, the files a person or a tool reads: `.hgrm` percentile text, a V2 `.hlog` and
+//! `daemon-summary.json`.
+//!
+//! This thread also serves the control service. It keeps the running [`Config`]; a change is
+//! validated in [`crate::control`] and sent to the loop as a whole `LawParams` block, which the
+//! loop swaps in between two ticks. So a request can never stall the loop: the loop only ever
+//! does a `try_recv`.
 
+use crate::config::DaemonConfig;
 use crate::controller::Counters;
+use anyhow::anyhow;
+use control::{Config, LawParams};
 use hdrhistogram::Histogram;
-use protocol::Mode;
+use protocol::{
+    CommandSample, ControlRequest, ControlResponse, Mode, Op, ServiceNames, StateSample, Status,
+    TelemetrySample,
+};
 use rt::hist::{self, Percentiles};
 use serde::Serialize;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime};
 
@@ -30,8 +43,15 @@ pub struct TickRecord {
     pub period_residual: f64,
     pub clearance: f64,
     pub mu: f64,
+    pub tau: f64,
+    pub t_on: f64,
+    pub feedback_on: bool,
     pub feedback_active: bool,
     pub counters: Counters,
+    /// The state the law used, if a fresh one arrived.
+    pub state: Option<StateSample>,
+    /// The command published, if any.
+    pub command: Option<CommandSample>,
 }
 
 /// What the reporter learnt over the run.
@@ -66,17 +86,41 @@ struct Second {
     feedback: bool,
 }
 
+/// An open recording.
+struct Recording {
+    path: PathBuf,
+    file: std::io::BufWriter<std::fs::File>,
+    rows: u64,
+    n: usize,
+}
+
+/// Accumulates one telemetry interval.
+#[derive(Default)]
+struct Interval {
+    sq_track: f64,
+    n_track: u64,
+    resid: f64,
+    n_resid: u64,
+    min_clearance: f64,
+}
+
 pub struct Reporter {
-    namespace: String,
-    rate_hz: f64,
-    wait: String,
-    out_dir: PathBuf,
+    names: ServiceNames,
+    daemon: DaemonConfig,
+    /// The running configuration: the only copy that changes.
+    cfg: Config,
+    params_tx: crossbeam::channel::Sender<LawParams>,
+    rt_rx: crossbeam::channel::Receiver<rt::setup::RtReport>,
+    min_tau: f64,
     report_every: Option<Duration>,
     realtime: rt::setup::RtReport,
     lateness: Histogram<u64>,
     compute: Histogram<u64>,
     state_age: Histogram<u64>,
     window_lateness: Histogram<u64>,
+    tel_lateness: Histogram<u64>,
+    tel: Interval,
+    tel_seq: u64,
     seconds: Vec<Second>,
     sq_track: f64,
     n_track: u64,
@@ -84,30 +128,45 @@ pub struct Reporter {
     min_clearance: f64,
     safety_ticks: u64,
     last: Option<TickRecord>,
+    /// The newest state the law used (ticks without a fresh state have none).
+    last_state: Option<StateSample>,
+    /// Whether the delayed term was applied the last time the law ran.
+    last_feedback_active: bool,
     window_track: (f64, u64),
     window_resid: (f64, u64),
+    recording: Option<Recording>,
+    stopping: bool,
 }
 
 impl Reporter {
     pub fn new(
-        namespace: &str,
-        rate_hz: f64,
-        wait: &str,
-        out_dir: &Path,
-        report_every_s: f64,
-        realtime: rt::setup::RtReport,
-    ) -> Self {
-        Self {
-            namespace: namespace.into(),
-            rate_hz,
-            wait: wait.into(),
-            out_dir: out_dir.into(),
-            report_every: (report_every_s > 0.0).then(|| Duration::from_secs_f64(report_every_s)),
-            realtime,
+        cfg: Config,
+        daemon: DaemonConfig,
+        params_tx: crossbeam::channel::Sender<LawParams>,
+        rt_rx: crossbeam::channel::Receiver<rt::setup::RtReport>,
+    ) -> anyhow::Result<Self> {
+        let names =
+            ServiceNames::new(&daemon.namespace).map_err(|e| anyhow!("daemon.namespace: {e}"))?;
+        Ok(Self {
+            names,
+            report_every: (daemon.report_every_s > 0.0)
+                .then(|| Duration::from_secs_f64(daemon.report_every_s)),
+            min_tau: 1.0 / daemon.rate_hz,
+            daemon,
+            cfg,
+            params_tx,
+            rt_rx,
+            realtime: Default::default(),
             lateness: hist::new_ns(),
             compute: hist::new_ns(),
             state_age: hist::new_ns(),
             window_lateness: hist::new_ns(),
+            tel_lateness: hist::new_ns(),
+            tel: Interval {
+                min_clearance: f64::INFINITY,
+                ..Default::default()
+            },
+            tel_seq: 0,
             seconds: Vec::new(),
             sq_track: 0.0,
             n_track: 0,
@@ -115,14 +174,19 @@ impl Reporter {
             min_clearance: f64::INFINITY,
             safety_ticks: 0,
             last: None,
+            last_state: None,
+            last_feedback_active: false,
             window_track: (0.0, 0),
             window_resid: (0.0, 0),
-        }
+            recording: None,
+            stopping: false,
+        })
     }
 
     fn record(&mut self, r: &TickRecord) {
         self.lateness.saturating_record(r.lateness_ns.max(1));
         self.window_lateness.saturating_record(r.lateness_ns.max(1));
+        self.tel_lateness.saturating_record(r.lateness_ns.max(1));
         self.compute.saturating_record(r.compute_ns.max(1));
         if let Some(a) = r.state_age_ns {
             self.state_age.saturating_record(a.max(1));
@@ -147,14 +211,338 @@ impl Reporter {
             self.window_track.1 += 1;
             self.window_resid.0 += r.period_residual;
             self.window_resid.1 += 1;
+            self.tel.sq_track += r.tracking_error * r.tracking_error;
+            self.tel.n_track += 1;
+            self.tel.resid += r.period_residual;
+            self.tel.n_resid += 1;
             if r.clearance.is_finite() {
                 self.min_clearance = self.min_clearance.min(r.clearance);
             }
+            self.tel.min_clearance = self.tel.min_clearance.min(r.clearance);
             if r.law_flags & control::law::flags::IN_SAFETY_ZONE != 0 {
                 self.safety_ticks += 1;
             }
         }
+        if let (Some(rec), Some(st)) = (self.recording.as_mut(), r.state.as_ref()) {
+            let _ = write_row(rec, r, st);
+        }
+        if r.state.is_some() {
+            self.last_state = r.state;
+        }
+        if r.ran_law {
+            self.last_feedback_active = r.feedback_active;
+        }
         self.last = Some(*r);
+    }
+
+    fn telemetry(&mut self) -> Option<TelemetrySample> {
+        let r = self.last?;
+        let c = &r.counters;
+        let p = Percentiles::of(&self.tel_lateness);
+        let i = std::mem::replace(
+            &mut self.tel,
+            Interval {
+                min_clearance: f64::INFINITY,
+                ..Default::default()
+            },
+        );
+        self.tel_lateness.reset();
+        let mut t = TelemetrySample {
+            seq: self.tel_seq,
+            stamp_ns: protocol::monotonic_ns(),
+            t: r.t,
+            mode: r.mode as u32,
+            feedback_on: u32::from(r.feedback_on),
+            feedback_active: u32::from(self.last_feedback_active),
+            n: self.cfg.n() as u32,
+            mu: r.mu,
+            tau: r.tau,
+            t_on: r.t_on,
+            tracking_error: if i.n_track > 0 {
+                (i.sq_track / i.n_track as f64).sqrt()
+            } else {
+                f64::NAN
+            },
+            period_residual: if i.n_resid > 0 {
+                i.resid / i.n_resid as f64
+            } else {
+                f64::NAN
+            },
+            clearance: i.min_clearance,
+            time_in_contact: self.safety_ticks as f64 / self.daemon.rate_hz,
+            lateness_p50_us: p.p50_us,
+            lateness_p99_us: p.p99_us,
+            lateness_max_us: p.max_us,
+            ticks: c.ticks,
+            overruns: c.overruns,
+            telemetry_dropped: c.telemetry_dropped,
+            rejected: c.rejected_invalid + c.rejected_stale + c.rejected_out_of_order,
+            holds: c.holds_entered,
+            ..TelemetrySample::default()
+        };
+        if let Some(s) = self.last_state {
+            t.state_seq = s.seq;
+            t.phi = s.phi;
+            t.q = s.q;
+            t.qd = s.qd;
+        }
+        self.tel_seq += 1;
+        Some(t)
+    }
+
+    /// Sends a validated configuration to the loop and adopts it.
+    fn commit(&mut self, new: Config) -> Result<String, String> {
+        self.params_tx.try_send(new.law_params()).map_err(|_| {
+            "the control loop has not taken the previous change yet; try again".to_string()
+        })?;
+        self.cfg = new;
+        let f = &self.cfg.feedback;
+        let c = &self.cfg.control;
+        Ok(serde_json::json!({
+            "applied": "at the next tick",
+            "mu": f.mu, "tau": f.tau, "t_on": f.t_on, "feedback": f.enabled,
+            "kp": c.kp, "kv": c.kv, "alpha": c.alpha, "secondary": c.secondary,
+            "obstacles": c.obstacles.len(),
+            "task": self.cfg.task,
+        })
+        .to_string())
+    }
+
+    fn percentiles(&self) -> serde_json::Value {
+        serde_json::json!({
+            "lateness": Percentiles::of(&self.lateness),
+            "compute": Percentiles::of(&self.compute),
+            "state_age": Percentiles::of(&self.state_age),
+        })
+    }
+
+    fn status(&self) -> String {
+        let r = self.last;
+        let tr = self.window_track;
+        serde_json::json!({
+            "namespace": self.names.namespace(),
+            "pid": std::process::id(),
+            "rate_hz": self.daemon.rate_hz,
+            "wait": self.daemon.wait,
+            "mode": r.map(|r| format!("{:?}", r.mode)),
+            "t": r.map(|r| r.t),
+            "mu": r.map(|r| r.mu),
+            "tau": r.map(|r| r.tau),
+            "t_on": r.map(|r| r.t_on),
+            "feedback": r.map(|r| r.feedback_on),
+            "feedback_active": self.last_feedback_active,
+            "kp": self.cfg.control.kp,
+            "kv": self.cfg.control.kv,
+            "alpha": self.cfg.control.alpha,
+            "secondary": self.cfg.control.secondary,
+            "obstacles": self.cfg.control.obstacles.len(),
+            "max_tau": self.cfg.feedback.max_tau,
+            "tracking_error_recent": if tr.1 > 0 { Some((tr.0 / tr.1 as f64).sqrt()) } else { None },
+            "counters": r.map(|r| r.counters),
+            "histograms": self.percentiles(),
+            "recording": self.recording.as_ref().map(|r| r.path.display().to_string()),
+            "realtime": self.realtime,
+        })
+        .to_string()
+    }
+
+    /// Answers one request. Refusals leave everything unchanged.
+    fn handle(&mut self, req: &ControlRequest) -> ControlResponse {
+        let args = match req.args() {
+            Ok(a) => a,
+            Err(e) => {
+                return ControlResponse::new(
+                    req.id,
+                    Status::Refused,
+                    &format!("malformed request: {e}"),
+                )
+            }
+        };
+        let op = match req.op() {
+            Ok(op) => op,
+            Err(v) => {
+                return ControlResponse::new(
+                    req.id,
+                    Status::Refused,
+                    &format!("unknown operation {v}"),
+                )
+            }
+        };
+        let now = self.last.map_or(0.0, |r| r.t);
+        let result: Result<String, String> = match op {
+            Op::Status => Ok(self.status()),
+            Op::GetConfig => {
+                let mut c = self.cfg.clone();
+                c.daemon = toml::Table::try_from(&self.daemon).ok();
+                Ok(c.to_toml_string())
+            }
+            Op::Set => crate::requests::apply_set(&self.cfg, args, self.min_tau).and_then(|c| self.commit(c)),
+            Op::DfcOn => crate::requests::apply_dfc(&self.cfg, true, now).and_then(|c| self.commit(c)),
+            Op::DfcOff => crate::requests::apply_dfc(&self.cfg, false, now).and_then(|c| self.commit(c)),
+            Op::ObstacleAdd => crate::requests::apply_obstacle_add(&self.cfg, args).and_then(|c| self.commit(c)),
+            Op::ObstacleRemove => crate::requests::apply_obstacle_remove(&self.cfg, args).and_then(|c| self.commit(c)),
+            Op::ObstacleList => Ok(serde_json::json!(self
+                .cfg
+                .control
+                .obstacles
+                .iter()
+                .enumerate()
+                .map(|(i, o)| serde_json::json!({"index": i, "center": o.center, "radius": o.radius, "margin": o.margin}))
+                .collect::<Vec<_>>())
+            .to_string()),
+            Op::HistSnapshot => Ok(self.percentiles().to_string()),
+            Op::HistReset => {
+                self.lateness.reset();
+                self.compute.reset();
+                self.state_age.reset();
+                Ok("histograms reset".into())
+            }
+            Op::RecordStart => self.start_recording(args),
+            Op::RecordStop => match self.recording.take() {
+                Some(mut r) => r
+                    .file
+                    .flush()
+                    .map(|_| serde_json::json!({"path": r.path, "rows": r.rows}).to_string())
+                    .map_err(|e| format!("cannot finish {}: {e}", r.path.display())),
+                None => Err("not recording".into()),
+            },
+            Op::Shutdown => {
+                self.stopping = true;
+                rt::signal::request_stop();
+                Ok("shutting down".into())
+            }
+        };
+        match result {
+            Ok(body) => ControlResponse::new(req.id, Status::Ok, &body),
+            Err(why) => ControlResponse::new(req.id, Status::Refused, &why),
+        }
+    }
+
+    fn start_recording(&mut self, args: &str) -> Result<String, String> {
+        if let Some(r) = &self.recording {
+            return Err(format!("already recording to {}", r.path.display()));
+        }
+        let name = if args.trim().is_empty() {
+            let secs = SystemTime::now()
+                .duration_since(SystemTime::UNIX_EPOCH)
+                .map(|d| d.as_secs())
+                .unwrap_or(0);
+            format!("recording-{secs}.csv")
+        } else {
+            args.trim().to_string()
+        };
+        let path = crate::requests::recording_path(&self.daemon.output_dir, &name)?;
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        }
+        let f = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&path)
+            .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+        let n = self.cfg.n();
+        let mut file = std::io::BufWriter::new(f);
+        let mut h = String::from("t,state_seq,state_stamp_ns,phi");
+        for p in ["q", "qd"] {
+            for i in 1..=n {
+                h.push_str(&format!(",{p}{i}"));
+            }
+        }
+        h.push_str(",command_seq,mode");
+        for i in 1..=n {
+            h.push_str(&format!(",qdd{i}"));
+        }
+        h.push_str(",tracking_error,period_residual");
+        writeln!(file, "{h}").map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        self.recording = Some(Recording {
+            path: path.clone(),
+            file,
+            rows: 0,
+            n,
+        });
+        Ok(serde_json::json!({"path": path}).to_string())
+    }
+
+    /// Drains records until the loop closes the channel, serving requests and telemetry on the
+    /// way, then writes the files.
+    pub fn run(
+        mut self,
+        rx: crossbeam::channel::Receiver<TickRecord>,
+        mut on_line: impl FnMut(&str),
+    ) -> anyhow::Result<DaemonSummary> {
+        let start = Instant::now();
+        let wall_start = SystemTime::now();
+        let node = crate::service::node("chaosd-control")?;
+        let ports = (|| -> anyhow::Result<_> {
+            let server = protocol::control::serve_control_service(&node, &self.names)?
+                .server_builder()
+                .create()
+                .map_err(|e| {
+                    anyhow!(
+                        "cannot serve {}: {e:?} (another chaosd in this namespace?)",
+                        self.names.control()
+                    )
+                })?;
+            let telemetry = protocol::control::open_telemetry_service(&node, &self.names)?
+                .publisher_builder()
+                .create()
+                .map_err(|e| anyhow!("cannot publish on {}: {e:?}", self.names.telemetry()))?;
+            Ok((server, telemetry))
+        })();
+        let (server, telemetry) = match ports {
+            Ok(p) => p,
+            Err(e) => {
+                rt::signal::request_stop();
+                while rx.recv().is_ok() {}
+                return Err(e);
+            }
+        };
+        let tel_every = Duration::from_secs_f64(1.0 / self.daemon.telemetry_hz);
+        let mut next_tel = start + tel_every;
+        let mut next_report = self.report_every.map(|d| start + d);
+        loop {
+            match rx.recv_timeout(Duration::from_millis(2)) {
+                Ok(r) => {
+                    self.record(&r);
+                    while let Ok(r) = rx.try_recv() {
+                        self.record(&r);
+                    }
+                }
+                Err(crossbeam::channel::RecvTimeoutError::Timeout) => {}
+                Err(crossbeam::channel::RecvTimeoutError::Disconnected) => break,
+            }
+            if let Ok(r) = self.rt_rx.try_recv() {
+                self.realtime = r;
+            }
+            while let Ok(Some(active)) = server.receive() {
+                let req = *active.payload();
+                let resp = self.handle(&req);
+                let _ = active.send_copy(resp);
+            }
+            let now = Instant::now();
+            if now >= next_tel {
+                if let Some(t) = self.telemetry() {
+                    let _ = telemetry.send_copy(t);
+                }
+                next_tel += tel_every;
+                if next_tel < now {
+                    next_tel = now + tel_every;
+                }
+            }
+            if let (Some(at), Some(every)) = (next_report, self.report_every) {
+                if now >= at {
+                    if let Some(line) = self.status_line() {
+                        on_line(&line);
+                    }
+                    next_report = Some(at + every);
+                }
+            }
+        }
+        if let Some(mut r) = self.recording.take() {
+            let _ = r.file.flush();
+        }
+        self.finish(start.elapsed(), wall_start)
     }
 
     fn status_line(&mut self) -> Option<String> {
@@ -195,44 +583,10 @@ impl Reporter {
         ))
     }
 
-    /// Drains records until the loop closes the channel, then writes the files.
-    pub fn run(
-        mut self,
-        rx: crossbeam::channel::Receiver<TickRecord>,
-        mut on_line: impl FnMut(&str),
-    ) -> anyhow::Result<DaemonSummary> {
-        let start = Instant::now();
-        let wall_start = SystemTime::now();
-        let mut next_report = self.report_every.map(|d| start + d);
-        loop {
-            match rx.recv_timeout(Duration::from_millis(100)) {
-                Ok(r) => {
-                    self.record(&r);
-                    while let Ok(r) = rx.try_recv() {
-                        self.record(&r);
-                    }
-                }
-                Err(crossbeam::channel::RecvTimeoutError::Timeout) => {}
-                Err(crossbeam::channel::RecvTimeoutError::Disconnected) => break,
-            }
-            if let (Some(at), Some(every)) = (next_report, self.report_every) {
-                if Instant::now() >= at {
-                    if let Some(line) = self.status_line() {
-                        on_line(&line);
-                    }
-                    next_report = Some(at + every);
-                }
-            }
-        }
-        self.finish(start.elapsed(), wall_start)
-    }
-
     fn finish(self, elapsed: Duration, wall_start: SystemTime) -> anyhow::Result<DaemonSummary> {
-        std::fs::create_dir_all(&self.out_dir).map_err(|e| {
-            anyhow::anyhow!(
-                "cannot create output directory {}: {e}",
-                self.out_dir.display()
-            )
+        let out_dir = self.daemon.output_dir.clone();
+        std::fs::create_dir_all(&out_dir).map_err(|e| {
+            anyhow::anyhow!("cannot create output directory {}: {e}", out_dir.display())
         })?;
         let mut files = Vec::new();
         for (name, h) in [
@@ -240,12 +594,12 @@ impl Reporter {
             ("compute", &self.compute),
             ("state-age", &self.state_age),
         ] {
-            let p = self.out_dir.join(format!("daemon-{name}.hgrm"));
+            let p = out_dir.join(format!("daemon-{name}.hgrm"));
             hist::save_hgrm(h, &p)
                 .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", p.display()))?;
             files.push(p);
         }
-        let hlog = self.out_dir.join("daemon.hlog");
+        let hlog = out_dir.join("daemon.hlog");
         hist::save_hlog(
             &[
                 ("lateness", &self.lateness),
@@ -281,9 +635,9 @@ impl Reporter {
         let after_from = on.len().saturating_sub(5);
         let counters = self.last.map(|r| r.counters).unwrap_or_default();
         let summary = DaemonSummary {
-            namespace: self.namespace.clone(),
-            rate_hz: self.rate_hz,
-            wait: self.wait.clone(),
+            namespace: self.names.namespace().to_string(),
+            rate_hz: self.daemon.rate_hz,
+            wait: self.daemon.wait.name().to_string(),
             realtime: self.realtime.clone(),
             duration_s: elapsed.as_secs_f64(),
             counters,
@@ -296,10 +650,10 @@ impl Reporter {
             period_residual_after: mean(&on[after_from..]),
             feedback_on_at_s: self.feedback_on_at,
             min_clearance_m: self.min_clearance.is_finite().then_some(self.min_clearance),
-            time_in_safety_zone_s: self.safety_ticks as f64 / self.rate_hz,
+            time_in_safety_zone_s: self.safety_ticks as f64 / self.daemon.rate_hz,
             files: Vec::new(),
         };
-        files.push(self.out_dir.join(SUMMARY_FILE));
+        files.push(out_dir.join(SUMMARY_FILE));
         Ok(DaemonSummary { files, ..summary })
     }
 }
@@ -312,4 +666,30 @@ pub fn write_summary(summary: &DaemonSummary, dir: &Path) -> anyhow::Result<()> 
     let json = dir.join(SUMMARY_FILE);
     std::fs::write(&json, serde_json::to_string_pretty(summary)?)
         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", json.display()))
+}
+
+fn write_row(rec: &mut Recording, r: &TickRecord, s: &StateSample) -> std::io::Result<()> {
+    let n = rec.n;
+    let f = &mut rec.file;
+    write!(f, "{:.6},{},{},{:.12e}", r.t, s.seq, s.stamp_ns, s.phi)?;
+    for v in s.q[..n].iter().chain(&s.qd[..n]) {
+        write!(f, ",{v:.12e}")?;
+    }
+    match &r.command {
+        Some(c) => {
+            write!(f, ",{},{}", c.seq, c.mode)?;
+            for v in &c.qdd[..n] {
+                write!(f, ",{v:.12e}")?;
+            }
+        }
+        None => {
+            write!(f, ",,")?;
+            for _ in 0..n {
+                write!(f, ",")?;
+            }
+        }
+    }
+    writeln!(f, ",{:.9e},{:.9e}", r.tracking_error, r.period_residual)?;
+    rec.rows += 1;
+    Ok(())
 }

@@ -61,6 +61,7 @@ fn controller(preset: &str) -> Controller<3> {
     cfg.feedback.t_on = 0.5;
     let settings = ControllerSettings {
         rate_hz: 1000.0,
+        first_order_hold: true,
         hold_after: 10,
         stale_ns: 5_000_000,
         daemon_id: 1,

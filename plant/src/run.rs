@@ -119,6 +119,11 @@ pub fn run<P: Plant>(
         n: n as u32,
         ..StateSample::default()
     };
+    // Periods actually integrated, and that count for each recent published state: a command's
+    // ramp starts at the state it answers, however many periods ago that was.
+    let mut integrated: u64 = 0;
+    let mut behind: u64 = 0;
+    let mut published_at = [(u64::MAX, 0u64); 64];
     let mut fault = None;
 
     while !rt::signal::stop_requested() {
@@ -170,18 +175,46 @@ pub fn run<P: Plant>(
         }
         match current {
             Some(cmd) if !silent && cmd.mode == Mode::Run as u32 => {
-                plant.write(Actuation::Accelerate(cmd.used_qdd()))
+                let (a_seq, a_count) = published_at[(cmd.state_seq % 64) as usize];
+                // Unknown (too old) answered state: a huge `since` makes the plant hold the ramp's end.
+                let since = if a_seq == cmd.state_seq {
+                    (integrated - a_count) as f64 * dt
+                } else {
+                    1e3
+                };
+                let n = cmd.n as usize;
+                plant.write(Actuation::Accelerate {
+                    qdd: &cmd.qdd[..n],
+                    qddd: &cmd.qddd[..n],
+                    since,
+                });
             }
             _ => plant.write(Actuation::Brake),
         }
-        if let Err(e) = plant.read(dt, &mut sample) {
-            fault = Some(e.to_string());
+        // Hold the initial state until a controller first answers (see `Plant::read`).
+        let step = if last_command_at.is_some() { dt } else { 0.0 };
+        // Physics does not pause: after an overrun the periods that were skipped are integrated
+        // too, so the state stays on the time its stamp claims.
+        let periods = 1 + behind;
+        let mut failed = None;
+        for _ in 0..periods {
+            if let Err(e) = plant.read(step, &mut sample) {
+                failed = Some(e.to_string());
+                break;
+            }
+            if step > 0.0 {
+                integrated += 1;
+            }
+        }
+        if let Some(e) = failed {
+            fault = Some(e);
             break;
         }
         sample.seq = seq;
         seq += 1;
         sample.flags = plant.flags() | if timed_out { flags::COMMAND_TIMEOUT } else { 0 };
-        sample.stamp_ns = monotonic_ns();
+        sample.stamp_ns = plant.stamp(deadline, monotonic_ns());
+        published_at[(sample.seq % 64) as usize] = (sample.seq, integrated);
         match publisher.loan_uninit() {
             Ok(s) => match s.write_payload(sample).send() {
                 Ok(_) => c.states_published += 1,
@@ -190,7 +223,8 @@ pub fn run<P: Plant>(
             Err(_) => c.ipc_errors += 1,
         }
         c.ticks += 1;
-        c.overruns += sched.advance(monotonic_ns());
+        behind = sched.advance(monotonic_ns());
+        c.overruns += behind;
     }
     plant.deactivate();
 

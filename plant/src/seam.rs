@@ -11,8 +11,15 @@ use protocol::StateSample;
 /// What the loop asks the plant to do until the next `write`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Actuation<'a> {
-    /// Apply these joint accelerations (rad/s², one per joint), held until the next write.
-    Accelerate(&'a [f64]),
+    /// Apply q̈(s) = `qdd` + `qddd`·s (rad/s², rad/s³, one entry per joint) from now until the
+    /// next write, where s starts at `since`: the time (s) the plant has advanced since the state
+    /// this command answers. A bridge that cannot ramp may apply `qdd + qddd·since` as a
+    /// constant.
+    Accelerate {
+        qdd: &'a [f64],
+        qddd: &'a [f64],
+        since: f64,
+    },
     /// Bring the joints to rest and keep them there.
     Brake,
 }
@@ -36,8 +43,18 @@ pub trait Plant {
     /// Hands over the actuation for the coming period.
     fn write(&mut self, actuation: Actuation<'_>);
     /// Advances one period of `dt` seconds (a simulator integrates; a bridge reads its sensors)
-    /// and fills `phi`, `q`, `qd` of `out`. The loop stamps, numbers and publishes it.
+    /// and fills `phi`, `q`, `qd` of `out`. The loop stamps, numbers and publishes it. Until the
+    /// first command arrives the loop passes `dt = 0`: a simulator then holds its initial state,
+    /// so a run starts when the controller does (a bridge just reads its sensors).
     fn read(&mut self, dt: f64, out: &mut StateSample) -> Result<(), PlantError>;
     /// Called once when the loop stops (brake, disable drives, ...).
     fn deactivate(&mut self);
+
+    /// The stamp for a state read at the tick whose deadline was `nominal_ns`, at `now_ns`.
+    /// A bridge stamps the measurement instant (the default, `now_ns`); a simulator, whose
+    /// physics advances on the nominal grid, stamps `nominal_ns`, free of wake-up jitter.
+    fn stamp(&self, nominal_ns: u64, now_ns: u64) -> u64 {
+        let _ = nominal_ns;
+        now_ns
+    }
 }

@@ -5,6 +5,7 @@
 //! command is held constant over a period (zero-order hold) and integrated with RK4 in substeps.
 
 use crate::seam::{Actuation, Plant, PlantError};
+use control::hold;
 use control::sim::{plant_derivative, rk4_step};
 use control::{ArmModel, ArmState, VecN};
 use protocol::{flags, StateSample};
@@ -15,8 +16,13 @@ pub struct SimPlant<const N: usize> {
     substeps: u32,
     brake_gain: f64,
     qdd: VecN<N>,
+    qddd: VecN<N>,
+    since: f64,
     braking: bool,
 }
+
+/// How far past the expected hold interval a ramp may run (periods) before it is held constant.
+const MAX_RAMP_PERIODS: f64 = 3.0;
 
 impl<const N: usize> SimPlant<N> {
     pub fn new(model: ArmModel<N>, initial: ArmState<N>, substeps: u32, brake_gain: f64) -> Self {
@@ -26,6 +32,8 @@ impl<const N: usize> SimPlant<N> {
             substeps: substeps.max(1),
             brake_gain,
             qdd: VecN::<N>::zeros(),
+            qddd: VecN::<N>::zeros(),
+            since: 0.0,
             braking: true,
         }
     }
@@ -64,8 +72,12 @@ impl<const N: usize> Plant for SimPlant<N> {
 
     fn write(&mut self, actuation: Actuation<'_>) {
         match actuation {
-            Actuation::Accelerate(a) if a.len() == N => {
-                self.qdd = VecN::<N>::from_column_slice(a);
+            Actuation::Accelerate { qdd, qddd, since }
+                if qdd.len() == N && qddd.len() == N && since.is_finite() =>
+            {
+                self.qdd = VecN::<N>::from_column_slice(qdd);
+                self.qddd = VecN::<N>::from_column_slice(qddd);
+                self.since = since.max(0.0);
                 self.braking = false;
             }
             _ => self.braking = true,
@@ -73,13 +85,29 @@ impl<const N: usize> Plant for SimPlant<N> {
     }
 
     fn read(&mut self, dt: f64, out: &mut StateSample) -> Result<(), PlantError> {
-        let h = dt / self.substeps as f64;
-        for _ in 0..self.substeps {
-            let (braking, gain, qdd) = (self.braking, self.brake_gain, self.qdd);
-            self.state = rk4_step(&self.state, h, |_, x| {
-                let a = if braking { -x.qd * gain } else { qdd };
-                plant_derivative(x, &a, self.base_rate(x))
-            });
+        if dt > 0.0 {
+            if self.braking {
+                let h = dt / self.substeps as f64;
+                for _ in 0..self.substeps {
+                    let gain = self.brake_gain;
+                    self.state = rk4_step(&self.state, h, |_, x| {
+                        plant_derivative(x, &(-x.qd * gain), self.base_rate(x))
+                    });
+                }
+            } else {
+                let max_ramp = MAX_RAMP_PERIODS * dt;
+                self.state = hold::integrate(
+                    &self.model,
+                    &self.state,
+                    &self.qdd,
+                    &self.qddd,
+                    self.since,
+                    max_ramp,
+                    dt,
+                    self.substeps,
+                );
+                self.since += dt;
+            }
         }
         if !self.state.is_finite() {
             return Err(PlantError::Fault(
@@ -96,6 +124,10 @@ impl<const N: usize> Plant for SimPlant<N> {
     fn deactivate(&mut self) {
         self.braking = true;
     }
+
+    fn stamp(&self, nominal_ns: u64, _now_ns: u64) -> u64 {
+        nominal_ns
+    }
 }
 
 #[cfg(test)]
@@ -111,12 +143,16 @@ mod tests {
         let mut p = SimPlant::new(cfg.model::<3>(), x0, 4, 20.0);
         let mut s = StateSample::default();
         // Constant acceleration for 0.1 s: q̇ grows by exactly a·t.
-        p.write(Actuation::Accelerate(&[1.0, 0.0, -1.0]));
+        p.write(Actuation::Accelerate {
+            qdd: &[1.0, 0.0, -1.0],
+            qddd: &[0.0; 3],
+            since: 0.0,
+        });
         for _ in 0..100 {
             p.read(1e-3, &mut s).unwrap();
         }
         assert!(
-            (s.qd[0] - 1.1).abs() < 1e-12 && (s.qd[2] + 0.5).abs() < 1e-12,
+            (s.qd[0] - 1.1).abs() < 1e-12 && (s.qd[2] - 0.4).abs() < 1e-12,
             "{:?}",
             s.qd
         );
@@ -128,7 +164,11 @@ mod tests {
         assert!(s.qd[..3].iter().all(|v| v.abs() < 1e-6), "{:?}", s.qd);
         assert_ne!(p.flags() & flags::BRAKING, 0);
         // A wrong-length command is not applied: the plant brakes instead.
-        p.write(Actuation::Accelerate(&[1.0]));
+        p.write(Actuation::Accelerate {
+            qdd: &[1.0],
+            qddd: &[0.0],
+            since: 0.0,
+        });
         assert_ne!(p.flags() & flags::BRAKING, 0);
     }
 }

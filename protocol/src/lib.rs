@@ -49,10 +49,14 @@
 //! # }
 //! ```
 
+pub mod control;
 pub mod names;
 pub mod qos;
 pub mod sample;
 
+pub use control::{
+    ControlRequest, ControlResponse, ControlService, Op, Status, TelemetrySample, TelemetryService,
+};
 pub use names::{
     validate_namespace, NamespaceError, ServiceNames, DEFAULT_NAMESPACE, MAX_NAMESPACE_LEN,
     SERVICE_ROOT,
@@ -73,7 +77,7 @@ pub const MIN_JOINTS: usize = 2;
 
 /// Wire-format version, embedded in the iceoryx2 type names of the samples. Bump it whenever a
 /// sample's layout or the meaning of a field changes.
-pub const WIRE_VERSION: u32 = 1;
+pub const WIRE_VERSION: u32 = 2;
 
 /// Nanoseconds of `CLOCK_MONOTONIC`, the clock every `*_ns` stamp on the wire uses.
 ///

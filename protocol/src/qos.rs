@@ -113,6 +113,8 @@ pub enum Channel {
     State,
     Command,
     Events,
+    Control,
+    Telemetry,
 }
 
 impl fmt::Display for Channel {
@@ -121,6 +123,8 @@ impl fmt::Display for Channel {
             Channel::State => "state",
             Channel::Command => "command",
             Channel::Events => "events",
+            Channel::Control => "control",
+            Channel::Telemetry => "telemetry",
         })
     }
 }
@@ -142,6 +146,15 @@ pub enum ServiceError {
         channel: Channel,
         source: EventOpenOrCreateError,
     },
+    #[error("cannot open the {channel} service: {source}")]
+    RequestResponse {
+        channel: Channel,
+        source: iceoryx2::service::builder::request_response::RequestResponseOpenOrCreateError,
+    },
+    #[error(
+        "no chaosd is serving the {channel} service (is the daemon running in this namespace?)"
+    )]
+    NotRunning { channel: Channel },
     #[error(
         "the {channel} service already exists with {setting} = {found}, but this build uses \
          {expected}; it was created by another chaosd build, so stop that or use another namespace"
@@ -154,7 +167,7 @@ pub enum ServiceError {
     },
 }
 
-fn service_name(name: &str, channel: Channel) -> Result<ServiceName, ServiceError> {
+pub(crate) fn service_name(name: &str, channel: Channel) -> Result<ServiceName, ServiceError> {
     ServiceName::new(name).map_err(|_| ServiceError::InvalidName { channel })
 }
 
@@ -176,7 +189,7 @@ fn expect(
     }
 }
 
-fn open_pubsub<S, T>(
+pub(crate) fn open_pubsub<S, T>(
     node: &Node<S>,
     name: &str,
     channel: Channel,

@@ -31,7 +31,7 @@ pub mod flags {
 
 /// The plant's measured state, published once per plant tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::StateSample.v1")]
+#[type_name("chaosd::StateSample.v2")]
 #[repr(C)]
 pub struct StateSample {
     /// Per-plant sequence number, +1 per published sample, starting at 0 after each plant start.
@@ -75,6 +75,7 @@ pub enum Field {
     Q(usize),
     Qd(usize),
     Qdd(usize),
+    Qddd(usize),
 }
 
 impl fmt::Display for Field {
@@ -84,6 +85,7 @@ impl fmt::Display for Field {
             Field::Q(i) => write!(f, "q[{i}]"),
             Field::Qd(i) => write!(f, "qd[{i}]"),
             Field::Qdd(i) => write!(f, "qdd[{i}]"),
+            Field::Qddd(i) => write!(f, "qddd[{i}]"),
         }
     }
 }
@@ -219,7 +221,7 @@ impl From<Mode> for u32 {
 
 /// The daemon's command, published once per control tick in answer to a [`StateSample`].
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::CommandSample.v1")]
+#[type_name("chaosd::CommandSample.v2")]
 #[repr(C)]
 pub struct CommandSample {
     /// Per-daemon sequence number, +1 per published command, starting at 0 after each start.
@@ -238,6 +240,10 @@ pub struct CommandSample {
     pub n: u32,
     /// Commanded joint accelerations, rad/s². Entries `n..` are unused and ignored.
     pub qdd: [f64; MAX_JOINTS],
+    /// Rate of change of `qdd` over the hold interval, rad/s³: the plant applies
+    /// `qdd + qddd·s`, s the time since the answered state (a first-order hold; zeros give a
+    /// zero-order hold). Entries `n..` are unused and ignored.
+    pub qddd: [f64; MAX_JOINTS],
 }
 
 impl Default for CommandSample {
@@ -252,6 +258,7 @@ impl Default for CommandSample {
             mode: Mode::Hold as u32,
             n: 0,
             qdd: [0.0; MAX_JOINTS],
+            qddd: [0.0; MAX_JOINTS],
         }
     }
 }
@@ -264,7 +271,8 @@ impl CommandSample {
         const KIND: SampleKind = SampleKind::Command;
         let n = check_n(KIND, self.n, expected_n)?;
         self.mode()?;
-        check_finite(KIND, &self.qdd[..n], Field::Qdd)
+        check_finite(KIND, &self.qdd[..n], Field::Qdd)?;
+        check_finite(KIND, &self.qddd[..n], Field::Qddd)
     }
 
     /// The decoded `mode`.
@@ -526,7 +534,7 @@ mod tests {
 
     #[test]
     fn command_layout_is_pinned() {
-        assert_eq!(size_of::<CommandSample>(), 96);
+        assert_eq!(size_of::<CommandSample>(), 144);
         assert_eq!(align_of::<CommandSample>(), 8);
         assert_eq!(offset_of!(CommandSample, seq), 0);
         assert_eq!(offset_of!(CommandSample, state_seq), 8);
@@ -536,6 +544,7 @@ mod tests {
         assert_eq!(offset_of!(CommandSample, mode), 40);
         assert_eq!(offset_of!(CommandSample, n), 44);
         assert_eq!(offset_of!(CommandSample, qdd), 48);
+        assert_eq!(offset_of!(CommandSample, qddd), 96);
     }
 
     #[test]

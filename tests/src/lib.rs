@@ -170,13 +170,15 @@ impl Drop for Proc {
     }
 }
 
-/// A config file for a test system: quiet, normal scheduling, unpinned (tests share 2 cores),
-/// namespaced, writing into the test's directory.
+/// A config file for a test system: namespaced, writing into the test's directory, sleeping
+/// waits (never a spin: the test and its peers share 2 cores) at SCHED_FIFO 40 where permitted,
+/// as the daemon is meant to run, so builds or other load on the machine do not starve the loops
+/// (without the privilege both fall back to the normal scheduler with a warning).
 pub fn write_config(dir: &Path, ns: &str, extra_daemon: &str, extra_top: &str) -> PathBuf {
     let out = dir.join("out");
     let text = format!(
-        "{extra_top}\n[daemon]\nnamespace = \"{ns}\"\noutput_dir = \"{out}\"\nwait = \"sleep\"\npriority = 0\nlock_memory = false\nreport_every_s = 0.5\n{extra_daemon}\n\
-         [plant]\nnamespace = \"{ns}\"\noutput_dir = \"{out}\"\nwait = \"sleep\"\npriority = 0\nlock_memory = false\n",
+        "{extra_top}\n[daemon]\nnamespace = \"{ns}\"\noutput_dir = \"{out}\"\nwait = \"sleep\"\npriority = 40\nlock_memory = false\nreport_every_s = 0.5\n{extra_daemon}\n\
+         [plant]\nnamespace = \"{ns}\"\noutput_dir = \"{out}\"\nwait = \"sleep\"\npriority = 40\nlock_memory = false\n",
         out = out.display()
     );
     let p = dir.join("config.toml");

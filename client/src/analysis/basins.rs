@@ -1,0 +1,489 @@
+//! `chaosctl basins`: where does each start end up, for each μ?
+//!
+//! A family of initial states (one coordinate of the start varied over a range, the others fixed)
+//! is run at every μ of a range. Each run's Poincaré section is classified; a run that settles on a
+//! period-1 orbit is matched against the orbits already seen (the same orbit of the μ = 0 loop is
+//! stabilised at every μ where it is stable, shifted only by the discretisation error), so the map
+//! shows *which* orbit each start reaches, and where the motion stays chaotic. If the paper's
+//! window held generically, its column range would be one colour.
+
+use super::orbits::orbit_name;
+use super::parallel::{jobs, run_all};
+use super::{analyse_config, check_config, fmt_list, ClassifyArgs, ScanModelArgs};
+use crate::plot::{with_ext, Figure, Grid, Panel, DARK, PALETTE};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use control::analysis::{find_orbit, Motion, NewtonConfig, OrbitCatalog, RunAnalysis, RunSpec};
+use control::config::ModelKind;
+use control::{with_dof, ArmState, Config, VecN};
+use plotters::style::RGBColor;
+use serde::Serialize;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// `NAME=START:END:STEP` with NAME one of q1…qn, qd1…qdn.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Vary {
+    pub rate: bool,
+    pub joint: usize,
+    pub values: Vec<f64>,
+}
+
+fn parse_vary(s: &str) -> Result<Vary, String> {
+    let (name, range) = s
+        .split_once('=')
+        .ok_or_else(|| format!("{s:?}: expected NAME=START:END:STEP, e.g. q1=-1:1:0.1"))?;
+    let name = name.trim();
+    let (rate, idx) = if let Some(i) = name.strip_prefix("qd") {
+        (true, i)
+    } else if let Some(i) = name.strip_prefix('q') {
+        (false, i)
+    } else {
+        return Err(format!(
+            "{name:?}: the varied coordinate must be q1, q2, … or qd1, qd2, …"
+        ));
+    };
+    let joint: usize = idx.parse().ok().filter(|j| *j >= 1).ok_or_else(|| {
+        format!("{name:?}: the varied coordinate must be q1, q2, … or qd1, qd2, …")
+    })?;
+    let values = super::parse_range(range)?;
+    Ok(Vary {
+        rate,
+        joint: joint - 1,
+        values,
+    })
+}
+
+#[derive(Args, Debug)]
+pub struct BasinsCmd {
+    #[command(flatten)]
+    pub model: ScanModelArgs,
+    /// The varied coordinate of the start and its values, e.g. q1=-1.5:1.5:0.125 (rad) or
+    /// qd3=-2:2:0.25 (rad/s). The other coordinates come from --q0/--qd0 (default: the paper's).
+    #[arg(long, value_parser = parse_vary, default_value = "q1=-1.5:1.5:0.125", allow_hyphen_values = true)]
+    pub vary: Vary,
+    /// Simulated time per run (s).
+    #[arg(long, default_value_t = 300.0)]
+    pub duration: f64,
+    /// The section is classified from this time on (s).
+    #[arg(long, default_value_t = 100.0)]
+    pub transient: f64,
+    #[command(flatten)]
+    pub classify: ClassifyArgs,
+    /// Worker threads (default: every core).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// Output prefix: writes PREFIX.csv, PREFIX.png and PREFIX.svg.
+    #[arg(long, default_value = "basins")]
+    pub output: PathBuf,
+    /// Print the cells as JSON instead of the map.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The end of one run.
+#[derive(Serialize, Clone, Debug, PartialEq)]
+#[serde(tag = "outcome", rename_all = "kebab-case")]
+pub enum Outcome {
+    /// Settled on (or converging to) period-1 orbit `orbit` (A, B, …).
+    Orbit {
+        orbit: String,
+        converging: bool,
+    },
+    /// Period p > 1.
+    Periodic {
+        period: usize,
+    },
+    QuasiPeriodic,
+    Irregular,
+    Failed {
+        error: String,
+    },
+}
+
+#[derive(Serialize, Clone, Debug)]
+pub struct Cell {
+    pub mu: f64,
+    pub start: f64,
+    #[serde(flatten)]
+    pub outcome: Outcome,
+    pub k01: Option<f64>,
+    pub rms_tracking_error: Option<f64>,
+}
+
+pub fn run(args: BasinsCmd) -> Result<()> {
+    let (base, mus) = args.model.load("0:3:0.1")?;
+    let n = base.n();
+    if args.vary.joint >= n {
+        bail!("--vary: the arm has {n} joints, so the varied coordinate must be q1..q{n} or qd1..qd{n}");
+    }
+    if !(args.duration.is_finite() && args.duration > 0.0) {
+        bail!(
+            "--duration {}: must be a finite number of seconds > 0",
+            args.duration
+        );
+    }
+    if !(args.transient >= 0.0 && args.transient < args.duration) {
+        bail!(
+            "--transient {}: must be in [0, --duration = {})",
+            args.transient,
+            args.duration
+        );
+    }
+    let spec = RunSpec {
+        duration: args.duration,
+        transient: args.transient,
+        lyapunov: None,
+        classify: args.classify.config()?,
+    };
+    spec.validate(base.task.period, base.sim.dt)?;
+    let points = (args.duration / base.task.period + 1e-9).floor()
+        - (args.transient / base.task.period - 1e-9).ceil()
+        + 1.0;
+    if points < spec.classify.min_points as f64 {
+        bail!(
+            "--duration {} with --transient {}: the section would have {points} points, and classifying it needs at least {}",
+            args.duration,
+            args.transient,
+            spec.classify.min_points
+        );
+    }
+    let mut cells: Vec<Config> = Vec::new();
+    for &v in &args.vary.values {
+        for &mu in &mus {
+            let mut c = base.clone();
+            c.feedback.mu = mu;
+            let mut x = if args.vary.rate { c.qd0() } else { c.q0() };
+            x[args.vary.joint] = v;
+            if args.vary.rate {
+                c.sim.qd0 = Some(x);
+            } else {
+                c.sim.q0 = Some(x);
+            }
+            c.validate()?;
+            check_config(&c)
+                .with_context(|| format!("start with {} = {v}", coord_name(&args.vary)))?;
+            cells.push(c);
+        }
+    }
+    let threads = jobs(args.jobs);
+    let runs: Vec<Result<RunAnalysis, String>> = run_all(&cells, threads, "basins", |c| {
+        analyse_config(c, &spec).map_err(|e| format!("{e:#}"))
+    })?;
+
+    // Name the period-1 orbits in a fixed order (by start, then μ) so labels are reproducible.
+    // Controlled orbits at different μ differ by up to ~1e-3 (discretisation), distinct orbits by O(1).
+    let mut catalog = OrbitCatalog::new(
+        2 * n + usize::from(base.arm.model == ModelKind::Floating),
+        n,
+        0.05,
+    );
+    let mut out = Vec::with_capacity(runs.len());
+    for (c, r) in cells.iter().zip(&runs) {
+        let start = if args.vary.rate { c.qd0() } else { c.q0() }[args.vary.joint];
+        let (outcome, k01, rms) = match r {
+            Err(e) => (Outcome::Failed { error: e.clone() }, None, None),
+            Ok(a) => {
+                let o = match a.classification.motion {
+                    Motion::Periodic { period: 1, .. } | Motion::Converging { period: 1, .. } => {
+                        let (i, _) = catalog.find_or_insert(&a.final_coords);
+                        Outcome::Orbit {
+                            orbit: orbit_name(i),
+                            converging: matches!(
+                                a.classification.motion,
+                                Motion::Converging { .. }
+                            ),
+                        }
+                    }
+                    Motion::Periodic { period, .. } | Motion::Converging { period, .. } => {
+                        Outcome::Periodic { period }
+                    }
+                    Motion::QuasiPeriodic { .. } => Outcome::QuasiPeriodic,
+                    Motion::Irregular { .. } | Motion::TooShort { .. } => Outcome::Irregular,
+                };
+                (o, a.classification.k, Some(a.summary.rms_tracking_error))
+            }
+        };
+        out.push(Cell {
+            mu: c.feedback.mu,
+            start,
+            outcome,
+            k01,
+            rms_tracking_error: rms,
+        });
+    }
+    let orbit_points: Vec<Vec<f64>> = (0..catalog.len())
+        .map(|i| catalog.point(i).to_vec())
+        .collect();
+    let refined = refine(&base, &orbit_points);
+
+    let csv = with_ext(&args.output, "csv");
+    write_csv(&csv, &out)?;
+    let files = plot(&args, &base, &mus, &out, catalog.len())?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    print_map(&args, &base, &mus, &out);
+    for (i, p) in orbit_points.iter().enumerate() {
+        println!(
+            "  orbit {}: x(kT) ≈ ({}){}",
+            orbit_name(i),
+            fmt_list(p),
+            refined[i]
+                .as_deref()
+                .map(|s| format!("; {s}"))
+                .unwrap_or_default()
+        );
+    }
+    let total = out.len();
+    let count = |f: &dyn Fn(&Outcome) -> bool| out.iter().filter(|c| f(&c.outcome)).count();
+    println!(
+        "  {} of {total} runs settled on a period-1 orbit, {} stayed irregular, {} quasi-periodic, {} other periods, {} failed",
+        count(&|o| matches!(o, Outcome::Orbit { .. })),
+        count(&|o| matches!(o, Outcome::Irregular)),
+        count(&|o| matches!(o, Outcome::QuasiPeriodic)),
+        count(&|o| matches!(o, Outcome::Periodic { .. })),
+        count(&|o| matches!(o, Outcome::Failed { .. })),
+    );
+    println!(
+        "wrote {}, {}",
+        csv.display(),
+        files
+            .iter()
+            .map(|f| f.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}
+
+/// Newton-refines each settled orbit at μ = 0 (fixed base only), to tie the map to `orbits`.
+fn refine(base: &Config, points: &[Vec<f64>]) -> Vec<Option<String>> {
+    if base.arm.model != ModelKind::Fixed || (base.feedback.tau - base.task.period).abs() > 1e-9 {
+        return vec![None; points.len()];
+    }
+    let n = base.n();
+    points
+        .iter()
+        .map(|x| {
+            with_dof!(n, N => {
+                let seed = ArmState::<N> {
+                    q: VecN::<N>::from_fn(|i, _| x[i]),
+                    qd: VecN::<N>::from_fn(|i, _| x[N + i]),
+                    phi: 0.0,
+                };
+                find_orbit(&base.model::<N>(), &base.law_params(), base.sim.dt, &seed, &NewtonConfig::default())
+                    .ok()
+                    .map(|o| {
+                        format!(
+                            "the μ = 0 orbit through q = ({}), leading Floquet multiplier {}",
+                            fmt_list(&o.q),
+                            super::orbits::kind(&o)
+                        )
+                    })
+            })
+        })
+        .collect()
+}
+
+fn coord_name(v: &Vary) -> String {
+    format!("{}{}", if v.rate { "qd" } else { "q" }, v.joint + 1)
+}
+
+fn symbol(o: &Outcome) -> String {
+    match o {
+        Outcome::Orbit { orbit, converging } => {
+            if *converging {
+                orbit.to_lowercase()
+            } else {
+                orbit.clone()
+            }
+        }
+        Outcome::Periodic { period } => (period % 10).to_string(),
+        Outcome::QuasiPeriodic => "~".into(),
+        Outcome::Irregular => "#".into(),
+        Outcome::Failed { .. } => "!".into(),
+    }
+}
+
+fn print_map(args: &BasinsCmd, base: &Config, mus: &[f64], cells: &[Cell]) {
+    let name = coord_name(&args.vary);
+    let fixed = if args.vary.rate {
+        base.qd0()
+    } else {
+        base.q0()
+    };
+    println!(
+        "chaosd basins: {name} varied (rows), μ (columns); the other coordinates from ({}); {} s runs, section from {} s",
+        fmt_list(&fixed),
+        args.duration,
+        args.transient
+    );
+    println!("  A, B, …: settled on period-1 orbit A, B, … (lower case: still converging)   2-9: period p");
+    println!("  ~: quasi-periodic   #: irregular (chaotic)   !: failed");
+    print!("{:>8} ", "μ →");
+    for m in mus {
+        print!("{:<5}", format!("{m}"));
+    }
+    println!();
+    let ncol = mus.len();
+    for row in cells.chunks(ncol).rev() {
+        print!("{:>8} ", format!("{:.3}", row[0].start));
+        for c in row {
+            print!("{:<5}", symbol(&c.outcome));
+        }
+        println!();
+    }
+}
+
+fn write_csv(path: &PathBuf, cells: &[Cell]) -> Result<()> {
+    let file =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    writeln!(
+        w,
+        "mu,start,outcome,orbit,period,converging,k01,rms_tracking_error,error"
+    )?;
+    for c in cells {
+        let (kind, orbit, period, conv, err) = match &c.outcome {
+            Outcome::Orbit { orbit, converging } => (
+                "orbit",
+                orbit.clone(),
+                "1".to_string(),
+                converging.to_string(),
+                String::new(),
+            ),
+            Outcome::Periodic { period } => (
+                "periodic",
+                String::new(),
+                period.to_string(),
+                String::new(),
+                String::new(),
+            ),
+            Outcome::QuasiPeriodic => (
+                "quasi-periodic",
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+            ),
+            Outcome::Irregular => (
+                "irregular",
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+            ),
+            Outcome::Failed { error } => (
+                "failed",
+                String::new(),
+                String::new(),
+                String::new(),
+                error.replace(',', ";"),
+            ),
+        };
+        writeln!(
+            w,
+            "{},{},{kind},{orbit},{period},{conv},{},{},{err}",
+            c.mu,
+            c.start,
+            c.k01.map(|k| format!("{k:.4}")).unwrap_or_default(),
+            c.rms_tracking_error
+                .map(|v| format!("{v:.6e}"))
+                .unwrap_or_default()
+        )?;
+    }
+    w.flush()?;
+    Ok(())
+}
+
+fn lighten(c: RGBColor) -> RGBColor {
+    let f = |v: u8| (v as f64 + (255.0 - v as f64) * 0.55) as u8;
+    RGBColor(f(c.0), f(c.1), f(c.2))
+}
+
+fn plot(
+    args: &BasinsCmd,
+    base: &Config,
+    mus: &[f64],
+    cells: &[Cell],
+    orbits: usize,
+) -> Result<Vec<PathBuf>> {
+    // Categories: per orbit settled / converging, then period-p, quasi-periodic, irregular, failed.
+    let mut categories: Vec<(String, RGBColor)> = Vec::new();
+    for i in 0..orbits {
+        let c = PALETTE[i % PALETTE.len()];
+        categories.push((format!("period-1 orbit {}", orbit_name(i)), c));
+        categories.push((
+            format!("→ orbit {} (converging)", orbit_name(i)),
+            lighten(c),
+        ));
+    }
+    let other = categories.len();
+    categories.push(("other period p".into(), RGBColor(255, 200, 0)));
+    categories.push(("quasi-periodic".into(), RGBColor(190, 190, 190)));
+    categories.push(("irregular (chaotic)".into(), DARK));
+    categories.push(("failed".into(), RGBColor(255, 0, 255)));
+    let index = |o: &Outcome| match o {
+        Outcome::Orbit { orbit, converging } => {
+            let i = (0..orbits).find(|i| orbit_name(*i) == *orbit).unwrap_or(0);
+            2 * i + usize::from(*converging)
+        }
+        Outcome::Periodic { .. } => other,
+        Outcome::QuasiPeriodic => other + 1,
+        Outcome::Irregular => other + 2,
+        Outcome::Failed { .. } => other + 3,
+    };
+    let name = coord_name(&args.vary);
+    let unit = if args.vary.rate { "rad/s" } else { "rad" };
+    let fixed = if args.vary.rate {
+        base.qd0()
+    } else {
+        base.q0()
+    };
+    let grid = Grid {
+        title: format!(
+            "end state after {} s (section from {} s); other start coordinates ({})",
+            args.duration,
+            args.transient,
+            fmt_list(&fixed)
+        ),
+        x_label: "Pyragas gain μ (1/s)".into(),
+        y_label: format!("initial {name} ({unit})"),
+        xs: mus.to_vec(),
+        ys: args.vary.values.clone(),
+        cells: cells.iter().map(|c| index(&c.outcome)).collect(),
+        categories,
+    };
+    Figure {
+        title: Some(
+            "Basins: which starts does delayed feedback make periodic, for which μ?".into(),
+        ),
+        panels: vec![Panel::Grid(grid)],
+        cols: 1,
+        panel_size: (1100, 620),
+    }
+    .save(&args.output)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vary_parses_and_rejects() {
+        assert_eq!(
+            parse_vary("q2=0:1:0.5").unwrap(),
+            Vary {
+                rate: false,
+                joint: 1,
+                values: vec![0.0, 0.5, 1.0]
+            }
+        );
+        assert!(parse_vary("qd3=-1:1:1").unwrap().rate);
+        for bad in ["q0=0:1:0.5", "x1=0:1:0.1", "q1", "q1=1:0:0.1", "q1=0:1:0"] {
+            assert!(parse_vary(bad).is_err(), "{bad}");
+        }
+    }
+}

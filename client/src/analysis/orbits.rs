@@ -1,0 +1,484 @@
+//! `chaosctl orbits`: period-T orbits of the uncontrolled arm by Newton's method on the
+//! stroboscopic map, their Floquet multipliers, and the μ-window in which Pyragas feedback
+//! stabilises each of them (λ_max starting on the orbit with its own history).
+//!
+//! Newton needs seeds near an orbit. Two kinds are used: the closest returns |x_(k+1) − x_k| of a
+//! μ = 0 run from each start (the classic close-return method), and the end states of feedback runs
+//! at the `--seed-mu` gains that settled on a period-1 orbit (the feedback is non-invasive, so those
+//! are orbits of the μ = 0 loop up to the discretisation error, and Newton polishes them).
+
+use super::parallel::{jobs, run_all};
+use super::{analyse_config, fmt_list, ScanModelArgs, StartArgs};
+use crate::plot::{Band, Chart, Figure, Panel, Rule, Series, Style, GREY, PALETTE};
+use crate::setup::{parse_list, FloatList};
+use anyhow::{bail, Result};
+use clap::Args;
+use control::analysis::{
+    close_returns, find_orbit, orbit_stability, ClassifyConfig, NewtonConfig, OrbitCatalog,
+    OrbitStability, PeriodicOrbit, RunSpec, StabilitySpec, Verdict,
+};
+use control::config::ModelKind;
+use control::{with_dof, ArmState, Config, VecN};
+use plotters::style::RGBColor;
+use serde::Serialize;
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct OrbitsCmd {
+    #[command(flatten)]
+    pub model: ScanModelArgs,
+    #[command(flatten)]
+    pub starts: StartArgs,
+    /// Close returns of each start's μ = 0 run tried as Newton seeds.
+    #[arg(long, default_value_t = 8)]
+    pub seeds: usize,
+    /// Feedback gains whose period-1 end states are also tried as seeds (comma-separated).
+    #[arg(long = "seed-mu", value_parser = parse_list, default_value = "0.1,0.2")]
+    pub seed_mu: FloatList,
+    /// Simulated time of each seeding run (s).
+    #[arg(long = "seed-duration", default_value_t = 300.0)]
+    pub seed_duration: f64,
+    /// Time after the feedback switches on before λ_max is averaged (s).
+    #[arg(long, default_value_t = 10.0)]
+    pub settle: f64,
+    /// Length of the averaging window for λ_max on the orbit (s).
+    #[arg(long, default_value_t = 100.0)]
+    pub average: f64,
+    /// Worker threads (default: every core).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// Output prefix: writes PREFIX.png and PREFIX.svg (λ_max on each orbit against μ).
+    #[arg(long, default_value = "orbits")]
+    pub output: PathBuf,
+    /// Print the orbits and their stability as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One orbit and its stability over μ.
+#[derive(Serialize)]
+pub struct OrbitReport {
+    pub id: String,
+    pub kind: String,
+    #[serde(flatten)]
+    pub orbit: PeriodicOrbit,
+    /// ln|largest multiplier| / T at μ = 0 (1/s).
+    pub floquet_exponent: f64,
+    /// μ intervals (over the scanned values) in which the orbit is stable.
+    pub stable_windows: Vec<[f64; 2]>,
+    pub stability: Vec<Result<OrbitStability, String>>,
+}
+
+#[derive(Serialize)]
+struct Report {
+    seeds_tried: usize,
+    seeds_converged: usize,
+    orbits: Vec<OrbitReport>,
+}
+
+/// Letter names: A, B, …, Z, AA, AB, …
+pub fn orbit_name(i: usize) -> String {
+    let mut s = String::new();
+    let mut k = i;
+    loop {
+        s.insert(0, (b'A' + (k % 26) as u8) as char);
+        if k < 26 {
+            break;
+        }
+        k = k / 26 - 1;
+    }
+    s
+}
+
+/// What the leading Floquet multiplier says about an orbit at μ = 0.
+pub fn kind(o: &PeriodicOrbit) -> String {
+    let Some(&[re, im]) = o.multipliers.first() else {
+        return "unknown".into();
+    };
+    let m = re.hypot(im);
+    let odd = o
+        .multipliers
+        .iter()
+        .filter(|z| z[1].abs() < 1e-9 && z[0] > 1.0)
+        .count()
+        % 2
+        == 1;
+    if im.abs() > 1e-9 && (m - 1.0).abs() < 1e-4 {
+        format!(
+            "elliptic (|ρ| = 1, rotation {:.3} rad per period)",
+            im.atan2(re).abs()
+        )
+    } else if m < 1.0 - 1e-4 {
+        "stable".into()
+    } else if im.abs() > 1e-9 {
+        format!("unstable focus (|ρ| = {m:.3})")
+    } else if re > 0.0 {
+        format!(
+            "hyperbolic (ρ = {re:.3}){}",
+            if odd {
+                ", odd number of real ρ > 1: Pyragas control cannot stabilise it"
+            } else {
+                ""
+            }
+        )
+    } else {
+        format!("hyperbolic with reflection (ρ = {re:.3})")
+    }
+}
+
+fn windows(mus: &[f64], stab: &[Result<OrbitStability, String>]) -> Vec<[f64; 2]> {
+    let mut out: Vec<[f64; 2]> = Vec::new();
+    let mut open: Option<[f64; 2]> = None;
+    for (mu, s) in mus.iter().zip(stab) {
+        let stable = matches!(s, Ok(s) if s.verdict == Verdict::Stable);
+        match (stable, open.as_mut()) {
+            (true, Some(w)) => w[1] = *mu,
+            (true, None) => open = Some([*mu, *mu]),
+            (false, Some(_)) => out.extend(open.take()),
+            (false, None) => {}
+        }
+    }
+    out.extend(open);
+    out
+}
+
+fn fmt_windows(w: &[[f64; 2]]) -> String {
+    if w.is_empty() {
+        return "none of the scanned μ".into();
+    }
+    w.iter()
+        .map(|[a, b]| {
+            if a == b {
+                format!("{a}")
+            } else {
+                format!("{a}–{b}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+enum Seeding {
+    CloseReturns(Config),
+    Settled(Config),
+}
+
+pub fn run(args: OrbitsCmd) -> Result<()> {
+    let (base, mus) = args.model.load("0:3:0.1")?;
+    if base.arm.model != ModelKind::Fixed {
+        bail!("orbits needs the fixed-base model (--model fixed): the floating base's attitude drifts, so its motion never closes after one period");
+    }
+    if (base.feedback.tau - base.task.period).abs() > 1e-9 {
+        bail!(
+            "orbits needs τ = T (feedback.tau = {} s, task.period = {} s): only then does the feedback vanish on period-T orbits",
+            base.feedback.tau,
+            base.task.period
+        );
+    }
+    if args.seeds > 1000 {
+        bail!("--seeds {}: at most 1000", args.seeds);
+    }
+    for &m in &args.seed_mu.0 {
+        if !(m.is_finite() && m > 0.0 && m <= 100.0) {
+            bail!("--seed-mu {m}: each gain must be in (0, 100]");
+        }
+    }
+    if !(args.seed_duration.is_finite() && args.seed_duration > 40.0) {
+        bail!(
+            "--seed-duration {}: must be more than 40 s",
+            args.seed_duration
+        );
+    }
+    let spec = StabilitySpec {
+        settle: args.settle,
+        duration: args.average,
+        ..StabilitySpec::default()
+    };
+    if !(spec.settle.is_finite() && spec.settle >= 0.0) {
+        bail!("--settle {}: must be ≥ 0", spec.settle);
+    }
+    if !(spec.duration.is_finite() && spec.duration >= 4.0 * base.task.period) {
+        bail!(
+            "--average {}: must be at least 4 task periods ({} s)",
+            spec.duration,
+            4.0 * base.task.period
+        );
+    }
+    let starts = args.starts.configs(&base, args.model.q0.is_some())?;
+    let threads = jobs(args.jobs);
+
+    // 1. Seeds.
+    let mut seeding = Vec::new();
+    for s in &starts {
+        let mut c = s.clone();
+        c.feedback.mu = 0.0;
+        seeding.push(Seeding::CloseReturns(c));
+        for &m in &args.seed_mu.0 {
+            let mut c = s.clone();
+            c.feedback.mu = m;
+            c.validate()?;
+            seeding.push(Seeding::Settled(c));
+        }
+    }
+    let run_spec = RunSpec {
+        duration: args.seed_duration,
+        transient: 20.0,
+        lyapunov: None,
+        classify: ClassifyConfig::default(),
+    };
+    let nseeds = args.seeds;
+    let seeds: Vec<Vec<Vec<f64>>> = run_all(&seeding, threads, "seeding runs", |s| match s {
+        Seeding::CloseReturns(c) => analyse_config(c, &run_spec)
+            .map(|a| {
+                close_returns(&a.section, nseeds)
+                    .into_iter()
+                    .map(|i| a.section.point(i).to_vec())
+                    .collect()
+            })
+            .unwrap_or_default(),
+        Seeding::Settled(c) => analyse_config(c, &run_spec)
+            .ok()
+            .filter(|a| a.classification.motion.period() == Some(1))
+            .map(|a| vec![a.final_coords])
+            .unwrap_or_default(),
+    })?;
+    let seeds: Vec<Vec<f64>> = seeds.into_iter().flatten().collect();
+
+    // 2. Newton from every seed; 3. distinct orbits in seed order.
+    let n = base.n();
+    let newton = NewtonConfig::default();
+    let found: Vec<Option<PeriodicOrbit>> = run_all(&seeds, threads, "Newton", |x| {
+        with_dof!(n, N => {
+            let seed = ArmState::<N> {
+                q: VecN::<N>::from_fn(|i, _| x[i]),
+                qd: VecN::<N>::from_fn(|i, _| x[N + i]),
+                phi: 0.0,
+            };
+            find_orbit(&base.model::<N>(), &base.law_params(), base.sim.dt, &seed, &newton).ok()
+        })
+    })?;
+    let converged = found.iter().filter(|o| o.is_some()).count();
+    let mut catalog = OrbitCatalog::new(2 * n, n, 1e-6);
+    let mut orbits: Vec<PeriodicOrbit> = Vec::new();
+    for o in found.into_iter().flatten() {
+        if catalog.find_or_insert(&o.coords()).1 {
+            orbits.push(o);
+        }
+    }
+
+    // 4. Stability of each orbit at each μ.
+    let cells: Vec<(usize, f64)> = (0..orbits.len())
+        .flat_map(|i| mus.iter().map(move |m| (i, *m)))
+        .collect();
+    let stab: Vec<Result<OrbitStability, String>> = run_all(
+        &cells,
+        threads,
+        "stability",
+        |(i, mu)| {
+            let mut p = base.law_params();
+            p.mu = *mu;
+            with_dof!(n, N => {
+                orbit_stability(&base.model::<N>(), &p, base.sim.dt, &orbits[*i], &spec).map_err(|e| e.to_string())
+            })
+        },
+    )?;
+    let mut stab = stab.into_iter();
+    let reports: Vec<OrbitReport> = orbits
+        .into_iter()
+        .enumerate()
+        .map(|(i, o)| {
+            let s: Vec<_> = stab.by_ref().take(mus.len()).collect();
+            OrbitReport {
+                id: orbit_name(i),
+                kind: kind(&o),
+                floquet_exponent: o.floquet_exponent(base.task.period),
+                stable_windows: windows(&mus, &s),
+                stability: s,
+                orbit: o,
+            }
+        })
+        .collect();
+    let files = plot(&args.output, &reports, &mus, &spec)?;
+    if args.json {
+        let r = Report {
+            seeds_tried: seeds.len(),
+            seeds_converged: converged,
+            orbits: reports,
+        };
+        println!("{}", serde_json::to_string_pretty(&r)?);
+        return Ok(());
+    }
+    println!(
+        "chaosd period-T orbits (μ = 0, fixed base): {} seeds, {} converged, {} distinct orbits",
+        seeds.len(),
+        converged,
+        reports.len()
+    );
+    for r in &reports {
+        println!("\norbit {}: {}", r.id, r.kind);
+        println!("  q(kT)      ({}) rad", fmt_list(&r.orbit.q));
+        println!("  q̇(kT)      ({}) rad/s", fmt_list(&r.orbit.qd));
+        println!(
+            "  Newton     |Φ_T(x) − x| = {:.1e} after {} iterations",
+            r.orbit.residual, r.orbit.iterations
+        );
+        println!(
+            "  Floquet    {}",
+            r.orbit
+                .multipliers
+                .iter()
+                .map(|[a, b]| if b.abs() > 1e-9 {
+                    format!("{a:.4}{b:+.4}i")
+                } else {
+                    format!("{a:.4}")
+                })
+                .collect::<Vec<_>>()
+                .join("  ")
+        );
+        println!("  stable for μ in {}", fmt_windows(&r.stable_windows));
+        let line: Vec<String> = mus
+            .iter()
+            .zip(&r.stability)
+            .map(|(m, s)| match s {
+                Ok(s) => format!(
+                    "{m}:{:+.2}{}",
+                    s.lyapunov.lambda_max,
+                    match s.verdict {
+                        Verdict::Stable => "s",
+                        Verdict::Unstable => "u",
+                        Verdict::Marginal => "m",
+                    }
+                ),
+                Err(_) => format!("{m}:err"),
+            })
+            .collect();
+        println!("  λ_max(μ)   {}", line.join(" "));
+    }
+    println!(
+        "\n(λ_max in 1/s on the orbit with its own history, averaged over {}–{} s after the feedback \
+         switches on; s = stable, u = unstable, m = within two standard errors of 0)",
+        spec.settle,
+        spec.settle + spec.duration
+    );
+    println!(
+        "wrote {}",
+        files
+            .iter()
+            .map(|f| f.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}
+
+fn plot(
+    prefix: &std::path::Path,
+    reports: &[OrbitReport],
+    mus: &[f64],
+    spec: &StabilitySpec,
+) -> Result<Vec<PathBuf>> {
+    // Orbits stabilised somewhere get their own colour; the rest share one grey entry (after they
+    // leave the orbit, their λ_max is the exponent of wherever the trajectory went).
+    let points = |r: &OrbitReport| -> (Vec<(f64, f64)>, Vec<f64>) {
+        mus.iter()
+            .zip(&r.stability)
+            .filter_map(|(m, s)| {
+                s.as_ref()
+                    .ok()
+                    .map(|s| ((*m, s.lyapunov.lambda_max), s.lyapunov.stderr))
+            })
+            .unzip()
+    };
+    let never: Vec<&OrbitReport> = reports
+        .iter()
+        .filter(|r| r.stable_windows.is_empty())
+        .collect();
+    let mut series: Vec<Series> = never
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let (pts, _) = points(r);
+            let label = (i == 0).then(|| {
+                format!(
+                    "never stabilised: {}",
+                    never
+                        .iter()
+                        .map(|r| r.id.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            });
+            Series::new(label, RGBColor(185, 185, 185), Style::Line(1), pts)
+        })
+        .collect();
+    for (i, r) in reports
+        .iter()
+        .filter(|r| !r.stable_windows.is_empty())
+        .enumerate()
+    {
+        let (pts, err) = points(r);
+        let short = r.kind.split(" (").next().unwrap_or("").to_string();
+        series.push(
+            Series::new(
+                Some(format!(
+                    "orbit {} ({short}), stable for μ in {}",
+                    r.id,
+                    fmt_windows(&r.stable_windows)
+                )),
+                PALETTE[i % PALETTE.len()],
+                Style::LineMarkers { width: 2, size: 3 },
+                pts,
+            )
+            .yerr(err),
+        );
+    }
+    let mu_max = mus.iter().cloned().fold(0.0, f64::max);
+    Figure {
+        title: Some("Which period-T orbit does Pyragas feedback stabilise, and for which μ?".into()),
+        panels: vec![Panel::Chart(Chart {
+            title: format!(
+                "λ_max starting on each orbit with its own history, averaged {}–{} s after switch-on (λ < 0: stabilised)",
+                spec.settle,
+                spec.settle + spec.duration
+            ),
+            x_label: "Pyragas gain μ (1/s)".into(),
+            y_label: "λ_max on the orbit (1/s)".into(),
+            series,
+            bands: if mu_max >= 1.3 {
+                vec![Band {
+                    from: 1.3,
+                    to: 2.3,
+                    color: PALETTE[2],
+                    label: Some("paper's claimed window".into()),
+                }]
+            } else {
+                vec![]
+            },
+            rules: vec![Rule {
+                value: 0.0,
+                vertical: false,
+                color: GREY,
+                label: None,
+            }],
+            legend: true,
+            ..Default::default()
+        })],
+        cols: 1,
+        panel_size: (1000, 560),
+    }
+    .save(prefix)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_and_windows() {
+        assert_eq!(orbit_name(0), "A");
+        assert_eq!(orbit_name(25), "Z");
+        assert_eq!(orbit_name(26), "AA");
+        assert_eq!(fmt_windows(&[]), "none of the scanned μ");
+        assert_eq!(fmt_windows(&[[0.1, 0.3], [1.5, 1.5]]), "0.1–0.3, 1.5");
+    }
+}

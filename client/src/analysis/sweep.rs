@@ -1,0 +1,328 @@
+//! `chaosctl sweep`: λ_max and the Poincaré classification over a μ range and several initial
+//! states, in parallel; writes CSV and the λ_max-versus-μ plot (the paper's Fig. 6).
+
+use super::parallel::{jobs, run_all};
+use super::{analyse_config, fmt_list, ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
+use crate::plot::{Band, Chart, Figure, Panel, Rule, Series, Style, DARK, GREY, PALETTE};
+use anyhow::{Context, Result};
+use clap::Args;
+use control::analysis::{Motion, RunSpec};
+use control::Config;
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct SweepCmd {
+    #[command(flatten)]
+    pub model: ScanModelArgs,
+    #[command(flatten)]
+    pub starts: StartArgs,
+    #[command(flatten)]
+    pub lyapunov: LyapunovArgs,
+    #[command(flatten)]
+    pub classify: ClassifyArgs,
+    /// Worker threads (default: every core).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// Output prefix: writes PREFIX.csv, PREFIX.png and PREFIX.svg.
+    #[arg(long, default_value = "sweep")]
+    pub output: PathBuf,
+    /// Print the rows as JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One (start, μ) cell of the sweep.
+#[derive(Serialize, Clone, Debug)]
+pub struct Row {
+    pub mu: f64,
+    pub start: usize,
+    pub q0: Vec<f64>,
+    pub lambda_max: Option<f64>,
+    pub stderr: Option<f64>,
+    pub motion: Option<Motion>,
+    /// max |x_k − x_(k−1)| over the last samples of the section.
+    pub return1: Option<f64>,
+    pub k01: Option<f64>,
+    pub rms_tracking_error: Option<f64>,
+    pub max_tracking_error: Option<f64>,
+    pub track_lost_fraction: Option<f64>,
+    pub min_clearance: Option<f64>,
+    pub time_in_safety_zone: Option<f64>,
+    /// Why the run has no result (e.g. it diverged).
+    pub error: Option<String>,
+}
+
+pub fn run(args: SweepCmd) -> Result<()> {
+    let (base, mus) = args.model.load("0:3:0.1")?;
+    let starts = args.starts.configs(&base, args.model.q0.is_some())?;
+    let classify = args.classify.config()?;
+    let spec = args.lyapunov.spec(&base, classify)?;
+    let mut items: Vec<(usize, Config)> = Vec::new();
+    for &mu in &mus {
+        for (i, s) in starts.iter().enumerate() {
+            let mut c = s.clone();
+            c.feedback.mu = mu;
+            c.validate()?;
+            items.push((i, c));
+        }
+    }
+    let threads = jobs(args.jobs);
+    let t0 = Instant::now();
+    let rows = run_all(&items, threads, "sweep", |(i, c)| row(*i, c, &spec))?;
+    let wall = t0.elapsed().as_secs_f64();
+    let csv = crate::plot::with_ext(&args.output, "csv");
+    write_csv(&csv, &rows)?;
+    let files = plot(&args.output, &rows, &starts, &base, &spec)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+        return Ok(());
+    }
+    print_table(&rows, &starts, &mus);
+    if rows.iter().any(|r| r.min_clearance.is_some()) {
+        print_obstacles(&rows, &starts, &mus);
+    }
+    let runs = rows.len();
+    let sim = runs as f64 * spec.duration;
+    println!(
+        "\n{runs} runs ({} μ × {} starts), {} s each with a Lyapunov partner: {:.0} s of closed loop \
+         ({:.0} trajectory-seconds with the partners) in {wall:.2} s wall on {threads} thread{} = \
+         {:.0} simulated s per wall s ({:.0} counting partners)",
+        mus.len(),
+        starts.len(),
+        spec.duration,
+        sim,
+        2.0 * sim,
+        if threads == 1 { "" } else { "s" },
+        sim / wall,
+        2.0 * sim / wall
+    );
+    println!(
+        "wrote {}, {}",
+        csv.display(),
+        files
+            .iter()
+            .map(|f| f.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}
+
+fn row(start: usize, cfg: &Config, spec: &RunSpec) -> Row {
+    let mut r = Row {
+        mu: cfg.feedback.mu,
+        start,
+        q0: cfg.q0(),
+        lambda_max: None,
+        stderr: None,
+        motion: None,
+        return1: None,
+        k01: None,
+        rms_tracking_error: None,
+        max_tracking_error: None,
+        track_lost_fraction: None,
+        min_clearance: None,
+        time_in_safety_zone: None,
+        error: None,
+    };
+    match analyse_config(cfg, spec) {
+        Ok(a) => {
+            if let Some(l) = &a.lyapunov {
+                r.lambda_max = Some(l.lambda_max);
+                r.stderr = Some(l.stderr);
+            }
+            r.motion = Some(a.classification.motion);
+            r.return1 = a.classification.returns.first().copied();
+            r.k01 = a.classification.k;
+            r.rms_tracking_error = Some(a.summary.rms_tracking_error);
+            r.max_tracking_error = Some(a.summary.max_tracking_error);
+            r.track_lost_fraction = Some(a.summary.track_lost_fraction);
+            r.min_clearance = a.summary.min_clearance;
+            r.time_in_safety_zone = a
+                .summary
+                .min_clearance
+                .map(|_| a.summary.time_in_safety_zone);
+        }
+        Err(e) => r.error = Some(format!("{e:#}")),
+    }
+    r
+}
+
+fn opt(v: Option<f64>) -> String {
+    v.map(|x| format!("{x:.6e}")).unwrap_or_default()
+}
+
+fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
+    let file =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    writeln!(
+        w,
+        "mu,start,q0,lambda_max,stderr,motion,period,return1,k01,rms_tracking_error,max_tracking_error,\
+         track_lost_fraction,min_clearance,time_in_safety_zone,error"
+    )?;
+    for r in rows {
+        let q0 =
+            r.q0.iter()
+                .map(|v| format!("{v}"))
+                .collect::<Vec<_>>()
+                .join(" ");
+        writeln!(
+            w,
+            "{},{},{q0},{},{},{},{},{},{},{},{},{},{},{},{}",
+            r.mu,
+            r.start,
+            opt(r.lambda_max),
+            opt(r.stderr),
+            r.motion
+                .map(|m| m.label().replace("→ ", "converging-"))
+                .unwrap_or_default(),
+            r.motion
+                .and_then(|m| m.period())
+                .map(|p| p.to_string())
+                .unwrap_or_default(),
+            opt(r.return1),
+            r.k01.map(|k| format!("{k:.4}")).unwrap_or_default(),
+            opt(r.rms_tracking_error),
+            opt(r.max_tracking_error),
+            opt(r.track_lost_fraction),
+            opt(r.min_clearance),
+            opt(r.time_in_safety_zone),
+            r.error.as_deref().unwrap_or("").replace(',', ";")
+        )?;
+    }
+    w.flush()?;
+    Ok(())
+}
+
+fn print_table(rows: &[Row], starts: &[Config], mus: &[f64]) {
+    println!("λ_max (1/s) ± standard error, and the Poincaré section's class, per initial state:");
+    for (i, s) in starts.iter().enumerate() {
+        println!("  start {}: q0 = ({})", i + 1, fmt_list(&s.q0()));
+    }
+    print!("{:>6}", "μ");
+    for i in 0..starts.len() {
+        print!("  {:<34}", format!("start {}", i + 1));
+    }
+    println!();
+    for &mu in mus {
+        print!("{mu:>6.2}");
+        for r in rows.iter().filter(|r| r.mu == mu) {
+            let cell = match (&r.error, r.lambda_max, r.stderr, r.motion) {
+                (Some(e), ..) => format!("error: {}", e.chars().take(26).collect::<String>()),
+                (None, Some(l), Some(se), Some(m)) => format!("{l:+.3} ± {se:.3}  {}", m.label()),
+                _ => "n/a".into(),
+            };
+            print!("  {cell:<34}");
+        }
+        println!();
+    }
+}
+
+fn print_obstacles(rows: &[Row], starts: &[Config], mus: &[f64]) {
+    println!("\nobstacle: smallest clearance (m, < 0: a link crosses the obstacle) and time inside the safety zone (s, over the whole run):");
+    print!("{:>6}", "μ");
+    for i in 0..starts.len() {
+        print!("  {:<26}", format!("start {}", i + 1));
+    }
+    println!();
+    for &mu in mus {
+        print!("{mu:>6.2}");
+        for r in rows.iter().filter(|r| r.mu == mu) {
+            let cell = match (r.min_clearance, r.time_in_safety_zone) {
+                (Some(c), Some(z)) => format!("{c:+.3} m, {z:6.1} s in zone"),
+                _ => "n/a".into(),
+            };
+            print!("  {cell:<26}");
+        }
+        println!();
+    }
+}
+
+fn plot(
+    prefix: &Path,
+    rows: &[Row],
+    starts: &[Config],
+    base: &Config,
+    spec: &RunSpec,
+) -> Result<Vec<PathBuf>> {
+    let mut series = Vec::new();
+    for (i, s) in starts.iter().enumerate() {
+        let mine: Vec<&Row> = rows
+            .iter()
+            .filter(|r| r.start == i && r.lambda_max.is_some())
+            .collect();
+        let pts: Vec<(f64, f64)> = mine
+            .iter()
+            .map(|r| (r.mu, r.lambda_max.unwrap_or(f64::NAN)))
+            .collect();
+        let err: Vec<f64> = mine.iter().map(|r| r.stderr.unwrap_or(0.0)).collect();
+        series.push(
+            Series::new(
+                Some(format!("q0 = ({})", fmt_list(&s.q0()))),
+                PALETTE[i % PALETTE.len()],
+                Style::LineMarkers { width: 2, size: 3 },
+                pts,
+            )
+            .yerr(err),
+        );
+    }
+    let periodic: Vec<(f64, f64)> = rows
+        .iter()
+        .filter(|r| matches!(r.motion, Some(Motion::Periodic { .. })))
+        .filter_map(|r| r.lambda_max.map(|l| (r.mu, l)))
+        .collect();
+    series.push(Series::new(
+        Some("section periodic (period-p)".into()),
+        DARK,
+        Style::Markers {
+            size: 7,
+            filled: false,
+        },
+        periodic,
+    ));
+    let w = spec
+        .lyapunov
+        .map(|l| l.window)
+        .unwrap_or([0.0, spec.duration]);
+    let mu_max = rows.iter().map(|r| r.mu).fold(0.0, f64::max);
+    let chart = Chart {
+        title: format!(
+            "λ_max averaged over {:.0}–{:.0} s, τ = {} s, feedback on at {} s",
+            w[0], w[1], base.feedback.tau, base.feedback.t_on
+        ),
+        x_label: "Pyragas gain μ (1/s)".into(),
+        y_label: "largest Lyapunov exponent λ_max (1/s)".into(),
+        series,
+        bands: if mu_max >= 1.3 {
+            vec![Band {
+                from: 1.3,
+                to: 2.3,
+                color: PALETTE[2],
+                label: Some("paper's claimed window 1.3 < μ < 2.3".into()),
+            }]
+        } else {
+            vec![]
+        },
+        rules: vec![Rule {
+            value: 0.0,
+            vertical: false,
+            color: GREY,
+            label: None,
+        }],
+        legend: true,
+        ..Default::default()
+    };
+    Figure {
+        title: Some(
+            "Largest Lyapunov exponent vs delayed-feedback gain (cf. the paper's Fig. 6)".into(),
+        ),
+        panels: vec![Panel::Chart(chart)],
+        cols: 1,
+        panel_size: (1000, 560),
+    }
+    .save(prefix)
+}

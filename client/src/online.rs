@@ -1,0 +1,397 @@
+//! The online commands: talk to a running chaosd over its control and telemetry services.
+//!
+//! Every request has a deadline: when no daemon answers, the error names the namespace that was
+//! tried, and the command exits instead of hanging. Exit codes: 0 done, 1 the daemon refused (the
+//! message says why; nothing changed), 2 bad usage, 3 no daemon answered.
+
+use clap::{Args, Subcommand};
+use iceoryx2::prelude::{ipc, LogLevel, NodeBuilder, SignalHandlingMode};
+use protocol::{ControlRequest, ControlResponse, Op, ServiceNames, TelemetrySample};
+use std::io::{IsTerminal, Write};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+#[derive(Args, Debug, Clone)]
+pub struct Conn {
+    /// The daemon's namespace.
+    #[arg(long, default_value = protocol::DEFAULT_NAMESPACE, global = true)]
+    pub namespace: String,
+    /// Seconds to wait for an answer.
+    #[arg(long, default_value_t = 2.0, global = true)]
+    pub timeout: f64,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Online {
+    /// Mode, parameters, counters and latency of a running daemon.
+    Status {
+        #[command(flatten)]
+        conn: Conn,
+        /// Print the daemon's raw JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// The running configuration, as TOML.
+    Get {
+        #[command(flatten)]
+        conn: Conn,
+    },
+    /// Change parameters, all or nothing: `set mu 1.5 tau 1.0`, `set task.center 1 2`.
+    Set {
+        #[command(flatten)]
+        conn: Conn,
+        /// KEY VALUE pairs (mu, tau, t_on, feedback, kp, kv, alpha, secondary, w1, w2, task.center, task.radius, task.period, ...).
+        #[arg(required = true, num_args = 1.., allow_negative_numbers = true)]
+        pairs: Vec<String>,
+    },
+    /// Add, remove or list obstacles.
+    Obstacle {
+        #[command(flatten)]
+        conn: Conn,
+        #[command(subcommand)]
+        action: ObstacleAction,
+    },
+    /// Delayed feedback on (from now) or off.
+    Dfc {
+        #[command(flatten)]
+        conn: Conn,
+        #[arg(value_parser = ["on", "off"])]
+        state: String,
+    },
+    /// Latency percentiles since start (or the last reset).
+    Hist {
+        #[command(flatten)]
+        conn: Conn,
+        /// Reset the histograms.
+        #[arg(long)]
+        reset: bool,
+    },
+    /// Record the state and command streams to a CSV file in the daemon's output directory.
+    Record {
+        #[command(flatten)]
+        conn: Conn,
+        #[command(subcommand)]
+        action: RecordAction,
+    },
+    /// Stop the daemon cleanly (it writes its histograms).
+    Shutdown {
+        #[command(flatten)]
+        conn: Conn,
+    },
+    /// Live telemetry: a view refreshed in place, or JSON lines with --json.
+    Watch {
+        #[command(flatten)]
+        conn: Conn,
+        /// One JSON object per telemetry sample.
+        #[arg(long)]
+        json: bool,
+        /// Stop after this many samples.
+        #[arg(long)]
+        count: Option<u64>,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+pub enum ObstacleAction {
+    /// Add an obstacle at (X, Y) with RADIUS (m).
+    Add {
+        #[arg(allow_negative_numbers = true)]
+        x: f64,
+        #[arg(allow_negative_numbers = true)]
+        y: f64,
+        #[arg(allow_negative_numbers = true)]
+        radius: f64,
+        /// Safety margin (m).
+        #[arg(long, default_value_t = 0.1)]
+        margin: f64,
+    },
+    /// Remove obstacle INDEX (see `ls`).
+    Rm { index: usize },
+    /// List the obstacles.
+    Ls,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum RecordAction {
+    /// Start recording to NAME (a relative path inside the output directory).
+    Start { name: Option<String> },
+    /// Stop and close the file.
+    Stop,
+}
+
+/// Why a command failed, and its exit code.
+#[derive(Debug)]
+pub enum Failure {
+    Refused(String),
+    Usage(String),
+    Unreachable(String),
+}
+
+impl Failure {
+    fn exit(self) -> ExitCode {
+        let (code, msg) = match self {
+            Failure::Refused(m) => (1, format!("refused: {m}")),
+            Failure::Usage(m) => (2, m),
+            Failure::Unreachable(m) => (3, m),
+        };
+        eprintln!("chaosctl: error: {msg}");
+        ExitCode::from(code)
+    }
+}
+
+fn node() -> Result<iceoryx2::node::Node<ipc::Service>, Failure> {
+    iceoryx2::prelude::set_log_level_from_env_or(LogLevel::Error);
+    NodeBuilder::new()
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .config(&iceoryx2::config::Config::default())
+        .create::<ipc::Service>()
+        .map_err(|e| Failure::Unreachable(format!("cannot create an iceoryx2 node: {e:?}")))
+}
+
+fn names(conn: &Conn) -> Result<ServiceNames, Failure> {
+    if !(conn.timeout.is_finite() && conn.timeout > 0.0 && conn.timeout <= 3600.0) {
+        return Err(Failure::Usage(format!(
+            "--timeout {}: must be between 0 and 3600 s",
+            conn.timeout
+        )));
+    }
+    ServiceNames::new(&conn.namespace)
+        .map_err(|e| Failure::Usage(format!("--namespace {:?}: {e}", conn.namespace)))
+}
+
+/// Sends one request and waits for the answer.
+pub fn request(conn: &Conn, op: Op, args: &str) -> Result<String, Failure> {
+    let names = names(conn)?;
+    let req = ControlRequest::new(std::process::id() as u64, op, args).map_err(Failure::Usage)?;
+    let node = node()?;
+    let none = || {
+        Failure::Unreachable(format!(
+            "no chaosd answers in namespace {:?} (service {}): is the daemon running?",
+            names.namespace(),
+            names.control()
+        ))
+    };
+    let service = protocol::control::open_control_service(&node, &names).map_err(|_| none())?;
+    let client = service.client_builder().create().map_err(|e| {
+        Failure::Unreachable(format!("cannot connect to {}: {e:?}", names.control()))
+    })?;
+    let pending = client
+        .send_copy(req)
+        .map_err(|e| Failure::Unreachable(format!("cannot send to {}: {e:?}", names.control())))?;
+    if pending.number_of_server_connections() == 0 {
+        return Err(none());
+    }
+    let deadline = Instant::now() + Duration::from_secs_f64(conn.timeout);
+    loop {
+        match pending.receive() {
+            Ok(Some(r)) => {
+                let r: ControlResponse = *r;
+                let body = r
+                    .body()
+                    .map_err(|e| Failure::Unreachable(format!("malformed answer: {e}")))?
+                    .to_string();
+                return if r.is_ok() {
+                    Ok(body)
+                } else {
+                    Err(Failure::Refused(body))
+                };
+            }
+            Ok(None) => {}
+            Err(e) => {
+                return Err(Failure::Unreachable(format!(
+                    "lost the connection to {}: {e:?}",
+                    names.control()
+                )))
+            }
+        }
+        if Instant::now() >= deadline {
+            return Err(Failure::Unreachable(format!(
+                "no answer from chaosd in namespace {:?} within {} s",
+                names.namespace(),
+                conn.timeout
+            )));
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+fn pretty(body: &str) -> String {
+    serde_json::from_str::<serde_json::Value>(body)
+        .ok()
+        .and_then(|v| serde_json::to_string_pretty(&v).ok())
+        .unwrap_or_else(|| body.to_string())
+}
+
+fn human_status(body: &str) -> String {
+    let Ok(v) = serde_json::from_str::<serde_json::Value>(body) else {
+        return body.to_string();
+    };
+    let f = |k: &str| match &v[k] {
+        serde_json::Value::String(s) => s.clone(),
+        other => other.to_string(),
+    };
+    let lat = &v["histograms"]["lateness"];
+    let us = |x: &serde_json::Value| x.as_f64().map_or("n/a".to_string(), |x| format!("{x:.1}"));
+    let c = &v["counters"];
+    format!(
+        "chaosd in namespace {} (pid {}): {} at t = {:.1} s, {} Hz {} wait\n\
+         feedback  {} (active: {}), μ = {}, τ = {} s, t_on = {} s, max τ = {} s\n\
+         control   K_p = {}, K_v = {}, α = {}, secondary {}, {} obstacles; recent tracking error {} m\n\
+         timing    lateness p50 {} µs, p99 {} µs, max {} µs; overruns {}\n\
+         counters  {} ticks, {} commands, {} rejected samples, {} holds, {} plant restarts, {} params applied\n\
+         recording {}",
+        f("namespace"), f("pid"), f("mode"), v["t"].as_f64().unwrap_or(0.0), f("rate_hz"), f("wait"),
+        if v["feedback"].as_bool() == Some(true) { "on" } else { "off" }, f("feedback_active"), f("mu"), f("tau"), f("t_on"), f("max_tau"),
+        f("kp"), f("kv"), f("alpha"), f("secondary"), f("obstacles"),
+        v["tracking_error_recent"].as_f64().map_or("n/a".into(), |x| format!("{x:.2e}")),
+        us(&lat["p50_us"]), us(&lat["p99_us"]), us(&lat["max_us"]), c["overruns"],
+        c["ticks"], c["commands"],
+        c["rejected_invalid"].as_u64().unwrap_or(0) + c["rejected_stale"].as_u64().unwrap_or(0) + c["rejected_out_of_order"].as_u64().unwrap_or(0),
+        c["holds_entered"], c["plant_restarts"], c["params_applied"],
+        v["recording"].as_str().unwrap_or("off"),
+    )
+}
+
+pub fn telemetry_json(t: &TelemetrySample) -> serde_json::Value {
+    let n = (t.n as usize).min(protocol::MAX_JOINTS);
+    serde_json::json!({
+        "seq": t.seq, "stamp_ns": t.stamp_ns, "t": t.t,
+        "mode": match protocol::Mode::try_from(t.mode) { Ok(m) => format!("{m:?}"), Err(_) => format!("unknown({})", t.mode) },
+        "feedback_on": t.feedback_on == 1, "feedback_active": t.feedback_active == 1,
+        "mu": t.mu, "tau": t.tau, "t_on": t.t_on,
+        "tracking_error": t.tracking_error, "period_residual": t.period_residual,
+        "clearance": if t.clearance.is_finite() { Some(t.clearance) } else { None },
+        "time_in_contact": t.time_in_contact,
+        "lateness_p50_us": t.lateness_p50_us, "lateness_p99_us": t.lateness_p99_us, "lateness_max_us": t.lateness_max_us,
+        "ticks": t.ticks, "overruns": t.overruns, "telemetry_dropped": t.telemetry_dropped,
+        "rejected": t.rejected, "holds": t.holds,
+        "state_seq": t.state_seq, "phi": t.phi, "q": &t.q[..n], "qd": &t.qd[..n],
+    })
+}
+
+fn watch(conn: &Conn, json: bool, count: Option<u64>) -> Result<(), Failure> {
+    let names = names(conn)?;
+    let node = node()?;
+    let svc = protocol::control::open_telemetry_service(&node, &names)
+        .map_err(|e| Failure::Unreachable(e.to_string()))?;
+    let sub = svc.subscriber_builder().create().map_err(|e| {
+        Failure::Unreachable(format!("cannot subscribe to {}: {e:?}", names.telemetry()))
+    })?;
+    let tty = std::io::stdout().is_terminal() && !json;
+    let mut seen = 0u64;
+    let mut last_sample = Instant::now();
+    let mut out = std::io::stdout().lock();
+    while count.is_none_or(|c| seen < c) {
+        let mut got = None;
+        while let Ok(Some(s)) = sub.receive() {
+            got = Some(*s);
+        }
+        match got {
+            Some(t) => {
+                last_sample = Instant::now();
+                seen += 1;
+                let line = if json {
+                    telemetry_json(&t).to_string()
+                } else {
+                    let v = telemetry_json(&t);
+                    format!(
+                        "chaosd {} | t {:8.2} s | {:<4} | feedback {} μ={:.2} τ={:.2} | track {:.2e} m | residual {:.3e} rad/s | clearance {} | contact {:.2} s | late p99 {:.1} µs max {:.1} µs | overruns {} | rejected {} | holds {} | drops {}",
+                        names.namespace(), t.t, v["mode"].as_str().unwrap_or("?"),
+                        if t.feedback_active == 1 { "ON " } else if t.feedback_on == 1 { "armed" } else { "off" },
+                        t.mu, t.tau, t.tracking_error, t.period_residual,
+                        if t.clearance.is_finite() { format!("{:+.3} m", t.clearance) } else { "n/a".into() },
+                        t.time_in_contact, t.lateness_p99_us, t.lateness_max_us, t.overruns, t.rejected, t.holds, t.telemetry_dropped
+                    )
+                };
+                let res = if tty {
+                    write!(out, "\r\x1b[2K{line}")
+                } else {
+                    writeln!(out, "{line}")
+                };
+                if res.and_then(|_| out.flush()).is_err() {
+                    return Ok(()); // the reader went away (a closed pipe): stop quietly
+                }
+            }
+            None => {
+                if last_sample.elapsed() > Duration::from_secs_f64(conn.timeout) {
+                    if tty {
+                        let _ = writeln!(out);
+                    }
+                    return Err(Failure::Unreachable(format!(
+                        "no telemetry from chaosd in namespace {:?} for {} s (service {})",
+                        names.namespace(),
+                        conn.timeout,
+                        names.telemetry()
+                    )));
+                }
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        }
+    }
+    if tty {
+        let _ = writeln!(out);
+    }
+    Ok(())
+}
+
+pub fn run(cmd: Online) -> ExitCode {
+    let result = match cmd {
+        Online::Status { conn, json } => {
+            request(&conn, Op::Status, "").map(|b| if json { b } else { human_status(&b) })
+        }
+        Online::Get { conn } => request(&conn, Op::GetConfig, ""),
+        Online::Set { conn, pairs } => {
+            request(&conn, Op::Set, &pairs.join(" ")).map(|b| pretty(&b))
+        }
+        Online::Obstacle { conn, action } => match action {
+            ObstacleAction::Add {
+                x,
+                y,
+                radius,
+                margin,
+            } => request(
+                &conn,
+                Op::ObstacleAdd,
+                &format!("{x} {y} {radius} {margin}"),
+            )
+            .map(|b| pretty(&b)),
+            ObstacleAction::Rm { index } => {
+                request(&conn, Op::ObstacleRemove, &index.to_string()).map(|b| pretty(&b))
+            }
+            ObstacleAction::Ls => request(&conn, Op::ObstacleList, "").map(|b| pretty(&b)),
+        },
+        Online::Dfc { conn, state } => request(
+            &conn,
+            if state == "on" { Op::DfcOn } else { Op::DfcOff },
+            "",
+        )
+        .map(|b| pretty(&b)),
+        Online::Hist { conn, reset } => request(
+            &conn,
+            if reset {
+                Op::HistReset
+            } else {
+                Op::HistSnapshot
+            },
+            "",
+        )
+        .map(|b| pretty(&b)),
+        Online::Record { conn, action } => match action {
+            RecordAction::Start { name } => {
+                request(&conn, Op::RecordStart, name.as_deref().unwrap_or("")).map(|b| pretty(&b))
+            }
+            RecordAction::Stop => request(&conn, Op::RecordStop, "").map(|b| pretty(&b)),
+        },
+        Online::Shutdown { conn } => request(&conn, Op::Shutdown, ""),
+        Online::Watch { conn, json, count } => watch(&conn, json, count).map(|_| String::new()),
+    };
+    match result {
+        Ok(body) => {
+            if !body.is_empty() {
+                println!("{body}");
+            }
+            ExitCode::SUCCESS
+        }
+        Err(f) => f.exit(),
+    }
+}

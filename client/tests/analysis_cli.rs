@@ -1,0 +1,160 @@
+//! The analysis commands end to end through the built `chaosctl`: bad input is a clear error with
+//! exit code 2 (never a panic), and small real runs produce their files.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn chaosctl(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_chaosctl"))
+        .args(args)
+        .output()
+        .expect("run chaosctl")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("chaosctl-analysis-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Fails with exit code 2 and a message containing every `needle`, and does not panic.
+fn refused(args: &[&str], needles: &[&str]) {
+    let out = chaosctl(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{args:?} should fail with 2; stderr: {err}"
+    );
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: {n:?} missing from: {err}");
+    }
+}
+
+#[test]
+fn bad_mu_ranges_are_refused() {
+    refused(&["sweep", "--mu", "0:3:0"], &["step", "> 0"]);
+    refused(&["sweep", "--mu", "0:3:-0.1"], &["step"]);
+    refused(&["sweep", "--mu", "3:0:0.1"], &["END", "START"]);
+    refused(&["sweep", "--mu", "0:x:0.1"], &["not a finite number"]);
+    refused(&["basins", "--mu", "0:3"], &["START:END:STEP"]);
+    refused(&["orbits", "--mu", "-1:1:0.5"], &["feedback.mu"]);
+}
+
+#[test]
+fn windows_outside_the_run_are_refused() {
+    refused(
+        &["lyapunov", "--duration", "300", "--window", "100:400"],
+        &["window", "inside the run"],
+    );
+    refused(
+        &["lyapunov", "--window", "300:100"],
+        &["END must be greater than START"],
+    );
+    refused(
+        &[
+            "lyapunov",
+            "--duration",
+            "50",
+            "--window",
+            "40:50",
+            "--renorm",
+            "5",
+        ],
+        &["renormalisation"],
+    );
+    refused(&["lyapunov", "--d0", "0"], &["d0"]);
+    refused(
+        &["poincare", "--duration", "100", "--transient", "150"],
+        &["--transient"],
+    );
+    refused(&["figures", "--duration=-5"], &["--duration"]);
+    refused(
+        &["basins", "--duration", "50", "--transient", "30"],
+        &["section would have 21 points"],
+    );
+    refused(
+        &["lyapunov", "--window", "-10:100"],
+        &["window", "inside the run"],
+    );
+}
+
+#[test]
+fn wrong_initial_states_and_unreachable_tasks_are_refused() {
+    refused(&["lyapunov", "--q0", "1,2"], &["sim.q0", "3 entries"]);
+    refused(&["sweep", "--start", "0,1"], &["sim.q0", "3 entries"]);
+    refused(&["sweep", "--start", "0,a,1"], &["not a number"]);
+    refused(&["basins", "--vary", "q9=0:1:0.5"], &["3 joints"]);
+    let dir = scratch("unreachable");
+    let cfg = dir.join("far.toml");
+    std::fs::write(&cfg, "[task]\ncenter = [4.0, 3.0]\n").unwrap();
+    refused(
+        &["lyapunov", "--config", cfg.to_str().unwrap()],
+        &["task unreachable"],
+    );
+    refused(
+        &["sweep", "--config", cfg.to_str().unwrap()],
+        &["task unreachable"],
+    );
+    refused(&["orbits", "--model", "floating"], &["fixed-base"]);
+    refused(&["orbits", "--tau", "0.5"], &["τ = T"]);
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn lyapunov_json_has_the_estimate() {
+    let out = chaosctl(&[
+        "lyapunov",
+        "--duration",
+        "40",
+        "--window",
+        "10:40",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let l = v["lambda_max"].as_f64().unwrap();
+    let se = v["stderr"].as_f64().unwrap();
+    assert!(l.is_finite() && se.is_finite() && se >= 0.0, "{v}");
+    assert_eq!(v["intervals"].as_u64(), Some(30));
+    assert_eq!(v["history_in_norm"].as_bool(), Some(false));
+}
+
+#[test]
+fn small_sweep_writes_csv_and_plots_quietly() {
+    let dir = scratch("sweep");
+    let prefix = dir.join("s");
+    let out = chaosctl(&[
+        "sweep",
+        "--mu",
+        "0:0.2:0.1",
+        "--duration",
+        "30",
+        "--window",
+        "10:30",
+        "--jobs",
+        "2",
+        "--output",
+        prefix.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    // Not a terminal: no progress bar.
+    assert!(err.trim().is_empty(), "stderr should be empty: {err}");
+    let csv = std::fs::read_to_string(dir.join("s.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 3 * 3, "{csv}");
+    assert!(csv.lines().nth(1).unwrap().starts_with("0,0,"));
+    let png = std::fs::read(dir.join("s.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    assert!(std::fs::read_to_string(dir.join("s.svg"))
+        .unwrap()
+        .contains("<svg"));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("simulated s per wall s"), "{stdout}");
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -1,0 +1,33 @@
+//! Chaos analysis of the closed loop (SCIENCE.md §5): Lyapunov exponents, stroboscopic Poincaré
+//! sections and their classification, period-T orbits with their Floquet multipliers and their
+//! stability under Pyragas feedback.
+//!
+//! Like the rest of `control`, this is pure math: no I/O, threads or clocks. The command-line
+//! tools (`chaosctl lyapunov | sweep | poincare | orbits | basins | figures`) parallelise, print
+//! and plot around it. The pieces:
+//!
+//! - [`lyapunov`]: Benettin's method, generic over a [`Trajectory`], with the delay-history
+//!   renormalisation that a delay equation (μ ≠ 0) needs. Known systems are plugged into the same
+//!   code in the tests.
+//! - [`closed_loop`]: the arm simulation as a [`Trajectory`] ([`ArmFlow`]).
+//! - [`poincare`]: the section at t = kT and the period-p / converging / quasi-periodic /
+//!   irregular classifier (its rule is documented there).
+//! - [`run`]: one analysed run, the unit every tool is built from.
+//! - [`orbits`]: Newton's method on the stroboscopic map, Floquet multipliers, stability vs μ.
+
+pub mod closed_loop;
+pub mod lyapunov;
+pub mod orbits;
+pub mod poincare;
+pub mod run;
+
+pub use closed_loop::{wrap_angle, ArmFlow};
+pub use lyapunov::{Benettin, Growth, LyapunovError, LyapunovEstimate, Trajectory};
+pub use orbits::{
+    close_returns, find_orbit, orbit_stability, NewtonConfig, OrbitCatalog, OrbitError,
+    OrbitStability, PeriodicOrbit, StabilitySpec, Verdict,
+};
+pub use poincare::{classify, zero_one_k, Classification, ClassifyConfig, Motion, Section};
+pub use run::{
+    analyse, check_reachable, period_steps, AnalysisError, LyapunovSpec, RunAnalysis, RunSpec,
+};

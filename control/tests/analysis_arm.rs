@@ -1,0 +1,253 @@
+//! The analysis tools on the real closed loop: known structure that any correct implementation
+//! must reproduce (SCIENCE.md §5).
+
+use control::analysis::{
+    analyse, close_returns, find_orbit, orbit_stability, ClassifyConfig, LyapunovSpec, Motion,
+    NewtonConfig, PeriodicOrbit, RunSpec, StabilitySpec, Verdict,
+};
+use control::{ArmState, Config, VecN};
+
+fn config(mu: f64, q0: [f64; 3]) -> Config {
+    let mut cfg = Config::preset("paper").unwrap();
+    cfg.feedback.mu = mu;
+    cfg.sim.q0 = Some(q0.to_vec());
+    cfg.validate().unwrap();
+    cfg
+}
+
+fn spec(lyapunov: bool) -> RunSpec {
+    RunSpec {
+        duration: 300.0,
+        transient: 100.0,
+        lyapunov: lyapunov.then(LyapunovSpec::default),
+        classify: ClassifyConfig::default(),
+    }
+}
+
+fn state(x: &[f64]) -> ArmState<3> {
+    ArmState {
+        q: VecN::<3>::from_column_slice(&x[..3]),
+        qd: VecN::<3>::from_column_slice(&x[3..6]),
+        phi: 0.0,
+    }
+}
+
+#[test]
+fn uncontrolled_self_motion_is_chaotic() {
+    let cfg = config(
+        0.0,
+        [
+            0.0,
+            std::f64::consts::FRAC_PI_2,
+            std::f64::consts::FRAC_PI_2,
+        ],
+    );
+    let a = analyse::<3>(
+        cfg.model(),
+        cfg.law_params(),
+        cfg.sim.dt,
+        cfg.initial_state(),
+        &spec(true),
+    )
+    .unwrap();
+    let l = a.lyapunov.unwrap();
+    assert!(l.lambda_max - 2.0 * l.stderr > 0.1, "{l:?}");
+    assert!(
+        matches!(a.classification.motion, Motion::Irregular { .. }),
+        "{:?}",
+        a.classification
+    );
+    assert_eq!(a.section.len(), 201);
+}
+
+#[test]
+fn feedback_orbit_is_period_one_and_a_newton_fixed_point_with_the_tracking_multipliers() {
+    let cfg = config(0.2, [0.3, 1.2, 1.9]);
+    let (model, params) = (cfg.model::<3>(), cfg.law_params());
+    let a = analyse::<3>(model, params, cfg.sim.dt, cfg.initial_state(), &spec(true)).unwrap();
+    match a.classification.motion {
+        Motion::Periodic {
+            period: 1,
+            residual,
+        } => assert!(residual < 1e-9, "{residual}"),
+        m => panic!("expected period-1, got {m:?}"),
+    }
+    let l = a.lyapunov.unwrap();
+    assert!(l.lambda_max + 2.0 * l.stderr < 0.0, "{l:?}");
+
+    // The settled state is (to the discretisation error) a period-T orbit of the μ = 0 loop.
+    let orbit = find_orbit(
+        &model,
+        &params,
+        cfg.sim.dt,
+        &state(&a.final_coords),
+        &NewtonConfig::default(),
+    )
+    .unwrap();
+    assert!(orbit.residual < 1e-10);
+    let shift: f64 = orbit
+        .coords()
+        .iter()
+        .zip(&a.final_coords)
+        .map(|(o, f)| (control::analysis::wrap_angle(o - f)).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(
+        shift < 1e-3,
+        "controlled orbit {shift} away from the μ = 0 orbit"
+    );
+
+    // The task-space error obeys ë + K_v ė + K_p e = 0 exactly, so four multipliers are e^{sT} for
+    // the roots s of s² + 15 s + 40, each twice (x and y).
+    let (kp, kv) = (params.kp, params.kv);
+    let disc = (kv * kv - 4.0 * kp).sqrt();
+    for s in [(-kv + disc) / 2.0, (-kv - disc) / 2.0] {
+        let want = (s * params.task.period).exp();
+        let close = orbit
+            .multipliers
+            .iter()
+            .filter(|m| m[1].abs() < 1e-6 && (m[0] - want).abs() < 1e-5 * want.max(1e-3))
+            .count();
+        assert_eq!(close, 2, "multiplier {want} in {:?}", orbit.multipliers);
+    }
+}
+
+fn hyperbolic_and_elliptic_orbits() -> (PeriodicOrbit, PeriodicOrbit, Config) {
+    let cfg = config(
+        0.0,
+        [
+            0.0,
+            std::f64::consts::FRAC_PI_2,
+            std::f64::consts::FRAC_PI_2,
+        ],
+    );
+    let (model, params) = (cfg.model::<3>(), cfg.law_params());
+    let chaos = analyse::<3>(
+        model,
+        params,
+        cfg.sim.dt,
+        cfg.initial_state(),
+        &RunSpec {
+            transient: 20.0,
+            ..spec(false)
+        },
+    )
+    .unwrap();
+    let hyperbolic = close_returns(&chaos.section, 8)
+        .into_iter()
+        .filter_map(|i| {
+            find_orbit(
+                &model,
+                &params,
+                cfg.sim.dt,
+                &state(chaos.section.point(i)),
+                &NewtonConfig::default(),
+            )
+            .ok()
+        })
+        .find(|o| o.max_multiplier() > 2.0 && o.multipliers[0][1] == 0.0)
+        .expect("a hyperbolic period-T orbit among the close returns");
+    let settled = config(0.1, [0.3, 1.2, 1.9]);
+    let a = analyse::<3>(
+        model,
+        settled.law_params(),
+        cfg.sim.dt,
+        settled.initial_state(),
+        &spec(false),
+    )
+    .unwrap();
+    let elliptic = find_orbit(
+        &model,
+        &params,
+        cfg.sim.dt,
+        &state(&a.final_coords),
+        &NewtonConfig::default(),
+    )
+    .unwrap();
+    (hyperbolic, elliptic, cfg)
+}
+
+#[test]
+fn on_orbit_exponent_is_the_floquet_exponent_and_feedback_stabilises_the_elliptic_orbit() {
+    let (hyperbolic, elliptic, cfg) = hyperbolic_and_elliptic_orbits();
+    let model = cfg.model::<3>();
+    let mut params = cfg.law_params();
+    // μ = 0 on a saddle: Benettin from the orbit measures ln|ρ_max| / T (before the reference leaves;
+    // two periods let the separation align with the unstable direction).
+    let short = StabilitySpec {
+        settle: 2.0,
+        duration: 6.0,
+        blocks: 2,
+        leave_tol: 1e-3,
+        ..StabilitySpec::default()
+    };
+    let s = orbit_stability(&model, &params, cfg.sim.dt, &hyperbolic, &short).unwrap();
+    let want = hyperbolic.floquet_exponent(1.0);
+    assert!(
+        (s.lyapunov.lambda_max - want).abs() < 0.01 * want,
+        "λ = {:?}, ln ρ = {want}",
+        s.lyapunov
+    );
+    assert_eq!(s.verdict, Verdict::Unstable);
+
+    // The elliptic orbit (|ρ| = 1 at μ = 0) is marginal without feedback and stable with μ = 0.2,
+    // measured through the delay-equation path (history in the norm).
+    assert!(
+        (elliptic.max_multiplier() - 1.0).abs() < 1e-4,
+        "{:?}",
+        elliptic.multipliers
+    );
+    let s0 = orbit_stability(
+        &model,
+        &params,
+        cfg.sim.dt,
+        &elliptic,
+        &StabilitySpec::default(),
+    )
+    .unwrap();
+    assert!(s0.lyapunov.lambda_max.abs() < 0.05, "{:?}", s0.lyapunov);
+    params.mu = 0.2;
+    let s1 = orbit_stability(
+        &model,
+        &params,
+        cfg.sim.dt,
+        &elliptic,
+        &StabilitySpec::default(),
+    )
+    .unwrap();
+    assert_eq!(s1.verdict, Verdict::Stable, "{s1:?}");
+    assert!(s1.max_distance < 1e-3, "{s1:?}");
+}
+
+#[test]
+fn bad_specs_are_errors_not_panics() {
+    let cfg = config(0.0, [0.0, 1.0, 1.0]);
+    let run = |s: RunSpec| {
+        analyse::<3>(
+            cfg.model(),
+            cfg.law_params(),
+            cfg.sim.dt,
+            cfg.initial_state(),
+            &s,
+        )
+    };
+    let mut s = spec(true);
+    s.lyapunov.as_mut().unwrap().window = [100.0, 400.0];
+    assert!(run(s).unwrap_err().to_string().contains("window"));
+    let mut s = spec(true);
+    s.transient = 300.0;
+    assert!(run(s).is_err());
+    let mut s = spec(true);
+    s.lyapunov.as_mut().unwrap().renorm = 0.0;
+    assert!(run(s).is_err());
+    let mut floating = cfg.clone();
+    floating.arm.model = control::config::ModelKind::Floating;
+    let o = find_orbit::<3>(
+        &floating.model(),
+        &floating.law_params(),
+        1e-3,
+        &cfg.initial_state(),
+        &NewtonConfig::default(),
+    );
+    assert!(o.unwrap_err().to_string().contains("fixed-base"));
+}

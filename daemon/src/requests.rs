@@ -1,0 +1,261 @@
+//! Turning control requests into a new configuration, all or nothing.
+//!
+//! Every change is applied to a copy of the running [`Config`] and then checked by the same
+//! `validate` that guards start-up, so a client can never set what a config file could not. Only
+//! a fully valid result leaves this module; the reporter then hands the loop a new `LawParams`
+//! block, which the loop swaps in at a tick boundary. These functions do no I/O.
+
+use control::config::{validate_obstacle, ObstacleConfig, SecondaryKind};
+use control::Config;
+use std::path::{Component, Path, PathBuf};
+
+/// Keys `set` accepts (short and dotted forms), for the error message.
+pub const KEYS: &str = "mu, tau, t_on, feedback (on|off), kp, kv, alpha, secondary (none|manipulability|obstacles), \
+                        w1, w2, damping_threshold, damping_max, track_loss, task.center X Y, task.radius, task.period";
+
+fn num(key: &str, v: Option<&str>) -> Result<f64, String> {
+    let v = v.ok_or_else(|| format!("{key}: missing value"))?;
+    let x: f64 = v
+        .parse()
+        .map_err(|_| format!("{key}: {v:?} is not a number"))?;
+    if !x.is_finite() {
+        return Err(format!("{key}: {v} is not a finite number"));
+    }
+    Ok(x)
+}
+
+/// Applies `KEY VALUE… [KEY VALUE…]` to a copy of `cfg` and validates the result.
+///
+/// `max_tau` is the delay-line capacity fixed at start-up; `min_tau` one control period.
+pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, String> {
+    let mut c = cfg.clone();
+    let mut it = args.split_whitespace().peekable();
+    if it.peek().is_none() {
+        return Err(format!("set needs KEY VALUE pairs; keys: {KEYS}"));
+    }
+    while let Some(key) = it.next() {
+        let k = key
+            .trim_start_matches("feedback.")
+            .trim_start_matches("control.");
+        match k {
+            "mu" => c.feedback.mu = num(key, it.next())?,
+            "tau" => c.feedback.tau = num(key, it.next())?,
+            "t_on" => c.feedback.t_on = num(key, it.next())?,
+            "feedback" | "enabled" | "dfc" => {
+                c.feedback.enabled = match it.next() {
+                    Some("on" | "true" | "1") => true,
+                    Some("off" | "false" | "0") => false,
+                    other => return Err(format!("{key}: {other:?} is not on or off")),
+                }
+            }
+            "kp" => c.control.kp = num(key, it.next())?,
+            "kv" => c.control.kv = num(key, it.next())?,
+            "alpha" => c.control.alpha = num(key, it.next())?,
+            "w1" => c.control.w1 = num(key, it.next())?,
+            "w2" => c.control.w2 = num(key, it.next())?,
+            "damping_threshold" => c.control.damping_threshold = num(key, it.next())?,
+            "damping_max" => c.control.damping_max = num(key, it.next())?,
+            "track_loss" => c.control.track_loss = num(key, it.next())?,
+            "secondary" => {
+                c.control.secondary = match it.next() {
+                    Some("none") => SecondaryKind::None,
+                    Some("manipulability") => SecondaryKind::Manipulability,
+                    Some("obstacles") => SecondaryKind::Obstacles,
+                    other => {
+                        return Err(format!(
+                            "{key}: {other:?} is not none, manipulability or obstacles"
+                        ))
+                    }
+                }
+            }
+            "task.center" | "center" => {
+                c.task.center = [num(key, it.next())?, num(key, it.next())?]
+            }
+            "task.radius" | "radius" => c.task.radius = num(key, it.next())?,
+            "task.period" | "period" => c.task.period = num(key, it.next())?,
+            "max_tau" => {
+                return Err(format!(
+                    "feedback.max_tau = {} s is the delay-line capacity, fixed at start-up",
+                    cfg.feedback.max_tau
+                ))
+            }
+            _ => return Err(format!("unknown key {key:?}; keys: {KEYS}")),
+        }
+    }
+    if c.feedback.tau > cfg.feedback.max_tau {
+        return Err(format!(
+            "feedback.tau = {} s exceeds the delay-line capacity feedback.max_tau = {} s fixed at start-up",
+            c.feedback.tau, cfg.feedback.max_tau
+        ));
+    }
+    if c.feedback.tau < min_tau {
+        return Err(format!(
+            "feedback.tau = {} s is shorter than one control period ({min_tau} s)",
+            c.feedback.tau
+        ));
+    }
+    c.validate().map_err(|e| e.to_string())?;
+    Ok(c)
+}
+
+/// Feedback on from controller time `now`, or off.
+pub fn apply_dfc(cfg: &Config, on: bool, now: f64) -> Result<Config, String> {
+    let mut c = cfg.clone();
+    c.feedback.enabled = on;
+    if on {
+        c.feedback.t_on = now.max(0.0);
+        if c.feedback.mu == 0.0 {
+            return Err("feedback.mu is 0: set a gain first (chaosctl set mu 0.2)".into());
+        }
+    }
+    c.validate().map_err(|e| e.to_string())?;
+    Ok(c)
+}
+
+/// `X Y RADIUS [MARGIN]`.
+pub fn apply_obstacle_add(cfg: &Config, args: &str) -> Result<Config, String> {
+    let v: Vec<&str> = args.split_whitespace().collect();
+    if !(3..=4).contains(&v.len()) {
+        return Err("obstacle add needs X Y RADIUS [MARGIN] (m)".into());
+    }
+    let o = ObstacleConfig {
+        center: [num("x", Some(v[0]))?, num("y", Some(v[1]))?],
+        radius: num("radius", Some(v[2]))?,
+        margin: if v.len() == 4 {
+            num("margin", Some(v[3]))?
+        } else {
+            0.1
+        },
+    };
+    validate_obstacle("obstacle", &o).map_err(|e| e.to_string())?;
+    let mut c = cfg.clone();
+    c.control.obstacles.push(o);
+    c.validate().map_err(|e| e.to_string())?;
+    Ok(c)
+}
+
+/// `INDEX` (as listed by `obstacle ls`).
+pub fn apply_obstacle_remove(cfg: &Config, args: &str) -> Result<Config, String> {
+    let i: usize = args
+        .trim()
+        .parse()
+        .map_err(|_| format!("obstacle rm needs an index, got {:?}", args.trim()))?;
+    let mut c = cfg.clone();
+    if i >= c.control.obstacles.len() {
+        return Err(format!(
+            "no obstacle {i}: there are {}",
+            c.control.obstacles.len()
+        ));
+    }
+    c.control.obstacles.remove(i);
+    c.validate().map_err(|e| {
+        format!("{e} (set secondary to none or manipulability before removing the last obstacle)")
+    })?;
+    Ok(c)
+}
+
+/// Where a recording named by a client goes: inside `out_dir`, never outside it.
+pub fn recording_path(out_dir: &Path, name: &str) -> Result<PathBuf, String> {
+    let name = name.trim();
+    if name.is_empty() {
+        return Err("empty recording name".into());
+    }
+    let p = Path::new(name);
+    if p.is_absolute() || p.components().any(|c| !matches!(c, Component::Normal(_))) {
+        return Err(format!("recording path {name:?} must be a relative path inside the output directory {} (no '..', no absolute paths)", out_dir.display()));
+    }
+    if name.chars().any(|c| c.is_control()) {
+        return Err(format!(
+            "recording path {name:?} contains control characters"
+        ));
+    }
+    let full = out_dir.join(p);
+    if full.exists() {
+        return Err(format!(
+            "{} already exists; choose another name",
+            full.display()
+        ));
+    }
+    Ok(full)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn set_is_all_or_nothing_and_validated() {
+        let c = Config::default();
+        let n = apply_set(
+            &c,
+            "mu 1.5 tau 1.2 kp 30 task.center 1 1.5 secondary none feedback off",
+            1e-3,
+        )
+        .unwrap();
+        assert_eq!(
+            (n.feedback.mu, n.feedback.tau, n.control.kp, n.task.center),
+            (1.5, 1.2, 30.0, [1.0, 1.5])
+        );
+        assert!(!n.feedback.enabled);
+        assert_eq!(n.control.secondary, SecondaryKind::None);
+        for (args, want) in [
+            ("mu -1", "feedback.mu"),
+            ("mu 1 kp -5", "control.kp"),
+            ("tau 3", "max_tau"),
+            ("tau 0.0001", "control period"),
+            ("bogus 1", "unknown key"),
+            ("mu", "missing value"),
+            ("mu abc", "not a number"),
+            ("mu nan", "finite"),
+            ("secondary obstacles", "control.obstacles"),
+            ("max_tau 5", "fixed at start-up"),
+            ("", "KEY VALUE"),
+        ] {
+            let e = apply_set(&c, args, 1e-3).unwrap_err();
+            assert!(e.contains(want), "{args:?} → {e}");
+        }
+    }
+
+    #[test]
+    fn obstacles_and_dfc() {
+        let c = apply_obstacle_add(&Config::default(), "0 1.6 0.25").unwrap();
+        assert_eq!(c.control.obstacles.len(), 1);
+        assert!(apply_obstacle_add(&c, "0 1.6 -1")
+            .unwrap_err()
+            .contains("obstacle.radius"));
+        assert!(apply_obstacle_add(&c, "0 1.6").is_err());
+        let c2 = apply_set(&c, "secondary obstacles", 1e-3).unwrap();
+        assert!(apply_obstacle_remove(&c2, "0")
+            .unwrap_err()
+            .contains("secondary"));
+        assert!(apply_obstacle_remove(&c2, "3")
+            .unwrap_err()
+            .contains("no obstacle 3"));
+        assert!(apply_obstacle_remove(&c, "0")
+            .unwrap()
+            .control
+            .obstacles
+            .is_empty());
+        assert!(apply_dfc(&Config::default(), true, 3.0)
+            .unwrap_err()
+            .contains("mu is 0"));
+        let on = apply_dfc(&apply_set(&c, "mu 0.2", 1e-3).unwrap(), true, 3.0).unwrap();
+        assert_eq!((on.feedback.enabled, on.feedback.t_on), (true, 3.0));
+    }
+
+    #[test]
+    fn recordings_stay_inside_the_output_directory() {
+        let out = std::env::temp_dir().join(format!("chaosd-rec-{}", std::process::id()));
+        assert_eq!(
+            recording_path(&out, "run1.csv").unwrap(),
+            out.join("run1.csv")
+        );
+        assert_eq!(
+            recording_path(&out, "sub/run1.csv").unwrap(),
+            out.join("sub/run1.csv")
+        );
+        for bad in ["../x.csv", "/etc/passwd", "a/../../x", "./x", "", "a\nb"] {
+            assert!(recording_path(&out, bad).is_err(), "{bad:?} accepted");
+        }
+    }
+}
