@@ -5,7 +5,7 @@
 //! message says why; nothing changed), 2 bad usage, 3 no daemon answered.
 
 use clap::{Args, Subcommand};
-use iceoryx2::prelude::{ipc, LogLevel, NodeBuilder, SignalHandlingMode};
+use iceoryx2::prelude::ipc;
 use protocol::{ControlRequest, ControlResponse, Op, ServiceNames, TelemetrySample};
 use std::io::{IsTerminal, Write};
 use std::process::ExitCode;
@@ -140,12 +140,7 @@ impl Failure {
 }
 
 fn node() -> Result<iceoryx2::node::Node<ipc::Service>, Failure> {
-    iceoryx2::prelude::set_log_level_from_env_or(LogLevel::Error);
-    NodeBuilder::new()
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .config(&iceoryx2::config::Config::default())
-        .create::<ipc::Service>()
-        .map_err(|e| Failure::Unreachable(format!("cannot create an iceoryx2 node: {e:?}")))
+    protocol::node("chaosctl").map_err(|e| Failure::Unreachable(e.to_string()))
 }
 
 fn names(conn: &Conn) -> Result<ServiceNames, Failure> {

@@ -235,7 +235,21 @@ pub struct Config {
 }
 
 /// Names accepted by [`Config::preset`].
-pub const PRESETS: &[&str] = &["paper", "paper-eq11", "paper-obstacle", "paper-floating"];
+pub const PRESETS: &[&str] = &[
+    "paper",
+    "paper-eq11",
+    "paper-obstacle",
+    "paper-floating",
+    "demo",
+];
+
+/// Start of the `demo` preset: a point of the paper arm's period-1 orbit (found by running
+/// μ = 0.1 to convergence; `chaosctl orbits` finds it by Newton's method) with q̇₁ + 2 rad/s and
+/// q̇₃ − 2 rad/s.
+pub const DEMO_START: ([f64; 3], [f64; 3]) = (
+    [1.550079628, -0.488376467, -0.934331288],
+    [-2.361482957, 9.229261970, -6.001303515],
+);
 
 /// The obstacle of the `paper-obstacle` preset (the paper gives none; this one sits where the
 /// uncontrolled self-motion sweeps the arm's middle links).
@@ -261,6 +275,15 @@ impl Config {
             }
             "paper-floating" => {
                 c.arm.model = ModelKind::Floating;
+            }
+            "demo" => {
+                // The paper's arm kicked 2 rad/s off its period-1 orbit (the one small μ
+                // stabilises): irregular without feedback, back on the orbit within ~15 s of μ = 0.2.
+                c.sim.q0 = Some(DEMO_START.0.to_vec());
+                c.sim.qd0 = Some(DEMO_START.1.to_vec());
+                c.feedback.mu = 0.2;
+                c.feedback.t_on = 8.0;
+                c.sim.duration = 25.0;
             }
             other => return Err(ConfigError::UnknownPreset(other.to_string())),
         }

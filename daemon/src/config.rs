@@ -88,33 +88,18 @@ impl DaemonConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         protocol::validate_namespace(&self.namespace)
             .map_err(|e| invalid("namespace", &self.namespace, &e.to_string()))?;
-        if !(self.rate_hz.is_finite() && (100.0..=10_000.0).contains(&self.rate_hz)) {
-            return Err(invalid(
-                "rate_hz",
-                self.rate_hz,
-                "must be between 100 and 10000 Hz",
-            ));
-        }
-        let period_us = 1e6 / self.rate_hz;
-        if !(self.spin_us.is_finite() && self.spin_us >= 0.0 && self.spin_us <= period_us) {
-            return Err(invalid(
-                "spin_us",
-                self.spin_us,
-                &format!("must be between 0 and the period ({period_us} µs)"),
-            ));
-        }
-        if self.priority > 99 {
-            return Err(invalid(
-                "priority",
-                self.priority,
-                "must be 0 (normal scheduler) or a SCHED_FIFO priority 1..=99",
-            ));
-        }
-        if let Some(c) = self.core {
-            if c >= 1024 {
-                return Err(invalid("core", c, "must be a CPU index below 1024"));
-            }
-        }
+        rt::setup::check_loop(
+            self.rate_hz,
+            (100.0, 10_000.0),
+            self.spin_us,
+            self.priority,
+            self.core,
+        )
+        .map_err(|e| ConfigError::Invalid {
+            field: format!("daemon.{}", e.field),
+            value: e.value,
+            expected: e.expected,
+        })?;
         if !(1..=100_000).contains(&self.hold_after) {
             return Err(invalid(
                 "hold_after",

@@ -38,12 +38,13 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
         /// Seconds to run.
-        #[arg(long, default_value_t = 20.0)]
+        #[arg(long, default_value_t = 25.0)]
         duration: f64,
-        /// Pyragas gain switched on part-way (default: the config's, or 2.0 if that is 0).
+        /// Pyragas gain switched on part-way (default: the config's, or 0.2 if that is 0).
         #[arg(long)]
         mu: Option<f64>,
-        /// When the feedback switches on (default: 40 % into the run).
+        /// When the feedback switches on (default: the config's t_on if it falls inside the run,
+        /// else a third of the way in).
         #[arg(long = "t-on")]
         t_on: Option<f64>,
     },
@@ -54,7 +55,7 @@ enum Cmd {
     },
 }
 
-#[derive(Args)]
+#[derive(Args, Clone)]
 struct Common {
     /// TOML config file.
     #[arg(long, conflicts_with = "preset")]
@@ -154,7 +155,15 @@ fn plant_exe() -> Result<PathBuf> {
 
 fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> Result<()> {
     check_duration(duration)?;
-    let mut s = common.setup()?;
+    let mut s = if common.config.is_none() && common.preset.is_none() {
+        Common {
+            preset: Some("demo".into()),
+            ..common.clone()
+        }
+        .setup()?
+    } else {
+        common.setup()?
+    };
     if common.namespace.is_none() {
         s.daemon.namespace = format!("demo-{}", std::process::id());
     }
@@ -164,9 +173,14 @@ fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> R
     s.system.feedback.mu = mu.unwrap_or(if s.system.feedback.mu > 0.0 {
         s.system.feedback.mu
     } else {
-        2.0
+        0.2
     });
-    s.system.feedback.t_on = t_on.unwrap_or(0.4 * duration);
+    let cfg_t_on = s.system.feedback.t_on;
+    s.system.feedback.t_on = t_on.unwrap_or(if cfg_t_on > 0.0 && cfg_t_on < duration {
+        cfg_t_on
+    } else {
+        duration / 3.0
+    });
     s.system.feedback.enabled = true;
     // The plant reads the same file: give it our namespace and output directory.
     let mut plant = s.system.plant.clone().unwrap_or_default();
@@ -247,9 +261,9 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
     }
     match (d.period_residual_before, d.period_residual_after) {
         (Some(b), Some(a)) => println!(
-            "period residual       mean |q̇(t) − q̇(t−τ)|: {b:.3} rad/s before feedback → {a:.3} rad/s over the last 5 s with μ = {} ({:.1}× smaller)",
+            "period residual       mean |q̇(t) − q̇(t−τ)|: {b:.3} rad/s before feedback → {a:.3} rad/s over the last 5 s with μ = {} ({})",
             s.system.feedback.mu,
-            b / a
+            if a <= b { format!("{:.1}× smaller", b / a) } else { format!("{:.1}× LARGER: not settled on a period-T orbit", a / b) }
         ),
         (b, a) => println!("period residual       before {b:?}, after {a:?} (run longer than t_on + 5 s to compare)"),
     }

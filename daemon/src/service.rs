@@ -15,22 +15,16 @@ use crate::telemetry::{DaemonSummary, Reporter, TickRecord};
 use anyhow::{anyhow, Context, Result};
 use control::law::flags as law_flags;
 use control::with_dof;
-use iceoryx2::prelude::{ipc, LogLevel, NodeBuilder, NodeName, SignalHandlingMode};
+use iceoryx2::prelude::ipc;
 use protocol::{monotonic_ns, ServiceNames};
 use rt::clock::Schedule;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-/// Creates an iceoryx2 node that leaves signals to us and reads no config file from the CWD.
+/// Creates this process's iceoryx2 node (see `protocol::node`).
 pub fn node(name: &str) -> Result<iceoryx2::node::Node<ipc::Service>> {
-    iceoryx2::prelude::set_log_level_from_env_or(LogLevel::Error);
-    NodeBuilder::new()
-        .name(&NodeName::new(name).map_err(|e| anyhow!("bad node name {name:?}: {e:?}"))?)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .config(&iceoryx2::config::Config::default())
-        .create::<ipc::Service>()
-        .map_err(|e| anyhow!("cannot create iceoryx2 node: {e:?}"))
+    Ok(protocol::node(name)?)
 }
 
 /// Runs the daemon until SIGINT/SIGTERM, or for `duration` seconds. `on_line` gets status lines.

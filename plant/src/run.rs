@@ -8,7 +8,6 @@
 use crate::config::PlantConfig;
 use crate::seam::{Actuation, Plant};
 use anyhow::{anyhow, Context, Result};
-use iceoryx2::prelude::{ipc, LogLevel, NodeBuilder, NodeName, SignalHandlingMode};
 use protocol::{flags, monotonic_ns, CommandSample, Mode, ServiceNames, StateSample};
 use rt::clock::Schedule;
 use rt::hist::{self, Percentiles};
@@ -59,13 +58,7 @@ pub fn run<P: Plant>(
         )
     })?;
     rt::signal::install();
-    iceoryx2::prelude::set_log_level_from_env_or(LogLevel::Error);
-    let node = NodeBuilder::new()
-        .name(&NodeName::new("chaosd-plant").map_err(|e| anyhow!("{e:?}"))?)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .config(&iceoryx2::config::Config::default())
-        .create::<ipc::Service>()
-        .map_err(|e| anyhow!("cannot create iceoryx2 node: {e:?}"))?;
+    let node = protocol::node("chaosd-plant")?;
     let state = protocol::open_state_service(&node, &names)?;
     let publisher = state.publisher_builder().create().map_err(|e| {
         anyhow!(

@@ -51,6 +51,7 @@
 
 pub mod control;
 pub mod names;
+pub mod node;
 pub mod qos;
 pub mod sample;
 
@@ -61,6 +62,7 @@ pub use names::{
     validate_namespace, NamespaceError, ServiceNames, DEFAULT_NAMESPACE, MAX_NAMESPACE_LEN,
     SERVICE_ROOT,
 };
+pub use node::{node, NodeError};
 pub use qos::{
     event_ids, open_command_service, open_events_service, open_state_service, Channel,
     CommandService, EventQos, EventsService, PubSubQos, ServiceError, StateService, COMMAND_QOS,

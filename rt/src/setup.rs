@@ -100,3 +100,102 @@ pub fn apply(req: RtRequest) -> RtReport {
     }
     r
 }
+
+/// A loop setting out of range: `field` is the key inside its table (`rate_hz`, ...).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Invalid {
+    pub field: &'static str,
+    pub value: String,
+    pub expected: String,
+}
+
+/// Checks the settings every fixed-rate loop has (the daemon's and the plant's tables share
+/// them): the rate within `rates` (Hz), the hybrid spin within one period, a SCHED_FIFO priority
+/// and a plausible core.
+pub fn check_loop(
+    rate_hz: f64,
+    rates: (f64, f64),
+    spin_us: f64,
+    priority: u8,
+    core: Option<usize>,
+) -> Result<(), Invalid> {
+    let bad = |field, value: String, expected: String| {
+        Err(Invalid {
+            field,
+            value,
+            expected,
+        })
+    };
+    if !(rate_hz.is_finite() && rate_hz >= rates.0 && rate_hz <= rates.1) {
+        return bad(
+            "rate_hz",
+            rate_hz.to_string(),
+            format!("must be between {} and {} Hz", rates.0, rates.1),
+        );
+    }
+    let period_us = 1e6 / rate_hz;
+    if !(spin_us.is_finite() && spin_us >= 0.0 && spin_us <= period_us) {
+        return bad(
+            "spin_us",
+            spin_us.to_string(),
+            format!("must be between 0 and the period ({period_us} µs)"),
+        );
+    }
+    if priority > 99 {
+        return bad(
+            "priority",
+            priority.to_string(),
+            "must be 0 (normal scheduler) or a SCHED_FIFO priority 1..=99".into(),
+        );
+    }
+    if let Some(c) = core {
+        if c >= 1024 {
+            return bad(
+                "core",
+                c.to_string(),
+                "must be a CPU index below 1024".into(),
+            );
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn loop_settings_are_checked() {
+        assert!(check_loop(1000.0, (100.0, 10_000.0), 50.0, 50, Some(1)).is_ok());
+        assert_eq!(
+            check_loop(50.0, (100.0, 10_000.0), 0.0, 0, None)
+                .unwrap_err()
+                .field,
+            "rate_hz"
+        );
+        assert_eq!(
+            check_loop(f64::NAN, (100.0, 10_000.0), 0.0, 0, None)
+                .unwrap_err()
+                .field,
+            "rate_hz"
+        );
+        assert_eq!(
+            check_loop(1000.0, (100.0, 10_000.0), 2000.0, 0, None)
+                .unwrap_err()
+                .field,
+            "spin_us"
+        );
+        assert_eq!(
+            check_loop(1000.0, (100.0, 10_000.0), 0.0, 100, None)
+                .unwrap_err()
+                .field,
+            "priority"
+        );
+        assert_eq!(
+            check_loop(1000.0, (100.0, 10_000.0), 0.0, 0, Some(5000))
+                .unwrap_err()
+                .field,
+            "core"
+        );
+    }
+}

@@ -7,7 +7,7 @@
 //! spawn processes take [`serial`] so two 2-process systems never compete for the 2 cores.
 
 use iceoryx2::port::subscriber::Subscriber;
-use iceoryx2::prelude::{ipc, LogLevel, NodeBuilder, SignalHandlingMode};
+use iceoryx2::prelude::ipc;
 use protocol::{CommandSample, ServiceNames, StateSample};
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
@@ -197,12 +197,7 @@ pub struct Monitor {
 
 /// Creates a quiet iceoryx2 node for the test process.
 pub fn node() -> iceoryx2::node::Node<ipc::Service> {
-    iceoryx2::prelude::set_log_level(LogLevel::Error);
-    NodeBuilder::new()
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .config(&iceoryx2::config::Config::default())
-        .create::<ipc::Service>()
-        .expect("iceoryx2 node")
+    protocol::node("chaosd-test").expect("iceoryx2 node")
 }
 
 impl Monitor {
