@@ -468,3 +468,76 @@ fn bad_configs_and_arguments_are_refused_with_the_field_named() {
         );
     }
 }
+
+#[test]
+fn the_demo_runs_end_to_end_and_leaves_nothing_running() {
+    let _g = serial();
+    let ns = unique_namespace("demo");
+    let dir = TempDir::new(&ns);
+    let out = dir.path().join("out");
+    // Short, unprivileged-friendly settings; the README's command uses the defaults.
+    let mut demo = Proc::spawn(
+        "demo",
+        &bin("chaosd"),
+        &[
+            "demo",
+            "--duration",
+            "12",
+            "--t-on",
+            "4",
+            "--namespace",
+            &ns,
+            "--output",
+            out.to_str().unwrap(),
+            "--wait",
+            "sleep",
+        ],
+        dir.path(),
+    );
+    let st = demo.wait_exit(Duration::from_secs(60));
+    let log = demo.log();
+    assert!(st.success(), "{log}");
+    for want in [
+        "== chaosd demo report ==",
+        "tracking error",
+        "period residual",
+        "wake-up lateness",
+        "command round trip    p50",
+        "real-time set-up",
+    ] {
+        assert!(log.contains(want), "report lacks {want:?}:\n{log}");
+    }
+    assert!(
+        !log.contains("LARGER"),
+        "the feedback should reduce the residual:\n{log}"
+    );
+    for f in [
+        "daemon-summary.json",
+        "plant-summary.json",
+        "daemon-lateness.hgrm",
+        "plant-round-trip.hgrm",
+        "daemon.hlog",
+        "config.toml",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let d = read_json(&out.join("daemon-summary.json"));
+    let (before, after) = (
+        d["period_residual_before"].as_f64().unwrap(),
+        d["period_residual_after"].as_f64().unwrap(),
+    );
+    assert!(after < before, "residual {before} → {after}");
+    // The plant was a child of the demo: it must be gone.
+    let plant_pid = log
+        .split("plant pid ")
+        .nth(1)
+        .and_then(|s| s.split(',').next())
+        .and_then(|s| s.trim().parse::<i32>().ok())
+        .expect("plant pid in the banner");
+    // SAFETY: signal 0 only checks for existence.
+    assert_ne!(
+        unsafe { libc::kill(plant_pid, 0) },
+        0,
+        "the demo left its plant (pid {plant_pid}) running"
+    );
+}
