@@ -166,7 +166,10 @@ pub fn request(conn: &Conn, op: Op, args: &str) -> Result<String, Failure> {
             names.control()
         ))
     };
-    let service = protocol::control::open_control_service(&node, &names).map_err(|_| none())?;
+    let service = protocol::control::open_control_service(&node, &names).map_err(|e| match e {
+        protocol::ServiceError::NotRunning { .. } => none(),
+        other => Failure::Unreachable(format!("namespace {:?}: {other}", names.namespace())),
+    })?;
     let client = service.client_builder().create().map_err(|e| {
         Failure::Unreachable(format!("cannot connect to {}: {e:?}", names.control()))
     })?;
@@ -234,6 +237,7 @@ fn human_status(body: &str) -> String {
          control   K_p = {}, K_v = {}, α = {}, secondary {}, {} obstacles; recent tracking error {} m\n\
          timing    lateness p50 {} µs, p99 {} µs, max {} µs; overruns {}\n\
          counters  {} ticks, {} commands, {} rejected samples, {} holds, {} plant restarts, {} params applied\n\
+         law       tracking lost on {} ticks, near-singular on {}, target out of reach on {}, non-finite results {}\n\
          recording {}",
         f("namespace"), f("pid"), f("mode"), v["t"].as_f64().unwrap_or(0.0), f("rate_hz"), f("wait"),
         if v["feedback"].as_bool() == Some(true) { "on" } else { "off" }, f("feedback_active"), f("mu"), f("tau"), f("t_on"), f("max_tau"),
@@ -243,6 +247,7 @@ fn human_status(body: &str) -> String {
         c["ticks"], c["commands"],
         c["rejected_invalid"].as_u64().unwrap_or(0) + c["rejected_stale"].as_u64().unwrap_or(0) + c["rejected_out_of_order"].as_u64().unwrap_or(0),
         c["holds_entered"], c["plant_restarts"], c["params_applied"],
+        c["track_lost"], c["singular"], c["out_of_reach"], c["nonfinite"],
         v["recording"].as_str().unwrap_or("off"),
     )
 }

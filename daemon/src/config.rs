@@ -186,6 +186,25 @@ impl DaemonSetup {
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.system.validate()?;
         self.daemon.validate()?;
+        // With the plant's table in the same file, check the two loops fit together: the daemon
+        // must see a state at least every `hold_after` ticks, or it holds after every state.
+        if let Some(plant) = &self.system.plant {
+            let rate = plant
+                .get("rate_hz")
+                .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+                .unwrap_or(1000.0);
+            let hold_window = self.daemon.hold_after as f64 / self.daemon.rate_hz;
+            if rate > 0.0 && hold_window < 2.0 / rate {
+                return Err(ConfigError::Invalid {
+                    field: "daemon.hold_after".into(),
+                    value: self.daemon.hold_after.to_string(),
+                    expected: format!(
+                        "must span at least two plant periods: {} ticks at {} Hz is {:.3} ms, the plant publishes every {:.3} ms (plant.rate_hz = {rate})",
+                        self.daemon.hold_after, self.daemon.rate_hz, hold_window * 1e3, 1e3 / rate
+                    ),
+                });
+            }
+        }
         // The delay line is filled once per tick, so τ must span at least one tick.
         let dt = 1.0 / self.daemon.rate_hz;
         if self.system.feedback.tau < dt {
@@ -235,6 +254,8 @@ mod tests {
         assert!(bad("[daemon]\nnamespace = \"a b\"\n").contains("daemon.namespace"));
         assert!(bad("[daemon]\npriority = 120\n").contains("daemon.priority"));
         assert!(bad("[daemon]\nbogus = 1\n").contains("bogus"));
+        assert!(bad("[daemon]\nrate_hz = 10000\n[plant]\nrate_hz = 100\n")
+            .contains("daemon.hold_after"));
         assert!(bad("[daemon]\nrate_hz = 100\n[feedback]\ntau = 0.005\n").contains("feedback.tau"));
     }
 

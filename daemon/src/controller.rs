@@ -20,6 +20,16 @@ pub struct Counters {
     pub rejected_invalid: u64,
     pub rejected_stale: u64,
     pub rejected_out_of_order: u64,
+    pub rejected_future: u64,
+    pub plant_faults: u64,
+    /// Newer samples arrived in the same tick, so these were never used (nor checked).
+    pub superseded: u64,
+    /// Ticks on which the law reported lost tracking, damped least squares (near a
+    /// singularity), a target out of reach, or a non-finite result replaced by zero.
+    pub track_lost: u64,
+    pub singular: u64,
+    pub out_of_reach: u64,
+    pub nonfinite: u64,
     pub holds_entered: u64,
     pub plant_restarts: u64,
     pub overruns: u64,
@@ -32,8 +42,19 @@ pub struct Counters {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Rejection {
     Invalid(protocol::SampleError),
-    Stale { age_ns: u64 },
-    OutOfOrder { seq: u64, last: u64 },
+    Stale {
+        age_ns: u64,
+    },
+    OutOfOrder {
+        seq: u64,
+        last: u64,
+    },
+    /// Stamped later than now (plus one period of slack).
+    FutureStamp {
+        ahead_ns: u64,
+    },
+    /// The plant flagged a fault: its state is not to be controlled from.
+    PlantFault,
 }
 
 /// What one tick decided.
@@ -60,6 +81,8 @@ pub struct ControllerSettings {
     pub first_order_hold: bool,
     pub hold_after: u32,
     pub stale_ns: u64,
+    /// How far in the future a stamp may be (one period covers a simulator's nominal stamps).
+    pub future_slack_ns: u64,
     pub daemon_id: u64,
 }
 
@@ -79,6 +102,7 @@ pub struct Controller<const N: usize> {
     mode: Mode,
     plant_id: u64,
     last_seq: Option<u64>,
+    last_stamp: u64,
     last_qd: Option<VecN<N>>,
     missed: u32,
     next_command_seq: u64,
@@ -107,6 +131,7 @@ impl<const N: usize> Controller<N> {
             mode: Mode::Hold,
             plant_id: 0,
             last_seq: None,
+            last_stamp: 0,
             last_qd: None,
             missed: 0,
             next_command_seq: 0,
@@ -116,11 +141,6 @@ impl<const N: usize> Controller<N> {
 
     pub fn params(&self) -> &LawParams {
         &self.params
-    }
-
-    /// The largest τ the delay line can serve (s).
-    pub fn max_tau(&self) -> f64 {
-        self.delay.max_delay_steps() * self.dt
     }
 
     /// Swaps in a validated parameter block (at a tick boundary; no allocation).
@@ -142,36 +162,60 @@ impl<const N: usize> Controller<N> {
     }
 
     /// Feeds the delay line up to grid index `g`, holding the previous value across gaps.
+    ///
+    /// A short gap (a missed state) is filled by linear interpolation between the last rate and
+    /// this one. A gap longer than the line itself holds no usable history: the line restarts.
     fn feed_delay(&mut self, g: i64, qd: VecN<N>) {
         let next = self.delay_origin + self.delay.len() as i64;
         if g < next {
             return; // two states in one grid slot: the first one stays
         }
-        let hold = self.last_qd.unwrap_or(qd);
-        for _ in next..g {
-            self.delay.push(hold);
+        let gap = g - next;
+        match self.last_qd {
+            Some(last) if (gap as f64) <= self.delay.max_delay_steps() => {
+                for i in 1..=gap {
+                    let w = i as f64 / (gap + 1) as f64;
+                    self.delay.push(last + (qd - last) * w);
+                }
+                self.delay.push(qd);
+            }
+            _ => self.restart_history(g, qd),
         }
+    }
+
+    /// Starts a fresh delay-line history at grid index `g` (q̇ before it = q̇ now).
+    fn restart_history(&mut self, g: i64, qd: VecN<N>) {
+        self.delay.reset(qd);
+        self.delay_origin = g;
         self.delay.push(qd);
     }
 
-    fn accept(&mut self, s: &StateSample, now_ns: u64) -> Result<bool, Rejection> {
+    /// Checks a sample without changing any state; returns whether it comes from a new plant.
+    fn accept(&self, s: &StateSample, now_ns: u64) -> Result<bool, Rejection> {
         s.validate(N).map_err(Rejection::Invalid)?;
-        let mut restarted = false;
-        if s.plant_id != self.plant_id {
-            // A new plant process: its sequence restarts and its history is not ours.
-            restarted = self.plant_id != 0;
-            self.plant_id = s.plant_id;
-            self.last_seq = None;
-        } else if let Some(last) = self.last_seq {
-            if s.seq <= last {
-                return Err(Rejection::OutOfOrder { seq: s.seq, last });
+        if s.has_flags(protocol::flags::FAULT) {
+            return Err(Rejection::PlantFault);
+        }
+        // A stamp from the future (a clock mix-up, a corrupt sample) would move controller time
+        // ahead for good; one period of slack covers a simulator's nominal stamps.
+        if s.stamp_ns > now_ns.saturating_add(self.settings.future_slack_ns) {
+            return Err(Rejection::FutureStamp {
+                ahead_ns: s.stamp_ns - now_ns,
+            });
+        }
+        let restarted = s.plant_id != self.plant_id;
+        if !restarted {
+            if let Some(last) = self.last_seq {
+                if s.seq <= last || s.stamp_ns < self.last_stamp {
+                    return Err(Rejection::OutOfOrder { seq: s.seq, last });
+                }
             }
         }
         let age = now_ns.saturating_sub(s.stamp_ns);
         if age > self.settings.stale_ns {
             return Err(Rejection::Stale { age_ns: age });
         }
-        Ok(restarted)
+        Ok(restarted && self.plant_id != 0)
     }
 
     /// One tick at time `now_ns` with the newest received state, if any.
@@ -190,20 +234,23 @@ impl<const N: usize> Controller<N> {
             match self.accept(s, now_ns) {
                 Ok(restarted) => {
                     let t0 = *self.t0_stamp.get_or_insert(s.stamp_ns);
-                    let t = s.stamp_ns.saturating_sub(t0) as f64 * 1e-9;
+                    // Controller time never runs backwards (a restarted plant's stamps may start
+                    // a little behind the last one seen).
+                    let t = (s.stamp_ns.saturating_sub(t0) as f64 * 1e-9).max(self.t);
                     let g = (t / self.dt).round() as i64;
-                    if restarted || self.last_qd.is_none() {
-                        // New history: the delay line restarts at this state (q̇ before it = q̇ now).
-                        let qd = VecN::<N>::from_column_slice(&s.qd[..N]);
-                        self.delay.reset(qd);
-                        self.delay_origin = g;
+                    if restarted || self.last_qd.is_none() || self.mode == Mode::Hold {
+                        // New history: after a restart or a HOLD (the plant was braking, not
+                        // following the last rates) the old q̇ would feed the Pyragas term lies.
                         self.last_qd = None;
+                        self.restart_history(g, VecN::<N>::from_column_slice(&s.qd[..N]));
                     }
+                    self.plant_id = s.plant_id;
+                    self.last_stamp = s.stamp_ns;
                     if restarted {
                         self.counters.plant_restarts += 1;
                         out.plant_restarted = true;
                     }
-                    self.t = self.t.max(t);
+                    self.t = t;
                     self.last_seq = Some(s.seq);
                     self.counters.fresh_states += 1;
                     out.state_age_ns = Some(now_ns.saturating_sub(s.stamp_ns));
@@ -214,6 +261,8 @@ impl<const N: usize> Controller<N> {
                         Rejection::Invalid(_) => self.counters.rejected_invalid += 1,
                         Rejection::Stale { .. } => self.counters.rejected_stale += 1,
                         Rejection::OutOfOrder { .. } => self.counters.rejected_out_of_order += 1,
+                        Rejection::FutureStamp { .. } => self.counters.rejected_future += 1,
+                        Rejection::PlantFault => self.counters.plant_faults += 1,
                     }
                     out.rejection = Some(r);
                 }
@@ -244,6 +293,12 @@ impl<const N: usize> Controller<N> {
                 &mut self.kin,
             );
             let o = held.output;
+            use control::law::flags as lf;
+            let c = &mut self.counters;
+            c.track_lost += u64::from(o.flags & lf::TRACK_LOST != 0);
+            c.singular += u64::from(o.flags & lf::SINGULAR != 0);
+            c.out_of_reach += u64::from(o.flags & lf::OUT_OF_REACH != 0);
+            c.nonfinite += u64::from(o.flags & lf::NONFINITE != 0);
             out.output = Some(o);
             out.command = Some(self.command(Mode::Run, &held.qdd, &held.qddd, s, now_ns));
         } else {
@@ -319,6 +374,7 @@ mod tests {
             first_order_hold: true,
             hold_after: 5,
             stale_ns: 5_000_000,
+            future_slack_ns: 1_000_000,
             daemon_id: 9,
         };
         Controller::new(cfg.model::<3>(), cfg.law_params(), 2.0, settings)
@@ -371,7 +427,7 @@ mod tests {
     fn bad_states_never_reach_the_law() {
         let mut c = controller();
         let now = 5_000_000_000;
-        c.tick(Some(&state(10, now)), now);
+        c.tick(Some(&state(10, now - 8_000_000)), now - 8_000_000);
         let mut nan = state(11, now);
         nan.qd[2] = f64::NAN;
         let o = c.tick(Some(&nan), now);
@@ -398,5 +454,89 @@ mod tests {
         s.plant_id = 78;
         let o = c.tick(Some(&s), now);
         assert!(o.plant_restarted && o.command.is_some());
+    }
+
+    fn controller_time(c: &Controller<3>) -> f64 {
+        c.time()
+    }
+
+    #[test]
+    fn future_stamps_are_refused_and_do_not_move_time() {
+        let mut c = controller();
+        let now = 1_000_000_000;
+        c.tick(Some(&state(0, now)), now);
+        for stamp in [u64::MAX, now + 2_500_000] {
+            let o = c.tick(Some(&state(1, stamp)), now + 1_000_000);
+            assert!(
+                matches!(o.rejection, Some(Rejection::FutureStamp { .. })),
+                "{stamp}"
+            );
+        }
+        assert_eq!(c.counters.rejected_future, 2);
+        assert_eq!(controller_time(&c), 0.0);
+        // Within one period ahead is a simulator's nominal stamp: accepted.
+        assert!(c
+            .tick(Some(&state(1, now + 1_500_000)), now + 1_000_000)
+            .rejection
+            .is_none());
+    }
+
+    #[test]
+    fn a_restart_is_seen_even_when_the_new_plants_first_sample_is_stale() {
+        let mut c = controller();
+        let now = 1_000_000_000;
+        c.tick(Some(&state(50, now)), now);
+        let mut first = state(0, now);
+        first.plant_id = 99;
+        let o = c.tick(Some(&first), now + 20_000_000); // 20 ms old: stale
+        assert!(matches!(o.rejection, Some(Rejection::Stale { .. })));
+        let mut second = state(1, now + 21_000_000);
+        second.plant_id = 99;
+        let o = c.tick(Some(&second), now + 21_000_000);
+        assert!(o.plant_restarted && o.command.is_some());
+        assert_eq!(c.counters.plant_restarts, 1);
+    }
+
+    #[test]
+    fn history_restarts_after_a_hold_and_long_gaps_are_not_filled_with_old_rates() {
+        let mut c = controller();
+        let mut p = *c.params();
+        p.mu = 1.0;
+        p.t_on = 0.0;
+        c.set_params(p);
+        let t0 = 1_000_000_000u64;
+        let mut s = state(0, t0);
+        s.qd[0] = 10.0;
+        for k in 0..100u64 {
+            s.seq = k;
+            s.stamp_ns = t0 + k * 1_000_000;
+            c.tick(Some(&s), s.stamp_ns);
+        }
+        // Silence long enough for HOLD, then the plant is back at rest.
+        for k in 100..140u64 {
+            c.tick(None, t0 + k * 1_000_000);
+        }
+        assert_eq!(c.mode(), Mode::Hold);
+        let mut rest = state(140, t0 + 140_000_000);
+        rest.qd = [0.0; protocol::MAX_JOINTS];
+        let o = c.tick(Some(&rest), rest.stamp_ns);
+        // The delay line restarted at the resting state: the Pyragas residual is zero, not
+        // |0 − 10| from the rates before the hold.
+        assert_eq!(o.output.unwrap().period_residual, 0.0);
+    }
+
+    #[test]
+    fn a_short_gap_is_interpolated() {
+        let mut c = controller();
+        let t0 = 1_000_000_000u64;
+        let mut s = state(0, t0);
+        c.tick(Some(&s), t0);
+        // Three periods later, q̇ has moved from 0 to 3: the missed samples become 1 and 2.
+        s.seq = 1;
+        s.stamp_ns = t0 + 3_000_000;
+        s.qd[0] = 3.0;
+        c.tick(Some(&s), s.stamp_ns);
+        let d = |steps_back: f64| c.delay.sample(3.0 - steps_back - c.delay_origin as f64)[0];
+        assert_eq!((d(0.0), d(1.0), d(2.0), d(3.0)), (3.0, 2.0, 1.0, 0.0));
     }
 }

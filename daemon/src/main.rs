@@ -108,7 +108,14 @@ fn check_duration(d: f64) -> Result<()> {
     Ok(())
 }
 
-/// Kills the child when dropped, on every exit path.
+/// A status line to stdout; a closed stdout (`chaosd run | head`) must not stop the daemon.
+fn print_line(line: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stdout(), "{line}");
+}
+
+/// Stops the child when dropped, on every exit path: SIGTERM first, so it writes its
+/// histograms and leaves its iceoryx2 node cleanly, then SIGKILL.
 struct ChildGuard(Option<Child>);
 
 impl ChildGuard {
@@ -131,15 +138,26 @@ impl ChildGuard {
 
 impl Drop for ChildGuard {
     fn drop(&mut self) {
-        if let Some(mut c) = self.0.take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
+        self.stop(Duration::from_secs(3));
     }
 }
 
 /// The file chaosd-plant writes at exit (the daemon reads it as JSON and does not link the plant).
 const PLANT_SUMMARY: &str = "plant-summary.json";
+
+/// The plant process dies with us, even if we are SIGKILLed.
+fn plant_command(exe: PathBuf) -> Command {
+    use std::os::unix::process::CommandExt;
+    let mut c = Command::new(exe);
+    // SAFETY: prctl is async-signal-safe; it only asks for SIGKILL when the parent dies.
+    unsafe {
+        c.pre_exec(|| {
+            libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
+            Ok(())
+        });
+    }
+    c
+}
 
 fn plant_exe() -> Result<PathBuf> {
     let me = std::env::current_exe().context("cannot locate the chaosd executable")?;
@@ -197,10 +215,12 @@ fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> R
     std::fs::write(&cfg_path, s.to_toml())?;
     let _ = std::fs::remove_file(out.join(PLANT_SUMMARY));
 
+    // Handle SIGINT/SIGTERM from here on, so an interrupt during start-up still stops cleanly.
+    rt::signal::install();
     let log_path = out.join("plant.log");
     let log = std::fs::File::create(&log_path)?;
     let mut guard = ChildGuard(Some(
-        Command::new(plant_exe()?)
+        plant_command(plant_exe()?)
             .arg("--config")
             .arg(&cfg_path)
             .args(["--duration", &format!("{}", duration + 10.0)])
@@ -225,7 +245,7 @@ fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> R
         let log = std::fs::read_to_string(&log_path).unwrap_or_default();
         bail!("chaosd-plant exited at start ({st}):\n{log}");
     }
-    let summary = daemon::service::run(&s, Some(duration), |l| println!("{l}"))?;
+    let summary = daemon::service::run(&s, Some(duration), print_line)?;
     let status = guard.stop(Duration::from_secs(5));
     let plant_json = std::fs::read_to_string(out.join(PLANT_SUMMARY)).ok();
     let plant_summary: Option<serde_json::Value> = plant_json
@@ -263,7 +283,7 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
         (Some(b), Some(a)) => println!(
             "period residual       mean |q̇(t) − q̇(t−τ)|: {b:.3} rad/s before feedback → {a:.3} rad/s over the last 5 s with μ = {} ({})",
             s.system.feedback.mu,
-            if a <= b { format!("{:.1}× smaller", b / a) } else { format!("{:.1}× LARGER: not settled on a period-T orbit", a / b) }
+            if a == 0.0 { "periodic to rounding".to_string() } else if a <= b { format!("{:.1}× smaller", b / a) } else { format!("{:.1}× LARGER: not settled on a period-T orbit", a / b) }
         ),
         (b, a) => println!("period residual       before {b:?}, after {a:?} (run longer than t_on + 5 s to compare)"),
     }
@@ -287,6 +307,12 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
         "faults                {} invalid, {} stale, {} out-of-order samples rejected; {} holds; {} plant restarts; {} telemetry records dropped",
         c.rejected_invalid, c.rejected_stale, c.rejected_out_of_order, c.holds_entered, c.plant_restarts, c.telemetry_dropped
     );
+    if c.track_lost + c.out_of_reach + c.nonfinite > 0 {
+        println!(
+            "tracking loss         on {} ticks ({} near-singular, {} with the target out of reach, {} non-finite results)",
+            c.track_lost, c.singular, c.out_of_reach, c.nonfinite
+        );
+    }
     println!("real-time set-up      {}", d.realtime.one_line());
     println!("histograms            {}/daemon-{{lateness,compute,state-age}}.hgrm, daemon.hlog, plant-{{round-trip,state-to-command,lateness}}.hgrm", out.display());
     println!(
@@ -304,7 +330,7 @@ fn main() -> ExitCode {
                 check_duration(d)?;
             }
             let s = common.setup()?;
-            let summary = daemon::service::run(&s, duration, |l| println!("{l}"))?;
+            let summary = daemon::service::run(&s, duration, print_line)?;
             println!(
                 "chaosd: stopped after {:.1} s; lateness {}; files in {}",
                 summary.duration_s,

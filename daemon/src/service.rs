@@ -2,7 +2,8 @@
 //!
 //! Thread layout: the calling thread becomes the real-time loop (pinned, SCHED_FIFO when
 //! permitted). A reporter thread turns tick records into histograms and status lines, and a
-//! housekeeping thread sweeps dead iceoryx2 nodes (a SIGKILLed plant's ports) once a second. Both
+//! housekeeping thread sweeps dead iceoryx2 nodes (a SIGKILLed plant's ports) every
+//! `cleanup_every_s`. Both
 //! are spawned before the loop thread raises its own priority, so they stay ordinary threads.
 //!
 //! The tick is: wait for the absolute deadline → drain the state subscriber, keeping the newest →
@@ -44,8 +45,6 @@ fn run_n<const N: usize>(
     let d = setup.daemon.clone();
     std::fs::create_dir_all(&d.output_dir)
         .with_context(|| format!("cannot create output directory {}", d.output_dir.display()))?;
-    std::fs::write(d.output_dir.join("config.toml"), setup.to_toml())
-        .context("cannot write the effective config")?;
     let names = ServiceNames::new(&d.namespace).map_err(|e| anyhow!("daemon.namespace: {e}"))?;
     rt::signal::install();
 
@@ -85,9 +84,11 @@ fn run_n<const N: usize>(
     let summary = reporter
         .join()
         .map_err(|_| anyhow!("the reporter thread panicked"))?;
-    let realtime = result?;
+    let (realtime, counters) = result?;
     let mut summary = summary?;
     summary.realtime = realtime;
+    // The loop's own final counters: the reporter may have missed the last records.
+    summary.counters = counters;
     crate::telemetry::write_summary(&summary, &d.output_dir)?;
     Ok(summary)
 }
@@ -99,7 +100,7 @@ fn control_loop<const N: usize>(
     tx: crossbeam::channel::Sender<TickRecord>,
     params_rx: crossbeam::channel::Receiver<control::LawParams>,
     rt_tx: crossbeam::channel::Sender<rt::setup::RtReport>,
-) -> Result<rt::setup::RtReport> {
+) -> Result<(rt::setup::RtReport, crate::controller::Counters)> {
     let d = &setup.daemon;
     let node = node("chaosd-daemon")?;
     let state = protocol::open_state_service(&node, names)?;
@@ -115,12 +116,16 @@ fn control_loop<const N: usize>(
             names.namespace()
         )
     })?;
+    // Only now that this daemon owns the namespace's ports: record what it runs with.
+    std::fs::write(d.output_dir.join("config.toml"), setup.to_toml())
+        .context("cannot write the effective config")?;
 
     let settings = ControllerSettings {
         rate_hz: d.rate_hz,
         first_order_hold: d.hold == crate::config::Hold::FirstOrder,
         hold_after: d.hold_after,
         stale_ns: (d.stale_ms * 1e6) as u64,
+        future_slack_ns: d.period_ns(),
         daemon_id: protocol::new_instance_id(),
     };
     let mut ctl = Controller::<N>::new(
@@ -150,7 +155,7 @@ fn control_loop<const N: usize>(
     let period = d.period_ns();
     let spin = (d.spin_us * 1000.0) as u64;
     let start = monotonic_ns();
-    let end = duration.map(|s| start + (s * 1e9) as u64);
+    let end = duration.map(|s| start.saturating_add((s * 1e9) as u64));
     let mut sched = Schedule::new(period, start);
     while !rt::signal::stop_requested() {
         let deadline = sched.deadline();
@@ -165,7 +170,13 @@ fn control_loop<const N: usize>(
         let mut newest = None;
         loop {
             match subscriber.receive() {
-                Ok(Some(s)) => newest = Some(*s),
+                Ok(Some(s)) => {
+                    // Only the newest sample of a tick is used; older ones are superseded unread.
+                    if newest.is_some() {
+                        ctl.counters.superseded += 1;
+                    }
+                    newest = Some(*s);
+                }
                 Ok(None) => break,
                 Err(_) => {
                     ctl.counters.ipc_errors += 1;
@@ -207,8 +218,11 @@ fn control_loop<const N: usize>(
             state: if law.is_some() { newest } else { None },
             command: o.command,
         };
-        if tx.try_send(rec).is_err() {
-            ctl.counters.telemetry_dropped += 1;
+        match tx.try_send(rec) {
+            Ok(()) => {}
+            Err(crossbeam::channel::TrySendError::Full(_)) => ctl.counters.telemetry_dropped += 1,
+            // The reporter is gone: no control service, no histograms. Stop cleanly.
+            Err(crossbeam::channel::TrySendError::Disconnected(_)) => rt::signal::request_stop(),
         }
     }
     // Leave the plant braking, not coasting on the last acceleration.
@@ -216,5 +230,5 @@ fn control_loop<const N: usize>(
     if let Ok(s) = publisher.loan_uninit() {
         let _ = s.write_payload(brake).send();
     }
-    Ok(rt_report)
+    Ok((rt_report, ctl.counters))
 }

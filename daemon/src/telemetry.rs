@@ -8,7 +8,7 @@
 //! `daemon-summary.json`.
 //!
 //! This thread also serves the control service. It keeps the running [`Config`]; a change is
-//! validated in [`crate::control`] and sent to the loop as a whole `LawParams` block, which the
+//! validated in [`crate::requests`] and sent to the loop as a whole `LawParams` block, which the
 //! loop swaps in between two ticks. So a request can never stall the loop: the loop only ever
 //! does a `try_recv`.
 
@@ -119,6 +119,9 @@ pub struct Reporter {
     state_age: Histogram<u64>,
     window_lateness: Histogram<u64>,
     tel_lateness: Histogram<u64>,
+    /// Lateness, compute, state age since start or the last reset, for `hist`.
+    snap: [Histogram<u64>; 3],
+    snap_since: Instant,
     tel: Interval,
     tel_seq: u64,
     seconds: Vec<Second>,
@@ -135,7 +138,7 @@ pub struct Reporter {
     window_track: (f64, u64),
     window_resid: (f64, u64),
     recording: Option<Recording>,
-    stopping: bool,
+    recording_error: Option<String>,
 }
 
 impl Reporter {
@@ -162,6 +165,8 @@ impl Reporter {
             state_age: hist::new_ns(),
             window_lateness: hist::new_ns(),
             tel_lateness: hist::new_ns(),
+            snap: [hist::new_ns(), hist::new_ns(), hist::new_ns()],
+            snap_since: Instant::now(),
             tel: Interval {
                 min_clearance: f64::INFINITY,
                 ..Default::default()
@@ -179,7 +184,7 @@ impl Reporter {
             window_track: (0.0, 0),
             window_resid: (0.0, 0),
             recording: None,
-            stopping: false,
+            recording_error: None,
         })
     }
 
@@ -188,8 +193,11 @@ impl Reporter {
         self.window_lateness.saturating_record(r.lateness_ns.max(1));
         self.tel_lateness.saturating_record(r.lateness_ns.max(1));
         self.compute.saturating_record(r.compute_ns.max(1));
+        self.snap[0].saturating_record(r.lateness_ns.max(1));
+        self.snap[1].saturating_record(r.compute_ns.max(1));
         if let Some(a) = r.state_age_ns {
             self.state_age.saturating_record(a.max(1));
+            self.snap[2].saturating_record(a.max(1));
         }
         if r.ran_law {
             let sec = r.t.max(0.0) as usize;
@@ -224,7 +232,15 @@ impl Reporter {
             }
         }
         if let (Some(rec), Some(st)) = (self.recording.as_mut(), r.state.as_ref()) {
-            let _ = write_row(rec, r, st);
+            if let Err(e) = write_row(rec, r, st) {
+                // Do not go on pretending: close it and say so in `status` and `record stop`.
+                self.recording_error = Some(format!(
+                    "recording to {} stopped after {} rows: {e}",
+                    rec.path.display(),
+                    rec.rows
+                ));
+                self.recording = None;
+            }
         }
         if r.state.is_some() {
             self.last_state = r.state;
@@ -308,11 +324,13 @@ impl Reporter {
         .to_string())
     }
 
+    /// Percentiles since start or the last `hist --reset` (the exit files always cover the run).
     fn percentiles(&self) -> serde_json::Value {
         serde_json::json!({
-            "lateness": Percentiles::of(&self.lateness),
-            "compute": Percentiles::of(&self.compute),
-            "state_age": Percentiles::of(&self.state_age),
+            "since_s": self.snap_since.elapsed().as_secs_f64(),
+            "lateness": Percentiles::of(&self.snap[0]),
+            "compute": Percentiles::of(&self.snap[1]),
+            "state_age": Percentiles::of(&self.snap[2]),
         })
     }
 
@@ -341,6 +359,7 @@ impl Reporter {
             "counters": r.map(|r| r.counters),
             "histograms": self.percentiles(),
             "recording": self.recording.as_ref().map(|r| r.path.display().to_string()),
+            "recording_error": self.recording_error,
             "realtime": self.realtime,
         })
         .to_string()
@@ -392,13 +411,15 @@ impl Reporter {
             .to_string()),
             Op::HistSnapshot => Ok(self.percentiles().to_string()),
             Op::HistReset => {
-                self.lateness.reset();
-                self.compute.reset();
-                self.state_age.reset();
-                Ok("histograms reset".into())
+                for h in &mut self.snap {
+                    h.reset();
+                }
+                self.snap_since = Instant::now();
+                Ok("histograms reset (the files written at exit still cover the whole run)".into())
             }
             Op::RecordStart => self.start_recording(args),
             Op::RecordStop => match self.recording.take() {
+                None if self.recording_error.is_some() => Err(self.recording_error.take().unwrap_or_default()),
                 Some(mut r) => r
                     .file
                     .flush()
@@ -407,7 +428,6 @@ impl Reporter {
                 None => Err("not recording".into()),
             },
             Op::Shutdown => {
-                self.stopping = true;
                 rt::signal::request_stop();
                 Ok("shutting down".into())
             }
@@ -473,7 +493,14 @@ impl Reporter {
     ) -> anyhow::Result<DaemonSummary> {
         let start = Instant::now();
         let wall_start = SystemTime::now();
-        let node = crate::service::node("chaosd-control")?;
+        let node = match crate::service::node("chaosd-control") {
+            Ok(n) => n,
+            Err(e) => {
+                rt::signal::request_stop();
+                while rx.recv().is_ok() {}
+                return Err(e);
+            }
+        };
         let ports = (|| -> anyhow::Result<_> {
             let server = protocol::control::serve_control_service(&node, &self.names)?
                 .server_builder()
@@ -502,15 +529,22 @@ impl Reporter {
         let mut next_tel = start + tel_every;
         let mut next_report = self.report_every.map(|d| start + d);
         loop {
-            match rx.recv_timeout(Duration::from_millis(2)) {
-                Ok(r) => {
-                    self.record(&r);
-                    while let Ok(r) = rx.try_recv() {
-                        self.record(&r);
+            // Never block on the channel: a parked receiver makes every `try_send` in the loop
+            // take the channel's waker lock and wake this thread with a futex call. Polling keeps
+            // the sender on its lock-free fast path.
+            let mut closed = false;
+            loop {
+                match rx.try_recv() {
+                    Ok(r) => self.record(&r),
+                    Err(crossbeam::channel::TryRecvError::Empty) => break,
+                    Err(crossbeam::channel::TryRecvError::Disconnected) => {
+                        closed = true;
+                        break;
                     }
                 }
-                Err(crossbeam::channel::RecvTimeoutError::Timeout) => {}
-                Err(crossbeam::channel::RecvTimeoutError::Disconnected) => break,
+            }
+            if closed {
+                break;
             }
             if let Ok(r) = self.rt_rx.try_recv() {
                 self.realtime = r;
@@ -538,6 +572,7 @@ impl Reporter {
                     next_report = Some(at + every);
                 }
             }
+            std::thread::sleep(Duration::from_millis(1));
         }
         if let Some(mut r) = self.recording.take() {
             let _ = r.file.flush();

@@ -64,6 +64,7 @@ fn controller(preset: &str) -> Controller<3> {
         first_order_hold: true,
         hold_after: 10,
         stale_ns: 5_000_000,
+        future_slack_ns: 1_000_000,
         daemon_id: 1,
     };
     Controller::new(cfg.model::<3>(), cfg.law_params(), 2.0, settings)
@@ -142,14 +143,25 @@ fn a_full_ipc_tick_allocates_only_iceoryx2s_loan() {
     let cmd_sub = cmd_svc.subscriber_builder().create().unwrap();
     let mut c = controller("paper");
     let mut seq = 0u64;
+    // The loop's channels and schedule, as in `service::control_loop`.
+    let (params_tx, params_rx) = crossbeam::channel::bounded::<control::LawParams>(16);
+    let (tel_tx, tel_rx) =
+        crossbeam::channel::bounded::<(u64, Option<protocol::CommandSample>)>(4096);
+    let mut sched = rt::clock::Schedule::new(1_000_000, monotonic_ns());
+    let params = *c.params();
     // One daemon tick; the plant's publish happens outside the counted region.
-    let one_tick = |c: &mut Controller<3>| -> bool {
+    let mut one_tick = |c: &mut Controller<3>| -> bool {
         let now = monotonic_ns();
+        if let Ok(p) = params_rx.try_recv() {
+            c.set_params(p);
+        }
         let mut newest = None;
         while let Ok(Some(s)) = sub.receive() {
             newest = Some(*s);
         }
         let o = c.tick(newest.as_ref(), now);
+        let _ = tel_tx.try_send((now, o.command));
+        sched.advance(monotonic_ns());
         match o.command {
             Some(cmd) => {
                 publisher
@@ -172,7 +184,11 @@ fn a_full_ipc_tick_allocates_only_iceoryx2s_loan() {
     }
     let mut published = 0;
     let mut allocs = 0;
-    for _ in 0..2000 {
+    for i in 0..2000 {
+        if i % 100 == 0 {
+            params_tx.try_send(params).unwrap(); // a control-service change now and then
+        }
+        while tel_rx.try_recv().is_ok() {}
         plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
         seq += 1;
         let mut sent = false;

@@ -51,7 +51,7 @@ fn load(args: &Args) -> Result<(Config, PlantConfig)> {
     }
     plant.validate()?;
     if let Some(d) = args.duration {
-        if !(d.is_finite() && d > 0.0) {
+        if !(d.is_finite() && d > 0.0 && d <= 1e7) {
             return Err(anyhow!(
                 "--duration {d}: must be a finite number of seconds > 0"
             ));

@@ -24,6 +24,8 @@ pub struct PlantCounters {
     pub command_timeouts: u64,
     pub daemon_restarts: u64,
     pub overruns: u64,
+    /// Stalls longer than a second, whose time was skipped rather than simulated.
+    pub time_jumps: u64,
     pub ipc_errors: u64,
 }
 
@@ -99,7 +101,7 @@ pub fn run<P: Plant>(
     let timeout = (cfg.command_timeout_ms * 1e6) as u64;
     let start = monotonic_ns();
     let wall_start = SystemTime::now();
-    let end = duration.map(|s| start + (s * 1e9) as u64);
+    let end = duration.map(|s| start.saturating_add((s * 1e9) as u64));
     let mut sched = Schedule::new(period, start);
     let mut daemon_id = 0u64;
     let mut last_seq: Option<u64> = None;
@@ -188,7 +190,13 @@ pub fn run<P: Plant>(
         let step = if last_command_at.is_some() { dt } else { 0.0 };
         // Physics does not pause: after an overrun the periods that were skipped are integrated
         // too, so the state stays on the time its stamp claims.
-        let periods = 1 + behind;
+        // A long stall (SIGSTOP, a paused VM) is not replayed in one tick: at most one second is
+        // caught up; beyond that the simulation skips ahead and the jump is counted.
+        let max_catch_up = (cfg.rate_hz as u64).max(1);
+        if behind > max_catch_up {
+            c.time_jumps += 1;
+        }
+        let periods = 1 + behind.min(max_catch_up);
         let mut failed = None;
         for _ in 0..periods {
             if let Err(e) = plant.read(step, &mut sample) {

@@ -2,7 +2,8 @@
 //!
 //! It integrates the same kinematic plant as the offline simulation (`control::sim`): the
 //! commanded q̈ is the joint acceleration, and for the floating base φ̇ = −H_b⁻¹H_bm q̇. The
-//! command is held constant over a period (zero-order hold) and integrated with RK4 in substeps.
+//! command is ramped over the period (`control::hold`: q̈ + q⃛·s from the answered state, a
+//! first-order hold; q⃛ = 0 gives a zero-order hold) and integrated with RK4 in substeps.
 
 use crate::seam::{Actuation, Plant, PlantError};
 use control::hold;

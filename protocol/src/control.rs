@@ -284,11 +284,17 @@ pub fn open_control_service<S: iceoryx2::service::Service>(
     node: &Node<S>,
     names: &ServiceNames,
 ) -> Result<ControlService<S>, ServiceError> {
-    control_builder(node, names)?
-        .open()
-        .map_err(|_| ServiceError::NotRunning {
+    use iceoryx2::service::builder::request_response::RequestResponseOpenError as E;
+    control_builder(node, names)?.open().map_err(|e| match e {
+        E::DoesNotExist => ServiceError::NotRunning {
             channel: Channel::Control,
-        })
+        },
+        // Anything else (another wire version, no permission, ...) is not "not running": say it.
+        other => ServiceError::RequestResponseOpen {
+            channel: Channel::Control,
+            source: other,
+        },
+    })
 }
 
 pub fn open_telemetry_service<S: iceoryx2::service::Service>(

@@ -87,12 +87,12 @@ impl ServiceNames {
         &self.command
     }
 
-    /// Request-response, client → daemon: live control (types defined later).
+    /// Request-response, client → daemon: live control (`control::ControlRequest`).
     pub fn control(&self) -> &str {
         &self.control
     }
 
-    /// Publish-subscribe, daemon → monitors and recorders (types defined later).
+    /// Publish-subscribe, daemon → monitors and recorders (`control::TelemetrySample`).
     pub fn telemetry(&self) -> &str {
         &self.telemetry
     }

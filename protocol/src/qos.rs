@@ -155,6 +155,11 @@ pub enum ServiceError {
         "no chaosd is serving the {channel} service (is the daemon running in this namespace?)"
     )]
     NotRunning { channel: Channel },
+    #[error("cannot open the {channel} service: {source:?} (a daemon of another chaosd build, or another user's?)")]
+    RequestResponseOpen {
+        channel: Channel,
+        source: iceoryx2::service::builder::request_response::RequestResponseOpenError,
+    },
     #[error(
         "the {channel} service already exists with {setting} = {found}, but this build uses \
          {expected}; it was created by another chaosd build, so stop that or use another namespace"

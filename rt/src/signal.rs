@@ -6,10 +6,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 static STOP: AtomicBool = AtomicBool::new(false);
 
 extern "C" fn on_signal(_: libc::c_int) {
-    STOP.store(true, Ordering::SeqCst);
+    // A second signal means the graceful stop is not wanted (or stuck): leave at once.
+    if STOP.swap(true, Ordering::SeqCst) {
+        // SAFETY: _exit is async-signal-safe.
+        unsafe { libc::_exit(130) };
+    }
 }
 
-/// Installs the handler for SIGINT and SIGTERM (idempotent).
+/// Installs the handler for SIGINT and SIGTERM (idempotent). The first signal asks for a clean
+/// stop; a second one exits immediately.
 pub fn install() {
     // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
     unsafe {

@@ -267,11 +267,12 @@ fn nan_and_stale_states_are_rejected_and_never_answered() {
     bad.qd[1] = f64::NAN;
     publish(&mut bad);
     std::thread::sleep(Duration::from_millis(5));
-    // A stale one: stamped 1 s ago.
+    // A stale one: newer than the last good state but delivered 20 ms late (a stalled plant).
     let stale_seq = seq + 1;
     let mut old = s;
     old.seq = stale_seq;
-    old.stamp_ns = monotonic_ns() - 1_000_000_000;
+    old.stamp_ns = s.stamp_ns + 1;
+    std::thread::sleep(Duration::from_millis(20));
     publisher.send_copy(old).unwrap();
     std::thread::sleep(Duration::from_millis(5));
     // An out-of-order one (a sequence number already used).
