@@ -1,15 +1,30 @@
 //! `compute`: the cost of the math, on one pinned core, chaosd next to the naive alternative.
+//!
+//! The control law is timed per call in batches (one clock read costs more than a call), on
+//! states taken from a chaotic trajectory so that no branch or cache is artificially warm. The
+//! naive law is a straight port of the numpy reference (dynamic matrices, SVD pseudo-inverse) and
+//! computes the same q̈ (tested in `naive`). The Lyapunov pair is `control::analysis`'s Benettin
+//! driver on the arm, the workload of `chaosctl lyapunov | sweep`, next to the plain run it doubles.
 
 use crate::naive;
-use crate::stats::{fmt_ns, histogram, summary, Table};
-use anyhow::Result;
+use crate::plot::Panel;
+use crate::report::{header, Report};
+use crate::stats::{fmt_ns, histogram, summary, Dist, Table};
+use anyhow::{anyhow, Result};
+use control::analysis::run::LyapunovSpec;
+use control::analysis::{ArmFlow, Benettin};
 use control::law::evaluate;
-use control::{ArmState, Config, Kinematics, Simulation, VecN};
+use control::{ArmState, Config, Kinematics, Simulation};
 use std::hint::black_box;
+use std::path::Path;
 use std::time::Instant;
 
 /// Per-call latency of `f`, measured in batches (the clock costs more than one call).
-fn per_call(batches: usize, batch: usize, mut f: impl FnMut(usize)) -> hdrhistogram::Histogram<u64> {
+fn per_call(
+    batches: usize,
+    batch: usize,
+    mut f: impl FnMut(usize),
+) -> hdrhistogram::Histogram<u64> {
     let mut h = histogram();
     for i in 0..batches / 10 {
         f(i); // warm-up
@@ -28,7 +43,13 @@ fn per_call(batches: usize, batch: usize, mut f: impl FnMut(usize)) -> hdrhistog
 fn states(n: usize) -> Vec<ArmState<3>> {
     // A chaotic trajectory's states: realistic inputs, not one cached point.
     let cfg = Config::preset("paper").unwrap();
-    let mut sim = Simulation::new(cfg.model::<3>(), cfg.law_params(), cfg.sim.dt, cfg.initial_state(), 2.0);
+    let mut sim = Simulation::new(
+        cfg.model::<3>(),
+        cfg.law_params(),
+        cfg.sim.dt,
+        cfg.initial_state(),
+        2.0,
+    );
     (0..n)
         .map(|_| {
             for _ in 0..37 {
@@ -39,12 +60,34 @@ fn states(n: usize) -> Vec<ArmState<3>> {
         .collect()
 }
 
-pub fn run(quick: bool) -> Result<String> {
+/// Runs the benchmark on a thread pinned to `core` and returns its report.
+pub fn run(quick: bool, core: usize, out: &Path, command: &str) -> Result<String> {
+    let (out, command) = (out.to_path_buf(), command.to_string());
+    std::thread::Builder::new()
+        .name("compute".into())
+        .spawn(move || {
+            let rt = rt::setup::apply(rt::setup::RtRequest {
+                core: Some(core),
+                priority: 0,
+                lock_memory: false,
+            });
+            for w in &rt.warnings {
+                eprintln!("chaosd-bench: compute: warning: {w}; timings will be noisier");
+            }
+            measure(quick, &out, &command)
+        })?
+        .join()
+        .map_err(|_| anyhow!("the compute thread panicked"))?
+}
+
+fn measure(quick: bool, out: &Path, command: &str) -> Result<String> {
+    let mut report = Report::new(out, "compute")?;
     let (batches, batch) = if quick { (300, 200) } else { (3000, 1000) };
     let xs = states(1024);
     let mut table = Table::new(&["operation", "p50", "p99", "max", "vs naive (p50)"]);
 
     let mut rows: Vec<(String, [u64; 5])> = Vec::new();
+    let mut dists = Vec::new();
     for preset in ["paper", "paper-obstacle", "paper-floating"] {
         let mut cfg = Config::preset(preset)?;
         cfg.feedback.mu = 1.0;
@@ -53,9 +96,21 @@ pub fn run(quick: bool) -> Result<String> {
         let mut k = Kinematics::<3>::default();
         let h = per_call(batches, batch, |i| {
             let x = &xs[i % xs.len()];
-            black_box(evaluate(&p, &m, i as f64 * 1e-3, x.phi, &x.q, &x.qd, &x.qd, &mut k));
+            black_box(evaluate(
+                &p,
+                &m,
+                i as f64 * 1e-3,
+                x.phi,
+                &x.q,
+                &x.qd,
+                &x.qd,
+                &mut k,
+            ));
         });
-        rows.push((format!("control law, {preset} (n = 3)"), summary(&h)));
+        let name = format!("control law, {preset} (n = 3)");
+        report.hgrm(&format!("law-{preset}"), &h)?;
+        dists.push(Dist::of_histogram(&name, &h));
+        rows.push((name, summary(&h)));
     }
     let cfg = Config::preset("paper")?;
     let (p, m) = (cfg.law_params(), cfg.model::<3>());
@@ -64,16 +119,30 @@ pub fn run(quick: bool) -> Result<String> {
         black_box(naive::law(&p, &m, i as f64 * 1e-3, &x.q, &x.qd));
     });
     let naive_s = summary(&naive_h);
+    report.hgrm("law-naive", &naive_h)?;
 
     let mut sim = Simulation::new(m, p, 1e-3, cfg.initial_state(), 2.0);
     let rk4 = per_call(batches, batch, |_| {
         black_box(sim.step());
     });
     rows.push(("RK4 step (4 law evaluations), paper".into(), summary(&rk4)));
+    report.hgrm("rk4-step", &rk4)?;
+    dists.push(Dist::of_histogram("RK4 step, paper", &rk4));
+    dists.push(Dist::of_histogram("naive law (DMatrix + SVD)", &naive_h));
 
     for (name, s) in &rows {
-        let ratio = if name.contains("paper (") { format!("{:.1}× faster", naive_s[0] as f64 / s[0] as f64) } else { String::new() };
-        table.row(vec![name.clone(), fmt_ns(s[0] as f64), fmt_ns(s[2] as f64), fmt_ns(s[4] as f64), ratio]);
+        let ratio = if name.contains("paper (") {
+            format!("{:.1}× faster", naive_s[0] as f64 / s[0] as f64)
+        } else {
+            String::new()
+        };
+        table.row(vec![
+            name.clone(),
+            fmt_ns(s[0] as f64),
+            fmt_ns(s[2] as f64),
+            fmt_ns(s[4] as f64),
+            ratio,
+        ]);
     }
     table.row(vec![
         "naive law: DMatrix + SVD pseudo-inverse".into(),
@@ -95,8 +164,51 @@ pub fn run(quick: bool) -> Result<String> {
         best = best.min(t0.elapsed().as_secs_f64());
         black_box(sim.state());
     }
-    let mut out = table.render();
-    out.push_str(&format!(
+    // The Lyapunov pair behind `chaosctl lyapunov | sweep`: reference + partner for 300 s with
+    // chaosctl's defaults (d0, renormalisation interval, window), feedback on (μ = 1) so that the
+    // delay history is part of the perturbed and renormalised state. Timed per interval and whole.
+    let spec = LyapunovSpec::default();
+    let mut pair_cfg = Config::preset("paper")?;
+    pair_cfg.feedback.mu = 1.0;
+    let mut per_interval = histogram();
+    let mut pair_best = f64::INFINITY;
+    let mut lambda = None;
+    for _ in 0..reps {
+        let flow = ArmFlow::<3>::new(
+            pair_cfg.model(),
+            pair_cfg.law_params(),
+            pair_cfg.sim.dt,
+            pair_cfg.initial_state(),
+        );
+        let t0 = Instant::now();
+        let mut pair = Benettin::new(flow, spec.d0, spec.renorm)?;
+        let intervals = (300.0 / spec.renorm).round() as usize;
+        for k in 1..=intervals {
+            let s = Instant::now();
+            pair.advance_to(k as f64 * spec.renorm)?;
+            per_interval.saturating_record((s.elapsed().as_nanos() as u64).max(1));
+        }
+        pair_best = pair_best.min(t0.elapsed().as_secs_f64());
+        lambda = Some(pair.estimate(spec.window[0], spec.window[1], spec.blocks)?);
+    }
+    let lambda = lambda.ok_or_else(|| anyhow!("no Lyapunov repetition ran"))?;
+    let li = summary(&per_interval);
+    report.hgrm("lyapunov-interval", &per_interval)?;
+    table.row(vec![
+        format!(
+            "Lyapunov pair (μ = 1, history renormalised), one {} s interval = 2 × {:.0} RK4 steps",
+            spec.renorm,
+            spec.renorm / pair_cfg.sim.dt
+        ),
+        fmt_ns(li[0] as f64),
+        fmt_ns(li[2] as f64),
+        fmt_ns(li[4] as f64),
+        String::new(),
+    ]);
+
+    report.push(&header("Compute", command));
+    report.push(&table.render());
+    report.push(&format!(
         "\n300 s simulation (RK4, dt = 1 ms, fixed base, manipulability): {:.3} s wall, {:.0} simulated s per wall s \
          (target < 0.3 s; the plain numpy reference takes about 139 s, numba about 2.6 s: {:.0}× and {:.0}× slower)\n",
         best,
@@ -104,14 +216,37 @@ pub fn run(quick: bool) -> Result<String> {
         139.0 / best,
         2.6 / best
     ));
+    report.push(&format!(
+        "Lyapunov pair over 300 s (Benettin, d0 = {:e}, renormalised every {} s, μ = 1): {:.3} s wall, {:.2}× one plain \
+         300 s run (2× would be two plain runs); λ_max = {:.3} ± {:.3} 1/s over {:.0}..{:.0} s\n",
+        spec.d0,
+        spec.renorm,
+        pair_best,
+        pair_best / best,
+        lambda.lambda_max,
+        lambda.stderr,
+        lambda.window[0],
+        lambda.window[1]
+    ));
     let law_p50 = rows[0].1[0];
-    out.push_str(&format!(
+    report.push(&format!(
         "Targets: control law p50 {} (target < 1 µs: {}), 300 s run {:.3} s (target < 0.3 s: {})\n",
         fmt_ns(law_p50 as f64),
         if law_p50 < 1000 { "met" } else { "MISSED" },
         best,
         if best < 0.3 { "met" } else { "MISSED" }
     ));
-    let _ = VecN::<3>::zeros();
-    Ok(out)
+    dists.push(Dist::of_histogram(
+        "Lyapunov pair, one interval",
+        &per_interval,
+    ));
+    report.plot(
+        "chaosd-bench compute: time per call",
+        &[Panel {
+            title: "per call (batched), one pinned core".into(),
+            quantity: "time".into(),
+            series: dists,
+        }],
+    )?;
+    report.finish()
 }

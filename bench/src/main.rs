@@ -1,54 +1,248 @@
 //! chaosd-bench: answers "how fast is this on my machine, and against what?" in one command.
 //!
 //! Every subcommand measures chaosd next to its alternatives in the same run, on pinned cores,
-//! and reports ratios: absolute times on a shared VM are noisy, ratios measured side by side are
-//! not. Nothing here asserts a speed; the tests only check the harness itself.
+//! interleaved in short blocks, and reports ratios: absolute times on a shared VM are noisy,
+//! ratios measured side by side are not. Each prints a markdown table and writes `.hgrm` files
+//! and a percentile plot (PNG and SVG) under `--out`. Nothing here asserts a speed; the tests only
+//! check the harness itself.
+//!
+//! * `latency`: state → command round trips over iceoryx2 and the alternatives (`latency`).
+//! * `jitter`:  loop wake-up lateness per wait strategy, next to cyclictest (`jitter`).
+//! * `e2e`:     the real daemon and plant processes at 1 to 10 kHz (`e2e`).
+//! * `compute`: the control law, an RK4 step, a 300 s run and a Lyapunov pair (`compute`).
+//! * `all`:     the four in a row, and one summary.
 
+mod child;
 mod compute;
+mod cyclictest;
+mod e2e;
+mod jitter;
+mod latency;
 mod naive;
+mod plan;
+mod plot;
+mod report;
 mod stats;
 
-use clap::{Parser, Subcommand};
+use anyhow::{bail, Result};
+use clap::{Args, Parser, Subcommand};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Instant;
 
 #[derive(Parser)]
-#[command(name = "chaosd-bench", version, about = "chaosd latency, jitter and compute benchmarks")]
+#[command(
+    name = "chaosd-bench",
+    version,
+    about = "chaosd latency, jitter, end-to-end and compute benchmarks, side by side"
+)]
 struct Cli {
+    /// Short runs (the whole `all` in under 2 minutes), for a smoke test.
+    #[arg(long, global = true)]
+    quick: bool,
+    /// Where the reports, .hgrm files and plots go (one directory per subcommand).
+    #[arg(long, global = true, default_value = "out/bench")]
+    out: PathBuf,
     #[command(subcommand)]
-    command: Command,
+    command: Cmd,
 }
 
 #[derive(Subcommand)]
-enum Command {
-    /// Control-law evaluation, RK4 step and a 300 s simulation, next to a naive implementation.
+enum Cmd {
+    /// Round-trip latency between two pinned processes: iceoryx2 (polling, Listener, WaitSet),
+    /// Unix socket, UDP, a crossbeam channel, and a shared-memory spin flag as the floor.
+    Latency(LatencyArgs),
+    /// Wake-up lateness of a fixed-rate loop at 1, 5 and 10 kHz per wait strategy, with and
+    /// without SCHED_FIFO, next to cyclictest.
+    Jitter(JitterArgs),
+    /// The real chaosd and chaosd-plant processes at 1, 2, 5 and 10 kHz.
+    E2e(E2eArgs),
+    /// Control-law evaluation, RK4 step, a 300 s simulation and a Lyapunov pair, next to a naive
+    /// implementation.
     Compute {
-        /// Fewer repetitions, for a smoke test.
-        #[arg(long)]
-        quick: bool,
         /// Core to pin to.
         #[arg(long, default_value_t = 0)]
         core: usize,
     },
+    /// latency, jitter, e2e and compute in a row, with one summary file.
+    All {
+        /// SCHED_FIFO priority for latency and jitter, 1..=98 [default: the daemon's].
+        #[arg(long, value_parser = clap::value_parser!(u8).range(1..=98))]
+        priority: Option<u8>,
+    },
+    /// The other end of `latency` (started by it).
+    #[command(name = "__latency-peer", hide = true)]
+    LatencyPeer(latency::PeerArgs),
 }
 
-fn pin(core: usize) {
-    let ids = core_affinity::get_core_ids().unwrap_or_default();
-    match ids.into_iter().find(|c| c.id == core) {
-        Some(id) if core_affinity::set_for_current(id) => {}
-        _ => eprintln!("chaosd-bench: warning: could not pin to core {core}; timings will be noisier"),
+#[derive(Args)]
+struct LatencyArgs {
+    /// Measured rounds (each runs one block per transport).
+    #[arg(long)]
+    rounds: Option<usize>,
+    /// Round trips per block.
+    #[arg(long)]
+    round_trips: Option<usize>,
+    /// SCHED_FIFO priority of both sides, 1..=98, or 0 for the normal scheduler [default: the
+    /// daemon's].
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=98))]
+    priority: Option<u8>,
+}
+
+#[derive(Args)]
+struct JitterArgs {
+    /// Measured rounds (each runs one block per configuration).
+    #[arg(long)]
+    rounds: Option<usize>,
+    /// Length of one block, in ms.
+    #[arg(long)]
+    block_ms: Option<u64>,
+    /// SCHED_FIFO priority of the "with SCHED_FIFO" runs, 1..=98 [default: the daemon's].
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=98))]
+    priority: Option<u8>,
+    /// Core the loops run on [default: the daemon's].
+    #[arg(long)]
+    core: Option<usize>,
+}
+
+#[derive(Args)]
+struct E2eArgs {
+    /// Seconds per rate.
+    #[arg(long)]
+    seconds: Option<f64>,
+    /// Rates in Hz (comma-separated).
+    #[arg(long, value_delimiter = ',')]
+    rates: Option<Vec<f64>>,
+}
+
+fn command_line() -> String {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    format!(
+        "cargo run --release -p bench --bin chaosd-bench -- {}",
+        args.join(" ")
+    )
+}
+
+fn latency_opts(quick: bool, a: &LatencyArgs) -> Result<latency::Options> {
+    let mut o = latency::Options::new(quick);
+    if let Some(r) = a.rounds {
+        o.rounds = r;
     }
+    if let Some(n) = a.round_trips {
+        o.round_trips = n;
+    }
+    if o.rounds == 0 || o.round_trips == 0 {
+        bail!("--rounds and --round-trips must be at least 1");
+    }
+    if let Some(p) = a.priority {
+        o.priority = p;
+    }
+    Ok(o)
+}
+
+fn jitter_opts(quick: bool, a: &JitterArgs) -> Result<jitter::Options> {
+    let mut o = jitter::Options::new(quick);
+    if let Some(r) = a.rounds {
+        o.rounds = r;
+    }
+    if let Some(ms) = a.block_ms {
+        o.block = std::time::Duration::from_millis(ms);
+    }
+    if let Some(p) = a.priority {
+        o.priority = p;
+    }
+    if let Some(c) = a.core {
+        o.core = c;
+    }
+    o.validate()?;
+    Ok(o)
+}
+
+fn e2e_opts(quick: bool, a: &E2eArgs) -> Result<e2e::Options> {
+    let mut o = e2e::Options::new(quick);
+    if let Some(s) = a.seconds {
+        o.seconds = s;
+    }
+    if let Some(r) = &a.rates {
+        o.rates = r.clone();
+    }
+    o.validate()?;
+    Ok(o)
+}
+
+fn all(quick: bool, out: &Path, priority: Option<u8>, command: &str) -> Result<String> {
+    let mut lat = latency::Options::new(quick);
+    let mut jit = jitter::Options::new(quick);
+    if let Some(p) = priority {
+        lat.priority = p;
+        jit.priority = p;
+    }
+    jit.validate()?;
+    let parts = [
+        ("latency", latency::run(&lat, out, command)),
+        ("jitter", jitter::run(&jit, out, command)),
+        ("e2e", e2e::run(&e2e::Options::new(quick), out, command)),
+        ("compute", compute::run(quick, 0, out, command)),
+    ];
+    let mut text = String::new();
+    let mut failed = Vec::new();
+    for (name, r) in parts {
+        match r {
+            Ok(t) => text.push_str(&t),
+            Err(e) => {
+                text.push_str(&format!("## {name}\n\n**failed**: {e:#}\n"));
+                failed.push(name);
+            }
+        }
+        text.push('\n');
+    }
+    std::fs::create_dir_all(out)?;
+    std::fs::write(out.join("summary.md"), &text)?;
+    if !failed.is_empty() {
+        print!("{text}");
+        bail!(
+            "{} failed (see above and {}/summary.md)",
+            failed.join(", "),
+            out.display()
+        );
+    }
+    Ok(text)
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = match cli.command {
-        Command::Compute { quick, core } => {
-            pin(core);
-            compute::run(quick).map(|s| print!("{s}"))
-        }
+    if let Cmd::LatencyPeer(a) = &cli.command {
+        return match latency::peer_main(a) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                latency::report_peer_error(&e);
+                ExitCode::FAILURE
+            }
+        };
+    }
+    // Ctrl-C stops between blocks, so children are stopped and iceoryx2 resources released.
+    rt::signal::install();
+    let command = command_line();
+    let t0 = Instant::now();
+    let (quick, out) = (cli.quick, cli.out.as_path());
+    let result = match &cli.command {
+        Cmd::Latency(a) => latency_opts(quick, a).and_then(|o| latency::run(&o, out, &command)),
+        Cmd::Jitter(a) => jitter_opts(quick, a).and_then(|o| jitter::run(&o, out, &command)),
+        Cmd::E2e(a) => e2e_opts(quick, a).and_then(|o| e2e::run(&o, out, &command)),
+        Cmd::Compute { core } => compute::run(quick, *core, out, &command),
+        Cmd::All { priority } => all(quick, out, *priority, &command),
+        Cmd::LatencyPeer(_) => unreachable!("handled above"),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(text) => {
+            print!("{text}");
+            eprintln!(
+                "chaosd-bench: done in {:.1} s; files under {}",
+                t0.elapsed().as_secs_f64(),
+                out.display()
+            );
+            ExitCode::SUCCESS
+        }
         Err(e) => {
             eprintln!("chaosd-bench: error: {e:#}");
             ExitCode::FAILURE

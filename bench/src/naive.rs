@@ -7,7 +7,13 @@ use control::{ArmModel, LawParams, VecN};
 use nalgebra::{DMatrix, DVector};
 
 /// q̈ for the fixed-base arm with manipulability ascent (μ = 0), with dynamic matrices.
-pub fn law<const N: usize>(params: &LawParams, model: &ArmModel<N>, t: f64, q: &VecN<N>, qd: &VecN<N>) -> DVector<f64> {
+pub fn law<const N: usize>(
+    params: &LawParams,
+    model: &ArmModel<N>,
+    t: f64,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+) -> DVector<f64> {
     let links = model.links();
     let n = N;
     let fk = |q: &DVector<f64>| {
@@ -58,7 +64,10 @@ pub fn law<const N: usize>(params: &LawParams, model: &ArmModel<N>, t: f64, q: &
     // ∇w by the determinant formula with dynamic matrices.
     let a = &j * j.transpose();
     let w = a.determinant().max(0.0).sqrt();
-    let ainv = a.clone().try_inverse().expect("invertible away from singularities");
+    let ainv = a
+        .clone()
+        .try_inverse()
+        .expect("invertible away from singularities");
     let mut grad = DVector::zeros(n);
     for k in 0..n {
         let mut h = DMatrix::zeros(2, n);
@@ -85,24 +94,35 @@ mod tests {
     use super::*;
     use control::{Config, Kinematics};
 
-/// The same evaluation through chaosd's law, for the equivalence test and the side-by-side.
-fn chaosd<const N: usize>(params: &LawParams, model: &ArmModel<N>, t: f64, q: &VecN<N>, qd: &VecN<N>) -> VecN<N> {
-    let mut k = Kinematics::default();
-    control::law::evaluate(params, model, t, 0.0, q, qd, qd, &mut k).qdd
-}
-
+    /// The same evaluation through chaosd's law, for the equivalence test and the side-by-side.
+    fn chaosd<const N: usize>(
+        params: &LawParams,
+        model: &ArmModel<N>,
+        t: f64,
+        q: &VecN<N>,
+        qd: &VecN<N>,
+    ) -> VecN<N> {
+        let mut k = Kinematics::default();
+        control::law::evaluate(params, model, t, 0.0, q, qd, qd, &mut k).qdd
+    }
 
     #[test]
     fn naive_and_chaosd_agree() {
         let cfg = Config::preset("paper").unwrap();
         let (p, m) = (cfg.law_params(), cfg.model::<3>());
-        for (i, q) in [[0.0, 1.57, 1.57], [0.4, -0.9, 2.2], [1.0, 0.5, -1.2]].iter().enumerate() {
+        for (i, q) in [[0.0, 1.57, 1.57], [0.4, -0.9, 2.2], [1.0, 0.5, -1.2]]
+            .iter()
+            .enumerate()
+        {
             let q = VecN::<3>::from(*q);
             let qd = VecN::<3>::new(0.3, -1.0, 2.0 * i as f64);
             let a = law(&p, &m, 0.37, &q, &qd);
             let b = chaosd(&p, &m, 0.37, &q, &qd);
             for k in 0..3 {
-                assert!((a[k] - b[k]).abs() < 1e-8 * (1.0 + b[k].abs()), "{a} vs {b}");
+                assert!(
+                    (a[k] - b[k]).abs() < 1e-8 * (1.0 + b[k].abs()),
+                    "{a} vs {b}"
+                );
             }
         }
     }

@@ -1,0 +1,164 @@
+//! The real `chaosd-bench` binary: a tiny latency run between two processes, and the peer's
+//! error path that the parent relies on to report a failed child. A watchdog kills a wedged run
+//! (a failure, not a timing assertion).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn exe() -> &'static str {
+    env!("CARGO_BIN_EXE_chaosd-bench")
+}
+
+fn scratch(test: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("chaosd-bench-it-{test}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs `args`, killing the process if it is still running after `limit`.
+fn run(args: &[&str], cwd: &Path, limit: Duration) -> Output {
+    let mut child = Command::new(exe())
+        .args(args)
+        .current_dir(cwd)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let until = Instant::now() + limit;
+    while child.try_wait().unwrap().is_none() {
+        if Instant::now() > until {
+            let _ = child.kill();
+            let out = child.wait_with_output().unwrap();
+            panic!(
+                "chaosd-bench {args:?} still running after {limit:?}; stderr:\n{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn a_small_latency_run_reports_every_transport() {
+    let dir = scratch("latency");
+    let out = run(
+        &[
+            "--out",
+            "o",
+            "latency",
+            "--rounds",
+            "2",
+            "--round-trips",
+            "200",
+            "--priority",
+            "0",
+        ],
+        &dir,
+        Duration::from_secs(300),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "stdout:\n{stdout}\nstderr:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for label in [
+        "shared-memory spin flag (floor)",
+        "iceoryx2 pub-sub, busy polling",
+        "Listener wait",
+        "WaitSet wait",
+        "Unix domain socket",
+        "UDP over 127.0.0.1",
+        "crossbeam channel",
+    ] {
+        let row = stdout
+            .lines()
+            .find(|l| l.starts_with("| ") && l.contains(label))
+            .unwrap_or_else(|| panic!("no row for {label}:\n{stdout}"));
+        assert!(!row.contains("n/a"), "{label} has no data: {row}");
+    }
+    assert!(
+        stdout.contains("iceoryx2 polling p50 / spin floor p50"),
+        "{stdout}"
+    );
+    let files = dir.join("o/latency");
+    for f in [
+        "shm-spin.hgrm",
+        "iox-poll.hgrm",
+        "udp.hgrm",
+        "latency.png",
+        "latency.svg",
+        "latency.md",
+        "latency.hlog",
+    ] {
+        let p = files.join(f);
+        assert!(
+            p.metadata().map(|m| m.len() > 0).unwrap_or(false),
+            "{} missing or empty",
+            p.display()
+        );
+    }
+    // Each recorded series holds rounds × round trips values.
+    let hgrm = std::fs::read_to_string(files.join("unix.hgrm")).unwrap();
+    assert!(hgrm.contains("Total count    =          400"), "{hgrm}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn the_peer_reports_its_errors_on_the_line_the_parent_reads() {
+    let dir = scratch("peer");
+    let out = run(
+        &[
+            "__latency-peer",
+            "--namespace",
+            "not/valid",
+            "--shm-fd=-1",
+            "--unix-fd=-1",
+            "--udp-port",
+            "9",
+            "--core",
+            "0",
+        ],
+        &dir,
+        Duration::from_secs(60),
+    );
+    assert!(!out.status.success());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = stdout.lines().next().unwrap_or_default();
+    assert!(
+        line.starts_with("error ") && line.contains("namespace"),
+        "{stdout}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn bad_options_are_refused_before_anything_runs() {
+    let dir = scratch("opts");
+    let out = run(
+        &["--out", "o", "jitter", "--priority", "99"],
+        &dir,
+        Duration::from_secs(60),
+    );
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("99"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = run(
+        &["--out", "o", "e2e", "--rates", "50000"],
+        &dir,
+        Duration::from_secs(60),
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("between 100 and 10000 Hz"));
+    assert!(
+        !dir.join("o/jitter").exists(),
+        "nothing is written for a refused run"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
