@@ -64,9 +64,8 @@ pub use names::{
 };
 pub use node::{node, NodeError};
 pub use qos::{
-    event_ids, open_command_service, open_events_service, open_state_service, Channel,
-    CommandService, EventQos, EventsService, PubSubQos, ServiceError, StateService, COMMAND_QOS,
-    EVENTS_QOS, STATE_QOS,
+    open_command_service, open_state_service, Channel, CommandService, PubSubQos, ServiceError,
+    StateService, COMMAND_QOS, STATE_QOS,
 };
 pub use sample::{
     flags, CommandSample, Field, Mode, SampleError, SampleKind, StateSample, UnknownMode,

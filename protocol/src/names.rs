@@ -54,7 +54,6 @@ pub struct ServiceNames {
     command: String,
     control: String,
     telemetry: String,
-    events: String,
 }
 
 impl ServiceNames {
@@ -68,7 +67,6 @@ impl ServiceNames {
             command: name("command"),
             control: name("control"),
             telemetry: name("telemetry"),
-            events: name("events"),
         })
     }
 
@@ -95,11 +93,6 @@ impl ServiceNames {
     /// Publish-subscribe, daemon → monitors and recorders (`control::TelemetrySample`).
     pub fn telemetry(&self) -> &str {
         &self.telemetry
-    }
-
-    /// Event service used to wake a waiting peer (see [`crate::qos::event_ids`]).
-    pub fn events(&self) -> &str {
-        &self.events
     }
 }
 
@@ -128,7 +121,6 @@ mod tests {
         assert_eq!(names.command(), "chaosd/lab-2_arm/command");
         assert_eq!(names.control(), "chaosd/lab-2_arm/control");
         assert_eq!(names.telemetry(), "chaosd/lab-2_arm/telemetry");
-        assert_eq!(names.events(), "chaosd/lab-2_arm/events");
         assert_eq!(names.to_string(), "chaosd/lab-2_arm/");
     }
 
@@ -150,7 +142,6 @@ mod tests {
             names.command(),
             names.control(),
             names.telemetry(),
-            names.events(),
         ] {
             assert!(iceoryx2::prelude::ServiceName::new(name).is_ok(), "{name}");
         }

@@ -34,10 +34,9 @@
 use core::fmt::{self, Debug};
 
 use iceoryx2::node::Node;
-use iceoryx2::prelude::{EventId, PortFactory as _, ServiceName, ZeroCopySend};
-use iceoryx2::service::builder::event::EventOpenOrCreateError;
+use iceoryx2::prelude::{PortFactory as _, ServiceName, ZeroCopySend};
 use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenOrCreateError;
-use iceoryx2::service::port_factory::{event, publish_subscribe};
+use iceoryx2::service::port_factory::publish_subscribe;
 
 use crate::names::ServiceNames;
 use crate::sample::{CommandSample, StateSample};
@@ -46,8 +45,6 @@ use crate::sample::{CommandSample, StateSample};
 pub type StateService<S> = publish_subscribe::PortFactory<S, StateSample, ()>;
 /// The opened command service (daemon publishes, plant subscribes).
 pub type CommandService<S> = publish_subscribe::PortFactory<S, CommandSample, ()>;
-/// The opened event service.
-pub type EventsService<S> = event::PortFactory<S>;
 
 /// Settings of a publish-subscribe service.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -75,44 +72,11 @@ pub const STATE_QOS: PubSubQos = PubSubQos {
 /// QoS of the command service: the same trade-offs as the state service.
 pub const COMMAND_QOS: PubSubQos = STATE_QOS;
 
-/// Settings of an event service.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct EventQos {
-    pub max_notifiers: usize,
-    pub max_listeners: usize,
-    pub max_nodes: usize,
-    pub event_id_max_value: usize,
-    /// Event emitted to listeners when a notifier's node is found dead and cleaned up.
-    pub notifier_dead_event: usize,
-}
-
-/// QoS of the event service: plant, daemon, a benchmark and a spare on each side.
-pub const EVENTS_QOS: EventQos = EventQos {
-    max_notifiers: 4,
-    max_listeners: 4,
-    max_nodes: 16,
-    event_id_max_value: event_ids::MAX,
-    notifier_dead_event: event_ids::PEER_DIED,
-};
-
-/// Event ids used on the event service.
-pub mod event_ids {
-    /// The plant published a new [`crate::StateSample`].
-    pub const STATE_PUBLISHED: usize = 1;
-    /// The daemon published a new [`crate::CommandSample`].
-    pub const COMMAND_PUBLISHED: usize = 2;
-    /// Emitted by iceoryx2 when the node of a notifier was found dead and cleaned up.
-    pub const PEER_DIED: usize = 3;
-    /// Largest id the service accepts (keeps the listener's bit set small).
-    pub const MAX: usize = 15;
-}
-
 /// Which chaosd service an error is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Channel {
     State,
     Command,
-    Events,
     Control,
     Telemetry,
 }
@@ -122,7 +86,6 @@ impl fmt::Display for Channel {
         f.write_str(match self {
             Channel::State => "state",
             Channel::Command => "command",
-            Channel::Events => "events",
             Channel::Control => "control",
             Channel::Telemetry => "telemetry",
         })
@@ -140,11 +103,6 @@ pub enum ServiceError {
     PubSub {
         channel: Channel,
         source: PublishSubscribeOpenOrCreateError,
-    },
-    #[error("cannot open or create the {channel} service: {source}")]
-    Event {
-        channel: Channel,
-        source: EventOpenOrCreateError,
     },
     #[error("cannot open the {channel} service: {source}")]
     RequestResponse {
@@ -273,50 +231,4 @@ pub fn open_command_service<S: iceoryx2::service::Service>(
     names: &ServiceNames,
 ) -> Result<CommandService<S>, ServiceError> {
     open_pubsub(node, names.command(), Channel::Command, &COMMAND_QOS)
-}
-
-/// Opens (or creates) `chaosd/<ns>/events` with [`EVENTS_QOS`].
-pub fn open_events_service<S: iceoryx2::service::Service>(
-    node: &Node<S>,
-    names: &ServiceNames,
-) -> Result<EventsService<S>, ServiceError> {
-    const CHANNEL: Channel = Channel::Events;
-    let qos = &EVENTS_QOS;
-    let service = node
-        .service_builder(&service_name(names.events(), CHANNEL)?)
-        .event()
-        .max_notifiers(qos.max_notifiers)
-        .max_listeners(qos.max_listeners)
-        .max_nodes(qos.max_nodes)
-        .event_id_max_value(qos.event_id_max_value)
-        .notifier_dead_event(EventId::new(qos.notifier_dead_event))
-        .disable_notifier_created_event()
-        .disable_notifier_dropped_event()
-        .open_or_create()
-        .map_err(|source| ServiceError::Event {
-            channel: CHANNEL,
-            source,
-        })?;
-
-    let found = service.static_config();
-    expect(
-        CHANNEL,
-        "max_notifiers",
-        found.max_notifiers(),
-        qos.max_notifiers,
-    )?;
-    expect(
-        CHANNEL,
-        "max_listeners",
-        found.max_listeners(),
-        qos.max_listeners,
-    )?;
-    expect(CHANNEL, "max_nodes", found.max_nodes(), qos.max_nodes)?;
-    expect(
-        CHANNEL,
-        "event_id_max_value",
-        found.event_id_max_value(),
-        qos.event_id_max_value,
-    )?;
-    Ok(service)
 }

@@ -7,10 +7,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use iceoryx2::port::publisher::PublisherCreateError;
 use iceoryx2::prelude::*;
-use protocol::qos::event_ids;
 use protocol::{
-    open_command_service, open_events_service, open_state_service, Channel, CommandSample, Mode,
-    ServiceError, ServiceNames, StateSample, COMMAND_QOS, STATE_QOS,
+    open_command_service, open_state_service, Channel, CommandSample, Mode, ServiceError,
+    ServiceNames, StateSample, COMMAND_QOS, STATE_QOS,
 };
 
 type Error = Box<dyn std::error::Error>;
@@ -243,28 +242,6 @@ fn resources_are_released_when_dropped() -> Result<(), Error> {
         &config,
         MessagingPattern::PublishSubscribe
     )?);
-    Ok(())
-}
-
-#[test]
-fn events_wake_a_listener() -> Result<(), Error> {
-    let names = unique_names();
-    let plant = node("test-plant")?;
-    let daemon = node("test-daemon")?;
-    let notifier = open_events_service(&plant, &names)?
-        .notifier_builder()
-        .create()?;
-    let listener = open_events_service(&daemon, &names)?
-        .listener_builder()
-        .create()?;
-
-    notifier.notify_with_custom_event_id(EventId::new(event_ids::STATE_PUBLISHED))?;
-    let mut ids = Vec::new();
-    listener.timed_wait(
-        |event| ids.push(event.id.as_value()),
-        core::time::Duration::from_secs(5),
-    )?;
-    assert_eq!(ids, [event_ids::STATE_PUBLISHED]);
     Ok(())
 }
 

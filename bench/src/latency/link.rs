@@ -17,9 +17,10 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::{ipc, CallbackProgression, ServiceName, ZeroCopySend};
 use iceoryx2::waitset::{WaitSet, WaitSetGuard};
-use protocol::{
-    monotonic_ns, CommandSample, EventsService, Mode, ServiceNames, StateSample, MAX_JOINTS,
-};
+use protocol::{monotonic_ns, CommandSample, Mode, ServiceNames, StateSample, MAX_JOINTS};
+
+/// An opened iceoryx2 event service (the benchmark's wake-up path).
+type EventsService<S> = iceoryx2::service::port_factory::event::PortFactory<S>;
 use std::cell::{Cell, UnsafeCell};
 use std::fmt::Debug;
 use std::mem::MaybeUninit;
