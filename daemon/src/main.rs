@@ -309,8 +309,8 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
     );
     if c.track_lost + c.out_of_reach + c.nonfinite > 0 {
         println!(
-            "tracking loss         on {} ticks ({} near-singular, {} with the target out of reach, {} non-finite results)",
-            c.track_lost, c.singular, c.out_of_reach, c.nonfinite
+            "tracking loss         error above control.track_loss = {} m on {} ticks, the start-up transient included ({} near-singular, {} with the target out of reach, {} non-finite results)",
+            s.system.control.track_loss, c.track_lost, c.singular, c.out_of_reach, c.nonfinite
         );
     }
     println!("real-time set-up      {}", d.realtime.one_line());
