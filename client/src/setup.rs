@@ -10,17 +10,16 @@ use control::config::ModelKind;
 use control::Config;
 use std::path::PathBuf;
 
+/// The model and initial-state flags every offline command shares (all but `--mu`, which is one
+/// value for a single run and a range for a scan).
 #[derive(Args, Debug, Clone)]
-pub struct ModelArgs {
+pub struct SetupArgs {
     /// TOML config file (see `chaosctl config --preset paper` for every key).
     #[arg(long, conflicts_with = "preset")]
     pub config: Option<PathBuf>,
     /// Built-in set-up: paper, paper-eq11, paper-obstacle, paper-floating.
     #[arg(long)]
     pub preset: Option<String>,
-    /// Pyragas gain μ (≥ 0).
-    #[arg(long)]
-    pub mu: Option<f64>,
     /// Pyragas delay τ (s).
     #[arg(long)]
     pub tau: Option<f64>,
@@ -41,6 +40,16 @@ pub struct ModelArgs {
     pub model: Option<ModelKind>,
 }
 
+/// The flags of a single run: [`SetupArgs`] and one μ.
+#[derive(Args, Debug, Clone)]
+pub struct ModelArgs {
+    #[command(flatten)]
+    pub setup: SetupArgs,
+    /// Pyragas gain μ (≥ 0).
+    #[arg(long)]
+    pub mu: Option<f64>,
+}
+
 /// A comma-separated list of numbers given as one argument.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FloatList(pub Vec<f64>);
@@ -58,7 +67,7 @@ pub fn parse_list(s: &str) -> Result<FloatList, String> {
         .map(FloatList)
 }
 
-pub fn parse_model(s: &str) -> Result<ModelKind, String> {
+fn parse_model(s: &str) -> Result<ModelKind, String> {
     match s {
         "fixed" => Ok(ModelKind::Fixed),
         "floating" => Ok(ModelKind::Floating),
@@ -66,9 +75,9 @@ pub fn parse_model(s: &str) -> Result<ModelKind, String> {
     }
 }
 
-impl ModelArgs {
-    /// The base config (file or preset, default `paper`) with the flags applied, not yet validated.
-    pub fn base(&self) -> Result<Config> {
+impl SetupArgs {
+    /// The config file or preset (default `paper`), before the flags.
+    fn base(&self) -> Result<Config> {
         let cfg = match (&self.config, &self.preset) {
             (Some(path), _) => {
                 let text = std::fs::read_to_string(path)
@@ -81,9 +90,10 @@ impl ModelArgs {
         Ok(cfg)
     }
 
-    /// Applies the overrides and validates.
-    pub fn apply(&self, mut cfg: Config) -> Result<Config> {
-        if let Some(v) = self.mu {
+    /// The config with the flags applied (and `mu`, when given), validated.
+    pub fn load_with_mu(&self, mu: Option<f64>) -> Result<Config> {
+        let mut cfg = self.base()?;
+        if let Some(v) = mu {
             cfg.feedback.mu = v;
         }
         if let Some(v) = self.tau {
@@ -110,9 +120,11 @@ impl ModelArgs {
         cfg.validate()?;
         Ok(cfg)
     }
+}
 
+impl ModelArgs {
     pub fn load(&self) -> Result<Config> {
-        self.apply(self.base()?)
+        self.setup.load_with_mu(self.mu)
     }
 }
 

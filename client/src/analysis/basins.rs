@@ -117,19 +117,7 @@ pub fn run(args: BasinsCmd) -> Result<()> {
     if args.vary.joint >= n {
         bail!("--vary: the arm has {n} joints, so the varied coordinate must be q1..q{n} or qd1..qd{n}");
     }
-    if !(args.duration.is_finite() && args.duration > 0.0) {
-        bail!(
-            "--duration {}: must be a finite number of seconds > 0",
-            args.duration
-        );
-    }
-    if !(args.transient >= 0.0 && args.transient < args.duration) {
-        bail!(
-            "--transient {}: must be in [0, --duration = {})",
-            args.transient,
-            args.duration
-        );
-    }
+    super::check_run_window(args.duration, args.transient)?;
     let spec = RunSpec {
         duration: args.duration,
         transient: args.transient,
@@ -246,15 +234,7 @@ pub fn run(args: BasinsCmd) -> Result<()> {
         count(&|o| matches!(o, Outcome::Periodic { .. })),
         count(&|o| matches!(o, Outcome::Failed { .. })),
     );
-    println!(
-        "wrote {}, {}",
-        csv.display(),
-        files
-            .iter()
-            .map(|f| f.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
+    super::print_written(&[std::slice::from_ref(&csv), &files[..]].concat());
     Ok(())
 }
 

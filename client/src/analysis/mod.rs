@@ -14,16 +14,14 @@ pub mod parallel;
 pub mod poincare;
 pub mod sweep;
 
-use crate::setup::{parse_list, parse_model, FloatList, ModelArgs};
+use crate::setup::{parse_list, FloatList, SetupArgs};
 use anyhow::{bail, Result};
 use clap::Args;
 use control::analysis::{
     analyse, check_reachable, period_steps, ClassifyConfig, LyapunovSpec, RunAnalysis, RunSpec,
 };
-use control::config::ModelKind;
 use control::{with_dof, Config};
 use std::f64::consts::FRAC_PI_2;
-use std::path::PathBuf;
 
 /// Values parsed from one `START:END:STEP` argument.
 #[derive(Clone, Debug, PartialEq)]
@@ -36,33 +34,11 @@ fn parse_range_arg(s: &str) -> Result<Range, String> {
 /// The model flags of `simulate`, with `--mu` taking a range: for the commands that scan μ.
 #[derive(Args, Debug, Clone)]
 pub struct ScanModelArgs {
-    /// TOML config file (see `chaosctl config --preset paper` for every key).
-    #[arg(long, conflicts_with = "preset")]
-    pub config: Option<PathBuf>,
-    /// Built-in set-up: paper, paper-eq11, paper-obstacle, paper-floating.
-    #[arg(long)]
-    pub preset: Option<String>,
+    #[command(flatten)]
+    pub setup: SetupArgs,
     /// Pyragas gains μ: START:END:STEP (e.g. 0:3:0.1) or one value.
     #[arg(long = "mu", value_parser = parse_range_arg, allow_hyphen_values = true)]
     pub mu: Option<Range>,
-    /// Pyragas delay τ (s).
-    #[arg(long)]
-    pub tau: Option<f64>,
-    /// Time the delayed feedback switches on (s).
-    #[arg(long = "t-on")]
-    pub t_on: Option<f64>,
-    /// Integration step (s).
-    #[arg(long)]
-    pub dt: Option<f64>,
-    /// Initial joint angles, comma-separated (rad).
-    #[arg(long, value_parser = parse_list, allow_hyphen_values = true)]
-    pub q0: Option<FloatList>,
-    /// Initial joint rates, comma-separated (rad/s).
-    #[arg(long, value_parser = parse_list, allow_hyphen_values = true)]
-    pub qd0: Option<FloatList>,
-    /// Plant model: fixed or floating.
-    #[arg(long, value_parser = parse_model)]
-    pub model: Option<ModelKind>,
 }
 
 impl ScanModelArgs {
@@ -72,18 +48,7 @@ impl ScanModelArgs {
             Some(r) => r.0.clone(),
             None => parse_range(default_mu).map_err(anyhow::Error::msg)?,
         };
-        let args = ModelArgs {
-            config: self.config.clone(),
-            preset: self.preset.clone(),
-            mu: None,
-            tau: self.tau,
-            t_on: self.t_on,
-            dt: self.dt,
-            q0: self.q0.clone(),
-            qd0: self.qd0.clone(),
-            model: self.model,
-        };
-        let cfg = args.load()?;
+        let cfg = self.setup.load_with_mu(None)?;
         for &mu in &mus {
             let mut c = cfg.clone();
             c.feedback.mu = mu;
@@ -306,6 +271,48 @@ pub fn fmt_list(v: &[f64]) -> String {
 pub fn fmt_num(v: f64) -> String {
     let s = format!("{v}");
     s.replace('-', "m")
+}
+
+/// Checks `--duration` and `--transient`: the section needs points after the transient.
+pub fn check_run_window(duration: f64, transient: f64) -> Result<()> {
+    if !(duration.is_finite() && duration > 0.0) {
+        anyhow::bail!("--duration {duration}: must be a finite number of seconds > 0");
+    }
+    if !(transient >= 0.0 && transient < duration) {
+        anyhow::bail!("--transient {transient}: must be in [0, --duration = {duration}) so that the section has points");
+    }
+    Ok(())
+}
+
+/// The decorations of every λ_max-against-μ plot: the paper's claimed window (when the scan
+/// reaches it) and the λ = 0 line between stable and chaotic.
+pub fn lambda_plot_marks(mu_max: f64) -> (Vec<crate::plot::Band>, Vec<crate::plot::Rule>) {
+    use crate::plot::{Band, Rule, GREY, PALETTE};
+    let bands = if mu_max >= 1.3 {
+        vec![Band {
+            from: 1.3,
+            to: 2.3,
+            color: PALETTE[2],
+            label: Some("paper's claimed window 1.3 < μ < 2.3".into()),
+        }]
+    } else {
+        vec![]
+    };
+    (
+        bands,
+        vec![Rule {
+            value: 0.0,
+            vertical: false,
+            color: GREY,
+            label: None,
+        }],
+    )
+}
+
+/// Tells the user which files a command wrote.
+pub fn print_written(files: &[std::path::PathBuf]) {
+    let list: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    println!("wrote {}", list.join(", "));
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@
 
 use super::parallel::{jobs, run_all};
 use super::{analyse_config, fmt_list, ScanModelArgs, StartArgs};
-use crate::plot::{Band, Chart, Figure, Panel, Rule, Series, Style, GREY, PALETTE};
+use crate::plot::{Chart, Figure, Panel, Series, Style, PALETTE};
 use crate::setup::{parse_list, FloatList};
 use anyhow::{bail, Result};
 use clap::Args;
@@ -204,7 +204,7 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
             4.0 * base.task.period
         );
     }
-    let starts = args.starts.configs(&base, args.model.q0.is_some())?;
+    let starts = args.starts.configs(&base, args.model.setup.q0.is_some())?;
     let threads = jobs(args.jobs);
 
     // 1. Seeds.
@@ -360,14 +360,7 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
         spec.settle,
         spec.settle + spec.duration
     );
-    println!(
-        "wrote {}",
-        files
-            .iter()
-            .map(|f| f.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
+    super::print_written(&files);
     Ok(())
 }
 
@@ -433,6 +426,7 @@ fn plot(
         );
     }
     let mu_max = mus.iter().cloned().fold(0.0, f64::max);
+    let marks = super::lambda_plot_marks(mu_max);
     Figure {
         title: Some("Which period-T orbit does Pyragas feedback stabilise, and for which μ?".into()),
         panels: vec![Panel::Chart(Chart {
@@ -444,22 +438,8 @@ fn plot(
             x_label: "Pyragas gain μ (1/s)".into(),
             y_label: "λ_max on the orbit (1/s)".into(),
             series,
-            bands: if mu_max >= 1.3 {
-                vec![Band {
-                    from: 1.3,
-                    to: 2.3,
-                    color: PALETTE[2],
-                    label: Some("paper's claimed window".into()),
-                }]
-            } else {
-                vec![]
-            },
-            rules: vec![Rule {
-                value: 0.0,
-                vertical: false,
-                color: GREY,
-                label: None,
-            }],
+            bands: marks.0,
+            rules: marks.1,
             legend: true,
             ..Default::default()
         })],

@@ -6,7 +6,7 @@ use super::figures::section_panels;
 use super::{analyse_config, check_config, fmt_list, ClassifyArgs};
 use crate::plot::{with_ext, Chart, Figure, Panel, Series, Style, PALETTE};
 use crate::setup::ModelArgs;
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
 use control::analysis::{Classification, RunSpec};
 use serde::Serialize;
@@ -47,19 +47,7 @@ struct Report<'a> {
 pub fn run(args: PoincareCmd) -> Result<()> {
     let cfg = args.model.load()?;
     check_config(&cfg)?;
-    if !(args.duration.is_finite() && args.duration > 0.0) {
-        bail!(
-            "--duration {}: must be a finite number of seconds > 0",
-            args.duration
-        );
-    }
-    if !(args.transient >= 0.0 && args.transient < args.duration) {
-        bail!(
-            "--transient {}: must be in [0, --duration = {}) so that the section has points",
-            args.transient,
-            args.duration
-        );
-    }
+    super::check_run_window(args.duration, args.transient)?;
     let spec = RunSpec {
         duration: args.duration,
         transient: args.transient,

@@ -3,7 +3,7 @@
 
 use super::parallel::{jobs, run_all};
 use super::{analyse_config, fmt_list, ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
-use crate::plot::{Band, Chart, Figure, Panel, Rule, Series, Style, DARK, GREY, PALETTE};
+use crate::plot::{Chart, Figure, Panel, Series, Style, DARK, PALETTE};
 use anyhow::{Context, Result};
 use clap::Args;
 use control::analysis::{Motion, RunSpec};
@@ -57,7 +57,7 @@ pub struct Row {
 
 pub fn run(args: SweepCmd) -> Result<()> {
     let (base, mus) = args.model.load("0:3:0.1")?;
-    let starts = args.starts.configs(&base, args.model.q0.is_some())?;
+    let starts = args.starts.configs(&base, args.model.setup.q0.is_some())?;
     let classify = args.classify.config()?;
     let spec = args.lyapunov.spec(&base, classify)?;
     let mut items: Vec<(usize, Config)> = Vec::new();
@@ -99,15 +99,7 @@ pub fn run(args: SweepCmd) -> Result<()> {
         sim / wall,
         2.0 * sim / wall
     );
-    println!(
-        "wrote {}, {}",
-        csv.display(),
-        files
-            .iter()
-            .map(|f| f.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
+    super::print_written(&[std::slice::from_ref(&csv), &files[..]].concat());
     Ok(())
 }
 
@@ -289,6 +281,7 @@ fn plot(
         .map(|l| l.window)
         .unwrap_or([0.0, spec.duration]);
     let mu_max = rows.iter().map(|r| r.mu).fold(0.0, f64::max);
+    let marks = super::lambda_plot_marks(mu_max);
     let chart = Chart {
         title: format!(
             "λ_max averaged over {:.0}–{:.0} s, τ = {} s, feedback on at {} s",
@@ -297,22 +290,8 @@ fn plot(
         x_label: "Pyragas gain μ (1/s)".into(),
         y_label: "largest Lyapunov exponent λ_max (1/s)".into(),
         series,
-        bands: if mu_max >= 1.3 {
-            vec![Band {
-                from: 1.3,
-                to: 2.3,
-                color: PALETTE[2],
-                label: Some("paper's claimed window 1.3 < μ < 2.3".into()),
-            }]
-        } else {
-            vec![]
-        },
-        rules: vec![Rule {
-            value: 0.0,
-            vertical: false,
-            color: GREY,
-            label: None,
-        }],
+        bands: marks.0,
+        rules: marks.1,
         legend: true,
         ..Default::default()
     };
