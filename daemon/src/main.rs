@@ -60,7 +60,7 @@ struct Common {
     /// TOML config file.
     #[arg(long, conflicts_with = "preset")]
     config: Option<PathBuf>,
-    /// A built-in set-up (paper, paper-eq11, paper-obstacle, paper-floating).
+    /// A built-in set-up (paper, paper-eq11, paper-obstacle, paper-floating, demo).
     #[arg(long)]
     preset: Option<String>,
     /// Overrides daemon.namespace.
