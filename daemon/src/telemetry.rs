@@ -431,6 +431,7 @@ impl Reporter {
                 rt::signal::request_stop();
                 Ok("shutting down".into())
             }
+            Op::Resume => Err("the daemon is not in FAULT: nothing to resume".into()),
         };
         match result {
             Ok(body) => ControlResponse::new(req.id, Status::Ok, &body),
@@ -601,6 +602,7 @@ impl Reporter {
             Mode::Run => "RUN ",
             Mode::Hold => "HOLD",
             Mode::Brake => "BRAKE",
+            Mode::Fault => "FAULT",
         };
         Some(format!(
             "[{:7.1} s] {mode} μ={:.2} feedback {}  track {:.1e} m  residual {:.2e} rad/s  late p99 {:.1} µs max {:.1} µs  overruns {}  rejected {}  holds {}  drops {}",

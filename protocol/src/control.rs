@@ -46,6 +46,8 @@ pub enum Op {
     RecordStart = 11,
     RecordStop = 12,
     Shutdown = 13,
+    /// Leave FAULT (the runaway guard tripped) and control again.
+    Resume = 14,
 }
 
 impl TryFrom<u32> for Op {
@@ -65,6 +67,7 @@ impl TryFrom<u32> for Op {
             11 => Op::RecordStart,
             12 => Op::RecordStop,
             13 => Op::Shutdown,
+            14 => Op::Resume,
             other => return Err(other),
         })
     }

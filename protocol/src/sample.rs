@@ -31,7 +31,7 @@ pub mod flags {
 
 /// The plant's measured state, published once per plant tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::StateSample.v2")]
+#[type_name("chaosd::StateSample.v3")]
 #[repr(C)]
 pub struct StateSample {
     /// Per-plant sequence number, +1 per published sample, starting at 0 after each plant start.
@@ -193,11 +193,14 @@ pub enum Mode {
     Hold = 1,
     /// Ignore `qdd`; stop and engage the brakes.
     Brake = 2,
+    /// The controller's runaway guard tripped: ignore `qdd` and brake, as for [`Mode::Brake`].
+    /// The daemon stays here until an operator resumes it (`chaosctl resume`).
+    Fault = 3,
 }
 
 /// A `mode` value that is not a [`Mode`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-#[error("unknown mode {0} (expected 0 = run, 1 = hold, 2 = brake)")]
+#[error("unknown mode {0} (expected 0 = run, 1 = hold, 2 = brake, 3 = fault)")]
 pub struct UnknownMode(pub u32);
 
 impl TryFrom<u32> for Mode {
@@ -208,6 +211,7 @@ impl TryFrom<u32> for Mode {
             0 => Ok(Mode::Run),
             1 => Ok(Mode::Hold),
             2 => Ok(Mode::Brake),
+            3 => Ok(Mode::Fault),
             other => Err(UnknownMode(other)),
         }
     }
@@ -221,7 +225,7 @@ impl From<Mode> for u32 {
 
 /// The daemon's command, published once per control tick in answer to a [`StateSample`].
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::CommandSample.v2")]
+#[type_name("chaosd::CommandSample.v3")]
 #[repr(C)]
 pub struct CommandSample {
     /// Per-daemon sequence number, +1 per published command, starting at 0 after each start.
@@ -459,9 +463,9 @@ mod tests {
     #[test]
     fn unknown_mode_and_flags_are_rejected() {
         let mut c = good_command(2);
-        c.mode = 3;
-        assert_eq!(c.validate(2), Err(SampleError::Mode(UnknownMode(3))));
-        for mode in [Mode::Run, Mode::Hold, Mode::Brake] {
+        c.mode = 4;
+        assert_eq!(c.validate(2), Err(SampleError::Mode(UnknownMode(4))));
+        for mode in [Mode::Run, Mode::Hold, Mode::Brake, Mode::Fault] {
             assert_eq!(Mode::try_from(u32::from(mode)), Ok(mode));
         }
         assert_eq!(Mode::try_from(99), Err(UnknownMode(99)));
