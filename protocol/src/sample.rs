@@ -498,7 +498,7 @@ mod tests {
         c.mode = 5;
         assert_eq!(
             c.validate(4).unwrap_err().to_string(),
-            "command sample has unknown mode 5 (expected 0 = run, 1 = hold, 2 = brake)"
+            "command sample has unknown mode 5 (expected 0 = run, 1 = hold, 2 = brake, 3 = fault)"
         );
         assert_eq!(
             good_state(3).validate(4).unwrap_err().to_string(),
