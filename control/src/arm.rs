@@ -36,6 +36,8 @@ pub struct Kinematics<const N: usize> {
     pub ee_jac: Jac<N>,
     /// Base attitude rate φ̇ (0 for the fixed base).
     pub base_rate: f64,
+    /// φ̇ = base_rate_row · q̇ (zeros for the fixed base): how the joints turn the base.
+    pub base_rate_row: VecN<N>,
 }
 
 impl<const N: usize> Default for Kinematics<N> {
@@ -48,6 +50,7 @@ impl<const N: usize> Default for Kinematics<N> {
             point_jac: [Jac::zeros(); N],
             ee_jac: Jac::zeros(),
             base_rate: 0.0,
+            base_rate_row: VecN::zeros(),
         }
     }
 }
@@ -110,6 +113,7 @@ impl<const N: usize> FixedArm<N> {
         out.ee_jac = out.j;
         out.jdot_qd = jdot_qd;
         out.base_rate = 0.0;
+        out.base_rate_row = VecN::zeros();
     }
 
     /// Manipulability w = √det(JJᵀ) and its analytic gradient.
@@ -315,6 +319,7 @@ impl<const N: usize> FloatingArm<N> {
             out.j.set_column(k, &v(f.jstar[k]));
             out.ee_jac.set_column(k, &v(f.ee_jac[k]));
             phidot += f.k[k] * qd[k];
+            out.base_rate_row[k] = f.k[k];
         }
         for j in 0..N {
             out.points[j] = v(f.points[j]);

@@ -8,7 +8,8 @@
 //! Every default is SCIENCE.md's; the `paper*` presets reproduce the paper's set-ups.
 
 use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
-use crate::law::{LawParams, Secondary};
+use crate::law::{LawParams, Projection, Secondary};
+use crate::safety::SafetyConfig;
 use crate::secondary::{Obstacle, ObstacleSet, PotentialWeights, MAX_OBSTACLES};
 use crate::sim::ArmState;
 use crate::task::Circle;
@@ -175,6 +176,17 @@ pub struct FeedbackConfig {
     pub enabled: bool,
     /// Capacity of the delay line (s): the largest τ a running daemon accepts.
     pub max_tau: f64,
+    /// Where the delayed term acts: "full" (every joint, the paper's form) or "null-space"
+    /// (projected by I − J⁺J onto the self-motion, so tracking is never disturbed).
+    pub projection: ProjectionKind,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum ProjectionKind {
+    #[default]
+    Full,
+    NullSpace,
 }
 
 impl Default for FeedbackConfig {
@@ -185,6 +197,7 @@ impl Default for FeedbackConfig {
             t_on: 5.0,
             enabled: true,
             max_tau: 2.0,
+            projection: ProjectionKind::Full,
         }
     }
 }
@@ -228,6 +241,8 @@ pub struct Config {
     pub control: ControlConfig,
     pub feedback: FeedbackConfig,
     pub sim: SimConfig,
+    /// The safety filter and the runaway guard (see `control::safety::config`).
+    pub safety: SafetyConfig,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub daemon: Option<toml::Table>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -259,6 +274,10 @@ impl Config {
     /// A named set-up. `paper`: fixed base, eq. 1 gains, manipulability, τ = T = 1 s, t_on = 5 s.
     pub fn preset(name: &str) -> Result<Self, ConfigError> {
         let mut c = Config::default();
+        if name.starts_with("paper") {
+            // A faithful reproduction: the paper has no filter.
+            c.safety = SafetyConfig::paper();
+        }
         match name {
             "paper" => {}
             "paper-eq11" => {
@@ -422,7 +441,8 @@ impl Config {
             }
         }
         range("sim.phi0", s.phi0, -1e6, 1e6)?;
-        Ok(())
+        self.safety.validate(n)?;
+        crate::stability::check(self, s.dt, &format!("sim.dt = {} s", s.dt))
     }
 
     /// The control-law parameter block (the config must be valid).
@@ -454,6 +474,11 @@ impl Config {
             tau: self.feedback.tau,
             t_on: self.feedback.t_on,
             feedback: self.feedback.enabled,
+            projection: match self.feedback.projection {
+                ProjectionKind::Full => Projection::Full,
+                ProjectionKind::NullSpace => Projection::NullSpace,
+            },
+            safety: self.safety.params(self.n()),
             track_loss: c.track_loss,
         }
     }

@@ -6,8 +6,13 @@
 //! validated block at a tick boundary, and the offline tools share exactly the same code. The
 //! evaluation is a few hundred flops on the stack; it never allocates and never produces NaN from
 //! finite inputs (damped least squares near singularities, a non-finite guard at the end).
+//!
+//! The safety filter ([`crate::safety`]) runs last, on the whole command: it is part of the
+//! evaluation so that the offline simulation, the analysis and the daemon all get the same
+//! filtered command, and a disabled filter costs one branch.
 
 use crate::arm::{ArmModel, Jac, Kinematics, Vec2, VecN};
+use crate::safety::{self, SafetyParams};
 use crate::secondary::{self, ObstacleSet, PotentialWeights};
 use crate::task::Circle;
 use nalgebra::{Matrix2, SMatrix};
@@ -21,6 +26,16 @@ pub enum Secondary {
     Manipulability,
     /// η = −∇h, the obstacle potential (eqs. 7-10).
     Obstacles,
+}
+
+/// Where the Pyragas term acts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Projection {
+    /// −μ[q̇(t) − q̇(t−τ)] on every joint (the paper's form).
+    #[default]
+    Full,
+    /// −(I − J⁺J) μ[q̇(t) − q̇(t−τ)]: only the self-motion, so tracking is never disturbed.
+    NullSpace,
 }
 
 /// Every tunable of the control law.
@@ -48,6 +63,10 @@ pub struct LawParams {
     pub t_on: f64,
     /// Master switch for the delayed feedback (the daemon's `dfc on|off`).
     pub feedback: bool,
+    /// Where the delayed term acts.
+    pub projection: Projection,
+    /// The safety filter applied to the result ([`crate::safety`]).
+    pub safety: SafetyParams,
     /// Tracking error (m) above which tracking counts as lost.
     pub track_loss: f64,
 }
@@ -66,6 +85,14 @@ pub mod flags {
     pub const FEEDBACK_ACTIVE: u32 = 1 << 4;
     /// The raw command was not finite and was replaced by zero acceleration.
     pub const NONFINITE: u32 = 1 << 5;
+    /// The safety filter changed the command (some limit or clearance was binding).
+    pub const SAFETY_ACTIVE: u32 = 1 << 6;
+    /// The null space could not keep every limit: the filter changed the task motion too, so
+    /// tracking gave way to safety.
+    pub const SAFETY_LEFT_NULL_SPACE: u32 = 1 << 7;
+    /// No acceleration within the limits meets every barrier condition; the closest one found
+    /// was used (and the acceleration limits were applied).
+    pub const SAFETY_INFEASIBLE: u32 = 1 << 8;
 }
 
 /// The command and what the controller learnt while computing it.
@@ -84,6 +111,11 @@ pub struct ControlOutput<const N: usize> {
     pub period_residual: f64,
     /// Obstacle clearance (m, negative: penetration); +∞ without obstacles.
     pub clearance: f64,
+    /// Distance (rad) to the nearest joint position limit; +∞ without limits, negative beyond.
+    pub joint_margin: f64,
+    /// max_i |q̈_i| / qdd_max_i of the law's command *before* the filter: above 1 the law asks
+    /// for more than the joints may do (the daemon's runaway guard watches it).
+    pub demand: f64,
     /// Base attitude rate (floating model).
     pub base_rate: f64,
     pub flags: u32,
@@ -176,8 +208,30 @@ pub fn evaluate<const N: usize>(
 
     let diff = qd - qd_delayed;
     if params.feedback_active(t) {
-        qdd -= diff * params.mu;
+        let term = match params.projection {
+            Projection::Full => diff,
+            Projection::NullSpace => diff - jpinv * (j * diff),
+        };
+        qdd -= term * params.mu;
         flag |= flags::FEEDBACK_ACTIVE;
+    }
+    let demand = (0..N)
+        .map(|i| qdd[i].abs() / params.safety.qdd_max[i])
+        .fold(0.0, f64::max);
+    if params.safety.enabled && qdd.iter().all(|v| v.is_finite()) {
+        let f = safety::filter(
+            &params.safety,
+            model,
+            &params.obstacles,
+            kin,
+            phi,
+            q,
+            qd,
+            &jpinv,
+            &qdd,
+        );
+        qdd = f.qdd;
+        flag |= f.flags;
     }
 
     let (clearance, in_zone) = if params.obstacles.is_empty() {
@@ -210,6 +264,8 @@ pub fn evaluate<const N: usize>(
         secondary_value,
         period_residual: diff.norm(),
         clearance,
+        joint_margin: params.safety.joint_margin(q),
+        demand,
         base_rate: kin.base_rate,
         flags: flag,
     }

@@ -16,8 +16,10 @@ pub mod delay;
 pub mod dual;
 pub mod hold;
 pub mod law;
+pub mod safety;
 pub mod secondary;
 pub mod sim;
+pub mod stability;
 pub mod task;
 
 pub use arm::{ArmModel, FixedArm, FloatingArm, Jac, Kinematics, Vec2, VecN};

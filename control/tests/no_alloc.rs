@@ -85,3 +85,51 @@ fn control_step_and_rk4_step_allocate_nothing() {
         });
     }
 }
+
+#[test]
+fn the_safety_filter_allocates_nothing_on_any_path() {
+    // Binding obstacles and limits on the paper arm (interval path, full-space fallback), on the
+    // floating base (drift by a second kinematics pass), and on 4 and 5 links (the QP path).
+    let mut arms = vec![];
+    for preset in ["paper-obstacle", "paper-floating"] {
+        let mut cfg = Config::preset(preset).unwrap();
+        cfg.control.obstacles = vec![
+            control::config::ObstacleConfig {
+                center: [0.0, 1.6],
+                radius: 0.25,
+                margin: 0.1,
+            },
+            control::config::ObstacleConfig {
+                center: [0.5, 0.9],
+                radius: 0.2,
+                margin: 0.1,
+            },
+        ];
+        arms.push(cfg);
+    }
+    for links in [vec![0.8, 0.8, 0.7, 0.7], vec![0.8, 0.7, 0.6, 0.5, 0.4]] {
+        let mut cfg = arms[0].clone();
+        cfg.sim.q0 = Some(vec![0.3; links.len()]);
+        cfg.arm.links = links;
+        arms.push(cfg);
+    }
+    for mut cfg in arms {
+        cfg.safety.enabled = true;
+        cfg.safety.qd_max = control::safety::config::Limit::All(6.0);
+        cfg.safety.q_min = Some(vec![-1.5; cfg.n()]);
+        cfg.safety.q_max = Some(vec![1.5; cfg.n()]);
+        cfg.validate().unwrap();
+        with_dof!(cfg.n(), N => {
+            let params = cfg.law_params();
+            let mut sim = Simulation::new(cfg.model::<N>(), params, cfg.sim.dt, cfg.initial_state(), cfg.feedback.max_tau);
+            let mut flags = 0;
+            let n = allocations(|| {
+                for _ in 0..3000 {
+                    flags |= std::hint::black_box(sim.step()).flags;
+                }
+            });
+            assert_eq!(n, 0, "{N} links: the filter allocated {n} times");
+            assert!(flags & control::law::flags::SAFETY_ACTIVE != 0, "{N} links: the filter never bound");
+        });
+    }
+}

@@ -1,0 +1,211 @@
+//! The `[safety]` table: clearance, joint limits, barrier gains and the runaway guard.
+//!
+//! The service defaults turn the filter on with limits a little above what the demo's motion
+//! uses (|q̇| ≤ 15 rad/s, |q̈| ≤ 290 rad/s²). The `paper*` presets turn it off, for a faithful
+//! reproduction, and widen the limits beyond the paper's own free motion (|q̇| up to 49 rad/s,
+//! |q̈| up to 3 400 rad/s² at μ = 0), so `--safety on` there only adds the obstacle clearance.
+
+use super::SafetyParams;
+use crate::config::{ConfigError, MAX_JOINTS};
+use serde::{Deserialize, Serialize};
+
+/// One limit for every joint, or one per joint.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Limit {
+    All(f64),
+    Each(Vec<f64>),
+}
+
+impl Limit {
+    fn resolve(&self, n: usize) -> [f64; MAX_JOINTS] {
+        let mut out = [f64::INFINITY; MAX_JOINTS];
+        for (i, v) in out.iter_mut().enumerate().take(n) {
+            *v = match self {
+                Limit::All(x) => *x,
+                Limit::Each(xs) => xs.get(i).copied().unwrap_or(f64::NAN),
+            };
+        }
+        out
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SafetyConfig {
+    /// Filter the law's q̈ (null space first). The daemon's runaway guard runs either way.
+    pub enabled: bool,
+    /// Required distance (m) from every link to every obstacle's surface (its radius; the
+    /// obstacle's `margin` belongs to the paper's potential, not to the filter).
+    pub clearance: f64,
+    /// Lower joint limits (rad), one per joint; `-inf` for an unlimited joint. Default: none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub q_min: Option<Vec<f64>>,
+    /// Upper joint limits (rad), one per joint; `inf` for an unlimited joint. Default: none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub q_max: Option<Vec<f64>>,
+    /// Joint rate limit (rad/s): one number for all joints, or a list.
+    pub qd_max: Limit,
+    /// Joint acceleration limit (rad/s²): one number for all joints, or a list.
+    pub qdd_max: Limit,
+    /// Position barriers ḧ + k1 ḣ + k0 h ≥ 0; k1² ≥ 4 k0 (real roots: no overshoot).
+    pub k0: f64,
+    pub k1: f64,
+    /// Rate barriers ḣ + k_rate h ≥ 0 (1/s).
+    pub k_rate: f64,
+    /// Daemon: a joint rate or the law's acceleration beyond its limit for this long (s) → FAULT.
+    pub guard_time: f64,
+    /// Daemon: a tracking error above this (m) that is still growing → FAULT.
+    pub guard_tracking_error: f64,
+}
+
+impl Default for SafetyConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            clearance: 0.05,
+            q_min: None,
+            q_max: None,
+            qd_max: Limit::All(20.0),
+            qdd_max: Limit::All(1000.0),
+            k0: 100.0,
+            k1: 20.0,
+            k_rate: 50.0,
+            guard_time: 0.02,
+            guard_tracking_error: 0.5,
+        }
+    }
+}
+
+fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
+    ConfigError::Invalid {
+        field: format!("safety.{field}"),
+        value: format!("{value:?}"),
+        expected: expected.to_string(),
+    }
+}
+
+fn in_range(field: &str, v: f64, lo: f64, hi: f64, open_lo: bool) -> Result<(), ConfigError> {
+    let ok = v.is_finite() && v <= hi && if open_lo { v > lo } else { v >= lo };
+    if ok {
+        Ok(())
+    } else {
+        let lo_s = if open_lo { ">" } else { "≥" };
+        Err(invalid(
+            field,
+            v,
+            &format!("must be a finite number {lo_s} {lo} and ≤ {hi}"),
+        ))
+    }
+}
+
+impl SafetyConfig {
+    /// The paper presets: filter off, limits wider than the paper's own free motion.
+    pub fn paper() -> Self {
+        Self {
+            enabled: false,
+            qd_max: Limit::All(100.0),
+            qdd_max: Limit::All(10_000.0),
+            ..Self::default()
+        }
+    }
+
+    /// Checks every field for an arm of `n` joints.
+    pub fn validate(&self, n: usize) -> Result<(), ConfigError> {
+        in_range("clearance", self.clearance, 0.0, 10.0, false)?;
+        for (name, lim, hi) in [
+            ("qd_max", &self.qd_max, 1e4),
+            ("qdd_max", &self.qdd_max, 1e6),
+        ] {
+            if let Limit::Each(v) = lim {
+                if v.len() != n {
+                    return Err(invalid(
+                        name,
+                        v,
+                        &format!("must have {n} entries, one per joint, or be one number"),
+                    ));
+                }
+            }
+            for (i, x) in lim.resolve(n).iter().take(n).enumerate() {
+                in_range(&format!("{name}[{i}]"), *x, 0.0, hi, true)?;
+            }
+        }
+        let (lo, hi) = (self.q_min(n), self.q_max(n));
+        for (name, v) in [("q_min", &self.q_min), ("q_max", &self.q_max)] {
+            if let Some(v) = v {
+                if v.len() != n {
+                    return Err(invalid(
+                        name,
+                        v,
+                        &format!(
+                            "must have {n} entries, one per joint (use inf for an unlimited joint)"
+                        ),
+                    ));
+                }
+                if let Some(i) = v.iter().position(|x| x.is_nan()) {
+                    return Err(invalid(
+                        &format!("{name}[{i}]"),
+                        v[i],
+                        "must be a number (inf: unlimited)",
+                    ));
+                }
+            }
+        }
+        if let Some(i) = (0..n).find(|&i| lo[i] >= hi[i]) {
+            return Err(invalid(
+                &format!("q_min[{i}]"),
+                lo[i],
+                &format!("must be below safety.q_max[{i}] = {}", hi[i]),
+            ));
+        }
+        in_range("k0", self.k0, 0.0, 1e6, true)?;
+        in_range("k1", self.k1, 0.0, 1e4, true)?;
+        if self.k1 * self.k1 < 4.0 * self.k0 {
+            return Err(invalid(
+                "k1",
+                self.k1,
+                &format!("must satisfy k1² ≥ 4·k0 = {} so that s² + k1·s + k0 has real roots (no overshoot of a limit)", 4.0 * self.k0),
+            ));
+        }
+        in_range("k_rate", self.k_rate, 0.0, 1e4, true)?;
+        in_range("guard_time", self.guard_time, 0.0, 10.0, false)?;
+        in_range(
+            "guard_tracking_error",
+            self.guard_tracking_error,
+            0.0,
+            1e3,
+            true,
+        )
+    }
+
+    fn q_min(&self, n: usize) -> [f64; MAX_JOINTS] {
+        let mut out = [f64::NEG_INFINITY; MAX_JOINTS];
+        if let Some(v) = &self.q_min {
+            out[..n.min(v.len())].copy_from_slice(&v[..n.min(v.len())]);
+        }
+        out
+    }
+
+    fn q_max(&self, n: usize) -> [f64; MAX_JOINTS] {
+        let mut out = [f64::INFINITY; MAX_JOINTS];
+        if let Some(v) = &self.q_max {
+            out[..n.min(v.len())].copy_from_slice(&v[..n.min(v.len())]);
+        }
+        out
+    }
+
+    /// The filter's parameter block for an arm of `n` joints (the config must be valid).
+    pub fn params(&self, n: usize) -> SafetyParams {
+        SafetyParams {
+            enabled: self.enabled,
+            clearance: self.clearance,
+            q_min: self.q_min(n),
+            q_max: self.q_max(n),
+            qd_max: self.qd_max.resolve(n),
+            qdd_max: self.qdd_max.resolve(n),
+            k0: self.k0,
+            k1: self.k1,
+            k_rate: self.k_rate,
+        }
+    }
+}

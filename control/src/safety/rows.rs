@@ -1,0 +1,243 @@
+//! Barrier conditions as linear rows a·q̈ ≥ b (SCIENCE.md §7).
+//!
+//! A barrier h(q, q̇) ≥ 0 is kept by asking its derivatives to fall no faster than an exponential:
+//! ḧ + k₁ḣ + k₀h ≥ 0 for positions (obstacle distance, joint angle) and ḣ + k h ≥ 0 for rates.
+//! ḧ = a·q̈ + (the part that does not depend on q̈), so every condition is one row. The rows are
+//! produced by a visitor instead of being stored, so the common case (no row binds) costs one pass
+//! and no buffer.
+//!
+//! The obstacle distance d(q) from a centre to a link segment switches between "closest to an end
+//! point" and "closest to the interior". Both pieces are smooth and agree (with their gradients) at
+//! the switch, so the condition is written for whichever piece is active. For the interior piece
+//! the link length L is constant, so d = |σ|/L with σ = (B − A) × (c − A), and σ̈ follows from the
+//! end points' accelerations Ä = J_A q̈ + D_A (D = J̇ q̇, the drift).
+
+use super::SafetyParams;
+use crate::arm::{ArmModel, Jac, Kinematics, Vec2, VecN};
+use crate::config::MAX_JOINTS;
+use crate::secondary::ObstacleSet;
+
+/// Position, Jacobian, velocity and drift (J̇q̇) of one point of the arm.
+#[derive(Clone, Copy, Debug)]
+pub struct PointMotion<const N: usize> {
+    pub pos: Vec2,
+    pub jac: Jac<N>,
+    pub vel: Vec2,
+    pub drift: Vec2,
+}
+
+impl<const N: usize> Default for PointMotion<N> {
+    fn default() -> Self {
+        Self {
+            pos: Vec2::zeros(),
+            jac: Jac::zeros(),
+            vel: Vec2::zeros(),
+            drift: Vec2::zeros(),
+        }
+    }
+}
+
+/// The arm's N + 1 points (joints 1 … n, then the end effector): P_k for k = 0 … N.
+pub type Points<const N: usize> = [PointMotion<N>; MAX_JOINTS + 1];
+
+#[inline(always)]
+fn cross(a: Vec2, b: Vec2) -> f64 {
+    a.x * b.y - a.y * b.x
+}
+
+#[inline(always)]
+fn perp(v: Vec2) -> Vec2 {
+    Vec2::new(-v.y, v.x)
+}
+
+/// Positions and Jacobians at fixed base attitude, from `kin` (k = N is the end effector).
+fn geometry<const N: usize>(kin: &Kinematics<N>, out: &mut Points<N>) {
+    for k in 0..N {
+        out[k].pos = kin.points[k];
+        out[k].jac = kin.point_jac[k];
+    }
+    out[N].pos = kin.p;
+    out[N].jac = kin.ee_jac;
+}
+
+/// Adds the base's rotation about the system's centre of mass (the origin): J* = J + S P gᵀ,
+/// with g the base-rate row (φ̇ = g·q̇).
+fn add_base_rotation<const N: usize>(kin: &Kinematics<N>, out: &mut Points<N>) {
+    for pt in out.iter_mut().take(N + 1) {
+        let s = perp(pt.pos);
+        for k in 0..N {
+            let c = pt.jac.column(k) + s * kin.base_rate_row[k];
+            pt.jac.set_column(k, &c);
+        }
+    }
+}
+
+/// Every point's motion at (φ, q, q̇). Closed form for the fixed base; for the floating base
+/// the drift is a forward difference of J* along the motion (one more kinematics evaluation).
+pub fn point_motions<const N: usize>(
+    model: &ArmModel<N>,
+    kin: &Kinematics<N>,
+    phi: f64,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+    out: &mut Points<N>,
+) {
+    geometry(kin, out);
+    match model {
+        ArmModel::Fixed(_) => {
+            // D_k = −Σ_{m<k} seg_m θ̇_m²: each segment turns at its absolute rate θ̇_m.
+            let mut theta_rate = 0.0;
+            let mut d = Vec2::zeros();
+            out[0].drift = d;
+            for m in 0..N {
+                theta_rate += qd[m];
+                d -= (out[m + 1].pos - out[m].pos) * (theta_rate * theta_rate);
+                out[m + 1].drift = d;
+            }
+        }
+        ArmModel::Floating(_) => {
+            add_base_rotation(kin, out);
+            const H: f64 = 1e-6;
+            let mut k2 = Kinematics::<N>::default();
+            model.kinematics(phi + H * kin.base_rate, &(q + qd * H), qd, &mut k2);
+            let mut ahead: Points<N> = [PointMotion::default(); MAX_JOINTS + 1];
+            geometry(&k2, &mut ahead);
+            add_base_rotation(&k2, &mut ahead);
+            for k in 0..=N {
+                out[k].drift = (ahead[k].jac - out[k].jac) * qd / H;
+            }
+        }
+    }
+    for pt in out.iter_mut().take(N + 1) {
+        pt.vel = pt.jac * qd;
+    }
+}
+
+/// The barrier value h = d − r − clearance of link `j` (from P_j to P_{j+1}) against an obstacle,
+/// with the row of its second-order condition: returns (h, a, b).
+#[allow(clippy::too_many_arguments)]
+pub fn obstacle_row<const N: usize>(
+    a_pt: &PointMotion<N>,
+    b_pt: &PointMotion<N>,
+    center: Vec2,
+    reach: f64,
+    k0: f64,
+    k1: f64,
+) -> Option<(f64, VecN<N>, f64)> {
+    let e = b_pt.pos - a_pt.pos;
+    let l2 = e.norm_squared();
+    let t = if l2 > 0.0 {
+        (center - a_pt.pos).dot(&e) / l2
+    } else {
+        0.0
+    };
+    if t <= 0.0 {
+        return point_row(a_pt, center, reach, k0, k1);
+    }
+    if t >= 1.0 {
+        return point_row(b_pt, center, reach, k0, k1);
+    }
+    let l = l2.sqrt();
+    let rel = center - a_pt.pos;
+    let sigma = cross(e, rel);
+    let side = if sigma >= 0.0 { 1.0 } else { -1.0 };
+    let s = side / l;
+    let h = s * sigma - reach;
+    let edot = b_pt.vel - a_pt.vel;
+    let hdot = s * (cross(edot, rel) - cross(e, a_pt.vel));
+    let je = b_pt.jac - a_pt.jac;
+    let a = VecN::<N>::from_fn(|k, _| {
+        s * (cross(je.column(k).into_owned(), rel) - cross(e, a_pt.jac.column(k).into_owned()))
+    });
+    let drift = s
+        * (cross(b_pt.drift - a_pt.drift, rel)
+            - 2.0 * cross(edot, a_pt.vel)
+            - cross(e, a_pt.drift));
+    Some((h, a, -k1 * hdot - k0 * h - drift))
+}
+
+/// The same for the distance to one point P: ḧ = u·P̈ + (|Ṗ|² − (u·Ṗ)²)/d.
+fn point_row<const N: usize>(
+    p: &PointMotion<N>,
+    center: Vec2,
+    reach: f64,
+    k0: f64,
+    k1: f64,
+) -> Option<(f64, VecN<N>, f64)> {
+    let w = p.pos - center;
+    let d = w.norm();
+    if d < 1e-12 {
+        return None; // no direction to push in; the interior piece covers this case
+    }
+    let u = w / d;
+    let h = d - reach;
+    let un = u.dot(&p.vel);
+    let hdot = un;
+    let curvature = (p.vel.norm_squared() - un * un) / d;
+    let a = p.jac.transpose() * u;
+    Some((h, a, -k1 * hdot - k0 * h - u.dot(&p.drift) - curvature))
+}
+
+/// Calls `f(a, b)` for every row a·q̈ ≥ b of the active limits.
+#[allow(clippy::too_many_arguments)]
+pub fn visit<const N: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
+    p: &SafetyParams,
+    obstacles: &ObstacleSet,
+    points: &Points<N>,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+    f: &mut F,
+) {
+    for o in obstacles.as_slice() {
+        let reach = o.radius + p.clearance;
+        for j in 0..N {
+            if let Some((_, a, b)) =
+                obstacle_row(&points[j], &points[j + 1], o.center, reach, p.k0, p.k1)
+            {
+                f(&a, b);
+            }
+        }
+    }
+    for i in 0..N {
+        let e = VecN::<N>::from_fn(|r, _| if r == i { 1.0 } else { 0.0 });
+        let neg = -e;
+        if p.q_max[i].is_finite() {
+            f(&neg, p.k1 * qd[i] - p.k0 * (p.q_max[i] - q[i]));
+        }
+        if p.q_min[i].is_finite() {
+            f(&e, -p.k1 * qd[i] - p.k0 * (q[i] - p.q_min[i]));
+        }
+        if p.qd_max[i].is_finite() {
+            f(&neg, -p.k_rate * (p.qd_max[i] - qd[i]));
+            f(&e, -p.k_rate * (p.qd_max[i] + qd[i]));
+        }
+        if p.qdd_max[i].is_finite() {
+            f(&neg, -p.qdd_max[i]);
+            f(&e, -p.qdd_max[i]);
+        }
+    }
+}
+
+/// Smallest barrier value over all link-obstacle pairs (m): the clearance beyond the required one.
+pub fn min_obstacle_barrier<const N: usize>(
+    p: &SafetyParams,
+    obstacles: &ObstacleSet,
+    points: &Points<N>,
+) -> f64 {
+    let mut min = f64::INFINITY;
+    for o in obstacles.as_slice() {
+        for j in 0..N {
+            if let Some((h, _, _)) = obstacle_row(
+                &points[j],
+                &points[j + 1],
+                o.center,
+                o.radius + p.clearance,
+                p.k0,
+                p.k1,
+            ) {
+                min = min.min(h);
+            }
+        }
+    }
+    min
+}

@@ -1,0 +1,185 @@
+//! The smallest change of q̈ that meets every row a·q̈ ≥ b: null space first, then the full
+//! joint space.
+//!
+//! For the paper's arm (n = 3, J of rank 2) the null space is the line through the unit vector
+//! n̂ ⊥ both rows of J, so each row bounds one scalar s in q̈ + n̂ s and the answer is the point of
+//! an interval closest to 0: one pass, no storage. Otherwise the rows are stored on the stack and a
+//! small QP, min ½|δ|² subject to G δ ≥ h, is solved by Hildreth's dual coordinate ascent: each
+//! step raises one multiplier λ_j ≥ 0 and moves δ = Gᵀλ along row j. It needs no factorisation,
+//! allocates nothing and, for a feasible problem, converges to the exact minimiser; for an
+//! infeasible one it stops after a fixed number of sweeps and the result is flagged.
+
+use super::Filtered;
+use crate::arm::{Jac, VecN};
+use crate::config::MAX_JOINTS;
+use crate::law::flags;
+use crate::secondary::MAX_OBSTACLES;
+use nalgebra::SMatrix;
+
+/// Most rows one problem has: every link against every obstacle, plus 6 per joint.
+pub const MAX_ROWS: usize = MAX_OBSTACLES * MAX_JOINTS + 6 * MAX_JOINTS;
+/// Sweeps over all rows before Hildreth's method gives up.
+pub const MAX_SWEEPS: usize = 400;
+
+/// A visitor over the rows: calls its argument with (a, b) for each a·q̈ ≥ b.
+pub type Visit<'a, const N: usize> = &'a dyn Fn(&mut dyn FnMut(&VecN<N>, f64));
+
+/// A row counts as violated when it misses by more than this (relative to 1 + |b|).
+const TOL: f64 = 1e-9;
+
+#[inline]
+fn tol(b: f64) -> f64 {
+    TOL * (1.0 + b.abs())
+}
+
+/// The unit vector spanning J's null space for n = 3 (None if J has rank < 2 or n ≠ 3).
+pub fn null_vector<const N: usize>(j: &Jac<N>) -> Option<VecN<N>> {
+    if N != 3 {
+        return None;
+    }
+    let r = |c: usize, k: usize| j[(c, k)];
+    let v = VecN::<N>::from_fn(|i, _| {
+        let (a, b) = ((i + 1) % 3, (i + 2) % 3);
+        r(0, a) * r(1, b) - r(0, b) * r(1, a)
+    });
+    let n = v.norm();
+    (n > 1e-9).then(|| v / n)
+}
+
+/// Solves for the filtered q̈ (see the module doc), then clamps to the acceleration limits.
+pub fn smallest_change<const N: usize>(
+    visit: Visit<'_, N>,
+    j: &Jac<N>,
+    jpinv: &SMatrix<f64, N, 2>,
+    qdd: &VecN<N>,
+    qdd_max: &[f64; MAX_JOINTS],
+) -> Filtered<N> {
+    let nhat = null_vector(j);
+    let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+    let (mut violated, mut line_ok) = (false, true);
+    visit(&mut |a, b| {
+        let r = b - a.dot(qdd);
+        let bad = r > tol(b);
+        violated |= bad;
+        if let Some(n) = &nhat {
+            let al = a.dot(n);
+            if al.abs() <= 1e-12 * a.norm() {
+                line_ok &= !bad;
+            } else if al > 0.0 {
+                lo = lo.max(r / al);
+            } else {
+                hi = hi.min(r / al);
+            }
+        }
+    });
+    if !violated {
+        return Filtered {
+            qdd: *qdd,
+            flags: 0,
+        };
+    }
+    let mut flag = flags::SAFETY_ACTIVE;
+    let delta = match nhat {
+        Some(n) if line_ok && lo <= hi + 1e-12 * (1.0 + lo.abs()) => {
+            n * 0.0f64.clamp(lo, hi.max(lo))
+        }
+        _ => {
+            let mut rows = Rows::<N>::collect(visit, qdd);
+            match rows.null_space(j, jpinv) {
+                Some(d) => d,
+                None => {
+                    flag |= flags::SAFETY_LEFT_NULL_SPACE;
+                    let (d, ok) = rows.full_space();
+                    if !ok {
+                        flag |= flags::SAFETY_INFEASIBLE;
+                    }
+                    d
+                }
+            }
+        }
+    };
+    let mut out = qdd + delta;
+    for i in 0..N {
+        out[i] = out[i].clamp(-qdd_max[i], qdd_max[i]);
+    }
+    Filtered {
+        qdd: out,
+        flags: flag,
+    }
+}
+
+/// Rows a·δ ≥ b − a·q̈_nom, stored on the stack for the QP.
+struct Rows<const N: usize> {
+    a: [VecN<N>; MAX_ROWS],
+    h: [f64; MAX_ROWS],
+    m: usize,
+}
+
+impl<const N: usize> Rows<N> {
+    fn collect(visit: Visit<'_, N>, qdd: &VecN<N>) -> Self {
+        let mut r = Self {
+            a: [VecN::<N>::zeros(); MAX_ROWS],
+            h: [0.0; MAX_ROWS],
+            m: 0,
+        };
+        visit(&mut |a, b| {
+            if r.m < MAX_ROWS {
+                r.a[r.m] = *a;
+                r.h[r.m] = b - a.dot(qdd);
+                r.m += 1;
+            }
+        });
+        r
+    }
+
+    /// The smallest δ = N z that meets every row, if the null space can.
+    fn null_space(&mut self, j: &Jac<N>, jpinv: &SMatrix<f64, N, 2>) -> Option<VecN<N>> {
+        if N <= 2 {
+            return None;
+        }
+        let projected = Self {
+            a: core::array::from_fn(|k| {
+                let a = self.a[k];
+                a - j.transpose() * (jpinv.transpose() * a)
+            }),
+            h: self.h,
+            m: self.m,
+        };
+        let (d, ok) = projected.hildreth();
+        ok.then_some(d)
+    }
+
+    /// The smallest δ in the full joint space; `false` if no δ meets every row.
+    fn full_space(&mut self) -> (VecN<N>, bool) {
+        self.hildreth()
+    }
+
+    /// min ½|δ|² subject to a_j·δ ≥ h_j, by dual coordinate ascent.
+    fn hildreth(&self) -> (VecN<N>, bool) {
+        let mut lambda = [0.0f64; MAX_ROWS];
+        let mut d = VecN::<N>::zeros();
+        for _ in 0..MAX_SWEEPS {
+            let mut moved = 0.0f64;
+            for k in 0..self.m {
+                let a = &self.a[k];
+                let aa = a.norm_squared();
+                if aa < 1e-24 {
+                    continue;
+                }
+                let next = (lambda[k] + (self.h[k] - a.dot(&d)) / aa).max(0.0);
+                let step = next - lambda[k];
+                if step != 0.0 {
+                    d += a * step;
+                    lambda[k] = next;
+                    moved = moved.max(step.abs() * aa.sqrt());
+                }
+            }
+            if moved <= 1e-12 * (1.0 + d.norm()) {
+                break;
+            }
+        }
+        let ok =
+            (0..self.m).all(|k| self.a[k].dot(&d) >= self.h[k] - 1e-7 * (1.0 + self.h[k].abs()));
+        (d, ok)
+    }
+}
