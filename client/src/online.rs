@@ -73,6 +73,12 @@ pub enum Online {
         #[command(subcommand)]
         action: RecordAction,
     },
+    /// Leave FAULT (the runaway guard tripped and the plant is braking): the daemon holds until
+    /// the next fresh state, then controls again with a fresh history. Refused when not in FAULT.
+    Resume {
+        #[command(flatten)]
+        conn: Conn,
+    },
     /// Stop the daemon cleanly (it writes its histograms).
     Shutdown {
         #[command(flatten)]
@@ -383,6 +389,7 @@ pub fn run(cmd: Online) -> ExitCode {
             RecordAction::Stop => request(&conn, Op::RecordStop, "").map(|b| pretty(&b)),
         },
         Online::Shutdown { conn } => request(&conn, Op::Shutdown, ""),
+        Online::Resume { conn } => request(&conn, Op::Resume, ""),
         Online::Watch { conn, json, count } => watch(&conn, json, count).map(|_| String::new()),
     };
     match result {

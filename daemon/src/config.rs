@@ -207,6 +207,11 @@ impl DaemonSetup {
         }
         // The delay line is filled once per tick, so τ must span at least one tick.
         let dt = 1.0 / self.daemon.rate_hz;
+        control::stability::check(
+            &self.system,
+            dt,
+            &format!("daemon.rate_hz = {}", self.daemon.rate_hz),
+        )?;
         if self.system.feedback.tau < dt {
             return Err(ConfigError::Invalid {
                 field: "feedback.tau".into(),

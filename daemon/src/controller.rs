@@ -5,6 +5,7 @@
 //! lives here and the loop only moves samples in and out, so the tick can be driven by a test with
 //! a mock clock, and its allocation-freedom proven without shared memory in the way.
 
+use crate::guard::{FaultReason, Guard};
 use control::hold;
 use control::{ArmModel, ArmState, ControlOutput, DelayLine, Kinematics, LawParams, VecN};
 use protocol::{CommandSample, Mode, StateSample};
@@ -30,6 +31,14 @@ pub struct Counters {
     pub singular: u64,
     pub out_of_reach: u64,
     pub nonfinite: u64,
+    /// Ticks on which the safety filter changed the command, had to leave the null space (so
+    /// tracking gave way), or found no command meeting every limit.
+    pub safety_active: u64,
+    pub safety_left_null_space: u64,
+    pub safety_infeasible: u64,
+    /// Times the runaway guard tripped, and operator resumes out of FAULT.
+    pub faults: u64,
+    pub resumes: u64,
     pub holds_entered: u64,
     pub plant_restarts: u64,
     pub overruns: u64,
@@ -71,6 +80,8 @@ pub struct TickOutcome<const N: usize> {
     /// The mode changed on this tick.
     pub mode_changed: bool,
     pub plant_restarted: bool,
+    /// The runaway guard tripped on this tick, and why.
+    pub fault: Option<FaultReason>,
 }
 
 /// Tick-independent settings.
@@ -106,6 +117,8 @@ pub struct Controller<const N: usize> {
     last_qd: Option<VecN<N>>,
     missed: u32,
     next_command_seq: u64,
+    guard: Guard,
+    fault: Option<FaultReason>,
     pub counters: Counters,
 }
 
@@ -135,6 +148,8 @@ impl<const N: usize> Controller<N> {
             last_qd: None,
             missed: 0,
             next_command_seq: 0,
+            guard: Guard::default(),
+            fault: None,
             counters: Counters::default(),
         }
     }
@@ -151,6 +166,26 @@ impl<const N: usize> Controller<N> {
 
     pub fn mode(&self) -> Mode {
         self.mode
+    }
+
+    /// Why the daemon is in FAULT, if it is.
+    pub fn fault(&self) -> Option<FaultReason> {
+        self.fault
+    }
+
+    /// An operator's resume: FAULT → HOLD, so the next fresh state starts a new run (with a
+    /// fresh delay-line history and a fresh guard). Returns false when not in FAULT.
+    pub fn resume(&mut self) -> bool {
+        if self.mode != Mode::Fault {
+            return false;
+        }
+        self.mode = Mode::Hold;
+        self.fault = None;
+        self.guard.reset();
+        self.last_qd = None;
+        self.missed = 0;
+        self.counters.resumes += 1;
+        true
     }
 
     /// Controller time (s) of the newest state: the task, t_on and the delay line run on the
@@ -228,6 +263,7 @@ impl<const N: usize> Controller<N> {
             rejection: None,
             mode_changed: false,
             plant_restarted: false,
+            fault: None,
         };
         let mut fresh = None;
         if let Some(s) = newest {
@@ -270,52 +306,14 @@ impl<const N: usize> Controller<N> {
         }
 
         let prev_mode = self.mode;
-        if let Some(s) = fresh {
-            self.missed = 0;
-            self.mode = Mode::Run;
-            let x = ArmState {
-                q: VecN::<N>::from_column_slice(&s.q[..N]),
-                qd: VecN::<N>::from_column_slice(&s.qd[..N]),
-                phi: s.phi,
-            };
-            let t = self.t;
-            self.feed_delay((t / self.dt).round() as i64, x.qd);
-            self.last_qd = Some(x.qd);
-            let (delay, origin, dt) = (&self.delay, self.delay_origin as f64, self.dt);
-            let held = hold::command(
-                &self.params,
-                &self.model,
-                t,
-                &x,
-                dt,
-                self.settings.first_order_hold,
-                |at| delay.sample(at / dt - origin),
-                &mut self.kin,
-            );
-            let o = held.output;
-            use control::law::flags as lf;
-            let c = &mut self.counters;
-            c.track_lost += u64::from(o.flags & lf::TRACK_LOST != 0);
-            c.singular += u64::from(o.flags & lf::SINGULAR != 0);
-            c.out_of_reach += u64::from(o.flags & lf::OUT_OF_REACH != 0);
-            c.nonfinite += u64::from(o.flags & lf::NONFINITE != 0);
-            out.output = Some(o);
-            out.command = Some(self.command(Mode::Run, &held.qdd, &held.qddd, s, now_ns));
-        } else {
-            self.missed = self.missed.saturating_add(1);
-            if self.missed >= self.settings.hold_after && self.mode == Mode::Run {
-                self.mode = Mode::Hold;
-                self.counters.holds_entered += 1;
+        match fresh {
+            Some(s) if self.mode == Mode::Fault => {
+                // Keep braking; answer the newest state so the plant sees the controller alive.
+                self.missed = 0;
+                out.command = Some(self.fault_command(s, now_ns));
             }
-            if self.mode == Mode::Hold && self.last_seq.is_some() {
-                // Tell the plant to hold while its states are missing or unusable.
-                let zero = VecN::<N>::zeros();
-                let last = StateSample {
-                    seq: self.last_seq.unwrap_or(0),
-                    ..StateSample::default()
-                };
-                out.command = Some(self.command(Mode::Hold, &zero, &zero, &last, now_ns));
-            }
+            Some(s) => self.run_law(s, now_ns, &mut out),
+            None => self.missed_state(now_ns, &mut out),
         }
         out.mode = self.mode;
         out.mode_changed = prev_mode != self.mode;
@@ -324,6 +322,80 @@ impl<const N: usize> Controller<N> {
             self.counters.commands += 1;
         }
         out
+    }
+
+    /// A fresh, accepted state: run the law, count what it reports, let the guard judge.
+    fn run_law(&mut self, s: &StateSample, now_ns: u64, out: &mut TickOutcome<N>) {
+        self.missed = 0;
+        self.mode = Mode::Run;
+        let x = ArmState {
+            q: VecN::<N>::from_column_slice(&s.q[..N]),
+            qd: VecN::<N>::from_column_slice(&s.qd[..N]),
+            phi: s.phi,
+        };
+        let t = self.t;
+        self.feed_delay((t / self.dt).round() as i64, x.qd);
+        self.last_qd = Some(x.qd);
+        let (delay, origin, dt) = (&self.delay, self.delay_origin as f64, self.dt);
+        let held = hold::command(
+            &self.params,
+            &self.model,
+            t,
+            &x,
+            dt,
+            self.settings.first_order_hold,
+            |at| delay.sample(at / dt - origin),
+            &mut self.kin,
+        );
+        let o = held.output;
+        self.count_flags(o.flags);
+        out.output = Some(o);
+        if let Some(reason) = self.guard.check(t, &self.params.safety, &x.qd, &o) {
+            self.mode = Mode::Fault;
+            self.fault = Some(reason);
+            self.counters.faults += 1;
+            out.fault = Some(reason);
+            out.command = Some(self.fault_command(s, now_ns));
+            return;
+        }
+        out.command = Some(self.command(Mode::Run, &held.qdd, &held.qddd, s, now_ns));
+    }
+
+    fn count_flags(&mut self, f: u32) {
+        use control::law::flags as lf;
+        let c = &mut self.counters;
+        c.track_lost += u64::from(f & lf::TRACK_LOST != 0);
+        c.singular += u64::from(f & lf::SINGULAR != 0);
+        c.out_of_reach += u64::from(f & lf::OUT_OF_REACH != 0);
+        c.nonfinite += u64::from(f & lf::NONFINITE != 0);
+        c.safety_active += u64::from(f & lf::SAFETY_ACTIVE != 0);
+        c.safety_left_null_space += u64::from(f & lf::SAFETY_LEFT_NULL_SPACE != 0);
+        c.safety_infeasible += u64::from(f & lf::SAFETY_INFEASIBLE != 0);
+    }
+
+    /// No usable state this tick: HOLD after `hold_after` misses; keep telling the plant.
+    fn missed_state(&mut self, now_ns: u64, out: &mut TickOutcome<N>) {
+        self.missed = self.missed.saturating_add(1);
+        if self.missed >= self.settings.hold_after && self.mode == Mode::Run {
+            self.mode = Mode::Hold;
+            self.counters.holds_entered += 1;
+        }
+        let last = StateSample {
+            seq: self.last_seq.unwrap_or(0),
+            ..StateSample::default()
+        };
+        if self.mode == Mode::Fault {
+            out.command = Some(self.fault_command(&last, now_ns));
+        } else if self.mode == Mode::Hold && self.last_seq.is_some() {
+            // Tell the plant to hold while its states are missing or unusable.
+            let zero = VecN::<N>::zeros();
+            out.command = Some(self.command(Mode::Hold, &zero, &zero, &last, now_ns));
+        }
+    }
+
+    fn fault_command(&mut self, answers: &StateSample, now_ns: u64) -> CommandSample {
+        let zero = VecN::<N>::zeros();
+        self.command(Mode::Fault, &zero, &zero, answers, now_ns)
     }
 
     /// A braking command for shutdown.
@@ -523,6 +595,50 @@ mod tests {
         // The delay line restarted at the resting state: the Pyragas residual is zero, not
         // |0 − 10| from the rates before the hold.
         assert_eq!(o.output.unwrap().period_residual, 0.0);
+    }
+
+    #[test]
+    fn a_runaway_ends_in_a_braked_fault_that_only_resume_leaves() {
+        let mut c = controller();
+        let t0 = 1_000_000_000u64;
+        let mut s = state(0, t0);
+        s.qd[1] = 60.0;
+        let mut p = *c.params();
+        p.safety.qd_max = [20.0; 6];
+        c.set_params(p);
+        let mut tripped_at = None;
+        for k in 0..100u64 {
+            s.seq = k;
+            s.stamp_ns = t0 + k * 1_000_000;
+            let o = c.tick(Some(&s), s.stamp_ns);
+            if let Some(f) = o.fault {
+                tripped_at = Some(k);
+                assert!(f.to_string().contains("joint 2 rate 60.00"), "{f}");
+            }
+            if o.mode == Mode::Fault {
+                assert_eq!(o.command.unwrap().mode, Mode::Fault as u32);
+            }
+            if o.mode == Mode::Fault && o.fault.is_none() {
+                assert!(o.output.is_none(), "the law must not run in FAULT");
+            }
+        }
+        assert_eq!(tripped_at, Some(20), "20 ms of excess at 1 kHz");
+        assert_eq!((c.mode(), c.counters.faults), (Mode::Fault, 1));
+        // Silence does not turn FAULT into HOLD, and the plant keeps being told to brake.
+        for k in 100..140u64 {
+            let o = c.tick(None, t0 + k * 1_000_000);
+            assert_eq!((o.mode, o.command.unwrap().mode), (Mode::Fault, Mode::Fault as u32));
+        }
+        // Resume: HOLD, then RUN on the next fresh (now slow) state.
+        assert!(c.resume());
+        assert!(!c.resume());
+        assert_eq!(c.mode(), Mode::Hold);
+        s.qd[1] = 1.0;
+        s.seq = 200;
+        s.stamp_ns = t0 + 140_000_000;
+        let o = c.tick(Some(&s), s.stamp_ns);
+        assert_eq!((o.mode, o.command.unwrap().mode), (Mode::Run, Mode::Run as u32));
+        assert_eq!(c.counters.resumes, 1);
     }
 
     #[test]

@@ -2,12 +2,14 @@
 //!
 //! The daemon owns no math: it feeds measured states to `control`'s law on a fixed-rate loop and
 //! publishes the answers. What lives here is what makes that loop trustworthy as a service: start-up
-//! validation ([`config`]), the per-tick decisions with their fault handling ([`controller`]), the
+//! validation ([`config`]), the per-tick decisions with their fault handling ([`controller`]), the runaway guard
+//! ([`guard`]), the
 //! real-time loop on iceoryx2 ([`service`]) and the reporting that keeps work out of the tick
 //! ([`telemetry`]).
 
 pub mod config;
 pub mod controller;
+pub mod guard;
 pub mod requests;
 pub mod service;
 pub mod telemetry;

@@ -10,8 +10,58 @@ use control::Config;
 use std::path::{Component, Path, PathBuf};
 
 /// Keys `set` accepts (short and dotted forms), for the error message.
-pub const KEYS: &str = "mu, tau, t_on, feedback (on|off), kp, kv, alpha, secondary (none|manipulability|obstacles), \
-                        w1, w2, damping_threshold, damping_max, track_loss, task.center X Y, task.radius, task.period";
+pub const KEYS: &str = "mu, tau, t_on, feedback (on|off), projection (full|null-space), kp, kv, alpha, \
+                        secondary (none|manipulability|obstacles), w1, w2, damping_threshold, damping_max, track_loss, \
+                        task.center X Y, task.radius, task.period, safety (on|off), safety.clearance, \
+                        safety.qd_max, safety.qdd_max (one value for all joints, or one per joint), \
+                        safety.q_min, safety.q_max (one per joint; inf = unlimited), safety.k0, safety.k1, \
+                        safety.k_rate, safety.guard_time, safety.guard_tracking_error, safety.guard_growth_time";
+
+fn on_off(key: &str, v: Option<&str>) -> Result<bool, String> {
+    match v {
+        Some("on" | "true" | "1") => Ok(true),
+        Some("off" | "false" | "0") => Ok(false),
+        other => Err(format!("{key}: {other:?} is not on or off")),
+    }
+}
+
+/// `n` numbers (a value per joint) for `key`; ±inf allowed where `inf_ok`.
+fn nums<'a>(
+    key: &str,
+    it: &mut impl Iterator<Item = &'a str>,
+    n: usize,
+    inf_ok: bool,
+) -> Result<Vec<f64>, String> {
+    (0..n)
+        .map(|_| {
+            let v = it
+                .next()
+                .ok_or_else(|| format!("{key}: needs {n} values, one per joint"))?;
+            match v.parse::<f64>() {
+                Ok(x) if x.is_finite() || (inf_ok && x.is_infinite()) => Ok(x),
+                _ => Err(format!("{key}: {v:?} is not a finite number")),
+            }
+        })
+        .collect()
+}
+
+/// One limit for all joints (`KEY X`) or one per joint (`KEY X1 … Xn`).
+fn limit<'a>(
+    key: &str,
+    it: &mut std::iter::Peekable<impl Iterator<Item = &'a str>>,
+    n: usize,
+) -> Result<control::safety::config::Limit, String> {
+    let first = num(key, it.next())?;
+    let more = it.peek().is_some_and(|v| v.parse::<f64>().is_ok());
+    if !more {
+        return Ok(control::safety::config::Limit::All(first));
+    }
+    let mut v = vec![first];
+    v.extend(nums(key, it, n - 1, false).map_err(|_| {
+        format!("{key}: give one value for all joints or {n} values, one per joint")
+    })?);
+    Ok(control::safety::config::Limit::Each(v))
+}
 
 fn num(key: &str, v: Option<&str>) -> Result<f64, String> {
     let v = v.ok_or_else(|| format!("{key}: missing value"))?;
@@ -41,13 +91,26 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             "mu" => c.feedback.mu = num(key, it.next())?,
             "tau" => c.feedback.tau = num(key, it.next())?,
             "t_on" => c.feedback.t_on = num(key, it.next())?,
-            "feedback" | "enabled" | "dfc" => {
-                c.feedback.enabled = match it.next() {
-                    Some("on" | "true" | "1") => true,
-                    Some("off" | "false" | "0") => false,
-                    other => return Err(format!("{key}: {other:?} is not on or off")),
+            "feedback" | "enabled" | "dfc" => c.feedback.enabled = on_off(key, it.next())?,
+            "projection" => {
+                c.feedback.projection = match it.next() {
+                    Some("full") => control::config::ProjectionKind::Full,
+                    Some("null-space") => control::config::ProjectionKind::NullSpace,
+                    other => return Err(format!("{key}: {other:?} is not full or null-space")),
                 }
             }
+            "safety" | "safety.enabled" => c.safety.enabled = on_off(key, it.next())?,
+            "safety.clearance" => c.safety.clearance = num(key, it.next())?,
+            "safety.qd_max" => c.safety.qd_max = limit(key, &mut it, cfg.n())?,
+            "safety.qdd_max" => c.safety.qdd_max = limit(key, &mut it, cfg.n())?,
+            "safety.q_min" => c.safety.q_min = Some(nums(key, &mut it, cfg.n(), true)?),
+            "safety.q_max" => c.safety.q_max = Some(nums(key, &mut it, cfg.n(), true)?),
+            "safety.k0" => c.safety.k0 = num(key, it.next())?,
+            "safety.k1" => c.safety.k1 = num(key, it.next())?,
+            "safety.k_rate" => c.safety.k_rate = num(key, it.next())?,
+            "safety.guard_time" => c.safety.guard_time = num(key, it.next())?,
+            "safety.guard_tracking_error" => c.safety.guard_tracking_error = num(key, it.next())?,
+            "safety.guard_growth_time" => c.safety.guard_growth_time = num(key, it.next())?,
             "kp" => c.control.kp = num(key, it.next())?,
             "kv" => c.control.kv = num(key, it.next())?,
             "alpha" => c.control.alpha = num(key, it.next())?,
@@ -95,6 +158,13 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
         ));
     }
     c.validate().map_err(|e| e.to_string())?;
+    // The loop's own step, not only the offline `sim.dt`.
+    control::stability::check(
+        &c,
+        min_tau,
+        &format!("the daemon's {:.0} Hz", 1.0 / min_tau),
+    )
+    .map_err(|e| e.to_string())?;
     Ok(c)
 }
 
@@ -182,6 +252,42 @@ pub fn recording_path(out_dir: &Path, name: &str) -> Result<PathBuf, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn runaway_settings_are_refused_with_the_limit_named() {
+        let c = Config::preset("demo").unwrap();
+        for (args, want) in [
+            ("kv 3000", "K_v < 1000"),
+            ("task.period 0.01", "≥ 0.05 s"),
+            ("kp 1000000 kv 1000000", "control.kv"),
+            ("task.center 1e5 1e5", "reaches only"),
+            ("safety.k1 5", "real roots"),
+            ("safety.qd_max 0", "safety.qd_max[0]"),
+            ("safety.qd_max 1 2", "or 3 values"),
+            ("safety.q_max 1 1 nan", "not a finite number"),
+            ("projection sideways", "full or null-space"),
+        ] {
+            let e = apply_set(&c, args, 1e-3).unwrap_err();
+            assert!(e.contains(want), "{args}: {e}");
+        }
+        // At 10 kHz (and an offline step to match) the same kv is stable.
+        let mut fast = c.clone();
+        fast.sim.dt = 1e-4;
+        assert!(apply_set(&fast, "kv 3000", 1e-4).is_ok());
+        let n = apply_set(
+            &c,
+            "safety off safety.qd_max 5 6 7 safety.q_max inf 2 2 projection null-space",
+            1e-3,
+        )
+        .unwrap();
+        assert!(!n.safety.enabled);
+        assert_eq!(n.safety.params(3).qd_max[..3], [5.0, 6.0, 7.0]);
+        assert_eq!(n.safety.params(3).q_max[..3], [f64::INFINITY, 2.0, 2.0]);
+        assert_eq!(
+            n.feedback.projection,
+            control::config::ProjectionKind::NullSpace
+        );
+    }
 
     #[test]
     fn set_is_all_or_nothing_and_validated() {

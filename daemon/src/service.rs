@@ -12,7 +12,7 @@
 
 use crate::config::DaemonSetup;
 use crate::controller::{Controller, ControllerSettings};
-use crate::telemetry::{DaemonSummary, Reporter, TickRecord};
+use crate::telemetry::{DaemonSummary, LoopRequest, Reporter, TickRecord};
 use anyhow::{anyhow, Context, Result};
 use control::law::flags as law_flags;
 use control::with_dof;
@@ -50,7 +50,7 @@ fn run_n<const N: usize>(
 
     // Ordinary threads first.
     let (tx, rx) = crossbeam::channel::bounded::<TickRecord>(d.telemetry_queue);
-    let (params_tx, params_rx) = crossbeam::channel::bounded::<control::LawParams>(16);
+    let (params_tx, params_rx) = crossbeam::channel::bounded::<LoopRequest>(16);
     let (rt_tx, rt_rx) = crossbeam::channel::bounded::<rt::setup::RtReport>(1);
     let reporter = Reporter::new(setup.system.clone(), d.clone(), params_tx, rt_rx)?;
     let reporter = std::thread::Builder::new()
@@ -98,7 +98,7 @@ fn control_loop<const N: usize>(
     names: &ServiceNames,
     duration: Option<f64>,
     tx: crossbeam::channel::Sender<TickRecord>,
-    params_rx: crossbeam::channel::Receiver<control::LawParams>,
+    params_rx: crossbeam::channel::Receiver<LoopRequest>,
     rt_tx: crossbeam::channel::Sender<rt::setup::RtReport>,
 ) -> Result<(rt::setup::RtReport, crate::controller::Counters)> {
     let d = &setup.daemon;
@@ -163,9 +163,14 @@ fn control_loop<const N: usize>(
             break;
         }
         let woke = rt::wait_until(deadline, d.wait, spin);
-        // A validated parameter block from the control service takes effect here, between ticks.
-        if let Ok(p) = params_rx.try_recv() {
-            ctl.set_params(p);
+        // A validated parameter block (or a resume) from the control service takes effect here,
+        // between ticks.
+        match params_rx.try_recv() {
+            Ok(LoopRequest::Params(p)) => ctl.set_params(p),
+            Ok(LoopRequest::Resume) => {
+                ctl.resume();
+            }
+            Err(_) => {}
         }
         let mut newest = None;
         loop {
@@ -204,6 +209,7 @@ fn control_loop<const N: usize>(
             compute_ns: done.saturating_sub(woke),
             state_age_ns: o.state_age_ns,
             mode: o.mode,
+            fault: o.fault,
             ran_law: law.is_some(),
             law_flags: law.map_or(0, |l| l.flags),
             tracking_error: law.map_or(f64::NAN, |l| l.tracking_error),

@@ -27,6 +27,17 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime};
 
+/// What the control service hands the loop (through a bounded channel the loop `try_recv`s).
+// Not boxed: the loop would free the box, and the tick does no heap work at all.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug)]
+pub enum LoopRequest {
+    /// A validated parameter block, swapped in between two ticks.
+    Params(LawParams),
+    /// Leave FAULT (`chaosctl resume`).
+    Resume,
+}
+
 /// One tick, as the loop saw it.
 #[derive(Clone, Copy, Debug)]
 pub struct TickRecord {
@@ -36,6 +47,8 @@ pub struct TickRecord {
     pub compute_ns: u64,
     pub state_age_ns: Option<u64>,
     pub mode: Mode,
+    /// The runaway guard tripped on this tick.
+    pub fault: Option<crate::guard::FaultReason>,
     /// Whether the law ran (a fresh state arrived).
     pub ran_law: bool,
     pub law_flags: u32,
@@ -109,7 +122,7 @@ pub struct Reporter {
     daemon: DaemonConfig,
     /// The running configuration: the only copy that changes.
     cfg: Config,
-    params_tx: crossbeam::channel::Sender<LawParams>,
+    params_tx: crossbeam::channel::Sender<LoopRequest>,
     rt_rx: crossbeam::channel::Receiver<rt::setup::RtReport>,
     min_tau: f64,
     report_every: Option<Duration>,
@@ -139,13 +152,15 @@ pub struct Reporter {
     window_resid: (f64, u64),
     recording: Option<Recording>,
     recording_error: Option<String>,
+    /// Why the daemon is in FAULT (controller time, reason), while it is.
+    fault: Option<(f64, crate::guard::FaultReason)>,
 }
 
 impl Reporter {
     pub fn new(
         cfg: Config,
         daemon: DaemonConfig,
-        params_tx: crossbeam::channel::Sender<LawParams>,
+        params_tx: crossbeam::channel::Sender<LoopRequest>,
         rt_rx: crossbeam::channel::Receiver<rt::setup::RtReport>,
     ) -> anyhow::Result<Self> {
         let names =
@@ -185,10 +200,21 @@ impl Reporter {
             window_resid: (0.0, 0),
             recording: None,
             recording_error: None,
+            fault: None,
         })
     }
 
     fn record(&mut self, r: &TickRecord) {
+        if let Some(f) = r.fault {
+            // Said once, when it trips; `status` keeps saying it while the daemon is in FAULT.
+            eprintln!(
+                "chaosd: FAULT at t = {:.3} s: {f}; the plant is braking; `chaosctl resume` to control again",
+                r.t
+            );
+            self.fault = Some((r.t, f));
+        } else if r.mode != Mode::Fault {
+            self.fault = None;
+        }
         self.lateness.saturating_record(r.lateness_ns.max(1));
         self.window_lateness.saturating_record(r.lateness_ns.max(1));
         self.tel_lateness.saturating_record(r.lateness_ns.max(1));
@@ -306,11 +332,26 @@ impl Reporter {
         Some(t)
     }
 
+    /// Asks the loop to leave FAULT; refused when it is not in FAULT.
+    fn resume(&mut self) -> Result<String, String> {
+        let Some((t, why)) = self.fault else {
+            return Err("the daemon is not in FAULT: nothing to resume".into());
+        };
+        self.params_tx.try_send(LoopRequest::Resume).map_err(|_| {
+            "the control loop has not taken the previous request yet; try again".to_string()
+        })?;
+        Ok(format!(
+            "resuming: HOLD until the next fresh state, then RUN with a fresh history (the fault at t = {t:.3} s was: {why})"
+        ))
+    }
+
     /// Sends a validated configuration to the loop and adopts it.
     fn commit(&mut self, new: Config) -> Result<String, String> {
-        self.params_tx.try_send(new.law_params()).map_err(|_| {
-            "the control loop has not taken the previous change yet; try again".to_string()
-        })?;
+        self.params_tx
+            .try_send(LoopRequest::Params(new.law_params()))
+            .map_err(|_| {
+                "the control loop has not taken the previous change yet; try again".to_string()
+            })?;
         self.cfg = new;
         let f = &self.cfg.feedback;
         let c = &self.cfg.control;
@@ -343,6 +384,8 @@ impl Reporter {
             "rate_hz": self.daemon.rate_hz,
             "wait": self.daemon.wait,
             "mode": r.map(|r| format!("{:?}", r.mode)),
+            "fault": self.fault.map(|(t, f)| format!("at t = {t:.3} s: {f}")),
+            "safety": self.cfg.safety.enabled,
             "t": r.map(|r| r.t),
             "mu": r.map(|r| r.mu),
             "tau": r.map(|r| r.tau),
@@ -431,7 +474,7 @@ impl Reporter {
                 rt::signal::request_stop();
                 Ok("shutting down".into())
             }
-            Op::Resume => Err("the daemon is not in FAULT: nothing to resume".into()),
+            Op::Resume => self.resume(),
         };
         match result {
             Ok(body) => ControlResponse::new(req.id, Status::Ok, &body),

@@ -55,8 +55,11 @@ pub struct SafetyConfig {
     pub k_rate: f64,
     /// Daemon: a joint rate or the law's acceleration beyond its limit for this long (s) → FAULT.
     pub guard_time: f64,
-    /// Daemon: a tracking error above this (m) that is still growing → FAULT.
+    /// Daemon: a tracking error above this (m) that keeps growing for `guard_growth_time` → FAULT.
     pub guard_tracking_error: f64,
+    /// Daemon: how long (s) the tracking error must keep growing above `guard_tracking_error`.
+    /// (A start far from the circle grows the error for ~0.1 s while the arm gets going.)
+    pub guard_growth_time: f64,
 }
 
 impl Default for SafetyConfig {
@@ -72,7 +75,8 @@ impl Default for SafetyConfig {
             k1: 20.0,
             k_rate: 50.0,
             guard_time: 0.02,
-            guard_tracking_error: 0.5,
+            guard_tracking_error: 1.0,
+            guard_growth_time: 0.5,
         }
     }
 }
@@ -206,6 +210,9 @@ impl SafetyConfig {
             k0: self.k0,
             k1: self.k1,
             k_rate: self.k_rate,
+            guard_time: self.guard_time,
+            guard_tracking_error: self.guard_tracking_error,
+            guard_growth_time: self.guard_growth_time,
         }
     }
 }

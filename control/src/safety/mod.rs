@@ -48,6 +48,12 @@ pub struct SafetyParams {
     pub k1: f64,
     /// Rate barriers: ḣ + k_rate h ≥ 0.
     pub k_rate: f64,
+    /// Daemon's runaway guard: a rate or the law's demand beyond its limit for this long (s).
+    pub guard_time: f64,
+    /// Daemon's runaway guard: a tracking error above this (m) that keeps growing …
+    pub guard_tracking_error: f64,
+    /// … for this long (s).
+    pub guard_growth_time: f64,
 }
 
 impl SafetyParams {
@@ -63,6 +69,9 @@ impl SafetyParams {
             k0: 100.0,
             k1: 20.0,
             k_rate: 50.0,
+            guard_time: 0.02,
+            guard_tracking_error: 1.0,
+            guard_growth_time: 0.5,
         }
     }
 

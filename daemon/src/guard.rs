@@ -1,0 +1,237 @@
+//! The runaway guard: the last line behind the validation and the safety filter.
+//!
+//! Validation refuses gains that cannot be stable at the loop's rate, and the filter keeps the
+//! command inside the joint limits; but a plant that does not follow its commands, a model that
+//! does not match the arm, or a filter switched off can still run away. The guard watches what the
+//! loop measures and computes, and trips the daemon into FAULT (the plant brakes) when:
+//! - the law's result is not finite (at once);
+//! - a measured joint rate stays beyond `safety.qd_max` (5 % slack) for `safety.guard_time`;
+//! - the law asks for more than `safety.qdd_max` for `safety.guard_time`;
+//! - the tracking error stays above `safety.guard_tracking_error` and keeps growing for
+//!   `safety.guard_growth_time`.
+//!
+//! Times are controller time (the states' stamps), so a stalled loop cannot fake a duration.
+//! FAULT is sticky: only an operator's `chaosctl resume` leaves it.
+
+use control::law::flags;
+use control::safety::SafetyParams;
+use control::{ControlOutput, VecN};
+
+/// Measured rates up to this factor of `qd_max` are tolerated (sampling, the filter's margin).
+pub const RATE_SLACK: f64 = 1.05;
+/// The tracking error is compared with its value this long ago (s) to decide "growing".
+const GROWTH_STEP: f64 = 0.01;
+
+/// Why the guard tripped. Small and `Copy`: it rides in a tick record to the reporter, which
+/// formats it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FaultReason {
+    NonFinite,
+    Rate {
+        joint: usize,
+        value: f64,
+        limit: f64,
+        for_s: f64,
+    },
+    Demand {
+        ratio: f64,
+        for_s: f64,
+    },
+    TrackingGrowth {
+        error: f64,
+        limit: f64,
+        for_s: f64,
+    },
+}
+
+impl std::fmt::Display for FaultReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            FaultReason::NonFinite => write!(f, "the control law produced a non-finite command"),
+            FaultReason::Rate { joint, value, limit, for_s } => write!(
+                f,
+                "joint {} rate {value:.2} rad/s beyond safety.qd_max = {limit} rad/s for {:.0} ms",
+                joint + 1,
+                for_s * 1e3
+            ),
+            FaultReason::Demand { ratio, for_s } => write!(
+                f,
+                "the law asked for {ratio:.1}× safety.qdd_max for {:.0} ms",
+                for_s * 1e3
+            ),
+            FaultReason::TrackingGrowth { error, limit, for_s } => write!(
+                f,
+                "tracking error {error:.3} m above safety.guard_tracking_error = {limit} m and growing for {for_s:.2} s"
+            ),
+        }
+    }
+}
+
+/// The guard's memory between ticks.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Guard {
+    rate_since: Option<f64>,
+    demand_since: Option<f64>,
+    growth_since: Option<f64>,
+    /// (controller time, tracking error) of the last growth comparison.
+    growth_ref: Option<(f64, f64)>,
+}
+
+impl Guard {
+    /// Forgets everything (after a resume or a restarted plant).
+    pub fn reset(&mut self) {
+        *self = Self::default();
+    }
+
+    /// Checks one tick at controller time `t`: measured rates `qd`, the law's output `out`.
+    pub fn check<const N: usize>(
+        &mut self,
+        t: f64,
+        p: &SafetyParams,
+        qd: &VecN<N>,
+        out: &ControlOutput<N>,
+    ) -> Option<FaultReason> {
+        if out.flags & flags::NONFINITE != 0 {
+            return Some(FaultReason::NonFinite);
+        }
+        let (joint, ratio) = (0..N)
+            .map(|i| (i, qd[i].abs() / p.qd_max[i]))
+            .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+        if let Some(for_s) = held(&mut self.rate_since, ratio > RATE_SLACK, t, p.guard_time) {
+            return Some(FaultReason::Rate {
+                joint,
+                value: qd[joint],
+                limit: p.qd_max[joint],
+                for_s,
+            });
+        }
+        if let Some(for_s) = held(&mut self.demand_since, out.demand > 1.0, t, p.guard_time) {
+            return Some(FaultReason::Demand {
+                ratio: out.demand,
+                for_s,
+            });
+        }
+        self.check_growth(t, p, out.tracking_error)
+    }
+
+    fn check_growth(&mut self, t: f64, p: &SafetyParams, e: f64) -> Option<FaultReason> {
+        let (t_ref, e_ref) = *self.growth_ref.get_or_insert((t, e));
+        if t - t_ref < GROWTH_STEP {
+            return None;
+        }
+        self.growth_ref = Some((t, e));
+        let growing = e > p.guard_tracking_error && e > e_ref;
+        held(&mut self.growth_since, growing, t, p.guard_growth_time).map(|for_s| {
+            FaultReason::TrackingGrowth {
+                error: e,
+                limit: p.guard_tracking_error,
+                for_s,
+            }
+        })
+    }
+}
+
+/// Tracks how long `cond` has held; returns that time once it reaches `limit`.
+fn held(since: &mut Option<f64>, cond: bool, t: f64, limit: f64) -> Option<f64> {
+    if !cond {
+        *since = None;
+        return None;
+    }
+    let start = *since.get_or_insert(t);
+    (t - start >= limit).then_some(t - start)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use control::Config;
+
+    fn output(tracking_error: f64, demand: f64, flags: u32) -> ControlOutput<3> {
+        let cfg = Config::preset("demo").unwrap();
+        let mut kin = control::Kinematics::default();
+        let z = VecN::<3>::zeros();
+        let mut o = control::law::evaluate(
+            &cfg.law_params(),
+            &cfg.model::<3>(),
+            0.0,
+            0.0,
+            &VecN::<3>::new(0.0, 1.5, 1.5),
+            &z,
+            &z,
+            &mut kin,
+        );
+        (o.tracking_error, o.demand, o.flags) = (tracking_error, demand, flags);
+        o
+    }
+
+    #[test]
+    fn trips_on_each_condition_after_its_time_and_not_before() {
+        let p = Config::preset("demo").unwrap().law_params().safety;
+        let calm = output(0.0, 0.5, 0);
+        let slow = VecN::<3>::new(1.0, -2.0, 3.0);
+        let fast = VecN::<3>::new(1.0, -25.0, 3.0);
+        let mut g = Guard::default();
+        assert_eq!(g.check(0.0, &p, &slow, &calm), None);
+        assert_eq!(
+            g.check(0.001, &p, &slow, &output(0.0, 0.5, flags::NONFINITE)),
+            Some(FaultReason::NonFinite)
+        );
+
+        // A rate beyond the limit: not at 19 ms, at 20 ms.
+        let mut g = Guard::default();
+        for k in 0..20 {
+            assert_eq!(g.check(k as f64 * 1e-3, &p, &fast, &calm), None, "tick {k}");
+        }
+        match g.check(0.020, &p, &fast, &calm) {
+            Some(FaultReason::Rate {
+                joint: 1, value, ..
+            }) => assert_eq!(value, -25.0),
+            other => panic!("{other:?}"),
+        }
+        // Interrupted excursions never add up.
+        let mut g = Guard::default();
+        for k in 0..100 {
+            let qd = if k % 10 == 9 { slow } else { fast };
+            assert_eq!(g.check(k as f64 * 1e-3, &p, &qd, &calm), None);
+        }
+        // The law's demand.
+        let mut g = Guard::default();
+        let greedy = output(0.0, 3.0, 0);
+        let tripped =
+            (0..50).find_map(|k| g.check(k as f64 * 1e-3, &p, &slow, &greedy).map(|r| (k, r)));
+        assert!(
+            matches!(tripped, Some((20, FaultReason::Demand { .. }))),
+            "{tripped:?}"
+        );
+    }
+
+    #[test]
+    fn a_large_but_shrinking_tracking_error_is_a_start_up_not_a_runaway() {
+        let p = Config::preset("demo").unwrap().law_params().safety;
+        let qd = VecN::<3>::zeros();
+        let mut g = Guard::default();
+        // 1.8 m off the circle and converging (the paper's start), with 0.1 s of growth first.
+        for k in 0..3000 {
+            let t = k as f64 * 1e-3;
+            let e = if t < 0.1 {
+                1.8 + t
+            } else {
+                1.9 * (-(t - 0.1) * 3.0).exp()
+            };
+            assert_eq!(g.check(t, &p, &qd, &output(e, 0.5, 0)), None, "t = {t}");
+        }
+        // Growing without bound: a fault after guard_growth_time.
+        let mut g = Guard::default();
+        let tripped = (0..3000).find_map(|k| {
+            let t = k as f64 * 1e-3;
+            g.check(t, &p, &qd, &output(1.2 + t, 0.5, 0))
+                .map(|r| (t, r))
+        });
+        match tripped {
+            Some((t, FaultReason::TrackingGrowth { .. })) => {
+                assert!((0.5..0.53).contains(&t), "{t}")
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+}
