@@ -39,6 +39,12 @@ enum Command {
     Basins(analysis::basins::BasinsCmd),
     /// Time courses, phase portraits, Poincaré sections of one run as PNG + SVG (Figs. 2-4, 7-9).
     Figures(analysis::figures::FiguresCmd),
+    /// Obstacle avoidance over starts × μ: the paper's potential vs the safety filter (contact,
+    /// clearance, tracking, Poincaré class), CSV + plot.
+    Obstacles(analysis::obstacles::ObstaclesCmd),
+    /// The arm itself at several instants of one period, filter off and on side by side, with
+    /// the circle, the obstacles and their clearance rings (PNG + SVG).
+    ArmFigure(analysis::arm_figure::ArmFigureCmd),
     #[command(flatten)]
     Online(online::Online),
     /// Print a preset as a TOML config file to start from.
@@ -65,6 +71,8 @@ fn main() -> ExitCode {
         Command::Orbits(a) => analysis::orbits::run(a),
         Command::Basins(a) => analysis::basins::run(a),
         Command::Figures(a) => analysis::figures::run(a),
+        Command::Obstacles(a) => analysis::obstacles::run(a),
+        Command::ArmFigure(a) => analysis::arm_figure::run(a),
         Command::Config { preset } => control::Config::preset(&preset)
             .map(|c| print!("{}", c.to_toml_string()))
             .map_err(Into::into),

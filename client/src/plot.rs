@@ -36,6 +36,8 @@ pub enum Style {
     Markers { size: u32, filled: bool },
     /// A polyline with filled circles at the points.
     LineMarkers { width: u32, size: u32 },
+    /// The points as a closed, filled polygon (e.g. an obstacle's disc).
+    Fill,
 }
 
 #[derive(Clone, Debug)]
@@ -449,6 +451,12 @@ fn draw_chart<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &Chart) -> R
                     .draw_series(s.points.iter().map(|p| Circle::new(*p, size, style)))
                     .map_err(plot_err)?
             }
+            Style::Fill => chart
+                .draw_series(std::iter::once(Polygon::new(
+                    s.points.clone(),
+                    color.filled(),
+                )))
+                .map_err(plot_err)?,
             Style::LineMarkers { width, size } => {
                 chart
                     .draw_series(LineSeries::new(s.points.clone(), color.stroke_width(width)))
@@ -466,6 +474,7 @@ fn draw_chart<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &Chart) -> R
             // One element type for every style: a line sample plus a marker, either possibly empty.
             let (line, marker, filled) = match s.style {
                 Style::Line(w) => (w.max(2), 0, true),
+                Style::Fill => (8, 0, true),
                 Style::Markers { size, filled } => (0, size.max(3), filled),
                 Style::LineMarkers { width, size } => (width, size.max(3), true),
             };

@@ -6,7 +6,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use control::config::ModelKind;
+use control::config::{ModelKind, ProjectionKind};
 use control::Config;
 use std::path::PathBuf;
 
@@ -38,6 +38,16 @@ pub struct SetupArgs {
     /// Plant model: fixed or floating.
     #[arg(long, value_parser = parse_model)]
     pub model: Option<ModelKind>,
+    /// The safety filter on the commanded q̈ (obstacle clearance, joint limits; null space
+    /// first): on or off. Default: the file's `safety.enabled`; the paper* presets: off,
+    /// `demo`: on.
+    #[arg(long, value_parser = parse_on_off, value_name = "on|off")]
+    pub safety: Option<bool>,
+    /// Where the Pyragas term acts: full (every joint, the paper's form) or null-space
+    /// (projected by I − J⁺J onto the self-motion). Default: the file's
+    /// `feedback.projection`; every preset: full.
+    #[arg(long, value_parser = parse_projection, value_name = "full|null-space")]
+    pub projection: Option<ProjectionKind>,
 }
 
 /// The flags of a single run: [`SetupArgs`] and one μ.
@@ -72,6 +82,24 @@ fn parse_model(s: &str) -> Result<ModelKind, String> {
         "fixed" => Ok(ModelKind::Fixed),
         "floating" => Ok(ModelKind::Floating),
         _ => Err(format!("{s:?} is not a model (expected fixed or floating)")),
+    }
+}
+
+fn parse_on_off(s: &str) -> Result<bool, String> {
+    match s {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("{s:?}: expected on or off")),
+    }
+}
+
+fn parse_projection(s: &str) -> Result<ProjectionKind, String> {
+    match s {
+        "full" => Ok(ProjectionKind::Full),
+        "null-space" => Ok(ProjectionKind::NullSpace),
+        _ => Err(format!(
+            "{s:?} is not a projection (expected full or null-space)"
+        )),
     }
 }
 
@@ -116,6 +144,12 @@ impl SetupArgs {
         }
         if let Some(m) = self.model {
             cfg.arm.model = m;
+        }
+        if let Some(on) = self.safety {
+            cfg.safety.enabled = on;
+        }
+        if let Some(p) = self.projection {
+            cfg.feedback.projection = p;
         }
         cfg.validate()?;
         Ok(cfg)

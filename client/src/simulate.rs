@@ -3,7 +3,7 @@
 use crate::setup::{set_duration, ModelArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use control::config::ModelKind;
+use control::config::{ModelKind, ProjectionKind};
 use control::{with_dof, ArmState, Config, RunStats, Simulation, Summary};
 use serde::Serialize;
 use std::io::Write;
@@ -38,6 +38,8 @@ pub struct Report {
     pub tau: f64,
     pub t_on: f64,
     pub dt: f64,
+    /// Where the Pyragas term acts: "full" or "null-space".
+    pub projection: ProjectionKind,
     pub steps: u64,
     pub final_time: f64,
     pub final_q: Vec<f64>,
@@ -76,6 +78,7 @@ pub fn run_config(
             tau: cfg.feedback.tau,
             t_on: cfg.feedback.t_on,
             dt: cfg.sim.dt,
+            projection: cfg.feedback.projection,
             steps,
             final_time: sim.time(),
             final_q: x.q.as_slice().to_vec(),
@@ -167,8 +170,17 @@ pub fn print_report(r: &Report) {
         ModelKind::Floating => "floating base",
     };
     println!(
-        "chaosd simulation: {}-link arm, {model}, μ = {}, τ = {} s, t_on = {} s, dt = {} s",
-        r.n, r.mu, r.tau, r.t_on, r.dt
+        "chaosd simulation: {}-link arm, {model}, μ = {}, τ = {} s, t_on = {} s, dt = {} s{}",
+        r.n,
+        r.mu,
+        r.tau,
+        r.t_on,
+        r.dt,
+        if r.projection == ProjectionKind::NullSpace {
+            ", feedback projected onto the null space"
+        } else {
+            ""
+        }
     );
     println!(
         "  simulated        {:.3} s ({} steps)",
@@ -210,9 +222,40 @@ pub fn print_report(r: &Report) {
     println!("  verdict          {verdict}");
     if let Some(c) = s.min_clearance {
         println!(
-            "  obstacles        min clearance {c:+.4} m, {:.2} s inside a safety zone",
+            "  obstacles        min clearance {c:+.4} m, {:.2} s inside a safety zone (r + margin)",
             s.time_in_safety_zone
         );
+        println!(
+            "                   {:.3} s in contact (clearance < 0), {:.3} s closer than the required {} m{}",
+            s.time_in_contact.unwrap_or(0.0),
+            s.time_inside_clearance.unwrap_or(0.0),
+            s.required_clearance,
+            if s.start_in_contact == Some(true) {
+                match (s.first_clear, s.min_clearance_after_clear) {
+                    (Some(t), Some(c)) => format!(
+                        "; started inside an obstacle, clear from t = {t:.3} s, then min clearance {c:+.4} m and {:.3} s in contact",
+                        s.time_in_contact_after_clear.unwrap_or(0.0)
+                    ),
+                    _ => "; started inside an obstacle and never got clear".into(),
+                }
+            } else {
+                String::new()
+            }
+        );
+    }
+    if let Some(m) = s.min_joint_margin {
+        println!("  joint limits     min margin {m:+.4} rad (negative: beyond a limit)");
+    }
+    if s.safety_enabled {
+        println!(
+            "  safety filter    active {:.3} s; left the null space on {} steps ({:.3} s: tracking gave way); infeasible on {} steps",
+            s.safety_active_time,
+            s.safety_left_null_space_steps,
+            s.safety_left_null_space_time,
+            s.safety_infeasible_steps
+        );
+    } else {
+        println!("  safety filter    off");
     }
     if s.nonfinite_steps > 0 {
         println!(

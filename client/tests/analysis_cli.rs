@@ -91,11 +91,11 @@ fn wrong_initial_states_and_unreachable_tasks_are_refused() {
     std::fs::write(&cfg, "[task]\ncenter = [4.0, 3.0]\n").unwrap();
     refused(
         &["lyapunov", "--config", cfg.to_str().unwrap()],
-        &["task unreachable"],
+        &["task.center", "reaches only"],
     );
     refused(
         &["sweep", "--config", cfg.to_str().unwrap()],
-        &["task unreachable"],
+        &["task.center", "reaches only"],
     );
     refused(&["orbits", "--model", "floating"], &["fixed-base"]);
     refused(&["orbits", "--tau", "0.5"], &["τ = T"]);
@@ -156,5 +156,144 @@ fn small_sweep_writes_csv_and_plots_quietly() {
         .contains("<svg"));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("simulated s per wall s"), "{stdout}");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn safety_and_projection_flags_are_validated_and_applied() {
+    refused(&["simulate", "--safety", "maybe"], &["on or off"]);
+    refused(
+        &["lyapunov", "--projection", "sideways"],
+        &["full or null-space"],
+    );
+    refused(&["obstacles", "--preset", "paper"], &["no obstacles"]);
+    refused(&["obstacles", "--starts", "0"], &["--starts"]);
+    refused(&["obstacles", "--mu", "0,x"], &["not a number"]);
+    refused(&["obstacles", "--mu=-1"], &["feedback.mu"]);
+    refused(
+        &["obstacles", "--duration", "30", "--rms-from", "40"],
+        &["--rms-from"],
+    );
+    refused(&["arm-figure", "--frames", "20"], &["--frames"]);
+    // The paper's obstacle, 30 s from the paper's start: off, a link goes through it; on, never.
+    let run = |safety: &str| {
+        let out = chaosctl(&[
+            "simulate",
+            "--preset",
+            "paper-obstacle",
+            "--safety",
+            safety,
+            "--projection",
+            "null-space",
+            "--duration",
+            "30",
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let (off, on) = (run("off"), run("on"));
+    assert_eq!(off["safety_enabled"].as_bool(), Some(false), "{off}");
+    assert_eq!(on["safety_enabled"].as_bool(), Some(true), "{on}");
+    assert_eq!(on["projection"].as_str(), Some("null-space"), "{on}");
+    assert!(off["time_in_contact"].as_f64().unwrap() > 1.0, "{off}");
+    assert_eq!(on["time_in_contact"].as_f64(), Some(0.0), "{on}");
+    assert!(on["min_clearance"].as_f64().unwrap() >= 0.05 - 1e-3, "{on}");
+    assert!(on["safety_active_time"].as_f64().unwrap() > 0.0, "{on}");
+    assert!(on["safety_infeasible_steps"].as_u64().is_some(), "{on}");
+    assert!(off["min_joint_margin"].is_null(), "{off}");
+}
+
+/// Reads a CSV into rows of (header → value).
+fn csv_rows(text: &str) -> Vec<std::collections::HashMap<String, String>> {
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    lines
+        .map(|l| {
+            header
+                .iter()
+                .zip(l.split(','))
+                .map(|(h, v)| (h.to_string(), v.to_string()))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn obstacle_study_keeps_filtered_runs_clear() {
+    let dir = scratch("obstacles");
+    let prefix = dir.join("o");
+    // Five starts of the basin grid (q1 = 0.75 begins inside the obstacle), two μ, both filters.
+    let out = chaosctl(&[
+        "obstacles",
+        "--starts",
+        "5",
+        "--mu",
+        "0,1.8",
+        "--duration",
+        "40",
+        "--jobs",
+        "2",
+        "--output",
+        prefix.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.trim().is_empty(), "stderr should be empty: {err}");
+    let rows = csv_rows(&std::fs::read_to_string(dir.join("o.csv")).unwrap());
+    assert_eq!(rows.len(), 5 * 2 * 2);
+    let num = |r: &std::collections::HashMap<String, String>, k: &str| -> f64 {
+        r[k].parse()
+            .unwrap_or_else(|_| panic!("{k} = {:?} in {r:?}", r[k]))
+    };
+    let mut started_inside = 0;
+    for r in &rows {
+        assert!(r["error"].is_empty(), "{r:?}");
+        started_inside += usize::from(r["start_in_contact"] == "true");
+        if r["safety"] == "on" {
+            assert_eq!(num(r, "time_in_contact_after_clear"), 0.0, "{r:?}");
+            assert!(num(r, "min_clearance_after_clear") >= 0.05 - 1e-3, "{r:?}");
+            assert!(num(r, "first_clear") < 1.0, "{r:?}");
+        } else if r["mu"] == "0" {
+            // The paper's potential alone: every start goes through the obstacle.
+            assert!(num(r, "time_in_contact_after_clear") > 1.0, "{r:?}");
+        }
+        if r["safety"] == "on" && r["mu"] == "0" {
+            assert!(num(r, "rms_tracking_error") <= 1e-4, "{r:?}");
+        }
+    }
+    assert_eq!(
+        started_inside, 4,
+        "q1 = 0.75 starts inside, filter off and on, 2 μ"
+    );
+    let png = std::fs::read(dir.join("o.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("| 1.8 | on | 5 (1) |"), "{stdout}");
+
+    let arm = dir.join("arm");
+    let out = chaosctl(&[
+        "arm-figure",
+        "--from",
+        "10",
+        "--frames",
+        "4",
+        "--output",
+        arm.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("filter on : t = 10…11 s"), "{stdout}");
+    assert!(std::fs::read_to_string(dir.join("arm.svg"))
+        .unwrap()
+        .contains("<svg"));
     std::fs::remove_dir_all(dir).ok();
 }

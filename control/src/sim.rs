@@ -166,6 +166,27 @@ pub struct RunStats<const N: usize> {
     pub nonfinite_steps: u64,
     pub min_clearance: f64,
     pub safety_zone_steps: u64,
+    /// The clearance the safety filter requires (m), `safety.clearance`.
+    required_clearance: f64,
+    has_obstacles: bool,
+    safety_enabled: bool,
+    /// Steps with clearance < 0 (a link inside an obstacle).
+    pub contact_steps: u64,
+    /// Steps with clearance < the required clearance.
+    pub inside_clearance_steps: u64,
+    /// Clearance at the first recorded step (NaN before it).
+    pub start_clearance: f64,
+    /// First time (s) the clearance reached the required clearance.
+    pub first_clear: Option<f64>,
+    /// The minimum clearance and the contact steps from `first_clear` on.
+    pub min_clearance_after_clear: f64,
+    pub contact_steps_after_clear: u64,
+    /// Smallest distance (rad) to a joint position limit (+∞ without limits).
+    pub min_joint_margin: f64,
+    /// Steps on which the safety filter changed the command, left the null space, was infeasible.
+    pub safety_active_steps: u64,
+    pub safety_left_null_space_steps: u64,
+    pub safety_infeasible_steps: u64,
     before: (f64, u64),
     after: (f64, u64),
     strobe: [Option<ArmState<N>>; 2],
@@ -190,8 +211,38 @@ pub struct Summary {
     pub period_residual_final: Option<f64>,
     /// |x(kT) − x((k−1)T)| at the last two stroboscopic samples.
     pub strobe_return: Option<f64>,
+    /// Smallest clearance (m) between a link and an obstacle's surface over the whole run
+    /// (negative: inside); None without obstacles.
     pub min_clearance: Option<f64>,
+    /// Time (s) some link was inside an obstacle's safety zone r + margin (the paper's potential).
     pub time_in_safety_zone: f64,
+    /// The clearance the safety filter requires, `safety.clearance` (m; whether or not it is on).
+    pub required_clearance: f64,
+    /// Time (s) some link was inside an obstacle (clearance < 0); None without obstacles.
+    pub time_in_contact: Option<f64>,
+    /// Time (s) the clearance was below the required clearance; None without obstacles.
+    pub time_inside_clearance: Option<f64>,
+    /// Whether the run started with a link inside an obstacle; None without obstacles.
+    pub start_in_contact: Option<bool>,
+    /// First time (s) the clearance reached the required clearance (0 for a start that is clear);
+    /// None if it never did or there are no obstacles.
+    pub first_clear: Option<f64>,
+    /// Minimum clearance (m) and time in contact (s) from `first_clear` on.
+    pub min_clearance_after_clear: Option<f64>,
+    pub time_in_contact_after_clear: Option<f64>,
+    /// Smallest distance (rad) to a joint position limit over the run (negative: beyond it);
+    /// None without limits.
+    pub min_joint_margin: Option<f64>,
+    /// Whether the safety filter ran (`safety.enabled`).
+    pub safety_enabled: bool,
+    /// Time (s) the filter changed the command (some limit or clearance was binding).
+    pub safety_active_time: f64,
+    /// Steps (and their time, s) on which the null space could not keep every limit, so the
+    /// filter changed the task motion: tracking gave way to safety.
+    pub safety_left_null_space_steps: u64,
+    pub safety_left_null_space_time: f64,
+    /// Steps on which no acceleration within the limits met every barrier condition.
+    pub safety_infeasible_steps: u64,
 }
 
 impl<const N: usize> RunStats<N> {
@@ -222,6 +273,19 @@ impl<const N: usize> RunStats<N> {
             nonfinite_steps: 0,
             min_clearance: f64::INFINITY,
             safety_zone_steps: 0,
+            required_clearance: params.safety.clearance,
+            has_obstacles: !params.obstacles.is_empty(),
+            safety_enabled: params.safety.enabled,
+            contact_steps: 0,
+            inside_clearance_steps: 0,
+            start_clearance: f64::NAN,
+            first_clear: None,
+            min_clearance_after_clear: f64::INFINITY,
+            contact_steps_after_clear: 0,
+            min_joint_margin: f64::INFINITY,
+            safety_active_steps: 0,
+            safety_left_null_space_steps: 0,
+            safety_infeasible_steps: 0,
             before: (0.0, 0),
             after: (0.0, 0),
             strobe: [None, None],
@@ -259,6 +323,12 @@ impl<const N: usize> RunStats<N> {
         if out.flags & flags::IN_SAFETY_ZONE != 0 {
             self.safety_zone_steps += 1;
         }
+        self.record_clearance(t, out.clearance);
+        self.min_joint_margin = self.min_joint_margin.min(out.joint_margin);
+        self.safety_active_steps += u64::from(out.flags & flags::SAFETY_ACTIVE != 0);
+        self.safety_left_null_space_steps +=
+            u64::from(out.flags & flags::SAFETY_LEFT_NULL_SPACE != 0);
+        self.safety_infeasible_steps += u64::from(out.flags & flags::SAFETY_INFEASIBLE != 0);
         if out.flags & flags::NONFINITE != 0 {
             self.nonfinite_steps += 1;
         }
@@ -280,9 +350,27 @@ impl<const N: usize> RunStats<N> {
         }
     }
 
+    /// Contact and clearance bookkeeping of one step (the clearance is +∞ without obstacles).
+    fn record_clearance(&mut self, t: f64, clearance: f64) {
+        if self.start_clearance.is_nan() {
+            self.start_clearance = clearance;
+        }
+        let contact = clearance < 0.0;
+        self.contact_steps += u64::from(contact);
+        self.inside_clearance_steps += u64::from(clearance < self.required_clearance);
+        if self.first_clear.is_none() && clearance >= self.required_clearance {
+            self.first_clear = Some(t);
+        }
+        if self.first_clear.is_some() {
+            self.min_clearance_after_clear = self.min_clearance_after_clear.min(clearance);
+            self.contact_steps_after_clear += u64::from(contact);
+        }
+    }
+
     pub fn summary(&self) -> Summary {
         let n = self.steps_after_transient.max(1) as f64;
         let mean = |(s, c): (f64, u64)| if c > 0 { Some(s / c as f64) } else { None };
+        let obstacles = self.has_obstacles;
         let strobe_return = match self.strobe {
             [Some(a), Some(b)] => {
                 let dq = b.q - a.q;
@@ -306,6 +394,29 @@ impl<const N: usize> RunStats<N> {
             strobe_return,
             min_clearance: self.min_clearance.is_finite().then_some(self.min_clearance),
             time_in_safety_zone: self.safety_zone_steps as f64 * self.dt,
+            required_clearance: self.required_clearance,
+            time_in_contact: obstacles.then_some(self.contact_steps as f64 * self.dt),
+            time_inside_clearance: obstacles
+                .then_some(self.inside_clearance_steps as f64 * self.dt),
+            start_in_contact: (obstacles && !self.start_clearance.is_nan())
+                .then_some(self.start_clearance < 0.0),
+            first_clear: self.first_clear.filter(|_| obstacles),
+            min_clearance_after_clear: self
+                .min_clearance_after_clear
+                .is_finite()
+                .then_some(self.min_clearance_after_clear)
+                .filter(|_| obstacles),
+            time_in_contact_after_clear: (obstacles && self.first_clear.is_some())
+                .then_some(self.contact_steps_after_clear as f64 * self.dt),
+            min_joint_margin: self
+                .min_joint_margin
+                .is_finite()
+                .then_some(self.min_joint_margin),
+            safety_enabled: self.safety_enabled,
+            safety_active_time: self.safety_active_steps as f64 * self.dt,
+            safety_left_null_space_steps: self.safety_left_null_space_steps,
+            safety_left_null_space_time: self.safety_left_null_space_steps as f64 * self.dt,
+            safety_infeasible_steps: self.safety_infeasible_steps,
         }
     }
 }

@@ -1,14 +1,16 @@
-//! The offline chaos-analysis commands: `lyapunov`, `sweep`, `poincare`, `orbits`, `basins` and
-//! `figures`.
+//! The offline chaos-analysis commands: `lyapunov`, `sweep`, `poincare`, `orbits`, `basins`,
+//! `figures`, `obstacles` and `arm-figure`.
 //!
 //! The math lives in `control::analysis`; this module turns flags into validated run specs,
 //! spreads independent runs over the cores, prints, writes CSV/JSON and plots. Every input is
 //! checked before the first simulation starts (ranges, windows, initial-state lengths, whether the
 //! task circle is reachable), and every problem is an error with exit code 2, never a panic.
 
+pub mod arm_figure;
 pub mod basins;
 pub mod figures;
 pub mod lyapunov;
+pub mod obstacles;
 pub mod orbits;
 pub mod parallel;
 pub mod poincare;

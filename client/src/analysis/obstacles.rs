@@ -1,0 +1,599 @@
+//! `chaosctl obstacles`: does anything keep the links out of the obstacles? The paper's potential
+//! against the safety filter, over starts × μ.
+//!
+//! SCIENCE.md §5 asks chaosd to report clearance and time in contact "so users can see whether
+//! avoidance works", and §7 adds a filter that is meant to guarantee it. This study runs every
+//! (start, μ) cell twice, filter off and on, and reports per run what a user would ask first: was
+//! a link ever inside an obstacle, for how long, how close did it come, did tracking survive, and
+//! what did the self-motion become. A start that begins inside an obstacle (the basin grid has
+//! some) is flagged, and its clearance is also measured from the moment it first got clear, so the
+//! filter's push-out is visible instead of hidden.
+
+use super::parallel::{jobs, run_all};
+use super::{check_config, fmt_list, ClassifyArgs};
+use crate::plot::{with_ext, Chart, Figure, Panel, Rule, Series, Style, DARK, GREY, PALETTE};
+use crate::setup::{parse_list, FloatList, SetupArgs};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use control::analysis::{classify, ArmFlow, ClassifyConfig, Motion, Section, Trajectory};
+use control::{with_dof, Config, Summary};
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The basin grid's range of the first joint angle (rad): `basins`' default `q1=-1.5:1.5:0.125`.
+const Q1_RANGE: (f64, f64) = (-1.5, 1.5);
+
+#[derive(Args, Debug)]
+pub struct ObstaclesCmd {
+    /// Model flags as for `simulate`; without --config/--preset the preset is `paper-obstacle`.
+    /// Without --safety every cell runs twice, filter off and on; --safety on|off runs only that.
+    #[command(flatten)]
+    pub setup: SetupArgs,
+    /// Pyragas gains μ, comma-separated.
+    #[arg(long, value_parser = parse_list, default_value = "0,0.2,1.1,1.8", allow_hyphen_values = true)]
+    pub mu: FloatList,
+    /// Number of starts: q1 evenly over [−1.5, 1.5] rad (the basin grid; 25 gives its 0.125 rad
+    /// step), the other coordinates from --q0/--qd0 (default: the paper's). 1: the --q0 start.
+    #[arg(long, default_value_t = 25)]
+    pub starts: usize,
+    /// Simulated time per run (s).
+    #[arg(long, default_value_t = 400.0)]
+    pub duration: f64,
+    /// The RMS tracking error is measured from this time on (s).
+    #[arg(long = "rms-from", default_value_t = 20.0)]
+    pub rms_from: f64,
+    /// The Poincaré section is classified from this time on (s; default: a quarter of the run).
+    #[arg(long = "section-from")]
+    pub section_from: Option<f64>,
+    #[command(flatten)]
+    pub classify: ClassifyArgs,
+    /// Worker threads (default: every core).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// Output prefix: writes PREFIX.csv, PREFIX.png and PREFIX.svg.
+    #[arg(long, default_value = "obstacles")]
+    pub output: PathBuf,
+}
+
+/// One run of the study.
+#[derive(Serialize, Clone, Debug)]
+pub struct Row {
+    pub mu: f64,
+    pub safety: bool,
+    pub q0: Vec<f64>,
+    /// Everything `simulate` reports (clearance, contact, filter activity, tracking).
+    pub summary: Option<Summary>,
+    pub motion: Option<Motion>,
+    pub k01: Option<f64>,
+    pub error: Option<String>,
+}
+
+/// The validated study: one config per run, in the order μ → filter → start.
+struct Plan {
+    cfgs: Vec<Config>,
+    duration: f64,
+    rms_from: f64,
+    section_from: f64,
+    classify: ClassifyConfig,
+    filters: Vec<bool>,
+    mus: Vec<f64>,
+}
+
+fn plan(args: &ObstaclesCmd) -> Result<Plan> {
+    let mut setup = args.setup.clone();
+    if setup.config.is_none() && setup.preset.is_none() {
+        setup.preset = Some("paper-obstacle".into());
+    }
+    let base = setup.load_with_mu(None)?;
+    if base.control.obstacles.is_empty() {
+        bail!("the configuration has no obstacles: use --preset paper-obstacle or a --config with [[control.obstacles]] entries");
+    }
+    let d = args.duration;
+    if !(d.is_finite() && d > 0.0) {
+        bail!("--duration {d}: must be a finite number of seconds > 0");
+    }
+    if !(args.rms_from >= 0.0 && args.rms_from < d) {
+        bail!(
+            "--rms-from {}: must be in [0, --duration = {d})",
+            args.rms_from
+        );
+    }
+    let section_from = args.section_from.unwrap_or(d / 4.0);
+    if !(section_from >= 0.0 && section_from < d) {
+        bail!("--section-from {section_from}: must be in [0, --duration = {d})");
+    }
+    if args.starts == 0 || args.starts > 10_000 {
+        bail!("--starts {}: must be between 1 and 10000", args.starts);
+    }
+    if args.mu.0.is_empty() {
+        bail!("--mu: give at least one value");
+    }
+    let filters = match args.setup.safety {
+        Some(on) => vec![on],
+        None => vec![false, true],
+    };
+    let q0 = base.q0();
+    let q1s: Vec<f64> = if args.starts == 1 {
+        vec![q0[0]]
+    } else {
+        (0..args.starts)
+            .map(|i| {
+                let f = i as f64 / (args.starts - 1) as f64;
+                let v = Q1_RANGE.0 + f * (Q1_RANGE.1 - Q1_RANGE.0);
+                (v * 1e9).round() / 1e9
+            })
+            .collect()
+    };
+    let mut cfgs = Vec::new();
+    for &mu in &args.mu.0 {
+        for &on in &filters {
+            for &q1 in &q1s {
+                let mut c = base.clone();
+                c.feedback.mu = mu;
+                c.safety.enabled = on;
+                let mut q = q0.clone();
+                q[0] = q1;
+                c.sim.q0 = Some(q);
+                c.sim.duration = d;
+                c.sim.transient = args.rms_from;
+                c.validate()?;
+                check_config(&c).with_context(|| format!("start with q1 = {q1}"))?;
+                cfgs.push(c);
+            }
+        }
+    }
+    Ok(Plan {
+        cfgs,
+        duration: d,
+        rms_from: args.rms_from,
+        section_from,
+        classify: args.classify.config()?,
+        filters,
+        mus: args.mu.0.clone(),
+    })
+}
+
+/// One run: the statistics of `simulate` and the Poincaré class of `basins`, in one pass.
+fn run_one(cfg: &Config, plan: &Plan) -> Result<(Summary, Motion, Option<f64>), String> {
+    with_dof!(cfg.n(), N => {
+        let mut flow = ArmFlow::new(cfg.model::<N>(), cfg.law_params(), cfg.sim.dt, cfg.initial_state::<N>())
+            .with_stats(plan.duration, plan.rms_from);
+        let period = cfg.task.period;
+        let mut section = Section::new(flow.coords().len(), flow.angle_coords());
+        let periods = (plan.duration / period + 1e-9).floor() as u64;
+        for k in 0..=periods {
+            let t = k as f64 * period;
+            flow.advance_to(t);
+            if !flow.is_finite() {
+                return Err(format!("the simulation diverged by t = {} s", flow.time()));
+            }
+            if t >= plan.section_from - 1e-9 * period {
+                section.push(t, &flow.coords());
+            }
+        }
+        flow.advance_to(plan.duration);
+        if !flow.is_finite() {
+            return Err(format!("the simulation diverged by t = {} s", flow.time()));
+        }
+        let c = classify(&section, &plan.classify);
+        let summary = flow.stats().map(|s| s.summary()).ok_or("run statistics missing")?;
+        Ok((summary, c.motion, c.k))
+    })
+}
+
+pub fn run(args: ObstaclesCmd) -> Result<()> {
+    let plan = plan(&args)?;
+    let started = Instant::now();
+    let results = run_all(&plan.cfgs, jobs(args.jobs), "obstacles", |c| {
+        run_one(c, &plan)
+    })?;
+    let wall = started.elapsed().as_secs_f64();
+    let rows: Vec<Row> = plan
+        .cfgs
+        .iter()
+        .zip(results)
+        .map(|(c, r)| {
+            let (summary, motion, k01, error) = match r {
+                Ok((s, m, k)) => (Some(s), Some(m), k, None),
+                Err(e) => (None, None, None, Some(e)),
+            };
+            Row {
+                mu: c.feedback.mu,
+                safety: c.safety.enabled,
+                q0: c.q0(),
+                summary,
+                motion,
+                k01,
+                error,
+            }
+        })
+        .collect();
+    let base = &plan.cfgs[0];
+    let csv = with_ext(&args.output, "csv");
+    write_csv(&csv, &rows)?;
+    let files = plot(&args.output, &plan, &rows)?;
+    print_header(base, &plan, rows.len(), wall);
+    print_table(&plan, &rows, base.safety.clearance);
+    super::print_written(&[std::slice::from_ref(&csv), &files[..]].concat());
+    Ok(())
+}
+
+fn obstacle_list(cfg: &Config) -> String {
+    cfg.control
+        .obstacles
+        .iter()
+        .map(|o| format!("({}, {}) r {}", o.center[0], o.center[1], o.radius))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn print_header(base: &Config, plan: &Plan, runs: usize, wall: f64) {
+    let q0 = base.q0();
+    println!(
+        "chaosd obstacles: {} obstacle(s) {}; required clearance {} m; {} runs of {} s ({} s simulated in {wall:.1} s wall)",
+        base.control.obstacles.len(),
+        obstacle_list(base),
+        base.safety.clearance,
+        runs,
+        plan.duration,
+        runs as f64 * plan.duration,
+    );
+    println!(
+        "  starts: q1 varied, others from ({}); RMS tracking from {} s; Poincaré section from {} s",
+        fmt_list(&q0[1..]),
+        plan.rms_from,
+        plan.section_from
+    );
+}
+
+/// Sorted finite values.
+fn sorted(v: impl Iterator<Item = f64>) -> Vec<f64> {
+    let mut v: Vec<f64> = v.filter(|x| x.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    v
+}
+
+fn median(v: &[f64]) -> Option<f64> {
+    match v.len() {
+        0 => None,
+        n if n % 2 == 1 => Some(v[n / 2]),
+        n => Some(0.5 * (v[n / 2 - 1] + v[n / 2])),
+    }
+}
+
+/// "worst / median" with `fmt`; `worst_is_max` picks the end of the sorted list.
+fn worst_median(v: &[f64], worst_is_max: bool, fmt: impl Fn(f64) -> String) -> String {
+    let worst = if worst_is_max { v.last() } else { v.first() };
+    match (worst, median(v)) {
+        (Some(w), Some(m)) => format!("{} / {}", fmt(*w), fmt(m)),
+        _ => "–".into(),
+    }
+}
+
+fn secs(v: f64) -> String {
+    if v == 0.0 {
+        "0".into()
+    } else {
+        format!("{v:.3}")
+    }
+}
+
+fn metres(v: f64) -> String {
+    format!("{v:+.4}")
+}
+
+fn sci(v: f64) -> String {
+    format!("{v:.1e}")
+}
+
+/// "12 irregular, 8 period-1, …" in order of frequency.
+fn class_counts(rows: &[&Row]) -> String {
+    let mut counts: Vec<(String, usize)> = Vec::new();
+    for r in rows {
+        let label = match (&r.motion, &r.error) {
+            (Some(m), _) => m.label(),
+            (None, _) => "failed".into(),
+        };
+        match counts.iter_mut().find(|(l, _)| *l == label) {
+            Some(c) => c.1 += 1,
+            None => counts.push((label, 1)),
+        }
+    }
+    counts.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+    counts
+        .iter()
+        .map(|(l, c)| format!("{c} {l}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The aggregated table, one line per μ × filter, as Markdown (pasted into the README as is).
+fn print_table(plan: &Plan, rows: &[Row], clearance: f64) {
+    println!(
+        "| μ | filter | runs (start in contact) | contact (s) worst / median | contact after getting clear (s) worst | closer than {clearance} m (s) worst / median | min clearance after clear (m) worst / median | RMS tracking after {} s (m) worst / median | Poincaré class | left the null space (s) worst / median |",
+        plan.rms_from
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for &mu in &plan.mus {
+        for &on in &plan.filters {
+            let group: Vec<&Row> = rows
+                .iter()
+                .filter(|r| r.mu == mu && r.safety == on)
+                .collect();
+            let ok: Vec<&Summary> = group.iter().filter_map(|r| r.summary.as_ref()).collect();
+            let inside = ok
+                .iter()
+                .filter(|s| s.start_in_contact == Some(true))
+                .count();
+            let never_clear = ok.iter().filter(|s| s.first_clear.is_none()).count();
+            let failed = group.len() - ok.len();
+            let contact = sorted(ok.iter().filter_map(|s| s.time_in_contact));
+            let contact_after = sorted(ok.iter().filter_map(|s| s.time_in_contact_after_clear));
+            let close = sorted(ok.iter().filter_map(|s| s.time_inside_clearance));
+            let after = sorted(ok.iter().filter_map(|s| s.min_clearance_after_clear));
+            let rms = sorted(ok.iter().map(|s| s.rms_tracking_error));
+            let left = sorted(ok.iter().map(|s| s.safety_left_null_space_time));
+            let mut runs = format!("{} ({inside})", group.len());
+            if never_clear > 0 {
+                runs.push_str(&format!(", {never_clear} never clear"));
+            }
+            if failed > 0 {
+                runs.push_str(&format!(", {failed} failed"));
+            }
+            println!(
+                "| {mu} | {} | {runs} | {} | {} | {} | {} | {} | {} | {} |",
+                if on { "on" } else { "off" },
+                worst_median(&contact, true, secs),
+                contact_after
+                    .last()
+                    .map(|v| secs(*v))
+                    .unwrap_or_else(|| "–".into()),
+                worst_median(&close, true, secs),
+                worst_median(&after, false, metres),
+                worst_median(&rms, true, sci),
+                class_counts(&group),
+                if on {
+                    worst_median(&left, true, secs)
+                } else {
+                    "–".into()
+                },
+            );
+        }
+    }
+    let contact_after: Vec<&Row> = rows
+        .iter()
+        .filter(|r| {
+            r.safety
+                && r.summary
+                    .as_ref()
+                    .and_then(|s| s.time_in_contact_after_clear)
+                    .is_some_and(|t| t > 0.0)
+        })
+        .collect();
+    println!(
+        "  filter on: {} run(s) in contact after first getting clear; starts in contact are pushed out by t = {}",
+        contact_after.len(),
+        sorted(
+            rows.iter()
+                .filter(|r| r.safety)
+                .filter_map(|r| r.summary.as_ref())
+                .filter(|s| s.start_in_contact == Some(true))
+                .filter_map(|s| s.first_clear)
+        )
+        .last()
+        .map(|t| format!("{t:.3} s at the latest"))
+        .unwrap_or_else(|| "– (none started inside)".into())
+    );
+}
+
+fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
+    let file =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    writeln!(
+        w,
+        "mu,safety,q1,q0,start_in_contact,time_in_contact,time_inside_clearance,time_in_safety_zone,\
+         min_clearance,first_clear,min_clearance_after_clear,time_in_contact_after_clear,\
+         rms_tracking_error,max_tracking_error,track_lost_fraction,class,period,k01,\
+         safety_active_time,left_null_space_time,infeasible_steps,min_joint_margin,error"
+    )?;
+    let o = |v: Option<f64>| v.map(|x| format!("{x:.6e}")).unwrap_or_default();
+    for r in rows {
+        let q0 =
+            r.q0.iter()
+                .map(|x| format!("{x}"))
+                .collect::<Vec<_>>()
+                .join(";");
+        write!(
+            w,
+            "{},{},{},{q0},",
+            r.mu,
+            if r.safety { "on" } else { "off" },
+            r.q0[0]
+        )?;
+        match &r.summary {
+            Some(s) => write!(
+                w,
+                "{},{},{},{},{},{},{},{},{},{},{},",
+                s.start_in_contact
+                    .map(|b| b.to_string())
+                    .unwrap_or_default(),
+                o(s.time_in_contact),
+                o(s.time_inside_clearance),
+                o(Some(s.time_in_safety_zone)),
+                o(s.min_clearance),
+                o(s.first_clear),
+                o(s.min_clearance_after_clear),
+                o(s.time_in_contact_after_clear),
+                o(Some(s.rms_tracking_error)),
+                o(Some(s.max_tracking_error)),
+                o(Some(s.track_lost_fraction)),
+            )?,
+            None => write!(w, ",,,,,,,,,,,")?,
+        }
+        let motion = r.motion.as_ref();
+        write!(
+            w,
+            "{},{},{},",
+            motion.map(|m| m.label()).unwrap_or_default(),
+            motion
+                .and_then(|m| m.period())
+                .map(|p| p.to_string())
+                .unwrap_or_default(),
+            r.k01.map(|k| format!("{k:.4}")).unwrap_or_default()
+        )?;
+        match &r.summary {
+            Some(s) => write!(
+                w,
+                "{},{},{},{},",
+                o(Some(s.safety_active_time)),
+                o(Some(s.safety_left_null_space_time)),
+                s.safety_infeasible_steps,
+                o(s.min_joint_margin)
+            )?,
+            None => write!(w, ",,,,")?,
+        }
+        writeln!(
+            w,
+            "{}",
+            r.error.as_deref().unwrap_or_default().replace(',', ";")
+        )?;
+    }
+    w.flush()?;
+    Ok(())
+}
+
+/// Four panels over the start q1: time in contact, min clearance after getting clear, RMS
+/// tracking (log10) and the time the filter left the null space; one colour per μ, filter off as
+/// open circles, on as filled circles joined by a line.
+fn plot(prefix: &Path, plan: &Plan, rows: &[Row]) -> Result<Vec<PathBuf>> {
+    type Metric = fn(&Summary) -> Option<f64>;
+    let metrics: [(&str, &str, Metric, bool); 4] = [
+        (
+            "time in contact (clearance < 0)",
+            "time in contact (s)",
+            |s| s.time_in_contact,
+            false,
+        ),
+        (
+            "minimum clearance after the start first got clear",
+            "min clearance (m)",
+            |s| s.min_clearance_after_clear,
+            false,
+        ),
+        (
+            "RMS tracking error after the transient",
+            "log10 RMS error (m)",
+            |s| Some(s.rms_tracking_error.max(1e-16).log10()),
+            false,
+        ),
+        (
+            "time the filter left the null space (tracking gave way)",
+            "time (s)",
+            |s| Some(s.safety_left_null_space_time),
+            true,
+        ),
+    ];
+    let clearance = plan.cfgs[0].safety.clearance;
+    let panels = metrics
+        .iter()
+        .map(|(title, y_label, metric, only_on)| {
+            let mut series = Vec::new();
+            for (i, &mu) in plan.mus.iter().enumerate() {
+                let color = PALETTE[i % PALETTE.len()];
+                for &on in &plan.filters {
+                    if *only_on && !on {
+                        continue;
+                    }
+                    let points: Vec<(f64, f64)> = rows
+                        .iter()
+                        .filter(|r| r.mu == mu && r.safety == on)
+                        .filter_map(|r| r.summary.as_ref().and_then(metric).map(|v| (r.q0[0], v)))
+                        .collect();
+                    let label = format!("μ = {mu}, filter {}", if on { "on" } else { "off" });
+                    let style = if on {
+                        Style::LineMarkers { width: 1, size: 3 }
+                    } else {
+                        Style::Markers {
+                            size: 4,
+                            filled: false,
+                        }
+                    };
+                    series.push(Series::new(Some(label), color, style, points));
+                }
+            }
+            let rules = if title.starts_with("minimum") {
+                vec![
+                    Rule {
+                        value: clearance,
+                        vertical: false,
+                        color: DARK,
+                        label: Some(format!("required clearance {clearance} m")),
+                    },
+                    Rule {
+                        value: 0.0,
+                        vertical: false,
+                        color: GREY,
+                        label: Some("contact".into()),
+                    },
+                ]
+            } else {
+                vec![]
+            };
+            // Head room above the data for the legend (drawn in the upper right).
+            let ys = series
+                .iter()
+                .flat_map(|s| s.points.iter().map(|p| p.1))
+                .chain(rules.iter().map(|r| r.value))
+                .filter(|v| v.is_finite());
+            let (lo, hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v), b.max(v))
+            });
+            let y_range = (lo <= hi).then(|| {
+                let span = (hi - lo).max(1e-3 * hi.abs().max(1.0));
+                (lo - 0.05 * span, hi + 0.6 * span)
+            });
+            Panel::Chart(Chart {
+                title: title.to_string(),
+                x_label: "initial q1 (rad)".into(),
+                y_label: y_label.to_string(),
+                series,
+                rules,
+                y_range,
+                legend: true,
+                ..Default::default()
+            })
+        })
+        .collect();
+    let base = &plan.cfgs[0];
+    Figure {
+        title: Some(format!(
+            "Obstacles {}: the paper's potential (filter off) vs the safety filter (on), {} s runs",
+            obstacle_list(base),
+            plan.duration
+        )),
+        panels,
+        cols: 2,
+        panel_size: (800, 520),
+    }
+    .save(prefix)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn medians_and_worst() {
+        assert_eq!(median(&[1.0, 2.0, 10.0]), Some(2.0));
+        assert_eq!(median(&[1.0, 2.0, 3.0, 10.0]), Some(2.5));
+        assert_eq!(median(&[]), None);
+        let v = sorted([3.0, f64::NAN, 1.0, 2.0].into_iter());
+        assert_eq!(v, vec![1.0, 2.0, 3.0]);
+        assert_eq!(worst_median(&v, true, secs), "3.000 / 2.000");
+        assert_eq!(worst_median(&v, false, secs), "1.000 / 2.000");
+        assert_eq!(worst_median(&[], true, secs), "–");
+    }
+}
