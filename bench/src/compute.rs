@@ -80,6 +80,66 @@ pub fn run(quick: bool, core: usize, out: &Path, command: &str) -> Result<String
         .map_err(|_| anyhow!("the compute thread panicked"))?
 }
 
+/// Per-call cost of `control::safety::filter` alone on the paper's arm and obstacle (clearance
+/// 0.05 m), on chaotic states where it binds (a 5 rad/s rate limit against |q̇| up to 40 rad/s,
+/// and the obstacle) or where every row is already met (limits beyond the motion).
+fn filter_cost(
+    xs: &[ArmState<3>],
+    binding: bool,
+    batches: usize,
+    batch: usize,
+) -> Result<hdrhistogram::Histogram<u64>> {
+    let mut cfg = Config::preset("paper-obstacle")?;
+    cfg.safety.enabled = true;
+    if binding {
+        cfg.safety.qd_max = control::safety::config::Limit::All(5.0);
+    }
+    let (p, m) = (cfg.law_params(), cfg.model::<3>());
+    let mut cases = Vec::new();
+    for x in xs {
+        let mut k = Kinematics::<3>::default();
+        m.kinematics(x.phi, &x.q, &x.qd, &mut k);
+        let (jpinv, _, _) = control::law::damped_pinv(&k.j, p.damping_threshold, p.damping_max);
+        let mut off = p;
+        off.safety.enabled = false;
+        let qdd = evaluate(&off, &m, 0.0, x.phi, &x.q, &x.qd, &x.qd, &mut k.clone()).qdd;
+        let f = control::safety::filter(
+            &p.safety,
+            &m,
+            &p.obstacles,
+            &k,
+            x.phi,
+            &x.q,
+            &x.qd,
+            &jpinv,
+            &qdd,
+        );
+        if (f.flags != 0) == binding {
+            cases.push((k, jpinv, *x, qdd));
+        }
+    }
+    if cases.len() < 16 {
+        return Err(anyhow!(
+            "only {} states where the filter binding = {binding}",
+            cases.len()
+        ));
+    }
+    Ok(per_call(batches, batch, |i| {
+        let (k, jpinv, x, qdd) = &cases[i % cases.len()];
+        black_box(control::safety::filter(
+            &p.safety,
+            &m,
+            &p.obstacles,
+            k,
+            x.phi,
+            &x.q,
+            &x.qd,
+            jpinv,
+            qdd,
+        ));
+    }))
+}
+
 fn measure(quick: bool, out: &Path, command: &str) -> Result<String> {
     let mut report = Report::new(out, "compute")?;
     let (batches, batch) = if quick { (300, 200) } else { (3000, 1000) };
@@ -111,6 +171,25 @@ fn measure(quick: bool, out: &Path, command: &str) -> Result<String> {
         report.hgrm(&format!("law-{preset}"), &h)?;
         dists.push(Dist::of_histogram(&name, &h));
         rows.push((name, summary(&h)));
+    }
+    for (name, binding) in [
+        (
+            "safety filter alone, paper-obstacle (n = 3), not binding",
+            false,
+        ),
+        ("safety filter alone, paper-obstacle (n = 3), binding", true),
+    ] {
+        let h = filter_cost(&xs, binding, batches, batch)?;
+        report.hgrm(
+            if binding {
+                "filter-binding"
+            } else {
+                "filter-free"
+            },
+            &h,
+        )?;
+        dists.push(Dist::of_histogram(name, &h));
+        rows.push((name.into(), summary(&h)));
     }
     let cfg = Config::preset("paper")?;
     let (p, m) = (cfg.law_params(), cfg.model::<3>());

@@ -313,6 +313,13 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
             s.system.control.track_loss, c.track_lost, c.singular, c.out_of_reach, c.nonfinite
         );
     }
+    let sf = &s.system.safety;
+    println!(
+        "safety                filter {}: acted on {} ticks, left the null space on {} (tracking gave way), {} without a command meeting every limit; {} runaway-guard faults{}",
+        if sf.enabled { "on" } else { "OFF" },
+        c.safety_active, c.safety_left_null_space, c.safety_infeasible, c.faults,
+        d.min_clearance_m.map_or(String::new(), |m| format!("; min clearance {m:.3} m (required {} m)", sf.clearance))
+    );
     println!("real-time set-up      {}", d.realtime.one_line());
     println!("histograms            {}/daemon-{{lateness,compute,state-age}}.hgrm, daemon.hlog, plant-{{round-trip,state-to-command,lateness}}.hgrm", out.display());
     println!(

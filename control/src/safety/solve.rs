@@ -19,7 +19,7 @@ use nalgebra::SMatrix;
 /// Most rows one problem has: every link against every obstacle, plus 6 per joint.
 pub const MAX_ROWS: usize = MAX_OBSTACLES * MAX_JOINTS + 6 * MAX_JOINTS;
 /// Sweeps over all rows before Hildreth's method gives up.
-pub const MAX_SWEEPS: usize = 400;
+pub const MAX_SWEEPS: usize = 200;
 
 /// A visitor over the rows: calls its argument with (a, b) for each a·q̈ ≥ b.
 pub type Visit<'a, const N: usize> = &'a dyn Fn(&mut dyn FnMut(&VecN<N>, f64));
@@ -85,7 +85,13 @@ pub fn smallest_change<const N: usize>(
         }
         _ => {
             let mut rows = Rows::<N>::collect(visit, qdd);
-            match rows.null_space(j, jpinv) {
+            // With a one-dimensional null space the interval above was exact: no second try.
+            let in_null = if nhat.is_some() {
+                None
+            } else {
+                rows.null_space(j, jpinv)
+            };
+            match in_null {
                 Some(d) => d,
                 None => {
                     flag |= flags::SAFETY_LEFT_NULL_SPACE;
