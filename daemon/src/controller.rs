@@ -627,7 +627,10 @@ mod tests {
         // Silence does not turn FAULT into HOLD, and the plant keeps being told to brake.
         for k in 100..140u64 {
             let o = c.tick(None, t0 + k * 1_000_000);
-            assert_eq!((o.mode, o.command.unwrap().mode), (Mode::Fault, Mode::Fault as u32));
+            assert_eq!(
+                (o.mode, o.command.unwrap().mode),
+                (Mode::Fault, Mode::Fault as u32)
+            );
         }
         // Resume: HOLD, then RUN on the next fresh (now slow) state.
         assert!(c.resume());
@@ -637,7 +640,10 @@ mod tests {
         s.seq = 200;
         s.stamp_ns = t0 + 140_000_000;
         let o = c.tick(Some(&s), s.stamp_ns);
-        assert_eq!((o.mode, o.command.unwrap().mode), (Mode::Run, Mode::Run as u32));
+        assert_eq!(
+            (o.mode, o.command.unwrap().mode),
+            (Mode::Run, Mode::Run as u32)
+        );
         assert_eq!(c.counters.resumes, 1);
     }
 
