@@ -381,3 +381,55 @@ fn a_filter_that_never_binds_changes_nothing() {
     assert_eq!(a.rms_after_20.to_bits(), b.rms_after_20.to_bits());
     assert_eq!(a.max_rate.to_bits(), b.max_rate.to_bits());
 }
+
+#[test]
+fn an_obstacle_that_appears_on_a_link_pushes_it_out_at_a_bounded_acceleration() {
+    let mut cfg = Config::preset("demo").unwrap();
+    cfg.feedback.mu = 0.0;
+    cfg.validate().unwrap();
+    let x0 = cfg.initial_state::<3>();
+    let mut p = cfg.law_params();
+    let dt = cfg.sim.dt;
+    let mut sim = Simulation::<3>::new(cfg.model::<3>(), p, dt, x0, 2.0);
+    for _ in 0..2000 {
+        sim.step();
+    }
+    // Drop an obstacle of radius 0.1 m onto the middle of link 2.
+    let mut kin = Kinematics::<3>::default();
+    let x = *sim.state();
+    cfg.model::<3>().kinematics(0.0, &x.q, &x.qd, &mut kin);
+    let mid = (kin.points[1] + kin.points[2]) / 2.0;
+    p.obstacles = obstacles(&[(mid.x, mid.y, 0.1)]);
+    sim.params = p;
+    let (mut worst_acc, mut worst_jump, mut out_at, mut prev_qd) = (0.0f64, 0.0f64, None, x.qd);
+    for k in 0..3000 {
+        let o = sim.step();
+        worst_acc = worst_acc.max(o.qdd.amax());
+        let qd = sim.state().qd;
+        worst_jump = worst_jump.max((qd - prev_qd).amax());
+        prev_qd = qd;
+        if k == 0 {
+            assert!(o.clearance < 0.0, "the obstacle should start on the link");
+        }
+        if out_at.is_none() && o.clearance >= 0.0 {
+            out_at = Some(k);
+        }
+        if let Some(t) = out_at {
+            if k > t + 500 {
+                assert!(
+                    o.clearance >= p.safety.clearance - 1e-3,
+                    "back inside at step {k}: {}",
+                    o.clearance
+                );
+            }
+        }
+    }
+    let out_at = out_at.expect("the link never left the obstacle");
+    assert!(out_at < 1000, "took {out_at} ms to leave the obstacle");
+    let qdd_max = p.safety.qdd_max[0];
+    assert!(worst_acc <= qdd_max, "|q̈| {worst_acc} beyond {qdd_max}");
+    assert!(
+        worst_jump <= qdd_max * dt * 1.0001,
+        "q̇ jumped by {worst_jump} in one step"
+    );
+}
