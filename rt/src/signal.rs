@@ -1,20 +1,33 @@
 //! SIGINT/SIGTERM as a flag the loops poll, so shutdown happens between ticks and the
 //! histograms are always written.
+//!
+//! Supervisors often send more than one signal: `timeout` signals the child and its process
+//! group, and `chaosctl shutdown` may be followed by systemd's SIGTERM. So the first stop request
+//! (a signal or [`request_stop`]) starts the clean stop, and later signals change nothing. What
+//! bounds a stuck stop is a hard timeout: the first request arms `alarm(HARD_STOP_S)`, and
+//! SIGALRM's default action ends the process if the clean stop has not finished by then.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
+/// Seconds a clean stop may take before SIGALRM ends the process.
+pub const HARD_STOP_S: u32 = 10;
+
 static STOP: AtomicBool = AtomicBool::new(false);
 
-extern "C" fn on_signal(_: libc::c_int) {
-    // A second signal means the graceful stop is not wanted (or stuck): leave at once.
-    if STOP.swap(true, Ordering::SeqCst) {
-        // SAFETY: _exit is async-signal-safe.
-        unsafe { libc::_exit(130) };
+/// Sets the flag; the first call arms the hard timeout. Async-signal-safe.
+fn stop() {
+    if !STOP.swap(true, Ordering::SeqCst) {
+        // SAFETY: alarm is async-signal-safe.
+        unsafe { libc::alarm(HARD_STOP_S) };
     }
 }
 
+extern "C" fn on_signal(_: libc::c_int) {
+    stop();
+}
+
 /// Installs the handler for SIGINT and SIGTERM (idempotent). The first signal asks for a clean
-/// stop; a second one exits immediately.
+/// stop; later ones are absorbed; [`HARD_STOP_S`] after the first, the process ends regardless.
 pub fn install() {
     // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
     unsafe {
@@ -34,5 +47,5 @@ pub fn stop_requested() -> bool {
 
 /// Requests a stop from inside the process (a shutdown command, the end of a timed run).
 pub fn request_stop() {
-    STOP.store(true, Ordering::SeqCst);
+    stop();
 }
