@@ -285,7 +285,14 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
             s.system.feedback.mu,
             if a == 0.0 { "periodic to rounding".to_string() } else if a <= b { format!("{:.1}× smaller", b / a) } else { format!("{:.1}× LARGER: not settled on a period-T orbit", a / b) }
         ),
-        (b, a) => println!("period residual       before {b:?}, after {a:?} (run longer than t_on + 5 s to compare)"),
+        (b, a) => {
+            let show = |v: Option<f64>| v.map_or("n/a".to_string(), |x| format!("{x:.3} rad/s"));
+            println!(
+                "period residual       mean |q̇(t) − q̇(t−τ)|: {} before feedback, {} with it (the run stopped before t_on + 5 s: nothing to compare)",
+                show(b),
+                show(a)
+            )
+        }
     }
     println!("wake-up lateness      {}", d.lateness.one_line());
     println!(
