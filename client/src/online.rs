@@ -251,7 +251,10 @@ fn human_status(body: &str) -> String {
         v["tracking_error_recent"].as_f64().map_or("n/a".into(), |x| format!("{x:.2e}")),
         us(&lat["p50_us"]), us(&lat["p99_us"]), us(&lat["max_us"]), c["overruns"],
         c["ticks"], c["commands"],
-        c["rejected_invalid"].as_u64().unwrap_or(0) + c["rejected_stale"].as_u64().unwrap_or(0) + c["rejected_out_of_order"].as_u64().unwrap_or(0),
+        ["rejected_invalid", "rejected_stale", "rejected_out_of_order", "rejected_future", "plant_faults"]
+            .iter()
+            .map(|k| c[*k].as_u64().unwrap_or(0))
+            .sum::<u64>(),
         c["holds_entered"], c["plant_restarts"], c["params_applied"],
         c["track_lost"], c["singular"], c["out_of_reach"], c["nonfinite"],
         v["recording"].as_str().unwrap_or("off"),

@@ -47,6 +47,18 @@ pub struct Counters {
     pub params_applied: u64,
 }
 
+impl Counters {
+    /// Every received state that was not used: invalid, stale, out of order, from the future, or
+    /// flagged faulty by the plant.
+    pub fn rejected(&self) -> u64 {
+        self.rejected_invalid
+            + self.rejected_stale
+            + self.rejected_out_of_order
+            + self.rejected_future
+            + self.plant_faults
+    }
+}
+
 /// Why a received state was not used.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Rejection {

@@ -11,6 +11,7 @@ pub mod config;
 pub mod controller;
 pub mod guard;
 pub mod requests;
+pub mod residual;
 pub mod service;
 pub mod telemetry;
 

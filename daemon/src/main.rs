@@ -311,8 +311,8 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
         println!("command round trip    n/a (the plant wrote no summary)");
     }
     println!(
-        "faults                {} invalid, {} stale, {} out-of-order samples rejected; {} holds; {} plant restarts; {} telemetry records dropped",
-        c.rejected_invalid, c.rejected_stale, c.rejected_out_of_order, c.holds_entered, c.plant_restarts, c.telemetry_dropped
+        "faults                {} samples rejected ({} invalid, {} stale, {} out of order, {} from the future, {} flagged faulty by the plant); {} holds; {} plant restarts; {} telemetry records dropped",
+        c.rejected(), c.rejected_invalid, c.rejected_stale, c.rejected_out_of_order, c.rejected_future, c.plant_faults, c.holds_entered, c.plant_restarts, c.telemetry_dropped
     );
     if c.track_lost + c.out_of_reach + c.nonfinite > 0 {
         println!(

@@ -91,14 +91,6 @@ pub struct DaemonSummary {
     pub files: Vec<PathBuf>,
 }
 
-/// Per-second accumulator.
-#[derive(Clone, Copy, Default)]
-struct Second {
-    resid: f64,
-    n: u64,
-    feedback: bool,
-}
-
 /// An open recording.
 struct Recording {
     path: PathBuf,
@@ -137,7 +129,7 @@ pub struct Reporter {
     snap_since: Instant,
     tel: Interval,
     tel_seq: u64,
-    seconds: Vec<Second>,
+    residuals: crate::residual::Residuals,
     sq_track: f64,
     n_track: u64,
     feedback_on_at: Option<f64>,
@@ -187,7 +179,7 @@ impl Reporter {
                 ..Default::default()
             },
             tel_seq: 0,
-            seconds: Vec::new(),
+            residuals: Default::default(),
             sq_track: 0.0,
             n_track: 0,
             feedback_on_at: None,
@@ -226,14 +218,8 @@ impl Reporter {
             self.snap[2].saturating_record(a.max(1));
         }
         if r.ran_law {
-            let sec = r.t.max(0.0) as usize;
-            if self.seconds.len() <= sec {
-                self.seconds.resize(sec + 1, Second::default());
-            }
-            let s = &mut self.seconds[sec];
-            s.resid += r.period_residual;
-            s.n += 1;
-            s.feedback |= r.feedback_active;
+            self.residuals
+                .add(r.t, r.period_residual, r.feedback_active);
             if r.feedback_active && self.feedback_on_at.is_none() {
                 self.feedback_on_at = Some(r.t);
             }
@@ -318,7 +304,7 @@ impl Reporter {
             ticks: c.ticks,
             overruns: c.overruns,
             telemetry_dropped: c.telemetry_dropped,
-            rejected: c.rejected_invalid + c.rejected_stale + c.rejected_out_of_order,
+            rejected: c.rejected(),
             holds: c.holds_entered,
             ..TelemetrySample::default()
         };
@@ -657,7 +643,7 @@ impl Reporter {
             p.p99_us,
             p.max_us,
             c.overruns,
-            c.rejected_invalid + c.rejected_stale + c.rejected_out_of_order,
+            c.rejected(),
             c.holds_entered,
             c.telemetry_dropped
         ))
@@ -693,26 +679,7 @@ impl Reporter {
         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", hlog.display()))?;
         files.push(hlog);
 
-        let mean = |secs: &[Second]| {
-            let (s, n) = secs
-                .iter()
-                .fold((0.0, 0u64), |(s, n), x| (s + x.resid, n + x.n));
-            (n > 0).then(|| s / n as f64)
-        };
-        let before: Vec<Second> = self
-            .seconds
-            .iter()
-            .enumerate()
-            .filter(|(i, s)| *i >= 2 && !s.feedback)
-            .map(|(_, s)| *s)
-            .collect();
-        let on: Vec<Second> = self
-            .seconds
-            .iter()
-            .copied()
-            .filter(|s| s.feedback)
-            .collect();
-        let after_from = on.len().saturating_sub(5);
+        let (residual_before, residual_after) = self.residuals.means();
         let counters = self.last.map(|r| r.counters).unwrap_or_default();
         let summary = DaemonSummary {
             namespace: self.names.namespace().to_string(),
@@ -726,8 +693,8 @@ impl Reporter {
             state_age: Percentiles::of(&self.state_age),
             tracking_rms_m: (self.n_track > 0)
                 .then(|| (self.sq_track / self.n_track as f64).sqrt()),
-            period_residual_before: mean(&before),
-            period_residual_after: mean(&on[after_from..]),
+            period_residual_before: residual_before,
+            period_residual_after: residual_after,
             feedback_on_at_s: self.feedback_on_at,
             min_clearance_m: self.min_clearance.is_finite().then_some(self.min_clearance),
             time_in_safety_zone_s: self.safety_ticks as f64 / self.daemon.rate_hz,
