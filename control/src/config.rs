@@ -36,10 +36,28 @@ pub enum ConfigError {
     UnknownPreset(String),
 }
 
+/// Largest config text accepted: a config is a few hundred bytes; a huge file is a mistake, and
+/// parsing it would cost memory in proportion.
+pub const MAX_CONFIG_BYTES: usize = 1 << 20;
+/// Longest excerpt of a bad value or a parser message quoted in an error.
+pub const MAX_QUOTE: usize = 200;
+
+/// At most [`MAX_QUOTE`] bytes of `s` (cut at a character boundary), marked when cut.
+pub fn excerpt(s: &str) -> String {
+    if s.len() <= MAX_QUOTE {
+        return s.to_string();
+    }
+    let mut end = MAX_QUOTE;
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("{}… ({} bytes in all)", &s[..end], s.len())
+}
+
 fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
     ConfigError::Invalid {
         field: field.to_string(),
-        value: format!("{value:?}"),
+        value: excerpt(&format!("{value:?}")),
         expected: expected.to_string(),
     }
 }
@@ -311,7 +329,13 @@ impl Config {
 
     /// Parses TOML text (no validation; call [`Config::validate`]).
     pub fn from_toml_str(text: &str) -> Result<Self, ConfigError> {
-        toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))
+        if text.len() > MAX_CONFIG_BYTES {
+            return Err(ConfigError::Parse(format!(
+                "the config is {} bytes; at most {MAX_CONFIG_BYTES} are accepted",
+                text.len()
+            )));
+        }
+        toml::from_str(text).map_err(|e| ConfigError::Parse(excerpt(&e.to_string())))
     }
 
     pub fn to_toml_string(&self) -> String {
@@ -666,6 +690,23 @@ mod tests {
         assert!(e.contains("task.radius"), "{e}");
         let e = Config::parse("this is not toml").unwrap_err().to_string();
         assert!(e.starts_with("cannot parse config"), "{e}");
+    }
+
+    #[test]
+    fn huge_configs_and_values_give_short_errors() {
+        let huge = format!("[task]\nradius = \"{}\"\n", "x".repeat(MAX_CONFIG_BYTES));
+        let e = Config::parse(&huge).unwrap_err().to_string();
+        assert!(e.len() < 200 && e.contains("at most"), "{}", e.len());
+        let long = format!("[control]\nsecondary = \"{}\"\n", "y".repeat(100_000));
+        let e = Config::parse(&long).unwrap_err().to_string();
+        assert!(e.len() < 1024, "{} bytes", e.len());
+        let links = format!("[arm]\nlinks = [{}]\n", vec!["1.0"; 5000].join(", "));
+        let e = Config::parse(&links).unwrap_err().to_string();
+        assert!(
+            e.len() < 1024 && e.contains("arm.links"),
+            "{} bytes",
+            e.len()
+        );
     }
 
     #[test]

@@ -144,11 +144,12 @@ impl DaemonConfig {
                 "must be between 10 and 50 Hz",
             ));
         }
-        if !(64..=1 << 22).contains(&self.telemetry_queue) {
+        // A record is about 600 bytes: 65 536 of them are 40 MB, over a minute at 1 kHz.
+        if !(64..=1 << 16).contains(&self.telemetry_queue) {
             return Err(invalid(
                 "telemetry_queue",
                 self.telemetry_queue,
-                "must be between 64 and 4194304",
+                "must be between 64 and 65536",
             ));
         }
         Ok(())
@@ -226,6 +227,14 @@ impl DaemonSetup {
     }
 
     pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+        if size > control::config::MAX_CONFIG_BYTES as u64 {
+            anyhow::bail!(
+                "{}: the config is {size} bytes; at most {} are accepted",
+                path.display(),
+                control::config::MAX_CONFIG_BYTES
+            );
+        }
         let text = std::fs::read_to_string(path)
             .map_err(|e| anyhow::anyhow!("cannot read config file {}: {e}", path.display()))?;
         let cfg =
