@@ -175,6 +175,8 @@ fn safety_and_projection_flags_are_validated_and_applied() {
         &["--rms-from"],
     );
     refused(&["arm-figure", "--frames", "20"], &["--frames"]);
+    refused(&["obstacles", "--obstacle", "1,2"], &["X,Y,R"]);
+    refused(&["arm-figure", "--obstacle", "1,2,-0.3"], &["radius"]);
     // The paper's obstacle, 30 s from the paper's start: off, a link goes through it; on, never.
     let run = |safety: &str| {
         let out = chaosctl(&[

@@ -22,6 +22,8 @@ pub struct ArmFigureCmd {
     /// Without --safety both panels are drawn (filter off, on); --safety on|off draws only one.
     #[command(flatten)]
     pub model: ModelArgs,
+    #[command(flatten)]
+    pub obstacles: super::obstacles::ObstacleArgs,
     /// Start of the drawn window (s); the run lasts until its end.
     #[arg(long, default_value_t = 380.0)]
     pub from: f64,
@@ -138,7 +140,8 @@ pub fn run(args: ArmFigureCmd) -> Result<()> {
     if model.setup.config.is_none() && model.setup.preset.is_none() {
         model.setup.preset = Some("paper-obstacle".into());
     }
-    let base = model.load()?;
+    let mut base = model.load()?;
+    args.obstacles.apply(&mut base)?;
     let span = args.span.unwrap_or(base.task.period);
     if !(args.from.is_finite() && args.from >= 0.0) {
         bail!("--from {}: must be a finite time ≥ 0 s", args.from);

@@ -16,6 +16,7 @@ use crate::setup::{parse_list, FloatList, SetupArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::analysis::{classify, ArmFlow, ClassifyConfig, Motion, Section, Trajectory};
+use control::config::ObstacleConfig;
 use control::{with_dof, Config, Summary};
 use serde::Serialize;
 use std::io::Write;
@@ -25,12 +26,51 @@ use std::time::Instant;
 /// The basin grid's range of the first joint angle (rad): `basins`' default `q1=-1.5:1.5:0.125`.
 const Q1_RANGE: (f64, f64) = (-1.5, 1.5);
 
+/// `--obstacle X,Y,R[,MARGIN]`, repeated: replaces the configuration's obstacles.
+#[derive(Args, Debug, Clone)]
+pub struct ObstacleArgs {
+    /// An obstacle at (X, Y) with radius R (m) and the paper's potential margin (default 0.1 m);
+    /// repeat for several. Replaces the obstacles of the config file or preset.
+    #[arg(long = "obstacle", value_parser = parse_list, allow_hyphen_values = true, value_name = "X,Y,R[,MARGIN]")]
+    pub obstacles: Vec<FloatList>,
+}
+
+impl ObstacleArgs {
+    /// Puts the given obstacles into `cfg` (validated by the caller's `Config::validate`).
+    pub fn apply(&self, cfg: &mut Config) -> Result<()> {
+        if self.obstacles.is_empty() {
+            return Ok(());
+        }
+        cfg.control.obstacles = self
+            .obstacles
+            .iter()
+            .map(|o| match o.0.as_slice() {
+                &[x, y, r] => Ok(ObstacleConfig {
+                    center: [x, y],
+                    radius: r,
+                    margin: 0.1,
+                }),
+                &[x, y, r, m] => Ok(ObstacleConfig {
+                    center: [x, y],
+                    radius: r,
+                    margin: m,
+                }),
+                v => bail!("--obstacle {v:?}: expected X,Y,R or X,Y,R,MARGIN"),
+            })
+            .collect::<Result<_>>()?;
+        cfg.validate()?;
+        Ok(())
+    }
+}
+
 #[derive(Args, Debug)]
 pub struct ObstaclesCmd {
     /// Model flags as for `simulate`; without --config/--preset the preset is `paper-obstacle`.
     /// Without --safety every cell runs twice, filter off and on; --safety on|off runs only that.
     #[command(flatten)]
     pub setup: SetupArgs,
+    #[command(flatten)]
+    pub obstacles: ObstacleArgs,
     /// Pyragas gains μ, comma-separated.
     #[arg(long, value_parser = parse_list, default_value = "0,0.2,1.1,1.8", allow_hyphen_values = true)]
     pub mu: FloatList,
@@ -86,7 +126,8 @@ fn plan(args: &ObstaclesCmd) -> Result<Plan> {
     if setup.config.is_none() && setup.preset.is_none() {
         setup.preset = Some("paper-obstacle".into());
     }
-    let base = setup.load_with_mu(None)?;
+    let mut base = setup.load_with_mu(None)?;
+    args.obstacles.apply(&mut base)?;
     if base.control.obstacles.is_empty() {
         bail!("the configuration has no obstacles: use --preset paper-obstacle or a --config with [[control.obstacles]] entries");
     }
