@@ -210,15 +210,15 @@ fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> R
     s.system.plant = Some(plant);
     s.validate()?;
     let out = s.daemon.output_dir.clone();
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    rt::files::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let cfg_path = out.join("config.toml");
-    std::fs::write(&cfg_path, s.to_toml())?;
+    rt::files::write(&cfg_path, s.to_toml())?;
     let _ = std::fs::remove_file(out.join(PLANT_SUMMARY));
 
     // Handle SIGINT/SIGTERM from here on, so an interrupt during start-up still stops cleanly.
     rt::signal::install();
     let log_path = out.join("plant.log");
-    let log = std::fs::File::create(&log_path)?;
+    let log = rt::files::create(&log_path)?;
     let mut guard = ChildGuard(Some(
         plant_command(plant_exe()?)
             .arg("--config")

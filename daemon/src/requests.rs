@@ -239,6 +239,20 @@ pub fn recording_path(out_dir: &Path, name: &str) -> Result<PathBuf, String> {
             "recording path {name:?} contains control characters"
         ));
     }
+    // A link inside the output directory (made by anyone who can write there) must not carry a
+    // recording out of it: every part of the path that already exists must be a real directory.
+    let mut prefix = out_dir.to_path_buf();
+    for c in p.components() {
+        prefix.push(c);
+        if let Ok(m) = std::fs::symlink_metadata(&prefix) {
+            if m.file_type().is_symlink() {
+                return Err(format!(
+                    "recording path {name:?}: {} is a symbolic link; recordings stay inside the output directory",
+                    prefix.display()
+                ));
+            }
+        }
+    }
     let full = out_dir.join(p);
     if full.exists() {
         return Err(format!(
@@ -252,6 +266,23 @@ pub fn recording_path(out_dir: &Path, name: &str) -> Result<PathBuf, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn recordings_cannot_leave_the_output_directory_through_a_link() {
+        let dir = std::env::temp_dir().join(format!("chaosd-rec-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("real")).unwrap();
+        std::os::unix::fs::symlink(std::env::temp_dir(), dir.join("out")).unwrap();
+        let e = recording_path(&dir, "out/x.csv").unwrap_err();
+        assert!(e.contains("symbolic link"), "{e}");
+        std::os::unix::fs::symlink("/etc/passwd", dir.join("file.csv")).unwrap();
+        assert!(recording_path(&dir, "file.csv")
+            .unwrap_err()
+            .contains("symbolic link"));
+        assert!(recording_path(&dir, "real/ok.csv").is_ok());
+        assert!(recording_path(&dir, "new/ok.csv").is_ok());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn runaway_settings_are_refused_with_the_limit_named() {

@@ -43,7 +43,7 @@ fn run_n<const N: usize>(
     on_line: impl FnMut(&str) + Send + 'static,
 ) -> Result<DaemonSummary> {
     let d = setup.daemon.clone();
-    std::fs::create_dir_all(&d.output_dir)
+    rt::files::create_dir_all(&d.output_dir)
         .with_context(|| format!("cannot create output directory {}", d.output_dir.display()))?;
     let names = ServiceNames::new(&d.namespace).map_err(|e| anyhow!("daemon.namespace: {e}"))?;
     rt::signal::install();
@@ -117,7 +117,7 @@ fn control_loop<const N: usize>(
         )
     })?;
     // Only now that this daemon owns the namespace's ports: record what it runs with.
-    std::fs::write(d.output_dir.join("config.toml"), setup.to_toml())
+    rt::files::write(&d.output_dir.join("config.toml"), setup.to_toml())
         .context("cannot write the effective config")?;
 
     let settings = ControllerSettings {

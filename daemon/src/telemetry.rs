@@ -483,13 +483,10 @@ impl Reporter {
         };
         let path = crate::requests::recording_path(&self.daemon.output_dir, &name)?;
         if let Some(dir) = path.parent() {
-            std::fs::create_dir_all(dir)
+            rt::files::create_dir_all(dir)
                 .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
         }
-        let f = std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&path)
+        let f = rt::files::create_new(&path)
             .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
         let n = self.cfg.n();
         let mut file = std::io::BufWriter::new(f);
@@ -651,7 +648,7 @@ impl Reporter {
 
     fn finish(self, elapsed: Duration, wall_start: SystemTime) -> anyhow::Result<DaemonSummary> {
         let out_dir = self.daemon.output_dir.clone();
-        std::fs::create_dir_all(&out_dir).map_err(|e| {
+        rt::files::create_dir_all(&out_dir).map_err(|e| {
             anyhow::anyhow!("cannot create output directory {}: {e}", out_dir.display())
         })?;
         let mut files = Vec::new();
@@ -711,7 +708,7 @@ pub const SUMMARY_FILE: &str = "daemon-summary.json";
 /// Writes the summary once the loop has added what only it knows (the real-time set-up).
 pub fn write_summary(summary: &DaemonSummary, dir: &Path) -> anyhow::Result<()> {
     let json = dir.join(SUMMARY_FILE);
-    std::fs::write(&json, serde_json::to_string_pretty(summary)?)
+    rt::files::write(&json, serde_json::to_string_pretty(summary)?)
         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", json.display()))
 }
 

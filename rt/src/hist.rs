@@ -109,7 +109,7 @@ pub fn write_hgrm(h: &Histogram<u64>, out: &mut impl Write) -> std::io::Result<(
 
 /// Writes `.hgrm` to a file.
 pub fn save_hgrm(h: &Histogram<u64>, path: &Path) -> std::io::Result<()> {
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut f = std::io::BufWriter::new(crate::files::create(path)?);
     write_hgrm(h, &mut f)?;
     f.flush()
 }
@@ -121,7 +121,7 @@ pub fn save_hlog(
     duration: Duration,
     path: &Path,
 ) -> std::io::Result<()> {
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut f = std::io::BufWriter::new(crate::files::create(path)?);
     let mut ser = V2DeflateSerializer::new();
     {
         let mut w = IntervalLogWriterBuilder::new()

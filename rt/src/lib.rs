@@ -6,6 +6,7 @@
 //! benchmarks measure the code the daemon really runs.
 
 pub mod clock;
+pub mod files;
 pub mod hist;
 pub mod setup;
 pub mod signal;

@@ -193,6 +193,16 @@ fn a_recording_reads_back_and_matches_the_telemetry() {
     let (code, out, _) = ctl(&s.ns, &["record", "stop"]);
     assert_eq!(code, 0);
     let rows: serde_json::Value = serde_json::from_str(&out).unwrap();
+    // Owner-only: the recording, its directory and the daemon's other files.
+    use std::os::unix::fs::PermissionsExt;
+    for p in [
+        path.clone(),
+        path.parent().unwrap().to_path_buf(),
+        s.dir.path().join("out/config.toml"),
+    ] {
+        let mode = std::fs::metadata(&p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode & 0o077, 0, "{} has mode {mode:o}", p.display());
+    }
     let text = std::fs::read_to_string(&path).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
