@@ -420,3 +420,73 @@ impl<const N: usize> RunStats<N> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::arm::Vec2;
+    use crate::Config;
+
+    fn output(clearance: f64, joint_margin: f64, flags: u32) -> ControlOutput<3> {
+        ControlOutput {
+            qdd: VecN::<3>::zeros(),
+            p: Vec2::zeros(),
+            p_desired: Vec2::zeros(),
+            tracking_error: 0.0,
+            sigma_min: 1.0,
+            damping: 0.0,
+            secondary_value: 0.0,
+            period_residual: 0.0,
+            clearance,
+            joint_margin,
+            demand: 0.0,
+            base_rate: 0.0,
+            flags,
+        }
+    }
+
+    #[test]
+    fn clearance_and_filter_statistics() {
+        let cfg = Config::preset("paper-obstacle").unwrap();
+        let p = cfg.law_params();
+        let x = cfg.initial_state::<3>();
+        let mut s = RunStats::new(&p, 0.5, 4.0, 0.0, &x);
+        let active = flags::SAFETY_ACTIVE;
+        let left = active | flags::SAFETY_LEFT_NULL_SPACE;
+        // Starts inside (−0.1), gets clear at t = 1 (0.06 ≥ 0.05), dips to 0.03, then touches.
+        let steps = [
+            (-0.1, 0.4, left),
+            (0.06, 0.3, active),
+            (0.03, -0.2, flags::SAFETY_INFEASIBLE | left),
+            (-0.02, 0.1, 0),
+        ];
+        for (k, &(c, m, f)) in steps.iter().enumerate() {
+            s.record(k as u64, &x, &output(c, m, f));
+        }
+        let sum = s.summary();
+        assert_eq!(sum.start_in_contact, Some(true));
+        assert_eq!(sum.first_clear, Some(0.5));
+        assert_eq!(sum.time_in_contact, Some(1.0));
+        assert_eq!(sum.time_in_contact_after_clear, Some(0.5));
+        assert_eq!(sum.time_inside_clearance, Some(1.5));
+        assert_eq!(sum.min_clearance, Some(-0.1));
+        assert_eq!(sum.min_clearance_after_clear, Some(-0.02));
+        assert_eq!(sum.min_joint_margin, Some(-0.2));
+        assert_eq!(sum.safety_active_time, 1.5);
+        assert_eq!(sum.safety_left_null_space_steps, 2);
+        assert_eq!(sum.safety_left_null_space_time, 1.0);
+        assert_eq!(sum.safety_infeasible_steps, 1);
+        assert_eq!(sum.required_clearance, 0.05);
+
+        // Without obstacles or joint limits the obstacle fields are absent, not zero.
+        let free = Config::preset("paper").unwrap();
+        let mut s = RunStats::new(&free.law_params(), 0.5, 1.0, 0.0, &x);
+        s.record(0, &x, &output(f64::INFINITY, f64::INFINITY, 0));
+        let sum = s.summary();
+        assert_eq!(sum.time_in_contact, None);
+        assert_eq!(sum.start_in_contact, None);
+        assert_eq!(sum.first_clear, None);
+        assert_eq!(sum.min_joint_margin, None);
+        assert!(!sum.safety_enabled);
+    }
+}
