@@ -1,0 +1,86 @@
+//! Property tests for control requests: any argument text gives a new valid configuration or a
+//! one-line refusal under 1 kB, never a panic; an accepted change always passes the loop's
+//! stability check.
+
+use control::Config;
+use daemon::requests::{apply_obstacle_add, apply_obstacle_remove, apply_set, recording_path};
+use proptest::prelude::*;
+
+const KEYS: &[&str] = &[
+    "mu",
+    "tau",
+    "t_on",
+    "feedback",
+    "projection",
+    "kp",
+    "kv",
+    "alpha",
+    "secondary",
+    "w1",
+    "task.center",
+    "task.radius",
+    "task.period",
+    "safety",
+    "safety.clearance",
+    "safety.qd_max",
+    "safety.qdd_max",
+    "safety.q_min",
+    "safety.q_max",
+    "safety.k0",
+    "safety.k1",
+    "safety.k_rate",
+    "safety.guard_time",
+    "max_tau",
+    "bogus",
+];
+
+fn token() -> impl Strategy<Value = String> {
+    prop_oneof![
+        prop::sample::select(KEYS).prop_map(str::to_string),
+        (-1e4f64..1e4).prop_map(|x| format!("{x}")),
+        (0.0f64..2.0).prop_map(|x| format!("{x}")),
+        prop::sample::select(
+            &[
+                "on",
+                "off",
+                "inf",
+                "-inf",
+                "nan",
+                "1e999",
+                "null-space",
+                "none"
+            ][..]
+        )
+        .prop_map(str::to_string),
+        "\\PC{0,12}",
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+
+    #[test]
+    fn set_accepts_only_what_validation_and_the_loop_accept(tokens in prop::collection::vec(token(), 0..8)) {
+        let cfg = Config::preset("demo").unwrap();
+        let args = tokens.join(" ");
+        match apply_set(&cfg, &args, 1e-3) {
+            Ok(c) => {
+                prop_assert!(c.validate().is_ok(), "{args}");
+                prop_assert!(control::stability::check(&c, 1e-3, "1 kHz").is_ok(), "{args}");
+            }
+            Err(e) => prop_assert!(e.len() < 1024 && !e.contains('\n'), "{args}: {e}"),
+        }
+    }
+
+    #[test]
+    fn obstacle_and_recording_arguments_never_panic(text in "\\PC{0,60}") {
+        let cfg = Config::preset("demo").unwrap();
+        if let Err(e) = apply_obstacle_add(&cfg, &text) {
+            prop_assert!(e.len() < 1024);
+        }
+        if let Err(e) = apply_obstacle_remove(&cfg, &text) {
+            prop_assert!(e.len() < 1024);
+        }
+        let _ = recording_path(std::path::Path::new("/nonexistent-chaosd-out"), &text);
+    }
+}
