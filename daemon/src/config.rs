@@ -165,6 +165,8 @@ impl DaemonConfig {
 pub struct DaemonSetup {
     pub system: Config,
     pub daemon: DaemonConfig,
+    /// The live state a restarted daemon resumes (`persist`), if any.
+    pub live: Option<crate::persist::LiveState>,
 }
 
 impl DaemonSetup {
@@ -178,7 +180,11 @@ impl DaemonSetup {
                 .map_err(|e: toml::de::Error| ConfigError::Parse(format!("in [daemon]: {e}")))?,
             None => DaemonConfig::default(),
         };
-        let s = Self { system, daemon };
+        let s = Self {
+            system,
+            daemon,
+            live: None,
+        };
         s.validate()?;
         Ok(s)
     }
@@ -240,6 +246,20 @@ impl DaemonSetup {
         let cfg =
             Config::from_toml_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         Self::from_config(cfg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+    }
+
+    /// Adopts a saved live state: its system settings, with this file's `[daemon]` and `[plant]`.
+    pub fn resume_from(&mut self, live: crate::persist::LiveState) -> Result<(), ConfigError> {
+        let mut system = live.system.clone();
+        system.daemon = self.system.daemon.clone();
+        system.plant = self.system.plant.clone();
+        let before = std::mem::replace(&mut self.system, system);
+        if let Err(e) = self.validate() {
+            self.system = before;
+            return Err(e);
+        }
+        self.live = Some(live);
+        Ok(())
     }
 
     /// The whole file, with the effective `[daemon]` table, for the plant and for the record.

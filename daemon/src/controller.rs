@@ -107,6 +107,8 @@ pub struct ControllerSettings {
     /// How far in the future a stamp may be (one period covers a simulator's nominal stamps).
     pub future_slack_ns: u64,
     pub daemon_id: u64,
+    /// Controller time (s) of the first state: 0, or where a restarted daemon left off.
+    pub t_start: f64,
 }
 
 pub struct Controller<const N: usize> {
@@ -151,7 +153,7 @@ impl<const N: usize> Controller<N> {
             delay: DelayLine::new(max_tau.max(params.tau) / dt, VecN::<N>::zeros()),
             kin: Kinematics::default(),
             t0_stamp: None,
-            t: 0.0,
+            t: settings.t_start,
             delay_origin: 0,
             mode: Mode::Hold,
             plant_id: 0,
@@ -183,6 +185,12 @@ impl<const N: usize> Controller<N> {
     /// Why the daemon is in FAULT, if it is.
     pub fn fault(&self) -> Option<FaultReason> {
         self.fault
+    }
+
+    /// Starts in FAULT (a restarted daemon that had faulted): the plant is braked until resume.
+    pub fn enter_fault(&mut self, reason: FaultReason) {
+        self.mode = Mode::Fault;
+        self.fault = Some(reason);
     }
 
     /// An operator's resume: FAULT → HOLD, so the next fresh state starts a new run (with a
@@ -284,7 +292,8 @@ impl<const N: usize> Controller<N> {
                     let t0 = *self.t0_stamp.get_or_insert(s.stamp_ns);
                     // Controller time never runs backwards (a restarted plant's stamps may start
                     // a little behind the last one seen).
-                    let t = (s.stamp_ns.saturating_sub(t0) as f64 * 1e-9).max(self.t);
+                    let t = (self.settings.t_start + s.stamp_ns.saturating_sub(t0) as f64 * 1e-9)
+                        .max(self.t);
                     let g = (t / self.dt).round() as i64;
                     if restarted || self.last_qd.is_none() || self.mode == Mode::Hold {
                         // New history: after a restart or a HOLD (the plant was braking, not
@@ -460,6 +469,7 @@ mod tests {
             stale_ns: 5_000_000,
             future_slack_ns: 1_000_000,
             daemon_id: 9,
+            t_start: 0.0,
         };
         Controller::new(cfg.model::<3>(), cfg.law_params(), 2.0, settings)
     }

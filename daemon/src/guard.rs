@@ -26,6 +26,8 @@ const GROWTH_STEP: f64 = 0.01;
 /// formats it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FaultReason {
+    /// The daemon was in FAULT when it last stopped (`persist`): a restart does not clear it.
+    Restored,
     NonFinite,
     Rate {
         joint: usize,
@@ -47,6 +49,7 @@ pub enum FaultReason {
 impl std::fmt::Display for FaultReason {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match *self {
+            FaultReason::Restored => write!(f, "the daemon was in FAULT when it last stopped, and nobody resumed it"),
             FaultReason::NonFinite => write!(f, "the control law produced a non-finite command"),
             FaultReason::Rate { joint, value, limit, for_s } => write!(
                 f,

@@ -10,6 +10,7 @@
 pub mod config;
 pub mod controller;
 pub mod guard;
+pub mod persist;
 pub mod requests;
 pub mod residual;
 pub mod service;

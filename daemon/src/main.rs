@@ -31,6 +31,10 @@ enum Cmd {
         /// Stop after this many seconds.
         #[arg(long)]
         duration: Option<f64>,
+        /// Start from the config file alone: ignore (and delete) the live state a previous run
+        /// saved in the output directory (changes made with chaosctl, controller time, a FAULT).
+        #[arg(long)]
+        fresh: bool,
     },
     /// Start a plant process and the daemon, run a while with the delayed feedback switched on
     /// part-way, and print a report.
@@ -214,6 +218,8 @@ fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> R
     let cfg_path = out.join("config.toml");
     rt::files::write(&cfg_path, s.to_toml())?;
     let _ = std::fs::remove_file(out.join(PLANT_SUMMARY));
+    // A demo always starts from its configuration.
+    daemon::persist::clear(&out)?;
 
     // Handle SIGINT/SIGTERM from here on, so an interrupt during start-up still stops cleanly.
     rt::signal::install();
@@ -336,14 +342,43 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
     );
 }
 
+/// Adopts the live state a previous run left in the output directory, unless `fresh`.
+fn resume_live_state(s: &mut DaemonSetup, fresh: bool) -> Result<()> {
+    let dir = s.daemon.output_dir.clone();
+    if fresh {
+        return daemon::persist::clear(&dir)
+            .with_context(|| format!("cannot remove {}", daemon::persist::path(&dir).display()));
+    }
+    let Some(live) = daemon::persist::load(&dir, s.system.n())? else {
+        return Ok(());
+    };
+    let (t, fault) = (live.t, live.fault.clone());
+    s.resume_from(live).map_err(|e| {
+        anyhow::anyhow!("{}: the saved state does not fit this configuration: {e} (start with --fresh to ignore it)", daemon::persist::path(&dir).display())
+    })?;
+    eprintln!(
+        "chaosd: resuming the live state saved in {}: controller time {t:.3} s, μ = {}, {} obstacles{} (--fresh starts from the file)",
+        daemon::persist::path(&dir).display(),
+        s.system.feedback.mu,
+        s.system.control.obstacles.len(),
+        fault.map_or(String::new(), |f| format!(", in FAULT ({f}): `chaosctl resume` to control again"))
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Cmd::Run { common, duration } => (|| {
+        Cmd::Run {
+            common,
+            duration,
+            fresh,
+        } => (|| {
             if let Some(d) = duration {
                 check_duration(d)?;
             }
-            let s = common.setup()?;
+            let mut s = common.setup()?;
+            resume_live_state(&mut s, fresh)?;
             let summary = daemon::service::run(&s, duration, print_line)?;
             println!(
                 "chaosd: stopped after {:.1} s; lateness {}; files in {}",

@@ -52,7 +52,8 @@ fn run_n<const N: usize>(
     let (tx, rx) = crossbeam::channel::bounded::<TickRecord>(d.telemetry_queue);
     let (params_tx, params_rx) = crossbeam::channel::bounded::<LoopRequest>(16);
     let (rt_tx, rt_rx) = crossbeam::channel::bounded::<rt::setup::RtReport>(1);
-    let reporter = Reporter::new(setup.system.clone(), d.clone(), params_tx, rt_rx)?;
+    let reporter = Reporter::new(setup.system.clone(), d.clone(), params_tx, rt_rx)?
+        .resuming(setup.live.as_ref());
     let reporter = std::thread::Builder::new()
         .name("chaosd-report".into())
         .spawn(move || reporter.run(rx, on_line))?;
@@ -127,6 +128,7 @@ fn control_loop<const N: usize>(
         stale_ns: (d.stale_ms * 1e6) as u64,
         future_slack_ns: d.period_ns(),
         daemon_id: protocol::new_instance_id(),
+        t_start: setup.live.as_ref().map_or(0.0, |l| l.t),
     };
     let mut ctl = Controller::<N>::new(
         setup.system.model::<N>(),
@@ -134,6 +136,9 @@ fn control_loop<const N: usize>(
         setup.system.feedback.max_tau,
         settings,
     );
+    if setup.live.as_ref().is_some_and(|l| l.fault.is_some()) {
+        ctl.enter_fault(crate::guard::FaultReason::Restored);
+    }
 
     let rt_report = rt::setup::apply(rt::setup::RtRequest {
         core: d.core,

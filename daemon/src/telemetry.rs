@@ -146,6 +146,11 @@ pub struct Reporter {
     recording_error: Option<String>,
     /// Why the daemon is in FAULT (controller time, reason), while it is.
     fault: Option<(f64, crate::guard::FaultReason)>,
+    /// Controller time a restarted daemon resumed from (until the first record).
+    t_start: f64,
+    /// When the live state was last saved, and whether a failure to save was reported.
+    saved_at: Option<Instant>,
+    save_error_said: bool,
 }
 
 impl Reporter {
@@ -193,7 +198,46 @@ impl Reporter {
             recording: None,
             recording_error: None,
             fault: None,
+            t_start: 0.0,
+            saved_at: None,
+            save_error_said: false,
         })
+    }
+
+    /// Starts from a restarted daemon's saved state: its controller time and any FAULT.
+    pub fn resuming(mut self, live: Option<&crate::persist::LiveState>) -> Self {
+        if let Some(l) = live {
+            self.t_start = l.t;
+            if l.fault.is_some() {
+                self.fault = Some((l.t, crate::guard::FaultReason::Restored));
+            }
+        }
+        self
+    }
+
+    /// Saves the live configuration, controller time and FAULT for a restart (see `persist`).
+    fn save_live_state(&mut self) {
+        let mut system = self.cfg.clone();
+        system.daemon = None;
+        system.plant = None;
+        let state = crate::persist::LiveState {
+            t: self.last.map_or(self.t_start, |r| r.t),
+            saved_unix_s: crate::persist::unix_now(),
+            fault: self.fault.map(|(t, f)| format!("at t = {t:.3} s: {f}")),
+            system,
+        };
+        self.saved_at = Some(Instant::now());
+        match crate::persist::save(&self.daemon.output_dir, &state) {
+            Ok(()) => self.save_error_said = false,
+            Err(e) if !self.save_error_said => {
+                self.save_error_said = true;
+                eprintln!(
+                    "chaosd: warning: cannot save the live state to {}: {e} (a restart would lose live changes)",
+                    crate::persist::path(&self.daemon.output_dir).display()
+                );
+            }
+            Err(_) => {}
+        }
     }
 
     fn record(&mut self, r: &TickRecord) {
@@ -204,8 +248,10 @@ impl Reporter {
                 r.t
             );
             self.fault = Some((r.t, f));
-        } else if r.mode != Mode::Fault {
+            self.saved_at = None; // save at once: a FAULT must survive a crash right after it
+        } else if r.mode != Mode::Fault && self.fault.is_some() {
             self.fault = None;
+            self.saved_at = None;
         }
         self.lateness.saturating_record(r.lateness_ns.max(1));
         self.window_lateness.saturating_record(r.lateness_ns.max(1));
@@ -339,6 +385,7 @@ impl Reporter {
                 "the control loop has not taken the previous change yet; try again".to_string()
             })?;
         self.cfg = new;
+        self.save_live_state();
         let f = &self.cfg.feedback;
         let c = &self.cfg.control;
         Ok(serde_json::json!({
@@ -599,8 +646,15 @@ impl Reporter {
                     next_report = Some(at + every);
                 }
             }
+            if self
+                .saved_at
+                .is_none_or(|at| now.duration_since(at) >= Duration::from_secs(1))
+            {
+                self.save_live_state();
+            }
             std::thread::sleep(Duration::from_millis(1));
         }
+        self.save_live_state();
         if let Some(mut r) = self.recording.take() {
             let _ = r.file.flush();
         }

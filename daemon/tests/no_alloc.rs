@@ -66,6 +66,7 @@ fn controller(preset: &str) -> Controller<3> {
         stale_ns: 5_000_000,
         future_slack_ns: 1_000_000,
         daemon_id: 1,
+        t_start: 0.0,
     };
     Controller::new(cfg.model::<3>(), cfg.law_params(), 2.0, settings)
 }

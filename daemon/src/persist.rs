@@ -1,0 +1,130 @@
+//! What survives a daemon restart: the live configuration, controller time and a FAULT.
+//!
+//! An operator's `chaosctl set`, `obstacle` and `dfc` changes live only in the running daemon.
+//! A restart (a crash, a supervisor's restart, an upgrade) must not silently revert them, restart
+//! controller time at 0 (feedback off again until t_on) or clear a FAULT that nobody resumed. So
+//! the reporter thread, never the loop, writes `live-state.toml` in the output directory after
+//! every accepted change and once a second, atomically (a temporary file renamed over the old
+//! one, mode 0600), and `chaosd run` starts from it unless told `--fresh`.
+//!
+//! Not kept: the delay-line history (a restarted daemon starts a fresh one, as after HOLD), the
+//! histograms and counters (each run writes its own files).
+
+use control::Config;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The file's name inside the output directory.
+pub const FILE: &str = "live-state.toml";
+
+/// What a restarted daemon resumes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LiveState {
+    /// Controller time (s) of the newest state when this was written.
+    pub t: f64,
+    /// Wall-clock time (s since the Unix epoch) when this was written: a restarted daemon
+    /// resumes at `t` plus the time since, so controller time keeps pace with the world.
+    pub saved_unix_s: f64,
+    /// The daemon was in FAULT, and why.
+    pub fault: Option<String>,
+    /// The running configuration (without `[daemon]` and `[plant]`, which come from the file).
+    pub system: Config,
+}
+
+pub fn path(output_dir: &Path) -> PathBuf {
+    output_dir.join(FILE)
+}
+
+/// Writes the state atomically (tmp + rename), owner-only.
+pub fn save(output_dir: &Path, state: &LiveState) -> std::io::Result<()> {
+    let text = toml::to_string_pretty(state).map_err(std::io::Error::other)?;
+    let tmp = output_dir.join(format!("{FILE}.tmp"));
+    rt::files::write(&tmp, text)?;
+    std::fs::rename(&tmp, path(output_dir))
+}
+
+/// Reads a saved state; `Ok(None)` if there is none. A state that does not parse or validate,
+/// or was written for an arm of another size, is an error naming the file (never ignored
+/// silently: the operator decides, with `--fresh`).
+pub fn load(output_dir: &Path, n: usize) -> anyhow::Result<Option<LiveState>> {
+    let p = path(output_dir);
+    let text = match std::fs::read_to_string(&p) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => anyhow::bail!(
+            "cannot read {}: {e} (start with --fresh to ignore it)",
+            p.display()
+        ),
+    };
+    let bad =
+        |why: String| anyhow::anyhow!("{}: {why} (start with --fresh to ignore it)", p.display());
+    if text.len() > control::config::MAX_CONFIG_BYTES {
+        return Err(bad("too large to be a saved state".into()));
+    }
+    let s: LiveState =
+        toml::from_str(&text).map_err(|e| bad(control::config::excerpt(&e.to_string())))?;
+    s.system.validate().map_err(|e| bad(e.to_string()))?;
+    let mut s = s;
+    s.t += (unix_now() - s.saved_unix_s).clamp(0.0, 1e7);
+    if s.system.n() != n || !s.t.is_finite() || s.t < 0.0 {
+        return Err(bad(format!(
+            "saved for a {}-link arm at t = {}; this configuration has {n} links",
+            s.system.n(),
+            s.t
+        )));
+    }
+    Ok(Some(s))
+}
+
+/// Seconds since the Unix epoch.
+pub fn unix_now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// Removes a saved state (`--fresh`).
+pub fn clear(output_dir: &Path) -> std::io::Result<()> {
+    match std::fs::remove_file(path(output_dir)) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+        _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_saved_state_reads_back_and_bad_ones_are_refused_by_name() {
+        let dir = std::env::temp_dir().join(format!("chaosd-persist-{}", std::process::id()));
+        rt::files::create_dir_all(&dir).unwrap();
+        assert_eq!(load(&dir, 3).unwrap(), None);
+        let mut system = Config::preset("demo").unwrap();
+        system.feedback.mu = 1.3;
+        system
+            .control
+            .obstacles
+            .push(control::config::ObstacleConfig {
+                center: [0.0, 1.6],
+                radius: 0.2,
+                margin: 0.1,
+            });
+        let s = LiveState {
+            t: 123.5,
+            saved_unix_s: unix_now() + 1e3, // in the future: no time added
+            fault: Some("joint 2 rate".into()),
+            system,
+        };
+        save(&dir, &s).unwrap();
+        assert_eq!(load(&dir, 3).unwrap(), Some(s));
+        assert!(load(&dir, 4).unwrap_err().to_string().contains("3-link"));
+        std::fs::write(path(&dir), "t = \"soon\"").unwrap();
+        assert!(load(&dir, 3).unwrap_err().to_string().contains("--fresh"));
+        clear(&dir).unwrap();
+        clear(&dir).unwrap();
+        assert_eq!(load(&dir, 3).unwrap(), None);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
