@@ -8,9 +8,11 @@
 
 pub mod config;
 pub mod controller;
+pub mod record;
 pub mod requests;
 pub mod service;
 pub mod telemetry;
+pub mod trigger;
 
 const _: () = assert!(
     control::MAX_JOINTS == protocol::MAX_JOINTS,

@@ -47,6 +47,10 @@ enum Cmd {
         /// else a third of the way in).
         #[arg(long = "t-on")]
         t_on: Option<f64>,
+        /// What starts a tick: clock (free-running, the default) or state (each state is
+        /// answered in the same cycle). Sets daemon.trigger and plant.trigger.
+        #[arg(long)]
+        trigger: Option<rt::Trigger>,
     },
     /// Validate a config file and print the effective settings.
     CheckConfig {
@@ -171,7 +175,13 @@ fn plant_exe() -> Result<PathBuf> {
     Ok(p)
 }
 
-fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> Result<()> {
+fn demo(
+    common: &Common,
+    duration: f64,
+    mu: Option<f64>,
+    t_on: Option<f64>,
+    trigger: Option<rt::Trigger>,
+) -> Result<()> {
     check_duration(duration)?;
     let mut s = if common.config.is_none() && common.preset.is_none() {
         Common {
@@ -202,6 +212,10 @@ fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> R
     s.system.feedback.enabled = true;
     // The plant reads the same file: give it our namespace and output directory.
     let mut plant = s.system.plant.clone().unwrap_or_default();
+    if let Some(t) = trigger {
+        s.daemon.trigger = t;
+        plant.insert("trigger".into(), t.name().into());
+    }
     plant.insert("namespace".into(), s.daemon.namespace.clone().into());
     plant.insert(
         "output_dir".into(),
@@ -272,6 +286,31 @@ fn pct(v: &serde_json::Value, key: &str) -> String {
     )
 }
 
+/// The state trigger's figures from the plant's summary: answered in time, late, braked.
+fn print_answers(s: &DaemonSetup, p: &serde_json::Value) {
+    let c = &p["counters"];
+    let n = |k: &str| c[k].as_u64().unwrap_or(0);
+    println!(
+        "trigger               {}{}",
+        s.daemon.trigger.name(),
+        match s.daemon.trigger {
+            rt::Trigger::State => ": a tick per state, the answer applied in the same cycle",
+            rt::Trigger::Clock =>
+                ": free-running loops, each applies the newest sample at its tick",
+        }
+    );
+    if let Some(share) = p["in_time_share"].as_f64() {
+        println!(
+            "answered in time      {:.3} % of {} cycles; {} late cycles, {} late answers dropped, {} brakes after too many late cycles",
+            share * 100.0,
+            n("answered_in_time") + n("late_cycles"),
+            n("late_cycles"),
+            n("late_answers"),
+            n("late_brakes")
+        );
+    }
+}
+
 fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::Value>, out: &Path) {
     let c = &d.counters;
     println!("\n== chaosd demo report ==");
@@ -297,9 +336,15 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
     if let Some(p) = plant {
         println!("state → command       {}", pct(p, "state_to_command"));
         println!(
-            "command round trip    {}  (state published → command applied by the plant)",
-            pct(p, "round_trip")
+            "command round trip    {}  (state published → command received by the plant{})",
+            pct(p, "round_trip"),
+            if s.daemon.trigger == rt::Trigger::State {
+                ", same cycle"
+            } else {
+                ", at its next tick"
+            }
         );
+        print_answers(s, p);
     } else {
         println!("command round trip    n/a (the plant wrote no summary)");
     }
@@ -344,7 +389,8 @@ fn main() -> ExitCode {
             duration,
             mu,
             t_on,
-        } => demo(&common, duration, mu, t_on),
+            trigger,
+        } => demo(&common, duration, mu, t_on, trigger),
         Cmd::CheckConfig { common } => common.setup().map(|s| print!("{}", s.to_toml())),
     };
     match result {

@@ -388,6 +388,9 @@ impl Loop<'_> {
     /// No answer in time: the previous command stays in force (ramped on by the plant); too
     /// many in a row, and the plant brakes.
     fn late_cycle<P: Plant>(&mut self, plant: &mut P) -> Result<(), PlantError> {
+        if self.last_command_at.is_none() {
+            return Ok(()); // no controller yet: nothing is late
+        }
         self.c.late_cycles += 1;
         self.late_run = self.late_run.saturating_add(1);
         if self.late_run >= self.cfg.max_late_cycles && !self.late_braking {

@@ -46,9 +46,10 @@ pub const SLEEP_POLL_NS: u64 = 20_000;
 /// Polls `poll` until it yields a value or `deadline_ns` passes (then `None`).
 ///
 /// `expected_ns` is when the value is expected. `Spin` polls throughout; `Hybrid` sleeps until
-/// `spin_ns` before `expected_ns`, then polls without sleeping; `Sleep` sleeps until
-/// `expected_ns`, then polls every [`SLEEP_POLL_NS`]. `poll` must not allocate; this function
-/// does not either.
+/// `spin_ns` before `expected_ns`, polls without sleeping until `spin_ns` after it, and from
+/// then on (the value is overdue: a stalled or dead peer) polls every [`SLEEP_POLL_NS`], so a
+/// missing peer does not cost a spinning core; `Sleep` sleeps until `expected_ns`, then polls
+/// every [`SLEEP_POLL_NS`]. `poll` must not allocate; this function does not either.
 ///
 /// ```
 /// use rt::{monotonic_ns, trigger::poll_until, WaitStrategy};
@@ -93,7 +94,8 @@ pub fn poll_until<T>(
         if now >= deadline_ns {
             return None;
         }
-        if strategy == WaitStrategy::Sleep {
+        let overdue = strategy == WaitStrategy::Hybrid && now > expected_ns.saturating_add(spin_ns);
+        if strategy == WaitStrategy::Sleep || overdue {
             crate::clock::sleep_until((now + SLEEP_POLL_NS).min(deadline_ns));
         } else {
             core::hint::spin_loop();
