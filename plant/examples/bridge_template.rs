@@ -47,9 +47,10 @@ impl Plant for Bridge {
     }
     fn write(&mut self, a: Actuation<'_>) -> Result<(), PlantError> {
         match a {
-            // Integrate the ramped acceleration over one period into a velocity reference.
-            Actuation::Accelerate { qdd, qddd, since } => {
-                let mid = since + 0.5 * self.period;
+            Actuation::Accelerate {
+                qdd, qddd, since, ..
+            } => {
+                let mid = since + 0.5 * self.period; // integrate q̈ over one period into q̇_ref
                 for j in 0..3 {
                     self.qd_ref[j] += (qdd[j] + qddd[j] * mid) * self.period;
                 }

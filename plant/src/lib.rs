@@ -13,6 +13,7 @@ pub mod report;
 pub mod run;
 pub mod seam;
 pub mod sim;
+pub mod udp;
 
 pub use config::PlantConfig;
 pub use report::{PlantCounters, PlantSummary};

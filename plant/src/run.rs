@@ -282,6 +282,7 @@ impl Loop<'_> {
                     qdd: &cmd.qdd[..n],
                     qddd: &cmd.qddd[..n],
                     since: self.ring.since(cmd.state_seq, self.plant_time),
+                    answers: cmd.state_seq,
                 })
             }
             (Applied::Hold, _) => plant.write(Actuation::Hold),
@@ -304,6 +305,7 @@ impl Loop<'_> {
         elapsed: f64,
         deadline: u64,
     ) -> Result<bool, PlantError> {
+        self.sample.seq = self.seq;
         match plant.read(elapsed, &mut self.sample) {
             Ok(()) => {}
             Err(PlantError::Unavailable { .. }) => {
@@ -314,7 +316,6 @@ impl Loop<'_> {
         }
         self.plant_time += elapsed;
         let s = &mut self.sample;
-        s.seq = self.seq;
         self.seq += 1;
         let braked = self.timed_out || self.late_braking;
         s.flags = plant.flags() | if braked { flags::COMMAND_TIMEOUT } else { 0 };

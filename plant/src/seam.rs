@@ -42,6 +42,9 @@ pub enum Actuation<'a> {
         qdd: &'a [f64],
         qddd: &'a [f64],
         since: f64,
+        /// The `seq` of the published state this command answers (a device protocol that
+        /// echoes its own cycle counter maps it back; `read` saw that number in `out.seq`).
+        answers: u64,
     },
     /// Come to rest with the plant's own deceleration and hold the position, ready to resume.
     Hold,
@@ -98,7 +101,7 @@ pub enum PlantError {
 ///     fn activate(&mut self) -> Result<(), PlantError> { Ok(()) }
 ///     fn write(&mut self, a: Actuation<'_>) -> Result<(), PlantError> {
 ///         self.qdd = match a {
-///             Actuation::Accelerate { qdd, qddd, since } => {
+///             Actuation::Accelerate { qdd, qddd, since, .. } => {
 ///                 [qdd[0] + qddd[0] * since, qdd[1] + qddd[1] * since]
 ///             }
 ///             Actuation::Hold | Actuation::Brake => [-self.qd[0] * 20.0, -self.qd[1] * 20.0],
@@ -121,7 +124,7 @@ pub enum PlantError {
 /// let mut arm = TwoJoints { q: [0.0; 2], qd: [0.0; 2], qdd: [0.0; 2] };
 /// let mut s = StateSample::default();
 /// arm.activate()?;
-/// arm.write(Actuation::Accelerate { qdd: &[1.0, -1.0], qddd: &[0.0; 2], since: 0.0 })?;
+/// arm.write(Actuation::Accelerate { qdd: &[1.0, -1.0], qddd: &[0.0; 2], since: 0.0, answers: 0 })?;
 /// for _ in 0..1000 {
 ///     arm.read(1e-3, &mut s)?; // one cycle per call
 /// }
@@ -138,8 +141,8 @@ pub trait Plant {
     fn activate(&mut self) -> Result<(), PlantError>;
     /// Hands over the actuation for the coming cycle (a bridge sends it to the device now).
     fn write(&mut self, actuation: Actuation<'_>) -> Result<(), PlantError>;
-    /// Reads one cycle and fills `phi`, `q`, `qd` of `out` (`n` too); the loop stamps, numbers
-    /// and publishes it. `elapsed` is the time (s) since the previous `read` as the loop counts
+    /// Reads one cycle and fills `phi`, `q`, `qd` of `out` (`n` too); the loop has already set
+    /// `out.seq` to the number this state will be published with, and stamps and publishes it. `elapsed` is the time (s) since the previous `read` as the loop counts
     /// it: one period, more after a stall, and 0 until the first command arrives (a simulator
     /// then holds its initial state, so a run starts when the controller does). A simulator
     /// integrates it (and bounds a long catch-up itself); a bridge reads its sensors, and if

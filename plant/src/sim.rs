@@ -124,9 +124,9 @@ impl<const N: usize> Plant for SimPlant<N> {
 
     fn write(&mut self, actuation: Actuation<'_>) -> Result<(), PlantError> {
         match actuation {
-            Actuation::Accelerate { qdd, qddd, since }
-                if qdd.len() == N && qddd.len() == N && since.is_finite() =>
-            {
+            Actuation::Accelerate {
+                qdd, qddd, since, ..
+            } if qdd.len() == N && qddd.len() == N && since.is_finite() => {
                 self.qdd = VecN::<N>::from_column_slice(qdd);
                 self.qddd = VecN::<N>::from_column_slice(qddd);
                 self.since = since.max(0.0);
@@ -190,6 +190,7 @@ mod tests {
             qdd: &[1.0, 0.0, -1.0],
             qddd: &[0.0; 3],
             since: 0.0,
+            answers: 0,
         })
         .unwrap();
         for _ in 0..100 {
@@ -212,6 +213,7 @@ mod tests {
             qdd: &[1.0],
             qddd: &[0.0],
             since: 0.0,
+            answers: 0,
         })
         .unwrap();
         assert_ne!(p.flags() & flags::BRAKING, 0);
@@ -225,6 +227,7 @@ mod tests {
             qdd: &[1.0, 0.0, 0.0],
             qddd: &[0.0; 3],
             since: 0.0,
+            answers: 0,
         };
         let mut s = StateSample::default();
         // Five periods in one read = five reads of one period, bit for bit.
