@@ -10,6 +10,7 @@ const HOLD: u32 = Mode::Hold as u32;
 const STATE: &str = "trigger = \"state\"";
 
 struct System {
+    ns: String,
     dir: TempDir,
     cfg: std::path::PathBuf,
     plant: Proc,
@@ -32,6 +33,7 @@ fn start(test: &str, extra_plant: &str) -> System {
     );
     let m = Monitor::new(&ns);
     System {
+        ns,
         dir,
         cfg,
         plant,
@@ -75,6 +77,32 @@ fn each_state_is_answered_in_its_own_cycle() {
     assert!(
         same_cycle * 10 >= matched * 9,
         "only {same_cycle} of {matched} commands came before the next state"
+    );
+    // chaosctl status shows the trigger, the state → command latency and the share answered.
+    let out = std::process::Command::new(bin("chaosctl"))
+        .args(["status", "--json", "--namespace", &s.ns])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let st: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(st["trigger"], "state", "{st}");
+    assert!(
+        st["state_to_command"]["count"].as_u64().unwrap() > 1000,
+        "{st}"
+    );
+    assert!(st["answered_within_period"].as_f64().unwrap() > 0.5, "{st}");
+    let human = std::process::Command::new(bin("chaosctl"))
+        .args(["status", "--namespace", &s.ns])
+        .output()
+        .unwrap();
+    let human = String::from_utf8_lossy(&human.stdout);
+    assert!(
+        human.contains("trigger   state; state → command p50"),
+        "{human}"
     );
     assert!(s.daemon.terminate(Duration::from_secs(10)).success());
     assert!(s.plant.terminate(Duration::from_secs(10)).success());
