@@ -682,7 +682,7 @@ mod tests {
             h.contains("| idle | 0 | 10000 | 3 |") && h.contains("| hammered | 1234 | 10000 | 3 |"),
             "{h}"
         );
-        let t = table(&[r.clone()]);
+        let t = table(std::slice::from_ref(&r));
         assert!(
             t.contains(
                 "| 1 kHz | 10000 | 3 / 0 | 1.50 µs / 12.00 µs / 900.00 µs | 40.00 µs / 95.00 µs |"
