@@ -23,7 +23,8 @@ use protocol::{monotonic_ns, CommandSample, StateSample};
 use rt::WaitStrategy;
 use std::mem::MaybeUninit;
 
-type CommandSlot = SampleMutUninit<ipc::Service, MaybeUninit<CommandSample>, ()>;
+/// A command sample loaned ahead of time, so that the loan is not on the path to the send.
+pub type CommandSlot = SampleMutUninit<ipc::Service, MaybeUninit<CommandSample>, ()>;
 
 /// The loop's ports and channels.
 pub struct Ports<'a> {
@@ -44,7 +45,7 @@ pub struct Timing {
 }
 
 /// Drains the state queue and returns the newest sample, counting the superseded ones.
-fn newest_state<const N: usize>(
+pub fn newest_state<const N: usize>(
     sub: &Subscriber<ipc::Service, StateSample, ()>,
     ctl: &mut Controller<N>,
 ) -> Option<StateSample> {
@@ -67,7 +68,7 @@ fn newest_state<const N: usize>(
 }
 
 /// Sends `c` in the pre-loaned `slot` (or a fresh loan if there is none).
-fn send<const N: usize>(
+pub fn send<const N: usize>(
     publisher: &Publisher<ipc::Service, CommandSample, ()>,
     slot: &mut Option<CommandSlot>,
     c: CommandSample,
