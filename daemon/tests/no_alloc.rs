@@ -227,7 +227,7 @@ fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
     let cmd_sub = cmd_svc.subscriber_builder().create().unwrap();
     let mut c = controller("paper");
     let mut slot = publisher.loan_uninit().ok();
-    let mut path = |c: &mut Controller<3>, slot: &mut Option<_>| -> bool {
+    let path = |c: &mut Controller<3>, slot: &mut Option<_>| -> bool {
         let got = newest_state(&sub, c);
         let o = c.tick(got.as_ref(), monotonic_ns());
         match o.command {
