@@ -160,7 +160,6 @@ fn control_loop<const N: usize>(
             subscriber: &subscriber,
             publisher: &publisher,
             tx: &tx,
-            params_rx: &params_rx,
         };
         let timing = crate::trigger::Timing {
             period_ns: period,
@@ -168,7 +167,13 @@ fn control_loop<const N: usize>(
             spin_ns: spin,
             end_ns: end,
         };
-        crate::trigger::state_loop(&mut ctl, &ports, timing);
+        // What the control service sent, taken between ticks (as in the clock loop below).
+        let between = |ctl: &mut Controller<N>| {
+            if let Ok(p) = params_rx.try_recv() {
+                ctl.set_params(p);
+            }
+        };
+        crate::trigger::state_loop(&mut ctl, &ports, timing, between);
         leave_braking(&mut ctl, &publisher);
         return Ok((rt_report, ctl.counters));
     }

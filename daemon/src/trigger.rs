@@ -31,7 +31,6 @@ pub struct Ports<'a> {
     pub subscriber: &'a Subscriber<ipc::Service, StateSample, ()>,
     pub publisher: &'a Publisher<ipc::Service, CommandSample, ()>,
     pub tx: &'a crossbeam::channel::Sender<TickRecord>,
-    pub params_rx: &'a crossbeam::channel::Receiver<control::LawParams>,
 }
 
 /// How the loop waits.
@@ -88,8 +87,15 @@ pub fn send<const N: usize>(
     }
 }
 
-/// Runs state-triggered ticks until a stop request or `timing.end_ns`.
-pub fn state_loop<const N: usize>(ctl: &mut Controller<N>, ports: &Ports<'_>, timing: Timing) {
+/// Runs state-triggered ticks until a stop request or `timing.end_ns`. `between` runs after each
+/// command has left: it takes what the control service sent (a parameter block, ...) without
+/// waiting, exactly as the clock loop does before its tick.
+pub fn state_loop<const N: usize>(
+    ctl: &mut Controller<N>,
+    ports: &Ports<'_>,
+    timing: Timing,
+    mut between: impl FnMut(&mut Controller<N>),
+) {
     let period = timing.period_ns;
     let mut slot = ports.publisher.loan_uninit().ok();
     let mut expected = monotonic_ns() + period;
@@ -121,9 +127,7 @@ pub fn state_loop<const N: usize>(ctl: &mut Controller<N>, ports: &Ports<'_>, ti
         if slot.is_none() {
             slot = ports.publisher.loan_uninit().ok();
         }
-        if let Ok(p) = ports.params_rx.try_recv() {
-            ctl.set_params(p);
-        }
+        between(ctl);
         let times = TickTimes { due, woke, done };
         let rec = tick_record(ctl, &o, got, times);
         match ports.tx.try_send(rec) {

@@ -281,6 +281,17 @@ fn bad_bridge_and_fakebot_flags_are_refused() {
                 c,
                 "--device",
                 "127.0.0.1:9",
+                "--bind",
+                "127.0.0.1:9",
+            ],
+        ),
+        (
+            "chaosd-bridge",
+            vec![
+                "--config",
+                c,
+                "--device",
+                "127.0.0.1:9",
                 "--timeout-ms",
                 "0",
             ],

@@ -44,6 +44,11 @@ fn ms(name: &str, v: f64) -> anyhow::Result<Duration> {
 fn main() -> ExitCode {
     let args = Args::parse();
     app::main_with("chaosd-bridge", &args.plant, |l| {
+        ensure!(
+            args.bind != args.device,
+            "--bind and --device are both {}",
+            args.bind
+        );
         let period_ms = 1e3 / l.plant.rate_hz;
         let cfg = BridgeConfig {
             bind: args.bind,
