@@ -6,6 +6,12 @@
 //! 50, memory locked. The plant starts first, then the daemon runs for a fixed time and exits by
 //! itself; the plant is then stopped with SIGTERM so it writes its summary.
 //!
+//! Three modes side by side: today's free-running loops (`trigger = "clock"`), the state trigger
+//! over iceoryx2 (`trigger = "state"`: each state answered in its own cycle), and the same
+//! through the UDP bridge (`chaosd-fakebot` owning the clock ⇄ `chaosd-bridge` ⇄ `chaosd`, on
+//! the loopback). The first table keeps the free-running figures; the second puts the three
+//! modes next to each other at every rate.
+//!
 //! The numbers come from the processes' own summaries (`daemon-summary.json`,
 //! `plant-summary.json`) and `.hgrm` files, so this benchmark reports exactly what the daemon
 //! measures about itself. CPU use is sampled from `/proc/<pid>/stat` (utime + stime, all
@@ -24,9 +30,42 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+/// How the plant side and the daemon are wired.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Free-running loops (`trigger = "clock"`), today's default.
+    Clock,
+    /// State-triggered over iceoryx2.
+    State,
+    /// State-triggered through chaosd-bridge and chaosd-fakebot over UDP.
+    Udp,
+}
+
+impl Mode {
+    pub const ALL: [Mode; 3] = [Mode::Clock, Mode::State, Mode::Udp];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Clock => "free-running (iceoryx2)",
+            Mode::State => "state-triggered (iceoryx2)",
+            Mode::Udp => "state-triggered (UDP bridge)",
+        }
+    }
+
+    fn slug(self) -> &'static str {
+        match self {
+            Mode::Clock => "",
+            Mode::State => "-state",
+            Mode::Udp => "-udp",
+        }
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct Options {
     pub rates: Vec<f64>,
+    /// The modes to run at every rate.
+    pub modes: Vec<Mode>,
     /// How long the daemon runs per rate.
     pub seconds: f64,
 }
@@ -35,6 +74,7 @@ impl Options {
     pub fn new(quick: bool) -> Self {
         Self {
             rates: vec![1_000.0, 2_000.0, 5_000.0, 10_000.0],
+            modes: Mode::ALL.to_vec(),
             seconds: if quick { 3.0 } else { 20.0 },
         }
     }
@@ -50,6 +90,9 @@ impl Options {
                 "e2e rates {:?}: each must be between 100 and 10000 Hz (the daemon's range)",
                 self.rates
             );
+        }
+        if self.modes.is_empty() {
+            bail!("e2e modes: at least one of clock, state, udp");
         }
         if !(self.seconds.is_finite() && (2.5..=3600.0).contains(&self.seconds)) {
             bail!("e2e seconds {}: must be between 2.5 and 3600", self.seconds);
@@ -73,12 +116,17 @@ fn sibling(name: &str) -> Result<PathBuf> {
 }
 
 /// The config file of one rate.
-pub fn config_text(namespace: &str, dir: &Path, rate_hz: f64) -> String {
+pub fn config_text(namespace: &str, dir: &Path, rate_hz: f64, mode: Mode) -> String {
+    let trigger = if mode == Mode::Clock {
+        "clock"
+    } else {
+        "state"
+    };
     // TOML strings: the path is written as a literal string, so no escaping is needed unless it
     // holds a quote, which `run` refuses.
     format!(
-        "[daemon]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\nreport_every_s = 0.0\n\n\
-         [plant]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\n",
+        "[daemon]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\nreport_every_s = 0.0\ntrigger = \"{trigger}\"\n\n\
+         [plant]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\ntrigger = \"{trigger}\"\n",
         dir = dir.display()
     )
 }
@@ -87,6 +135,9 @@ pub fn config_text(namespace: &str, dir: &Path, rate_hz: f64) -> String {
 #[derive(Debug, Clone)]
 pub struct RateResult {
     pub rate_hz: f64,
+    pub mode: Mode,
+    /// The UDP device's summary (chaosd-fakebot), in the UDP mode.
+    pub device: Option<Value>,
     /// Status requests answered during the run, when a client hammered the control service.
     pub requests: Option<u64>,
     pub daemon: Value,
@@ -143,32 +194,81 @@ fn hammer(ns: String, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<u64> {
     })
 }
 
-fn one_rate(opts: &Options, rate_hz: f64, report: &Report, hammered: bool) -> Result<RateResult> {
-    let (chaosd, plant_exe) = (sibling("chaosd")?, sibling("chaosd-plant")?);
+/// Two free UDP ports on the loopback for the device and the bridge.
+fn free_udp_ports() -> Result<(u16, u16)> {
+    let a = std::net::UdpSocket::bind("127.0.0.1:0").context("no free UDP port")?;
+    let b = std::net::UdpSocket::bind("127.0.0.1:0").context("no free UDP port")?;
+    Ok((a.local_addr()?.port(), b.local_addr()?.port()))
+}
+
+/// The plant side: chaosd-plant, or chaosd-fakebot (returned second) and chaosd-bridge.
+fn spawn_plant_side(
+    mode: Mode,
+    cfg: &Path,
+    dir: &Path,
+    secs: f64,
+) -> Result<(Child, Option<Child>)> {
+    let base = |exe: &Path| {
+        let mut cmd = Command::new(exe);
+        cmd.arg("--config")
+            .arg(cfg)
+            .args(["--duration", &format!("{}", secs + 30.0)]);
+        cmd
+    };
+    if mode != Mode::Udp {
+        let cmd = base(&sibling("chaosd-plant")?);
+        let plant = Child::spawn("chaosd-plant", cmd, &dir.join("plant.log"), Stdout::Log)?;
+        return Ok((plant, None));
+    }
+    let (d, b) = free_udp_ports()?;
+    let (d, b) = (format!("127.0.0.1:{d}"), format!("127.0.0.1:{b}"));
+    let mut cmd = base(&sibling("chaosd-fakebot")?);
+    cmd.args(["--listen", &d, "--peer", &b, "--summary"])
+        .arg(dir.join(DEVICE_SUMMARY));
+    let device = Child::spawn("chaosd-fakebot", cmd, &dir.join("fakebot.log"), Stdout::Log)?;
+    let mut cmd = base(&sibling("chaosd-bridge")?);
+    cmd.args(["--device", &d, "--bind", &b]);
+    let bridge = Child::spawn("chaosd-bridge", cmd, &dir.join("plant.log"), Stdout::Log)?;
+    Ok((bridge, Some(device)))
+}
+
+/// What chaosd-fakebot writes at exit in the UDP mode.
+const DEVICE_SUMMARY: &str = "fakebot-summary.json";
+
+fn one_rate(
+    opts: &Options,
+    rate_hz: f64,
+    mode: Mode,
+    report: &Report,
+    hammered: bool,
+) -> Result<RateResult> {
+    let chaosd = sibling("chaosd")?;
     let dir = report.path(&if hammered {
         format!("{rate_hz:.0}hz-hammered")
     } else {
-        format!("{rate_hz:.0}hz")
+        format!("{rate_hz:.0}hz{}", mode.slug())
     });
     std::fs::create_dir_all(&dir)?;
-    for f in ["daemon-summary.json", "plant-summary.json"] {
+    for f in ["daemon-summary.json", "plant-summary.json", DEVICE_SUMMARY] {
         let _ = std::fs::remove_file(dir.join(f));
     }
     let cfg = dir.join("config.toml");
     let ns = unique_namespace("e2e");
-    std::fs::write(&cfg, config_text(&ns, &dir, rate_hz))?;
+    std::fs::write(&cfg, config_text(&ns, &dir, rate_hz, mode))?;
 
-    let mut cmd = Command::new(&plant_exe);
-    cmd.arg("--config")
-        .arg(&cfg)
-        .args(["--duration", &format!("{}", opts.seconds + 30.0)]);
-    let mut plant = Child::spawn("chaosd-plant", cmd, &dir.join("plant.log"), Stdout::Log)?;
+    let (mut plant, mut device) = spawn_plant_side(mode, &cfg, &dir, opts.seconds)?;
     std::thread::sleep(Duration::from_millis(300));
     if plant.poll_exit().is_some() {
         return Err(plant.failure("it stopped at start-up"));
     }
+    if let Some(d) = device.as_mut() {
+        if d.poll_exit().is_some() {
+            return Err(d.failure("it stopped at start-up"));
+        }
+    }
     let mut cmd = Command::new(&chaosd);
     cmd.arg("run")
+        .arg("--fresh")
         .arg("--config")
         .arg(&cfg)
         .args(["--duration", &format!("{}", opts.seconds)]);
@@ -221,6 +321,12 @@ fn one_rate(opts: &Options, rate_hz: f64, report: &Report, hammered: bool) -> Re
     if plant.poll_exit().is_some_and(|s| !s.success()) {
         return Err(plant.failure("it failed"));
     }
+    if let Some(d) = device.as_mut() {
+        d.terminate(Duration::from_secs(10))?;
+        if d.poll_exit().is_some_and(|s| !s.success()) {
+            return Err(d.failure("it failed"));
+        }
+    }
     let (Some(a), Some(b)) = (first, last) else {
         bail!(
             "chaosd exited after {:.1} s, before the CPU sampling window ended",
@@ -228,8 +334,14 @@ fn one_rate(opts: &Options, rate_hz: f64, report: &Report, hammered: bool) -> Re
         );
     };
     let (secs, hz) = (b.0.duration_since(a.0).as_secs_f64(), clock_ticks_per_s());
+    let device = match mode {
+        Mode::Udp => Some(read_json(&dir.join(DEVICE_SUMMARY))?),
+        _ => None,
+    };
     Ok(RateResult {
         rate_hz,
+        mode,
+        device,
         requests,
         daemon: read_json(&dir.join("daemon-summary.json"))?,
         plant: read_json(&dir.join("plant-summary.json"))?,
@@ -300,6 +412,63 @@ pub fn table(results: &[RateResult]) -> String {
     t.render()
 }
 
+/// The three modes side by side at every rate: how soon a state is answered, and how often in
+/// its own cycle.
+pub fn modes_table(results: &[RateResult]) -> String {
+    let mut t = Table::new(&[
+        "rate",
+        "mode",
+        "state published → command at the plant p50 / p99 / p99.9",
+        "answered in time",
+        "state age p50 / p99",
+        "device: state sent → answer received p50 / p99 / p99.9",
+        "daemon wake-up p99",
+        "CPU daemon / plant",
+    ]);
+    for r in results {
+        let (d, p) = (&r.daemon, &r.plant);
+        let share = p["in_time_share"].as_f64().map_or_else(
+            || "next tick (by design)".into(),
+            |f| format!("{:.3} %", f * 100.0),
+        );
+        let device = r.device.as_ref().map_or_else(
+            || "-".into(),
+            |v| {
+                format!(
+                    "{} / {} / {}",
+                    us(v, "round_trip", "p50_us"),
+                    us(v, "round_trip", "p99_us"),
+                    us(v, "round_trip", "p999_us")
+                )
+            },
+        );
+        t.row(vec![
+            format!("{} kHz", r.rate_hz / 1000.0),
+            r.mode.name().into(),
+            format!(
+                "{} / {} / {}",
+                us(p, "round_trip", "p50_us"),
+                us(p, "round_trip", "p99_us"),
+                us(p, "round_trip", "p999_us")
+            ),
+            share,
+            format!(
+                "{} / {}",
+                us(d, "state_age", "p50_us"),
+                us(d, "state_age", "p99_us")
+            ),
+            device,
+            us(d, "lateness", "p99_us"),
+            format!(
+                "{:.0} % / {:.0} %",
+                r.cpu_daemon * 100.0,
+                r.cpu_plant * 100.0
+            ),
+        ]);
+    }
+    t.render()
+}
+
 /// The idle and the hammered run side by side.
 pub fn hammer_table(idle: &RateResult, hammered: &RateResult) -> String {
     let mut t = Table::new(&[
@@ -343,15 +512,23 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
             report.dir.display()
         );
     }
-    let mut results = Vec::new();
+    let mut all = Vec::new();
     for &rate in &opts.rates {
-        results.push(
-            one_rate(opts, rate, &report, false).with_context(|| format!("e2e at {rate} Hz"))?,
-        );
+        for &mode in &opts.modes {
+            all.push(
+                one_rate(opts, rate, mode, &report, false)
+                    .with_context(|| format!("e2e at {rate} Hz, {}", mode.name()))?,
+            );
+        }
     }
+    let results: Vec<RateResult> = all
+        .iter()
+        .filter(|r| r.mode == Mode::Clock)
+        .cloned()
+        .collect();
     // Does the control service disturb the loop? The first rate again, with a client sending
     // status requests back to back for the whole run.
-    let hammered = one_rate(opts, opts.rates[0], &report, true)
+    let hammered = one_rate(opts, opts.rates[0], Mode::Clock, &report, true)
         .with_context(|| "e2e with a client hammering status requests")?;
     let rt_line = |v: &Value| match v["realtime"]["sched_fifo"].as_u64() {
         Some(p) => format!("SCHED_FIFO {p}"),
@@ -369,6 +546,15 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
         opts.seconds
     ));
     report.push(&table(&results));
+    report.push(
+        "\n**Triggers side by side.** Free-running, the plant applies a command at its next tick, so a \
+         command arrives one period after its state by design. State-triggered, the plant publishes, waits for \
+         the answer (up to half a period) and applies it in the same cycle; \"answered in time\" is the share of \
+         cycles whose answer came before that deadline. Through the UDP bridge the device (chaosd-fakebot) owns \
+         the clock; its column is the whole path as the device sees it: state datagram sent → command datagram \
+         received, through chaosd-bridge and chaosd.\n\n",
+    );
+    report.push(&modes_table(&all));
     report.push(&format!(
         "\n**Control requests vs the loop** at {} kHz: the same run idle and with a client sending `status` requests \
          back to back (each answered before the next is sent) for the whole run.\n\n",
@@ -408,8 +594,26 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
             report.files.push(path);
         }
     }
+    let mut by_mode = Panel {
+        title: "state published → command at the plant, by mode".into(),
+        quantity: "round trip".into(),
+        series: Vec::new(),
+    };
+    for r in all.iter().filter(|r| r.mode != Mode::Clock) {
+        let path = r.dir.join("plant-round-trip.hgrm");
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let label = format!("{} kHz {}", r.rate_hz / 1000.0, r.mode.name());
+        by_mode.series.push(
+            Dist::from_hgrm(&label, &text).with_context(|| format!("in {}", path.display()))?,
+        );
+        report.files.push(path);
+    }
+    if !by_mode.series.is_empty() {
+        panels.push(by_mode);
+    }
     report.plot("chaosd-bench e2e: daemon and plant processes", &panels)?;
-    if results
+    if all
         .iter()
         .any(|r| r.daemon["counters"]["ticks"].as_u64().unwrap_or(0) == 0)
     {
@@ -427,7 +631,12 @@ mod tests {
 
     #[test]
     fn config_is_a_valid_daemon_and_plant_config() {
-        let text = config_text("bench-e2e-1-2", Path::new("/tmp/x y/1000hz"), 5_000.0);
+        let text = config_text(
+            "bench-e2e-1-2",
+            Path::new("/tmp/x y/1000hz"),
+            5_000.0,
+            Mode::Clock,
+        );
         let cfg = control::Config::from_toml_str(&text).unwrap();
         let d = daemon::config::DaemonSetup::from_config(cfg.clone()).unwrap();
         assert_eq!(d.daemon.rate_hz, 5_000.0);
@@ -437,6 +646,10 @@ mod tests {
         let plant = cfg.plant.as_ref().unwrap();
         assert_eq!(plant["rate_hz"].as_float(), Some(5_000.0));
         assert_eq!(plant["namespace"].as_str(), Some("bench-e2e-1-2"));
+        let text = config_text("bench-e2e-1-2", Path::new("/tmp/x"), 1_000.0, Mode::Udp);
+        let cfg = control::Config::from_toml_str(&text).unwrap();
+        let d = daemon::config::DaemonSetup::from_config(cfg).unwrap();
+        assert_eq!(d.daemon.trigger, rt::Trigger::State);
     }
 
     #[test]
@@ -452,6 +665,8 @@ mod tests {
         });
         let r = RateResult {
             rate_hz: 1000.0,
+            mode: Mode::Clock,
+            device: None,
             requests: None,
             daemon,
             plant,
@@ -468,7 +683,7 @@ mod tests {
             h.contains("| idle | 0 | 10000 | 3 |") && h.contains("| hammered | 1234 | 10000 | 3 |"),
             "{h}"
         );
-        let t = table(&[r]);
+        let t = table(std::slice::from_ref(&r));
         assert!(
             t.contains(
                 "| 1 kHz | 10000 | 3 / 0 | 1.50 µs / 12.00 µs / 900.00 µs | 40.00 µs / 95.00 µs |"
@@ -478,6 +693,23 @@ mod tests {
         assert!(
             t.contains("1.00 ms / 1.01 ms / 1.10 ms / 2.50 ms | 12 % | 30 % |"),
             "{t}"
+        );
+        let mut udp = r.clone();
+        udp.mode = Mode::Udp;
+        udp.plant["in_time_share"] = serde_json::json!(0.9995);
+        udp.device = Some(serde_json::json!({
+            "round_trip": {"p50_us": 40.0, "p99_us": 80.0, "p999_us": 200.0}
+        }));
+        let m = modes_table(&[r.clone(), udp]);
+        assert!(
+            m.contains("| free-running (iceoryx2) |") && m.contains("next tick (by design)"),
+            "{m}"
+        );
+        assert!(
+            m.contains("| state-triggered (UDP bridge) |")
+                && m.contains("99.950 %")
+                && m.contains("40.00 µs / 80.00 µs / 200.00 µs"),
+            "{m}"
         );
     }
 
@@ -493,12 +725,14 @@ mod tests {
         );
         assert!(Options {
             rates: vec![50.0],
+            modes: Mode::ALL.to_vec(),
             seconds: 3.0
         }
         .validate()
         .is_err());
         assert!(Options {
             rates: vec![1000.0],
+            modes: Mode::ALL.to_vec(),
             seconds: 1.0
         }
         .validate()

@@ -113,6 +113,17 @@ struct E2eArgs {
     /// Rates in Hz (comma-separated).
     #[arg(long, value_delimiter = ',')]
     rates: Option<Vec<f64>>,
+    /// Modes (comma-separated): clock (free-running), state (state-triggered over iceoryx2),
+    /// udp (state-triggered through chaosd-bridge and chaosd-fakebot). Default: all three.
+    #[arg(long, value_delimiter = ',')]
+    modes: Option<Vec<E2eMode>>,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum E2eMode {
+    Clock,
+    State,
+    Udp,
 }
 
 fn command_line() -> String {
@@ -165,6 +176,16 @@ fn e2e_opts(quick: bool, a: &E2eArgs) -> Result<e2e::Options> {
     }
     if let Some(r) = &a.rates {
         o.rates = r.clone();
+    }
+    if let Some(m) = &a.modes {
+        o.modes = m
+            .iter()
+            .map(|m| match m {
+                E2eMode::Clock => e2e::Mode::Clock,
+                E2eMode::State => e2e::Mode::State,
+                E2eMode::Udp => e2e::Mode::Udp,
+            })
+            .collect();
     }
     o.validate()?;
     Ok(o)

@@ -242,6 +242,7 @@ fn human_status(body: &str) -> String {
          feedback  {} (active: {}), μ = {}, τ = {} s, t_on = {} s, max τ = {} s\n\
          control   K_p = {}, K_v = {}, α = {}, secondary {}, {} obstacles; recent tracking error {} m\n\
          timing    lateness p50 {} µs, p99 {} µs, max {} µs; overruns {}\n\
+         trigger   {}; state → command p50 {} µs, p99 {} µs; {} of answered states answered within one period\n\
          counters  {} ticks, {} commands, {} rejected samples, {} holds, {} plant restarts, {} params applied\n\
          law       tracking lost on {} ticks, near-singular on {}, target out of reach on {}, non-finite results {}\n\
          recording {}",
@@ -250,6 +251,8 @@ fn human_status(body: &str) -> String {
         f("kp"), f("kv"), f("alpha"), f("secondary"), f("obstacles"),
         v["tracking_error_recent"].as_f64().map_or("n/a".into(), |x| format!("{x:.2e}")),
         us(&lat["p50_us"]), us(&lat["p99_us"]), us(&lat["max_us"]), c["overruns"],
+        f("trigger"), us(&v["state_to_command"]["p50_us"]), us(&v["state_to_command"]["p99_us"]),
+        v["answered_within_period"].as_f64().map_or("n/a".into(), |x| format!("{:.3} %", x * 100.0)),
         c["ticks"], c["commands"],
         ["rejected_invalid", "rejected_stale", "rejected_out_of_order", "rejected_future", "plant_faults"]
             .iter()

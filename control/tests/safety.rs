@@ -303,9 +303,11 @@ type Layout<'a> = &'a [(f64, f64, f64)];
 #[test]
 fn links_stay_clear_of_obstacles_in_closed_loop() {
     // Layouts of one to three obstacles that the circle keeps clear of. In the first four the
-    // null space alone can keep every link clear at μ = 0, so tracking must stay exact; in the
-    // last two it cannot (the free part of the self-motion manifold closes as the end effector
-    // goes round), tracking gives way, and only safety is asserted.
+    // null space alone keeps every link clear at μ = 0 *from these starts* (the README's obstacle
+    // study finds basin-grid starts that get trapped between the three obstacles of layout 3), so
+    // tracking must stay exact; in the last two it cannot (the free part of the self-motion
+    // manifold closes as the end effector goes round), tracking gives way, and only safety is
+    // asserted.
     let layouts: &[(Layout, bool)] = &[
         (&[(0.0, 1.6, 0.25)], true),
         (&[(0.5, 0.9, 0.2)], true),

@@ -6,7 +6,7 @@
 
 use control::config::ConfigError;
 use control::Config;
-use rt::WaitStrategy;
+use rt::{Trigger, WaitStrategy};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -44,6 +44,15 @@ pub struct DaemonConfig {
     /// How the plant holds a command between ticks: "first-order" (q̈ and its rate, the
     /// default) or "zero-order" (constant q̈). See `control::hold` for why it matters.
     pub hold: Hold,
+    /// What starts a tick: "clock" (fixed-rate deadlines, the default) or "state" (a tick runs
+    /// the moment a new state arrives and its command goes out at once; `wait` then says how
+    /// to wait for it: spin = busy-poll, hybrid = sleep until `spin_us` before the state is
+    /// due, then poll, sleep = poll every 20 µs). Must match `plant.trigger`.
+    pub trigger: Trigger,
+    /// Clock trigger: lock the tick's phase to the plant's state stamps, `phase_offset_us`
+    /// after each state (µs, below one period), so the state age is small and fixed instead of
+    /// wherever the two start phases fell. None (the default): free-running.
+    pub phase_offset_us: Option<f64>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -72,6 +81,8 @@ impl Default for DaemonConfig {
             telemetry_queue: 16_384,
             telemetry_hz: 20.0,
             hold: Hold::FirstOrder,
+            trigger: Trigger::Clock,
+            phase_offset_us: None,
         }
     }
 }
@@ -144,6 +155,23 @@ impl DaemonConfig {
                 "must be between 10 and 50 Hz",
             ));
         }
+        let period_us = 1e6 / self.rate_hz;
+        if let Some(o) = self.phase_offset_us {
+            if !(o.is_finite() && o >= 0.0 && o < period_us) {
+                return Err(invalid(
+                    "phase_offset_us",
+                    o,
+                    &format!("must be between 0 and the period ({period_us} µs)"),
+                ));
+            }
+            if self.trigger == Trigger::State {
+                return Err(invalid(
+                    "phase_offset_us",
+                    o,
+                    "applies to trigger = \"clock\" only (a state-triggered tick has no phase of its own)",
+                ));
+            }
+        }
         // A record is about 600 bytes: 65 536 of them are 40 MB, over a minute at 1 kHz.
         if !(64..=1 << 16).contains(&self.telemetry_queue) {
             return Err(invalid(
@@ -208,6 +236,21 @@ impl DaemonSetup {
                     expected: format!(
                         "must span at least two plant periods: {} ticks at {} Hz is {:.3} ms, the plant publishes every {:.3} ms (plant.rate_hz = {rate})",
                         self.daemon.hold_after, self.daemon.rate_hz, hold_window * 1e3, 1e3 / rate
+                    ),
+                });
+            }
+        }
+        if let Some(plant) = &self.system.plant {
+            let plant_trigger = plant
+                .get("trigger")
+                .and_then(|v| v.as_str())
+                .unwrap_or("clock");
+            if plant_trigger != self.daemon.trigger.name() {
+                return Err(ConfigError::Invalid {
+                    field: "daemon.trigger".into(),
+                    value: format!("{:?}", self.daemon.trigger.name()),
+                    expected: format!(
+                        "must equal plant.trigger = {plant_trigger:?} (both ends must agree on who answers when)"
                     ),
                 });
             }
@@ -291,6 +334,18 @@ mod tests {
         assert!(bad("[daemon]\nrate_hz = 10000\n[plant]\nrate_hz = 100\n")
             .contains("daemon.hold_after"));
         assert!(bad("[daemon]\nrate_hz = 100\n[feedback]\ntau = 0.005\n").contains("feedback.tau"));
+        assert!(bad("[daemon]\ntrigger = \"bell\"\n").contains("bell"));
+        assert!(
+            bad("[daemon]\ntrigger = \"state\"\n[plant]\nrate_hz = 1000\n")
+                .contains("daemon.trigger")
+        );
+        assert!(bad("[daemon]\nphase_offset_us = 1000\n").contains("daemon.phase_offset_us"));
+        assert!(
+            bad("[daemon]\nphase_offset_us = 100\ntrigger = \"state\"\n")
+                .contains("daemon.phase_offset_us")
+        );
+        let ok = "[daemon]\ntrigger = \"state\"\n[plant]\ntrigger = \"state\"\n";
+        assert!(DaemonSetup::from_config(Config::parse(ok).unwrap()).is_ok());
     }
 
     #[test]

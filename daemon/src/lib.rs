@@ -11,10 +11,12 @@ pub mod config;
 pub mod controller;
 pub mod guard;
 pub mod persist;
+pub mod record;
 pub mod requests;
 pub mod residual;
 pub mod service;
 pub mod telemetry;
+pub mod trigger;
 
 const _: () = assert!(
     control::MAX_JOINTS == protocol::MAX_JOINTS,

@@ -51,12 +51,28 @@ enum Cmd {
         /// else a third of the way in).
         #[arg(long = "t-on")]
         t_on: Option<f64>,
+        /// What starts a tick: clock (free-running, the default) or state (each state is
+        /// answered in the same cycle). Sets daemon.trigger and plant.trigger.
+        #[arg(long)]
+        trigger: Option<rt::Trigger>,
+        /// Drive the arm through a hardware bridge instead of the simulator: `udp` runs
+        /// chaosd-fakebot (a device emulator that owns the clock) and chaosd-bridge over UDP on
+        /// the loopback, with the state trigger.
+        #[arg(long, value_enum)]
+        bridge: Option<BridgeKind>,
     },
     /// Validate a config file and print the effective settings.
     CheckConfig {
         #[command(flatten)]
         common: Common,
     },
+}
+
+/// The plant side of a demo, when it is not the simulator.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum BridgeKind {
+    /// chaosd-fakebot + chaosd-bridge over UDP on 127.0.0.1.
+    Udp,
 }
 
 #[derive(Args, Clone)]
@@ -164,8 +180,12 @@ fn plant_command(exe: PathBuf) -> Command {
 }
 
 fn plant_exe() -> Result<PathBuf> {
+    sibling_exe("chaosd-plant")
+}
+
+fn sibling_exe(name: &str) -> Result<PathBuf> {
     let me = std::env::current_exe().context("cannot locate the chaosd executable")?;
-    let p = me.with_file_name("chaosd-plant");
+    let p = me.with_file_name(name);
     if !p.exists() {
         bail!(
             "{} not found: build both programs with `cargo build --release --bins`",
@@ -175,8 +195,101 @@ fn plant_exe() -> Result<PathBuf> {
     Ok(p)
 }
 
-fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> Result<()> {
+/// Two free UDP ports on the loopback (bound, read, released: the children bind them next).
+fn free_udp_ports() -> Result<(u16, u16)> {
+    let a = std::net::UdpSocket::bind("127.0.0.1:0").context("no free UDP port")?;
+    let b = std::net::UdpSocket::bind("127.0.0.1:0").context("no free UDP port")?;
+    Ok((a.local_addr()?.port(), b.local_addr()?.port()))
+}
+
+/// Starts `exe args…` with its output in `log`, as a child that dies with us.
+fn spawn_logged(exe: PathBuf, args: &[String], log: &Path) -> Result<ChildGuard> {
+    let f = std::fs::File::create(log)?;
+    let name = exe.display().to_string();
+    let child = plant_command(exe)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(f.try_clone()?)
+        .stderr(f)
+        .spawn()
+        .with_context(|| format!("cannot start {name}"))?;
+    Ok(ChildGuard(Some(child)))
+}
+
+/// The plant side of a demo: chaosd-plant, or chaosd-fakebot and chaosd-bridge. Returns the
+/// plant process (the simulator or the bridge) and the device process (none for the simulator).
+fn spawn_plant_side(
+    bridge: Option<BridgeKind>,
+    cfg_path: &Path,
+    out: &Path,
+    duration: f64,
+) -> Result<(ChildGuard, ChildGuard)> {
+    let cfg = cfg_path.display().to_string();
+    let until = format!("{}", duration + 10.0);
+    let common = ["--config".to_string(), cfg, "--duration".into(), until];
+    let Some(BridgeKind::Udp) = bridge else {
+        let plant = spawn_logged(plant_exe()?, &common, &out.join("plant.log"))?;
+        return Ok((plant, ChildGuard(None)));
+    };
+    let (dev, br) = free_udp_ports()?;
+    let (dev, br) = (format!("127.0.0.1:{dev}"), format!("127.0.0.1:{br}"));
+    let summary = out.join(FAKEBOT_SUMMARY).display().to_string();
+    let _ = std::fs::remove_file(&summary);
+    let mut args = common.to_vec();
+    args.extend(["--listen".into(), dev.clone(), "--peer".into(), br.clone()]);
+    args.extend(["--summary".into(), summary]);
+    let device = spawn_logged(
+        sibling_exe("chaosd-fakebot")?,
+        &args,
+        &out.join("fakebot.log"),
+    )?;
+    let mut args = common.to_vec();
+    args.extend(["--device".into(), dev, "--bind".into(), br]);
+    let plant = spawn_logged(sibling_exe("chaosd-bridge")?, &args, &out.join("plant.log"))?;
+    Ok((plant, device))
+}
+
+/// The file chaosd-fakebot writes at exit in a `--bridge udp` demo.
+const FAKEBOT_SUMMARY: &str = "fakebot-summary.json";
+
+/// The device's side of a `--bridge udp` demo: its round trip and its missed cycles.
+fn print_device(out: &Path) {
+    let text = std::fs::read_to_string(out.join(FAKEBOT_SUMMARY)).unwrap_or_default();
+    let Ok(v) = serde_json::from_str::<serde_json::Value>(&text) else {
+        println!("device (UDP)          n/a (chaosd-fakebot wrote no summary; see fakebot.log)");
+        return;
+    };
+    let c = &v["counters"];
+    let n = |k: &str| c[k].as_u64().unwrap_or(0);
+    println!(
+        "device round trip     {}  (fakebot: state sent over UDP → answer received)",
+        pct(&v, "round_trip")
+    );
+    println!(
+        "device cycles         {} cycles, {} answered in time, {} missed, {} late answers, {} brakes; {} states and {} commands lost (injected)",
+        n("cycles"), n("answered_in_time"), n("missed"), n("late_answers"), n("brakes"), n("states_lost"), n("commands_lost")
+    );
+}
+
+fn demo(
+    common: &Common,
+    duration: f64,
+    mu: Option<f64>,
+    t_on: Option<f64>,
+    trigger: Option<rt::Trigger>,
+    bridge: Option<BridgeKind>,
+) -> Result<()> {
     check_duration(duration)?;
+    if bridge == Some(BridgeKind::Udp) && trigger == Some(rt::Trigger::Clock) {
+        bail!(
+            "--bridge udp needs --trigger state: the device expects each answer within its cycle"
+        );
+    }
+    let trigger = if bridge.is_some() {
+        Some(rt::Trigger::State)
+    } else {
+        trigger
+    };
     let mut s = if common.config.is_none() && common.preset.is_none() {
         Common {
             preset: Some("demo".into()),
@@ -206,6 +319,10 @@ fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> R
     s.system.feedback.enabled = true;
     // The plant reads the same file: give it our namespace and output directory.
     let mut plant = s.system.plant.clone().unwrap_or_default();
+    if let Some(t) = trigger {
+        s.daemon.trigger = t;
+        plant.insert("trigger".into(), t.name().into());
+    }
     plant.insert("namespace".into(), s.daemon.namespace.clone().into());
     plant.insert(
         "output_dir".into(),
@@ -224,18 +341,7 @@ fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> R
     // Handle SIGINT/SIGTERM from here on, so an interrupt during start-up still stops cleanly.
     rt::signal::install();
     let log_path = out.join("plant.log");
-    let log = rt::files::create(&log_path)?;
-    let mut guard = ChildGuard(Some(
-        plant_command(plant_exe()?)
-            .arg("--config")
-            .arg(&cfg_path)
-            .args(["--duration", &format!("{}", duration + 10.0)])
-            .stdin(Stdio::null())
-            .stdout(log.try_clone()?)
-            .stderr(log)
-            .spawn()
-            .context("cannot start chaosd-plant")?,
-    ));
+    let (mut guard, mut device) = spawn_plant_side(bridge, &cfg_path, &out, duration)?;
     println!(
         "chaosd demo: {}-link arm, {} model, {} Hz, plant pid {}, namespace {:?}; μ = {} from t = {:.1} s; {duration} s",
         s.system.n(),
@@ -246,18 +352,32 @@ fn demo(common: &Common, duration: f64, mu: Option<f64>, t_on: Option<f64>) -> R
         s.system.feedback.mu,
         s.system.feedback.t_on
     );
+    if let Some(d) = &device.0 {
+        println!(
+            "chaosd demo: over UDP on the loopback: chaosd-fakebot (device pid {}) ⇄ chaosd-bridge ⇄ chaosd, state trigger",
+            d.id()
+        );
+    }
     std::thread::sleep(Duration::from_millis(300));
+    if let Some(Ok(Some(st))) = device.0.as_mut().map(|c| c.try_wait()) {
+        let log = std::fs::read_to_string(out.join("fakebot.log")).unwrap_or_default();
+        bail!("chaosd-fakebot exited at start ({st}):\n{log}");
+    }
     if let Some(Ok(Some(st))) = guard.0.as_mut().map(|c| c.try_wait()) {
         let log = std::fs::read_to_string(&log_path).unwrap_or_default();
-        bail!("chaosd-plant exited at start ({st}):\n{log}");
+        bail!("the plant process exited at start ({st}):\n{log}");
     }
     let summary = daemon::service::run(&s, Some(duration), print_line)?;
     let status = guard.stop(Duration::from_secs(5));
+    device.stop(Duration::from_secs(5));
     let plant_json = std::fs::read_to_string(out.join(PLANT_SUMMARY)).ok();
     let plant_summary: Option<serde_json::Value> = plant_json
         .as_deref()
         .and_then(|t| serde_json::from_str(t).ok());
     print_report(&s, &summary, plant_summary.as_ref(), &out);
+    if bridge.is_some() {
+        print_device(&out);
+    }
     if !status.is_some_and(|s| s.success()) {
         eprintln!(
             "chaosd: warning: the plant did not exit cleanly ({status:?}); see {}",
@@ -276,6 +396,31 @@ fn pct(v: &serde_json::Value, key: &str) -> String {
         g("p999_us"),
         g("max_us")
     )
+}
+
+/// The state trigger's figures from the plant's summary: answered in time, late, braked.
+fn print_answers(s: &DaemonSetup, p: &serde_json::Value) {
+    let c = &p["counters"];
+    let n = |k: &str| c[k].as_u64().unwrap_or(0);
+    println!(
+        "trigger               {}{}",
+        s.daemon.trigger.name(),
+        match s.daemon.trigger {
+            rt::Trigger::State => ": a tick per state, the answer applied in the same cycle",
+            rt::Trigger::Clock =>
+                ": free-running loops, each applies the newest sample at its tick",
+        }
+    );
+    if let Some(share) = p["in_time_share"].as_f64() {
+        println!(
+            "answered in time      {:.3} % of {} cycles; {} late cycles, {} late answers dropped, {} brakes after too many late cycles",
+            share * 100.0,
+            n("answered_in_time") + n("late_cycles"),
+            n("late_cycles"),
+            n("late_answers"),
+            n("late_brakes")
+        );
+    }
 }
 
 fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::Value>, out: &Path) {
@@ -310,9 +455,15 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
     if let Some(p) = plant {
         println!("state → command       {}", pct(p, "state_to_command"));
         println!(
-            "command round trip    {}  (state published → command applied by the plant)",
-            pct(p, "round_trip")
+            "command round trip    {}  (state published → command received by the plant{})",
+            pct(p, "round_trip"),
+            if s.daemon.trigger == rt::Trigger::State {
+                ", same cycle"
+            } else {
+                ", at its next tick"
+            }
         );
+        print_answers(s, p);
     } else {
         println!("command round trip    n/a (the plant wrote no summary)");
     }
@@ -393,7 +544,9 @@ fn main() -> ExitCode {
             duration,
             mu,
             t_on,
-        } => demo(&common, duration, mu, t_on),
+            trigger,
+            bridge,
+        } => demo(&common, duration, mu, t_on, trigger, bridge),
         Cmd::CheckConfig { common } => common.setup().map(|s| print!("{}", s.to_toml())),
     };
     match result {

@@ -14,7 +14,6 @@ use crate::config::DaemonSetup;
 use crate::controller::{Controller, ControllerSettings};
 use crate::telemetry::{DaemonSummary, LoopRequest, Reporter, TickRecord};
 use anyhow::{anyhow, Context, Result};
-use control::law::flags as law_flags;
 use control::with_dof;
 use iceoryx2::prelude::ipc;
 use protocol::{monotonic_ns, ServiceNames};
@@ -161,6 +160,27 @@ fn control_loop<const N: usize>(
     let spin = (d.spin_us * 1000.0) as u64;
     let start = monotonic_ns();
     let end = duration.map(|s| start.saturating_add((s * 1e9) as u64));
+    if d.trigger == rt::Trigger::State {
+        let ports = crate::trigger::Ports {
+            subscriber: &subscriber,
+            publisher: &publisher,
+            tx: &tx,
+        };
+        let timing = crate::trigger::Timing {
+            period_ns: period,
+            wait: d.wait,
+            spin_ns: spin,
+            end_ns: end,
+        };
+        // What the control service sent, taken between ticks (as in the clock loop below).
+        let between = |ctl: &mut Controller<N>| take_request(ctl, &params_rx);
+        crate::trigger::state_loop(&mut ctl, &ports, timing, between);
+        leave_braking(&mut ctl, &publisher);
+        return Ok((rt_report, ctl.counters));
+    }
+    let phase = d
+        .phase_offset_us
+        .map(|us| crate::trigger::PhaseLock::new(period, (us * 1e3) as u64));
     let mut sched = Schedule::new(period, start);
     while !rt::signal::stop_requested() {
         let deadline = sched.deadline();
@@ -170,13 +190,7 @@ fn control_loop<const N: usize>(
         let woke = rt::wait_until(deadline, d.wait, spin);
         // A validated parameter block (or a resume) from the control service takes effect here,
         // between ticks.
-        match params_rx.try_recv() {
-            Ok(LoopRequest::Params(p)) => ctl.set_params(p),
-            Ok(LoopRequest::Resume) => {
-                ctl.resume();
-            }
-            Err(_) => {}
-        }
+        take_request(&mut ctl, &params_rx);
         let mut newest = None;
         loop {
             match subscriber.receive() {
@@ -207,28 +221,15 @@ fn control_loop<const N: usize>(
         }
         let done = monotonic_ns();
         ctl.counters.overruns += sched.advance(done);
-        let (law, p) = (o.output, ctl.params());
-        let rec = TickRecord {
-            t: ctl.time(),
-            lateness_ns: woke.saturating_sub(deadline),
-            compute_ns: done.saturating_sub(woke),
-            state_age_ns: o.state_age_ns,
-            mode: o.mode,
-            fault: o.fault,
-            ran_law: law.is_some(),
-            law_flags: law.map_or(0, |l| l.flags),
-            tracking_error: law.map_or(f64::NAN, |l| l.tracking_error),
-            period_residual: law.map_or(f64::NAN, |l| l.period_residual),
-            clearance: law.map_or(f64::INFINITY, |l| l.clearance),
-            mu: p.mu,
-            tau: p.tau,
-            t_on: p.t_on,
-            feedback_on: p.feedback,
-            feedback_active: law.is_some_and(|l| l.flags & law_flags::FEEDBACK_ACTIVE != 0),
-            counters: ctl.counters,
-            state: if law.is_some() { newest } else { None },
-            command: o.command,
+        if let (Some(lock), Some(s), Some(_)) = (phase, newest, o.state_age_ns) {
+            sched.set_deadline(lock.align(sched.deadline(), s.stamp_ns));
+        }
+        let times = crate::record::TickTimes {
+            due: deadline,
+            woke,
+            done,
         };
+        let rec = crate::record::tick_record(&ctl, &o, newest, times);
         match tx.try_send(rec) {
             Ok(()) => {}
             Err(crossbeam::channel::TrySendError::Full(_)) => ctl.counters.telemetry_dropped += 1,
@@ -236,10 +237,31 @@ fn control_loop<const N: usize>(
             Err(crossbeam::channel::TrySendError::Disconnected(_)) => rt::signal::request_stop(),
         }
     }
-    // Leave the plant braking, not coasting on the last acceleration.
+    leave_braking(&mut ctl, &publisher);
+    Ok((rt_report, ctl.counters))
+}
+
+/// Leaves the plant braking, not coasting on the last acceleration.
+fn leave_braking<const N: usize>(
+    ctl: &mut Controller<N>,
+    publisher: &iceoryx2::port::publisher::Publisher<ipc::Service, protocol::CommandSample, ()>,
+) {
     let brake = ctl.brake_command(monotonic_ns());
     if let Ok(s) = publisher.loan_uninit() {
         let _ = s.write_payload(brake).send();
     }
-    Ok((rt_report, ctl.counters))
+}
+
+/// Applies at most one request from the control service (never blocks).
+fn take_request<const N: usize>(
+    ctl: &mut Controller<N>,
+    rx: &crossbeam::channel::Receiver<LoopRequest>,
+) {
+    match rx.try_recv() {
+        Ok(LoopRequest::Params(p)) => ctl.set_params(p),
+        Ok(LoopRequest::Resume) => {
+            ctl.resume();
+        }
+        Err(_) => {}
+    }
 }

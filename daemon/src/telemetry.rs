@@ -79,6 +79,10 @@ pub struct DaemonSummary {
     pub lateness: Percentiles,
     pub compute: Percentiles,
     pub state_age: Percentiles,
+    /// State stamp → command sent (state age + compute), for each state answered.
+    pub state_to_command: Percentiles,
+    /// Share of answered states whose command left within one period of the state's stamp.
+    pub answered_within_period: Option<f64>,
     /// RMS tracking error over ticks after the first 2 s (m).
     pub tracking_rms_m: Option<f64>,
     /// Mean |q̇(t) − q̇(t − τ)| while the feedback was off (after the first 2 s).
@@ -122,6 +126,9 @@ pub struct Reporter {
     lateness: Histogram<u64>,
     compute: Histogram<u64>,
     state_age: Histogram<u64>,
+    /// State → command, and (answered, answered within one period).
+    state_to_command: Histogram<u64>,
+    answered: (u64, u64),
     window_lateness: Histogram<u64>,
     tel_lateness: Histogram<u64>,
     /// Lateness, compute, state age since start or the last reset, for `hist`.
@@ -175,6 +182,8 @@ impl Reporter {
             lateness: hist::new_ns(),
             compute: hist::new_ns(),
             state_age: hist::new_ns(),
+            state_to_command: hist::new_ns(),
+            answered: (0, 0),
             window_lateness: hist::new_ns(),
             tel_lateness: hist::new_ns(),
             snap: [hist::new_ns(), hist::new_ns(), hist::new_ns()],
@@ -262,6 +271,12 @@ impl Reporter {
         if let Some(a) = r.state_age_ns {
             self.state_age.saturating_record(a.max(1));
             self.snap[2].saturating_record(a.max(1));
+        }
+        if let (Some(a), true, Some(_)) = (r.state_age_ns, r.ran_law, r.command) {
+            let to_cmd = a + r.compute_ns;
+            self.state_to_command.saturating_record(to_cmd.max(1));
+            self.answered.0 += 1;
+            self.answered.1 += u64::from(to_cmd < self.daemon.period_ns());
         }
         if r.ran_law {
             self.residuals
@@ -408,6 +423,12 @@ impl Reporter {
         })
     }
 
+    /// Answered states whose command left within one period of the state's stamp.
+    fn answered_share(&self) -> Option<f64> {
+        let (all, in_time) = self.answered;
+        (all > 0).then(|| in_time as f64 / all as f64)
+    }
+
     fn status(&self) -> String {
         let r = self.last;
         let tr = self.window_track;
@@ -437,6 +458,10 @@ impl Reporter {
             "recording": self.recording.as_ref().map(|r| r.path.display().to_string()),
             "recording_error": self.recording_error,
             "realtime": self.realtime,
+            "trigger": self.daemon.trigger,
+            "phase_offset_us": self.daemon.phase_offset_us,
+            "state_to_command": Percentiles::of(&self.state_to_command),
+            "answered_within_period": self.answered_share(),
         })
         .to_string()
     }
@@ -742,6 +767,8 @@ impl Reporter {
             lateness: Percentiles::of(&self.lateness),
             compute: Percentiles::of(&self.compute),
             state_age: Percentiles::of(&self.state_age),
+            state_to_command: Percentiles::of(&self.state_to_command),
+            answered_within_period: self.answered_share(),
             tracking_rms_m: (self.n_track > 0)
                 .then(|| (self.sq_track / self.n_track as f64).sqrt()),
             period_residual_before: residual_before,

@@ -205,3 +205,59 @@ fn a_full_ipc_tick_allocates_only_iceoryx2s_loan() {
         "expected exactly one allocation (iceoryx2's per-loan Rc) per published command"
     );
 }
+
+#[test]
+fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
+    // `trigger::state_loop` loans the command sample before the state arrives, so the path
+    // receive → tick → write → send makes no allocation at all; the loan (iceoryx2's one `Rc`)
+    // happens after the send, off the path. These are the loop's own functions.
+    use daemon::trigger::{newest_state, send};
+    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
+    let node = daemon::service::node("no-alloc-state").unwrap();
+    let ns = format!(
+        "t-noalloc-st-{}-{}",
+        std::process::id(),
+        monotonic_ns() % 1_000_000_000
+    );
+    let names = ServiceNames::new(&ns).unwrap();
+    let state_svc = protocol::open_state_service(&node, &names).unwrap();
+    let cmd_svc = protocol::open_command_service(&node, &names).unwrap();
+    let plant_pub = state_svc.publisher_builder().create().unwrap();
+    let sub = state_svc.subscriber_builder().create().unwrap();
+    let publisher = cmd_svc.publisher_builder().create().unwrap();
+    let cmd_sub = cmd_svc.subscriber_builder().create().unwrap();
+    let mut c = controller("paper");
+    let mut slot = publisher.loan_uninit().ok();
+    let path = |c: &mut Controller<3>, slot: &mut Option<_>| -> bool {
+        let got = newest_state(&sub, c);
+        let o = c.tick(got.as_ref(), monotonic_ns());
+        match o.command {
+            Some(cmd) => {
+                send(&publisher, slot, cmd, c);
+                true
+            }
+            None => false,
+        }
+    };
+    for seq in 0..50 {
+        plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
+        path(&mut c, &mut slot);
+        slot = publisher.loan_uninit().ok();
+        while let Ok(Some(_)) = cmd_sub.receive() {}
+    }
+    let (mut sent, mut allocs) = (0, 0);
+    for seq in 50..2050 {
+        plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
+        let mut ok = false;
+        allocs += allocations(|| ok = path(&mut c, &mut slot));
+        sent += u64::from(ok);
+        assert!(slot.is_none(), "the pre-loaned slot was used");
+        slot = publisher.loan_uninit().ok(); // off the path, as in the loop
+        while let Ok(Some(_)) = cmd_sub.receive() {}
+    }
+    assert_eq!(sent, 2000);
+    assert_eq!(
+        allocs, 0,
+        "the state → command path allocated {allocs} times"
+    );
+}

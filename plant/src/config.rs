@@ -2,7 +2,7 @@
 //! does with `[daemon]`.
 
 use control::config::ConfigError;
-use rt::WaitStrategy;
+use rt::{Trigger, WaitStrategy};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -25,6 +25,16 @@ pub struct PlantConfig {
     /// Braking deceleration gain: q̈ = −gain · q̇ (1/s).
     pub brake_gain: f64,
     pub output_dir: PathBuf,
+    /// "clock": apply the newest command at the next cycle (free-running, the default).
+    /// "state": after publishing a state, wait for the command answering it, up to
+    /// `answer_deadline_us`, and apply it in the same cycle. Must match `daemon.trigger`.
+    pub trigger: Trigger,
+    /// State trigger: how long after the cycle starts the answer may come (µs); later is a late
+    /// cycle. Default: half the period. Must be below the period.
+    pub answer_deadline_us: Option<f64>,
+    /// State trigger: this many late cycles in a row make the plant brake (Franka FCI stops
+    /// after 20 at 1 kHz). It follows commands again as soon as an answer comes in time.
+    pub max_late_cycles: u32,
 }
 
 impl Default for PlantConfig {
@@ -41,6 +51,9 @@ impl Default for PlantConfig {
             command_timeout_ms: 50.0,
             brake_gain: 20.0,
             output_dir: PathBuf::from("out/chaosd"),
+            trigger: Trigger::Clock,
+            answer_deadline_us: None,
+            max_late_cycles: 20,
         }
     }
 }
@@ -108,11 +121,36 @@ impl PlantConfig {
         if self.output_dir.as_os_str().is_empty() {
             return Err(invalid("output_dir", &self.output_dir, "must not be empty"));
         }
+        let period_us = 1e6 / self.rate_hz;
+        if let Some(a) = self.answer_deadline_us {
+            if !(a.is_finite() && a >= 1.0 && a < period_us) {
+                return Err(invalid(
+                    "answer_deadline_us",
+                    a,
+                    &format!("must be at least 1 µs and below the period ({period_us} µs)"),
+                ));
+            }
+        }
+        if !(1..=100_000).contains(&self.max_late_cycles) {
+            return Err(invalid(
+                "max_late_cycles",
+                self.max_late_cycles,
+                "must be between 1 and 100000",
+            ));
+        }
         Ok(())
     }
 
     pub fn period_ns(&self) -> u64 {
         (1e9 / self.rate_hz).round() as u64
+    }
+
+    /// State trigger: the answer deadline after the start of a cycle (ns).
+    pub fn answer_deadline_ns(&self) -> u64 {
+        match self.answer_deadline_us {
+            Some(us) => (us * 1e3) as u64,
+            None => self.period_ns() / 2,
+        }
     }
 }
 
@@ -133,6 +171,20 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("plant.command_timeout_ms"));
+        for bad in [
+            "answer_deadline_us = 1000",
+            "answer_deadline_us = -3",
+            "max_late_cycles = 0",
+        ] {
+            let t: toml::Table = toml::from_str(bad).unwrap();
+            let e = PlantConfig::from_table(Some(&t)).unwrap_err().to_string();
+            assert!(e.contains(bad.split(' ').next().unwrap()), "{bad}: {e}");
+        }
+        let t: toml::Table = toml::from_str("trigger = \"bell\"").unwrap();
+        assert!(PlantConfig::from_table(Some(&t))
+            .unwrap_err()
+            .to_string()
+            .contains("bell"));
         let t: toml::Table = toml::from_str("typo = 1").unwrap();
         assert!(PlantConfig::from_table(Some(&t))
             .unwrap_err()

@@ -1,50 +1,67 @@
 //! The plant loop: generic over [`Plant`], identical for the simulator and any bridge.
 //!
-//! Each period: wait for the absolute deadline → drain commands, keep the newest valid one →
-//! hand the plant its actuation (the command, or a brake after `command_timeout_ms` of silence) →
-//! `read` one period → stamp, number and publish the state. Latencies go into fixed-bound
-//! histograms in the loop itself (recording never allocates), and are written at exit.
+//! One cycle, with `trigger = "clock"` (free-running): wait for the absolute deadline (or, for a
+//! device-clocked plant, for the device's next state inside `read`) → drain commands, keep the
+//! newest valid one → `write` it (or a brake after `command_timeout_ms` of silence) → `read` one
+//! cycle → stamp, number and publish the state. The daemon's answer is applied next cycle.
+//!
+//! With `trigger = "state"` the answer is applied in the same cycle, as FCI and RSI require:
+//! after publishing, the loop waits for the command answering *that* state, up to
+//! `answer_deadline_us` after the cycle started, and `write`s it the moment it arrives. A late or
+//! missing answer leaves the previous command running (the plant keeps ramping it) and counts a
+//! late cycle; `max_late_cycles` in a row make the plant brake until answers come in time again.
+//! An answer that arrives after its deadline is counted and dropped.
+//!
+//! Latencies go into fixed-bound histograms in the loop itself (recording never allocates) and
+//! are written at exit ([`crate::report`]).
 
 use crate::config::PlantConfig;
-use crate::seam::{Actuation, Plant};
+use crate::intake::{Intake, Published, PublishedRing};
+use crate::report::{Histograms, PlantCounters, PlantSummary};
+use crate::seam::{Actuation, Plant, PlantError};
 use anyhow::{anyhow, Context, Result};
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::ipc;
 use protocol::{flags, monotonic_ns, CommandSample, Mode, ServiceNames, StateSample};
 use rt::clock::Schedule;
-use rt::hist::{self, Percentiles};
-use serde::Serialize;
-use std::path::PathBuf;
+use rt::Trigger;
 use std::time::SystemTime;
 
-#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
-pub struct PlantCounters {
-    pub ticks: u64,
-    pub states_published: u64,
-    pub commands_received: u64,
-    pub commands_rejected: u64,
-    pub command_timeouts: u64,
-    pub daemon_restarts: u64,
-    pub overruns: u64,
-    /// Stalls longer than a second, whose time was skipped rather than simulated.
-    pub time_jumps: u64,
-    pub ipc_errors: u64,
+type StatePub = Publisher<ipc::Service, StateSample, ()>;
+type CommandSub = Subscriber<ipc::Service, CommandSample, ()>;
+
+/// What the plant was last told to do (state trigger: `write` only when this changes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Applied {
+    Nothing,
+    Run,
+    Hold,
+    Brake,
 }
 
-#[derive(Clone, Debug, Serialize)]
-pub struct PlantSummary {
-    pub namespace: String,
-    pub rate_hz: f64,
-    pub realtime: rt::setup::RtReport,
-    pub duration_s: f64,
-    pub counters: PlantCounters,
-    /// State published → answering command published (both stamps on CLOCK_MONOTONIC).
-    pub state_to_command: Percentiles,
-    /// State published → answering command picked up by the plant (the full round trip).
-    pub round_trip: Percentiles,
-    pub lateness: Percentiles,
-    pub files: Vec<PathBuf>,
+/// Everything the loop keeps from one cycle to the next.
+struct Loop<'a> {
+    cfg: &'a PlantConfig,
+    publisher: StatePub,
+    subscriber: CommandSub,
+    intake: Intake,
+    ring: PublishedRing,
+    c: PlantCounters,
+    h: Histograms,
+    /// The newest command in force.
+    current: Option<CommandSample>,
+    applied: Applied,
+    last_command_at: Option<u64>,
+    timed_out: bool,
+    /// State trigger: late cycles in a row, and whether they made the plant brake.
+    late_run: u32,
+    late_braking: bool,
+    /// Integrated plant time (s): what `since` is measured in.
+    plant_time: f64,
+    seq: u64,
+    sample: StateSample,
 }
-
-pub const SUMMARY_FILE: &str = "plant-summary.json";
 
 /// Runs `plant` until SIGINT/SIGTERM or for `duration` seconds.
 pub fn run<P: Plant>(
@@ -53,7 +70,7 @@ pub fn run<P: Plant>(
     duration: Option<f64>,
 ) -> Result<PlantSummary> {
     let names = ServiceNames::new(&cfg.namespace).map_err(|e| anyhow!("plant.namespace: {e}"))?;
-    std::fs::create_dir_all(&cfg.output_dir).with_context(|| {
+    rt::files::create_dir_all(&cfg.output_dir).with_context(|| {
         format!(
             "cannot create output directory {}",
             cfg.output_dir.display()
@@ -75,9 +92,7 @@ pub fn run<P: Plant>(
         .create()
         .map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.command()))?;
 
-    let n = plant.n();
-    let plant_id = protocol::new_instance_id();
-    plant.activate().map_err(|e| anyhow!("{e}"))?;
+    plant.activate()?;
     let rt_report = rt::setup::apply(rt::setup::RtRequest {
         core: cfg.core,
         priority: cfg.priority,
@@ -87,191 +102,316 @@ pub fn run<P: Plant>(
         eprintln!("chaosd-plant: warning: {w}");
     }
     eprintln!(
-        "chaosd-plant: namespace {:?}, {} Hz, {}",
+        "chaosd-plant: namespace {:?}, {} Hz, {} trigger, {}",
         names.namespace(),
         cfg.rate_hz,
+        cfg.trigger.name(),
         rt_report.one_line()
     );
-
-    let mut c = PlantCounters::default();
-    let (mut to_cmd, mut rtt, mut late) = (hist::new_ns(), hist::new_ns(), hist::new_ns());
-    let period = cfg.period_ns();
-    let dt = period as f64 * 1e-9;
-    let spin = (cfg.spin_us * 1000.0) as u64;
-    let timeout = (cfg.command_timeout_ms * 1e6) as u64;
     let start = monotonic_ns();
     let wall_start = SystemTime::now();
-    let end = duration.map(|s| start.saturating_add((s * 1e9) as u64));
-    let mut sched = Schedule::new(period, start);
-    let mut daemon_id = 0u64;
-    let mut last_seq: Option<u64> = None;
-    let mut last_command_at: Option<u64> = None;
-    let mut current: Option<CommandSample> = None;
-    let mut timed_out = false;
-    let mut seq = 0u64;
-    let mut sample = StateSample {
-        plant_id,
-        n: n as u32,
-        ..StateSample::default()
+    let mut lp = Loop {
+        cfg,
+        publisher,
+        subscriber,
+        intake: Intake::new(plant.n(), start),
+        ring: PublishedRing::default(),
+        c: PlantCounters::default(),
+        h: Histograms::new(),
+        current: None,
+        applied: Applied::Nothing,
+        last_command_at: None,
+        timed_out: false,
+        late_run: 0,
+        late_braking: false,
+        plant_time: 0.0,
+        seq: 0,
+        sample: StateSample {
+            plant_id: protocol::new_instance_id(),
+            n: plant.n() as u32,
+            ..StateSample::default()
+        },
     };
-    // Periods actually integrated, and that count for each recent published state: a command's
-    // ramp starts at the state it answers, however many periods ago that was.
-    let mut integrated: u64 = 0;
-    let mut behind: u64 = 0;
-    let mut published_at = [(u64::MAX, 0u64); 64];
-    let mut fault = None;
+    let fault = lp.cycles(plant, start, duration).err();
+    plant.deactivate();
+    let summary = lp.finish(rt_report, start, wall_start)?;
+    match fault {
+        Some(e) => Err(anyhow::Error::new(e).context("the plant stopped")),
+        None => Ok(summary),
+    }
+}
 
-    while !rt::signal::stop_requested() {
-        let deadline = sched.deadline();
-        if end.is_some_and(|e| deadline >= e) {
-            break;
+impl Loop<'_> {
+    /// The cycles, until a stop request, the end of `duration`, or a plant fault.
+    fn cycles<P: Plant>(
+        &mut self,
+        plant: &mut P,
+        start: u64,
+        duration: Option<f64>,
+    ) -> Result<(), PlantError> {
+        let period = self.cfg.period_ns();
+        let spin = (self.cfg.spin_us * 1000.0) as u64;
+        let end = duration.map(|s| start.saturating_add((s * 1e9) as u64));
+        let mut sched = Schedule::new(period, start);
+        let mut behind = 0;
+        while !rt::signal::stop_requested() {
+            let deadline = sched.deadline();
+            let woke = if plant.device_clocked() {
+                monotonic_ns()
+            } else {
+                let w = rt::wait_until(deadline, self.cfg.wait, spin);
+                self.h
+                    .lateness
+                    .saturating_record(w.saturating_sub(deadline).max(1));
+                w
+            };
+            if end.is_some_and(|e| woke.max(deadline) >= e) {
+                break;
+            }
+            self.drain(woke);
+            self.watchdog(woke);
+            self.actuate(plant)?;
+            // Hold the initial state until a controller first answers (see `Plant::read`).
+            let elapsed = if self.last_command_at.is_some() {
+                (1 + behind) as f64 * period as f64 * 1e-9
+            } else {
+                0.0
+            };
+            let published = self.read_and_publish(plant, elapsed, deadline)?;
+            if published && self.cfg.trigger == Trigger::State {
+                let from = if plant.device_clocked() {
+                    monotonic_ns()
+                } else {
+                    deadline
+                };
+                self.await_answer(plant, from)?;
+            }
+            self.c.ticks += 1;
+            behind = if plant.device_clocked() {
+                sched = Schedule::new(period, monotonic_ns());
+                0
+            } else {
+                sched.advance(monotonic_ns())
+            };
+            self.c.overruns += behind;
         }
-        let woke = rt::wait_until(deadline, cfg.wait, spin);
-        late.saturating_record(woke.saturating_sub(deadline).max(1));
+        Ok(())
+    }
+
+    /// Takes every queued command. Clock trigger: the newest valid one is in force. State
+    /// trigger: a RUN command here answers an older state, so it came too late and is dropped.
+    fn drain(&mut self, now: u64) {
         loop {
-            let cmd = match subscriber.receive() {
+            let cmd = match self.subscriber.receive() {
                 Ok(Some(s)) => *s,
                 Ok(None) => break,
                 Err(_) => {
-                    c.ipc_errors += 1;
+                    self.c.ipc_errors += 1;
                     break;
                 }
             };
-            // Leftovers from a dead daemon, answers to a previous plant's states, garbage: drop.
-            let answers_us = cmd.state_stamp_ns >= start || cmd.mode != Mode::Run as u32;
-            if cmd.validate(n).is_err() || !answers_us {
-                c.commands_rejected += 1;
+            if !self.intake.accept(&cmd) {
                 continue;
             }
-            if cmd.daemon_id != daemon_id {
-                if daemon_id != 0 {
-                    c.daemon_restarts += 1;
-                }
-                daemon_id = cmd.daemon_id;
-            } else if last_seq.is_some_and(|l| cmd.seq <= l) {
-                c.commands_rejected += 1;
+            self.last_command_at = Some(now);
+            if self.cfg.trigger == Trigger::State && cmd.mode == Mode::Run as u32 {
+                self.c.late_answers += 1;
                 continue;
             }
-            last_seq = Some(cmd.seq);
-            c.commands_received += 1;
-            last_command_at = Some(woke);
             if cmd.mode == Mode::Run as u32 {
-                to_cmd.saturating_record(cmd.stamp_ns.saturating_sub(cmd.state_stamp_ns).max(1));
-                rtt.saturating_record(woke.saturating_sub(cmd.state_stamp_ns).max(1));
+                self.record_round_trip(&cmd, now);
             }
-            current = Some(cmd);
+            self.current = Some(cmd);
         }
-        let silent = last_command_at.is_none_or(|t| woke.saturating_sub(t) > timeout);
-        if silent && last_command_at.is_some() && !timed_out {
-            timed_out = true;
-            c.command_timeouts += 1;
+    }
+
+    fn record_round_trip(&mut self, cmd: &CommandSample, now: u64) {
+        self.h
+            .to_cmd
+            .saturating_record(cmd.stamp_ns.saturating_sub(cmd.state_stamp_ns).max(1));
+        if let Some(p) = self.ring.get(cmd.state_seq) {
+            self.h
+                .rtt
+                .saturating_record(now.saturating_sub(p.at_ns).max(1));
+        }
+    }
+
+    /// Brakes after `command_timeout_ms` without any command.
+    fn watchdog(&mut self, now: u64) {
+        let timeout = (self.cfg.command_timeout_ms * 1e6) as u64;
+        let silent = self
+            .last_command_at
+            .is_none_or(|t| now.saturating_sub(t) > timeout);
+        if silent && self.last_command_at.is_some() && !self.timed_out {
+            self.timed_out = true;
+            self.c.command_timeouts += 1;
         } else if !silent {
-            timed_out = false;
+            self.timed_out = false;
         }
-        match current {
-            Some(cmd) if !silent && cmd.mode == Mode::Run as u32 => {
-                let (a_seq, a_count) = published_at[(cmd.state_seq % 64) as usize];
-                // Unknown (too old) answered state: a huge `since` makes the plant hold the ramp's end.
-                let since = if a_seq == cmd.state_seq {
-                    (integrated - a_count) as f64 * dt
-                } else {
-                    1e3
-                };
+    }
+
+    /// What the plant should do now, by the command in force and the watchdogs.
+    fn wanted(&self) -> Applied {
+        if self.timed_out || self.late_braking {
+            return Applied::Brake;
+        }
+        match self.current.map(|c| Mode::try_from(c.mode)) {
+            Some(Ok(Mode::Run)) => Applied::Run,
+            Some(Ok(Mode::Hold)) => Applied::Hold,
+            Some(_) => Applied::Brake,
+            None => Applied::Brake,
+        }
+    }
+
+    /// Clock trigger: hands the plant its actuation every cycle. State trigger: only when it
+    /// changes to a hold or a brake (a RUN answer is written the moment it arrives).
+    fn actuate<P: Plant>(&mut self, plant: &mut P) -> Result<(), PlantError> {
+        let wanted = self.wanted();
+        if self.cfg.trigger == Trigger::State && (wanted == Applied::Run || wanted == self.applied)
+        {
+            return Ok(());
+        }
+        self.apply(plant, wanted)
+    }
+
+    fn apply<P: Plant>(&mut self, plant: &mut P, what: Applied) -> Result<(), PlantError> {
+        let result = match (what, self.current) {
+            (Applied::Run, Some(cmd)) => {
                 let n = cmd.n as usize;
                 plant.write(Actuation::Accelerate {
                     qdd: &cmd.qdd[..n],
                     qddd: &cmd.qddd[..n],
-                    since,
-                });
+                    since: self.ring.since(cmd.state_seq, self.plant_time),
+                    answers: cmd.state_seq,
+                })
             }
+            (Applied::Hold, _) => plant.write(Actuation::Hold),
             _ => plant.write(Actuation::Brake),
-        }
-        // Hold the initial state until a controller first answers (see `Plant::read`).
-        let step = if last_command_at.is_some() { dt } else { 0.0 };
-        // Physics does not pause: after an overrun the periods that were skipped are integrated
-        // too, so the state stays on the time its stamp claims.
-        // A long stall (SIGSTOP, a paused VM) is not replayed in one tick: at most one second is
-        // caught up; beyond that the simulation skips ahead and the jump is counted.
-        let max_catch_up = (cfg.rate_hz as u64).max(1);
-        if behind > max_catch_up {
-            c.time_jumps += 1;
-        }
-        let periods = 1 + behind.min(max_catch_up);
-        let mut failed = None;
-        for _ in 0..periods {
-            if let Err(e) = plant.read(step, &mut sample) {
-                failed = Some(e.to_string());
-                break;
+        };
+        self.applied = what;
+        match result {
+            Err(PlantError::Unavailable { .. }) => {
+                self.c.write_errors += 1;
+                Ok(())
             }
-            if step > 0.0 {
-                integrated += 1;
-            }
+            other => other,
         }
-        if let Some(e) = failed {
-            fault = Some(e);
-            break;
-        }
-        sample.seq = seq;
-        seq += 1;
-        sample.flags = plant.flags() | if timed_out { flags::COMMAND_TIMEOUT } else { 0 };
-        sample.stamp_ns = plant.stamp(deadline, monotonic_ns());
-        published_at[(sample.seq % 64) as usize] = (sample.seq, integrated);
-        match publisher.loan_uninit() {
-            Ok(s) => match s.write_payload(sample).send() {
-                Ok(_) => c.states_published += 1,
-                Err(_) => c.ipc_errors += 1,
-            },
-            Err(_) => c.ipc_errors += 1,
-        }
-        c.ticks += 1;
-        behind = sched.advance(monotonic_ns());
-        c.overruns += behind;
     }
-    plant.deactivate();
 
-    let out = &cfg.output_dir;
-    let mut files = Vec::new();
-    for (name, h) in [
-        ("state-to-command", &to_cmd),
-        ("round-trip", &rtt),
-        ("lateness", &late),
-    ] {
-        let p = out.join(format!("plant-{name}.hgrm"));
-        hist::save_hgrm(h, &p).with_context(|| format!("cannot write {}", p.display()))?;
-        files.push(p);
+    /// Reads one cycle and publishes it; `false` if the plant had no state this cycle.
+    fn read_and_publish<P: Plant>(
+        &mut self,
+        plant: &mut P,
+        elapsed: f64,
+        deadline: u64,
+    ) -> Result<bool, PlantError> {
+        self.sample.seq = self.seq;
+        match plant.read(elapsed, &mut self.sample) {
+            Ok(()) => {}
+            Err(PlantError::Unavailable { .. }) => {
+                self.c.read_misses += 1;
+                return Ok(false);
+            }
+            Err(e) => return Err(e),
+        }
+        self.plant_time += elapsed;
+        let s = &mut self.sample;
+        self.seq += 1;
+        let braked = self.timed_out || self.late_braking;
+        s.flags = plant.flags() | if braked { flags::COMMAND_TIMEOUT } else { 0 };
+        let now = monotonic_ns();
+        s.stamp_ns = if plant.device_clocked() {
+            plant.stamp(now, now)
+        } else {
+            plant.stamp(deadline, now)
+        };
+        let at_ns = monotonic_ns();
+        match self.publisher.loan_uninit() {
+            Ok(slot) => match slot.write_payload(*s).send() {
+                Ok(_) => self.c.states_published += 1,
+                Err(_) => self.c.ipc_errors += 1,
+            },
+            Err(_) => self.c.ipc_errors += 1,
+        }
+        self.ring.push(Published {
+            seq: s.seq,
+            plant_time: self.plant_time,
+            at_ns,
+        });
+        Ok(true)
     }
-    let hlog = out.join("plant.hlog");
-    let elapsed = std::time::Duration::from_nanos(monotonic_ns() - start);
-    hist::save_hlog(
-        &[
-            ("state-to-command", &to_cmd),
-            ("round-trip", &rtt),
-            ("lateness", &late),
-        ],
-        wall_start,
-        elapsed,
-        &hlog,
-    )
-    .with_context(|| format!("cannot write {}", hlog.display()))?;
-    files.push(hlog);
-    files.push(out.join(SUMMARY_FILE));
-    let summary = PlantSummary {
-        namespace: cfg.namespace.clone(),
-        rate_hz: cfg.rate_hz,
-        realtime: rt_report,
-        duration_s: elapsed.as_secs_f64(),
-        counters: c,
-        state_to_command: Percentiles::of(&to_cmd),
-        round_trip: Percentiles::of(&rtt),
-        lateness: Percentiles::of(&late),
-        files,
-    };
-    std::fs::write(
-        out.join(SUMMARY_FILE),
-        serde_json::to_string_pretty(&summary)?,
-    )?;
-    if let Some(f) = fault {
-        return Err(anyhow!("{f}"));
+
+    /// State trigger: waits for the command answering the state just published, until the
+    /// answer deadline after `cycle_start`, and writes it at once.
+    fn await_answer<P: Plant>(
+        &mut self,
+        plant: &mut P,
+        cycle_start: u64,
+    ) -> Result<(), PlantError> {
+        let want = self.sample.seq;
+        let published = self.ring.get(want).map_or(cycle_start, |p| p.at_ns);
+        let deadline = cycle_start + self.cfg.answer_deadline_ns();
+        let spin = (self.cfg.spin_us * 1000.0) as u64;
+        let (sub, intake, c) = (&self.subscriber, &mut self.intake, &mut self.c);
+        let got = rt::trigger::poll_until(published, deadline, self.cfg.wait, spin, || loop {
+            let cmd = match sub.receive() {
+                Ok(Some(s)) => *s,
+                Ok(None) => return None,
+                Err(_) => {
+                    c.ipc_errors += 1;
+                    return None;
+                }
+            };
+            if !intake.accept(&cmd) {
+                continue;
+            }
+            if cmd.state_seq == want || cmd.mode != Mode::Run as u32 {
+                return Some((cmd, monotonic_ns()));
+            }
+            c.late_answers += 1;
+        });
+        let Some((cmd, at)) = got else {
+            return self.late_cycle(plant);
+        };
+        self.last_command_at = Some(at);
+        self.current = Some(cmd);
+        if cmd.mode == Mode::Run as u32 && cmd.state_seq == want {
+            self.record_round_trip(&cmd, at);
+            self.c.answered_in_time += 1;
+            self.late_run = 0;
+            self.late_braking = false;
+            self.timed_out = false;
+        }
+        let wanted = self.wanted();
+        self.apply(plant, wanted)
     }
-    Ok(summary)
+
+    /// No answer in time: the previous command stays in force (ramped on by the plant); too
+    /// many in a row, and the plant brakes.
+    fn late_cycle<P: Plant>(&mut self, plant: &mut P) -> Result<(), PlantError> {
+        if self.last_command_at.is_none() {
+            return Ok(()); // no controller yet: nothing is late
+        }
+        self.c.late_cycles += 1;
+        self.late_run = self.late_run.saturating_add(1);
+        if self.late_run >= self.cfg.max_late_cycles && !self.late_braking {
+            self.late_braking = true;
+            self.c.late_brakes += 1;
+            return self.apply(plant, Applied::Brake);
+        }
+        Ok(())
+    }
+
+    fn finish(
+        self,
+        realtime: rt::setup::RtReport,
+        start: u64,
+        wall_start: SystemTime,
+    ) -> Result<PlantSummary> {
+        let mut c = self.c;
+        c.commands_received = self.intake.counters.commands_received;
+        c.commands_rejected = self.intake.counters.commands_rejected;
+        c.daemon_restarts = self.intake.counters.daemon_restarts;
+        crate::report::write(self.cfg, realtime, c, &self.h, start, wall_start)
+    }
 }

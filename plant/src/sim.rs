@@ -4,6 +4,12 @@
 //! commanded q̈ is the joint acceleration, and for the floating base φ̇ = −H_b⁻¹H_bm q̇. The
 //! command is ramped over the period (`control::hold`: q̈ + q⃛·s from the answered state, a
 //! first-order hold; q⃛ = 0 gives a zero-order hold) and integrated with RK4 in substeps.
+//!
+//! Physics does not pause: after a stall the loop passes the whole elapsed time to one `read`,
+//! and the simulator integrates it period by period, so the state stays on the time its stamp
+//! claims. A long stall (SIGSTOP, a paused VM) is not replayed: at most [`MAX_CATCH_UP_S`] is
+//! integrated in one `read`, the rest is skipped and counted ([`SimPlant::time_jumps`]). That
+//! bound lives here, not in the loop, because only a simulator has time to catch up.
 
 use crate::seam::{Actuation, Plant, PlantError};
 use control::hold;
@@ -20,14 +26,28 @@ pub struct SimPlant<const N: usize> {
     qddd: VecN<N>,
     since: f64,
     braking: bool,
+    period: f64,
+    time_jumps: u64,
 }
+
+/// The most simulated time one `read` integrates after a stall (s).
+pub const MAX_CATCH_UP_S: f64 = 1.0;
 
 /// How far past the expected hold interval a ramp may run (periods) before it is held constant.
 const MAX_RAMP_PERIODS: f64 = 3.0;
 
 impl<const N: usize> SimPlant<N> {
-    pub fn new(model: ArmModel<N>, initial: ArmState<N>, substeps: u32, brake_gain: f64) -> Self {
+    /// A simulated arm integrating `period` seconds per cycle in `substeps` RK4 steps.
+    pub fn new(
+        model: ArmModel<N>,
+        initial: ArmState<N>,
+        period: f64,
+        substeps: u32,
+        brake_gain: f64,
+    ) -> Self {
         Self {
+            period,
+            time_jumps: 0,
             model,
             state: initial,
             substeps: substeps.max(1),
@@ -41,6 +61,37 @@ impl<const N: usize> SimPlant<N> {
 
     pub fn state(&self) -> &ArmState<N> {
         &self.state
+    }
+
+    /// Stalls longer than [`MAX_CATCH_UP_S`], whose excess time was skipped, not simulated.
+    pub fn time_jumps(&self) -> u64 {
+        self.time_jumps
+    }
+
+    /// Integrates one period of `dt` with the current actuation.
+    fn step(&mut self, dt: f64) {
+        if self.braking {
+            let h = dt / self.substeps as f64;
+            for _ in 0..self.substeps {
+                let gain = self.brake_gain;
+                self.state = rk4_step(&self.state, h, |_, x| {
+                    plant_derivative(x, &(-x.qd * gain), self.base_rate(x))
+                });
+            }
+        } else {
+            let max_ramp = MAX_RAMP_PERIODS * dt;
+            self.state = hold::integrate(
+                &self.model,
+                &self.state,
+                &self.qdd,
+                &self.qddd,
+                self.since,
+                max_ramp,
+                dt,
+                self.substeps,
+            );
+            self.since += dt;
+        }
     }
 
     fn base_rate(&self, x: &ArmState<N>) -> f64 {
@@ -71,49 +122,40 @@ impl<const N: usize> Plant for SimPlant<N> {
         Ok(())
     }
 
-    fn write(&mut self, actuation: Actuation<'_>) {
+    fn write(&mut self, actuation: Actuation<'_>) -> Result<(), PlantError> {
         match actuation {
-            Actuation::Accelerate { qdd, qddd, since }
-                if qdd.len() == N && qddd.len() == N && since.is_finite() =>
-            {
+            Actuation::Accelerate {
+                qdd, qddd, since, ..
+            } if qdd.len() == N && qddd.len() == N && since.is_finite() => {
                 self.qdd = VecN::<N>::from_column_slice(qdd);
                 self.qddd = VecN::<N>::from_column_slice(qddd);
                 self.since = since.max(0.0);
                 self.braking = false;
             }
+            // Hold and Brake both come to rest here: a simulated arm has no brakes to engage.
             _ => self.braking = true,
         }
+        Ok(())
     }
 
-    fn read(&mut self, dt: f64, out: &mut StateSample) -> Result<(), PlantError> {
-        if dt > 0.0 {
-            if self.braking {
-                let h = dt / self.substeps as f64;
-                for _ in 0..self.substeps {
-                    let gain = self.brake_gain;
-                    self.state = rk4_step(&self.state, h, |_, x| {
-                        plant_derivative(x, &(-x.qd * gain), self.base_rate(x))
-                    });
-                }
-            } else {
-                let max_ramp = MAX_RAMP_PERIODS * dt;
-                self.state = hold::integrate(
-                    &self.model,
-                    &self.state,
-                    &self.qdd,
-                    &self.qddd,
-                    self.since,
-                    max_ramp,
-                    dt,
-                    self.substeps,
-                );
-                self.since += dt;
+    fn read(&mut self, elapsed: f64, out: &mut StateSample) -> Result<(), PlantError> {
+        if elapsed > 0.0 && elapsed.is_finite() {
+            let mut left = elapsed;
+            if left > MAX_CATCH_UP_S + self.period {
+                self.time_jumps += 1;
+                left = MAX_CATCH_UP_S;
+            }
+            // The loop passes whole periods; integrate them one by one, as single reads would.
+            let periods = (left / self.period).round().max(1.0) as u64;
+            for _ in 0..periods {
+                self.step(self.period);
             }
         }
         if !self.state.is_finite() {
-            return Err(PlantError::Fault(
-                "the simulated state became non-finite".into(),
-            ));
+            return Err(PlantError::Fault {
+                what: "the simulated state became non-finite",
+                source: None,
+            });
         }
         out.n = N as u32;
         out.phi = self.state.phi;
@@ -141,14 +183,16 @@ mod tests {
         let cfg = Config::preset("paper").unwrap();
         let mut x0: ArmState<3> = cfg.initial_state();
         x0.qd = VecN::<3>::new(1.0, -2.0, 0.5);
-        let mut p = SimPlant::new(cfg.model::<3>(), x0, 4, 20.0);
+        let mut p = SimPlant::new(cfg.model::<3>(), x0, 1e-3, 4, 20.0);
         let mut s = StateSample::default();
         // Constant acceleration for 0.1 s: q̇ grows by exactly a·t.
         p.write(Actuation::Accelerate {
             qdd: &[1.0, 0.0, -1.0],
             qddd: &[0.0; 3],
             since: 0.0,
-        });
+            answers: 0,
+        })
+        .unwrap();
         for _ in 0..100 {
             p.read(1e-3, &mut s).unwrap();
         }
@@ -158,7 +202,7 @@ mod tests {
             s.qd
         );
         assert_eq!(p.flags() & flags::BRAKING, 0);
-        p.write(Actuation::Brake);
+        p.write(Actuation::Brake).unwrap();
         for _ in 0..1000 {
             p.read(1e-3, &mut s).unwrap();
         }
@@ -169,7 +213,39 @@ mod tests {
             qdd: &[1.0],
             qddd: &[0.0],
             since: 0.0,
-        });
+            answers: 0,
+        })
+        .unwrap();
         assert_ne!(p.flags() & flags::BRAKING, 0);
+    }
+
+    #[test]
+    fn a_stall_is_caught_up_in_one_read_and_a_long_one_is_bounded() {
+        let cfg = Config::preset("paper").unwrap();
+        let x0: ArmState<3> = cfg.initial_state();
+        let accel = Actuation::Accelerate {
+            qdd: &[1.0, 0.0, 0.0],
+            qddd: &[0.0; 3],
+            since: 0.0,
+            answers: 0,
+        };
+        let mut s = StateSample::default();
+        // Five periods in one read = five reads of one period, bit for bit.
+        let mut a = SimPlant::new(cfg.model::<3>(), x0, 1e-3, 4, 20.0);
+        let mut b = SimPlant::new(cfg.model::<3>(), x0, 1e-3, 4, 20.0);
+        a.write(accel).unwrap();
+        b.write(accel).unwrap();
+        a.read(5e-3, &mut s).unwrap();
+        for _ in 0..5 {
+            b.read(1e-3, &mut s).unwrap();
+        }
+        assert_eq!(a.state().qd, b.state().qd);
+        assert_eq!(a.time_jumps(), 0);
+        // A 10 s stall integrates one second and counts the jump.
+        let mut c = SimPlant::new(cfg.model::<3>(), x0, 1e-3, 4, 20.0);
+        c.write(accel).unwrap();
+        c.read(10.0, &mut s).unwrap();
+        assert!((s.qd[0] - MAX_CATCH_UP_S).abs() < 1e-9, "{}", s.qd[0]);
+        assert_eq!(c.time_jumps(), 1);
     }
 }

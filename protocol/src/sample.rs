@@ -189,7 +189,9 @@ impl StateSample {
 pub enum Mode {
     /// Apply `qdd`.
     Run = 0,
-    /// Ignore `qdd`; hold the current position.
+    /// Ignore `qdd`; come to rest with the plant's own deceleration and hold there, ready to
+    /// follow the next `Run` at once. The daemon sends it while it lacks usable states.
+    /// (`plant::Actuation::Hold`; the simulator decelerates with `plant.brake_gain`.)
     Hold = 1,
     /// Ignore `qdd`; stop and engage the brakes.
     Brake = 2,

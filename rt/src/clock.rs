@@ -120,6 +120,12 @@ impl Schedule {
         self.next_ns
     }
 
+    /// Moves the next deadline (a phase lock re-aligning the loop). Lateness stays measured
+    /// against the moved deadline.
+    pub fn set_deadline(&mut self, next_ns: u64) {
+        self.next_ns = next_ns;
+    }
+
     /// Advances past a tick that woke at `now_ns`. If whole periods were missed they are
     /// skipped (counted as overruns) rather than run back to back. Returns the periods skipped.
     pub fn advance(&mut self, now_ns: u64) -> u64 {

@@ -10,6 +10,8 @@ pub mod files;
 pub mod hist;
 pub mod setup;
 pub mod signal;
+pub mod trigger;
 
 pub use clock::{wait_until, WaitStrategy};
 pub use protocol::monotonic_ns;
+pub use trigger::Trigger;

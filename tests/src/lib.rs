@@ -115,6 +115,14 @@ impl Proc {
         std::fs::read_to_string(&self.log).unwrap_or_default()
     }
 
+    /// Sends `sig` (SIGSTOP, SIGCONT, ...) to the running process.
+    pub fn signal(&self, sig: i32) {
+        if let Some(c) = &self.child {
+            // SAFETY: kill(2) on our own child.
+            unsafe { libc::kill(c.id() as i32, sig) };
+        }
+    }
+
     /// SIGKILL, like a crash.
     pub fn kill9(&mut self) {
         if let Some(mut c) = self.child.take() {
@@ -177,10 +185,21 @@ impl Drop for Proc {
 /// as the daemon is meant to run, so builds or other load on the machine do not starve the loops
 /// (without the privilege both fall back to the normal scheduler with a warning).
 pub fn write_config(dir: &Path, ns: &str, extra_daemon: &str, extra_top: &str) -> PathBuf {
+    write_config_with(dir, ns, extra_daemon, "", extra_top)
+}
+
+/// [`write_config`] with extra `[plant]` lines too.
+pub fn write_config_with(
+    dir: &Path,
+    ns: &str,
+    extra_daemon: &str,
+    extra_plant: &str,
+    extra_top: &str,
+) -> PathBuf {
     let out = dir.join("out");
     let text = format!(
         "{extra_top}\n[daemon]\nnamespace = \"{ns}\"\noutput_dir = \"{out}\"\nwait = \"sleep\"\npriority = 40\nlock_memory = false\nreport_every_s = 0.5\n{extra_daemon}\n\
-         [plant]\nnamespace = \"{ns}\"\noutput_dir = \"{out}\"\nwait = \"sleep\"\npriority = 40\nlock_memory = false\n",
+         [plant]\nnamespace = \"{ns}\"\noutput_dir = \"{out}\"\nwait = \"sleep\"\npriority = 40\nlock_memory = false\n{extra_plant}\n",
         out = out.display()
     );
     let p = dir.join("config.toml");

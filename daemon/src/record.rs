@@ -1,0 +1,49 @@
+//! The telemetry record of one tick, built the same way by every loop (clock- or
+//! state-triggered), so the reporter never needs to know which loop ran.
+
+use crate::controller::{Controller, TickOutcome};
+use crate::telemetry::TickRecord;
+use control::law::flags as law_flags;
+use protocol::StateSample;
+
+/// Timing of one tick (CLOCK_MONOTONIC ns).
+#[derive(Clone, Copy, Debug)]
+pub struct TickTimes {
+    /// When the tick was due: the deadline (clock) or the state's expected arrival (state).
+    pub due: u64,
+    /// When it started: the wake-up (clock) or the state's receipt (state).
+    pub woke: u64,
+    /// When the command had been sent.
+    pub done: u64,
+}
+
+/// The record handed to the reporter after the command has left.
+pub fn tick_record<const N: usize>(
+    ctl: &Controller<N>,
+    o: &TickOutcome<N>,
+    newest: Option<StateSample>,
+    times: TickTimes,
+) -> TickRecord {
+    let (law, p) = (o.output, ctl.params());
+    TickRecord {
+        t: ctl.time(),
+        lateness_ns: times.woke.saturating_sub(times.due),
+        compute_ns: times.done.saturating_sub(times.woke),
+        state_age_ns: o.state_age_ns,
+        mode: o.mode,
+        fault: o.fault,
+        ran_law: law.is_some(),
+        law_flags: law.map_or(0, |l| l.flags),
+        tracking_error: law.map_or(f64::NAN, |l| l.tracking_error),
+        period_residual: law.map_or(f64::NAN, |l| l.period_residual),
+        clearance: law.map_or(f64::INFINITY, |l| l.clearance),
+        mu: p.mu,
+        tau: p.tau,
+        t_on: p.t_on,
+        feedback_on: p.feedback,
+        feedback_active: law.is_some_and(|l| l.flags & law_flags::FEEDBACK_ACTIVE != 0),
+        counters: ctl.counters,
+        state: if law.is_some() { newest } else { None },
+        command: o.command,
+    }
+}

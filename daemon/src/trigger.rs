@@ -1,0 +1,181 @@
+//! The state-triggered loop (`[daemon] trigger = "state"`), and the phase lock of the clock loop.
+//!
+//! Real robot interfaces are device-clocked: the device sends its state every cycle and the
+//! answer must come back within the same cycle (Franka FCI at 1 kHz, KUKA RSI every 4 ms). Here a
+//! tick runs the moment a state arrives, and only what the answer needs stands between the two:
+//! receive → `Controller::tick` → write into a sample loaned *before* the state came → send.
+//! Taking the parameter block, the telemetry record and the next loan all happen after the send,
+//! while the plant is already applying the command. The watchdog stays: a period with no state
+//! past its expected arrival is a tick without a state, and `hold_after` of them are HOLD.
+//!
+//! [`PhaseLock`] is the clock loop's counterpart: instead of a free-running phase it puts each
+//! deadline `phase_offset_us` after the plant's state stamps, so the state age is that offset,
+//! not wherever the two processes' start phases happened to fall.
+
+use crate::controller::Controller;
+use crate::record::{tick_record, TickTimes};
+use crate::telemetry::TickRecord;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::ipc;
+use iceoryx2::sample_mut_uninit::SampleMutUninit;
+use protocol::{monotonic_ns, CommandSample, StateSample};
+use rt::WaitStrategy;
+use std::mem::MaybeUninit;
+
+/// A command sample loaned ahead of time, so that the loan is not on the path to the send.
+pub type CommandSlot = SampleMutUninit<ipc::Service, MaybeUninit<CommandSample>, ()>;
+
+/// The loop's ports and channels.
+pub struct Ports<'a> {
+    pub subscriber: &'a Subscriber<ipc::Service, StateSample, ()>,
+    pub publisher: &'a Publisher<ipc::Service, CommandSample, ()>,
+    pub tx: &'a crossbeam::channel::Sender<TickRecord>,
+}
+
+/// How the loop waits.
+#[derive(Clone, Copy, Debug)]
+pub struct Timing {
+    pub period_ns: u64,
+    pub wait: WaitStrategy,
+    pub spin_ns: u64,
+    /// Stop at this time (ns), if set.
+    pub end_ns: Option<u64>,
+}
+
+/// Drains the state queue and returns the newest sample, counting the superseded ones.
+pub fn newest_state<const N: usize>(
+    sub: &Subscriber<ipc::Service, StateSample, ()>,
+    ctl: &mut Controller<N>,
+) -> Option<StateSample> {
+    let mut newest = None;
+    loop {
+        match sub.receive() {
+            Ok(Some(s)) => {
+                if newest.is_some() {
+                    ctl.counters.superseded += 1;
+                }
+                newest = Some(*s);
+            }
+            Ok(None) => return newest,
+            Err(_) => {
+                ctl.counters.ipc_errors += 1;
+                return newest;
+            }
+        }
+    }
+}
+
+/// Sends `c` in the pre-loaned `slot` (or a fresh loan if there is none).
+pub fn send<const N: usize>(
+    publisher: &Publisher<ipc::Service, CommandSample, ()>,
+    slot: &mut Option<CommandSlot>,
+    c: CommandSample,
+    ctl: &mut Controller<N>,
+) {
+    let loaned = match slot.take() {
+        Some(s) => Ok(s),
+        None => publisher.loan_uninit(),
+    };
+    match loaned {
+        Ok(s) => {
+            if s.write_payload(c).send().is_err() {
+                ctl.counters.ipc_errors += 1;
+            }
+        }
+        Err(_) => ctl.counters.ipc_errors += 1,
+    }
+}
+
+/// Runs state-triggered ticks until a stop request or `timing.end_ns`. `between` runs after each
+/// command has left: it takes what the control service sent (a parameter block, ...) without
+/// waiting, exactly as the clock loop does before its tick.
+pub fn state_loop<const N: usize>(
+    ctl: &mut Controller<N>,
+    ports: &Ports<'_>,
+    timing: Timing,
+    mut between: impl FnMut(&mut Controller<N>),
+) {
+    let period = timing.period_ns;
+    let mut slot = ports.publisher.loan_uninit().ok();
+    let mut expected = monotonic_ns() + period;
+    while !rt::signal::stop_requested() {
+        if timing.end_ns.is_some_and(|e| monotonic_ns() >= e) {
+            break;
+        }
+        // No state for a whole period past its expected arrival: a tick without one.
+        let give_up = expected + period;
+        let got = rt::trigger::poll_until(expected, give_up, timing.wait, timing.spin_ns, || {
+            newest_state(ports.subscriber, ctl)
+        });
+        let woke = monotonic_ns();
+        let o = ctl.tick(got.as_ref(), woke);
+        if let Some(c) = o.command {
+            send(ports.publisher, &mut slot, c, ctl);
+        }
+        let done = monotonic_ns();
+
+        // Everything below is off the path from state to command.
+        let due = expected;
+        expected = match (got, o.state_age_ns) {
+            (Some(s), Some(_)) => s
+                .stamp_ns
+                .saturating_add(period)
+                .clamp(woke, woke + 2 * period),
+            _ => give_up.max(woke),
+        };
+        if slot.is_none() {
+            slot = ports.publisher.loan_uninit().ok();
+        }
+        between(ctl);
+        let times = TickTimes { due, woke, done };
+        let rec = tick_record(ctl, &o, got, times);
+        match ports.tx.try_send(rec) {
+            Ok(()) => {}
+            Err(crossbeam::channel::TrySendError::Full(_)) => ctl.counters.telemetry_dropped += 1,
+            Err(crossbeam::channel::TrySendError::Disconnected(_)) => rt::signal::request_stop(),
+        }
+    }
+}
+
+/// Clock trigger with `phase_offset_us`: keeps the tick `offset_ns` after the plant's states.
+#[derive(Clone, Copy, Debug)]
+pub struct PhaseLock {
+    period_ns: u64,
+    offset_ns: u64,
+}
+
+impl PhaseLock {
+    pub fn new(period_ns: u64, offset_ns: u64) -> Self {
+        Self {
+            period_ns,
+            offset_ns,
+        }
+    }
+
+    /// The deadline after `next_deadline` that lies `offset_ns` after a multiple of the period
+    /// from `stamp_ns` (the newest accepted state's stamp), moved by at most a quarter period per
+    /// call, so a single odd stamp cannot throw the loop around.
+    ///
+    /// ```
+    /// use daemon::trigger::PhaseLock;
+    /// let lock = PhaseLock::new(1_000_000, 50_000);
+    /// // States stamped at ...000 µs; the free-running deadline fell at 10 400 µs.
+    /// let mut d = 10_400_000;
+    /// for _ in 0..4 {
+    ///     d = lock.align(d, 9_000_000) + 1_000_000;
+    /// }
+    /// assert_eq!(d % 1_000_000, 50_000);
+    /// ```
+    pub fn align(&self, next_deadline: u64, stamp_ns: u64) -> u64 {
+        let p = self.period_ns as i64;
+        let target = stamp_ns as i64 + self.offset_ns as i64;
+        // Signed distance from the target phase, folded into (−p/2, p/2].
+        let mut err = (next_deadline as i64 - target).rem_euclid(p);
+        if err > p / 2 {
+            err -= p;
+        }
+        let step = err.clamp(-p / 4, p / 4);
+        (next_deadline as i64 - step) as u64
+    }
+}

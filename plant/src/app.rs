@@ -1,0 +1,142 @@
+//! The plant process's `main`, as a library function, so that a bridge's own `main` is a few
+//! lines: parse the standard flags, load and validate the config, run the loop, print one
+//! summary line, map errors to an exit code.
+//!
+//! ```no_run
+//! use clap::Parser;
+//! use plant::app::{self, PlantArgs};
+//! # use plant::{Actuation, Plant, PlantError};
+//! # struct MyBridge;
+//! # impl Plant for MyBridge {
+//! #     fn n(&self) -> usize { 3 }
+//! #     fn flags(&self) -> u32 { 0 }
+//! #     fn activate(&mut self) -> Result<(), PlantError> { Ok(()) }
+//! #     fn write(&mut self, _: Actuation<'_>) -> Result<(), PlantError> { Ok(()) }
+//! #     fn read(&mut self, _: f64, _: &mut protocol::StateSample) -> Result<(), PlantError> { Ok(()) }
+//! #     fn deactivate(&mut self) {}
+//! # }
+//!
+//! #[derive(Parser)]
+//! struct Args {
+//!     #[command(flatten)]
+//!     plant: PlantArgs,
+//! }
+//!
+//! fn main() -> std::process::ExitCode {
+//!     let args = Args::parse();
+//!     app::serve("my-bridge", &args.plant, |_launch| Ok(MyBridge))
+//! }
+//! ```
+
+use crate::config::PlantConfig;
+use crate::report::PlantSummary;
+use crate::seam::Plant;
+use anyhow::{anyhow, Context, Result};
+use control::Config;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// The flags every plant process takes; `#[command(flatten)]` them into a bridge's own `Args`.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct PlantArgs {
+    /// TOML config file (the same file the daemon reads; a plant uses [arm], [sim] and [plant]).
+    #[arg(long, conflicts_with = "preset")]
+    pub config: Option<PathBuf>,
+    /// A built-in set-up instead of a file.
+    #[arg(long)]
+    pub preset: Option<String>,
+    /// Overrides plant.namespace.
+    #[arg(long)]
+    pub namespace: Option<String>,
+    /// Overrides plant.output_dir.
+    #[arg(long)]
+    pub output: Option<PathBuf>,
+    /// Stop after this many seconds.
+    #[arg(long)]
+    pub duration: Option<f64>,
+}
+
+/// A validated start: the whole system config, the `[plant]` table, and the run length.
+#[derive(Clone, Debug)]
+pub struct Launch {
+    pub system: Config,
+    pub plant: PlantConfig,
+    pub duration: Option<f64>,
+}
+
+/// Loads and validates everything before anything starts; errors name the field.
+pub fn load(args: &PlantArgs) -> Result<Launch> {
+    let system = match (&args.config, &args.preset) {
+        (Some(p), _) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read config file {}", p.display()))?;
+            Config::from_toml_str(&text).with_context(|| format!("in {}", p.display()))?
+        }
+        (None, Some(name)) => Config::preset(name)?,
+        (None, None) => Config::preset("paper")?,
+    };
+    system.validate()?;
+    let mut plant = PlantConfig::from_table(system.plant.as_ref())?;
+    if let Some(ns) = &args.namespace {
+        plant.namespace = ns.clone();
+    }
+    if let Some(o) = &args.output {
+        plant.output_dir = o.clone();
+    }
+    plant.validate()?;
+    if let Some(d) = args.duration {
+        if !(d.is_finite() && d > 0.0 && d <= 1e7) {
+            return Err(anyhow!(
+                "--duration {d}: must be a finite number of seconds > 0"
+            ));
+        }
+    }
+    Ok(Launch {
+        system,
+        plant,
+        duration: args.duration,
+    })
+}
+
+/// Loads, builds the plant with `make`, runs it and reports: a bridge's whole `main`.
+pub fn serve<P: Plant>(
+    name: &str,
+    args: &PlantArgs,
+    make: impl FnOnce(&Launch) -> Result<P>,
+) -> ExitCode {
+    main_with(name, args, |l| {
+        let mut plant = make(l)?;
+        crate::run::run(&mut plant, &l.plant, l.duration)
+    })
+}
+
+/// Like [`serve`], for a plant whose type depends on the config (the simulator's arm size).
+pub fn main_with(
+    name: &str,
+    args: &PlantArgs,
+    body: impl FnOnce(&Launch) -> Result<PlantSummary>,
+) -> ExitCode {
+    match load(args).and_then(|l| body(&l)) {
+        Ok(s) => {
+            let c = &s.counters;
+            let in_time = s.in_time_share.map_or(String::new(), |f| {
+                format!(", {:.3} % answered in time", f * 100.0)
+            });
+            eprintln!(
+                "{name}: stopped after {:.1} s: {} states, {} commands ({} rejected), {} timeouts, {} late cycles{in_time}; round trip {}",
+                s.duration_s,
+                c.states_published,
+                c.commands_received,
+                c.commands_rejected,
+                c.command_timeouts,
+                c.late_cycles,
+                s.round_trip.one_line()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("{name}: error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,141 @@
+//! chaosd-fakebot: a device emulator for chaosd-bridge. It owns the clock, integrates the arm,
+//! speaks the UDP protocol of `plant::udp`, and injects faults on request.
+
+use anyhow::{ensure, Context, Result};
+use clap::Parser;
+use control::with_dof;
+use plant::app::{self, PlantArgs};
+use plant::udp::fakebot::{self, FakebotConfig, FakebotSummary};
+use plant::SimPlant;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "chaosd-fakebot",
+    version,
+    about = "A robot emulator on the chaosd UDP device protocol, with fault injection"
+)]
+struct Args {
+    /// --config / --preset give the arm, its start and [plant] rate_hz, substeps, brake_gain.
+    #[command(flatten)]
+    plant: PlantArgs,
+    /// Where the device receives commands.
+    #[arg(long, default_value = "127.0.0.1:47000")]
+    listen: SocketAddr,
+    /// Where the states go (the bridge's --bind).
+    #[arg(long, default_value = "127.0.0.1:47001")]
+    peer: SocketAddr,
+    /// Missed answers in a row before the device brakes.
+    #[arg(long = "max-missed", default_value_t = 20)]
+    max_missed: u32,
+    /// Probability (0..=0.5) of losing each packet, in either direction.
+    #[arg(long, default_value_t = 0.0)]
+    loss: f64,
+    /// Every this many seconds, delay the answers in transit by --spike-ms (a network spike).
+    #[arg(long = "spike-every")]
+    spike_every: Option<f64>,
+    #[arg(long = "spike-ms", default_value_t = 5.0)]
+    spike_ms: f64,
+    /// Restart (new session, initial state) every this many seconds.
+    #[arg(long = "restart-every")]
+    restart_every: Option<f64>,
+    #[arg(long = "restart-pause-ms", default_value_t = 200.0)]
+    restart_pause_ms: f64,
+    /// Seed of the loss injector.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Write the counters here as JSON at exit.
+    #[arg(long)]
+    summary: Option<PathBuf>,
+}
+
+fn validate(a: &Args) -> Result<()> {
+    ensure!(
+        (1..=100_000).contains(&a.max_missed),
+        "--max-missed {}: must be between 1 and 100000",
+        a.max_missed
+    );
+    ensure!(
+        a.loss.is_finite() && (0.0..=0.5).contains(&a.loss),
+        "--loss {}: must be between 0 and 0.5",
+        a.loss
+    );
+    for (name, v) in [
+        ("spike-every", a.spike_every),
+        ("restart-every", a.restart_every),
+    ] {
+        if let Some(v) = v {
+            ensure!(
+                v.is_finite() && (0.01..=1e6).contains(&v),
+                "--{name} {v}: must be between 0.01 and 1e6 s"
+            );
+        }
+    }
+    for (name, v) in [
+        ("spike-ms", a.spike_ms),
+        ("restart-pause-ms", a.restart_pause_ms),
+    ] {
+        ensure!(
+            v.is_finite() && (0.0..=60_000.0).contains(&v),
+            "--{name} {v}: must be between 0 and 60000 ms"
+        );
+    }
+    ensure!(
+        a.listen != a.peer,
+        "--listen and --peer are both {}",
+        a.listen
+    );
+    Ok(())
+}
+
+fn run(a: &Args) -> Result<FakebotSummary> {
+    validate(a)?;
+    let l = app::load(&a.plant)?;
+    let p = &l.plant;
+    let cfg = FakebotConfig {
+        listen: a.listen,
+        peer: a.peer,
+        rate_hz: p.rate_hz,
+        max_missed: a.max_missed,
+        loss: a.loss,
+        spike_every_s: a.spike_every,
+        spike_ms: a.spike_ms,
+        restart_every_s: a.restart_every,
+        restart_pause_ms: a.restart_pause_ms,
+        seed: a.seed,
+        wait: p.wait,
+        spin_us: p.spin_us,
+    };
+    let period = p.period_ns() as f64 * 1e-9;
+    let s = &l.system;
+    let c = with_dof!(s.n(), N => fakebot::run::<N>(&cfg, || SimPlant::<N>::new(s.model::<N>(), s.initial_state(), period, p.substeps, p.brake_gain), l.duration))?;
+    if let Some(path) = &a.summary {
+        rt::files::write(path, serde_json::to_string_pretty(&c)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    Ok(c)
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(&args) {
+        Ok(s) => {
+            let c = &s.counters;
+            eprintln!(
+                "chaosd-fakebot: round trip (state sent → answer received) {}",
+                s.round_trip.one_line()
+            );
+            eprintln!(
+                "chaosd-fakebot: {} cycles, {} answered in time, {} missed, {} late answers, {} malformed, {} stale; lost {} states and {} commands; {} brakes, {} spikes, {} restarts",
+                c.cycles, c.answered_in_time, c.missed, c.late_answers, c.malformed, c.stale_session, c.states_lost, c.commands_lost, c.brakes, c.spikes, c.restarts
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("chaosd-fakebot: error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,138 @@
+//! What the plant loop measured, and the files it writes at exit.
+//!
+//! The loop records into fixed-bound histograms (no allocation); everything that formats or
+//! touches the disk happens here, after the last cycle.
+
+use crate::config::PlantConfig;
+use anyhow::{Context, Result};
+use hdrhistogram::Histogram;
+use rt::hist::{self, Percentiles};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::time::SystemTime;
+
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
+pub struct PlantCounters {
+    pub ticks: u64,
+    pub states_published: u64,
+    pub commands_received: u64,
+    pub commands_rejected: u64,
+    pub command_timeouts: u64,
+    pub daemon_restarts: u64,
+    pub overruns: u64,
+    pub ipc_errors: u64,
+    /// Cycles in which the plant had no state to publish (`PlantError::Unavailable` from `read`:
+    /// a bridge whose device is silent).
+    pub read_misses: u64,
+    /// Actuations the plant could not deliver (`PlantError::Unavailable` from `write`).
+    pub write_errors: u64,
+    /// State trigger: cycles whose answer came before the answer deadline.
+    pub answered_in_time: u64,
+    /// State trigger: cycles without an answer by the deadline.
+    pub late_cycles: u64,
+    /// State trigger: answers that arrived after their deadline (dropped).
+    pub late_answers: u64,
+    /// State trigger: times `max_late_cycles` late cycles in a row made the plant brake.
+    pub late_brakes: u64,
+}
+
+impl PlantCounters {
+    /// State trigger: the share of published states answered within the same cycle.
+    pub fn in_time_share(&self) -> Option<f64> {
+        let waited = self.answered_in_time + self.late_cycles;
+        (waited > 0).then(|| self.answered_in_time as f64 / waited as f64)
+    }
+}
+
+/// The loop's histograms (ns).
+pub struct Histograms {
+    /// State stamp → answering command published by the daemon.
+    pub to_cmd: Histogram<u64>,
+    /// State published → answering command picked up by the plant.
+    pub rtt: Histogram<u64>,
+    pub lateness: Histogram<u64>,
+}
+
+impl Histograms {
+    pub fn new() -> Self {
+        Self {
+            to_cmd: hist::new_ns(),
+            rtt: hist::new_ns(),
+            lateness: hist::new_ns(),
+        }
+    }
+}
+
+impl Default for Histograms {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct PlantSummary {
+    pub namespace: String,
+    pub rate_hz: f64,
+    pub trigger: rt::Trigger,
+    pub realtime: rt::setup::RtReport,
+    pub duration_s: f64,
+    pub counters: PlantCounters,
+    /// State trigger: answered in time / (answered in time + late), if any cycle waited.
+    pub in_time_share: Option<f64>,
+    /// State stamp → answering command published (both stamps on CLOCK_MONOTONIC).
+    pub state_to_command: Percentiles,
+    /// State published → answering command picked up by the plant (the full round trip).
+    pub round_trip: Percentiles,
+    pub lateness: Percentiles,
+    pub files: Vec<PathBuf>,
+}
+
+pub const SUMMARY_FILE: &str = "plant-summary.json";
+
+/// Writes the histograms, the interval log and the summary; returns the summary.
+pub fn write(
+    cfg: &PlantConfig,
+    realtime: rt::setup::RtReport,
+    counters: PlantCounters,
+    h: &Histograms,
+    start_ns: u64,
+    wall_start: SystemTime,
+) -> Result<PlantSummary> {
+    let out = &cfg.output_dir;
+    let named = [
+        ("state-to-command", &h.to_cmd),
+        ("round-trip", &h.rtt),
+        ("lateness", &h.lateness),
+    ];
+    let mut files = Vec::new();
+    for (name, hg) in named {
+        let p = out.join(format!("plant-{name}.hgrm"));
+        hist::save_hgrm(hg, &p).with_context(|| format!("cannot write {}", p.display()))?;
+        files.push(p);
+    }
+    let hlog = out.join("plant.hlog");
+    let elapsed =
+        std::time::Duration::from_nanos(protocol::monotonic_ns().saturating_sub(start_ns));
+    hist::save_hlog(&named, wall_start, elapsed, &hlog)
+        .with_context(|| format!("cannot write {}", hlog.display()))?;
+    files.push(hlog);
+    files.push(out.join(SUMMARY_FILE));
+    let summary = PlantSummary {
+        namespace: cfg.namespace.clone(),
+        rate_hz: cfg.rate_hz,
+        trigger: cfg.trigger,
+        realtime,
+        duration_s: elapsed.as_secs_f64(),
+        counters,
+        in_time_share: counters.in_time_share(),
+        state_to_command: Percentiles::of(&h.to_cmd),
+        round_trip: Percentiles::of(&h.rtt),
+        lateness: Percentiles::of(&h.lateness),
+        files,
+    };
+    rt::files::write(
+        &out.join(SUMMARY_FILE),
+        serde_json::to_string_pretty(&summary)?,
+    )?;
+    Ok(summary)
+}

@@ -1,0 +1,291 @@
+//! [`UdpBridge`]: the `Plant` that drives a device over the UDP protocol of [`super`].
+//!
+//! The device owns the clock, so the bridge is `device_clocked`: `read` blocks until the
+//! device's next state (up to `timeout`), keeps the newest of any queued ones, and remembers
+//! which device `seq` the loop's state number stands for; `write` sends the answer echoing that
+//! `seq`. A device silent for `lost_after` is reported lost once (the loop publishes nothing
+//! meanwhile, so the daemon's watchdog holds); a new `session` is a restarted device, reported
+//! and followed. Malformed, foreign and out-of-order datagrams are counted and dropped.
+
+use super::wire::{DeviceCommand, DeviceMode, DeviceState, COMMAND_LEN, DEVICE_BRAKING, STATE_LEN};
+use crate::seam::{Actuation, Plant, PlantError};
+use protocol::{flags, monotonic_ns, StateSample, MAX_JOINTS};
+use serde::Serialize;
+use std::net::{SocketAddr, UdpSocket};
+use std::os::fd::AsRawFd;
+use std::time::Duration;
+
+/// Where the bridge listens and where the device is.
+#[derive(Clone, Copy, Debug)]
+pub struct BridgeConfig {
+    pub bind: SocketAddr,
+    pub device: SocketAddr,
+    /// How long one `read` waits for a state before the cycle counts as missed.
+    pub timeout: Duration,
+    /// Silence after which the device is reported lost.
+    pub lost_after: Duration,
+}
+
+/// What the bridge counted.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
+pub struct BridgeCounters {
+    pub states: u64,
+    pub commands_sent: u64,
+    pub timeouts: u64,
+    pub malformed: u64,
+    pub out_of_order: u64,
+    /// Queued states skipped for a newer one.
+    pub superseded: u64,
+    pub device_lost: u64,
+    pub device_restarts: u64,
+    pub send_errors: u64,
+    /// Commands for a state no longer remembered (not sent).
+    pub unknown_answers: u64,
+}
+
+/// Which device state a published state number came from.
+#[derive(Clone, Copy, Debug, Default)]
+struct Origin {
+    loop_seq: u64,
+    seq: u64,
+    session: u64,
+}
+
+pub struct UdpBridge {
+    n: usize,
+    cfg: BridgeConfig,
+    socket: Option<UdpSocket>,
+    last: Option<DeviceState>,
+    last_rx_ns: u64,
+    lost: bool,
+    origins: [Origin; 64],
+    pub counters: BridgeCounters,
+}
+
+fn unavailable(what: &'static str, e: Option<std::io::Error>) -> PlantError {
+    PlantError::Unavailable {
+        what,
+        source: e.map(Into::into),
+    }
+}
+
+impl UdpBridge {
+    pub fn new(n: usize, cfg: BridgeConfig) -> Self {
+        Self {
+            n,
+            cfg,
+            socket: None,
+            last: None,
+            last_rx_ns: 0,
+            lost: false,
+            origins: [Origin {
+                loop_seq: u64::MAX,
+                ..Origin::default()
+            }; 64],
+            counters: BridgeCounters::default(),
+        }
+    }
+
+    /// Checks one datagram: a state of this arm, newer than the last of its session.
+    fn admit(&mut self, bytes: &[u8]) -> Option<DeviceState> {
+        let s = match DeviceState::decode(bytes) {
+            Ok(s) if s.n as usize == self.n => s,
+            _ => {
+                self.counters.malformed += 1;
+                return None;
+            }
+        };
+        match self.last {
+            Some(l) if l.session == s.session && s.seq <= l.seq => {
+                self.counters.out_of_order += 1;
+                None
+            }
+            Some(l) if l.session != s.session => {
+                self.counters.device_restarts += 1;
+                eprintln!("chaosd-bridge: the device restarted (new session)");
+                Some(s)
+            }
+            _ => Some(s),
+        }
+    }
+
+    /// Any more states already queued: keep the newest (one `recv` per datagram, no waiting).
+    fn drain(&mut self, sock_fd: i32, newest: &mut DeviceState) {
+        let mut buf = [0u8; STATE_LEN + 1];
+        loop {
+            // SAFETY: `buf` is valid for `buf.len()` writable bytes; MSG_DONTWAIT never blocks.
+            let got = unsafe {
+                libc::recv(
+                    sock_fd,
+                    buf.as_mut_ptr().cast(),
+                    buf.len(),
+                    libc::MSG_DONTWAIT,
+                )
+            };
+            if got < 0 {
+                return;
+            }
+            if let Some(s) = self.admit(&buf[..got as usize]) {
+                self.counters.superseded += 1;
+                self.last = Some(s);
+                *newest = s;
+            }
+        }
+    }
+
+    /// Waits up to `timeout` for the next admissible state.
+    fn next_state(&mut self) -> Result<DeviceState, PlantError> {
+        let Some(sock) = self.socket.take() else {
+            return Err(PlantError::Fault {
+                what: "the bridge was not activated",
+                source: None,
+            });
+        };
+        let until = monotonic_ns() + self.cfg.timeout.as_nanos() as u64;
+        let mut buf = [0u8; STATE_LEN + 1];
+        let result = loop {
+            match sock.recv(&mut buf) {
+                Ok(len) => {
+                    if let Some(mut s) = self.admit(&buf[..len]) {
+                        self.last = Some(s);
+                        self.drain(sock.as_raw_fd(), &mut s);
+                        break Ok(s);
+                    }
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => break Err(e),
+            }
+            if monotonic_ns() >= until {
+                break Err(std::io::ErrorKind::TimedOut.into());
+            }
+        };
+        self.socket = Some(sock);
+        result.map_err(|e| self.silence(e))
+    }
+
+    /// No state this cycle: counted, and reported once when it has lasted `lost_after`.
+    fn silence(&mut self, e: std::io::Error) -> PlantError {
+        self.counters.timeouts += 1;
+        let silent = monotonic_ns().saturating_sub(self.last_rx_ns);
+        if !self.lost && silent >= self.cfg.lost_after.as_nanos() as u64 {
+            self.lost = true;
+            self.counters.device_lost += 1;
+            eprintln!(
+                "chaosd-bridge: device lost: no state from {} for {} ms",
+                self.cfg.device,
+                silent / 1_000_000
+            );
+        }
+        unavailable("no state from the device this cycle", Some(e))
+    }
+
+    fn send(&mut self, cmd: &DeviceCommand) -> Result<(), PlantError> {
+        let mut buf = [0u8; COMMAND_LEN];
+        cmd.encode(&mut buf);
+        let Some(sock) = &self.socket else {
+            return Err(unavailable("the bridge was not activated", None));
+        };
+        match sock.send_to(&buf, self.cfg.device) {
+            Ok(_) => {
+                self.counters.commands_sent += 1;
+                Ok(())
+            }
+            Err(e) => {
+                self.counters.send_errors += 1;
+                Err(unavailable("command not sent to the device", Some(e)))
+            }
+        }
+    }
+}
+
+impl Plant for UdpBridge {
+    fn n(&self) -> usize {
+        self.n
+    }
+
+    fn flags(&self) -> u32 {
+        match self.last {
+            Some(s) if s.flags & DEVICE_BRAKING != 0 => flags::BRAKING,
+            _ => 0,
+        }
+    }
+
+    fn activate(&mut self) -> Result<(), PlantError> {
+        let act = |what, e: std::io::Error| PlantError::Activation {
+            what,
+            source: e.into(),
+        };
+        let sock =
+            UdpSocket::bind(self.cfg.bind).map_err(|e| act("cannot bind the bridge socket", e))?;
+        // A short slice, so a wait ends close to `timeout` however the kernel rounds.
+        let slice = self
+            .cfg
+            .timeout
+            .min(Duration::from_millis(1))
+            .max(Duration::from_micros(100));
+        sock.set_read_timeout(Some(slice))
+            .map_err(|e| act("cannot set the socket timeout", e))?;
+        self.socket = Some(sock);
+        self.last_rx_ns = monotonic_ns();
+        Ok(())
+    }
+
+    fn write(&mut self, a: Actuation<'_>) -> Result<(), PlantError> {
+        let Some(last) = self.last else {
+            return Ok(()); // no device state yet: nothing to answer
+        };
+        let mut cmd = DeviceCommand {
+            n: self.n as u16,
+            seq: last.seq,
+            session: last.session,
+            mode: DeviceMode::Brake,
+            qdd: [0.0; MAX_JOINTS],
+            qddd: [0.0; MAX_JOINTS],
+        };
+        match a {
+            Actuation::Accelerate {
+                qdd, qddd, answers, ..
+            } => {
+                let o = self.origins[(answers % 64) as usize];
+                if o.loop_seq != answers || qdd.len() != self.n || qddd.len() != self.n {
+                    self.counters.unknown_answers += 1;
+                    return Ok(());
+                }
+                (cmd.seq, cmd.session, cmd.mode) = (o.seq, o.session, DeviceMode::Run);
+                cmd.qdd[..self.n].copy_from_slice(qdd);
+                cmd.qddd[..self.n].copy_from_slice(qddd);
+            }
+            Actuation::Hold => cmd.mode = DeviceMode::Hold,
+            Actuation::Brake => {}
+        }
+        self.send(&cmd)
+    }
+
+    fn read(&mut self, _elapsed: f64, out: &mut StateSample) -> Result<(), PlantError> {
+        let s = self.next_state()?;
+        self.last_rx_ns = monotonic_ns();
+        if self.lost {
+            self.lost = false;
+            eprintln!("chaosd-bridge: the device is back");
+        }
+        self.counters.states += 1;
+        self.origins[(out.seq % 64) as usize] = Origin {
+            loop_seq: out.seq,
+            seq: s.seq,
+            session: s.session,
+        };
+        out.n = self.n as u32;
+        out.phi = 0.0;
+        out.q = s.q;
+        out.qd = s.qd;
+        Ok(())
+    }
+
+    fn deactivate(&mut self) {
+        let _ = self.write(Actuation::Brake);
+    }
+
+    fn device_clocked(&self) -> bool {
+        true
+    }
+}

@@ -1,0 +1,372 @@
+//! chaosd-fakebot's device: it owns the clock, integrates the arm, and speaks the UDP protocol
+//! of [`super`] the way a strict robot controller does (FCI, RSI): a state every cycle, the
+//! answer due before the next one, misses counted, a brake after `max_missed` in a row.
+//!
+//! It can also misbehave on purpose, so the bridge and the daemon can be tested against a
+//! device that loses packets (`loss`), stalls (`spike_every_s` / `spike_ms`) or restarts
+//! (`restart_every_s`). One cycle: wait for the deadline → (injected stall or restart) → apply
+//! the answer to the last state, or count a miss → integrate one cycle → send the new state →
+//! wait (in `ppoll`, until the next deadline) for its answer, timing the round trip.
+
+use super::wire::{
+    DeviceCommand, DeviceMode, DeviceState, COMMAND_LEN, DEVICE_BRAKING, DEVICE_HOLDING, STATE_LEN,
+};
+use crate::seam::{Actuation, Plant};
+use crate::sim::SimPlant;
+use anyhow::{Context, Result};
+use hdrhistogram::Histogram;
+use protocol::{monotonic_ns, StateSample, MAX_JOINTS};
+use rt::clock::Schedule;
+use rt::WaitStrategy;
+use serde::Serialize;
+use std::net::{SocketAddr, UdpSocket};
+use std::os::fd::AsRawFd;
+
+/// How the device runs and misbehaves.
+#[derive(Clone, Debug)]
+pub struct FakebotConfig {
+    pub listen: SocketAddr,
+    /// Where the states go (the bridge).
+    pub peer: SocketAddr,
+    pub rate_hz: f64,
+    pub max_missed: u32,
+    /// Probability of dropping each packet, in either direction.
+    pub loss: f64,
+    /// Every `spike_every_s` seconds, delay the answers in transit by `spike_ms`: the device keeps
+    /// its clock and sends its states, but sees no answer until the spike is over.
+    pub spike_every_s: Option<f64>,
+    pub spike_ms: f64,
+    /// Restart (new session, initial state, after `restart_pause_ms`) every this many seconds.
+    pub restart_every_s: Option<f64>,
+    pub restart_pause_ms: f64,
+    pub seed: u64,
+    pub wait: WaitStrategy,
+    pub spin_us: f64,
+}
+
+/// What the device counted.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
+pub struct FakebotCounters {
+    pub cycles: u64,
+    pub states_sent: u64,
+    pub answered_in_time: u64,
+    /// Cycles whose state got no answer in time.
+    pub missed: u64,
+    /// Answers to an older state (dropped).
+    pub late_answers: u64,
+    /// Answers to a previous device start (dropped).
+    pub stale_session: u64,
+    pub malformed: u64,
+    pub states_lost: u64,
+    pub commands_lost: u64,
+    pub send_errors: u64,
+    /// Times `max_missed` misses in a row made the device brake.
+    pub brakes: u64,
+    pub spikes: u64,
+    pub restarts: u64,
+}
+
+/// What the device measured: its counters, and state sent → answer received (the round trip
+/// through the bridge and the daemon, as the device sees it).
+#[derive(Clone, Debug, Serialize)]
+pub struct FakebotSummary {
+    pub counters: FakebotCounters,
+    pub round_trip: rt::hist::Percentiles,
+}
+
+/// xorshift64*: the loss injector's random numbers (deterministic per seed, no allocation).
+struct Rng(u64);
+
+impl Rng {
+    fn chance(&mut self, p: f64) -> bool {
+        if p <= 0.0 {
+            return false;
+        }
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        let x = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11;
+        (x as f64) < p * (1u64 << 53) as f64
+    }
+}
+
+/// The device's run state (reset by a restart).
+struct Session {
+    id: u64,
+    seq: u64,
+    /// An answer has arrived since the start: from then on the arm moves and misses count.
+    started: bool,
+    missed_run: u32,
+    missed_total: u32,
+    braking: bool,
+    holding: bool,
+    started_ns: u64,
+}
+
+impl Session {
+    fn new() -> Self {
+        Self {
+            id: protocol::new_instance_id(),
+            seq: 0,
+            started: false,
+            missed_run: 0,
+            missed_total: 0,
+            braking: false,
+            holding: false,
+            started_ns: monotonic_ns(),
+        }
+    }
+}
+
+/// Runs the device until SIGINT/SIGTERM or `duration`; `make` builds the arm (again on restart).
+pub fn run<const N: usize>(
+    cfg: &FakebotConfig,
+    make: impl Fn() -> SimPlant<N>,
+    duration: Option<f64>,
+) -> Result<FakebotSummary> {
+    let socket = UdpSocket::bind(cfg.listen)
+        .with_context(|| format!("cannot bind the device socket to {}", cfg.listen))?;
+    socket
+        .set_nonblocking(true)
+        .context("cannot make the device socket non-blocking")?;
+    rt::signal::install();
+    let mut dev = Device {
+        cfg,
+        socket,
+        sim: make(),
+        s: Session::new(),
+        c: FakebotCounters::default(),
+        rng: Rng(cfg.seed | 1),
+        sample: StateSample::default(),
+        pending: None,
+        sent_at: 0,
+        rtt: rt::hist::new_ns(),
+        spike_until: 0,
+    };
+    dev.sim.activate()?;
+    let period = (1e9 / cfg.rate_hz).round() as u64;
+    let spin = (cfg.spin_us * 1e3) as u64;
+    let start = monotonic_ns();
+    let end = duration.map(|d| start + (d * 1e9) as u64);
+    let every = |s: Option<f64>| s.map(|s| (s * 1e9) as u64);
+    let (mut next_spike, mut next_restart) = (
+        every(cfg.spike_every_s).map(|e| start + e),
+        every(cfg.restart_every_s).map(|e| start + e),
+    );
+    let mut sched = Schedule::new(period, start);
+    let mut behind = 0;
+    while !rt::signal::stop_requested() {
+        let deadline = sched.deadline();
+        if end.is_some_and(|e| deadline >= e) {
+            break;
+        }
+        rt::wait_until(deadline, cfg.wait, spin);
+        if next_restart.is_some_and(|t| deadline >= t) {
+            next_restart = every(cfg.restart_every_s).map(|e| deadline + e);
+            dev.restart(&make);
+            sched = Schedule::new(period, monotonic_ns());
+            continue;
+        }
+        if next_spike.is_some_and(|t| deadline >= t) {
+            next_spike = every(cfg.spike_every_s).map(|e| deadline + e);
+            dev.c.spikes += 1;
+            dev.spike_until = deadline + (cfg.spike_ms * 1e6) as u64;
+        }
+        dev.cycle(period, behind);
+        dev.await_answer(deadline + period);
+        behind = sched.advance(monotonic_ns());
+    }
+    dev.sim.deactivate();
+    Ok(FakebotSummary {
+        counters: dev.c,
+        round_trip: rt::hist::Percentiles::of(&dev.rtt),
+    })
+}
+
+/// Waits until the socket is readable or `until_ns` passes; true if readable.
+fn wait_readable(fd: i32, until_ns: u64) -> bool {
+    let now = monotonic_ns();
+    if now >= until_ns {
+        return false;
+    }
+    let rem = until_ns - now;
+    let ts = libc::timespec {
+        tv_sec: (rem / 1_000_000_000) as libc::time_t,
+        tv_nsec: (rem % 1_000_000_000) as libc::c_long,
+    };
+    let mut p = libc::pollfd {
+        fd,
+        events: libc::POLLIN,
+        revents: 0,
+    };
+    // SAFETY: one valid pollfd, a valid timespec, no signal mask.
+    unsafe { libc::ppoll(&mut p, 1, &ts, std::ptr::null()) > 0 }
+}
+
+struct Device<'a, const N: usize> {
+    cfg: &'a FakebotConfig,
+    socket: UdpSocket,
+    sim: SimPlant<N>,
+    s: Session,
+    c: FakebotCounters,
+    rng: Rng,
+    sample: StateSample,
+    /// The answer to the last state, received while waiting for it.
+    pending: Option<DeviceCommand>,
+    sent_at: u64,
+    rtt: Histogram<u64>,
+    /// A delay spike: until then, answers sit in the socket (delayed in transit).
+    spike_until: u64,
+}
+
+impl<const N: usize> Device<'_, N> {
+    fn restart(&mut self, make: &impl Fn() -> SimPlant<N>) {
+        self.c.restarts += 1;
+        rt::clock::sleep_until(monotonic_ns() + (self.cfg.restart_pause_ms * 1e6) as u64);
+        self.sim = make();
+        self.s = Session::new();
+        self.pending = None;
+        // Whatever arrived while "rebooting" answers the old session; take it and count it.
+        let _ = self.answer();
+    }
+
+    fn cycle(&mut self, period: u64, behind: u64) {
+        self.c.cycles += 1;
+        let delayed = monotonic_ns() < self.spike_until;
+        if self.s.seq > 0 {
+            let got = if delayed {
+                None
+            } else {
+                self.pending.take().or_else(|| self.answer())
+            };
+            match got {
+                Some(cmd) => self.apply(&cmd),
+                None => self.miss(),
+            }
+        }
+        let elapsed = if self.s.started {
+            (1 + behind) as f64 * period as f64 * 1e-9
+        } else {
+            0.0
+        };
+        // The simulator only fails on a non-finite state; then the device stops moving.
+        if self.sim.read(elapsed, &mut self.sample).is_err() {
+            let _ = self.sim.write(Actuation::Brake);
+        }
+        self.send_state();
+        self.s.seq += 1;
+    }
+
+    /// After sending a state: waits for its answer until `until_ns`, and times it.
+    fn await_answer(&mut self, until_ns: u64) {
+        let fd = self.socket.as_raw_fd();
+        if self.spike_until > monotonic_ns() {
+            return; // the answer is delayed in transit: it will be found late
+        }
+        while self.pending.is_none() && wait_readable(fd, until_ns) {
+            self.pending = self.answer();
+        }
+        if self.pending.is_some() {
+            let rtt = monotonic_ns().saturating_sub(self.sent_at);
+            self.rtt.saturating_record(rtt.max(1));
+        }
+    }
+
+    /// Takes every queued datagram; returns the command answering the last state, if any.
+    fn answer(&mut self) -> Option<DeviceCommand> {
+        let mut buf = [0u8; COMMAND_LEN + 1];
+        let mut found = None;
+        let want = self.s.seq.wrapping_sub(1);
+        while let Ok((len, _)) = self.socket.recv_from(&mut buf) {
+            if self.rng.chance(self.cfg.loss) {
+                self.c.commands_lost += 1;
+                continue;
+            }
+            match DeviceCommand::decode(&buf[..len]) {
+                Err(_) => self.c.malformed += 1,
+                Ok(c) if c.n as usize != N => self.c.malformed += 1,
+                Ok(c) if c.session != self.s.id => self.c.stale_session += 1,
+                // A second answer to the same state (a brake after a run) replaces the first.
+                Ok(c) if c.seq == want && self.s.seq > 0 => found = Some(c),
+                Ok(c) if c.seq < want => self.c.late_answers += 1,
+                Ok(_) => self.c.malformed += 1, // a number never sent
+            }
+        }
+        found
+    }
+
+    fn apply(&mut self, cmd: &DeviceCommand) {
+        self.c.answered_in_time += 1;
+        self.s.started = true;
+        self.s.missed_run = 0;
+        self.s.braking = false;
+        self.s.holding = cmd.mode == DeviceMode::Hold;
+        let a = match cmd.mode {
+            DeviceMode::Run => Actuation::Accelerate {
+                qdd: &cmd.qdd[..N],
+                qddd: &cmd.qddd[..N],
+                since: 0.0,
+                answers: cmd.seq,
+            },
+            DeviceMode::Hold => Actuation::Hold,
+            DeviceMode::Brake => Actuation::Brake,
+        };
+        let _ = self.sim.write(a);
+    }
+
+    /// No answer in time: the previous command stays (the simulator ramps it on).
+    fn miss(&mut self) {
+        if !self.s.started {
+            return;
+        }
+        self.c.missed += 1;
+        self.s.missed_total = self.s.missed_total.saturating_add(1);
+        self.s.missed_run = self.s.missed_run.saturating_add(1);
+        if self.s.missed_run >= self.cfg.max_missed && !self.s.braking {
+            self.s.braking = true;
+            self.c.brakes += 1;
+            let _ = self.sim.write(Actuation::Brake);
+        }
+    }
+
+    fn send_state(&mut self) {
+        let mut st = DeviceState {
+            n: N as u16,
+            seq: self.s.seq,
+            session: self.s.id,
+            time_ns: monotonic_ns().saturating_sub(self.s.started_ns),
+            flags: if self.s.braking { DEVICE_BRAKING } else { 0 }
+                | if self.s.holding { DEVICE_HOLDING } else { 0 },
+            missed_run: self.s.missed_run,
+            missed_total: self.s.missed_total,
+            q: [0.0; MAX_JOINTS],
+            qd: [0.0; MAX_JOINTS],
+        };
+        st.q[..N].copy_from_slice(&self.sample.q[..N]);
+        st.qd[..N].copy_from_slice(&self.sample.qd[..N]);
+        if self.rng.chance(self.cfg.loss) {
+            self.c.states_lost += 1;
+            return;
+        }
+        let mut buf = [0u8; STATE_LEN];
+        st.encode(&mut buf);
+        self.sent_at = monotonic_ns();
+        match self.socket.send_to(&buf, self.cfg.peer) {
+            Ok(_) => self.c.states_sent += 1,
+            Err(_) => self.c.send_errors += 1,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn loss_injection_hits_its_rate() {
+        let mut r = Rng(12345);
+        let hits = (0..100_000).filter(|_| r.chance(0.01)).count();
+        assert!((800..1200).contains(&hits), "{hits}");
+        assert!(!(0..1000).any(|_| r.chance(0.0)));
+    }
+}

@@ -1,0 +1,154 @@
+//! Proves the plant side's per-cycle calls allocate nothing, with a counting global allocator
+//! armed per thread (its own test binary): the simulator's `write`/`read`, the command intake,
+//! the UDP wire format, and the UDP bridge's `read`/`write` over a real loopback socket.
+
+use control::Config;
+use plant::intake::{Intake, Published, PublishedRing};
+use plant::udp::bridge::{BridgeConfig, UdpBridge};
+use plant::udp::wire::{DeviceCommand, DeviceMode, DeviceState, COMMAND_LEN, STATE_LEN};
+use plant::{Actuation, Plant, SimPlant};
+use protocol::{CommandSample, Mode, StateSample};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::net::UdpSocket;
+use std::time::Duration;
+
+struct Counting;
+
+thread_local! {
+    static ARMED: Cell<bool> = const { Cell::new(false) };
+    static COUNT: Cell<u64> = const { Cell::new(0) };
+}
+
+fn bump() {
+    let _ = ARMED.try_with(|a| {
+        if a.get() {
+            COUNT.with(|c| c.set(c.get() + 1));
+        }
+    });
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        bump();
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new: usize) -> *mut u8 {
+        bump();
+        unsafe { System.realloc(ptr, layout, new) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations(f: impl FnOnce()) -> u64 {
+    COUNT.with(|c| c.set(0));
+    ARMED.with(|a| a.set(true));
+    f();
+    ARMED.with(|a| a.set(false));
+    COUNT.with(|c| c.get())
+}
+
+#[test]
+fn the_counter_sees_allocations() {
+    let n = allocations(|| {
+        std::hint::black_box(Vec::<u8>::with_capacity(16));
+    });
+    assert_eq!(n, 1);
+}
+
+#[test]
+fn the_simulator_and_the_intake_allocate_nothing() {
+    let cfg = Config::preset("paper").unwrap();
+    let mut sim = SimPlant::<3>::new(cfg.model::<3>(), cfg.initial_state(), 1e-3, 4, 20.0);
+    let mut intake = Intake::new(3, 0);
+    let mut ring = PublishedRing::default();
+    let mut out = StateSample::default();
+    let n = allocations(|| {
+        for k in 0..1000u64 {
+            let cmd = CommandSample {
+                seq: k,
+                state_seq: k,
+                state_stamp_ns: 1,
+                daemon_id: 3,
+                mode: Mode::Run as u32,
+                n: 3,
+                ..CommandSample::default()
+            };
+            assert!(intake.accept(&cmd));
+            sim.write(Actuation::Accelerate {
+                qdd: &cmd.qdd[..3],
+                qddd: &cmd.qddd[..3],
+                since: ring.since(k, 0.0),
+                answers: k,
+            })
+            .unwrap();
+            sim.read(if k % 10 == 0 { 3e-3 } else { 1e-3 }, &mut out)
+                .unwrap();
+            ring.push(Published {
+                seq: k,
+                plant_time: k as f64,
+                at_ns: k,
+            });
+        }
+        sim.write(Actuation::Hold).unwrap();
+        sim.read(1e-3, &mut out).unwrap();
+    });
+    assert_eq!(n, 0, "the simulator or the intake allocated {n} times");
+}
+
+#[test]
+fn the_udp_bridge_and_the_wire_format_allocate_nothing() {
+    let device = UdpSocket::bind("127.0.0.1:0").unwrap();
+    device
+        .set_read_timeout(Some(Duration::from_secs(2)))
+        .unwrap();
+    let bind = UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap();
+    let cfg = BridgeConfig {
+        bind,
+        device: device.local_addr().unwrap(),
+        timeout: Duration::from_millis(500),
+        lost_after: Duration::from_secs(5),
+    };
+    let mut bridge = UdpBridge::new(3, cfg);
+    bridge.activate().unwrap();
+    let mut out = StateSample::default();
+    let (mut sbuf, mut cbuf) = ([0u8; STATE_LEN], [0u8; COMMAND_LEN + 1]);
+    let mut allocs = 0;
+    for k in 0..500u64 {
+        let st = DeviceState {
+            n: 3,
+            seq: k,
+            session: 77,
+            ..DeviceState::default()
+        };
+        // The device's side of the exchange is counted too: encode, send, receive, decode.
+        allocs += allocations(|| {
+            st.encode(&mut sbuf);
+            device.send_to(&sbuf, bind).unwrap();
+            out.seq = k;
+            bridge.read(1e-3, &mut out).unwrap();
+            bridge
+                .write(Actuation::Accelerate {
+                    qdd: &[1.0, 2.0, 3.0],
+                    qddd: &[0.0; 3],
+                    since: 0.0,
+                    answers: k,
+                })
+                .unwrap();
+            let len = device.recv(&mut cbuf).unwrap();
+            let c = DeviceCommand::decode(&cbuf[..len]).unwrap();
+            assert_eq!((c.seq, c.session, c.mode), (k, 77, DeviceMode::Run));
+        });
+    }
+    assert_eq!(allocs, 0, "the bridge path allocated {allocs} times");
+    assert_eq!(bridge.counters.states, 500);
+    assert_eq!(bridge.counters.commands_sent, 500);
+}

@@ -1,0 +1,128 @@
+//! What starts a cycle, and waiting for a sample to arrive.
+//!
+//! A free-running loop ([`Trigger::Clock`]) wakes on its own deadlines. A state-triggered one
+//! ([`Trigger::State`]) runs when the peer's sample arrives, the way a device-clocked robot
+//! interface (Franka FCI, KUKA RSI) works: the device sends its state, and the answer must come
+//! back within the same cycle. [`poll_until`] is that wait, with the same three strategies as
+//! [`crate::wait_until`], so the daemon and the plant wait for each other exactly alike.
+
+use crate::{monotonic_ns, WaitStrategy};
+use serde::{Deserialize, Serialize};
+
+/// What starts a cycle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Trigger {
+    /// A fixed-rate loop on its own absolute deadlines.
+    #[default]
+    Clock,
+    /// A cycle runs when a new state arrives; its answer goes out at once.
+    State,
+}
+
+impl Trigger {
+    pub fn name(self) -> &'static str {
+        match self {
+            Trigger::Clock => "clock",
+            Trigger::State => "state",
+        }
+    }
+}
+
+impl std::str::FromStr for Trigger {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "clock" => Ok(Trigger::Clock),
+            "state" => Ok(Trigger::State),
+            _ => Err(format!("{s:?} is not a trigger (expected clock or state)")),
+        }
+    }
+}
+
+/// With [`WaitStrategy::Sleep`], how long each sleep between two polls lasts.
+pub const SLEEP_POLL_NS: u64 = 20_000;
+
+/// Polls `poll` until it yields a value or `deadline_ns` passes (then `None`).
+///
+/// `expected_ns` is when the value is expected. `Spin` polls throughout; `Hybrid` sleeps until
+/// `spin_ns` before `expected_ns`, polls without sleeping until `spin_ns` after it, and from
+/// then on (the value is overdue: a stalled or dead peer) polls every [`SLEEP_POLL_NS`], so a
+/// missing peer does not cost a spinning core; `Sleep` sleeps until `expected_ns`, then polls
+/// every [`SLEEP_POLL_NS`]. `poll` must not allocate; this function does not either.
+///
+/// ```
+/// use rt::{monotonic_ns, trigger::poll_until, WaitStrategy};
+/// let start = monotonic_ns();
+/// let mut calls = 0;
+/// // Ready on the third poll.
+/// let got = poll_until(start, start + 1_000_000_000, WaitStrategy::Spin, 0, || {
+///     calls += 1;
+///     (calls == 3).then_some(42)
+/// });
+/// assert_eq!(got, Some(42));
+/// // Never ready: gives up at the deadline.
+/// let d = monotonic_ns() + 200_000;
+/// assert_eq!(poll_until(d, d, WaitStrategy::Hybrid, 50_000, || None::<u8>), None);
+/// assert!(monotonic_ns() >= d);
+/// ```
+#[inline]
+pub fn poll_until<T>(
+    expected_ns: u64,
+    deadline_ns: u64,
+    strategy: WaitStrategy,
+    spin_ns: u64,
+    mut poll: impl FnMut() -> Option<T>,
+) -> Option<T> {
+    if let Some(v) = poll() {
+        return Some(v);
+    }
+    let wake = match strategy {
+        WaitStrategy::Spin => 0,
+        WaitStrategy::Hybrid => expected_ns.saturating_sub(spin_ns),
+        WaitStrategy::Sleep => expected_ns,
+    }
+    .min(deadline_ns);
+    if wake > monotonic_ns() {
+        crate::clock::sleep_until(wake);
+    }
+    loop {
+        if let Some(v) = poll() {
+            return Some(v);
+        }
+        let now = monotonic_ns();
+        if now >= deadline_ns {
+            return None;
+        }
+        let overdue = strategy == WaitStrategy::Hybrid && now > expected_ns.saturating_add(spin_ns);
+        if strategy == WaitStrategy::Sleep || overdue {
+            crate::clock::sleep_until((now + SLEEP_POLL_NS).min(deadline_ns));
+        } else {
+            core::hint::spin_loop();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_strategy_returns_at_the_deadline_or_with_the_value() {
+        for w in WaitStrategy::ALL {
+            let d = monotonic_ns() + 300_000;
+            assert_eq!(poll_until(d - 100_000, d, w, 50_000, || None::<()>), None);
+            assert!(monotonic_ns() >= d, "{w:?} gave up early");
+            let ready = monotonic_ns() + 200_000;
+            let got = poll_until(ready, ready + 1_000_000_000, w, 50_000, || {
+                (monotonic_ns() >= ready).then_some(())
+            });
+            assert_eq!(got, Some(()), "{w:?}");
+        }
+        assert_eq!("state".parse::<Trigger>(), Ok(Trigger::State));
+        assert!("tick"
+            .parse::<Trigger>()
+            .unwrap_err()
+            .contains("clock or state"));
+    }
+}

@@ -1,0 +1,233 @@
+//! The state trigger over the real binaries: each state answered in its own cycle, late cycles
+//! counted and braked on, the daemon's watchdog still holding when states stop.
+
+use protocol::{flags, Mode};
+use std::time::Duration;
+use tests::*;
+
+const RUN: u32 = Mode::Run as u32;
+const HOLD: u32 = Mode::Hold as u32;
+const STATE: &str = "trigger = \"state\"";
+
+struct System {
+    ns: String,
+    dir: TempDir,
+    cfg: std::path::PathBuf,
+    plant: Proc,
+    daemon: Proc,
+    m: Monitor,
+}
+
+fn start(test: &str, extra_plant: &str) -> System {
+    let ns = unique_namespace(test);
+    let dir = TempDir::new(&ns);
+    let plant_extra = format!("{STATE}\n{extra_plant}");
+    let cfg = write_config_with(dir.path(), &ns, STATE, &plant_extra, "");
+    let c = cfg.to_str().unwrap();
+    let plant = Proc::spawn("plant", &bin("chaosd-plant"), &["--config", c], dir.path());
+    let daemon = Proc::spawn(
+        "daemon",
+        &bin("chaosd"),
+        &["run", "--config", c],
+        dir.path(),
+    );
+    let m = Monitor::new(&ns);
+    System {
+        ns,
+        dir,
+        cfg,
+        plant,
+        daemon,
+        m,
+    }
+}
+
+fn runs(m: &Monitor) -> usize {
+    m.seen_commands.iter().filter(|c| c.mode == RUN).count()
+}
+
+#[test]
+fn each_state_is_answered_in_its_own_cycle() {
+    let _g = serial();
+    let mut s = start("state-same-cycle", "");
+    s.m.wait_for("the daemon to run", Duration::from_secs(15), |m| {
+        runs(m) > 200
+    });
+    std::thread::sleep(Duration::from_secs(3)); // past the 2 s the tracking RMS skips
+    s.m.clear();
+    s.m.wait_for("a second of traffic", Duration::from_secs(10), |m| {
+        runs(m) > 1000
+    });
+    // A command answers the state published in the same plant cycle: the plant publishes the
+    // next state only after it, so every answered state is the newest one published before it.
+    let mut same_cycle = 0;
+    let mut matched = 0;
+    for c in s.m.seen_commands.iter().filter(|c| c.mode == RUN) {
+        let Some(st) = s.m.seen_states.iter().find(|x| x.seq == c.state_seq) else {
+            continue;
+        };
+        matched += 1;
+        assert_eq!(st.stamp_ns, c.state_stamp_ns);
+        let next = s.m.seen_states.iter().find(|x| x.seq == c.state_seq + 1);
+        if next.is_none_or(|n| n.stamp_ns > c.stamp_ns) {
+            same_cycle += 1;
+        }
+    }
+    assert!(matched > 900, "only {matched} commands matched a state");
+    assert!(
+        same_cycle * 10 >= matched * 9,
+        "only {same_cycle} of {matched} commands came before the next state"
+    );
+    // chaosctl status shows the trigger, the state → command latency and the share answered.
+    let out = std::process::Command::new(bin("chaosctl"))
+        .args(["status", "--json", "--namespace", &s.ns])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let st: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(st["trigger"], "state", "{st}");
+    assert!(
+        st["state_to_command"]["count"].as_u64().unwrap() > 1000,
+        "{st}"
+    );
+    assert!(st["answered_within_period"].as_f64().unwrap() > 0.5, "{st}");
+    let human = std::process::Command::new(bin("chaosctl"))
+        .args(["status", "--namespace", &s.ns])
+        .output()
+        .unwrap();
+    let human = String::from_utf8_lossy(&human.stdout);
+    assert!(
+        human.contains("trigger   state; state → command p50"),
+        "{human}"
+    );
+    assert!(s.daemon.terminate(Duration::from_secs(10)).success());
+    assert!(s.plant.terminate(Duration::from_secs(10)).success());
+    let p = read_json(&s.dir.path().join("out/plant-summary.json"));
+    assert_eq!(p["trigger"], "state", "{p}");
+    let answered = p["counters"]["answered_in_time"].as_u64().unwrap();
+    assert!(answered > 1000, "{p}");
+    assert!(p["in_time_share"].as_f64().unwrap() > 0.5, "{p}");
+    let d = read_json(&s.dir.path().join("out/daemon-summary.json"));
+    assert!(d["tracking_rms_m"].as_f64().unwrap() < 1e-2, "{d}");
+}
+
+#[test]
+fn a_stalled_daemon_makes_late_cycles_the_plant_brakes_and_then_resumes() {
+    let _g = serial();
+    // A long command timeout, so that the late-cycle limit is what brakes.
+    let mut s = start(
+        "state-late",
+        "max_late_cycles = 5\ncommand_timeout_ms = 5000",
+    );
+    s.m.wait_for("the daemon to run", Duration::from_secs(15), |m| {
+        runs(m) > 200
+    });
+    s.daemon.signal(libc::SIGSTOP);
+    s.m.clear();
+    let braked = |m: &Monitor| {
+        m.seen_states
+            .last()
+            .is_some_and(|x| x.flags & flags::COMMAND_TIMEOUT != 0 && x.flags & flags::BRAKING != 0)
+    };
+    s.m.wait_for(
+        "the plant to brake on late cycles",
+        Duration::from_secs(5),
+        braked,
+    );
+    std::thread::sleep(Duration::from_millis(200));
+    s.daemon.signal(libc::SIGCONT);
+    s.m.clear();
+    s.m.wait_for("answers in time again", Duration::from_secs(10), |m| {
+        runs(m) > 100
+            && m.seen_states
+                .last()
+                .is_some_and(|x| x.flags & (flags::COMMAND_TIMEOUT | flags::BRAKING) == 0)
+    });
+    assert!(s.daemon.terminate(Duration::from_secs(10)).success());
+    assert!(s.plant.terminate(Duration::from_secs(10)).success());
+    let p = read_json(&s.dir.path().join("out/plant-summary.json"));
+    let c = &p["counters"];
+    assert!(c["late_brakes"].as_u64().unwrap() >= 1, "{p}");
+    assert!(c["late_cycles"].as_u64().unwrap() >= 5, "{p}");
+    assert_eq!(c["command_timeouts"], 0, "{p}");
+}
+
+#[test]
+fn without_states_the_daemon_holds_and_a_new_plant_resumes_the_run() {
+    let _g = serial();
+    let mut s = start("state-hold", "");
+    s.m.wait_for("the daemon to run", Duration::from_secs(15), |m| {
+        runs(m) > 200
+    });
+    let first = s.m.seen_states.last().unwrap().plant_id;
+    s.plant.kill9();
+    s.m.clear();
+    s.m.wait_for("HOLD commands", Duration::from_secs(5), |m| {
+        m.seen_commands.iter().any(|c| c.mode == HOLD)
+    });
+    let c = s.cfg.to_str().unwrap();
+    let mut plant2 = Proc::spawn(
+        "plant2",
+        &bin("chaosd-plant"),
+        &["--config", c],
+        s.dir.path(),
+    );
+    s.m.clear();
+    s.m.wait_for(
+        "RUN answering the new plant",
+        Duration::from_secs(15),
+        |m| m.seen_states.iter().any(|x| x.plant_id != first) && runs(m) > 100,
+    );
+    assert!(s.daemon.terminate(Duration::from_secs(10)).success());
+    assert!(plant2.terminate(Duration::from_secs(10)).success());
+    let d = read_json(&s.dir.path().join("out/daemon-summary.json"));
+    assert!(d["counters"]["holds_entered"].as_u64().unwrap() >= 1, "{d}");
+    assert!(
+        d["counters"]["plant_restarts"].as_u64().unwrap() >= 1,
+        "{d}"
+    );
+}
+
+/// Runs a clock-triggered system with `phase_offset_us` and returns the median state age (µs).
+fn median_state_age_with_offset(offset_us: u32) -> f64 {
+    let ns = unique_namespace(&format!("phase-{offset_us}"));
+    let dir = TempDir::new(&ns);
+    let extra = format!("phase_offset_us = {offset_us}");
+    let cfg = write_config_with(dir.path(), &ns, &extra, "", "");
+    let c = cfg.to_str().unwrap();
+    let mut plant = Proc::spawn("plant", &bin("chaosd-plant"), &["--config", c], dir.path());
+    let mut daemon = Proc::spawn(
+        "daemon",
+        &bin("chaosd"),
+        &["run", "--config", c],
+        dir.path(),
+    );
+    let mut m = Monitor::new(&ns);
+    m.wait_for("the daemon to run", Duration::from_secs(15), |m| {
+        runs(m) > 200
+    });
+    std::thread::sleep(Duration::from_secs(2));
+    assert!(daemon.terminate(Duration::from_secs(10)).success());
+    assert!(plant.terminate(Duration::from_secs(10)).success());
+    let d = read_json(&dir.path().join("out/daemon-summary.json"));
+    d["state_age"]["p50_us"].as_f64().unwrap()
+}
+
+#[test]
+fn the_phase_lock_puts_the_tick_at_the_configured_offset_after_each_state() {
+    let _g = serial();
+    // Free-running, the age is wherever the start phases fell; locked, it follows the offset
+    // (plus the daemon's wake-up lateness, which with the tests' sleeping wait is tens of µs).
+    for offset in [150u32, 550] {
+        let age = median_state_age_with_offset(offset);
+        let o = offset as f64;
+        assert!(
+            age >= o - 5.0 && age <= o + 200.0,
+            "phase_offset_us = {offset}: median state age {age} µs"
+        );
+    }
+}
