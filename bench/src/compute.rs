@@ -80,18 +80,30 @@ pub fn run(quick: bool, core: usize, out: &Path, command: &str) -> Result<String
         .map_err(|_| anyhow!("the compute thread panicked"))?
 }
 
+/// Which path of the filter a timed call takes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum FilterCase {
+    /// Every row already met: one pass, the command unchanged.
+    Free,
+    /// Some row binds and the null space alone meets them all: the closed-form interval.
+    NullSpace,
+    /// The null space cannot: the QP in the full joint space.
+    FullSpace,
+}
+
 /// Per-call cost of `control::safety::filter` alone on the paper's arm and obstacle (clearance
-/// 0.05 m), on chaotic states where it binds (a 5 rad/s rate limit against |q̇| up to 40 rad/s,
-/// and the obstacle) or where every row is already met (limits beyond the motion).
+/// 0.05 m) on chaotic states, sorted by the path each state takes. A 5 rad/s rate limit against
+/// |q̇| up to 40 rad/s makes both binding paths common.
 fn filter_cost(
     xs: &[ArmState<3>],
-    binding: bool,
+    case: FilterCase,
     batches: usize,
     batch: usize,
 ) -> Result<hdrhistogram::Histogram<u64>> {
+    use control::law::flags as lf;
     let mut cfg = Config::preset("paper-obstacle")?;
     cfg.safety.enabled = true;
-    if binding {
+    if case != FilterCase::Free {
         cfg.safety.qd_max = control::safety::config::Limit::All(5.0);
     }
     let (p, m) = (cfg.law_params(), cfg.model::<3>());
@@ -114,13 +126,20 @@ fn filter_cost(
             &jpinv,
             &qdd,
         );
-        if (f.flags != 0) == binding {
+        let path = if f.flags == 0 {
+            FilterCase::Free
+        } else if f.flags & lf::SAFETY_LEFT_NULL_SPACE == 0 {
+            FilterCase::NullSpace
+        } else {
+            FilterCase::FullSpace
+        };
+        if path == case {
             cases.push((k, jpinv, *x, qdd));
         }
     }
     if cases.len() < 16 {
         return Err(anyhow!(
-            "only {} states where the filter binding = {binding}",
+            "only {} states take the filter's {case:?} path",
             cases.len()
         ));
     }
@@ -172,22 +191,22 @@ fn measure(quick: bool, out: &Path, command: &str) -> Result<String> {
         dists.push(Dist::of_histogram(&name, &h));
         rows.push((name, summary(&h)));
     }
-    for (name, binding) in [
+    for (name, case) in [
         (
             "safety filter alone, paper-obstacle (n = 3), not binding",
-            false,
+            FilterCase::Free,
         ),
-        ("safety filter alone, paper-obstacle (n = 3), binding", true),
+        (
+            "safety filter alone, paper-obstacle (n = 3), binding, null space (interval)",
+            FilterCase::NullSpace,
+        ),
+        (
+            "safety filter alone, paper-obstacle (n = 3), binding, full space (QP)",
+            FilterCase::FullSpace,
+        ),
     ] {
-        let h = filter_cost(&xs, binding, batches, batch)?;
-        report.hgrm(
-            if binding {
-                "filter-binding"
-            } else {
-                "filter-free"
-            },
-            &h,
-        )?;
+        let h = filter_cost(&xs, case, batches, batch)?;
+        report.hgrm(&format!("filter-{case:?}").to_lowercase(), &h)?;
         dists.push(Dist::of_histogram(name, &h));
         rows.push((name.into(), summary(&h)));
     }

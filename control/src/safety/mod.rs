@@ -133,6 +133,7 @@ pub fn filter<const N: usize>(
     if !obstacles.is_empty() {
         rows::point_motions(model, kin, phi, q, qd, &mut points);
     }
-    let visit = |f: &mut dyn FnMut(&VecN<N>, f64)| rows::visit(p, obstacles, &points, q, qd, f);
-    solve::smallest_change(&visit, &kin.j, jpinv, qdd, &p.qdd_max)
+    let visit = |f: &mut dyn FnMut(&VecN<N>, f64)| rows::visit_obstacles(p, obstacles, &points, f);
+    let (lo, hi) = rows::joint_box(p, q, qd);
+    solve::smallest_change(&visit, (&lo, &hi), &kin.j, jpinv, qdd, &p.qdd_max)
 }

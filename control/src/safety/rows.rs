@@ -178,14 +178,11 @@ fn point_row<const N: usize>(
     Some((h, a, -k1 * hdot - k0 * h - u.dot(&p.drift) - curvature))
 }
 
-/// Calls `f(a, b)` for every row a·q̈ ≥ b of the active limits.
-#[allow(clippy::too_many_arguments)]
-pub fn visit<const N: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
+/// Calls `f(a, b)` for the row a·q̈ ≥ b of every link against every obstacle.
+pub fn visit_obstacles<const N: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
     p: &SafetyParams,
     obstacles: &ObstacleSet,
     points: &Points<N>,
-    q: &VecN<N>,
-    qd: &VecN<N>,
     f: &mut F,
 ) {
     for o in obstacles.as_slice() {
@@ -198,22 +195,55 @@ pub fn visit<const N: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
             }
         }
     }
+}
+
+/// Every joint's own rows folded into one box lo_i ≤ q̈_i ≤ hi_i: the position barriers
+/// (ḧ + k1 ḣ + k0 h ≥ 0 with h = q_max − q and q − q_min), the rate barriers (ḣ + k_rate h ≥ 0
+/// with h = qd_max ∓ q̇) and the acceleration limits. ±∞ where nothing limits; lo > hi where the
+/// limits conflict.
+pub fn joint_box<const N: usize>(
+    p: &SafetyParams,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+) -> ([f64; MAX_JOINTS], [f64; MAX_JOINTS]) {
+    let mut lo = [f64::NEG_INFINITY; MAX_JOINTS];
+    let mut hi = [f64::INFINITY; MAX_JOINTS];
     for i in 0..N {
-        let e = VecN::<N>::from_fn(|r, _| if r == i { 1.0 } else { 0.0 });
-        let neg = -e;
-        if p.q_max[i].is_finite() {
-            f(&neg, p.k1 * qd[i] - p.k0 * (p.q_max[i] - q[i]));
+        let mut l = -p.qdd_max[i];
+        let mut h = p.qdd_max[i];
+        if p.qd_max[i].is_finite() {
+            l = l.max(-p.k_rate * (p.qd_max[i] + qd[i]));
+            h = h.min(p.k_rate * (p.qd_max[i] - qd[i]));
         }
         if p.q_min[i].is_finite() {
-            f(&e, -p.k1 * qd[i] - p.k0 * (q[i] - p.q_min[i]));
+            l = l.max(-p.k1 * qd[i] - p.k0 * (q[i] - p.q_min[i]));
         }
-        if p.qd_max[i].is_finite() {
-            f(&neg, -p.k_rate * (p.qd_max[i] - qd[i]));
-            f(&e, -p.k_rate * (p.qd_max[i] + qd[i]));
+        if p.q_max[i].is_finite() {
+            h = h.min(-p.k1 * qd[i] + p.k0 * (p.q_max[i] - q[i]));
         }
-        if p.qdd_max[i].is_finite() {
-            f(&neg, -p.qdd_max[i]);
-            f(&e, -p.qdd_max[i]);
+        (lo[i], hi[i]) = (l, h);
+    }
+    (lo, hi)
+}
+
+/// Calls `f(a, b)` for every row a·q̈ ≥ b: the obstacle rows, then each joint's box as two rows.
+pub fn visit<const N: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
+    p: &SafetyParams,
+    obstacles: &ObstacleSet,
+    points: &Points<N>,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+    f: &mut F,
+) {
+    visit_obstacles(p, obstacles, points, f);
+    let (lo, hi) = joint_box(p, q, qd);
+    for i in 0..N {
+        let e = VecN::<N>::from_fn(|r, _| if r == i { 1.0 } else { 0.0 });
+        if lo[i].is_finite() {
+            f(&e, lo[i]);
+        }
+        if hi[i].is_finite() {
+            f(&-e, -hi[i]);
         }
     }
 }

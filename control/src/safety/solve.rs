@@ -16,13 +16,16 @@ use crate::law::flags;
 use crate::secondary::MAX_OBSTACLES;
 use nalgebra::SMatrix;
 
-/// Most rows one problem has: every link against every obstacle, plus 6 per joint.
-pub const MAX_ROWS: usize = MAX_OBSTACLES * MAX_JOINTS + 6 * MAX_JOINTS;
+/// Most rows one problem has: every link against every obstacle, plus 2 per joint (its box).
+pub const MAX_ROWS: usize = MAX_OBSTACLES * MAX_JOINTS + 2 * MAX_JOINTS;
 /// Sweeps over all rows before Hildreth's method gives up.
 pub const MAX_SWEEPS: usize = 200;
 
 /// A visitor over the rows: calls its argument with (a, b) for each a·q̈ ≥ b.
 pub type Visit<'a, const N: usize> = &'a dyn Fn(&mut dyn FnMut(&VecN<N>, f64));
+
+/// Each joint's own limits as lo_i ≤ q̈_i ≤ hi_i (`rows::joint_box`).
+pub type JointBox<'a> = (&'a [f64; MAX_JOINTS], &'a [f64; MAX_JOINTS]);
 
 /// A row counts as violated when it misses by more than this (relative to 1 + |b|).
 const TOL: f64 = 1e-9;
@@ -49,6 +52,7 @@ pub fn null_vector<const N: usize>(j: &Jac<N>) -> Option<VecN<N>> {
 /// Solves for the filtered q̈ (see the module doc), then clamps to the acceleration limits.
 pub fn smallest_change<const N: usize>(
     visit: Visit<'_, N>,
+    joint_box: JointBox<'_>,
     j: &Jac<N>,
     jpinv: &SMatrix<f64, N, 2>,
     qdd: &VecN<N>,
@@ -72,6 +76,28 @@ pub fn smallest_change<const N: usize>(
             }
         }
     });
+    let (lo_box, hi_box) = joint_box;
+    for i in 0..N {
+        // lo ≤ q̈_i + n_i s ≤ hi, two rows on one axis.
+        for (bound, sign) in [(lo_box[i], 1.0), (hi_box[i], -1.0)] {
+            if !bound.is_finite() {
+                continue;
+            }
+            let r = sign * (bound - qdd[i]);
+            let bad = r > tol(bound);
+            violated |= bad;
+            if let Some(n) = &nhat {
+                let al = sign * n[i];
+                if al.abs() <= 1e-12 {
+                    line_ok &= !bad;
+                } else if al > 0.0 {
+                    lo = lo.max(r / al);
+                } else {
+                    hi = hi.min(r / al);
+                }
+            }
+        }
+    }
     if !violated {
         return Filtered {
             qdd: *qdd,
@@ -84,7 +110,7 @@ pub fn smallest_change<const N: usize>(
             n * 0.0f64.clamp(lo, hi.max(lo))
         }
         _ => {
-            let mut rows = Rows::<N>::collect(visit, qdd);
+            let mut rows = Rows::<N>::collect(visit, joint_box, qdd);
             // With a one-dimensional null space the interval above was exact: no second try.
             let in_null = if nhat.is_some() {
                 None
@@ -122,19 +148,29 @@ struct Rows<const N: usize> {
 }
 
 impl<const N: usize> Rows<N> {
-    fn collect(visit: Visit<'_, N>, qdd: &VecN<N>) -> Self {
+    fn collect(visit: Visit<'_, N>, joint_box: JointBox<'_>, qdd: &VecN<N>) -> Self {
         let mut r = Self {
             a: [VecN::<N>::zeros(); MAX_ROWS],
             h: [0.0; MAX_ROWS],
             m: 0,
         };
-        visit(&mut |a, b| {
+        let mut push = |a: &VecN<N>, b: f64| {
             if r.m < MAX_ROWS {
                 r.a[r.m] = *a;
                 r.h[r.m] = b - a.dot(qdd);
                 r.m += 1;
             }
-        });
+        };
+        visit(&mut push);
+        for i in 0..N {
+            let e = VecN::<N>::from_fn(|k, _| if k == i { 1.0 } else { 0.0 });
+            if joint_box.0[i].is_finite() {
+                push(&e, joint_box.0[i]);
+            }
+            if joint_box.1[i].is_finite() {
+                push(&-e, -joint_box.1[i]);
+            }
+        }
         r
     }
 
