@@ -11,6 +11,15 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitCode, Stdio};
 use std::time::{Duration, Instant};
 
+/// `println!` that ignores a closed stdout: `chaosd demo | head -2` must not panic on the broken
+/// pipe, and the demo must still stop its plant and write its files.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
 #[derive(Parser)]
 #[command(
     name = "chaosd",
@@ -256,16 +265,16 @@ const FAKEBOT_SUMMARY: &str = "fakebot-summary.json";
 fn print_device(out: &Path) {
     let text = std::fs::read_to_string(out.join(FAKEBOT_SUMMARY)).unwrap_or_default();
     let Ok(v) = serde_json::from_str::<serde_json::Value>(&text) else {
-        println!("device (UDP)          n/a (chaosd-fakebot wrote no summary; see fakebot.log)");
+        say!("device (UDP)          n/a (chaosd-fakebot wrote no summary; see fakebot.log)");
         return;
     };
     let c = &v["counters"];
     let n = |k: &str| c[k].as_u64().unwrap_or(0);
-    println!(
+    say!(
         "device round trip     {}  (fakebot: state sent over UDP → answer received)",
         pct(&v, "round_trip")
     );
-    println!(
+    say!(
         "device cycles         {} cycles, {} answered in time, {} missed, {} late answers, {} brakes; {} states and {} commands lost (injected)",
         n("cycles"), n("answered_in_time"), n("missed"), n("late_answers"), n("brakes"), n("states_lost"), n("commands_lost")
     );
@@ -342,7 +351,7 @@ fn demo(
     rt::signal::install();
     let log_path = out.join("plant.log");
     let (mut guard, mut device) = spawn_plant_side(bridge, &cfg_path, &out, duration)?;
-    println!(
+    say!(
         "chaosd demo: {}-link arm, {} model, {} Hz, plant pid {}, namespace {:?}; μ = {} from t = {:.1} s; {duration} s",
         s.system.n(),
         if s.system.arm.model == control::config::ModelKind::Floating { "floating-base" } else { "fixed-base" },
@@ -353,7 +362,7 @@ fn demo(
         s.system.feedback.t_on
     );
     if let Some(d) = &device.0 {
-        println!(
+        say!(
             "chaosd demo: over UDP on the loopback: chaosd-fakebot (device pid {}) ⇄ chaosd-bridge ⇄ chaosd, state trigger",
             d.id()
         );
@@ -379,8 +388,10 @@ fn demo(
         print_device(&out);
     }
     if !status.is_some_and(|s| s.success()) {
-        eprintln!(
-            "chaosd: warning: the plant did not exit cleanly ({status:?}); see {}",
+        // The report above stands, but the run did not: say so in the exit code too.
+        bail!(
+            "the plant did not exit cleanly ({}); see {}",
+            status.map_or("no status".into(), |s| s.to_string()),
             log_path.display()
         );
     }
@@ -402,7 +413,7 @@ fn pct(v: &serde_json::Value, key: &str) -> String {
 fn print_answers(s: &DaemonSetup, p: &serde_json::Value) {
     let c = &p["counters"];
     let n = |k: &str| c[k].as_u64().unwrap_or(0);
-    println!(
+    say!(
         "trigger               {}{}",
         s.daemon.trigger.name(),
         match s.daemon.trigger {
@@ -412,7 +423,7 @@ fn print_answers(s: &DaemonSetup, p: &serde_json::Value) {
         }
     );
     if let Some(share) = p["in_time_share"].as_f64() {
-        println!(
+        say!(
             "answered in time      {:.3} % of {} cycles; {} late cycles, {} late answers dropped, {} brakes after too many late cycles",
             share * 100.0,
             n("answered_in_time") + n("late_cycles"),
@@ -425,36 +436,37 @@ fn print_answers(s: &DaemonSetup, p: &serde_json::Value) {
 
 fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::Value>, out: &Path) {
     let c = &d.counters;
-    println!("\n== chaosd demo report ==");
+    say!("\n== chaosd demo report ==");
     match d.tracking_rms_m {
-        Some(t) => println!("tracking error        RMS {t:.2e} m (after the first 2 s)"),
-        None => println!("tracking error        n/a (no states received)"),
+        Some(t) => say!("tracking error        RMS {t:.2e} m (after the first 2 s)"),
+        None => say!("tracking error        n/a (no states received)"),
     }
     match (d.period_residual_before, d.period_residual_after) {
-        (Some(b), Some(a)) => println!(
+        (Some(b), Some(a)) => say!(
             "period residual       mean |q̇(t) − q̇(t−τ)|: {b:.3} rad/s before feedback → {a:.3} rad/s over the last 5 s with μ = {} ({})",
             s.system.feedback.mu,
             if a == 0.0 { "periodic to rounding".to_string() } else if a <= b { format!("{:.1}× smaller", b / a) } else { format!("{:.1}× LARGER: not settled on a period-T orbit", a / b) }
         ),
         (b, a) => {
             let show = |v: Option<f64>| v.map_or("n/a".to_string(), |x| format!("{x:.3} rad/s"));
-            println!(
+            say!(
                 "period residual       mean |q̇(t) − q̇(t−τ)|: {} before feedback, {} with it (the run stopped before t_on + 5 s: nothing to compare)",
                 show(b),
                 show(a)
             )
         }
     }
-    println!("wake-up lateness      {}", d.lateness.one_line());
-    println!(
+    say!("wake-up lateness      {}", d.lateness.one_line());
+    say!(
         "overruns              {} skipped periods in {} ticks",
-        c.overruns, c.ticks
+        c.overruns,
+        c.ticks
     );
-    println!("compute per tick      {}", d.compute.one_line());
-    println!("state age at tick     {}", d.state_age.one_line());
+    say!("compute per tick      {}", d.compute.one_line());
+    say!("state age at tick     {}", d.state_age.one_line());
     if let Some(p) = plant {
-        println!("state → command       {}", pct(p, "state_to_command"));
-        println!(
+        say!("state → command       {}", pct(p, "state_to_command"));
+        say!(
             "command round trip    {}  (state published → command received by the plant{})",
             pct(p, "round_trip"),
             if s.daemon.trigger == rt::Trigger::State {
@@ -465,31 +477,52 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
         );
         print_answers(s, p);
     } else {
-        println!("command round trip    n/a (the plant wrote no summary)");
+        say!("command round trip    n/a (the plant wrote no summary)");
     }
-    println!(
+    say!(
         "faults                {} samples rejected ({} invalid, {} stale, {} out of order, {} from the future, {} flagged faulty by the plant); {} holds; {} plant restarts; {} telemetry records dropped",
         c.rejected(), c.rejected_invalid, c.rejected_stale, c.rejected_out_of_order, c.rejected_future, c.plant_faults, c.holds_entered, c.plant_restarts, c.telemetry_dropped
     );
     if c.track_lost + c.out_of_reach + c.nonfinite > 0 {
-        println!(
+        say!(
             "tracking loss         error above control.track_loss = {} m on {} ticks, the start-up transient included ({} near-singular, {} with the target out of reach, {} non-finite results)",
             s.system.control.track_loss, c.track_lost, c.singular, c.out_of_reach, c.nonfinite
         );
     }
     let sf = &s.system.safety;
-    println!(
+    say!(
         "safety                filter {}: acted on {} ticks, left the null space on {} (tracking gave way), {} without a command meeting every limit; {} runaway-guard faults{}",
         if sf.enabled { "on" } else { "OFF" },
         c.safety_active, c.safety_left_null_space, c.safety_infeasible, c.faults,
         d.min_clearance_m.map_or(String::new(), |m| format!("; min clearance {m:.3} m (required {} m)", sf.clearance))
     );
-    println!("real-time set-up      {}", d.realtime.one_line());
-    println!("histograms            {}/daemon-{{lateness,compute,state-age}}.hgrm, daemon.hlog, plant-{{round-trip,state-to-command,lateness}}.hgrm", out.display());
-    println!(
-        "summaries             {}/daemon-summary.json, {}/plant-summary.json",
+    say!("real-time set-up      {}", d.realtime.one_line());
+    // Only the files that were written: a plant that died writes none of its own.
+    let listed = |names: &[&str]| {
+        names
+            .iter()
+            .filter(|n| out.join(n).exists())
+            .copied()
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    say!(
+        "histograms            {}/{}",
         out.display(),
-        out.display()
+        listed(&[
+            "daemon-lateness.hgrm",
+            "daemon-compute.hgrm",
+            "daemon-state-age.hgrm",
+            "daemon.hlog",
+            "plant-round-trip.hgrm",
+            "plant-state-to-command.hgrm",
+            "plant-lateness.hgrm",
+        ])
+    );
+    say!(
+        "summaries             {}/{}",
+        out.display(),
+        listed(&["daemon-summary.json", "plant-summary.json"])
     );
 }
 
@@ -531,7 +564,7 @@ fn main() -> ExitCode {
             let mut s = common.setup()?;
             resume_live_state(&mut s, fresh)?;
             let summary = daemon::service::run(&s, duration, print_line)?;
-            println!(
+            say!(
                 "chaosd: stopped after {:.1} s; lateness {}; files in {}",
                 summary.duration_s,
                 summary.lateness.one_line(),
