@@ -49,7 +49,8 @@ pub struct Report {
     pub summary: Summary,
 }
 
-/// Runs the config to its duration, calling `each` on every grid state.
+/// Runs the config to its duration, calling `each(k, t, q, qd, phi)` on every grid state
+/// k = 0 … steps, the final state at t = duration included.
 pub fn run_config(
     cfg: &Config,
     mut each: impl FnMut(u64, f64, &[f64], &[f64], f64) -> Result<()>,
@@ -71,6 +72,8 @@ pub fn run_config(
         if !x.is_finite() {
             bail!("the simulation diverged (non-finite state at t = {} s)", sim.time());
         }
+        // The final state too, at t = duration.
+        each(steps, sim.time(), x.q.as_slice(), x.qd.as_slice(), x.phi)?;
         Ok(Report {
             model: cfg.arm.model,
             n,
@@ -118,9 +121,10 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         None => None,
     };
     let stride = args.stride;
+    let last = (cfg.sim.duration / cfg.sim.dt).round() as u64;
     let report = run_config(&cfg, |k, t, q, qd, phi| {
         if let Some(w) = csv.as_mut() {
-            if k % stride == 0 {
+            if k % stride == 0 || k == last {
                 write!(w, "{t:.6}")?;
                 if floating {
                     write!(w, ",{phi:.9}")?;

@@ -299,3 +299,39 @@ fn obstacle_study_keeps_filtered_runs_clear() {
         .contains("<svg"));
     std::fs::remove_dir_all(dir).ok();
 }
+
+#[test]
+fn the_trajectory_csv_ends_with_the_final_state() {
+    let csv = scratch("final-row").join("run.csv");
+    for stride in ["1000", "700"] {
+        let out = chaosctl(&[
+            "simulate",
+            "--duration",
+            "5",
+            "--stride",
+            stride,
+            "--csv",
+            csv.to_str().unwrap(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let times: Vec<f64> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().unwrap().parse().unwrap())
+            .collect();
+        assert_eq!(times.first(), Some(&0.0), "stride {stride}");
+        assert_eq!(
+            times.last(),
+            Some(&5.0),
+            "stride {stride}: the row at t = 5 is missing"
+        );
+        let mut sorted = times.clone();
+        sorted.dedup();
+        assert_eq!(sorted.len(), times.len(), "stride {stride}: a row repeated");
+    }
+}
