@@ -3,8 +3,9 @@
 //! Thread layout: the calling thread becomes the real-time loop (pinned, SCHED_FIFO when
 //! permitted). A reporter thread turns tick records into histograms and status lines, and a
 //! housekeeping thread sweeps dead iceoryx2 nodes (a SIGKILLed plant's ports) every
-//! `cleanup_every_s`. Both
-//! are spawned before the loop thread raises its own priority, so they stay ordinary threads.
+//! `cleanup_every_s`. Both are spawned before the loop thread raises its own priority, so they
+//! stay ordinary threads, and both move off the loop's core (`rt::setup::avoid_core`), so that
+//! without SCHED_FIFO they never compete with the loop for its CPU.
 //!
 //! The tick is: wait for the absolute deadline → drain the state subscriber, keeping the newest →
 //! `Controller::tick` → loan, write, send the command → `try_send` a record. No locks, no waiting
@@ -53,9 +54,14 @@ fn run_n<const N: usize>(
     let (rt_tx, rt_rx) = crossbeam::channel::bounded::<rt::setup::RtReport>(1);
     let reporter = Reporter::new(setup.system.clone(), d.clone(), params_tx, rt_rx)?
         .resuming(setup.live.as_ref());
+    // Helper threads stay off the loop's core (it is pinned there below).
+    let loop_core = d.core;
     let reporter = std::thread::Builder::new()
         .name("chaosd-report".into())
-        .spawn(move || reporter.run(rx, on_line))?;
+        .spawn(move || {
+            rt::setup::avoid_core(loop_core);
+            reporter.run(rx, on_line)
+        })?;
     let running = Arc::new(AtomicBool::new(true));
     let hk = {
         let running = running.clone();
@@ -63,6 +69,7 @@ fn run_n<const N: usize>(
         std::thread::Builder::new()
             .name("chaosd-cleanup".into())
             .spawn(move || {
+                rt::setup::avoid_core(loop_core);
                 let Ok(node) = node("chaosd-cleanup") else {
                     return;
                 };

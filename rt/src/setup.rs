@@ -199,3 +199,54 @@ mod tests {
         );
     }
 }
+
+/// Keeps the calling thread off `core` (the real-time loop's), on every other online CPU.
+/// Helper threads (reporter, cleanup) call this first, so they never take the loop's core even
+/// when they run at the normal priority and the loop sleeps. Returns false, and changes nothing,
+/// on a single-CPU machine, when `core` is `None`, or when the kernel refuses.
+pub fn avoid_core(core: Option<usize>) -> bool {
+    let Some(core) = core else { return false };
+    // SAFETY: sysconf has no preconditions.
+    let cpus = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) };
+    if cpus < 2 {
+        return false;
+    }
+    // SAFETY: a zeroed cpu_set_t is the empty set; CPU_SET/ZERO only write inside it, and
+    // sched_setaffinity(0, …) applies to the calling thread.
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_ZERO(&mut set);
+        for c in (0..cpus as usize).filter(|&c| c != core) {
+            libc::CPU_SET(c, &mut set);
+        }
+        libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) == 0
+    }
+}
+
+#[cfg(test)]
+mod avoid_core_tests {
+    #[test]
+    fn a_helper_thread_leaves_the_loops_core_alone() {
+        let allowed = std::thread::spawn(|| {
+            let moved = super::avoid_core(Some(1));
+            // SAFETY: as above; sched_getaffinity fills the set for the calling thread.
+            let set = unsafe {
+                let mut set: libc::cpu_set_t = std::mem::zeroed();
+                libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set);
+                set
+            };
+            // SAFETY: CPU_ISSET only reads inside the set.
+            (moved, unsafe { libc::CPU_ISSET(1, &set) }, unsafe {
+                libc::CPU_ISSET(0, &set)
+            })
+        })
+        .join()
+        .unwrap();
+        // SAFETY: sysconf has no preconditions.
+        if unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) } >= 2 {
+            assert_eq!(allowed, (true, false, true));
+        } else {
+            assert!(!allowed.0);
+        }
+    }
+}
