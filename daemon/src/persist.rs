@@ -62,10 +62,9 @@ pub fn load(output_dir: &Path, n: usize) -> anyhow::Result<Option<LiveState>> {
     if text.len() > control::config::MAX_CONFIG_BYTES {
         return Err(bad("too large to be a saved state".into()));
     }
-    let s: LiveState =
+    let mut s: LiveState =
         toml::from_str(&text).map_err(|e| bad(control::config::excerpt(&e.to_string())))?;
     s.system.validate().map_err(|e| bad(e.to_string()))?;
-    let mut s = s;
     s.t += (unix_now() - s.saved_unix_s).clamp(0.0, 1e7);
     if s.system.n() != n || !s.t.is_finite() || s.t < 0.0 {
         return Err(bad(format!(

@@ -4,6 +4,7 @@
 //! `System` is dropped, whatever the test's outcome.
 
 use crate::{bin, unique_namespace, write_config, Proc, TempDir};
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// Runs chaosctl; returns (exit code, stdout, stderr).
@@ -70,4 +71,12 @@ pub fn start(test: &str, top: &str) -> System {
         plant,
         daemon,
     }
+}
+
+/// Starts `chaosd-plant` and `chaosd run` on one config file, logging into `dir`.
+pub fn spawn_pair(dir: &Path, cfg: &Path) -> (Proc, Proc) {
+    let c = cfg.to_str().expect("a UTF-8 config path");
+    let plant = Proc::spawn("plant", &bin("chaosd-plant"), &["--config", c], dir);
+    let daemon = Proc::spawn("daemon", &bin("chaosd"), &["run", "--config", c], dir);
+    (plant, daemon)
 }

@@ -12,14 +12,7 @@ fn start_system(test: &str) -> (String, TempDir, std::path::PathBuf, Proc, Proc,
     let ns = unique_namespace(test);
     let dir = TempDir::new(&ns);
     let cfg = write_config(dir.path(), &ns, "", "");
-    let c = cfg.to_str().unwrap();
-    let plant = Proc::spawn("plant", &bin("chaosd-plant"), &["--config", c], dir.path());
-    let daemon = Proc::spawn(
-        "daemon",
-        &bin("chaosd"),
-        &["run", "--config", c],
-        dir.path(),
-    );
+    let (plant, daemon) = tests::live::spawn_pair(dir.path(), &cfg);
     let m = Monitor::new(&ns);
     (ns, dir, cfg, plant, daemon, m)
 }

@@ -23,14 +23,7 @@ fn start(test: &str, extra_plant: &str) -> System {
     let dir = TempDir::new(&ns);
     let plant_extra = format!("{STATE}\n{extra_plant}");
     let cfg = write_config_with(dir.path(), &ns, STATE, &plant_extra, "");
-    let c = cfg.to_str().unwrap();
-    let plant = Proc::spawn("plant", &bin("chaosd-plant"), &["--config", c], dir.path());
-    let daemon = Proc::spawn(
-        "daemon",
-        &bin("chaosd"),
-        &["run", "--config", c],
-        dir.path(),
-    );
+    let (plant, daemon) = tests::live::spawn_pair(dir.path(), &cfg);
     let m = Monitor::new(&ns);
     System {
         ns,
