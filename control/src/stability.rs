@@ -10,18 +10,28 @@
 //! A task whose period is only a few control periods cannot be followed either, and a circle
 //! outside the annulus the arm can reach would make the law chase it into a singularity.
 
-use crate::config::{Config, ConfigError, ModelKind};
+use crate::config::{excerpt, Config, ConfigError, ModelKind};
 
 /// K_v·dt (and every first-order gain × dt) must stay below this.
 pub const MAX_GAIN_DT: f64 = 1.0;
 /// The task period must span at least this many steps.
 pub const MIN_TASK_STEPS: f64 = 50.0;
 
-fn refuse(field: &str, value: impl std::fmt::Display, expected: String) -> ConfigError {
+fn refuse(field: &str, value: impl std::fmt::Debug, expected: String) -> ConfigError {
     ConfigError::Invalid {
         field: field.to_string(),
-        value: value.to_string(),
+        value: excerpt(&format!("{value:?}")),
         expected,
+    }
+}
+
+/// A number for a message: fixed-point in the range a person reads, scientific outside it, so
+/// that 1e308 prints in a few bytes rather than 309 digits.
+fn num(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e6).contains(&x.abs()) {
+        format!("{x:.3}")
+    } else {
+        format!("{x:.3e}")
     }
 }
 
@@ -33,9 +43,9 @@ pub fn check(cfg: &Config, dt: f64, step: &str) -> Result<(), ConfigError> {
             "control.kv",
             c.kv,
             format!(
-                "K_v·dt = {:.3} at {step}: must be < {MAX_GAIN_DT} (the sampled error dynamics are unstable from K_v·dt = 2; chaosd keeps a factor 2), so K_v < {}",
-                c.kv * dt,
-                MAX_GAIN_DT / dt
+                "K_v·dt = {} at {step}: must be < {MAX_GAIN_DT} (the sampled error dynamics are unstable from K_v·dt = 2; chaosd keeps a factor 2), so K_v < {}",
+                num(c.kv * dt),
+                num(MAX_GAIN_DT / dt)
             ),
         ));
     }
@@ -47,7 +57,7 @@ pub fn check(cfg: &Config, dt: f64, step: &str) -> Result<(), ConfigError> {
                 "K_p·dt² = {:.3e} at {step}: must be < K_v·dt = {:.3e} (unstable from 2·K_v·dt; chaosd keeps a factor 2), so K_p < K_v/dt = {}",
                 c.kp * dt * dt,
                 c.kv * dt,
-                c.kv / dt
+                num(c.kv / dt)
             ),
         ));
     }
@@ -70,9 +80,9 @@ pub fn check(cfg: &Config, dt: f64, step: &str) -> Result<(), ConfigError> {
                     name,
                     k,
                     format!(
-                        "{name}·dt = {:.3} at {step}: must be < {MAX_GAIN_DT}, so < {}",
-                        k * dt,
-                        MAX_GAIN_DT / dt
+                        "{name}·dt = {} at {step}: must be < {MAX_GAIN_DT}, so < {}",
+                        num(k * dt),
+                        num(MAX_GAIN_DT / dt)
                     ),
                 ));
             }
@@ -96,11 +106,12 @@ fn check_reach(cfg: &Config) -> Result<(), ConfigError> {
     if d + r >= reach || d - r <= inner {
         return Err(refuse(
             "task.center",
-            format!("[{x}, {y}]"),
+            [x, y],
             format!(
-                "the circle (radius {r} m) spans {:.3} … {:.3} m from joint 1; the arm reaches only {inner:.3} … {reach:.3} m (arm.links)",
-                (d - r).max(0.0),
-                d + r
+                "the circle (radius {} m) spans {} … {} m from joint 1; the arm reaches only {inner:.3} … {reach:.3} m (arm.links)",
+                num(r),
+                num((d - r).max(0.0)),
+                num(d + r)
             ),
         ));
     }
@@ -141,6 +152,12 @@ mod tests {
             e.contains("task.center") && e.contains("reaches only"),
             "{e}"
         );
+        for huge in [1e308, -1e308, f64::MAX] {
+            let e = refused(|c| c.task.center = [huge, huge], dt);
+            assert!(e.len() < 400 && e.contains("reaches only"), "{e}");
+            let e = refused(|c| c.control.kv = huge.abs(), dt);
+            assert!(e.len() < 400 && e.contains("control.kv"), "{e}");
+        }
         let e = refused(|c| c.task.center = [0.1, 0.0], dt);
         assert!(e.contains("task.center"), "{e}");
         let e = refused(|c| c.safety.k_rate = 2000.0, dt);
