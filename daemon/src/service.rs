@@ -189,12 +189,19 @@ fn control_loop<const N: usize>(
         .phase_offset_us
         .map(|us| crate::trigger::PhaseLock::new(period, (us * 1e3) as u64));
     let mut sched = Schedule::new(period, start);
+    let mut last: Option<protocol::StateSample> = None;
     while !rt::signal::stop_requested() {
         let deadline = sched.deadline();
         if end.is_some_and(|e| deadline >= e) {
             break;
         }
-        let woke = rt::wait_until(deadline, d.wait, spin);
+        // The hybrid wait rehearses the tick on the previous state before it spins, so the
+        // tick itself runs warm (see `Controller::rehearse`).
+        let woke = rt::wait_until_warm(deadline, d.wait, spin, || {
+            if let Some(s) = &last {
+                ctl.rehearse(s);
+            }
+        });
         // A validated parameter block (or a resume) from the control service takes effect here,
         // between ticks.
         take_request(&mut ctl, &params_rx);
@@ -227,6 +234,9 @@ fn control_loop<const N: usize>(
             }
         }
         let done = monotonic_ns();
+        if o.state_age_ns.is_some() {
+            last = newest;
+        }
         ctl.counters.overruns += sched.advance(done);
         if let (Some(lock), Some(s), Some(_)) = (phase, newest, o.state_age_ns) {
             sched.set_deadline(lock.align(sched.deadline(), s.stamp_ns));

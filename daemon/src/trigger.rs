@@ -43,23 +43,38 @@ pub struct Timing {
     pub end_ns: Option<u64>,
 }
 
+/// What draining the state queue saw besides the newest sample.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Drained {
+    pub superseded: u64,
+    pub ipc_errors: u64,
+}
+
+impl Drained {
+    /// Adds these counts to the controller's counters.
+    pub fn into_counters<const N: usize>(self, ctl: &mut Controller<N>) {
+        ctl.counters.superseded += self.superseded;
+        ctl.counters.ipc_errors += self.ipc_errors;
+    }
+}
+
 /// Drains the state queue and returns the newest sample, counting the superseded ones.
-pub fn newest_state<const N: usize>(
+pub fn newest_state(
     sub: &Subscriber<ipc::Service, StateSample, ()>,
-    ctl: &mut Controller<N>,
+    seen: &mut Drained,
 ) -> Option<StateSample> {
     let mut newest = None;
     loop {
         match sub.receive() {
             Ok(Some(s)) => {
                 if newest.is_some() {
-                    ctl.counters.superseded += 1;
+                    seen.superseded += 1;
                 }
                 newest = Some(*s);
             }
             Ok(None) => return newest,
             Err(_) => {
-                ctl.counters.ipc_errors += 1;
+                seen.ipc_errors += 1;
                 return newest;
             }
         }
@@ -99,15 +114,30 @@ pub fn state_loop<const N: usize>(
     let period = timing.period_ns;
     let mut slot = ports.publisher.loan_uninit().ok();
     let mut expected = monotonic_ns() + period;
+    // The newest accepted state: what a rehearsal runs the law on while waiting for the next.
+    let mut last: Option<StateSample> = None;
     while !rt::signal::stop_requested() {
         if timing.end_ns.is_some_and(|e| monotonic_ns() >= e) {
             break;
         }
         // No state for a whole period past its expected arrival: a tick without one.
         let give_up = expected + period;
-        let got = rt::trigger::poll_until(expected, give_up, timing.wait, timing.spin_ns, || {
-            newest_state(ports.subscriber, ctl)
-        });
+        let mut seen = Drained::default();
+        let got = {
+            let (ctl, last) = (&mut *ctl, &last);
+            rt::trigger::poll_until_warm(
+                expected,
+                give_up,
+                timing.wait,
+                timing.spin_ns,
+                || newest_state(ports.subscriber, &mut seen),
+                || {
+                    if let Some(s) = last {
+                        ctl.rehearse(s);
+                    }
+                },
+            )
+        };
         let woke = monotonic_ns();
         let o = ctl.tick(got.as_ref(), woke);
         if let Some(c) = o.command {
@@ -116,6 +146,10 @@ pub fn state_loop<const N: usize>(
         let done = monotonic_ns();
 
         // Everything below is off the path from state to command.
+        seen.into_counters(ctl);
+        if o.state_age_ns.is_some() {
+            last = got;
+        }
         let due = expected;
         expected = match (got, o.state_age_ns) {
             (Some(s), Some(_)) => s

@@ -211,7 +211,7 @@ fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
     // `trigger::state_loop` loans the command sample before the state arrives, so the path
     // receive → tick → write → send makes no allocation at all; the loan (iceoryx2's one `Rc`)
     // happens after the send, off the path. These are the loop's own functions.
-    use daemon::trigger::{newest_state, send};
+    use daemon::trigger::{newest_state, send, Drained};
     iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
     let node = daemon::service::node("no-alloc-state").unwrap();
     let ns = format!(
@@ -229,7 +229,13 @@ fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
     let mut c = controller("paper");
     let mut slot = publisher.loan_uninit().ok();
     let path = |c: &mut Controller<3>, slot: &mut Option<_>| -> bool {
-        let got = newest_state(&sub, c);
+        let mut seen = Drained::default();
+        let got = newest_state(&sub, &mut seen);
+        seen.into_counters(c);
+        // The rehearsal the loop runs while it waits for the next state.
+        if let Some(s) = &got {
+            c.rehearse(s);
+        }
         let o = c.tick(got.as_ref(), monotonic_ns());
         match o.command {
             Some(cmd) => {

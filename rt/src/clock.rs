@@ -73,11 +73,27 @@ pub fn sleep_until(deadline_ns: u64) {
 /// Returns the wake-up time.
 #[inline]
 pub fn wait_until(deadline_ns: u64, strategy: WaitStrategy, spin_ns: u64) -> u64 {
+    wait_until_warm(deadline_ns, strategy, spin_ns, || {})
+}
+
+/// [`wait_until`], calling `warm` once after the hybrid's sleep, before it spins (see
+/// [`crate::trigger::poll_until_warm`] for why). `Sleep` wakes at the deadline and `Spin` never
+/// sleeps, so neither calls it; nor does a hybrid whose deadline came during the sleep.
+#[inline]
+pub fn wait_until_warm(
+    deadline_ns: u64,
+    strategy: WaitStrategy,
+    spin_ns: u64,
+    warm: impl FnOnce(),
+) -> u64 {
     match strategy {
         WaitStrategy::Sleep => sleep_until(deadline_ns),
         WaitStrategy::Hybrid => {
             if deadline_ns > spin_ns {
                 sleep_until(deadline_ns - spin_ns);
+            }
+            if monotonic_ns() < deadline_ns {
+                warm();
             }
             while monotonic_ns() < deadline_ns {
                 core::hint::spin_loop();

@@ -12,6 +12,6 @@ pub mod setup;
 pub mod signal;
 pub mod trigger;
 
-pub use clock::{wait_until, WaitStrategy};
+pub use clock::{wait_until, wait_until_warm, WaitStrategy};
 pub use protocol::monotonic_ns;
 pub use trigger::Trigger;

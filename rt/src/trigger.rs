@@ -72,7 +72,25 @@ pub fn poll_until<T>(
     deadline_ns: u64,
     strategy: WaitStrategy,
     spin_ns: u64,
+    poll: impl FnMut() -> Option<T>,
+) -> Option<T> {
+    poll_until_warm(expected_ns, deadline_ns, strategy, spin_ns, poll, || {})
+}
+
+/// [`poll_until`], calling `warm` after each sleep that `poll` finds nothing after.
+///
+/// Why: a core that slept has lost the waiting code's caches, and the first use after a wake-up
+/// costs several times a warm one. `warm` is where the caller rehearses what it will do with the
+/// value (the daemon runs its law on the previous state), so that the real work runs warm.
+/// `Spin` never sleeps and so never calls it. `warm` must not allocate either.
+#[inline]
+pub fn poll_until_warm<T>(
+    expected_ns: u64,
+    deadline_ns: u64,
+    strategy: WaitStrategy,
+    spin_ns: u64,
     mut poll: impl FnMut() -> Option<T>,
+    mut warm: impl FnMut(),
 ) -> Option<T> {
     if let Some(v) = poll() {
         return Some(v);
@@ -83,12 +101,18 @@ pub fn poll_until<T>(
         WaitStrategy::Sleep => expected_ns,
     }
     .min(deadline_ns);
-    if wake > monotonic_ns() {
+    let mut slept = wake > monotonic_ns();
+    if slept {
         crate::clock::sleep_until(wake);
     }
     loop {
         if let Some(v) = poll() {
             return Some(v);
+        }
+        if slept {
+            slept = false;
+            warm();
+            continue;
         }
         let now = monotonic_ns();
         if now >= deadline_ns {
@@ -97,6 +121,7 @@ pub fn poll_until<T>(
         let overdue = strategy == WaitStrategy::Hybrid && now > expected_ns.saturating_add(spin_ns);
         if strategy == WaitStrategy::Sleep || overdue {
             crate::clock::sleep_until((now + SLEEP_POLL_NS).min(deadline_ns));
+            slept = true;
         } else {
             core::hint::spin_loop();
         }
@@ -124,5 +149,38 @@ mod tests {
             .parse::<Trigger>()
             .unwrap_err()
             .contains("clock or state"));
+    }
+
+    #[test]
+    fn warm_runs_after_each_sleep_and_never_while_spinning() {
+        let mut warmed = 0;
+        let d = monotonic_ns() + 300_000;
+        let got = poll_until_warm(
+            d,
+            d,
+            WaitStrategy::Hybrid,
+            50_000,
+            || None::<()>,
+            || warmed += 1,
+        );
+        assert_eq!(got, None);
+        // One sleep, before the spin window.
+        assert_eq!(warmed, 1);
+        let mut warmed = 0;
+        let d = monotonic_ns() + 200_000;
+        poll_until_warm(d, d, WaitStrategy::Spin, 0, || None::<()>, || warmed += 1);
+        assert_eq!(warmed, 0);
+        // A value already there: no sleep, no rehearsal.
+        let mut warmed = 0;
+        let far = monotonic_ns() + 1_000_000_000;
+        let got = poll_until_warm(
+            far,
+            far,
+            WaitStrategy::Hybrid,
+            0,
+            || Some(1),
+            || warmed += 1,
+        );
+        assert_eq!((got, warmed), (Some(1), 0));
     }
 }
