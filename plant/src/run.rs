@@ -25,7 +25,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use protocol::{flags, monotonic_ns, CommandSample, Mode, ServiceNames, StateSample};
 use rt::clock::Schedule;
-use rt::Trigger;
+use rt::{Trigger, WaitStrategy};
 use std::time::SystemTime;
 
 type StatePub = Publisher<ipc::Service, StateSample, ()>;
@@ -352,8 +352,17 @@ impl Loop<'_> {
         let published = self.ring.get(want).map_or(cycle_start, |p| p.at_ns);
         let deadline = cycle_start + self.cfg.answer_deadline_ns();
         let spin = (self.cfg.spin_us * 1000.0) as u64;
+        // The answer is due within microseconds, and a sleep here costs tens of them on a VM:
+        // while the controller keeps answering, a hybrid wait polls without sleeping up to the
+        // answer deadline. Once an answer was missed (a stalled or dead controller) it goes back
+        // to sleeping between polls, so a missing controller does not cost a spinning core.
+        let answering = self.last_command_at.is_some() && self.late_run == 0;
+        let wait = match self.cfg.wait {
+            WaitStrategy::Hybrid if answering => WaitStrategy::Spin,
+            w => w,
+        };
         let (sub, intake, c) = (&self.subscriber, &mut self.intake, &mut self.c);
-        let got = rt::trigger::poll_until(published, deadline, self.cfg.wait, spin, || loop {
+        let got = rt::trigger::poll_until(published, deadline, wait, spin, || loop {
             let cmd = match sub.receive() {
                 Ok(Some(s)) => *s,
                 Ok(None) => return None,

@@ -116,6 +116,9 @@ fn the_udp_bridge_and_the_wire_format_allocate_nothing() {
         device: device.local_addr().unwrap(),
         timeout: Duration::from_millis(500),
         lost_after: Duration::from_secs(5),
+        period: Duration::from_millis(1),
+        wait: rt::WaitStrategy::Hybrid,
+        spin: Duration::from_micros(50),
     };
     let mut bridge = UdpBridge::new(3, cfg);
     bridge.activate().unwrap();

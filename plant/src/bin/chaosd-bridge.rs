@@ -55,6 +55,9 @@ fn main() -> ExitCode {
             device: args.device,
             timeout: ms("timeout-ms", args.timeout_ms.unwrap_or(2.0 * period_ms))?,
             lost_after: ms("lost-after-ms", args.lost_after_ms)?,
+            period: Duration::from_secs_f64(1.0 / l.plant.rate_hz),
+            wait: l.plant.wait,
+            spin: Duration::from_secs_f64(l.plant.spin_us * 1e-6),
         };
         let mut bridge = UdpBridge::new(l.system.n(), cfg);
         let summary = plant::run::run(&mut bridge, &l.plant, l.duration);

@@ -7,9 +7,11 @@
 //! meanwhile, so the daemon's watchdog holds); a new `session` is a restarted device, reported
 //! and followed. Malformed, foreign and out-of-order datagrams are counted and dropped.
 
+use super::wait::{poll_datagram, Window};
 use super::wire::{DeviceCommand, DeviceMode, DeviceState, COMMAND_LEN, DEVICE_BRAKING, STATE_LEN};
 use crate::seam::{Actuation, Plant, PlantError};
 use protocol::{flags, monotonic_ns, StateSample, MAX_JOINTS};
+use rt::WaitStrategy;
 use serde::Serialize;
 use std::net::{SocketAddr, UdpSocket};
 use std::os::fd::AsRawFd;
@@ -24,6 +26,12 @@ pub struct BridgeConfig {
     pub timeout: Duration,
     /// Silence after which the device is reported lost.
     pub lost_after: Duration,
+    /// The device's period: its next state is due one period after the last.
+    pub period: Duration,
+    /// How to wait for it: `Hybrid` polls without blocking within `spin` either side of the
+    /// due time and blocks outside it (see [`super::wait`]), `Spin` always polls, `Sleep` blocks.
+    pub wait: WaitStrategy,
+    pub spin: Duration,
 }
 
 /// What the bridge counted.
@@ -133,7 +141,23 @@ impl UdpBridge {
         }
     }
 
-    /// Waits up to `timeout` for the next admissible state.
+    /// One datagram if one is queued (never blocks): the state, if admissible.
+    fn try_take(&mut self, fd: i32) -> Option<Result<DeviceState, std::io::Error>> {
+        let mut buf = [0u8; STATE_LEN + 1];
+        // SAFETY: `buf` is valid for `buf.len()` writable bytes; MSG_DONTWAIT never blocks.
+        let got = unsafe { libc::recv(fd, buf.as_mut_ptr().cast(), buf.len(), libc::MSG_DONTWAIT) };
+        if got < 0 {
+            let e = std::io::Error::last_os_error();
+            return match e.kind() {
+                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::Interrupted => None,
+                _ => Some(Err(e)),
+            };
+        }
+        self.admit(&buf[..got as usize]).map(Ok)
+    }
+
+    /// Waits up to `timeout` for the next admissible state, polling without blocking around the
+    /// time it is due (one period after the last; at once when there is no last).
     fn next_state(&mut self) -> Result<DeviceState, PlantError> {
         let Some(sock) = self.socket.take() else {
             return Err(PlantError::Fault {
@@ -141,23 +165,22 @@ impl UdpBridge {
                 source: None,
             });
         };
-        let until = monotonic_ns() + self.cfg.timeout.as_nanos() as u64;
-        let mut buf = [0u8; STATE_LEN + 1];
-        let result = loop {
-            match sock.recv(&mut buf) {
-                Ok(len) => {
-                    if let Some(mut s) = self.admit(&buf[..len]) {
-                        self.last = Some(s);
-                        self.drain(sock.as_raw_fd(), &mut s);
-                        break Ok(s);
-                    }
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                Err(e) => break Err(e),
+        let fd = sock.as_raw_fd();
+        let now = monotonic_ns();
+        let until = now + self.cfg.timeout.as_nanos() as u64;
+        let expected = match self.last {
+            Some(_) if !self.lost => self.last_rx_ns + self.cfg.period.as_nanos() as u64,
+            _ => now,
+        };
+        let window = Window::around(self.cfg.wait, expected, self.cfg.spin.as_nanos() as u64);
+        let result = match poll_datagram(fd, until, window, || self.try_take(fd)) {
+            Some(Ok(mut s)) => {
+                self.last = Some(s);
+                self.drain(fd, &mut s);
+                Ok(s)
             }
-            if monotonic_ns() >= until {
-                break Err(std::io::ErrorKind::TimedOut.into());
-            }
+            Some(Err(e)) => Err(e),
+            None => Err(std::io::ErrorKind::TimedOut.into()),
         };
         self.socket = Some(sock);
         result.map_err(|e| self.silence(e))
@@ -217,14 +240,9 @@ impl Plant for UdpBridge {
         };
         let sock =
             UdpSocket::bind(self.cfg.bind).map_err(|e| act("cannot bind the bridge socket", e))?;
-        // A short slice, so a wait ends close to `timeout` however the kernel rounds.
-        let slice = self
-            .cfg
-            .timeout
-            .min(Duration::from_millis(1))
-            .max(Duration::from_micros(100));
-        sock.set_read_timeout(Some(slice))
-            .map_err(|e| act("cannot set the socket timeout", e))?;
+        // Reads never block: waits happen in `poll_datagram`.
+        sock.set_nonblocking(true)
+            .map_err(|e| act("cannot make the bridge socket non-blocking", e))?;
         self.socket = Some(sock);
         self.last_rx_ns = monotonic_ns();
         Ok(())

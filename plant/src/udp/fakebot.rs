@@ -6,8 +6,10 @@
 //! device that loses packets (`loss`), stalls (`spike_every_s` / `spike_ms`) or restarts
 //! (`restart_every_s`). One cycle: wait for the deadline → (injected stall or restart) → apply
 //! the answer to the last state, or count a miss → integrate one cycle → send the new state →
-//! wait (in `ppoll`, until the next deadline) for its answer, timing the round trip.
+//! wait (until the next deadline) for its answer, timing the round trip. While answers come, it
+//! polls for them without blocking ([`super::wait`]); after a miss it blocks in `ppoll`.
 
+use super::wait::{poll_datagram, Window};
 use super::wire::{
     DeviceCommand, DeviceMode, DeviceState, COMMAND_LEN, DEVICE_BRAKING, DEVICE_HOLDING, STATE_LEN,
 };
@@ -183,26 +185,6 @@ pub fn run<const N: usize>(
     })
 }
 
-/// Waits until the socket is readable or `until_ns` passes; true if readable.
-fn wait_readable(fd: i32, until_ns: u64) -> bool {
-    let now = monotonic_ns();
-    if now >= until_ns {
-        return false;
-    }
-    let rem = until_ns - now;
-    let ts = libc::timespec {
-        tv_sec: (rem / 1_000_000_000) as libc::time_t,
-        tv_nsec: (rem % 1_000_000_000) as libc::c_long,
-    };
-    let mut p = libc::pollfd {
-        fd,
-        events: libc::POLLIN,
-        revents: 0,
-    };
-    // SAFETY: one valid pollfd, a valid timespec, no signal mask.
-    unsafe { libc::ppoll(&mut p, 1, &ts, std::ptr::null()) > 0 }
-}
-
 struct Device<'a, const N: usize> {
     cfg: &'a FakebotConfig,
     socket: UdpSocket,
@@ -263,8 +245,18 @@ impl<const N: usize> Device<'_, N> {
         if self.spike_until > monotonic_ns() {
             return; // the answer is delayed in transit: it will be found late
         }
-        while self.pending.is_none() && wait_readable(fd, until_ns) {
-            self.pending = self.answer();
+        // While the bridge keeps answering, its answer is due within microseconds: poll for it
+        // without blocking up to the deadline. After a miss (a stalled or dead bridge), block.
+        let window = if self.s.started && self.s.missed_run == 0 {
+            match self.cfg.wait {
+                WaitStrategy::Sleep => Window::NEVER,
+                _ => Window::ALWAYS,
+            }
+        } else {
+            Window::around(self.cfg.wait, self.sent_at, (self.cfg.spin_us * 1e3) as u64)
+        };
+        if self.pending.is_none() {
+            self.pending = poll_datagram(fd, until_ns, window, || self.answer());
         }
         if self.pending.is_some() {
             let rtt = monotonic_ns().saturating_sub(self.sent_at);

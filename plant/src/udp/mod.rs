@@ -66,4 +66,5 @@
 
 pub mod bridge;
 pub mod fakebot;
+pub mod wait;
 pub mod wire;
