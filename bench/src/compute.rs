@@ -306,6 +306,13 @@ fn measure(quick: bool, out: &Path, command: &str) -> Result<String> {
 
     report.push(&header("Compute", command));
     report.push(&table.render());
+    report.push(
+        "\nThe daemon's whole tick (validation, delay line, law with the safety filter, first-order \
+         hold, guard, command), timed alone per tick: warm, after its caches were evicted, and \
+         evicted but rehearsed on the previous state, as the loop does after each sleep \
+         (`Controller::rehearse`).\n\n",
+    );
+    report.push(&crate::tick::table(quick)?);
     report.push(&format!(
         "\n300 s simulation (RK4, dt = 1 ms, fixed base, manipulability): {:.3} s wall, {:.0} simulated s per wall s \
          (target < 0.3 s; the plain numpy reference takes about 139 s, numba about 2.6 s: {:.0}× and {:.0}× slower)\n",

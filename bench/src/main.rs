@@ -23,6 +23,7 @@ mod plan;
 mod plot;
 mod report;
 mod stats;
+mod tick;
 
 use anyhow::{bail, Result};
 use clap::{Args, Parser, Subcommand};

@@ -46,6 +46,13 @@ impl<const N: usize> DelayLine<N> {
         self.pushed += 1;
     }
 
+    /// The slot the next [`Self::push`] overwrites (the oldest sample, or the initial fill).
+    /// A caller that waits between pushes reads it to bring that cache line back beforehand.
+    #[inline]
+    pub fn next_slot(&self) -> VecN<N> {
+        self.buf[(self.pushed % self.buf.len() as u64) as usize]
+    }
+
     /// Number of samples pushed so far.
     pub fn len(&self) -> u64 {
         self.pushed

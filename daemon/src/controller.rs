@@ -375,6 +375,12 @@ impl<const N: usize> Controller<N> {
             &mut self.kin,
         );
         std::hint::black_box(held);
+        // What the tick writes or checks besides the law: the delay line's next slot, the
+        // guard, the counters.
+        std::hint::black_box(self.delay.next_slot());
+        std::hint::black_box(self.guard);
+        std::hint::black_box(self.counters);
+        std::hint::black_box(s.validate(N));
     }
 
     /// A fresh, accepted state: run the law, count what it reports, let the guard judge.
