@@ -380,7 +380,7 @@ impl<const N: usize> Controller<N> {
         std::hint::black_box(self.delay.next_slot());
         std::hint::black_box(self.guard);
         std::hint::black_box(self.counters);
-        std::hint::black_box(s.validate(N));
+        std::hint::black_box(s.validate(N).is_ok());
     }
 
     /// A fresh, accepted state: run the law, count what it reports, let the guard judge.
