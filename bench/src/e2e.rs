@@ -21,7 +21,7 @@ use crate::child::{clock_ticks_per_s, cpu_ticks, Child, Stdout};
 use crate::latency::unique_namespace;
 use crate::plot::Panel;
 use crate::report::{header, Report};
-use crate::stats::{fmt_ns, Dist, Table};
+use crate::stats::{fmt_ns, Bound, Dist, Table, Target};
 use anyhow::{anyhow, bail, Context, Result};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -35,6 +35,9 @@ use std::time::{Duration, Instant};
 pub enum Mode {
     /// Free-running loops (`trigger = "clock"`), today's default.
     Clock,
+    /// Clock-triggered, the daemon's deadlines phase-locked to the plant's stamps
+    /// (`phase_offset_us`, see [`phase_offset_us`]).
+    Phase,
     /// State-triggered over iceoryx2.
     State,
     /// State-triggered through chaosd-bridge and chaosd-fakebot over UDP.
@@ -42,11 +45,12 @@ pub enum Mode {
 }
 
 impl Mode {
-    pub const ALL: [Mode; 3] = [Mode::Clock, Mode::State, Mode::Udp];
+    pub const ALL: [Mode; 4] = [Mode::Clock, Mode::Phase, Mode::State, Mode::Udp];
 
     pub fn name(self) -> &'static str {
         match self {
             Mode::Clock => "free-running (iceoryx2)",
+            Mode::Phase => "phase-locked clock (iceoryx2)",
             Mode::State => "state-triggered (iceoryx2)",
             Mode::Udp => "state-triggered (UDP bridge)",
         }
@@ -55,6 +59,7 @@ impl Mode {
     fn slug(self) -> &'static str {
         match self {
             Mode::Clock => "",
+            Mode::Phase => "-phase",
             Mode::State => "-state",
             Mode::Udp => "-udp",
         }
@@ -92,7 +97,7 @@ impl Options {
             );
         }
         if self.modes.is_empty() {
-            bail!("e2e modes: at least one of clock, state, udp");
+            bail!("e2e modes: at least one of clock, phase, state, udp");
         }
         if !(self.seconds.is_finite() && (2.5..=3600.0).contains(&self.seconds)) {
             bail!("e2e seconds {}: must be between 2.5 and 3600", self.seconds);
@@ -115,17 +120,27 @@ fn sibling(name: &str) -> Result<PathBuf> {
     Ok(p)
 }
 
+/// The phase-locked mode's offset at `rate_hz`: 100 µs, or a quarter period at high rates. It
+/// must exceed the plant's publishing delay after its stamp (its wake-up and one integration).
+pub fn phase_offset_us(rate_hz: f64) -> f64 {
+    (0.25e6 / rate_hz).min(100.0)
+}
+
 /// The config file of one rate.
 pub fn config_text(namespace: &str, dir: &Path, rate_hz: f64, mode: Mode) -> String {
-    let trigger = if mode == Mode::Clock {
-        "clock"
+    let trigger = match mode {
+        Mode::Clock | Mode::Phase => "clock",
+        Mode::State | Mode::Udp => "state",
+    };
+    let phase = if mode == Mode::Phase {
+        format!("phase_offset_us = {:.1}\n", phase_offset_us(rate_hz))
     } else {
-        "state"
+        String::new()
     };
     // TOML strings: the path is written as a literal string, so no escaping is needed unless it
     // holds a quote, which `run` refuses.
     format!(
-        "[daemon]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\nreport_every_s = 0.0\ntrigger = \"{trigger}\"\n\n\
+        "[daemon]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\nreport_every_s = 0.0\ntrigger = \"{trigger}\"\n{phase}\n\
          [plant]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\ntrigger = \"{trigger}\"\n",
         dir = dir.display()
     )
@@ -469,6 +484,56 @@ pub fn modes_table(results: &[RateResult]) -> String {
     t.render()
 }
 
+/// The same-cycle targets, for the runs that measure them: state-triggered state → command p50
+/// ≤ 2 µs and p99 ≤ 10 µs with ≥ 99.9 % answered in time at 1 and 10 kHz; the UDP device's round
+/// trip p99 ≤ 100 µs at 1 kHz; phase-locked state age p99 within 20 µs of the offset.
+pub fn targets(results: &[RateResult]) -> Vec<Target> {
+    let mut out = Vec::new();
+    let num = |v: &Value, key: &str, p: &str| v[key][p].as_f64().unwrap_or(f64::NAN);
+    for r in results {
+        let khz = r.rate_hz / 1000.0;
+        let core_rate = r.rate_hz == 1_000.0 || r.rate_hz == 10_000.0;
+        match r.mode {
+            Mode::State if core_rate => {
+                let p = &r.plant;
+                out.push(Target::new(
+                    format!("{khz} kHz state-triggered: state → command p50 (µs)"),
+                    num(p, "round_trip", "p50_us"),
+                    Bound::AtMost(2.0),
+                ));
+                out.push(Target::new(
+                    format!("{khz} kHz state-triggered: state → command p99 (µs)"),
+                    num(p, "round_trip", "p99_us"),
+                    Bound::AtMost(10.0),
+                ));
+                out.push(Target::new(
+                    format!("{khz} kHz state-triggered: answered in time (%)"),
+                    p["in_time_share"].as_f64().unwrap_or(f64::NAN) * 100.0,
+                    Bound::AtLeast(99.9),
+                ));
+            }
+            Mode::Udp if r.rate_hz == 1_000.0 => {
+                let d = r.device.as_ref().unwrap_or(&Value::Null);
+                out.push(Target::new(
+                    format!("{khz} kHz UDP bridge: device state sent → answer received p99 (µs)"),
+                    num(d, "round_trip", "p99_us"),
+                    Bound::AtMost(100.0),
+                ));
+            }
+            Mode::Phase => {
+                let off = phase_offset_us(r.rate_hz);
+                out.push(Target::new(
+                    format!("{khz} kHz phase-locked: |state age p99 − offset {off} µs| (µs)"),
+                    (num(&r.daemon, "state_age", "p99_us") - off).abs(),
+                    Bound::AtMost(20.0),
+                ));
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
 /// The idle and the hammered run side by side.
 pub fn hammer_table(idle: &RateResult, hammered: &RateResult) -> String {
     let mut t = Table::new(&[
@@ -555,6 +620,13 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
          received, through chaosd-bridge and chaosd.\n\n",
     );
     report.push(&modes_table(&all));
+    let targets = targets(&all);
+    if !targets.is_empty() {
+        report.push("\nTargets of the same-cycle work (issue 10), as measured in this run:\n\n");
+        for t in &targets {
+            report.push(&format!("{}\n", t.line()));
+        }
+    }
     report.push(&format!(
         "\n**Control requests vs the loop** at {} kHz: the same run idle and with a client sending `status` requests \
          back to back (each answered before the next is sent) for the whole run.\n\n",
@@ -599,7 +671,10 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
         quantity: "round trip".into(),
         series: Vec::new(),
     };
-    for r in all.iter().filter(|r| r.mode != Mode::Clock) {
+    for r in all
+        .iter()
+        .filter(|r| matches!(r.mode, Mode::State | Mode::Udp))
+    {
         let path = r.dir.join("plant-round-trip.hgrm");
         let text = std::fs::read_to_string(&path)
             .with_context(|| format!("cannot read {}", path.display()))?;
@@ -650,6 +725,64 @@ mod tests {
         let cfg = control::Config::from_toml_str(&text).unwrap();
         let d = daemon::config::DaemonSetup::from_config(cfg).unwrap();
         assert_eq!(d.daemon.trigger, rt::Trigger::State);
+        for rate in [1_000.0, 10_000.0] {
+            let text = config_text("bench-e2e-1-2", Path::new("/tmp/x"), rate, Mode::Phase);
+            let cfg = control::Config::from_toml_str(&text).unwrap();
+            let d = daemon::config::DaemonSetup::from_config(cfg).unwrap();
+            assert_eq!(d.daemon.trigger, rt::Trigger::Clock);
+            assert_eq!(d.daemon.phase_offset_us, Some(phase_offset_us(rate)));
+        }
+        assert_eq!(phase_offset_us(1_000.0), 100.0);
+        assert_eq!(phase_offset_us(10_000.0), 25.0);
+    }
+
+    #[test]
+    fn targets_judge_the_runs_that_measure_them() {
+        let mk = |mode, rate_hz, daemon: Value, plant: Value, device: Option<Value>| RateResult {
+            rate_hz,
+            mode,
+            device,
+            requests: None,
+            daemon,
+            plant,
+            cpu_daemon: 0.0,
+            cpu_plant: 0.0,
+            dir: PathBuf::new(),
+        };
+        use serde_json::json as j;
+        let runs = [
+            mk(Mode::Clock, 1e3, j!({}), j!({}), None),
+            mk(
+                Mode::State,
+                1e3,
+                j!({}),
+                j!({"round_trip": {"p50_us": 1.5, "p99_us": 12.0}, "in_time_share": 0.9995}),
+                None,
+            ),
+            mk(Mode::State, 2e3, j!({}), j!({}), None),
+            mk(
+                Mode::Udp,
+                1e3,
+                j!({}),
+                j!({}),
+                Some(j!({"round_trip": {"p99_us": 80.0}})),
+            ),
+            mk(
+                Mode::Phase,
+                1e3,
+                j!({"state_age": {"p99_us": 125.0}}),
+                j!({}),
+                None,
+            ),
+        ];
+        let t = targets(&runs);
+        let met: Vec<(bool, &str)> = t.iter().map(|t| (t.met(), t.what.as_str())).collect();
+        assert_eq!(t.len(), 5, "{met:?}");
+        assert_eq!(
+            met.iter().map(|m| m.0).collect::<Vec<_>>(),
+            [true, false, true, true, false],
+            "{met:?}"
+        );
     }
 
     #[test]

@@ -114,8 +114,9 @@ struct E2eArgs {
     /// Rates in Hz (comma-separated).
     #[arg(long, value_delimiter = ',')]
     rates: Option<Vec<f64>>,
-    /// Modes (comma-separated): clock (free-running), state (state-triggered over iceoryx2),
-    /// udp (state-triggered through chaosd-bridge and chaosd-fakebot). Default: all three.
+    /// Modes (comma-separated): clock (free-running), phase (clock, phase-locked to the plant's
+    /// stamps), state (state-triggered over iceoryx2),
+    /// udp (state-triggered through chaosd-bridge and chaosd-fakebot). Default: all four.
     #[arg(long, value_delimiter = ',')]
     modes: Option<Vec<E2eMode>>,
 }
@@ -123,6 +124,7 @@ struct E2eArgs {
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum E2eMode {
     Clock,
+    Phase,
     State,
     Udp,
 }
@@ -183,6 +185,7 @@ fn e2e_opts(quick: bool, a: &E2eArgs) -> Result<e2e::Options> {
             .iter()
             .map(|m| match m {
                 E2eMode::Clock => e2e::Mode::Clock,
+                E2eMode::Phase => e2e::Mode::Phase,
                 E2eMode::State => e2e::Mode::State,
                 E2eMode::Udp => e2e::Mode::Udp,
             })
