@@ -20,6 +20,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use iceoryx2::sample_mut_uninit::SampleMutUninit;
 use protocol::{monotonic_ns, CommandSample, StateSample};
+use rt::trigger::Window;
 use rt::WaitStrategy;
 use std::mem::MaybeUninit;
 
@@ -116,6 +117,8 @@ pub fn state_loop<const N: usize>(
     let mut expected = monotonic_ns() + period;
     // The newest accepted state: what a rehearsal runs the law on while waiting for the next.
     let mut last: Option<StateSample> = None;
+    // Ticks since the last accepted state.
+    let mut missed = 0u32;
     while !rt::signal::stop_requested() {
         if timing.end_ns.is_some_and(|e| monotonic_ns() >= e) {
             break;
@@ -123,13 +126,18 @@ pub fn state_loop<const N: usize>(
         // No state for a whole period past its expected arrival: a tick without one.
         let give_up = expected + period;
         let mut seen = Drained::default();
+        // While the plant keeps publishing, a late state is most likely a moment away: keep
+        // polling without sleeping until the tick gives up on it (a sleep costs tens of µs here).
+        // After a missed state the window closes as configured, so a dead plant costs no core.
+        let mut window = Window::around(timing.wait, expected, timing.spin_ns);
+        if last.is_some() && missed == 0 {
+            window = window.open_until(give_up);
+        }
         let got = {
             let (ctl, last) = (&mut *ctl, &last);
-            rt::trigger::poll_until_warm(
-                expected,
+            rt::trigger::poll_within(
+                window,
                 give_up,
-                timing.wait,
-                timing.spin_ns,
                 || newest_state(ports.subscriber, &mut seen),
                 || {
                     if let Some(s) = last {
@@ -149,6 +157,9 @@ pub fn state_loop<const N: usize>(
         seen.into_counters(ctl);
         if o.state_age_ns.is_some() {
             last = got;
+            missed = 0;
+        } else {
+            missed += 1;
         }
         let due = expected;
         expected = match (got, o.state_age_ns) {

@@ -25,7 +25,8 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use protocol::{flags, monotonic_ns, CommandSample, Mode, ServiceNames, StateSample};
 use rt::clock::Schedule;
-use rt::{Trigger, WaitStrategy};
+use rt::trigger::Window;
+use rt::Trigger;
 use std::time::SystemTime;
 
 type StatePub = Publisher<ipc::Service, StateSample, ()>;
@@ -357,12 +358,12 @@ impl Loop<'_> {
         // answer deadline. Once an answer was missed (a stalled or dead controller) it goes back
         // to sleeping between polls, so a missing controller does not cost a spinning core.
         let answering = self.last_command_at.is_some() && self.late_run == 0;
-        let wait = match self.cfg.wait {
-            WaitStrategy::Hybrid if answering => WaitStrategy::Spin,
-            w => w,
-        };
+        let mut window = Window::around(self.cfg.wait, published, spin);
+        if answering {
+            window = window.open_until(deadline);
+        }
         let (sub, intake, c) = (&self.subscriber, &mut self.intake, &mut self.c);
-        let got = rt::trigger::poll_until(published, deadline, wait, spin, || loop {
+        let poll = || loop {
             let cmd = match sub.receive() {
                 Ok(Some(s)) => *s,
                 Ok(None) => return None,
@@ -378,7 +379,8 @@ impl Loop<'_> {
                 return Some((cmd, monotonic_ns()));
             }
             c.late_answers += 1;
-        });
+        };
+        let got = rt::trigger::poll_within(window, deadline, poll, || {});
         let Some((cmd, at)) = got else {
             return self.late_cycle(plant);
         };

@@ -77,6 +77,66 @@ pub fn poll_until<T>(
     poll_until_warm(expected_ns, deadline_ns, strategy, spin_ns, poll, || {})
 }
 
+/// When a wait polls without sleeping: from `from_ns` (inclusive) to `to_ns` (exclusive).
+///
+/// Before the window a wait sleeps (once, until it opens); inside it polls in a tight loop;
+/// after it the value is overdue (a stalled or dead peer) and the wait goes back to sleeping
+/// between polls, so a missing peer does not cost a spinning core.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    pub from_ns: u64,
+    pub to_ns: u64,
+}
+
+impl Window {
+    /// Always poll (a core given to the wait).
+    pub const ALWAYS: Window = Window {
+        from_ns: 0,
+        to_ns: u64::MAX,
+    };
+
+    /// The window a strategy gives around `expected_ns`: `Spin` always polls, `Hybrid` polls
+    /// within `spin_ns` either side of it, `Sleep` never (it sleeps until `expected_ns`, then
+    /// between polls).
+    ///
+    /// ```
+    /// use rt::{trigger::Window, WaitStrategy};
+    /// let w = Window::around(WaitStrategy::Hybrid, 1_000_000, 50_000);
+    /// assert_eq!((w.from_ns, w.to_ns), (950_000, 1_050_000));
+    /// assert_eq!(Window::around(WaitStrategy::Spin, 7, 0), Window::ALWAYS);
+    /// assert!(Window::around(WaitStrategy::Sleep, 7, 50).is_empty());
+    /// ```
+    pub fn around(strategy: WaitStrategy, expected_ns: u64, spin_ns: u64) -> Window {
+        match strategy {
+            WaitStrategy::Spin => Window::ALWAYS,
+            WaitStrategy::Hybrid => Window {
+                from_ns: expected_ns.saturating_sub(spin_ns),
+                to_ns: expected_ns.saturating_add(spin_ns),
+            },
+            WaitStrategy::Sleep => Window {
+                from_ns: expected_ns,
+                to_ns: expected_ns,
+            },
+        }
+    }
+
+    /// The same window, kept open until at least `to_ns` (a non-empty window only: `Sleep`
+    /// stays a sleeping wait).
+    pub fn open_until(self, to_ns: u64) -> Window {
+        if self.is_empty() {
+            return self;
+        }
+        Window {
+            to_ns: self.to_ns.max(to_ns),
+            ..self
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.from_ns >= self.to_ns
+    }
+}
+
 /// [`poll_until`], calling `warm` after each sleep that `poll` finds nothing after.
 ///
 /// Why: a core that slept has lost the waiting code's caches, and the first use after a wake-up
@@ -89,18 +149,27 @@ pub fn poll_until_warm<T>(
     deadline_ns: u64,
     strategy: WaitStrategy,
     spin_ns: u64,
+    poll: impl FnMut() -> Option<T>,
+    warm: impl FnMut(),
+) -> Option<T> {
+    let window = Window::around(strategy, expected_ns, spin_ns);
+    poll_within(window, deadline_ns, poll, warm)
+}
+
+/// Polls `poll` until it yields or `deadline_ns` passes: sleeping until `window` opens, polling
+/// without sleeping inside it, and every [`SLEEP_POLL_NS`] after it; `warm` runs after each
+/// sleep that `poll` finds nothing after (see [`poll_until_warm`]). Allocates nothing.
+#[inline]
+pub fn poll_within<T>(
+    window: Window,
+    deadline_ns: u64,
     mut poll: impl FnMut() -> Option<T>,
     mut warm: impl FnMut(),
 ) -> Option<T> {
     if let Some(v) = poll() {
         return Some(v);
     }
-    let wake = match strategy {
-        WaitStrategy::Spin => 0,
-        WaitStrategy::Hybrid => expected_ns.saturating_sub(spin_ns),
-        WaitStrategy::Sleep => expected_ns,
-    }
-    .min(deadline_ns);
+    let wake = window.from_ns.min(deadline_ns);
     let mut slept = wake > monotonic_ns();
     if slept {
         crate::clock::sleep_until(wake);
@@ -118,8 +187,7 @@ pub fn poll_until_warm<T>(
         if now >= deadline_ns {
             return None;
         }
-        let overdue = strategy == WaitStrategy::Hybrid && now > expected_ns.saturating_add(spin_ns);
-        if strategy == WaitStrategy::Sleep || overdue {
+        if now >= window.to_ns {
             crate::clock::sleep_until((now + SLEEP_POLL_NS).min(deadline_ns));
             slept = true;
         } else {
@@ -152,6 +220,34 @@ mod tests {
     }
 
     #[test]
+    fn a_window_kept_open_polls_until_the_value_comes() {
+        // The value comes 50 ms after the hybrid window (±50 µs) closed. Kept open, the wait
+        // spins until then: at most the one sleep before the window, so at most one rehearsal.
+        // Not kept open, it sleeps between polls, rehearsing after each sleep.
+        let run = |keep_open: bool| {
+            let t = monotonic_ns() + 200_000;
+            let ready = t + 50_000_000;
+            let mut w = Window::around(WaitStrategy::Hybrid, t, 50_000);
+            if keep_open {
+                w = w.open_until(ready + 1_000_000);
+            }
+            let mut warmed = 0;
+            let got = poll_within(
+                w,
+                ready + 1_000_000_000,
+                || (monotonic_ns() >= ready).then_some(()),
+                || warmed += 1,
+            );
+            assert_eq!(got, Some(()));
+            warmed
+        };
+        assert!(run(true) <= 1);
+        assert!(run(false) >= 2);
+        let sleep = Window::around(WaitStrategy::Sleep, 7, 50_000);
+        assert_eq!(sleep.open_until(u64::MAX), sleep);
+    }
+
+    #[test]
     fn warm_runs_after_each_sleep_and_never_while_spinning() {
         let mut warmed = 0;
         let d = monotonic_ns() + 300_000;
@@ -164,8 +260,9 @@ mod tests {
             || warmed += 1,
         );
         assert_eq!(got, None);
-        // One sleep, before the spin window.
-        assert_eq!(warmed, 1);
+        // At most the one sleep before the spin window (none if this thread was preempted past
+        // it); never a rehearsal while spinning.
+        assert!(warmed <= 1, "{warmed}");
         let mut warmed = 0;
         let d = monotonic_ns() + 200_000;
         poll_until_warm(d, d, WaitStrategy::Spin, 0, || None::<()>, || warmed += 1);

@@ -247,14 +247,11 @@ impl<const N: usize> Device<'_, N> {
         }
         // While the bridge keeps answering, its answer is due within microseconds: poll for it
         // without blocking up to the deadline. After a miss (a stalled or dead bridge), block.
-        let window = if self.s.started && self.s.missed_run == 0 {
-            match self.cfg.wait {
-                WaitStrategy::Sleep => Window::NEVER,
-                _ => Window::ALWAYS,
-            }
-        } else {
-            Window::around(self.cfg.wait, self.sent_at, (self.cfg.spin_us * 1e3) as u64)
-        };
+        let spin = (self.cfg.spin_us * 1e3) as u64;
+        let mut window = Window::around(self.cfg.wait, self.sent_at, spin);
+        if self.s.started && self.s.missed_run == 0 {
+            window = window.open_until(until_ns);
+        }
         if self.pending.is_none() {
             self.pending = poll_datagram(fd, until_ns, window, || self.answer());
         }

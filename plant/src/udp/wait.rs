@@ -8,52 +8,11 @@
 //! only outside it, where nothing is expected and a late arrival is already a fault.
 
 use protocol::monotonic_ns;
-use rt::WaitStrategy;
-
-/// When to poll without blocking: from `from_ns` (inclusive) to `to_ns` (exclusive).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Window {
-    pub from_ns: u64,
-    pub to_ns: u64,
-}
-
-impl Window {
-    /// Always poll (a core given to the exchange).
-    pub const ALWAYS: Window = Window {
-        from_ns: 0,
-        to_ns: u64::MAX,
-    };
-    /// Never poll: block in `ppoll` throughout.
-    pub const NEVER: Window = Window {
-        from_ns: u64::MAX,
-        to_ns: u64::MAX,
-    };
-
-    /// The window a wait strategy gives around `expected_ns`: `Spin` always polls, `Hybrid`
-    /// polls within `spin_ns` either side of it, `Sleep` never polls.
-    ///
-    /// ```
-    /// use plant::udp::wait::Window;
-    /// use rt::WaitStrategy;
-    /// let w = Window::around(WaitStrategy::Hybrid, 1_000_000, 50_000);
-    /// assert_eq!((w.from_ns, w.to_ns), (950_000, 1_050_000));
-    /// assert_eq!(Window::around(WaitStrategy::Spin, 7, 0), Window::ALWAYS);
-    /// assert_eq!(Window::around(WaitStrategy::Sleep, 7, 0), Window::NEVER);
-    /// ```
-    pub fn around(wait: WaitStrategy, expected_ns: u64, spin_ns: u64) -> Window {
-        match wait {
-            WaitStrategy::Spin => Window::ALWAYS,
-            WaitStrategy::Hybrid => Window {
-                from_ns: expected_ns.saturating_sub(spin_ns),
-                to_ns: expected_ns.saturating_add(spin_ns),
-            },
-            WaitStrategy::Sleep => Window::NEVER,
-        }
-    }
-}
+pub use rt::trigger::Window;
 
 /// Calls `take` (a non-blocking receive) until it yields or `until_ns` passes: in a tight loop
-/// inside `window`, and after a `ppoll` for readability outside it. Allocates nothing.
+/// inside `window` (see [`Window::around`]), and after a `ppoll` for readability outside it.
+/// Allocates nothing.
 pub fn poll_datagram<T>(
     fd: i32,
     until_ns: u64,
@@ -105,6 +64,7 @@ pub fn wait_readable(fd: i32, until_ns: u64) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rt::WaitStrategy;
     use std::net::UdpSocket;
     use std::os::fd::AsRawFd;
 
@@ -123,7 +83,8 @@ mod tests {
 
     #[test]
     fn every_window_gets_the_datagram_or_gives_up_on_time() {
-        for w in [Window::ALWAYS, Window::NEVER] {
+        let never = Window::around(WaitStrategy::Sleep, 0, 0);
+        for w in [Window::ALWAYS, never] {
             let (a, b) = pair();
             let until = monotonic_ns() + 300_000;
             assert_eq!(poll_datagram(b.as_raw_fd(), until, w, || take(&b)), None);
