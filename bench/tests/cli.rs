@@ -4,7 +4,16 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
+use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
+
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// Runs that pin busy processes to both cores (latency) or inject faults into a live system
+/// (soak) take turns: on 2 cores, one would starve the other.
+fn serial() -> MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
 
 fn exe() -> &'static str {
     env!("CARGO_BIN_EXE_chaosd-bench")
@@ -43,6 +52,7 @@ fn run(args: &[&str], cwd: &Path, limit: Duration) -> Output {
 
 #[test]
 fn a_small_latency_run_reports_every_transport() {
+    let _g = serial();
     let dir = scratch("latency");
     let out = run(
         &[
@@ -201,6 +211,7 @@ fn bad_soak_arguments_get_one_short_error() {
 /// not a timing assertion.
 #[test]
 fn a_short_soak_injects_faults_and_passes() {
+    let _g = serial();
     let dir = scratch("soak");
     let out = run(
         &["--out", "o", "soak", "--seconds", "14", "--seed", "5"],

@@ -39,8 +39,9 @@
 //! process died by itself, a clean stop was not clean, or anything is left after the end:
 //! a process with the soak's config, an iceoryx2 service of its namespace, a node of one of its
 //! processes, or a file of either ([`leftovers`]). RSS and open fds of both processes are
-//! sampled every second; RSS growth is reported (per lifetime, least squares), not judged: a
-//! run with kills has lifetimes too short for a per-hour rate to mean much.
+//! sampled every second (all samples in `resources.csv`); RSS growth is reported (the longest
+//! lifetime, least squares), not judged: a run with kills has lifetimes too short for a per-hour
+//! rate to mean much.
 //!
 //! Every process the soak starts is owned by a [`crate::child::Child`] guard (SIGKILL on drop,
 //! `PR_SET_PDEATHSIG`), a stopped process is continued on every path, and the hog is a thread
@@ -653,6 +654,28 @@ impl Soak {
     }
 }
 
+/// Every /proc sample, one row each: process, lifetime, pid, seconds since the start, RSS (kB),
+/// open fds. The rate in the verdict comes from these; a long run's file shows the trend.
+fn resources_csv(t0: Instant, roles: &[&Role]) -> String {
+    let mut out = String::from("process,lifetime,pid,t_s,rss_kb,fds\n");
+    for r in roles {
+        for (i, l) in r.lives.iter().enumerate() {
+            for x in &l.samples {
+                out.push_str(&format!(
+                    "{},{},{},{:.1},{},{}\n",
+                    r.name,
+                    i + 1,
+                    l.pid,
+                    (x.at - t0).as_secs_f64(),
+                    x.rss_kb,
+                    x.fds
+                ));
+            }
+        }
+    }
+    out
+}
+
 fn read_json(p: &Path) -> Result<serde_json::Value> {
     let text =
         std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
@@ -724,6 +747,10 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
         verdict::Lives::of(&s.daemon.lives),
         verdict::Lives::of(&s.plant.lives),
     );
+    let csv = report.path("resources.csv");
+    if let Err(e) = std::fs::write(&csv, resources_csv(s.t0, &[&s.daemon, &s.plant])) {
+        s.v.fail(format!("cannot write {}: {e}", csv.display()));
+    }
     s.v.seconds = s.elapsed();
     let Soak {
         node,
@@ -749,6 +776,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
     }
     let text = v.render(command);
     let mut report = report;
+    report.files.push(report.path("resources.csv"));
     report.push(&text);
     let text = report.finish()?;
     if v.passed() {
