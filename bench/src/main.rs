@@ -11,6 +11,8 @@
 //! * `e2e`:     the real daemon and plant processes at 1 to 10 kHz (`e2e`).
 //! * `compute`: the control law, an RK4 step, a 300 s run and a Lyapunov pair (`compute`).
 //! * `all`:     the four in a row, and one summary.
+//! * `soak`:    the real daemon and plant for N seconds under injected faults; a verdict table,
+//!   and a non-zero exit if anything was lost, not recovered or left behind (`soak`).
 
 mod child;
 mod compute;
@@ -22,6 +24,7 @@ mod naive;
 mod plan;
 mod plot;
 mod report;
+mod soak;
 mod stats;
 mod tick;
 
@@ -71,6 +74,10 @@ enum Cmd {
         #[arg(long, value_parser = clap::value_parser!(u8).range(1..=98))]
         priority: Option<u8>,
     },
+    /// The real daemon and plant for N seconds while faults are injected (kill -9, SIGSTOP, a
+    /// CPU hog, a rogue publisher, request bursts); prints a verdict table and exits non-zero if
+    /// data was lost, a fault went unnoticed or unrecovered, or anything was left behind.
+    Soak(SoakArgs),
     /// The other end of `latency` (started by it).
     #[command(name = "__latency-peer", hide = true)]
     LatencyPeer(latency::PeerArgs),
@@ -119,6 +126,19 @@ struct E2eArgs {
     /// udp (state-triggered through chaosd-bridge and chaosd-fakebot). Default: all four.
     #[arg(long, value_delimiter = ',')]
     modes: Option<Vec<E2eMode>>,
+}
+
+#[derive(Args)]
+struct SoakArgs {
+    /// How long the fault phase runs (s), 5 to 86400.
+    #[arg(long)]
+    seconds: f64,
+    /// Seed of the fault schedule: the same seed and length give the same faults.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Fault kinds to inject (comma-separated) [default: all].
+    #[arg(long, value_delimiter = ',')]
+    faults: Vec<soak::schedule::FaultKind>,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -256,6 +276,15 @@ fn main() -> ExitCode {
         Cmd::E2e(a) => e2e_opts(quick, a).and_then(|o| e2e::run(&o, out, &command)),
         Cmd::Compute { core } => compute::run(quick, *core, out, &command),
         Cmd::All { priority } => all(quick, out, *priority, &command),
+        Cmd::Soak(a) => soak::run(
+            &soak::Options {
+                seconds: a.seconds,
+                seed: a.seed,
+                faults: a.faults.clone(),
+            },
+            out,
+            &command,
+        ),
         Cmd::LatencyPeer(_) => unreachable!("handled above"),
     };
     match result {

@@ -4,7 +4,16 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
+use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
+
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// Runs that pin busy processes to both cores (latency) or inject faults into a live system
+/// (soak) take turns: on 2 cores, one would starve the other.
+fn serial() -> MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
 
 fn exe() -> &'static str {
     env!("CARGO_BIN_EXE_chaosd-bench")
@@ -43,6 +52,7 @@ fn run(args: &[&str], cwd: &Path, limit: Duration) -> Output {
 
 #[test]
 fn a_small_latency_run_reports_every_transport() {
+    let _g = serial();
     let dir = scratch("latency");
     let out = run(
         &[
@@ -160,5 +170,85 @@ fn bad_options_are_refused_before_anything_runs() {
         !dir.join("o/jitter").exists(),
         "nothing is written for a refused run"
     );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn bad_soak_arguments_get_one_short_error() {
+    let dir = scratch("soak-opts");
+    for (args, want) in [
+        (
+            &["soak", "--seconds", "1"][..],
+            "must be between 5 and 86400",
+        ),
+        (&["soak", "--seconds", "nan"], "must be between 5 and 86400"),
+        (&["soak", "--seconds", "ten"], "invalid value 'ten'"),
+        (&["soak", "--seconds", "10", "--seed", "-3"], "error:"),
+        (
+            &["soak", "--seconds", "10", "--faults", "meteor"],
+            "invalid value 'meteor'",
+        ),
+        (&["soak"], "--seconds"),
+    ] {
+        let out = run(args, &dir, Duration::from_secs(60));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} was accepted");
+        assert!(
+            err.contains(want) && !err.contains("panicked"),
+            "{args:?}: {err}"
+        );
+        assert!(err.len() < 1024, "{args:?}: a long error: {err}");
+    }
+    assert!(
+        !dir.join("out/bench/soak").exists(),
+        "nothing runs for a refused soak"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A short soak against the real binaries: faults are injected, the verdict table is printed and
+/// the run passes (exit 0), which includes "nothing left behind". The watchdog is a hang guard,
+/// not a timing assertion.
+#[test]
+fn a_short_soak_injects_faults_and_passes() {
+    let _g = serial();
+    let dir = scratch("soak");
+    let out = run(
+        &["--out", "o", "soak", "--seconds", "14", "--seed", "5"],
+        &dir,
+        Duration::from_secs(600),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "stdout:\n{stdout}\nstderr:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("**Verdict: PASS**"), "{stdout}");
+    // At least two faults were injected, each detected and recovered.
+    let injected: usize = stdout
+        .lines()
+        .filter(|l| {
+            l.starts_with("| ")
+                && (l.contains("restart")
+                    || l.contains("SIG")
+                    || l.contains("hog")
+                    || l.contains("rogue")
+                    || l.contains("burst"))
+        })
+        .filter_map(|l| l.split('|').nth(2)?.trim().parse::<usize>().ok())
+        .sum();
+    assert!(injected >= 2, "{stdout}");
+    let row = stdout
+        .lines()
+        .find(|l| l.contains("recording windows checked (lost)"))
+        .unwrap_or_else(|| panic!("no window row:\n{stdout}"));
+    assert!(row.contains("(0)") && !row.contains("| 0 (0)"), "{row}");
+    let left = stdout
+        .lines()
+        .find(|l| l.contains("leftovers"))
+        .unwrap_or_else(|| panic!("no leftover row:\n{stdout}"));
+    assert!(left.contains("| 0 (checked 4 services"), "{left}");
+    assert!(dir.join("o/soak/soak.md").is_file());
     std::fs::remove_dir_all(&dir).ok();
 }
