@@ -4,12 +4,12 @@
 //! all of its input before doing any work.
 
 mod analysis;
-mod online;
 mod plot;
 mod setup;
 mod simulate;
 
 use clap::{Parser, Subcommand};
+use client::online;
 use std::process::ExitCode;
 
 #[derive(Parser)]
