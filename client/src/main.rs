@@ -45,6 +45,10 @@ enum Command {
     /// The arm itself at several instants of one period, filter off and on side by side, with
     /// the circle, the obstacles and their clearance rings (PNG + SVG).
     ArmFigure(analysis::arm_figure::ArmFigureCmd),
+    /// Put the shard files of one sharded sweep, basins or obstacles run back together: checks
+    /// that every grid point is there exactly once (naming any missing one) and writes exactly
+    /// the unsharded result.
+    Merge(MergeArgs),
     #[command(flatten)]
     Online(online::Online),
     /// Print a preset as a TOML config file to start from.
@@ -52,6 +56,50 @@ enum Command {
         #[arg(long, default_value = "paper")]
         preset: String,
     },
+}
+
+#[derive(clap::Args, Debug)]
+struct MergeArgs {
+    /// The shard files (PREFIX.shard-I-of-N.json), all N of them, in any order.
+    #[arg(required = true)]
+    files: Vec<std::path::PathBuf>,
+    /// Output prefix: writes OUT.csv, OUT.png and OUT.svg (OUT.csv may be given as OUT).
+    #[arg(long)]
+    out: std::path::PathBuf,
+}
+
+/// `chaosctl merge`: parses the arguments the shards recorded, as the shards did, and hands the
+/// command's own merge the files (see `analysis::shard`).
+fn merge(m: MergeArgs) -> anyhow::Result<()> {
+    let files = analysis::shard::load(&m.files)?;
+    let first = files[0].path.display().to_string();
+    let argv = std::iter::once("chaosctl".to_string()).chain(files[0].args.iter().cloned());
+    let cli = Cli::try_parse_from(argv).map_err(|e| {
+        anyhow::anyhow!(
+            "{first}: the arguments it recorded do not parse with this chaosctl: {}",
+            e.to_string().lines().next().unwrap_or("")
+        )
+    })?;
+    let out = if m.out.extension().is_some_and(|e| e == "csv") {
+        m.out.with_extension("")
+    } else {
+        m.out
+    };
+    match cli.command {
+        Command::Sweep(mut a) => {
+            (a.shard, a.output) = (None, out);
+            analysis::sweep::merge(a, files)
+        }
+        Command::Basins(mut a) => {
+            (a.shard, a.output) = (None, out);
+            analysis::basins::merge(a, files)
+        }
+        Command::Obstacles(mut a) => {
+            (a.shard, a.output) = (None, out);
+            analysis::obstacles::merge(a, files)
+        }
+        _ => anyhow::bail!("{first}: its recorded command has no shards"),
+    }
 }
 
 fn main() -> ExitCode {
@@ -73,6 +121,7 @@ fn main() -> ExitCode {
         Command::Figures(a) => analysis::figures::run(a),
         Command::Obstacles(a) => analysis::obstacles::run(a),
         Command::ArmFigure(a) => analysis::arm_figure::run(a),
+        Command::Merge(m) => merge(m),
         Command::Config { preset } => control::Config::preset(&preset)
             .map(|c| print!("{}", c.to_toml_string()))
             .map_err(Into::into),
