@@ -16,7 +16,11 @@ use std::process::ExitCode;
 #[command(
     name = "chaosctl",
     version,
-    about = "Watch and steer chaosd, and analyse the arm's self-motion offline"
+    about = "Watch and steer chaosd, and analyse the arm's self-motion offline",
+    after_help = "Across hosts (Zenoh): `chaosctl gateway --namespace NS [--listen EP] [--connect EP] \
+                  [--allow-changes]`, `chaosctl fleet --remote EP` and `chaosctl --remote EP \
+                  status|get|set|watch …` run chaosd-gateway, which is built on its own: \
+                  cargo build --release -p gateway"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -102,7 +106,40 @@ fn merge(m: MergeArgs) -> anyhow::Result<()> {
     }
 }
 
+/// `chaosctl gateway …` (= `chaosd-gateway serve …`), `chaosctl fleet …` and `chaosctl --remote
+/// ENDPOINT …` run `chaosd-gateway`: Zenoh stays out of chaosctl's own build. `None`: not one of
+/// those, parse as usual.
+fn gateway_command() -> Option<ExitCode> {
+    use std::os::unix::process::CommandExt;
+    let args: Vec<std::ffi::OsString> = std::env::args_os().skip(1).collect();
+    let remote = args
+        .iter()
+        .any(|a| a == "--remote" || a.to_str().is_some_and(|s| s.starts_with("--remote=")));
+    let mut forwarded = args.clone();
+    match args.first().and_then(|a| a.to_str()) {
+        Some("gateway") => forwarded[0] = "serve".into(),
+        Some("fleet") => {}
+        _ if remote => {}
+        _ => return None,
+    }
+    let beside = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(|d| d.join("chaosd-gateway")))
+        .filter(|p| p.exists());
+    let exe = beside.unwrap_or_else(|| "chaosd-gateway".into());
+    let err = std::process::Command::new(&exe).args(forwarded).exec();
+    eprintln!(
+        "chaosctl: error: cannot run {} ({err}): the Zenoh gateway is built on its own, with \
+         `cargo build --release -p gateway`",
+        exe.display()
+    );
+    Some(ExitCode::from(3))
+}
+
 fn main() -> ExitCode {
+    if let Some(code) = gateway_command() {
+        return code;
+    }
     // Like any Unix filter: when the reader of our output goes away (`chaosctl ... | head`),
     // end quietly instead of panicking on the failed write.
     // SAFETY: restoring the default disposition of SIGPIPE before any thread is started.

@@ -154,7 +154,11 @@ pub fn run_shard<T: Sync, R: Send + Serialize + DeserializeOwned + Debug>(
     let file = File {
         format: FORMAT.into(),
         command: grid.command.into(),
-        args: std::env::args().skip(1).collect(),
+        // Lossy for a non-UTF-8 argument: merge then finds another grid and says so.
+        args: std::env::args_os()
+            .skip(1)
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect(),
         grid: grid.fingerprint.clone(),
         points: items.len(),
         shard: shard.index,
