@@ -383,7 +383,7 @@ mod tests {
     #[test]
     fn every_point_in_exactly_one_shard() {
         for n in [1, 2, 3, 7] {
-            let mut seen = vec![0; 20];
+            let mut seen = [0; 20];
             for i in 0..n {
                 for k in (Shard { index: i, count: n }).points(20) {
                     assert_eq!(k % n, i);
