@@ -4,19 +4,23 @@
 //! all of its input before doing any work.
 
 mod analysis;
-mod online;
 mod plot;
 mod setup;
 mod simulate;
 
 use clap::{Parser, Subcommand};
+use client::online;
 use std::process::ExitCode;
 
 #[derive(Parser)]
 #[command(
     name = "chaosctl",
     version,
-    about = "Watch and steer chaosd, and analyse the arm's self-motion offline"
+    about = "Watch and steer chaosd, and analyse the arm's self-motion offline",
+    after_help = "Across hosts (Zenoh): `chaosctl gateway --namespace NS [--listen EP] [--connect EP] \
+                  [--allow-changes]`, `chaosctl fleet --remote EP` and `chaosctl --remote EP \
+                  status|get|set|watch …` run chaosd-gateway, which is built on its own: \
+                  cargo build --release -p gateway"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -45,6 +49,10 @@ enum Command {
     /// The arm itself at several instants of one period, filter off and on side by side, with
     /// the circle, the obstacles and their clearance rings (PNG + SVG).
     ArmFigure(analysis::arm_figure::ArmFigureCmd),
+    /// Put the shard files of one sharded sweep, basins or obstacles run back together: checks
+    /// that every grid point is there exactly once (naming any missing one) and writes exactly
+    /// the unsharded result.
+    Merge(MergeArgs),
     #[command(flatten)]
     Online(online::Online),
     /// Print a preset as a TOML config file to start from.
@@ -54,7 +62,84 @@ enum Command {
     },
 }
 
+#[derive(clap::Args, Debug)]
+struct MergeArgs {
+    /// The shard files (PREFIX.shard-I-of-N.json), all N of them, in any order.
+    #[arg(required = true)]
+    files: Vec<std::path::PathBuf>,
+    /// Output prefix: writes OUT.csv, OUT.png and OUT.svg (OUT.csv may be given as OUT).
+    #[arg(long)]
+    out: std::path::PathBuf,
+}
+
+/// `chaosctl merge`: parses the arguments the shards recorded, as the shards did, and hands the
+/// command's own merge the files (see `analysis::shard`).
+fn merge(m: MergeArgs) -> anyhow::Result<()> {
+    let files = analysis::shard::load(&m.files)?;
+    let first = files[0].path.display().to_string();
+    let argv = std::iter::once("chaosctl".to_string()).chain(files[0].args.iter().cloned());
+    let cli = Cli::try_parse_from(argv).map_err(|e| {
+        anyhow::anyhow!(
+            "{first}: the arguments it recorded do not parse with this chaosctl: {}",
+            e.to_string().lines().next().unwrap_or("")
+        )
+    })?;
+    let out = if m.out.extension().is_some_and(|e| e == "csv") {
+        m.out.with_extension("")
+    } else {
+        m.out
+    };
+    match cli.command {
+        Command::Sweep(mut a) => {
+            (a.shard, a.output) = (None, out);
+            analysis::sweep::merge(a, files)
+        }
+        Command::Basins(mut a) => {
+            (a.shard, a.output) = (None, out);
+            analysis::basins::merge(a, files)
+        }
+        Command::Obstacles(mut a) => {
+            (a.shard, a.output) = (None, out);
+            analysis::obstacles::merge(a, files)
+        }
+        _ => anyhow::bail!("{first}: its recorded command has no shards"),
+    }
+}
+
+/// `chaosctl gateway …` (= `chaosd-gateway serve …`), `chaosctl fleet …` and `chaosctl --remote
+/// ENDPOINT …` run `chaosd-gateway`: Zenoh stays out of chaosctl's own build. `None`: not one of
+/// those, parse as usual.
+fn gateway_command() -> Option<ExitCode> {
+    use std::os::unix::process::CommandExt;
+    let args: Vec<std::ffi::OsString> = std::env::args_os().skip(1).collect();
+    let remote = args
+        .iter()
+        .any(|a| a == "--remote" || a.to_str().is_some_and(|s| s.starts_with("--remote=")));
+    let mut forwarded = args.clone();
+    match args.first().and_then(|a| a.to_str()) {
+        Some("gateway") => forwarded[0] = "serve".into(),
+        Some("fleet") => {}
+        _ if remote => {}
+        _ => return None,
+    }
+    let beside = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(|d| d.join("chaosd-gateway")))
+        .filter(|p| p.exists());
+    let exe = beside.unwrap_or_else(|| "chaosd-gateway".into());
+    let err = std::process::Command::new(&exe).args(forwarded).exec();
+    eprintln!(
+        "chaosctl: error: cannot run {} ({err}): the Zenoh gateway is built on its own, with \
+         `cargo build --release -p gateway`",
+        exe.display()
+    );
+    Some(ExitCode::from(3))
+}
+
 fn main() -> ExitCode {
+    if let Some(code) = gateway_command() {
+        return code;
+    }
     // Like any Unix filter: when the reader of our output goes away (`chaosctl ... | head`),
     // end quietly instead of panicking on the failed write.
     // SAFETY: restoring the default disposition of SIGPIPE before any thread is started.
@@ -73,6 +158,7 @@ fn main() -> ExitCode {
         Command::Figures(a) => analysis::figures::run(a),
         Command::Obstacles(a) => analysis::obstacles::run(a),
         Command::ArmFigure(a) => analysis::arm_figure::run(a),
+        Command::Merge(m) => merge(m),
         Command::Config { preset } => control::Config::preset(&preset)
             .map(|c| print!("{}", c.to_toml_string()))
             .map_err(Into::into),

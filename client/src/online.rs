@@ -134,7 +134,16 @@ pub enum Failure {
 }
 
 impl Failure {
-    fn exit(self) -> ExitCode {
+    /// The exit code and the message, without the "refused: " prefix.
+    pub fn parts(&self) -> (u8, &str) {
+        match self {
+            Failure::Refused(m) => (1, m),
+            Failure::Usage(m) => (2, m),
+            Failure::Unreachable(m) => (3, m),
+        }
+    }
+
+    pub fn exit(self) -> ExitCode {
         let (code, msg) = match self {
             Failure::Refused(m) => (1, format!("refused: {m}")),
             Failure::Usage(m) => (2, m),
@@ -149,7 +158,7 @@ fn node() -> Result<iceoryx2::node::Node<ipc::Service>, Failure> {
     protocol::node("chaosctl").map_err(|e| Failure::Unreachable(e.to_string()))
 }
 
-fn names(conn: &Conn) -> Result<ServiceNames, Failure> {
+pub fn names(conn: &Conn) -> Result<ServiceNames, Failure> {
     if !(conn.timeout.is_finite() && conn.timeout > 0.0 && conn.timeout <= 3600.0) {
         return Err(Failure::Usage(format!(
             "--timeout {}: must be between 0 and 3600 s",
@@ -163,70 +172,108 @@ fn names(conn: &Conn) -> Result<ServiceNames, Failure> {
 /// Sends one request and waits for the answer.
 pub fn request(conn: &Conn, op: Op, args: &str) -> Result<String, Failure> {
     let names = names(conn)?;
-    let req = ControlRequest::new(std::process::id() as u64, op, args).map_err(Failure::Usage)?;
-    let node = node()?;
-    let none = || {
-        Failure::Unreachable(format!(
-            "no chaosd answers in namespace {:?} (service {}): is the daemon running?",
-            names.namespace(),
-            names.control()
-        ))
-    };
-    let service = protocol::control::open_control_service(&node, &names).map_err(|e| match e {
-        protocol::ServiceError::NotRunning { .. } => none(),
-        other => Failure::Unreachable(format!("namespace {:?}: {other}", names.namespace())),
-    })?;
-    let client = service.client_builder().create().map_err(|e| {
-        Failure::Unreachable(format!("cannot connect to {}: {e:?}", names.control()))
-    })?;
-    let pending = client
-        .send_copy(req)
-        .map_err(|e| Failure::Unreachable(format!("cannot send to {}: {e:?}", names.control())))?;
-    if pending.number_of_server_connections() == 0 {
-        return Err(none());
+    Link::open(names)?.request(op, args, Duration::from_secs_f64(conn.timeout))
+}
+
+/// An open connection to one daemon's control service, for any number of requests: `chaosctl`
+/// opens one per command, the Zenoh gateway keeps one per namespace. Both build and check every
+/// request here, so a request through the gateway meets the same checks as a local one.
+pub struct Link {
+    names: ServiceNames,
+    client: iceoryx2::port::client::Client<ipc::Service, ControlRequest, (), ControlResponse, ()>,
+    // Dropped after the port.
+    _node: iceoryx2::node::Node<ipc::Service>,
+}
+
+impl Link {
+    /// Connects to the control service of the daemon in `names`' namespace.
+    pub fn open(names: ServiceNames) -> Result<Self, Failure> {
+        let node = node()?;
+        let service =
+            protocol::control::open_control_service(&node, &names).map_err(|e| match e {
+                protocol::ServiceError::NotRunning { .. } => not_running(&names),
+                other => {
+                    Failure::Unreachable(format!("namespace {:?}: {other}", names.namespace()))
+                }
+            })?;
+        let client = service.client_builder().create().map_err(|e| {
+            Failure::Unreachable(format!("cannot connect to {}: {e:?}", names.control()))
+        })?;
+        Ok(Self {
+            names,
+            client,
+            _node: node,
+        })
     }
-    let deadline = Instant::now() + Duration::from_secs_f64(conn.timeout);
-    loop {
-        match pending.receive() {
-            Ok(Some(r)) => {
-                let r: ControlResponse = *r;
-                let body = r
-                    .body()
-                    .map_err(|e| Failure::Unreachable(format!("malformed answer: {e}")))?
-                    .to_string();
-                return if r.is_ok() {
-                    Ok(body)
-                } else {
-                    Err(Failure::Refused(body))
-                };
+
+    pub fn names(&self) -> &ServiceNames {
+        &self.names
+    }
+
+    /// Sends one request and waits up to `timeout` for the answer.
+    pub fn request(&self, op: Op, args: &str, timeout: Duration) -> Result<String, Failure> {
+        let names = &self.names;
+        let req =
+            ControlRequest::new(std::process::id() as u64, op, args).map_err(Failure::Usage)?;
+        let pending = self.client.send_copy(req).map_err(|e| {
+            Failure::Unreachable(format!("cannot send to {}: {e:?}", names.control()))
+        })?;
+        if pending.number_of_server_connections() == 0 {
+            return Err(not_running(names));
+        }
+        let deadline = Instant::now() + timeout;
+        loop {
+            match pending.receive() {
+                Ok(Some(r)) => {
+                    let r: ControlResponse = *r;
+                    let body = r
+                        .body()
+                        .map_err(|e| Failure::Unreachable(format!("malformed answer: {e}")))?
+                        .to_string();
+                    return if r.is_ok() {
+                        Ok(body)
+                    } else {
+                        Err(Failure::Refused(body))
+                    };
+                }
+                Ok(None) => {}
+                Err(e) => {
+                    return Err(Failure::Unreachable(format!(
+                        "lost the connection to {}: {e:?}",
+                        names.control()
+                    )))
+                }
             }
-            Ok(None) => {}
-            Err(e) => {
+            if Instant::now() >= deadline {
                 return Err(Failure::Unreachable(format!(
-                    "lost the connection to {}: {e:?}",
-                    names.control()
-                )))
+                    "no answer from chaosd in namespace {:?} within {} s",
+                    names.namespace(),
+                    timeout.as_secs_f64()
+                )));
             }
+            // Answers come from the daemon's reporter thread within about a millisecond; a
+            // short sleep keeps a remote status round trip well inside its 5 ms budget.
+            std::thread::sleep(Duration::from_micros(200));
         }
-        if Instant::now() >= deadline {
-            return Err(Failure::Unreachable(format!(
-                "no answer from chaosd in namespace {:?} within {} s",
-                names.namespace(),
-                conn.timeout
-            )));
-        }
-        std::thread::sleep(Duration::from_millis(1));
     }
 }
 
-fn pretty(body: &str) -> String {
+fn not_running(names: &ServiceNames) -> Failure {
+    Failure::Unreachable(format!(
+        "no chaosd answers in namespace {:?} (service {}): is the daemon running?",
+        names.namespace(),
+        names.control()
+    ))
+}
+
+pub fn pretty(body: &str) -> String {
     serde_json::from_str::<serde_json::Value>(body)
         .ok()
         .and_then(|v| serde_json::to_string_pretty(&v).ok())
         .unwrap_or_else(|| body.to_string())
 }
 
-fn human_status(body: &str) -> String {
+pub fn human_status(body: &str) -> String {
     let Ok(v) = serde_json::from_str::<serde_json::Value>(body) else {
         return body.to_string();
     };

@@ -194,7 +194,7 @@ pub struct RunStats<const N: usize> {
 }
 
 /// The human summary of a run (SCIENCE.md units: m, rad, s).
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Summary {
     pub duration: f64,
     pub transient: f64,

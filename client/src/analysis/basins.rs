@@ -9,15 +9,16 @@
 
 use super::orbits::orbit_name;
 use super::parallel::{jobs, run_all};
+use super::shard::{self, Loaded, Shard};
 use super::{analyse_config, check_config, fmt_list, ClassifyArgs, ScanModelArgs};
 use crate::plot::{with_ext, Figure, Grid, Panel, DARK, PALETTE};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use control::analysis::{find_orbit, Motion, NewtonConfig, OrbitCatalog, RunAnalysis, RunSpec};
+use control::analysis::{find_orbit, Motion, NewtonConfig, OrbitCatalog, RunSpec};
 use control::config::ModelKind;
 use control::{with_dof, ArmState, Config, VecN};
 use plotters::style::RGBColor;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -79,6 +80,20 @@ pub struct BasinsCmd {
     /// Print the cells as JSON instead of the map.
     #[arg(long)]
     pub json: bool,
+    /// Run only shard I of N (0 ≤ I < N; grid point k goes to shard k mod N) and write
+    /// PREFIX.shard-I-of-N.json; `chaosctl merge` makes the map from all N.
+    #[arg(long, value_parser = shard::parse_shard, value_name = "I/N")]
+    pub shard: Option<Shard>,
+}
+
+/// What the map needs from one run; a shard file carries exactly this per grid point.
+#[derive(Serialize, Deserialize, Clone, Debug)]
+pub struct RunEnd {
+    pub motion: Motion,
+    pub k01: Option<f64>,
+    pub rms_tracking_error: f64,
+    /// The final state's coordinates, to tell the period-1 orbits apart.
+    pub final_coords: Vec<f64>,
 }
 
 /// The end of one run.
@@ -111,7 +126,15 @@ pub struct Cell {
     pub rms_tracking_error: Option<f64>,
 }
 
-pub fn run(args: BasinsCmd) -> Result<()> {
+/// The validated map: one config per grid point, rows (starts) outer, μ inner.
+struct Plan {
+    base: Config,
+    mus: Vec<f64>,
+    spec: RunSpec,
+    cells: Vec<Config>,
+}
+
+fn plan(args: &BasinsCmd) -> Result<Plan> {
     let (base, mus) = args.model.load("0:3:0.1")?;
     let n = base.n();
     if args.vary.joint >= n {
@@ -154,11 +177,70 @@ pub fn run(args: BasinsCmd) -> Result<()> {
             cells.push(c);
         }
     }
-    let threads = jobs(args.jobs);
-    let runs: Vec<Result<RunAnalysis, String>> = run_all(&cells, threads, "basins", |c| {
-        analyse_config(c, &spec).map_err(|e| format!("{e:#}"))
-    })?;
+    Ok(Plan {
+        base,
+        mus,
+        spec,
+        cells,
+    })
+}
 
+fn grid(args: &BasinsCmd, plan: &Plan) -> shard::Grid {
+    let parts = [format!("{:?}", plan.spec), format!("{:?}", args.vary)]
+        .into_iter()
+        .chain(plan.cells.iter().map(|c| format!("{c:?}")));
+    let labels = plan
+        .cells
+        .iter()
+        .map(|c| {
+            let x = if args.vary.rate { c.qd0() } else { c.q0() }[args.vary.joint];
+            format!("{} = {x}, μ = {}", coord_name(&args.vary), c.feedback.mu)
+        })
+        .collect();
+    shard::Grid::new("basins", parts, labels)
+}
+
+fn run_end(c: &Config, spec: &RunSpec) -> Result<RunEnd, String> {
+    analyse_config(c, spec)
+        .map(|a| RunEnd {
+            motion: a.classification.motion,
+            k01: a.classification.k,
+            rms_tracking_error: a.summary.rms_tracking_error,
+            final_coords: a.final_coords,
+        })
+        .map_err(|e| format!("{e:#}"))
+}
+
+pub fn run(args: BasinsCmd) -> Result<()> {
+    let plan = plan(&args)?;
+    let threads = jobs(args.jobs);
+    let work = |c: &Config| run_end(c, &plan.spec);
+    if let Some(s) = args.shard {
+        shard::run_shard(
+            &grid(&args, &plan),
+            s,
+            &plan.cells,
+            &args.output,
+            threads,
+            work,
+        )?;
+        return Ok(());
+    }
+    let runs = run_all(&plan.cells, threads, "basins", work)?;
+    finish(&args, &plan, &runs)
+}
+
+/// `chaosctl merge` of basins shards: the same CSV, map and plot as the unsharded run.
+pub fn merge(args: BasinsCmd, files: Vec<Loaded>) -> Result<()> {
+    let plan = plan(&args)?;
+    let runs: Vec<Result<RunEnd, String>> = shard::collect(&grid(&args, &plan), files)?;
+    finish(&args, &plan, &runs)
+}
+
+/// Names the orbits, writes the CSV and plot, prints the map.
+fn finish(args: &BasinsCmd, plan: &Plan, runs: &[Result<RunEnd, String>]) -> Result<()> {
+    let (base, mus, cells) = (&plan.base, &plan.mus, &plan.cells);
+    let n = base.n();
     // Name the period-1 orbits in a fixed order (by start, then μ) so labels are reproducible.
     // Controlled orbits at different μ differ by up to ~1e-3 (discretisation), distinct orbits by O(1).
     let mut catalog = OrbitCatalog::new(
@@ -167,20 +249,17 @@ pub fn run(args: BasinsCmd) -> Result<()> {
         0.05,
     );
     let mut out = Vec::with_capacity(runs.len());
-    for (c, r) in cells.iter().zip(&runs) {
+    for (c, r) in cells.iter().zip(runs) {
         let start = if args.vary.rate { c.qd0() } else { c.q0() }[args.vary.joint];
         let (outcome, k01, rms) = match r {
             Err(e) => (Outcome::Failed { error: e.clone() }, None, None),
             Ok(a) => {
-                let o = match a.classification.motion {
+                let o = match a.motion {
                     Motion::Periodic { period: 1, .. } | Motion::Converging { period: 1, .. } => {
                         let (i, _) = catalog.find_or_insert(&a.final_coords);
                         Outcome::Orbit {
                             orbit: orbit_name(i),
-                            converging: matches!(
-                                a.classification.motion,
-                                Motion::Converging { .. }
-                            ),
+                            converging: matches!(a.motion, Motion::Converging { .. }),
                         }
                     }
                     Motion::Periodic { period, .. } | Motion::Converging { period, .. } => {
@@ -189,7 +268,7 @@ pub fn run(args: BasinsCmd) -> Result<()> {
                     Motion::QuasiPeriodic { .. } => Outcome::QuasiPeriodic,
                     Motion::Irregular { .. } | Motion::TooShort { .. } => Outcome::Irregular,
                 };
-                (o, a.classification.k, Some(a.summary.rms_tracking_error))
+                (o, a.k01, Some(a.rms_tracking_error))
             }
         };
         out.push(Cell {
@@ -203,16 +282,16 @@ pub fn run(args: BasinsCmd) -> Result<()> {
     let orbit_points: Vec<Vec<f64>> = (0..catalog.len())
         .map(|i| catalog.point(i).to_vec())
         .collect();
-    let refined = refine(&base, &orbit_points);
+    let refined = refine(base, &orbit_points);
 
     let csv = with_ext(&args.output, "csv");
     write_csv(&csv, &out)?;
-    let files = plot(&args, &base, &mus, &out, catalog.len())?;
+    let files = plot(args, base, mus, &out, catalog.len())?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
     }
-    print_map(&args, &base, &mus, &out);
+    print_map(args, base, mus, &out);
     for (i, p) in orbit_points.iter().enumerate() {
         println!(
             "  orbit {}: x(kT) ≈ ({}){}",

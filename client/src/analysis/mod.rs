@@ -14,6 +14,7 @@ pub mod obstacles;
 pub mod orbits;
 pub mod parallel;
 pub mod poincare;
+pub mod shard;
 pub mod sweep;
 
 use crate::setup::{parse_list, FloatList, SetupArgs};

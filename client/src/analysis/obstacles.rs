@@ -10,6 +10,7 @@
 //! filter's push-out is visible instead of hidden.
 
 use super::parallel::{jobs, run_all};
+use super::shard::{self, Grid, Loaded, Shard};
 use super::{check_config, fmt_list, ClassifyArgs};
 use crate::plot::{with_ext, Chart, Figure, Panel, Rule, Series, Style, DARK, GREY, PALETTE};
 use crate::setup::{parse_list, FloatList, SetupArgs};
@@ -95,7 +96,14 @@ pub struct ObstaclesCmd {
     /// Output prefix: writes PREFIX.csv, PREFIX.png and PREFIX.svg.
     #[arg(long, default_value = "obstacles")]
     pub output: PathBuf,
+    /// Run only shard I of N (0 ≤ I < N; grid point k goes to shard k mod N) and write
+    /// PREFIX.shard-I-of-N.json; `chaosctl merge` makes the CSV, table and plot from all N.
+    #[arg(long, value_parser = shard::parse_shard, value_name = "I/N")]
+    pub shard: Option<Shard>,
 }
+
+/// One run's result, as a shard file carries it.
+type RunResult = Result<(Summary, Motion, Option<f64>), String>;
 
 /// One run of the study.
 #[derive(Serialize, Clone, Debug)]
@@ -197,7 +205,7 @@ fn plan(args: &ObstaclesCmd) -> Result<Plan> {
 }
 
 /// One run: the statistics of `simulate` and the Poincaré class of `basins`, in one pass.
-fn run_one(cfg: &Config, plan: &Plan) -> Result<(Summary, Motion, Option<f64>), String> {
+fn run_one(cfg: &Config, plan: &Plan) -> RunResult {
     with_dof!(cfg.n(), N => {
         let mut flow = ArmFlow::new(cfg.model::<N>(), cfg.law_params(), cfg.sim.dt, cfg.initial_state::<N>())
             .with_stats(plan.duration, plan.rms_from);
@@ -224,13 +232,55 @@ fn run_one(cfg: &Config, plan: &Plan) -> Result<(Summary, Motion, Option<f64>), 
     })
 }
 
+fn grid(plan: &Plan) -> Grid {
+    let parts = [format!(
+        "{} {} {} {:?}",
+        plan.duration, plan.rms_from, plan.section_from, plan.classify
+    )]
+    .into_iter()
+    .chain(plan.cfgs.iter().map(|c| format!("{c:?}")));
+    let labels = plan
+        .cfgs
+        .iter()
+        .map(|c| {
+            format!(
+                "μ = {}, filter {}, q1 = {}",
+                c.feedback.mu,
+                if c.safety.enabled { "on" } else { "off" },
+                c.q0()[0]
+            )
+        })
+        .collect();
+    Grid::new("obstacles", parts, labels)
+}
+
 pub fn run(args: ObstaclesCmd) -> Result<()> {
     let plan = plan(&args)?;
+    let threads = jobs(args.jobs);
+    let work = |c: &Config| run_one(c, &plan);
+    if let Some(s) = args.shard {
+        shard::run_shard(&grid(&plan), s, &plan.cfgs, &args.output, threads, work)?;
+        return Ok(());
+    }
     let started = Instant::now();
-    let results = run_all(&plan.cfgs, jobs(args.jobs), "obstacles", |c| {
-        run_one(c, &plan)
-    })?;
-    let wall = started.elapsed().as_secs_f64();
+    let results = run_all(&plan.cfgs, threads, "obstacles", work)?;
+    finish(&args, &plan, results, Some(started.elapsed().as_secs_f64()))
+}
+
+/// `chaosctl merge` of obstacles shards: the same CSV, table and plot as the unsharded run.
+pub fn merge(args: ObstaclesCmd, files: Vec<Loaded>) -> Result<()> {
+    let plan = plan(&args)?;
+    let results: Vec<RunResult> = shard::collect(&grid(&plan), files)?;
+    finish(&args, &plan, results, None)
+}
+
+/// Writes the CSV and plot and prints the table; `wall` is the time of a local run.
+fn finish(
+    args: &ObstaclesCmd,
+    plan: &Plan,
+    results: Vec<RunResult>,
+    wall: Option<f64>,
+) -> Result<()> {
     let rows: Vec<Row> = plan
         .cfgs
         .iter()
@@ -254,9 +304,9 @@ pub fn run(args: ObstaclesCmd) -> Result<()> {
     let base = &plan.cfgs[0];
     let csv = with_ext(&args.output, "csv");
     write_csv(&csv, &rows)?;
-    let files = plot(&args.output, &plan, &rows)?;
-    print_header(base, &plan, rows.len(), wall);
-    print_table(&plan, &rows, base.safety.clearance);
+    let files = plot(&args.output, plan, &rows)?;
+    print_header(base, plan, rows.len(), wall);
+    print_table(plan, &rows, base.safety.clearance);
     super::print_written(&[std::slice::from_ref(&csv), &files[..]].concat());
     Ok(())
 }
@@ -270,10 +320,14 @@ fn obstacle_list(cfg: &Config) -> String {
         .join(", ")
 }
 
-fn print_header(base: &Config, plan: &Plan, runs: usize, wall: f64) {
+fn print_header(base: &Config, plan: &Plan, runs: usize, wall: Option<f64>) {
     let q0 = base.q0();
+    let wall = wall.map_or_else(
+        || "merged from shards".to_string(),
+        |w| format!("in {w:.1} s wall"),
+    );
     println!(
-        "chaosd obstacles: {} obstacle(s) {}; required clearance {} m; {} runs of {} s ({} s simulated in {wall:.1} s wall)",
+        "chaosd obstacles: {} obstacle(s) {}; required clearance {} m; {} runs of {} s ({} s simulated {wall})",
         base.control.obstacles.len(),
         obstacle_list(base),
         base.safety.clearance,

@@ -2,13 +2,14 @@
 //! states, in parallel; writes CSV and the λ_max-versus-μ plot (the paper's Fig. 6).
 
 use super::parallel::{jobs, run_all};
+use super::shard::{self, Grid, Loaded, Shard};
 use super::{analyse_config, fmt_list, ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
 use crate::plot::{Chart, Figure, Panel, Series, Style, DARK, PALETTE};
 use anyhow::{Context, Result};
 use clap::Args;
 use control::analysis::{Motion, RunSpec};
 use control::Config;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -32,10 +33,14 @@ pub struct SweepCmd {
     /// Print the rows as JSON instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Run only shard I of N (0 ≤ I < N; grid point k goes to shard k mod N) and write
+    /// PREFIX.shard-I-of-N.json; `chaosctl merge` makes the CSV and plot from all N.
+    #[arg(long, value_parser = shard::parse_shard, value_name = "I/N")]
+    pub shard: Option<Shard>,
 }
 
 /// One (start, μ) cell of the sweep.
-#[derive(Serialize, Clone, Debug)]
+#[derive(Serialize, Deserialize, Clone, Debug)]
 pub struct Row {
     pub mu: f64,
     pub start: usize,
@@ -55,7 +60,16 @@ pub struct Row {
     pub error: Option<String>,
 }
 
-pub fn run(args: SweepCmd) -> Result<()> {
+/// The validated sweep: its grid points (start index, config) in CSV row order.
+struct Plan {
+    base: Config,
+    mus: Vec<f64>,
+    starts: Vec<Config>,
+    spec: RunSpec,
+    items: Vec<(usize, Config)>,
+}
+
+fn plan(args: &SweepCmd) -> Result<Plan> {
     let (base, mus) = args.model.load("0:3:0.1")?;
     let starts = args.starts.configs(&base, args.model.setup.q0.is_some())?;
     let classify = args.classify.config()?;
@@ -69,24 +83,69 @@ pub fn run(args: SweepCmd) -> Result<()> {
             items.push((i, c));
         }
     }
+    Ok(Plan {
+        base,
+        mus,
+        starts,
+        spec,
+        items,
+    })
+}
+
+fn grid(plan: &Plan) -> Grid {
+    let parts = std::iter::once(format!("{:?}", plan.spec))
+        .chain(plan.items.iter().map(|(i, c)| format!("{i} {c:?}")));
+    let labels = plan
+        .items
+        .iter()
+        .map(|(i, c)| format!("μ = {}, start {}", c.feedback.mu, i + 1))
+        .collect();
+    Grid::new("sweep", parts, labels)
+}
+
+pub fn run(args: SweepCmd) -> Result<()> {
+    let plan = plan(&args)?;
     let threads = jobs(args.jobs);
+    let work = |(i, c): &(usize, Config)| row(*i, c, &plan.spec);
+    if let Some(s) = args.shard {
+        shard::run_shard(&grid(&plan), s, &plan.items, &args.output, threads, work)?;
+        return Ok(());
+    }
     let t0 = Instant::now();
-    let rows = run_all(&items, threads, "sweep", |(i, c)| row(*i, c, &spec))?;
-    let wall = t0.elapsed().as_secs_f64();
+    let rows = run_all(&plan.items, threads, "sweep", work)?;
+    finish(
+        &args,
+        &plan,
+        &rows,
+        Some((t0.elapsed().as_secs_f64(), threads)),
+    )
+}
+
+/// `chaosctl merge` of sweep shards: the same CSV, plot and table as the unsharded run.
+pub fn merge(args: SweepCmd, files: Vec<Loaded>) -> Result<()> {
+    let plan = plan(&args)?;
+    let rows: Vec<Row> = shard::collect(&grid(&plan), files)?;
+    finish(&args, &plan, &rows, None)
+}
+
+/// Writes the CSV and plot and prints the table; `timing` is (wall s, threads) of a local run.
+fn finish(args: &SweepCmd, plan: &Plan, rows: &[Row], timing: Option<(f64, usize)>) -> Result<()> {
+    let (base, mus, starts, spec) = (&plan.base, &plan.mus, &plan.starts, &plan.spec);
     let csv = crate::plot::with_ext(&args.output, "csv");
-    write_csv(&csv, &rows)?;
-    let files = plot(&args.output, &rows, &starts, &base, &spec)?;
+    write_csv(&csv, rows)?;
+    let files = plot(&args.output, rows, starts, base, spec)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&rows)?);
         return Ok(());
     }
-    print_table(&rows, &starts, &mus);
+    print_table(rows, starts, mus);
     if rows.iter().any(|r| r.min_clearance.is_some()) {
-        print_obstacles(&rows, &starts, &mus);
+        print_obstacles(rows, starts, mus);
     }
     let runs = rows.len();
     let sim = runs as f64 * spec.duration;
-    println!(
+    if let Some((wall, threads)) = timing {
+        println!(
         "\n{runs} runs ({} μ × {} starts), {} s each with a Lyapunov partner: {:.0} s of closed loop \
          ({:.0} trajectory-seconds with the partners) in {wall:.2} s wall on {threads} thread{} = \
          {:.0} simulated s per wall s ({:.0} counting partners)",
@@ -99,6 +158,13 @@ pub fn run(args: SweepCmd) -> Result<()> {
         sim / wall,
         2.0 * sim / wall
     );
+    } else {
+        println!(
+            "\n{runs} runs ({} μ × {} starts), merged from shards",
+            mus.len(),
+            starts.len()
+        );
+    }
     super::print_written(&[std::slice::from_ref(&csv), &files[..]].concat());
     Ok(())
 }

@@ -124,7 +124,7 @@ impl Default for ClassifyConfig {
 }
 
 /// What the section shows.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 #[serde(tag = "class", rename_all = "kebab-case")]
 pub enum Motion {
     /// Returns within tol after `period` samples; `residual` is the largest return distance.

@@ -1,0 +1,218 @@
+//! Sharded scans end to end through the built `chaosctl`: for `sweep`, `basins` and `obstacles`,
+//! the shards merged with `chaosctl merge` give the unsharded CSV byte for byte, whatever order
+//! the files come in; a missing shard is named, and a shard given twice or from another grid is
+//! refused.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn chaosctl(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_chaosctl"))
+        .args(args)
+        .output()
+        .expect("run chaosctl")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = chaosctl(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{args:?} failed: {err}");
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Fails with exit code 2 and a message containing every `needle`, without a panic.
+fn refused(args: &[&str], needles: &[&str]) -> String {
+    let out = chaosctl(args);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: {n:?} missing from: {err}");
+    }
+    err
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("chaosctl-shards-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Runs `scan` unsharded and as `n` shards, merges the shards (in reverse order), and checks
+/// the CSVs are identical. Returns the shard files.
+fn merged_equals_unsharded(dir: &Path, scan: &[&str], n: usize, rows: usize) -> Vec<PathBuf> {
+    let whole = dir.join("whole");
+    let mut args = scan.to_vec();
+    args.extend(["--jobs", "2", "--output", s(&whole)]);
+    ok(&args);
+    let mut files = Vec::new();
+    for i in 0..n {
+        let part = dir.join("part");
+        let spec = format!("{i}/{n}");
+        let mut args = scan.to_vec();
+        args.extend(["--jobs", "1", "--output", s(&part), "--shard", &spec]);
+        let stdout = ok(&args);
+        let file = dir.join(format!("part.shard-{i}-of-{n}.json"));
+        assert!(stdout.contains(s(&file)), "{stdout}");
+        // A shard writes its own file only, no CSV or plot.
+        assert!(!dir.join("part.csv").exists());
+        files.push(file);
+    }
+    let merged = dir.join("merged.csv");
+    let mut args = vec!["merge", "--out", s(&merged)];
+    args.extend(files.iter().rev().map(|f| s(f)));
+    ok(&args);
+    let a = std::fs::read(dir.join("whole.csv")).unwrap();
+    let b = std::fs::read(&merged).unwrap();
+    assert_eq!(
+        String::from_utf8_lossy(&a).lines().count(),
+        1 + rows,
+        "{}",
+        String::from_utf8_lossy(&a)
+    );
+    assert!(
+        a == b,
+        "{scan:?}: merged CSV differs from the unsharded one:\n{}\n---\n{}",
+        String::from_utf8_lossy(&a),
+        String::from_utf8_lossy(&b)
+    );
+    assert!(dir.join("merged.png").exists() && dir.join("merged.svg").exists());
+    files
+}
+
+#[test]
+fn sweep_shards_merge_to_the_unsharded_csv_and_a_missing_shard_is_named() {
+    let dir = scratch("sweep");
+    // 3 μ × 3 starts = 9 points in 4 shards (uneven: 3, 2, 2, 2).
+    let scan = [
+        "sweep",
+        "--mu",
+        "0:0.2:0.1",
+        "--duration",
+        "30",
+        "--window",
+        "10:30",
+    ];
+    let files = merged_equals_unsharded(&dir, &scan, 4, 9);
+    let m2 = dir.join("m2");
+    let out = s(&m2);
+    // Shard 2/4 missing: its points (2 and 6) are named, and so is the shard.
+    let err = refused(
+        &[
+            "merge",
+            "--out",
+            out,
+            s(&files[0]),
+            s(&files[1]),
+            s(&files[3]),
+        ],
+        &[
+            "incomplete: 2 of 9 points missing",
+            "no file for shard 2/4",
+            "point 2 (μ = 0, start 3)",
+            "point 6 (μ = 0.2, start 1)",
+        ],
+    );
+    assert!(!err.contains("point 3 "), "{err}");
+    // The same shard twice.
+    refused(
+        &["merge", "--out", out, s(&files[0]), s(&files[0])],
+        &["shard 0/4 given twice"],
+    );
+    // A shard of another grid.
+    let other = dir.join("other");
+    ok(&[
+        "sweep",
+        "--mu",
+        "0:0.3:0.1",
+        "--duration",
+        "30",
+        "--window",
+        "10:30",
+        "--output",
+        s(&other),
+        "--shard",
+        "1/4",
+    ]);
+    refused(
+        &[
+            "merge",
+            "--out",
+            out,
+            s(&files[0]),
+            s(&dir.join("other.shard-1-of-4.json")),
+        ],
+        &["shards of different scans", "grid"],
+    );
+    // Not a shard file at all, and no file.
+    refused(
+        &["merge", "--out", out, s(&dir.join("whole.csv"))],
+        &["not a chaosctl shard file"],
+    );
+    refused(
+        &["merge", "--out", out, s(&dir.join("nope.json"))],
+        &["cannot read"],
+    );
+    assert!(!dir.join("m2.csv").exists());
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn basins_shards_merge_to_the_unsharded_csv() {
+    let dir = scratch("basins");
+    // Orbit names (A, B, …) are given in grid order over all points, so they must come out the
+    // same when the points were computed on different shards.
+    // Near the paper's period-1 orbits: this grid settles on two of them, A first seen at point 0
+    // (shard 0) and B at point 9 (shard 1 of 4).
+    let scan = [
+        "basins",
+        "--q0",
+        "1.550079628,-0.488376467,-0.934331288",
+        "--qd0=-4.311482957,9.229261970,-4.051303515",
+        "--vary",
+        "q1=-1:1.5:0.5",
+        "--mu",
+        "0.1:1.1:0.5",
+        "--duration",
+        "60",
+        "--transient",
+        "20",
+    ];
+    merged_equals_unsharded(&dir, &scan, 4, 18);
+    let csv = std::fs::read_to_string(dir.join("merged.csv")).unwrap();
+    assert!(
+        csv.contains(",orbit,A,") && csv.contains(",orbit,B,"),
+        "the grid should reach two orbits: {csv}"
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn obstacles_shards_merge_to_the_unsharded_csv() {
+    let dir = scratch("obstacles");
+    let scan = [
+        "obstacles",
+        "--mu",
+        "0,1.1",
+        "--starts",
+        "3",
+        "--duration",
+        "30",
+        "--rms-from",
+        "5",
+    ];
+    merged_equals_unsharded(&dir, &scan, 5, 12);
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn bad_shard_specs_are_refused() {
+    refused(&["sweep", "--shard", "4/4"], &["0 to 3"]);
+    refused(&["basins", "--shard", "1"], &["I/N"]);
+    refused(&["obstacles", "--shard", "0/0"], &["N must be"]);
+    refused(&["merge", "--out", "x"], &["required"]);
+}
