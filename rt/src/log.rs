@@ -44,6 +44,13 @@ pub fn init() {
     }
 }
 
+/// The one line a program ends with when it fails: `NAME: error: WHY`, with the error
+/// priority (`<3>`) in front under journald. Plain stderr, so it is never lost to a logger.
+pub fn fatal(name: &str, why: &str) {
+    let p = if journald_stderr() { "<3>" } else { "" };
+    eprintln!("{p}{name}: error: {why}");
+}
+
 /// Whether stderr is the journal stream systemd connected (`$JOURNAL_STREAM` is `DEVICE:INODE`
 /// of that stream; a child that redirected stderr elsewhere inherits the variable but not the
 /// stream, so both numbers are compared).
@@ -205,12 +212,21 @@ mod tests {
         });
         let lines: Vec<&str> = j.lines().collect();
         assert_eq!(lines.len(), 3, "{j}");
-        assert!(lines[0].starts_with("<3>") && lines[0].ends_with("boom"), "{j}");
-        assert!(lines[1].starts_with("<4>") && lines[1].contains("careful n=3"), "{j}");
+        assert!(
+            lines[0].starts_with("<3>") && lines[0].ends_with("boom"),
+            "{j}"
+        );
+        assert!(
+            lines[1].starts_with("<4>") && lines[1].contains("careful n=3"),
+            "{j}"
+        );
         assert!(lines[2].starts_with("<6>"), "{j}");
         let t = capture(false, || tracing::warn!("careful"));
         // 2026-11-23T08:30:00.123456Z  WARN rt::log::tests: careful
-        assert!(t.as_bytes()[4] == b'-' && t.contains('T') && t.contains("WARN"), "{t}");
+        assert!(
+            t.as_bytes()[4] == b'-' && t.contains('T') && t.contains("WARN"),
+            "{t}"
+        );
         assert!(t.trim_end().ends_with("careful"), "{t}");
     }
 
