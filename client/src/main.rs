@@ -4,6 +4,7 @@
 //! all of its input before doing any work.
 
 mod analysis;
+mod exporter;
 mod online;
 mod plot;
 mod setup;
@@ -47,6 +48,8 @@ enum Command {
     ArmFigure(analysis::arm_figure::ArmFigureCmd),
     #[command(flatten)]
     Online(online::Online),
+    /// Serve the daemons' telemetry as Prometheus metrics on http://LISTEN/metrics.
+    Exporter(exporter::ExporterArgs),
     /// Print a preset as a TOML config file to start from.
     Config {
         #[arg(long, default_value = "paper")]
@@ -73,6 +76,7 @@ fn main() -> ExitCode {
         Command::Figures(a) => analysis::figures::run(a),
         Command::Obstacles(a) => analysis::obstacles::run(a),
         Command::ArmFigure(a) => analysis::arm_figure::run(a),
+        Command::Exporter(a) => exporter::run(a),
         Command::Config { preset } => control::Config::preset(&preset)
             .map(|c| print!("{}", c.to_toml_string()))
             .map_err(Into::into),
