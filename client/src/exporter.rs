@@ -68,8 +68,12 @@ pub fn run(a: ExporterArgs) -> Result<()> {
     for stream in listener.incoming() {
         // One connection at a time: answers take microseconds, and a slow client is cut off by
         // the timeouts below.
-        if let Ok(s) = stream {
-            let _ = serve(s, &labels, &latest);
+        match stream {
+            Ok(s) => {
+                let _ = serve(s, &labels, &latest);
+            }
+            // Out of file descriptors or the like: do not spin on it.
+            Err(_) => std::thread::sleep(Duration::from_millis(10)),
         }
     }
     Ok(())

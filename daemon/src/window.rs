@@ -76,7 +76,7 @@ impl MetricsWindow {
             }
             self.started = now;
         }
-        let (p, len, ticks) = self.done.clone().unwrap_or_else(|| self.current());
+        let (p, len, ticks) = self.done.unwrap_or_else(|| self.current());
         let q = |p: &Percentiles| {
             if p.count == 0 {
                 [f64::NAN; 4]
