@@ -155,6 +155,8 @@ pub struct RateResult {
     pub device: Option<Value>,
     /// Status requests answered during the run, when a client hammered the control service.
     pub requests: Option<u64>,
+    /// Scrape latencies (ns, sorted), when a Prometheus scraper polled `chaosctl exporter`.
+    pub scrapes: Option<Vec<u64>>,
     pub daemon: Value,
     pub plant: Value,
     pub cpu_daemon: f64,
@@ -250,18 +252,68 @@ fn spawn_plant_side(
 /// What chaosd-fakebot writes at exit in the UDP mode.
 const DEVICE_SUMMARY: &str = "fakebot-summary.json";
 
+/// What else runs next to the loops.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Load {
+    Idle,
+    /// A client sends status requests back to back.
+    Hammered,
+    /// `chaosctl exporter` runs and is scraped every [`SCRAPE_EVERY`].
+    Scraped,
+}
+
+/// How often the scraped run scrapes `/metrics` (a fast Prometheus set-up).
+pub const SCRAPE_EVERY: Duration = Duration::from_millis(100);
+
+/// Scrapes `http://addr/metrics` every [`SCRAPE_EVERY`] until `stop`, timing each from connect to
+/// the last byte of the answer. Returns the times (ns, sorted); a failed scrape ends the run with
+/// its error.
+fn scrape(addr: String, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<Result<Vec<u64>>> {
+    use std::io::{Read, Write};
+    std::thread::spawn(move || {
+        let mut took = Vec::new();
+        let mut next = Instant::now();
+        while !stop.load(Ordering::Relaxed) {
+            let t = Instant::now();
+            let mut s = std::net::TcpStream::connect(&addr)
+                .with_context(|| format!("cannot connect to the exporter at {addr}"))?;
+            s.set_read_timeout(Some(Duration::from_secs(5)))?;
+            write!(
+                s,
+                "GET /metrics HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+            )?;
+            let mut text = String::new();
+            s.read_to_string(&mut text)?;
+            took.push(t.elapsed().as_nanos() as u64);
+            // The daemon may take a moment to show up; after 2 s every scrape must carry it.
+            let served = text.starts_with("HTTP/1.1 200") && text.contains("chaosd_ticks_total");
+            if !served && took.len() > 20 {
+                bail!(
+                    "scrape {} answered without the daemon's metrics:\n{}",
+                    took.len(),
+                    text.lines().take(12).collect::<Vec<_>>().join("\n")
+                );
+            }
+            next += SCRAPE_EVERY;
+            std::thread::sleep(next.saturating_duration_since(Instant::now()));
+        }
+        took.sort_unstable();
+        Ok(took)
+    })
+}
+
 fn one_rate(
     opts: &Options,
     rate_hz: f64,
     mode: Mode,
     report: &Report,
-    hammered: bool,
+    load: Load,
 ) -> Result<RateResult> {
     let chaosd = sibling("chaosd")?;
-    let dir = report.path(&if hammered {
-        format!("{rate_hz:.0}hz-hammered")
-    } else {
-        format!("{rate_hz:.0}hz{}", mode.slug())
+    let dir = report.path(&match load {
+        Load::Hammered => format!("{rate_hz:.0}hz-hammered"),
+        Load::Scraped => format!("{rate_hz:.0}hz-scraped"),
+        Load::Idle => format!("{rate_hz:.0}hz{}", mode.slug()),
     });
     std::fs::create_dir_all(&dir)?;
     for f in ["daemon-summary.json", "plant-summary.json", DEVICE_SUMMARY] {
@@ -291,7 +343,31 @@ fn one_rate(
     let mut daemon = Child::spawn("chaosd", cmd, &dir.join("daemon.log"), Stdout::Log)?;
     let (pid_d, pid_p) = (daemon.pid().unwrap_or(0), plant.pid().unwrap_or(0));
     let stop = Arc::new(AtomicBool::new(false));
-    let client = hammered.then(|| hammer(ns.clone(), stop.clone()));
+    let client = (load == Load::Hammered).then(|| hammer(ns.clone(), stop.clone()));
+    let mut exporter = None;
+    let scraper = if load == Load::Scraped {
+        let mut cmd = Command::new(sibling("chaosctl")?);
+        cmd.args(["exporter", "--listen", "127.0.0.1:0", "--namespace", &ns]);
+        let mut e = Child::spawn(
+            "chaosctl exporter",
+            cmd,
+            &dir.join("exporter.log"),
+            Stdout::Lines,
+        )?;
+        let line = e.expect(
+            "chaosctl exporter: serving http://",
+            Duration::from_secs(10),
+        )?;
+        let addr = line
+            .split("/metrics")
+            .next()
+            .unwrap_or_default()
+            .to_string();
+        exporter = Some(e);
+        Some(scrape(addr, stop.clone()))
+    } else {
+        None
+    };
 
     // CPU window: from 1 s in (start-up done) to 0.3 s before the daemon's end.
     let window = (
@@ -332,6 +408,14 @@ fn one_rate(
     }
     stop.store(true, Ordering::Relaxed);
     let requests = client.map(|h| h.join().unwrap_or(0));
+    let scrapes = match scraper {
+        Some(h) => Some(
+            h.join()
+                .map_err(|_| anyhow::anyhow!("the scraper thread panicked"))??,
+        ),
+        None => None,
+    };
+    drop(exporter);
     plant.terminate(Duration::from_secs(10))?;
     if plant.poll_exit().is_some_and(|s| !s.success()) {
         return Err(plant.failure("it failed"));
@@ -358,6 +442,7 @@ fn one_rate(
         mode,
         device,
         requests,
+        scrapes,
         daemon: read_json(&dir.join("daemon-summary.json"))?,
         plant: read_json(&dir.join("plant-summary.json"))?,
         cpu_daemon: (b.1 - a.1) as f64 / hz / secs,
@@ -534,21 +619,37 @@ pub fn targets(results: &[RateResult]) -> Vec<Target> {
     out
 }
 
-/// The idle and the hammered run side by side.
-pub fn hammer_table(idle: &RateResult, hammered: &RateResult) -> String {
+/// The idle, the hammered and the scraped run side by side.
+pub fn hammer_table(idle: &RateResult, hammered: &RateResult, scraped: &RateResult) -> String {
     let mut t = Table::new(&[
         "run",
         "status requests answered",
+        "scrapes: n, p50 / p99 / max",
         "daemon ticks",
         "overruns",
         "wake-up p99 / p99.9 / max",
         "compute p99 / p99.9 / max",
     ]);
-    for (name, r) in [("idle", idle), ("hammered", hammered)] {
+    for (name, r) in [
+        ("idle", idle),
+        ("hammered", hammered),
+        ("scraped every 100 ms", scraped),
+    ] {
         let d = &r.daemon;
+        let q = |v: &[u64], p: f64| v[((v.len() - 1) as f64 * p).round() as usize] as f64;
         t.row(vec![
             name.into(),
             r.requests.map_or_else(|| "0".into(), |n| n.to_string()),
+            match r.scrapes.as_deref() {
+                Some(v) if !v.is_empty() => format!(
+                    "{}, {} / {} / {}",
+                    v.len(),
+                    fmt_ns(q(v, 0.5)),
+                    fmt_ns(q(v, 0.99)),
+                    fmt_ns(q(v, 1.0))
+                ),
+                _ => "-".into(),
+            },
             count(d, &["counters", "ticks"]),
             count(d, &["counters", "overruns"]),
             format!(
@@ -581,7 +682,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
     for &rate in &opts.rates {
         for &mode in &opts.modes {
             all.push(
-                one_rate(opts, rate, mode, &report, false)
+                one_rate(opts, rate, mode, &report, Load::Idle)
                     .with_context(|| format!("e2e at {rate} Hz, {}", mode.name()))?,
             );
         }
@@ -593,8 +694,11 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
         .collect();
     // Does the control service disturb the loop? The first rate again, with a client sending
     // status requests back to back for the whole run.
-    let hammered = one_rate(opts, opts.rates[0], Mode::Clock, &report, true)
+    let hammered = one_rate(opts, opts.rates[0], Mode::Clock, &report, Load::Hammered)
         .with_context(|| "e2e with a client hammering status requests")?;
+    // Does a Prometheus scraper disturb it? The exporter scraped every 100 ms.
+    let scraped = one_rate(opts, opts.rates[0], Mode::Clock, &report, Load::Scraped)
+        .with_context(|| "e2e with the exporter scraped every 100 ms")?;
     let rt_line = |v: &Value| match v["realtime"]["sched_fifo"].as_u64() {
         Some(p) => format!("SCHED_FIFO {p}"),
         None => format!("SCHED_OTHER ({})", v["realtime"]["warnings"]),
@@ -629,10 +733,11 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
     }
     report.push(&format!(
         "\n**Control requests vs the loop** at {} kHz: the same run idle and with a client sending `status` requests \
-         back to back (each answered before the next is sent) for the whole run.\n\n",
+         back to back (each answered before the next is sent) for the whole run, and with `chaosctl exporter` \
+         scraped every 100 ms over HTTP (scrape time: connect → last byte; target ≤ 5 ms).\n\n",
         hammered.rate_hz / 1000.0
     ));
-    report.push(&hammer_table(&results[0], &hammered));
+    report.push(&hammer_table(&results[0], &hammered, &scraped));
     let mut panels = vec![
         Panel {
             title: "command round trip (plant)".into(),
@@ -801,6 +906,7 @@ mod tests {
             mode: Mode::Clock,
             device: None,
             requests: None,
+            scrapes: None,
             daemon,
             plant,
             cpu_daemon: 0.12,
@@ -811,9 +917,17 @@ mod tests {
             requests: Some(1234),
             ..r.clone()
         };
-        let h = hammer_table(&r, &hammered);
+        let scraped = RateResult {
+            scrapes: Some(vec![1_000_000, 2_000_000, 3_000_000]),
+            ..r.clone()
+        };
+        let h = hammer_table(&r, &hammered, &scraped);
         assert!(
-            h.contains("| idle | 0 | 10000 | 3 |") && h.contains("| hammered | 1234 | 10000 | 3 |"),
+            h.contains("| idle | 0 | - | 10000 | 3 |")
+                && h.contains("| hammered | 1234 | - | 10000 | 3 |")
+                && h.contains(
+                    "| scraped every 100 ms | 0 | 3, 2.00 ms / 3.00 ms / 3.00 ms | 10000 | 3 |"
+                ),
             "{h}"
         );
         let t = table(std::slice::from_ref(&r));

@@ -4,6 +4,7 @@
 //! all of its input before doing any work.
 
 mod analysis;
+mod exporter;
 mod plot;
 mod setup;
 mod simulate;
@@ -55,6 +56,8 @@ enum Command {
     Merge(MergeArgs),
     #[command(flatten)]
     Online(online::Online),
+    /// Serve the daemons' telemetry as Prometheus metrics on http://LISTEN/metrics.
+    Exporter(exporter::ExporterArgs),
     /// Print a preset as a TOML config file to start from.
     Config {
         #[arg(long, default_value = "paper")]
@@ -159,6 +162,7 @@ fn main() -> ExitCode {
         Command::Obstacles(a) => analysis::obstacles::run(a),
         Command::ArmFigure(a) => analysis::arm_figure::run(a),
         Command::Merge(m) => merge(m),
+        Command::Exporter(a) => exporter::run(a),
         Command::Config { preset } => control::Config::preset(&preset)
             .map(|c| print!("{}", c.to_toml_string()))
             .map_err(Into::into),

@@ -79,6 +79,14 @@ pub enum Online {
         #[command(flatten)]
         conn: Conn,
     },
+    /// Stall the control loop for MS milliseconds (1..=10000), to check a deployment's watchdog:
+    /// the plant brakes on its command timeout, and a `WatchdogSec` below MS makes systemd
+    /// restart the daemon. Not for normal operation.
+    DebugStall {
+        #[command(flatten)]
+        conn: Conn,
+        ms: u64,
+    },
     /// Stop the daemon cleanly (it writes its histograms).
     Shutdown {
         #[command(flatten)]
@@ -443,6 +451,7 @@ pub fn run(cmd: Online) -> ExitCode {
         },
         Online::Shutdown { conn } => request(&conn, Op::Shutdown, ""),
         Online::Resume { conn } => request(&conn, Op::Resume, ""),
+        Online::DebugStall { conn, ms } => request(&conn, Op::DebugStall, &ms.to_string()),
         Online::Watch { conn, json, count } => watch(&conn, json, count).map(|_| String::new()),
     };
     match result {

@@ -17,6 +17,8 @@ pub mod residual;
 pub mod service;
 pub mod telemetry;
 pub mod trigger;
+pub mod watchdog;
+pub mod window;
 
 const _: () = assert!(
     control::MAX_JOINTS == protocol::MAX_JOINTS,

@@ -540,8 +540,8 @@ fn resume_live_state(s: &mut DaemonSetup, fresh: bool) -> Result<()> {
     s.resume_from(live).map_err(|e| {
         anyhow::anyhow!("{}: the saved state does not fit this configuration: {e} (start with --fresh to ignore it)", daemon::persist::path(&dir).display())
     })?;
-    eprintln!(
-        "chaosd: resuming the live state saved in {}: controller time {t:.3} s, μ = {}, {} obstacles{} (--fresh starts from the file)",
+    tracing::info!(
+        "resuming the live state saved in {}: controller time {t:.3} s, μ = {}, {} obstacles{} (--fresh starts from the file)",
         daemon::persist::path(&dir).display(),
         s.system.feedback.mu,
         s.system.control.obstacles.len(),
@@ -552,6 +552,7 @@ fn resume_live_state(s: &mut DaemonSetup, fresh: bool) -> Result<()> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    rt::log::init();
     let result = match cli.command {
         Cmd::Run {
             common,
@@ -585,7 +586,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("chaosd: error: {e:#}");
+            rt::log::fatal("chaosd", &format!("{e:#}"));
             ExitCode::from(2)
         }
     }

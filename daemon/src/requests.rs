@@ -263,9 +263,41 @@ pub fn recording_path(out_dir: &Path, name: &str) -> Result<PathBuf, String> {
     Ok(full)
 }
 
+/// Longest stall `debug-stall` accepts (ms).
+pub const MAX_STALL_MS: u64 = 10_000;
+
+/// `MS` of a `debug-stall` request: a whole number of milliseconds, 1..=[`MAX_STALL_MS`].
+pub fn parse_stall(args: &str) -> Result<u64, String> {
+    let v = args.trim();
+    match v.parse::<u64>() {
+        Ok(ms) if (1..=MAX_STALL_MS).contains(&ms) => Ok(ms),
+        _ => Err(format!(
+            "debug-stall: {:?} is not a whole number of milliseconds in 1..={MAX_STALL_MS}",
+            v.chars().take(40).collect::<String>()
+        )),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn stalls_are_bounded() {
+        assert_eq!(parse_stall(" 250 "), Ok(250));
+        assert_eq!(parse_stall("10000"), Ok(10_000));
+        for bad in [
+            "",
+            "0",
+            "10001",
+            "-5",
+            "1.5",
+            "soon",
+            "99999999999999999999999",
+        ] {
+            assert!(parse_stall(bad).is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn recordings_cannot_leave_the_output_directory_through_a_link() {

@@ -85,9 +85,15 @@ fn run_n<const N: usize>(
             })?
     };
 
+    // READY and watchdog pings for systemd, from an ordinary thread (see `watchdog`).
+    let notifier = crate::watchdog::spawn(loop_core, running.clone())?;
+
     let result = control_loop::<N>(setup, &names, duration, tx, params_rx, rt_tx);
     running.store(false, Ordering::Relaxed);
     let _ = hk.join();
+    if let Some(h) = notifier {
+        let _ = h.join();
+    }
     let summary = reporter
         .join()
         .map_err(|_| anyhow!("the reporter thread panicked"))?;
@@ -152,16 +158,7 @@ fn control_loop<const N: usize>(
         lock_memory: d.lock_memory,
     });
     let _ = rt_tx.try_send(rt_report.clone());
-    for w in &rt_report.warnings {
-        eprintln!("chaosd: warning: {w}");
-    }
-    eprintln!(
-        "chaosd: namespace {:?}, {} Hz, {} wait, {}",
-        names.namespace(),
-        d.rate_hz,
-        d.wait.name(),
-        rt_report.one_line()
-    );
+    // Said by the reporter thread (`log_started`): the loop thread writes no logs.
 
     let period = d.period_ns();
     let spin = (d.spin_us * 1000.0) as u64;
@@ -223,6 +220,7 @@ fn control_loop<const N: usize>(
             }
         }
         let o = ctl.tick(newest.as_ref(), woke);
+        crate::watchdog::beat(ctl.counters.ticks);
         if let Some(c) = o.command {
             match publisher.loan_uninit() {
                 Ok(s) => {
@@ -258,6 +256,20 @@ fn control_loop<const N: usize>(
     Ok((rt_report, ctl.counters))
 }
 
+/// The start-up lines, logged by the reporter thread once the loop reports its real-time set-up.
+pub fn log_started(d: &crate::config::DaemonConfig, rt_report: &rt::setup::RtReport) {
+    for w in &rt_report.warnings {
+        tracing::warn!("{w}");
+    }
+    tracing::info!(
+        "namespace {:?}, {} Hz, {} wait, {}",
+        d.namespace,
+        d.rate_hz,
+        d.wait.name(),
+        rt_report.one_line()
+    );
+}
+
 /// Leaves the plant braking, not coasting on the last acceleration.
 fn leave_braking<const N: usize>(
     ctl: &mut Controller<N>,
@@ -279,6 +291,8 @@ fn take_request<const N: usize>(
         Ok(LoopRequest::Resume) => {
             ctl.resume();
         }
+        // Only on an operator's explicit `debug-stall`: a stuck tick, to check the watchdog.
+        Ok(LoopRequest::Stall(ms)) => std::thread::sleep(Duration::from_millis(ms)),
         Err(_) => {}
     }
 }

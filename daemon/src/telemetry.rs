@@ -36,6 +36,8 @@ pub enum LoopRequest {
     Params(LawParams),
     /// Leave FAULT (`chaosctl resume`).
     Resume,
+    /// Sleep this many ms between two ticks (`chaosctl debug-stall`, a watchdog check).
+    Stall(u64),
 }
 
 /// One tick, as the loop saw it.
@@ -131,6 +133,8 @@ pub struct Reporter {
     answered: (u64, u64),
     window_lateness: Histogram<u64>,
     tel_lateness: Histogram<u64>,
+    /// Distributions over the last complete 10 s, for monitoring (see `window`).
+    metrics: crate::window::MetricsWindow,
     /// Lateness, compute, state age since start or the last reset, for `hist`.
     snap: [Histogram<u64>; 3],
     snap_since: Instant,
@@ -186,6 +190,7 @@ impl Reporter {
             answered: (0, 0),
             window_lateness: hist::new_ns(),
             tel_lateness: hist::new_ns(),
+            metrics: Default::default(),
             snap: [hist::new_ns(), hist::new_ns(), hist::new_ns()],
             snap_since: Instant::now(),
             tel: Interval {
@@ -240,8 +245,8 @@ impl Reporter {
             Ok(()) => self.save_error_said = false,
             Err(e) if !self.save_error_said => {
                 self.save_error_said = true;
-                eprintln!(
-                    "chaosd: warning: cannot save the live state to {}: {e} (a restart would lose live changes)",
+                tracing::warn!(
+                    "cannot save the live state to {}: {e} (a restart would lose live changes)",
                     crate::persist::path(&self.daemon.output_dir).display()
                 );
             }
@@ -252,8 +257,8 @@ impl Reporter {
     fn record(&mut self, r: &TickRecord) {
         if let Some(f) = r.fault {
             // Said once, when it trips; `status` keeps saying it while the daemon is in FAULT.
-            eprintln!(
-                "chaosd: FAULT at t = {:.3} s: {f}; the plant is braking; `chaosctl resume` to control again",
+            tracing::error!(
+                "FAULT at t = {:.3} s: {f}; the plant is braking; `chaosctl resume` to control again",
                 r.t
             );
             self.fault = Some((r.t, f));
@@ -265,6 +270,7 @@ impl Reporter {
         self.lateness.saturating_record(r.lateness_ns.max(1));
         self.window_lateness.saturating_record(r.lateness_ns.max(1));
         self.tel_lateness.saturating_record(r.lateness_ns.max(1));
+        self.metrics.record(r);
         self.compute.saturating_record(r.compute_ns.max(1));
         self.snap[0].saturating_record(r.lateness_ns.max(1));
         self.snap[1].saturating_record(r.compute_ns.max(1));
@@ -369,6 +375,7 @@ impl Reporter {
             holds: c.holds_entered,
             ..TelemetrySample::default()
         };
+        self.metrics.fill(&mut t, c);
         if let Some(s) = self.last_state {
             t.state_seq = s.seq;
             t.phi = s.phi;
@@ -533,6 +540,10 @@ impl Reporter {
                 Ok("shutting down".into())
             }
             Op::Resume => self.resume(),
+            Op::DebugStall => crate::requests::parse_stall(args).and_then(|ms| {
+                self.params_tx.try_send(LoopRequest::Stall(ms)).map_err(|_| "the control loop has not taken the previous request yet; try again".to_string())?;
+                Ok(format!("stalling the control loop for {ms} ms"))
+            }),
         };
         match result {
             Ok(body) => ControlResponse::new(req.id, Status::Ok, &body),
@@ -646,6 +657,7 @@ impl Reporter {
                 break;
             }
             if let Ok(r) = self.rt_rx.try_recv() {
+                crate::service::log_started(&self.daemon, &r);
                 self.realtime = r;
             }
             while let Ok(Some(active)) = server.receive() {

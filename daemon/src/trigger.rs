@@ -148,6 +148,7 @@ pub fn state_loop<const N: usize>(
         };
         let woke = monotonic_ns();
         let o = ctl.tick(got.as_ref(), woke);
+        crate::watchdog::beat(ctl.counters.ticks);
         if let Some(c) = o.command {
             send(ports.publisher, &mut slot, c, ctl);
         }

@@ -161,6 +161,7 @@ fn a_full_ipc_tick_allocates_only_iceoryx2s_loan() {
             newest = Some(*s);
         }
         let o = c.tick(newest.as_ref(), now);
+        daemon::watchdog::beat(c.counters.ticks);
         let _ = tel_tx.try_send((now, o.command));
         sched.advance(monotonic_ns());
         match o.command {
@@ -237,6 +238,7 @@ fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
             c.rehearse(s);
         }
         let o = c.tick(got.as_ref(), monotonic_ns());
+        daemon::watchdog::beat(c.counters.ticks);
         match o.command {
             Some(cmd) => {
                 send(&publisher, slot, cmd, c);

@@ -116,13 +116,14 @@ pub fn main_with(
     args: &PlantArgs,
     body: impl FnOnce(&Launch) -> Result<PlantSummary>,
 ) -> ExitCode {
+    rt::log::init();
     match load(args).and_then(|l| body(&l)) {
         Ok(s) => {
             let c = &s.counters;
             let in_time = s.in_time_share.map_or(String::new(), |f| {
                 format!(", {:.3} % answered in time", f * 100.0)
             });
-            eprintln!(
+            tracing::info!(
                 "{name}: stopped after {:.1} s: {} states, {} commands ({} rejected), {} timeouts, {} late cycles{in_time}; round trip {}",
                 s.duration_s,
                 c.states_published,
@@ -135,7 +136,7 @@ pub fn main_with(
             ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("{name}: error: {e:#}");
+            rt::log::fatal(name, &format!("{e:#}"));
             ExitCode::from(2)
         }
     }

@@ -100,10 +100,10 @@ pub fn run<P: Plant>(
         lock_memory: cfg.lock_memory,
     });
     for w in &rt_report.warnings {
-        eprintln!("chaosd-plant: warning: {w}");
+        tracing::warn!("{w}");
     }
-    eprintln!(
-        "chaosd-plant: namespace {:?}, {} Hz, {} trigger, {}",
+    tracing::info!(
+        "namespace {:?}, {} Hz, {} trigger, {}",
         names.namespace(),
         cfg.rate_hz,
         cfg.trigger.name(),

@@ -48,6 +48,9 @@ pub enum Op {
     Shutdown = 13,
     /// Leave FAULT (the runaway guard tripped) and control again.
     Resume = 14,
+    /// `MS`: stall the control loop for MS milliseconds (1..=10000), to check that a
+    /// deployment's watchdog restarts a stuck loop. The plant brakes on its command timeout.
+    DebugStall = 15,
 }
 
 impl TryFrom<u32> for Op {
@@ -68,6 +71,7 @@ impl TryFrom<u32> for Op {
             12 => Op::RecordStop,
             13 => Op::Shutdown,
             14 => Op::Resume,
+            15 => Op::DebugStall,
             other => return Err(other),
         })
     }
@@ -184,7 +188,7 @@ impl ControlResponse {
 
 /// One telemetry sample, published by the daemon at `daemon.telemetry_hz`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::TelemetrySample.v1")]
+#[type_name("chaosd::TelemetrySample.v2")]
 #[repr(C)]
 pub struct TelemetrySample {
     pub seq: u64,
@@ -224,6 +228,20 @@ pub struct TelemetrySample {
     pub phi: f64,
     pub q: [f64; MAX_JOINTS],
     pub qd: [f64; MAX_JOINTS],
+    /// Runaway-guard trips, plant restarts seen, ticks the safety filter acted on, ticks with the
+    /// tracking error above `track_loss` (totals since start, like `ticks`).
+    pub faults: u64,
+    pub plant_restarts: u64,
+    pub safety_active: u64,
+    pub track_lost: u64,
+    /// Distributions over the last complete metrics window (`window_s` long, `window_ticks`
+    /// ticks; the window under way until the first one completes), for monitoring: wake-up
+    /// lateness, compute per tick and state age at the tick, each as p50, p99, p99.9 and max (µs).
+    pub window_s: f64,
+    pub window_ticks: u64,
+    pub lateness_us: [f64; 4],
+    pub compute_us: [f64; 4],
+    pub state_age_us: [f64; 4],
 }
 
 /// Control service settings: one daemon serves; several clients may ask at once, one request

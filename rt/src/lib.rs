@@ -8,6 +8,8 @@
 pub mod clock;
 pub mod files;
 pub mod hist;
+pub mod log;
+pub mod notify;
 pub mod setup;
 pub mod signal;
 pub mod trigger;

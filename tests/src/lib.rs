@@ -83,10 +83,22 @@ pub struct Proc {
 impl Proc {
     /// Starts `exe args…` with stdout and stderr going to `<dir>/<name>.log`.
     pub fn spawn(name: &str, exe: &Path, args: &[&str], dir: &Path) -> Self {
+        Self::spawn_env(name, exe, args, &[], dir)
+    }
+
+    /// [`Proc::spawn`] with extra environment variables.
+    pub fn spawn_env(
+        name: &str,
+        exe: &Path,
+        args: &[&str],
+        env: &[(&str, &str)],
+        dir: &Path,
+    ) -> Self {
         let log = dir.join(format!("{name}.log"));
         let f = std::fs::File::create(&log).expect("log file");
         let mut cmd = Command::new(exe);
         cmd.args(args)
+            .envs(env.iter().copied())
             .stdin(Stdio::null())
             .stdout(f.try_clone().unwrap())
             .stderr(f);

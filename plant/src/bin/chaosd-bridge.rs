@@ -62,8 +62,8 @@ fn main() -> ExitCode {
         let mut bridge = UdpBridge::new(l.system.n(), cfg);
         let summary = plant::run::run(&mut bridge, &l.plant, l.duration);
         let c = bridge.counters;
-        eprintln!(
-            "chaosd-bridge: {} states, {} commands sent; {} timeouts, {} malformed, {} out of order, {} superseded; device lost {} times, restarted {} times",
+        tracing::info!(
+            "{} states, {} commands sent; {} timeouts, {} malformed, {} out of order, {} superseded; device lost {} times, restarted {} times",
             c.states, c.commands_sent, c.timeouts, c.malformed, c.out_of_order, c.superseded, c.device_lost, c.device_restarts
         );
         summary.context("the bridge stopped")

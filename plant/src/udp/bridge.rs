@@ -110,7 +110,10 @@ impl UdpBridge {
             }
             Some(l) if l.session != s.session => {
                 self.counters.device_restarts += 1;
-                eprintln!("chaosd-bridge: the device restarted (new session)");
+                rt::warn_limited!(
+                    Duration::from_secs(10),
+                    "the device restarted (new session)"
+                );
                 Some(s)
             }
             _ => Some(s),
@@ -193,8 +196,9 @@ impl UdpBridge {
         if !self.lost && silent >= self.cfg.lost_after.as_nanos() as u64 {
             self.lost = true;
             self.counters.device_lost += 1;
-            eprintln!(
-                "chaosd-bridge: device lost: no state from {} for {} ms",
+            rt::warn_limited!(
+                Duration::from_secs(10),
+                "device lost: no state from {} for {} ms",
                 self.cfg.device,
                 silent / 1_000_000
             );
@@ -284,7 +288,7 @@ impl Plant for UdpBridge {
         self.last_rx_ns = monotonic_ns();
         if self.lost {
             self.lost = false;
-            eprintln!("chaosd-bridge: the device is back");
+            tracing::info!("the device is back");
         }
         self.counters.states += 1;
         self.origins[(out.seq % 64) as usize] = Origin {
