@@ -13,7 +13,8 @@
 
 use crate::config::DaemonSetup;
 use crate::controller::{Controller, ControllerSettings};
-use crate::telemetry::{DaemonSummary, LoopRequest, Reporter, TickRecord};
+use crate::reporter::Reporter;
+use crate::telemetry::{DaemonSummary, LoopRequest, TickRecord};
 use anyhow::{anyhow, Context, Result};
 use control::with_dof;
 use iceoryx2::prelude::ipc;
