@@ -19,6 +19,7 @@ pub mod requests;
 pub mod residual;
 pub mod service;
 pub mod telemetry;
+pub mod tick;
 pub mod trigger;
 
 const _: () = assert!(

@@ -7,9 +7,10 @@
 //! stay ordinary threads, and both move off the loop's core (`rt::setup::avoid_core`), so that
 //! without SCHED_FIFO they never compete with the loop for its CPU.
 //!
-//! The tick is: wait for the absolute deadline → drain the state subscriber, keeping the newest →
-//! `Controller::tick` → loan, write, send the command → `try_send` a record. No locks, no waiting
-//! on other threads; the only system calls are the clock, the sleep and iceoryx2's.
+//! The loop is: wait for the absolute deadline → one tick ([`crate::tick::ClockTick::run`]: drain
+//! the state subscriber, keeping the newest → `Controller::tick` → loan, write, send the command →
+//! `try_send` a record) → advance the schedule. No locks, no waiting on other threads; the only
+//! system calls are the clock, the sleep and iceoryx2's.
 
 use crate::config::DaemonSetup;
 use crate::controller::{Controller, ControllerSettings};
@@ -181,7 +182,7 @@ fn control_loop<const N: usize>(
             end_ns: end,
         };
         // What the control service sent, taken between ticks (as in the clock loop below).
-        let between = |ctl: &mut Controller<N>| take_request(ctl, &params_rx);
+        let between = |ctl: &mut Controller<N>| crate::tick::take_request(ctl, &params_rx);
         crate::trigger::state_loop(&mut ctl, &ports, timing, between);
         leave_braking(&mut ctl, &publisher);
         return Ok((rt_report, ctl.counters));
@@ -190,59 +191,22 @@ fn control_loop<const N: usize>(
         .phase_offset_us
         .map(|us| crate::trigger::PhaseLock::new(period, (us * 1e3) as u64));
     let mut sched = Schedule::new(period, start);
+    let tick = crate::tick::ClockTick {
+        subscriber: &subscriber,
+        publisher: &publisher,
+        tx: &tx,
+        requests: &params_rx,
+    };
     while !rt::signal::stop_requested() {
         let deadline = sched.deadline();
         if end.is_some_and(|e| deadline >= e) {
             break;
         }
         let woke = rt::wait_until(deadline, d.wait, spin);
-        // A validated parameter block (or a resume) from the control service takes effect here,
-        // between ticks.
-        take_request(&mut ctl, &params_rx);
-        let mut newest = None;
-        loop {
-            match subscriber.receive() {
-                Ok(Some(s)) => {
-                    // Only the newest sample of a tick is used; older ones are superseded unread.
-                    if newest.is_some() {
-                        ctl.counters.superseded += 1;
-                    }
-                    newest = Some(*s);
-                }
-                Ok(None) => break,
-                Err(_) => {
-                    ctl.counters.ipc_errors += 1;
-                    break;
-                }
-            }
-        }
-        let o = ctl.tick(newest.as_ref(), woke);
-        if let Some(c) = o.command {
-            match publisher.loan_uninit() {
-                Ok(s) => {
-                    if s.write_payload(c).send().is_err() {
-                        ctl.counters.ipc_errors += 1;
-                    }
-                }
-                Err(_) => ctl.counters.ipc_errors += 1,
-            }
-        }
-        let done = monotonic_ns();
-        ctl.counters.overruns += sched.advance(done);
-        if let (Some(lock), Some(s), Some(_)) = (phase, newest, o.state_age_ns) {
+        let t = tick.run(&mut ctl, deadline, woke);
+        ctl.counters.overruns += sched.advance(t.done);
+        if let (Some(lock), Some(s)) = (phase, t.answered) {
             sched.set_deadline(lock.align(sched.deadline(), s.stamp_ns));
-        }
-        let times = crate::record::TickTimes {
-            due: deadline,
-            woke,
-            done,
-        };
-        let rec = crate::record::tick_record(&ctl, &o, newest, times);
-        match tx.try_send(rec) {
-            Ok(()) => {}
-            Err(crossbeam::channel::TrySendError::Full(_)) => ctl.counters.telemetry_dropped += 1,
-            // The reporter is gone: no control service, no histograms. Stop cleanly.
-            Err(crossbeam::channel::TrySendError::Disconnected(_)) => rt::signal::request_stop(),
         }
     }
     leave_braking(&mut ctl, &publisher);
@@ -257,19 +221,5 @@ fn leave_braking<const N: usize>(
     let brake = ctl.brake_command(monotonic_ns());
     if let Ok(s) = publisher.loan_uninit() {
         let _ = s.write_payload(brake).send();
-    }
-}
-
-/// Applies at most one request from the control service (never blocks).
-fn take_request<const N: usize>(
-    ctl: &mut Controller<N>,
-    rx: &crossbeam::channel::Receiver<LoopRequest>,
-) {
-    match rx.try_recv() {
-        Ok(LoopRequest::Params(p)) => ctl.set_params(p),
-        Ok(LoopRequest::Resume) => {
-            ctl.resume();
-        }
-        Err(_) => {}
     }
 }
