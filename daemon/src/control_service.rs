@@ -33,6 +33,9 @@ impl Reporter {
                 "the control loop has not taken the previous change yet; try again".to_string()
             })?;
         self.cfg = new;
+        if let Some(log) = self.replay.as_mut() {
+            log.committed(&self.cfg);
+        }
         self.save_live_state();
         let f = &self.cfg.feedback;
         let c = &self.cfg.control;
@@ -90,6 +93,8 @@ impl Reporter {
             "histograms": self.percentiles(),
             "recording": self.recording.as_ref().map(|r| r.path.display().to_string()),
             "recording_error": self.recording_error,
+            "replay_recording": self.replay.as_ref().map(|r| r.path.display().to_string()),
+            "replay_error": self.replay.as_ref().and_then(|r| r.stopped.clone()),
             "realtime": self.realtime,
             "trigger": self.daemon.trigger,
             "phase_offset_us": self.daemon.phase_offset_us,

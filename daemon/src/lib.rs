@@ -14,6 +14,7 @@ pub mod guard;
 pub mod persist;
 pub mod record;
 pub mod recording;
+pub mod replay;
 pub mod reporter;
 pub mod requests;
 pub mod residual;

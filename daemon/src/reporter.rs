@@ -68,6 +68,8 @@ pub struct Reporter {
     pub(crate) window_resid: (f64, u64),
     pub(crate) recording: Option<Recording>,
     pub(crate) recording_error: Option<String>,
+    /// The replay recording from the first tick (`chaosd run --record`), if any.
+    pub(crate) replay: Option<crate::replay::ReplayLog>,
     /// Why the daemon is in FAULT (controller time, reason), while it is.
     pub(crate) fault: Option<(f64, crate::guard::FaultReason)>,
     /// Controller time a restarted daemon resumed from (until the first record).
@@ -123,6 +125,7 @@ impl Reporter {
             window_resid: (0.0, 0),
             recording: None,
             recording_error: None,
+            replay: None,
             fault: None,
             t_start: 0.0,
             saved_at: None,
@@ -138,6 +141,12 @@ impl Reporter {
                 self.fault = Some((l.t, crate::guard::FaultReason::Restored));
             }
         }
+        self
+    }
+
+    /// Writes every tick to a replay recording (see [`crate::replay`]).
+    pub fn recording_replay(mut self, log: Option<crate::replay::ReplayLog>) -> Self {
+        self.replay = log;
         self
     }
 
@@ -221,7 +230,8 @@ impl Reporter {
                 self.safety_ticks += 1;
             }
         }
-        if let (Some(rec), Some(st)) = (self.recording.as_mut(), r.state.as_ref()) {
+        if let (Some(rec), Some(st), true) = (self.recording.as_mut(), r.state.as_ref(), r.ran_law)
+        {
             if let Err(e) = rec.write_row(r, st) {
                 // Do not go on pretending: close it and say so in `status` and `record stop`.
                 self.recording_error = Some(format!(
@@ -232,7 +242,14 @@ impl Reporter {
                 self.recording = None;
             }
         }
-        if r.state.is_some() {
+        if let Some(log) = self.replay.as_mut() {
+            let was_running = log.stopped.is_none();
+            log.tick(r);
+            if let (true, Some(why)) = (was_running, &log.stopped) {
+                eprintln!("chaosd: warning: {why}");
+            }
+        }
+        if r.ran_law && r.state.is_some() {
             self.last_state = r.state;
         }
         if r.ran_law {
@@ -396,6 +413,12 @@ impl Reporter {
         self.save_live_state();
         if let Some(r) = self.recording.take() {
             let _ = r.finish();
+        }
+        if let Some(log) = self.replay.take() {
+            match log.finish() {
+                Ok(p) => eprintln!("chaosd: replay recording {}", p.display()),
+                Err(e) => eprintln!("chaosd: warning: {e}"),
+            }
         }
         self.finish(start.elapsed(), wall_start)
     }

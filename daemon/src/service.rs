@@ -54,8 +54,24 @@ fn run_n<const N: usize>(
     let (tx, rx) = crossbeam::channel::bounded::<TickRecord>(d.telemetry_queue);
     let (params_tx, params_rx) = crossbeam::channel::bounded::<LoopRequest>(16);
     let (rt_tx, rt_rx) = crossbeam::channel::bounded::<rt::setup::RtReport>(1);
+    let settings = setup.controller_settings(protocol::new_instance_id());
+    let start_in_fault = setup.live.as_ref().is_some_and(|l| l.fault.is_some());
+    let replay = match &setup.record {
+        Some(name) => Some(
+            crate::replay::ReplayLog::create(
+                &d.output_dir,
+                name,
+                &setup.system,
+                &settings,
+                start_in_fault,
+            )
+            .map_err(|e| anyhow!("--record: {e}"))?,
+        ),
+        None => None,
+    };
     let reporter = Reporter::new(setup.system.clone(), d.clone(), params_tx, rt_rx)?
-        .resuming(setup.live.as_ref());
+        .resuming(setup.live.as_ref())
+        .recording_replay(replay);
     // Helper threads stay off the loop's core (it is pinned there below).
     let loop_core = d.core;
     let reporter = std::thread::Builder::new()
@@ -87,7 +103,7 @@ fn run_n<const N: usize>(
             })?
     };
 
-    let result = control_loop::<N>(setup, &names, duration, tx, params_rx, rt_tx);
+    let result = control_loop::<N>(setup, settings, &names, duration, tx, params_rx, rt_tx);
     running.store(false, Ordering::Relaxed);
     let _ = hk.join();
     let summary = reporter
@@ -104,6 +120,7 @@ fn run_n<const N: usize>(
 
 fn control_loop<const N: usize>(
     setup: &DaemonSetup,
+    settings: ControllerSettings,
     names: &ServiceNames,
     duration: Option<f64>,
     tx: crossbeam::channel::Sender<TickRecord>,
@@ -129,15 +146,6 @@ fn control_loop<const N: usize>(
     rt::files::write(&d.output_dir.join("config.toml"), setup.to_toml())
         .context("cannot write the effective config")?;
 
-    let settings = ControllerSettings {
-        rate_hz: d.rate_hz,
-        first_order_hold: d.hold == crate::config::Hold::FirstOrder,
-        hold_after: d.hold_after,
-        stale_ns: (d.stale_ms * 1e6) as u64,
-        future_slack_ns: d.period_ns(),
-        daemon_id: protocol::new_instance_id(),
-        t_start: setup.live.as_ref().map_or(0.0, |l| l.t),
-    };
     let mut ctl = Controller::<N>::new(
         setup.system.model::<N>(),
         setup.system.law_params(),

@@ -47,8 +47,12 @@ pub struct TickRecord {
     pub feedback_on: bool,
     pub feedback_active: bool,
     pub counters: Counters,
-    /// The state the law used, if a fresh one arrived.
+    /// The newest state received on this tick, as received (the law used it if `ran_law`).
     pub state: Option<StateSample>,
+    /// The tick's clock: the `now` `Controller::tick` was given (CLOCK_MONOTONIC ns).
+    pub now_ns: u64,
+    /// A control-service change that took effect just before this tick.
+    pub applied: Option<crate::controller::Applied>,
     /// The command published, if any.
     pub command: Option<CommandSample>,
 }
