@@ -58,6 +58,12 @@ enum Command {
     Online(online::Online),
     /// Serve the daemons' telemetry as Prometheus metrics on http://LISTEN/metrics.
     Exporter(exporter::ExporterArgs),
+    /// Replay a recording (`chaosd run --record NAME`) through the daemon's controller and
+    /// compare every command bit for bit. Exit 0: all identical; 1: a mismatch; 2: a bad file.
+    Replay {
+        /// The recording file.
+        recording: std::path::PathBuf,
+    },
     /// Print a preset as a TOML config file to start from.
     Config {
         #[arg(long, default_value = "paper")]
@@ -152,6 +158,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Online(c) => return online::run(c),
+        Command::Replay { recording } => return replay(&recording),
         Command::Simulate(a) => simulate::run(a),
         Command::Lyapunov(a) => analysis::lyapunov::run(a),
         Command::Sweep(a) => analysis::sweep::run(a),
@@ -171,6 +178,24 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("chaosctl: error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// `chaosctl replay`: prints how many ticks matched and the first mismatch, if any.
+fn replay(path: &std::path::Path) -> ExitCode {
+    match daemon::replay::replay(path) {
+        Ok(r) => {
+            println!("{r}");
+            if r.all_matched() {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::from(1)
+            }
+        }
+        Err(e) => {
+            eprintln!("chaosctl: replay: {e:#}");
             ExitCode::from(2)
         }
     }

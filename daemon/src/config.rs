@@ -195,6 +195,8 @@ pub struct DaemonSetup {
     pub daemon: DaemonConfig,
     /// The live state a restarted daemon resumes (`persist`), if any.
     pub live: Option<crate::persist::LiveState>,
+    /// A replay recording to write from the first tick (`chaosd run --record NAME`).
+    pub record: Option<String>,
 }
 
 impl DaemonSetup {
@@ -212,6 +214,7 @@ impl DaemonSetup {
             system,
             daemon,
             live: None,
+            record: None,
         };
         s.validate()?;
         Ok(s)
@@ -303,6 +306,20 @@ impl DaemonSetup {
         }
         self.live = Some(live);
         Ok(())
+    }
+
+    /// What the controller runs with, for a daemon start with id `daemon_id`.
+    pub fn controller_settings(&self, daemon_id: u64) -> crate::controller::ControllerSettings {
+        let d = &self.daemon;
+        crate::controller::ControllerSettings {
+            rate_hz: d.rate_hz,
+            first_order_hold: d.hold == Hold::FirstOrder,
+            hold_after: d.hold_after,
+            stale_ns: (d.stale_ms * 1e6) as u64,
+            future_slack_ns: d.period_ns(),
+            daemon_id,
+            t_start: self.live.as_ref().map_or(0.0, |l| l.t),
+        }
     }
 
     /// The whole file, with the effective `[daemon]` table, for the plant and for the record.

@@ -78,6 +78,17 @@ pub enum Rejection {
     PlantFault,
 }
 
+/// A change from the control service that took effect between two ticks. The loops take at most
+/// one request between two ticks; a recording ([`crate::replay`]) needs to know which tick it
+/// preceded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Applied {
+    /// A new parameter block ([`Controller::set_params`]).
+    Params,
+    /// An operator's resume out of FAULT ([`Controller::resume`]).
+    Resume,
+}
+
 /// What one tick decided.
 #[derive(Clone, Copy, Debug)]
 pub struct TickOutcome<const N: usize> {
@@ -94,6 +105,8 @@ pub struct TickOutcome<const N: usize> {
     pub plant_restarted: bool,
     /// The runaway guard tripped on this tick, and why.
     pub fault: Option<FaultReason>,
+    /// The change applied since the previous tick, if any.
+    pub applied: Option<Applied>,
 }
 
 /// Tick-independent settings.
@@ -133,6 +146,8 @@ pub struct Controller<const N: usize> {
     next_command_seq: u64,
     guard: Guard,
     fault: Option<FaultReason>,
+    /// Applied since the last tick.
+    applied: Option<Applied>,
     pub counters: Counters,
 }
 
@@ -164,6 +179,7 @@ impl<const N: usize> Controller<N> {
             next_command_seq: 0,
             guard: Guard::default(),
             fault: None,
+            applied: None,
             counters: Counters::default(),
         }
     }
@@ -175,6 +191,7 @@ impl<const N: usize> Controller<N> {
     /// Swaps in a validated parameter block (at a tick boundary; no allocation).
     pub fn set_params(&mut self, p: LawParams) {
         self.params = p;
+        self.applied = Some(Applied::Params);
         self.counters.params_applied += 1;
     }
 
@@ -204,6 +221,7 @@ impl<const N: usize> Controller<N> {
         self.guard.reset();
         self.last_qd = None;
         self.missed = 0;
+        self.applied = Some(Applied::Resume);
         self.counters.resumes += 1;
         true
     }
@@ -284,6 +302,7 @@ impl<const N: usize> Controller<N> {
             mode_changed: false,
             plant_restarted: false,
             fault: None,
+            applied: self.applied.take(),
         };
         let mut fresh = None;
         if let Some(s) = newest {

@@ -5,17 +5,22 @@
 //! validation ([`config`]), the per-tick decisions with their fault handling ([`controller`]), the runaway guard
 //! ([`guard`]), the
 //! real-time loop on iceoryx2 ([`service`]) and the reporting that keeps work out of the tick
-//! ([`telemetry`]).
+//! ([`telemetry`] the shared types, [`reporter`], [`control_service`], [`recording`]).
 
 pub mod config;
+pub mod control_service;
 pub mod controller;
 pub mod guard;
 pub mod persist;
 pub mod record;
+pub mod recording;
+pub mod replay;
+pub mod reporter;
 pub mod requests;
 pub mod residual;
 pub mod service;
 pub mod telemetry;
+pub mod tick;
 pub mod trigger;
 pub mod watchdog;
 pub mod window;

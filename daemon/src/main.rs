@@ -44,6 +44,10 @@ enum Cmd {
         /// saved in the output directory (changes made with chaosctl, controller time, a FAULT).
         #[arg(long)]
         fresh: bool,
+        /// Write a replay recording of every tick to NAME in the output directory (for
+        /// `chaosctl replay`; about 2 GB an hour at 1 kHz).
+        #[arg(long, value_name = "NAME")]
+        record: Option<String>,
     },
     /// Start a plant process and the daemon, run a while with the delayed feedback switched on
     /// part-way, and print a report.
@@ -558,12 +562,14 @@ fn main() -> ExitCode {
             common,
             duration,
             fresh,
+            record,
         } => (|| {
             if let Some(d) = duration {
                 check_duration(d)?;
             }
             let mut s = common.setup()?;
             resume_live_state(&mut s, fresh)?;
+            s.record = record;
             let summary = daemon::service::run(&s, duration, print_line)?;
             say!(
                 "chaosd: stopped after {:.1} s; lateness {}; files in {}",

@@ -11,7 +11,7 @@ use protocol::StateSample;
 pub struct TickTimes {
     /// When the tick was due: the deadline (clock) or the state's expected arrival (state).
     pub due: u64,
-    /// When it started: the wake-up (clock) or the state's receipt (state).
+    /// When it started: the wake-up (clock) or the state's receipt (state); the tick's `now`.
     pub woke: u64,
     /// When the command had been sent.
     pub done: u64,
@@ -43,7 +43,9 @@ pub fn tick_record<const N: usize>(
         feedback_on: p.feedback,
         feedback_active: law.is_some_and(|l| l.flags & law_flags::FEEDBACK_ACTIVE != 0),
         counters: ctl.counters,
-        state: if law.is_some() { newest } else { None },
+        state: newest,
+        now_ns: times.woke,
+        applied: o.applied,
         command: o.command,
     }
 }

@@ -7,13 +7,15 @@
 //! stay ordinary threads, and both move off the loop's core (`rt::setup::avoid_core`), so that
 //! without SCHED_FIFO they never compete with the loop for its CPU.
 //!
-//! The tick is: wait for the absolute deadline → drain the state subscriber, keeping the newest →
-//! `Controller::tick` → loan, write, send the command → `try_send` a record. No locks, no waiting
-//! on other threads; the only system calls are the clock, the sleep and iceoryx2's.
+//! The loop is: wait for the absolute deadline → one tick ([`crate::tick::ClockTick::run`]: drain
+//! the state subscriber, keeping the newest → `Controller::tick` → loan, write, send the command →
+//! `try_send` a record) → advance the schedule. No locks, no waiting on other threads; the only
+//! system calls are the clock, the sleep and iceoryx2's.
 
 use crate::config::DaemonSetup;
 use crate::controller::{Controller, ControllerSettings};
-use crate::telemetry::{DaemonSummary, LoopRequest, Reporter, TickRecord};
+use crate::reporter::Reporter;
+use crate::telemetry::{DaemonSummary, LoopRequest, TickRecord};
 use anyhow::{anyhow, Context, Result};
 use control::with_dof;
 use iceoryx2::prelude::ipc;
@@ -52,8 +54,24 @@ fn run_n<const N: usize>(
     let (tx, rx) = crossbeam::channel::bounded::<TickRecord>(d.telemetry_queue);
     let (params_tx, params_rx) = crossbeam::channel::bounded::<LoopRequest>(16);
     let (rt_tx, rt_rx) = crossbeam::channel::bounded::<rt::setup::RtReport>(1);
+    let settings = setup.controller_settings(protocol::new_instance_id());
+    let start_in_fault = setup.live.as_ref().is_some_and(|l| l.fault.is_some());
+    let replay = match &setup.record {
+        Some(name) => Some(
+            crate::replay::ReplayLog::create(
+                &d.output_dir,
+                name,
+                &setup.system,
+                &settings,
+                start_in_fault,
+            )
+            .map_err(|e| anyhow!("--record: {e}"))?,
+        ),
+        None => None,
+    };
     let reporter = Reporter::new(setup.system.clone(), d.clone(), params_tx, rt_rx)?
-        .resuming(setup.live.as_ref());
+        .resuming(setup.live.as_ref())
+        .recording_replay(replay);
     // Helper threads stay off the loop's core (it is pinned there below).
     let loop_core = d.core;
     let reporter = std::thread::Builder::new()
@@ -88,7 +106,7 @@ fn run_n<const N: usize>(
     // READY and watchdog pings for systemd, from an ordinary thread (see `watchdog`).
     let notifier = crate::watchdog::spawn(loop_core, running.clone())?;
 
-    let result = control_loop::<N>(setup, &names, duration, tx, params_rx, rt_tx);
+    let result = control_loop::<N>(setup, settings, &names, duration, tx, params_rx, rt_tx);
     running.store(false, Ordering::Relaxed);
     let _ = hk.join();
     if let Some(h) = notifier {
@@ -108,6 +126,7 @@ fn run_n<const N: usize>(
 
 fn control_loop<const N: usize>(
     setup: &DaemonSetup,
+    settings: ControllerSettings,
     names: &ServiceNames,
     duration: Option<f64>,
     tx: crossbeam::channel::Sender<TickRecord>,
@@ -133,15 +152,6 @@ fn control_loop<const N: usize>(
     rt::files::write(&d.output_dir.join("config.toml"), setup.to_toml())
         .context("cannot write the effective config")?;
 
-    let settings = ControllerSettings {
-        rate_hz: d.rate_hz,
-        first_order_hold: d.hold == crate::config::Hold::FirstOrder,
-        hold_after: d.hold_after,
-        stale_ns: (d.stale_ms * 1e6) as u64,
-        future_slack_ns: d.period_ns(),
-        daemon_id: protocol::new_instance_id(),
-        t_start: setup.live.as_ref().map_or(0.0, |l| l.t),
-    };
     let mut ctl = Controller::<N>::new(
         setup.system.model::<N>(),
         setup.system.law_params(),
@@ -177,7 +187,7 @@ fn control_loop<const N: usize>(
             end_ns: end,
         };
         // What the control service sent, taken between ticks (as in the clock loop below).
-        let between = |ctl: &mut Controller<N>| take_request(ctl, &params_rx);
+        let between = |ctl: &mut Controller<N>| crate::tick::take_request(ctl, &params_rx);
         crate::trigger::state_loop(&mut ctl, &ports, timing, between);
         leave_braking(&mut ctl, &publisher);
         return Ok((rt_report, ctl.counters));
@@ -186,6 +196,13 @@ fn control_loop<const N: usize>(
         .phase_offset_us
         .map(|us| crate::trigger::PhaseLock::new(period, (us * 1e3) as u64));
     let mut sched = Schedule::new(period, start);
+    let tick = crate::tick::ClockTick {
+        subscriber: &subscriber,
+        publisher: &publisher,
+        tx: &tx,
+        requests: &params_rx,
+    };
+    // The newest answered state: what the wait rehearses the tick on.
     let mut last: Option<protocol::StateSample> = None;
     while !rt::signal::stop_requested() {
         let deadline = sched.deadline();
@@ -199,57 +216,13 @@ fn control_loop<const N: usize>(
                 ctl.rehearse(s);
             }
         });
-        // A validated parameter block (or a resume) from the control service takes effect here,
-        // between ticks.
-        take_request(&mut ctl, &params_rx);
-        let mut newest = None;
-        loop {
-            match subscriber.receive() {
-                Ok(Some(s)) => {
-                    // Only the newest sample of a tick is used; older ones are superseded unread.
-                    if newest.is_some() {
-                        ctl.counters.superseded += 1;
-                    }
-                    newest = Some(*s);
-                }
-                Ok(None) => break,
-                Err(_) => {
-                    ctl.counters.ipc_errors += 1;
-                    break;
-                }
-            }
+        let t = tick.run(&mut ctl, deadline, woke);
+        ctl.counters.overruns += sched.advance(t.done);
+        if t.answered.is_some() {
+            last = t.answered;
         }
-        let o = ctl.tick(newest.as_ref(), woke);
-        crate::watchdog::beat(ctl.counters.ticks);
-        if let Some(c) = o.command {
-            match publisher.loan_uninit() {
-                Ok(s) => {
-                    if s.write_payload(c).send().is_err() {
-                        ctl.counters.ipc_errors += 1;
-                    }
-                }
-                Err(_) => ctl.counters.ipc_errors += 1,
-            }
-        }
-        let done = monotonic_ns();
-        if o.state_age_ns.is_some() {
-            last = newest;
-        }
-        ctl.counters.overruns += sched.advance(done);
-        if let (Some(lock), Some(s), Some(_)) = (phase, newest, o.state_age_ns) {
+        if let (Some(lock), Some(s)) = (phase, t.answered) {
             sched.set_deadline(lock.align(sched.deadline(), s.stamp_ns));
-        }
-        let times = crate::record::TickTimes {
-            due: deadline,
-            woke,
-            done,
-        };
-        let rec = crate::record::tick_record(&ctl, &o, newest, times);
-        match tx.try_send(rec) {
-            Ok(()) => {}
-            Err(crossbeam::channel::TrySendError::Full(_)) => ctl.counters.telemetry_dropped += 1,
-            // The reporter is gone: no control service, no histograms. Stop cleanly.
-            Err(crossbeam::channel::TrySendError::Disconnected(_)) => rt::signal::request_stop(),
         }
     }
     leave_braking(&mut ctl, &publisher);
@@ -278,21 +251,5 @@ fn leave_braking<const N: usize>(
     let brake = ctl.brake_command(monotonic_ns());
     if let Ok(s) = publisher.loan_uninit() {
         let _ = s.write_payload(brake).send();
-    }
-}
-
-/// Applies at most one request from the control service (never blocks).
-fn take_request<const N: usize>(
-    ctl: &mut Controller<N>,
-    rx: &crossbeam::channel::Receiver<LoopRequest>,
-) {
-    match rx.try_recv() {
-        Ok(LoopRequest::Params(p)) => ctl.set_params(p),
-        Ok(LoopRequest::Resume) => {
-            ctl.resume();
-        }
-        // Only on an operator's explicit `debug-stall`: a stuck tick, to check the watchdog.
-        Ok(LoopRequest::Stall(ms)) => std::thread::sleep(Duration::from_millis(ms)),
-        Err(_) => {}
     }
 }

@@ -4,10 +4,12 @@
 //! Two claims, both exact:
 //! 1. `Controller::tick` (validation, mode machine, delay line, control law, command) makes zero
 //!    allocations, on fresh, missing, invalid, stale and restarted-plant inputs.
-//! 2. A whole tick with iceoryx2 in the loop (drain the subscriber, tick, loan → write → send)
-//!    makes exactly one allocation per published command: iceoryx2 0.10's `loan_uninit` creates an
-//!    `Rc` for each sample (`SampleMutUninit::new`). `receive`, `send` and dropping samples make
-//!    none. If a future iceoryx2 removes it, this test fails and the README's note can go.
+//! 2. The clock loop's own tick, `daemon::tick::ClockTick::run` (take a request, drain the
+//!    subscriber, tick, loan → write → send, `try_send` the record), with the schedule's advance,
+//!    on real iceoryx2 ports, makes exactly one allocation per published command: iceoryx2 0.10's
+//!    `loan_uninit` creates an `Rc` for each sample (`SampleMutUninit::new`). `receive`, `send`
+//!    and dropping samples make none. If a future iceoryx2 removes it, this test fails and the
+//!    README's note can go.
 
 use control::Config;
 use daemon::controller::{Controller, ControllerSettings};
@@ -127,7 +129,11 @@ fn controller_tick_allocates_nothing() {
 }
 
 #[test]
-fn a_full_ipc_tick_allocates_only_iceoryx2s_loan() {
+fn the_clock_loops_tick_allocates_only_iceoryx2s_loan() {
+    // `ClockTick::run` is the function `service::control_loop` calls every period, on real
+    // iceoryx2 ports in a namespace of its own; only the wait for the deadline is left out.
+    use daemon::telemetry::{LoopRequest, TickRecord};
+    use daemon::tick::ClockTick;
     iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
     let node = daemon::service::node("no-alloc-test").unwrap();
     let ns = format!(
@@ -144,63 +150,52 @@ fn a_full_ipc_tick_allocates_only_iceoryx2s_loan() {
     let cmd_sub = cmd_svc.subscriber_builder().create().unwrap();
     let mut c = controller("paper");
     let mut seq = 0u64;
-    // The loop's channels and schedule, as in `service::control_loop`.
-    let (params_tx, params_rx) = crossbeam::channel::bounded::<control::LawParams>(16);
-    let (tel_tx, tel_rx) =
-        crossbeam::channel::bounded::<(u64, Option<protocol::CommandSample>)>(4096);
+    // The loop's channels and schedule, as `service::control_loop` makes them.
+    let (params_tx, params_rx) = crossbeam::channel::bounded::<LoopRequest>(16);
+    let (tel_tx, tel_rx) = crossbeam::channel::bounded::<TickRecord>(4096);
+    let tick = ClockTick {
+        subscriber: &sub,
+        publisher: &publisher,
+        tx: &tel_tx,
+        requests: &params_rx,
+    };
     let mut sched = rt::clock::Schedule::new(1_000_000, monotonic_ns());
     let params = *c.params();
-    // One daemon tick; the plant's publish happens outside the counted region.
-    let mut one_tick = |c: &mut Controller<3>| -> bool {
-        let now = monotonic_ns();
-        if let Ok(p) = params_rx.try_recv() {
-            c.set_params(p);
-        }
-        let mut newest = None;
-        while let Ok(Some(s)) = sub.receive() {
-            newest = Some(*s);
-        }
-        let o = c.tick(newest.as_ref(), now);
-        daemon::watchdog::beat(c.counters.ticks);
-        let _ = tel_tx.try_send((now, o.command));
-        sched.advance(monotonic_ns());
-        match o.command {
-            Some(cmd) => {
-                publisher
-                    .loan_uninit()
-                    .unwrap()
-                    .write_payload(cmd)
-                    .send()
-                    .unwrap();
-                true
-            }
-            None => false,
-        }
-    };
     // Warm up: the first sends set up connections (and allocate for that).
     for _ in 0..50 {
         plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
         seq += 1;
-        one_tick(&mut c);
+        let now = monotonic_ns();
+        tick.run(&mut c, now, now);
         while let Ok(Some(_)) = cmd_sub.receive() {}
     }
-    let mut published = 0;
-    let mut allocs = 0;
+    let (mut published, mut allocs, mut records) = (0, 0, 0);
     for i in 0..2000 {
         if i % 100 == 0 {
-            params_tx.try_send(params).unwrap(); // a control-service change now and then
+            // A control-service change now and then, and a resume (a no-op outside FAULT).
+            params_tx.try_send(LoopRequest::Params(params)).unwrap();
+        } else if i % 100 == 50 {
+            params_tx.try_send(LoopRequest::Resume).unwrap();
         }
-        while tel_rx.try_recv().is_ok() {}
+        records += tel_rx.try_iter().count();
         plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
         seq += 1;
-        let mut sent = false;
-        allocs += allocations(|| sent = one_tick(&mut c));
-        if sent {
-            published += 1;
-        }
+        let before = c.counters.commands;
+        allocs += allocations(|| {
+            let due = sched.deadline();
+            let t = tick.run(&mut c, due, monotonic_ns());
+            c.counters.overruns += sched.advance(t.done);
+        });
+        published += c.counters.commands - before;
         while let Ok(Some(_)) = cmd_sub.receive() {}
     }
+    records += tel_rx.try_iter().count();
     assert_eq!(published, 2000);
+    assert_eq!(
+        records, 2050,
+        "every tick handed its record to the reporter"
+    );
+    assert_eq!(c.counters.params_applied, 20);
     assert_eq!(
         allocs, published,
         "expected exactly one allocation (iceoryx2's per-loan Rc) per published command"

@@ -1,0 +1,106 @@
+//! Recordings (`chaosctl record start|stop`): the states the law used and the commands it sent,
+//! one CSV row per answered state, written by the reporter thread, never by the loop.
+//!
+//! A recording stays in the output directory ([`crate::requests::recording_path`] refuses
+//! absolute paths, `..` and symbolic links) and is owner-only ([`rt::files`]). Every recording
+//! file is opened in one place, [`open`].
+
+use crate::telemetry::TickRecord;
+use protocol::StateSample;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::SystemTime;
+
+/// An open recording.
+pub struct Recording {
+    pub path: PathBuf,
+    file: std::io::BufWriter<std::fs::File>,
+    pub rows: u64,
+    n: usize,
+}
+
+/// Opens a new recording file: owner-only, never over an existing file or link.
+pub fn open(path: &Path) -> std::io::Result<std::io::BufWriter<std::fs::File>> {
+    Ok(std::io::BufWriter::new(rt::files::create_new(path)?))
+}
+
+/// Resolves a recording name (empty: `recording-<unix seconds>.csv`) inside `out_dir` and creates
+/// its directories.
+pub fn resolve(out_dir: &Path, name: &str, default_ext: &str) -> Result<PathBuf, String> {
+    let name = if name.trim().is_empty() {
+        let secs = SystemTime::now()
+            .duration_since(SystemTime::UNIX_EPOCH)
+            .map(|d| d.as_secs())
+            .unwrap_or(0);
+        format!("recording-{secs}.{default_ext}")
+    } else {
+        name.trim().to_string()
+    };
+    let path = crate::requests::recording_path(out_dir, &name)?;
+    if let Some(dir) = path.parent() {
+        rt::files::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    }
+    Ok(path)
+}
+
+impl Recording {
+    /// Starts a CSV recording for an `n`-joint arm named `name` inside `out_dir`.
+    pub fn start(out_dir: &Path, name: &str, n: usize) -> Result<Self, String> {
+        let path = resolve(out_dir, name, "csv")?;
+        let mut file = open(&path).map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+        let mut h = String::from("t,state_seq,state_stamp_ns,phi");
+        for p in ["q", "qd"] {
+            for i in 1..=n {
+                h.push_str(&format!(",{p}{i}"));
+            }
+        }
+        h.push_str(",command_seq,mode");
+        for i in 1..=n {
+            h.push_str(&format!(",qdd{i}"));
+        }
+        h.push_str(",tracking_error,period_residual");
+        writeln!(file, "{h}").map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        Ok(Self {
+            path,
+            file,
+            rows: 0,
+            n,
+        })
+    }
+
+    /// Writes one row: the state the law used and the command that answered it.
+    pub fn write_row(&mut self, r: &TickRecord, s: &StateSample) -> std::io::Result<()> {
+        let n = self.n;
+        let f = &mut self.file;
+        write!(f, "{:.6},{},{},{:.12e}", r.t, s.seq, s.stamp_ns, s.phi)?;
+        for v in s.q[..n].iter().chain(&s.qd[..n]) {
+            write!(f, ",{v:.12e}")?;
+        }
+        match &r.command {
+            Some(c) => {
+                write!(f, ",{},{}", c.seq, c.mode)?;
+                for v in &c.qdd[..n] {
+                    write!(f, ",{v:.12e}")?;
+                }
+            }
+            None => {
+                write!(f, ",,")?;
+                for _ in 0..n {
+                    write!(f, ",")?;
+                }
+            }
+        }
+        writeln!(f, ",{:.9e},{:.9e}", r.tracking_error, r.period_residual)?;
+        self.rows += 1;
+        Ok(())
+    }
+
+    /// Flushes the file; the JSON answer to `record stop`.
+    pub fn finish(mut self) -> Result<String, String> {
+        self.file
+            .flush()
+            .map(|_| serde_json::json!({"path": self.path, "rows": self.rows}).to_string())
+            .map_err(|e| format!("cannot finish {}: {e}", self.path.display()))
+    }
+}

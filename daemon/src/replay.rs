@@ -1,0 +1,741 @@
+//! Deterministic record and replay (`chaosd run --record NAME`, `chaosctl replay RECORDING`).
+//!
+//! The controller is a pure function of its inputs: the configuration it starts from, the
+//! sample handed to each tick, the tick's clock, and the changes the control service applies
+//! between ticks. A replay recording holds exactly those, bit for bit, from the daemon's first
+//! tick, with the command each tick produced. [`replay`] feeds them through the same
+//! [`Controller`] the loop runs and compares every command field by field, bit for bit (after
+//! copper-rs's determinism test: run A == replay of A).
+//!
+//! The reporter thread writes the file ([`ReplayLog`]); the loop only hands it the `Copy` tick
+//! record it already sends. The file is owner-only and stays in the output directory
+//! ([`crate::recording::resolve`]).
+//!
+//! # Format (text, version 1; every `f64` as the 16 hex digits of its bits)
+//!
+//! ```text
+//! chaosd-replay 1
+//! settings n=3 rate_hz=<f64> first_order_hold=1 hold_after=5 stale_ns=5000000 \
+//!          future_slack_ns=1000000 daemon_id=<u64> t_start=<f64> fault=0
+//! config <k>                  the running configuration as TOML, k lines follow
+//! P <tick> <k>                a parameter block taking effect before <tick>: its config, k lines
+//! R <tick>                    an operator's resume taking effect before <tick>
+//! T <tick> <now_ns> <state> <command>
+//! G <tick> <missing>          <missing> records never reached the reporter: the recording ends
+//! ```
+//! (the `settings` line is one line). `<state>` is `-` (nothing received) or
+//! `seq,stamp_ns,plant_id,n,flags,phi,q[0..6],qd[0..6]`; `<command>` is `-` (none sent) or
+//! `seq,state_seq,state_stamp_ns,stamp_ns,daemon_id,mode,n,qdd[0..6],qddd[0..6]`. Integers are
+//! decimal. Ticks count from 0 at the daemon's start.
+
+use crate::controller::{Applied, Controller, ControllerSettings};
+use crate::telemetry::TickRecord;
+use anyhow::{anyhow, bail, Result};
+use control::Config;
+use protocol::{CommandSample, StateSample, MAX_JOINTS};
+use std::collections::VecDeque;
+use std::fmt::Write as _;
+use std::io::{BufRead, Read, Write};
+use std::path::{Path, PathBuf};
+
+const MAGIC: &str = "chaosd-replay 1";
+/// No line of a valid recording comes near this.
+const MAX_LINE: u64 = 16 * 1024;
+
+/// The running configuration as the recording stores it (without `[daemon]` and `[plant]`).
+pub fn system_toml(cfg: &Config) -> String {
+    let mut c = cfg.clone();
+    c.daemon = None;
+    c.plant = None;
+    c.to_toml_string()
+}
+
+/// An open replay recording, written by the reporter thread.
+pub struct ReplayLog {
+    pub path: PathBuf,
+    file: std::io::BufWriter<std::fs::File>,
+    next_tick: u64,
+    /// Configs committed to the loop and not yet seen applied, oldest first.
+    pending: VecDeque<String>,
+    /// Why the recording stopped, once it has.
+    pub stopped: Option<String>,
+}
+
+impl ReplayLog {
+    /// Creates `name` in `out_dir` and writes the header: what the controller starts from.
+    pub fn create(
+        out_dir: &Path,
+        name: &str,
+        cfg: &Config,
+        settings: &ControllerSettings,
+        start_in_fault: bool,
+    ) -> Result<Self, String> {
+        let path = crate::recording::resolve(out_dir, name, "replay")?;
+        let cannot = |e: std::io::Error| format!("cannot write {}: {e}", path.display());
+        let mut file = crate::recording::open(&path).map_err(cannot)?;
+        let s = settings;
+        let config = system_toml(cfg);
+        write!(
+            file,
+            "{MAGIC}\nsettings n={} rate_hz={:016x} first_order_hold={} hold_after={} stale_ns={} future_slack_ns={} daemon_id={} t_start={:016x} fault={}\nconfig {}\n{config}",
+            cfg.n(),
+            s.rate_hz.to_bits(),
+            u8::from(s.first_order_hold),
+            s.hold_after,
+            s.stale_ns,
+            s.future_slack_ns,
+            s.daemon_id,
+            s.t_start.to_bits(),
+            u8::from(start_in_fault),
+            config.lines().count(),
+        )
+        .map_err(cannot)?;
+        Ok(Self {
+            path,
+            file,
+            next_tick: 0,
+            pending: VecDeque::new(),
+            stopped: None,
+        })
+    }
+
+    /// A configuration the control service has just sent to the loop.
+    pub fn committed(&mut self, cfg: &Config) {
+        self.pending.push_back(system_toml(cfg));
+    }
+
+    /// Appends one tick. After a gap or a write error the recording stops (and says why).
+    pub fn tick(&mut self, r: &TickRecord) {
+        if self.stopped.is_some() {
+            return;
+        }
+        if let Err(e) = self.write_tick(r) {
+            self.stopped = Some(format!(
+                "replay recording {} stopped at tick {}: {e}",
+                self.path.display(),
+                self.next_tick
+            ));
+            let _ = self.file.flush();
+        }
+    }
+
+    fn write_tick(&mut self, r: &TickRecord) -> std::io::Result<()> {
+        let tick = r.counters.ticks.saturating_sub(1);
+        if tick != self.next_tick {
+            writeln!(
+                self.file,
+                "G {} {}",
+                self.next_tick,
+                tick.abs_diff(self.next_tick)
+            )?;
+            return Err(std::io::Error::other(
+                "tick records were lost (the telemetry queue was full)",
+            ));
+        }
+        match r.applied {
+            Some(Applied::Params) => {
+                let cfg = self.pending.pop_front().ok_or_else(|| {
+                    std::io::Error::other("a parameter change reached the loop unannounced")
+                })?;
+                write!(self.file, "P {tick} {}\n{cfg}", cfg.lines().count())?;
+            }
+            Some(Applied::Resume) => writeln!(self.file, "R {tick}")?,
+            None => {}
+        }
+        let mut line = String::with_capacity(700);
+        let _ = write!(line, "T {tick} {} ", r.now_ns);
+        match &r.state {
+            Some(s) => state_fields(&mut line, s),
+            None => line.push('-'),
+        }
+        line.push(' ');
+        match &r.command {
+            Some(c) => command_fields(&mut line, c),
+            None => line.push('-'),
+        }
+        line.push('\n');
+        self.file.write_all(line.as_bytes())?;
+        self.next_tick += 1;
+        Ok(())
+    }
+
+    /// Flushes the file.
+    pub fn finish(mut self) -> Result<PathBuf, String> {
+        self.file
+            .flush()
+            .map_err(|e| format!("cannot finish {}: {e}", self.path.display()))?;
+        match self.stopped {
+            Some(why) => Err(why),
+            None => Ok(self.path),
+        }
+    }
+}
+
+fn state_fields(out: &mut String, s: &StateSample) {
+    let _ = write!(
+        out,
+        "{},{},{},{},{},{:016x}",
+        s.seq,
+        s.stamp_ns,
+        s.plant_id,
+        s.n,
+        s.flags,
+        s.phi.to_bits()
+    );
+    for v in s.q.iter().chain(&s.qd) {
+        let _ = write!(out, ",{:016x}", v.to_bits());
+    }
+}
+
+fn command_fields(out: &mut String, c: &CommandSample) {
+    let _ = write!(
+        out,
+        "{},{},{},{},{},{},{}",
+        c.seq, c.state_seq, c.state_stamp_ns, c.stamp_ns, c.daemon_id, c.mode, c.n
+    );
+    for v in c.qdd.iter().chain(&c.qddd) {
+        let _ = write!(out, ",{:016x}", v.to_bits());
+    }
+}
+
+/// Comma-separated fields of one sample, read in order.
+struct Fields<'a> {
+    it: std::str::Split<'a, char>,
+    what: &'static str,
+}
+
+impl<'a> Fields<'a> {
+    fn new(text: &'a str, what: &'static str) -> Self {
+        Self {
+            it: text.split(','),
+            what,
+        }
+    }
+    fn next(&mut self) -> Result<&'a str> {
+        self.it
+            .next()
+            .ok_or_else(|| anyhow!("the {} has too few fields", self.what))
+    }
+    fn int<T: std::str::FromStr>(&mut self) -> Result<T> {
+        let f = self.next()?;
+        f.parse()
+            .map_err(|_| anyhow!("{} field {:?} is not an integer", self.what, excerpt(f)))
+    }
+    fn f64(&mut self) -> Result<f64> {
+        let f = self.next()?;
+        if f.len() != 16 {
+            bail!(
+                "{} field {:?} is not 16 hex digits of an f64",
+                self.what,
+                excerpt(f)
+            );
+        }
+        u64::from_str_radix(f, 16)
+            .map(f64::from_bits)
+            .map_err(|_| anyhow!("{} field {:?} is not hex", self.what, excerpt(f)))
+    }
+    fn end(mut self) -> Result<()> {
+        match self.it.next() {
+            None => Ok(()),
+            Some(_) => bail!("the {} has too many fields", self.what),
+        }
+    }
+}
+
+fn excerpt(s: &str) -> String {
+    s.chars().take(40).collect()
+}
+
+fn parse_state(text: &str) -> Result<Option<StateSample>> {
+    if text == "-" {
+        return Ok(None);
+    }
+    let mut f = Fields::new(text, "state");
+    let mut s = StateSample {
+        seq: f.int()?,
+        stamp_ns: f.int()?,
+        plant_id: f.int()?,
+        n: f.int()?,
+        flags: f.int()?,
+        phi: f.f64()?,
+        ..StateSample::default()
+    };
+    for v in s.q.iter_mut().chain(s.qd.iter_mut()) {
+        *v = f.f64()?;
+    }
+    f.end()?;
+    Ok(Some(s))
+}
+
+fn parse_command(text: &str) -> Result<Option<CommandSample>> {
+    if text == "-" {
+        return Ok(None);
+    }
+    let mut f = Fields::new(text, "command");
+    let mut c = CommandSample {
+        seq: f.int()?,
+        state_seq: f.int()?,
+        state_stamp_ns: f.int()?,
+        stamp_ns: f.int()?,
+        daemon_id: f.int()?,
+        mode: f.int()?,
+        n: f.int()?,
+        qdd: [0.0; MAX_JOINTS],
+        qddd: [0.0; MAX_JOINTS],
+    };
+    for v in c.qdd.iter_mut().chain(c.qddd.iter_mut()) {
+        *v = f.f64()?;
+    }
+    f.end()?;
+    Ok(Some(c))
+}
+
+/// The first command that differs: which tick, which field, both values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mismatch {
+    pub tick: u64,
+    pub field: String,
+    pub recorded: String,
+    pub replayed: String,
+}
+
+impl std::fmt::Display for Mismatch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "first mismatch at tick {}: {} recorded {}, replayed {}",
+            self.tick, self.field, self.recorded, self.replayed
+        )
+    }
+}
+
+/// What a replay found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ReplayReport {
+    pub ticks: u64,
+    /// Ticks whose command (or absence of one) replayed bit for bit.
+    pub matched: u64,
+    pub commands: u64,
+    pub param_changes: u64,
+    pub resumes: u64,
+    pub first_mismatch: Option<Mismatch>,
+}
+
+impl ReplayReport {
+    pub fn all_matched(&self) -> bool {
+        self.matched == self.ticks && self.first_mismatch.is_none()
+    }
+}
+
+impl std::fmt::Display for ReplayReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} of {} ticks replayed bit-identically ({} commands, {} parameter changes, {} resumes)",
+            self.matched, self.ticks, self.commands, self.param_changes, self.resumes
+        )?;
+        if let Some(m) = &self.first_mismatch {
+            write!(f, "\n{m}")?;
+        }
+        Ok(())
+    }
+}
+
+fn float(v: f64) -> String {
+    format!("{v:e} (bits 0x{:016x})", v.to_bits())
+}
+
+fn compare(
+    tick: u64,
+    rec: Option<&CommandSample>,
+    rep: Option<&CommandSample>,
+) -> Option<Mismatch> {
+    let m = |field: &str, recorded: String, replayed: String| {
+        Some(Mismatch {
+            tick,
+            field: field.into(),
+            recorded,
+            replayed,
+        })
+    };
+    let (a, b) = match (rec, rep) {
+        (None, None) => return None,
+        (Some(_), None) => return m("command", "one".into(), "none".into()),
+        (None, Some(_)) => return m("command", "none".into(), "one".into()),
+        (Some(a), Some(b)) => (a, b),
+    };
+    for (name, x, y) in [
+        ("seq", a.seq, b.seq),
+        ("state_seq", a.state_seq, b.state_seq),
+        ("state_stamp_ns", a.state_stamp_ns, b.state_stamp_ns),
+        ("stamp_ns", a.stamp_ns, b.stamp_ns),
+        ("daemon_id", a.daemon_id, b.daemon_id),
+        ("mode", a.mode.into(), b.mode.into()),
+        ("n", a.n.into(), b.n.into()),
+    ] {
+        if x != y {
+            return m(&format!("command.{name}"), x.to_string(), y.to_string());
+        }
+    }
+    for (name, xs, ys) in [("qdd", &a.qdd, &b.qdd), ("qddd", &a.qddd, &b.qddd)] {
+        for (i, (x, y)) in xs.iter().zip(ys).enumerate() {
+            if x.to_bits() != y.to_bits() {
+                return m(&format!("command.{name}[{i}]"), float(*x), float(*y));
+            }
+        }
+    }
+    None
+}
+
+/// Reads lines with a length limit, numbering them, and refusing a truncated last line.
+struct Lines<R> {
+    r: R,
+    no: u64,
+    buf: String,
+}
+
+impl<R: BufRead> Lines<R> {
+    /// The next line without its newline; `Ok(None)` at the end.
+    fn next(&mut self) -> Result<Option<&str>> {
+        self.buf.clear();
+        let got = (&mut self.r)
+            .take(MAX_LINE)
+            .read_line(&mut self.buf)
+            .map_err(|e| anyhow!("line {}: {e}", self.no + 1))?;
+        if got == 0 {
+            return Ok(None);
+        }
+        self.no += 1;
+        match self.buf.strip_suffix('\n') {
+            Some(l) => Ok(Some(l)),
+            None if got as u64 >= MAX_LINE => {
+                bail!("line {}: longer than {MAX_LINE} bytes", self.no)
+            }
+            None => bail!("line {}: truncated (the recording ends mid-line)", self.no),
+        }
+    }
+
+    fn block(&mut self, k: usize) -> Result<String> {
+        let mut text = String::new();
+        for _ in 0..k {
+            let l = self
+                .next()?
+                .ok_or_else(|| anyhow!("the recording ends inside a config block"))?;
+            text.push_str(l);
+            text.push('\n');
+        }
+        Ok(text)
+    }
+}
+
+fn parse_config(text: &str) -> Result<Config> {
+    Config::parse(text).map_err(|e| anyhow!("a recorded config does not parse: {e}"))
+}
+
+/// One `key=value` of the settings line.
+fn setting<'a>(fields: &mut impl Iterator<Item = &'a str>, key: &str) -> Result<&'a str> {
+    let f = fields
+        .next()
+        .ok_or_else(|| anyhow!("the settings line has no {key}"))?;
+    f.strip_prefix(key)
+        .and_then(|v| v.strip_prefix('='))
+        .ok_or_else(|| {
+            anyhow!(
+                "the settings line has {:?} where {key}= belongs",
+                excerpt(f)
+            )
+        })
+}
+
+fn int<T: std::str::FromStr>(v: &str, what: &str) -> Result<T> {
+    v.parse()
+        .map_err(|_| anyhow!("{what} = {:?} is not a valid integer", excerpt(v)))
+}
+
+fn bits(v: &str, what: &str) -> Result<f64> {
+    if v.len() != 16 {
+        bail!("{what} = {:?} is not 16 hex digits", excerpt(v));
+    }
+    u64::from_str_radix(v, 16)
+        .map(f64::from_bits)
+        .map_err(|_| anyhow!("{what} = {:?} is not hex", excerpt(v)))
+}
+
+struct Header {
+    n: usize,
+    settings: ControllerSettings,
+    start_in_fault: bool,
+    cfg: Config,
+}
+
+fn header<R: BufRead>(lines: &mut Lines<R>) -> Result<Header> {
+    match lines.next()? {
+        Some(MAGIC) => {}
+        _ => bail!("not a chaosd replay recording (the first line is not {MAGIC:?}; `chaosctl record` CSV files cannot be replayed)"),
+    }
+    let line = lines
+        .next()?
+        .ok_or_else(|| anyhow!("the recording ends after its first line"))?
+        .to_string();
+    let mut f = line
+        .strip_prefix("settings ")
+        .ok_or_else(|| anyhow!("line 2 is not the settings line"))?
+        .split(' ');
+    let n: usize = int(setting(&mut f, "n")?, "n")?;
+    if !(protocol::MIN_JOINTS..=MAX_JOINTS).contains(&n) {
+        bail!("the settings say n = {n}: not an arm size chaosd runs");
+    }
+    let settings = ControllerSettings {
+        rate_hz: bits(setting(&mut f, "rate_hz")?, "rate_hz")?,
+        first_order_hold: int::<u8>(setting(&mut f, "first_order_hold")?, "first_order_hold")? != 0,
+        hold_after: int(setting(&mut f, "hold_after")?, "hold_after")?,
+        stale_ns: int(setting(&mut f, "stale_ns")?, "stale_ns")?,
+        future_slack_ns: int(setting(&mut f, "future_slack_ns")?, "future_slack_ns")?,
+        daemon_id: int(setting(&mut f, "daemon_id")?, "daemon_id")?,
+        t_start: bits(setting(&mut f, "t_start")?, "t_start")?,
+    };
+    let start_in_fault = int::<u8>(setting(&mut f, "fault")?, "fault")? != 0;
+    if !(settings.rate_hz.is_finite() && settings.rate_hz > 0.0 && settings.t_start.is_finite()) {
+        bail!("the settings line has a rate or start time that no daemon runs with");
+    }
+    let k = match lines.next()?.and_then(|l| l.strip_prefix("config ")) {
+        Some(k) => int::<usize>(k, "config line count")?,
+        None => bail!("line 3 is not the config line"),
+    };
+    let cfg = parse_config(&lines.block(k)?)?;
+    if cfg.n() != n {
+        bail!(
+            "the settings say n = {n} but the config has {} links",
+            cfg.n()
+        );
+    }
+    Ok(Header {
+        n,
+        settings,
+        start_in_fault,
+        cfg,
+    })
+}
+
+/// Replays the recording at `path`: every recorded tick through a fresh [`Controller`], every
+/// command compared bit for bit. An unreadable or damaged recording is an error naming the line.
+pub fn replay(path: &Path) -> Result<ReplayReport> {
+    let f =
+        std::fs::File::open(path).map_err(|e| anyhow!("cannot open {}: {e}", path.display()))?;
+    replay_from(std::io::BufReader::new(f)).map_err(|e| anyhow!("{}: {e}", path.display()))
+}
+
+/// [`replay`] from any reader.
+pub fn replay_from(r: impl BufRead) -> Result<ReplayReport> {
+    let mut lines = Lines {
+        r,
+        no: 0,
+        buf: String::new(),
+    };
+    let h = header(&mut lines)?;
+    control::with_dof!(h.n, N => replay_n::<N, _>(h, &mut lines))
+}
+
+fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Result<ReplayReport> {
+    let mut ctl = Controller::<N>::new(
+        h.cfg.model::<N>(),
+        h.cfg.law_params(),
+        h.cfg.feedback.max_tau,
+        h.settings,
+    );
+    if h.start_in_fault {
+        ctl.enter_fault(crate::guard::FaultReason::Restored);
+    }
+    let mut rep = ReplayReport::default();
+    loop {
+        let Some(line) = lines.next()? else {
+            return Ok(rep);
+        };
+        let line = line.to_string();
+        let no = lines.no;
+        let at = |e: anyhow::Error| anyhow!("line {no}: {e}");
+        let mut parts = line.split(' ');
+        let kind = parts.next().unwrap_or("");
+        let tick: u64 = match parts.next() {
+            Some(t) => int(t, "tick").map_err(at)?,
+            None => bail!("line {no}: no tick number"),
+        };
+        if tick != rep.ticks {
+            bail!("line {no}: tick {tick} where tick {} was due", rep.ticks);
+        }
+        match kind {
+            "T" => {
+                let (Some(now), Some(state), Some(cmd), None) =
+                    (parts.next(), parts.next(), parts.next(), parts.next())
+                else {
+                    bail!("line {no}: a tick needs 4 fields after T");
+                };
+                let now: u64 = int(now, "now_ns").map_err(at)?;
+                let state = parse_state(state).map_err(at)?;
+                let recorded = parse_command(cmd).map_err(at)?;
+                let o = ctl.tick(state.as_ref(), now);
+                match compare(tick, recorded.as_ref(), o.command.as_ref()) {
+                    None => rep.matched += 1,
+                    Some(m) if rep.first_mismatch.is_none() => rep.first_mismatch = Some(m),
+                    Some(_) => {}
+                }
+                rep.commands += u64::from(recorded.is_some());
+                rep.ticks += 1;
+            }
+            "P" => {
+                let k = int::<usize>(parts.next().unwrap_or(""), "config line count").map_err(at)?;
+                let cfg = parse_config(&lines.block(k)?).map_err(at)?;
+                if cfg.n() != N {
+                    bail!("line {no}: a parameter change for {} links", cfg.n());
+                }
+                ctl.set_params(cfg.law_params());
+                rep.param_changes += 1;
+            }
+            "R" => {
+                ctl.resume();
+                rep.resumes += 1;
+            }
+            "G" => bail!(
+                "line {no}: the daemon lost tick records at tick {tick} (its telemetry queue was full), so the recording ends there; {} of {} ticks before it replayed bit-identically",
+                rep.matched,
+                rep.ticks
+            ),
+            other => bail!("line {no}: unknown record {:?}", excerpt(other)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::record::{tick_record, TickTimes};
+
+    fn settings() -> ControllerSettings {
+        ControllerSettings {
+            rate_hz: 1000.0,
+            first_order_hold: true,
+            hold_after: 5,
+            stale_ns: 5_000_000,
+            future_slack_ns: 1_000_000,
+            daemon_id: 42,
+            t_start: 0.25,
+        }
+    }
+
+    /// Runs a controller on synthetic states with a parameter change and a gap, recording it.
+    fn record(dir: &Path) -> PathBuf {
+        let mut cfg = Config::preset("paper").unwrap();
+        cfg.feedback.t_on = 0.3;
+        let mut log = ReplayLog::create(dir, "a.replay", &cfg, &settings(), false).unwrap();
+        let mut ctl = Controller::<3>::new(
+            cfg.model::<3>(),
+            cfg.law_params(),
+            cfg.feedback.max_tau,
+            settings(),
+        );
+        let t0 = 7_000_000_000u64;
+        for k in 0..400u64 {
+            if k == 150 {
+                cfg.feedback.mu = 0.7;
+                log.committed(&cfg);
+                ctl.set_params(cfg.law_params());
+            }
+            let now = t0 + k * 1_000_000 + (k * 7919) % 300_000;
+            let mut s = StateSample {
+                seq: k,
+                stamp_ns: now - 40_000,
+                plant_id: 5,
+                n: 3,
+                ..StateSample::default()
+            };
+            s.q[..3].copy_from_slice(&[0.1 * (k as f64 * 1e-2).sin(), 1.5, 1.6]);
+            s.qd[..3].copy_from_slice(&[1.0 / 3.0, -0.2, (k as f64).sqrt()]);
+            let newest = (k % 50 < 45).then_some(s);
+            let o = ctl.tick(newest.as_ref(), now);
+            let times = TickTimes {
+                due: now,
+                woke: now,
+                done: now + 1,
+            };
+            log.tick(&tick_record(&ctl, &o, newest, times));
+        }
+        log.finish().unwrap()
+    }
+
+    fn dir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("chaosd-replay-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        rt::files::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn a_run_replays_bit_for_bit_and_a_changed_bit_is_found() {
+        let d = dir("ok");
+        let p = record(&d);
+        let r = replay(&p).unwrap();
+        assert!(r.all_matched(), "{r}");
+        assert_eq!((r.ticks, r.param_changes), (400, 1));
+        assert!(r.commands > 300);
+        // Flip the lowest bit of one recorded q̈ (tick 200): found, with the exact bits.
+        let text = std::fs::read_to_string(&p).unwrap();
+        let mut lines: Vec<String> = text.lines().map(String::from).collect();
+        let i = lines.iter().position(|l| l.starts_with("T 200 ")).unwrap();
+        let mut fields: Vec<String> = lines[i].split(',').map(String::from).collect();
+        let qdd1 = fields.len() - 12 + 1; // the command's qdd[1]
+        let v = u64::from_str_radix(&fields[qdd1], 16).unwrap() ^ 1;
+        fields[qdd1] = format!("{v:016x}");
+        lines[i] = fields.join(",");
+        std::fs::write(&p, lines.join("\n") + "\n").unwrap();
+        let r = replay(&p).unwrap();
+        assert!(!r.all_matched());
+        assert_eq!(r.matched, 399);
+        let m = r.first_mismatch.unwrap();
+        assert_eq!((m.tick, m.field.as_str()), (200, "command.qdd[1]"));
+        assert!(m.recorded.contains(&format!("0x{v:016x}")), "{m}");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn damaged_recordings_are_refused_by_line_never_a_panic() {
+        let d = dir("bad");
+        let p = record(&d);
+        let text = std::fs::read_to_string(&p).unwrap();
+        let cut = |n: usize| text[..n].to_string();
+        let t_line = text.find("\nT 10 ").unwrap() + 1;
+        for (bad, want) in [
+            (String::new(), "not a chaosd replay"),
+            (
+                "t,state_seq\n1,2\n".to_string(),
+                "CSV files cannot be replayed",
+            ),
+            (cut(t_line + 20), "truncated"),
+            (text.replacen("T 10 ", "T 11 ", 1), "tick 11 where tick 10"),
+            (text.replacen("T 10 ", "X 10 ", 1), "unknown record"),
+            (
+                text.replacen("settings n=3", "settings n=x", 1),
+                "n = \"x\"",
+            ),
+            (text.replacen("config ", "config 9", 1), "config"),
+            (
+                text.replace(",3fd5555555555555,", ",3fd55555555zz555,"),
+                "not hex",
+            ),
+            (
+                text.replacen("T 10 ", "G 10 3\nT 10 ", 1),
+                "lost tick records",
+            ),
+            (format!("{}\n", "x".repeat(100_000)), "longer than"),
+        ] {
+            std::fs::write(&p, &bad).unwrap();
+            let e = replay(&p).unwrap_err().to_string();
+            assert!(e.contains(want), "{want}: {e}");
+            assert!(e.len() < 1024 && !e.contains('\n'), "{e}");
+        }
+        assert!(replay(&d.join("missing"))
+            .unwrap_err()
+            .to_string()
+            .contains("cannot open"));
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+}
