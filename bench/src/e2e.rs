@@ -848,6 +848,7 @@ mod tests {
             mode,
             device,
             requests: None,
+            scrapes: None,
             daemon,
             plant,
             cpu_daemon: 0.0,

@@ -121,6 +121,8 @@ mod tests {
             counters: Counters::default(),
             state: None,
             command: None,
+            now_ns: 0,
+            applied: None,
         }
     }
 
