@@ -10,6 +10,7 @@
 pub mod config;
 pub mod controller;
 pub mod guard;
+pub mod handshake;
 pub mod persist;
 pub mod record;
 pub mod requests;

@@ -52,8 +52,18 @@ fn run_n<const N: usize>(
     let (tx, rx) = crossbeam::channel::bounded::<TickRecord>(d.telemetry_queue);
     let (params_tx, params_rx) = crossbeam::channel::bounded::<LoopRequest>(16);
     let (rt_tx, rt_rx) = crossbeam::channel::bounded::<rt::setup::RtReport>(1);
+    let running = Arc::new(AtomicBool::new(true));
+    // The handshake: which plant the loop may control (see `handshake`).
+    let (handshake, refusal) = crate::handshake::spawn(
+        &setup.system,
+        &names,
+        params_tx.clone(),
+        running.clone(),
+        d.core,
+    )?;
     let reporter = Reporter::new(setup.system.clone(), d.clone(), params_tx, rt_rx)?
-        .resuming(setup.live.as_ref());
+        .resuming(setup.live.as_ref())
+        .with_handshake(refusal);
     // Helper threads stay off the loop's core (it is pinned there below).
     let loop_core = d.core;
     let reporter = std::thread::Builder::new()
@@ -62,7 +72,6 @@ fn run_n<const N: usize>(
             rt::setup::avoid_core(loop_core);
             reporter.run(rx, on_line)
         })?;
-    let running = Arc::new(AtomicBool::new(true));
     let hk = {
         let running = running.clone();
         let every = Duration::from_secs_f64(d.cleanup_every_s);
@@ -88,6 +97,7 @@ fn run_n<const N: usize>(
     let result = control_loop::<N>(setup, &names, duration, tx, params_rx, rt_tx);
     running.store(false, Ordering::Relaxed);
     let _ = hk.join();
+    let _ = handshake.join();
     let summary = reporter
         .join()
         .map_err(|_| anyhow!("the reporter thread panicked"))?;
@@ -142,6 +152,7 @@ fn control_loop<const N: usize>(
         setup.system.feedback.max_tau,
         settings,
     );
+    ctl.require_handshake();
     if setup.live.as_ref().is_some_and(|l| l.fault.is_some()) {
         ctl.enter_fault(crate::guard::FaultReason::Restored);
     }
@@ -269,6 +280,7 @@ fn take_request<const N: usize>(
         Ok(LoopRequest::Resume) => {
             ctl.resume();
         }
+        Ok(LoopRequest::Plant { plant_id, agreed }) => ctl.set_plant_verdict(plant_id, agreed),
         Err(_) => {}
     }
 }

@@ -36,6 +36,8 @@ pub enum LoopRequest {
     Params(LawParams),
     /// Leave FAULT (`chaosctl resume`).
     Resume,
+    /// The handshake's verdict on one plant start (`crate::handshake`).
+    Plant { plant_id: u64, agreed: bool },
 }
 
 /// One tick, as the loop saw it.
@@ -158,6 +160,8 @@ pub struct Reporter {
     /// When the live state was last saved, and whether a failure to save was reported.
     saved_at: Option<Instant>,
     save_error_said: bool,
+    /// Why the handshake refuses the current plant, if it does.
+    handshake: crate::handshake::Refusal,
 }
 
 impl Reporter {
@@ -210,6 +214,7 @@ impl Reporter {
             t_start: 0.0,
             saved_at: None,
             save_error_said: false,
+            handshake: Default::default(),
         })
     }
 
@@ -221,6 +226,12 @@ impl Reporter {
                 self.fault = Some((l.t, crate::guard::FaultReason::Restored));
             }
         }
+        self
+    }
+
+    /// Shows the handshake's refusal, if any, in `status`.
+    pub fn with_handshake(mut self, refusal: crate::handshake::Refusal) -> Self {
+        self.handshake = refusal;
         self
     }
 
@@ -438,6 +449,7 @@ impl Reporter {
             "rate_hz": self.daemon.rate_hz,
             "wait": self.daemon.wait,
             "mode": r.map(|r| format!("{:?}", r.mode)),
+            "handshake": self.handshake.lock().ok().and_then(|g| g.clone()),
             "fault": self.fault.map(|(t, f)| format!("at t = {t:.3} s: {f}")),
             "safety": self.cfg.safety.enabled,
             "t": r.map(|r| r.t),

@@ -57,7 +57,7 @@ fn main() -> ExitCode {
             lost_after: ms("lost-after-ms", args.lost_after_ms)?,
         };
         let mut bridge = UdpBridge::new(l.system.n(), cfg);
-        let summary = plant::run::run(&mut bridge, &l.plant, l.duration);
+        let summary = plant::run::run(&mut bridge, &l.plant, &l.arm(), l.duration);
         let c = bridge.counters;
         eprintln!(
             "chaosd-bridge: {} states, {} commands sent; {} timeouts, {} malformed, {} out of order, {} superseded; device lost {} times, restarted {} times",
