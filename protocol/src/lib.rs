@@ -67,7 +67,7 @@ pub use names::{
     validate_namespace, NamespaceError, ServiceNames, DEFAULT_NAMESPACE, MAX_NAMESPACE_LEN,
     SERVICE_ROOT,
 };
-pub use node::{node, NodeError};
+pub use node::{check_dirs, node, DirError, NodeError};
 pub use qos::{
     open_command_service, open_state_service, Channel, CommandService, PubSubQos, ServiceError,
     StateService, COMMAND_QOS, STATE_QOS,
