@@ -15,6 +15,7 @@ pub mod persist;
 pub mod record;
 pub mod requests;
 pub mod residual;
+pub mod rotate;
 pub mod service;
 pub mod telemetry;
 pub mod trigger;

@@ -100,7 +100,7 @@ pub struct DaemonSummary {
 /// An open recording.
 struct Recording {
     path: PathBuf,
-    file: std::io::BufWriter<std::fs::File>,
+    file: crate::rotate::RotatingWriter,
     rows: u64,
     n: usize,
 }
@@ -536,7 +536,7 @@ impl Reporter {
                 Some(mut r) => r
                     .file
                     .flush()
-                    .map(|_| serde_json::json!({"path": r.path, "rows": r.rows}).to_string())
+                    .map(|_| serde_json::json!({"path": r.path, "rows": r.rows, "rotations": r.file.rotations(), "last_file": r.file.current_path()}).to_string())
                     .map_err(|e| format!("cannot finish {}: {e}", r.path.display())),
                 None => Err("not recording".into()),
             },
@@ -570,10 +570,7 @@ impl Reporter {
             rt::files::create_dir_all(dir)
                 .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
         }
-        let f = rt::files::create_new(&path)
-            .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
         let n = self.cfg.n();
-        let mut file = std::io::BufWriter::new(f);
         let mut h = String::from("t,state_seq,state_stamp_ns,phi");
         for p in ["q", "qd"] {
             for i in 1..=n {
@@ -584,8 +581,11 @@ impl Reporter {
         for i in 1..=n {
             h.push_str(&format!(",qdd{i}"));
         }
-        h.push_str(",tracking_error,period_residual");
-        writeln!(file, "{h}").map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        h.push_str(",tracking_error,period_residual\n");
+        // Rotates at `record_max_bytes`, keeping `record_keep` old files (see `rotate`).
+        let file =
+            crate::rotate::RotatingWriter::create(&path, h.as_bytes(), self.daemon.record_limit())
+                .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
         self.recording = Some(Recording {
             path: path.clone(),
             file,
