@@ -23,7 +23,8 @@
 //!   instead of misreading bytes.
 //!
 //! **Architecture invariant:** this crate does no I/O of its own. It defines types and names, and
-//! its `qos` helpers only open iceoryx2 services when asked to.
+//! its `qos` helpers only open iceoryx2 services when asked to, and `node()` looks at iceoryx2's
+//! directories before it joins.
 //!
 //! Units on the wire: angles in rad, rates in rad/s, accelerations in rad/s², times in ns of
 //! `CLOCK_MONOTONIC` (see [`monotonic_ns`]).
