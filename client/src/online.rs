@@ -300,7 +300,7 @@ pub fn human_status(body: &str) -> String {
          trigger   {}; state → command p50 {} µs, p99 {} µs; {} of answered states answered within one period\n\
          counters  {} ticks, {} commands, {} rejected samples, {} holds, {} plant restarts, {} params applied\n\
          law       tracking lost on {} ticks, near-singular on {}, target out of reach on {}, non-finite results {}\n\
-         recording {}",
+         recording {}{}",
         f("namespace"), f("pid"), f("mode"), v["t"].as_f64().unwrap_or(0.0), f("rate_hz"), f("wait"),
         if v["feedback"].as_bool() == Some(true) { "on" } else { "off" }, f("feedback_active"), f("mu"), f("tau"), f("t_on"), f("max_tau"),
         f("kp"), f("kv"), f("alpha"), f("secondary"), f("obstacles"),
@@ -316,6 +316,7 @@ pub fn human_status(body: &str) -> String {
         c["holds_entered"], c["plant_restarts"], c["params_applied"],
         c["track_lost"], c["singular"], c["out_of_reach"], c["nonfinite"],
         v["recording"].as_str().unwrap_or("off"),
+        v["handshake"].as_str().map_or(String::new(), |why| format!("\nhandshake {why}")),
     )
 }
 

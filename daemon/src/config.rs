@@ -53,6 +53,12 @@ pub struct DaemonConfig {
     /// after each state (µs, below one period), so the state age is small and fixed instead of
     /// wherever the two start phases fell. None (the default): free-running.
     pub phase_offset_us: Option<f64>,
+    /// A recording moves on to a new file (`rec.1.csv`, `rec.2.csv`, …) before a row would
+    /// take its file past this many bytes, 4096 to 2^40 (default 1 GiB, about 70 min at 1 kHz).
+    pub record_max_bytes: u64,
+    /// How many full recording files to keep besides the one being written, 0 to 1000
+    /// (default 4); older ones are deleted.
+    pub record_keep: usize,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -83,6 +89,8 @@ impl Default for DaemonConfig {
             hold: Hold::FirstOrder,
             trigger: Trigger::Clock,
             phase_offset_us: None,
+            record_max_bytes: 1 << 30,
+            record_keep: 4,
         }
     }
 }
@@ -180,7 +188,30 @@ impl DaemonConfig {
                 "must be between 64 and 65536",
             ));
         }
+        // A file must hold the header and a row (a 6-link row is about 500 bytes).
+        if !(4096..=1 << 40).contains(&self.record_max_bytes) {
+            return Err(invalid(
+                "record_max_bytes",
+                self.record_max_bytes,
+                "must be between 4096 and 1099511627776 (1 TiB)",
+            ));
+        }
+        if self.record_keep > 1000 {
+            return Err(invalid(
+                "record_keep",
+                self.record_keep,
+                "must be between 0 and 1000 files",
+            ));
+        }
         Ok(())
+    }
+
+    /// How a recording rotates (`rotate`).
+    pub fn record_limit(&self) -> crate::rotate::Limit {
+        crate::rotate::Limit {
+            max_bytes: Some(self.record_max_bytes),
+            keep: self.record_keep,
+        }
     }
 
     pub fn period_ns(&self) -> u64 {
@@ -363,6 +394,34 @@ mod tests {
         );
         let ok = "[daemon]\ntrigger = \"state\"\n[plant]\ntrigger = \"state\"\n";
         assert!(DaemonSetup::from_config(Config::parse(ok).unwrap()).is_ok());
+    }
+
+    #[test]
+    fn recording_limits_are_validated() {
+        let setup = |t: &str| DaemonSetup::from_config(Config::parse(t).unwrap());
+        for t in [
+            "[daemon]\nrecord_max_bytes = 4095\n",
+            "[daemon]\nrecord_max_bytes = 1099511627777\n",
+        ] {
+            let e = setup(t).unwrap_err().to_string();
+            assert!(
+                e.contains("daemon.record_max_bytes") && e.contains("4096"),
+                "{e}"
+            );
+        }
+        let e = setup("[daemon]\nrecord_keep = 1001\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("daemon.record_keep"), "{e}");
+        assert!(setup("[daemon]\nrecord_keep = -1\n").is_err());
+        let s = setup("[daemon]\nrecord_max_bytes = 4096\nrecord_keep = 0\n").unwrap();
+        assert_eq!(
+            s.daemon.record_limit(),
+            crate::rotate::Limit {
+                max_bytes: Some(4096),
+                keep: 0
+            }
+        );
     }
 
     #[test]

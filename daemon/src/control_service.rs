@@ -74,6 +74,7 @@ impl Reporter {
             "rate_hz": self.daemon.rate_hz,
             "wait": self.daemon.wait,
             "mode": r.map(|r| format!("{:?}", r.mode)),
+            "handshake": self.handshake.lock().ok().and_then(|g| g.clone()),
             "fault": self.fault.map(|(t, f)| format!("at t = {t:.3} s: {f}")),
             "safety": self.cfg.safety.enabled,
             "t": r.map(|r| r.t),
@@ -184,7 +185,12 @@ impl Reporter {
         if let Some(r) = &self.recording {
             return Err(format!("already recording to {}", r.path.display()));
         }
-        let r = Recording::start(&self.daemon.output_dir, args, self.cfg.n())?;
+        let r = Recording::start(
+            &self.daemon.output_dir,
+            args,
+            self.cfg.n(),
+            self.daemon.record_limit(),
+        )?;
         let answer = serde_json::json!({"path": r.path}).to_string();
         self.recording = Some(r);
         Ok(answer)

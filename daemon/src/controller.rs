@@ -45,6 +45,9 @@ pub struct Counters {
     pub telemetry_dropped: u64,
     pub ipc_errors: u64,
     pub params_applied: u64,
+    /// States from a plant the handshake has not agreed to (not yet, or refused): ignored
+    /// unread. Not a rejection: every plant's first states arrive before its handshake.
+    pub not_agreed: u64,
 }
 
 impl Counters {
@@ -76,6 +79,8 @@ pub enum Rejection {
     },
     /// The plant flagged a fault: its state is not to be controlled from.
     PlantFault,
+    /// From a plant the handshake has not agreed to (`crate::handshake`).
+    NotAgreed,
 }
 
 /// A change from the control service that took effect between two ticks. The loops take at most
@@ -87,6 +92,8 @@ pub enum Applied {
     Params,
     /// An operator's resume out of FAULT ([`Controller::resume`]).
     Resume,
+    /// The handshake's verdict on one plant start ([`Controller::set_plant_verdict`]).
+    Plant { plant_id: u64, agreed: bool },
 }
 
 /// What one tick decided.
@@ -148,6 +155,9 @@ pub struct Controller<const N: usize> {
     fault: Option<FaultReason>,
     /// Applied since the last tick.
     applied: Option<Applied>,
+    /// `None`: every plant is controlled (tests, tools). `Some(id)`: only states of plant `id`,
+    /// the one the handshake agreed to (0: none yet). Set between ticks, never on the tick.
+    agreed_plant: Option<u64>,
     pub counters: Counters,
 }
 
@@ -180,6 +190,7 @@ impl<const N: usize> Controller<N> {
             guard: Guard::default(),
             fault: None,
             applied: None,
+            agreed_plant: None,
             counters: Counters::default(),
         }
     }
@@ -197,6 +208,23 @@ impl<const N: usize> Controller<N> {
 
     pub fn mode(&self) -> Mode {
         self.mode
+    }
+
+    /// From now on, only states of a plant the handshake agreed to are used: none until
+    /// [`Controller::set_plant_verdict`] names one.
+    pub fn require_handshake(&mut self) {
+        self.agreed_plant = Some(0);
+    }
+
+    /// The handshake's verdict on plant `plant_id` (between ticks; no allocation). A refused
+    /// plant's states are ignored, so the daemon never sends it a RUN command.
+    pub fn set_plant_verdict(&mut self, plant_id: u64, agreed: bool) {
+        self.applied = Some(Applied::Plant { plant_id, agreed });
+        match (&mut self.agreed_plant, agreed) {
+            (Some(id), true) => *id = plant_id,
+            (Some(id), false) if *id == plant_id => *id = 0,
+            _ => {}
+        }
     }
 
     /// Why the daemon is in FAULT, if it is.
@@ -265,6 +293,12 @@ impl<const N: usize> Controller<N> {
 
     /// Checks a sample without changing any state; returns whether it comes from a new plant.
     fn accept(&self, s: &StateSample, now_ns: u64) -> Result<bool, Rejection> {
+        if self
+            .agreed_plant
+            .is_some_and(|id| id != s.plant_id || id == 0)
+        {
+            return Err(Rejection::NotAgreed);
+        }
         s.validate(N).map_err(Rejection::Invalid)?;
         if s.has_flags(protocol::flags::FAULT) {
             return Err(Rejection::PlantFault);
@@ -339,6 +373,7 @@ impl<const N: usize> Controller<N> {
                         Rejection::OutOfOrder { .. } => self.counters.rejected_out_of_order += 1,
                         Rejection::FutureStamp { .. } => self.counters.rejected_future += 1,
                         Rejection::PlantFault => self.counters.plant_faults += 1,
+                        Rejection::NotAgreed => self.counters.not_agreed += 1,
                     }
                     out.rejection = Some(r);
                 }
@@ -777,6 +812,35 @@ mod tests {
             (Mode::Run, Mode::Run as u32)
         );
         assert_eq!(c.counters.resumes, 1);
+    }
+
+    #[test]
+    fn only_the_plant_the_handshake_agreed_to_is_controlled() {
+        let mut c = controller();
+        c.require_handshake();
+        let now = 1_000_000_000;
+        // No verdict yet: ignored, no command (not even HOLD), not a rejection.
+        let o = c.tick(Some(&state(0, now)), now);
+        assert_eq!((o.rejection, o.command), (Some(Rejection::NotAgreed), None));
+        // A refused plant stays ignored.
+        c.set_plant_verdict(77, false);
+        for k in 1..20 {
+            let t = now + k * 1_000_000;
+            let o = c.tick(Some(&state(k, t)), t);
+            assert!(o.command.is_none() && o.output.is_none());
+        }
+        assert_eq!((c.counters.not_agreed, c.counters.rejected()), (20, 0));
+        assert_eq!(c.mode(), Mode::Hold);
+        // Agreed: runs.
+        c.set_plant_verdict(77, true);
+        let t = now + 20_000_000;
+        let o = c.tick(Some(&state(20, t)), t);
+        assert_eq!(o.command.unwrap().mode, Mode::Run as u32);
+        // Another plant start (new id) is not covered by that verdict.
+        let mut other = state(0, t + 1_000_000);
+        other.plant_id = 78;
+        let o = c.tick(Some(&other), t + 1_000_000);
+        assert_eq!(o.rejection, Some(Rejection::NotAgreed));
     }
 
     #[test]

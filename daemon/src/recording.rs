@@ -14,12 +14,13 @@ use std::time::SystemTime;
 /// An open recording.
 pub struct Recording {
     pub path: PathBuf,
-    file: std::io::BufWriter<std::fs::File>,
+    file: crate::rotate::RotatingWriter,
     pub rows: u64,
     n: usize,
 }
 
-/// Opens a new recording file: owner-only, never over an existing file or link.
+/// Opens a new recording file: owner-only, never over an existing file or link. (CSV recordings
+/// go through [`crate::rotate::RotatingWriter`], which opens its files the same way.)
 pub fn open(path: &Path) -> std::io::Result<std::io::BufWriter<std::fs::File>> {
     Ok(std::io::BufWriter::new(rt::files::create_new(path)?))
 }
@@ -45,10 +46,15 @@ pub fn resolve(out_dir: &Path, name: &str, default_ext: &str) -> Result<PathBuf,
 }
 
 impl Recording {
-    /// Starts a CSV recording for an `n`-joint arm named `name` inside `out_dir`.
-    pub fn start(out_dir: &Path, name: &str, n: usize) -> Result<Self, String> {
+    /// Starts a CSV recording for an `n`-joint arm named `name` inside `out_dir`, rotating at
+    /// `limit` (`[daemon] record_max_bytes`, keeping `record_keep` old files; see `rotate`).
+    pub fn start(
+        out_dir: &Path,
+        name: &str,
+        n: usize,
+        limit: crate::rotate::Limit,
+    ) -> Result<Self, String> {
         let path = resolve(out_dir, name, "csv")?;
-        let mut file = open(&path).map_err(|e| format!("cannot create {}: {e}", path.display()))?;
         let mut h = String::from("t,state_seq,state_stamp_ns,phi");
         for p in ["q", "qd"] {
             for i in 1..=n {
@@ -59,8 +65,9 @@ impl Recording {
         for i in 1..=n {
             h.push_str(&format!(",qdd{i}"));
         }
-        h.push_str(",tracking_error,period_residual");
-        writeln!(file, "{h}").map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        h.push_str(",tracking_error,period_residual\n");
+        let file = crate::rotate::RotatingWriter::create(&path, h.as_bytes(), limit)
+            .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
         Ok(Self {
             path,
             file,
@@ -100,7 +107,15 @@ impl Recording {
     pub fn finish(mut self) -> Result<String, String> {
         self.file
             .flush()
-            .map(|_| serde_json::json!({"path": self.path, "rows": self.rows}).to_string())
+            .map(|_| {
+                serde_json::json!({
+                    "path": self.path,
+                    "rows": self.rows,
+                    "rotations": self.file.rotations(),
+                    "last_file": self.file.current_path(),
+                })
+                .to_string()
+            })
             .map_err(|e| format!("cannot finish {}: {e}", self.path.display()))
     }
 }

@@ -16,10 +16,11 @@
 //! ```text
 //! chaosd-replay 1
 //! settings n=3 rate_hz=<f64> first_order_hold=1 hold_after=5 stale_ns=5000000 \
-//!          future_slack_ns=1000000 daemon_id=<u64> t_start=<f64> fault=0
+//!          future_slack_ns=1000000 daemon_id=<u64> t_start=<f64> fault=0 handshake=1
 //! config <k>                  the running configuration as TOML, k lines follow
 //! P <tick> <k>                a parameter block taking effect before <tick>: its config, k lines
 //! R <tick>                    an operator's resume taking effect before <tick>
+//! H <tick> <plant_id> <0|1>   the handshake's verdict on a plant start, before <tick>
 //! T <tick> <now_ns> <state> <command>
 //! G <tick> <missing>          <missing> records never reached the reporter: the recording ends
 //! ```
@@ -69,6 +70,7 @@ impl ReplayLog {
         cfg: &Config,
         settings: &ControllerSettings,
         start_in_fault: bool,
+        handshake: bool,
     ) -> Result<Self, String> {
         let path = crate::recording::resolve(out_dir, name, "replay")?;
         let cannot = |e: std::io::Error| format!("cannot write {}: {e}", path.display());
@@ -77,7 +79,7 @@ impl ReplayLog {
         let config = system_toml(cfg);
         write!(
             file,
-            "{MAGIC}\nsettings n={} rate_hz={:016x} first_order_hold={} hold_after={} stale_ns={} future_slack_ns={} daemon_id={} t_start={:016x} fault={}\nconfig {}\n{config}",
+            "{MAGIC}\nsettings n={} rate_hz={:016x} first_order_hold={} hold_after={} stale_ns={} future_slack_ns={} daemon_id={} t_start={:016x} fault={} handshake={}\nconfig {}\n{config}",
             cfg.n(),
             s.rate_hz.to_bits(),
             u8::from(s.first_order_hold),
@@ -87,6 +89,7 @@ impl ReplayLog {
             s.daemon_id,
             s.t_start.to_bits(),
             u8::from(start_in_fault),
+            u8::from(handshake),
             config.lines().count(),
         )
         .map_err(cannot)?;
@@ -140,6 +143,9 @@ impl ReplayLog {
                 write!(self.file, "P {tick} {}\n{cfg}", cfg.lines().count())?;
             }
             Some(Applied::Resume) => writeln!(self.file, "R {tick}")?,
+            Some(Applied::Plant { plant_id, agreed }) => {
+                writeln!(self.file, "H {tick} {plant_id} {}", u8::from(agreed))?
+            }
             None => {}
         }
         let mut line = String::with_capacity(700);
@@ -465,6 +471,7 @@ struct Header {
     n: usize,
     settings: ControllerSettings,
     start_in_fault: bool,
+    handshake: bool,
     cfg: Config,
 }
 
@@ -495,6 +502,7 @@ fn header<R: BufRead>(lines: &mut Lines<R>) -> Result<Header> {
         t_start: bits(setting(&mut f, "t_start")?, "t_start")?,
     };
     let start_in_fault = int::<u8>(setting(&mut f, "fault")?, "fault")? != 0;
+    let handshake = int::<u8>(setting(&mut f, "handshake")?, "handshake")? != 0;
     if !(settings.rate_hz.is_finite() && settings.rate_hz > 0.0 && settings.t_start.is_finite()) {
         bail!("the settings line has a rate or start time that no daemon runs with");
     }
@@ -513,6 +521,7 @@ fn header<R: BufRead>(lines: &mut Lines<R>) -> Result<Header> {
         n,
         settings,
         start_in_fault,
+        handshake,
         cfg,
     })
 }
@@ -545,6 +554,9 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
     );
     if h.start_in_fault {
         ctl.enter_fault(crate::guard::FaultReason::Restored);
+    }
+    if h.handshake {
+        ctl.require_handshake();
     }
     let mut rep = ReplayReport::default();
     loop {
@@ -595,6 +607,19 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
                 ctl.resume();
                 rep.resumes += 1;
             }
+            "H" => {
+                let (Some(id), Some(agreed), None) = (parts.next(), parts.next(), parts.next())
+                else {
+                    bail!("line {no}: a handshake verdict needs a plant id and 0 or 1");
+                };
+                let id: u64 = int(id, "plant id").map_err(at)?;
+                let agreed = match agreed {
+                    "0" => false,
+                    "1" => true,
+                    _ => bail!("line {no}: a handshake verdict is 0 or 1"),
+                };
+                ctl.set_plant_verdict(id, agreed);
+            }
             "G" => bail!(
                 "line {no}: the daemon lost tick records at tick {tick} (its telemetry queue was full), so the recording ends there; {} of {} ticks before it replayed bit-identically",
                 rep.matched,
@@ -626,15 +651,21 @@ mod tests {
     fn record(dir: &Path) -> PathBuf {
         let mut cfg = Config::preset("paper").unwrap();
         cfg.feedback.t_on = 0.3;
-        let mut log = ReplayLog::create(dir, "a.replay", &cfg, &settings(), false).unwrap();
+        let mut log = ReplayLog::create(dir, "a.replay", &cfg, &settings(), false, true).unwrap();
         let mut ctl = Controller::<3>::new(
             cfg.model::<3>(),
             cfg.law_params(),
             cfg.feedback.max_tau,
             settings(),
         );
+        // As the daemon runs: no plant is controlled until the handshake agrees to it (tick 20),
+        // and a refusal of the same plant later (tick 300) stops control again.
+        ctl.require_handshake();
         let t0 = 7_000_000_000u64;
         for k in 0..400u64 {
+            if k == 20 || k == 300 {
+                ctl.set_plant_verdict(5, k == 20);
+            }
             if k == 150 {
                 cfg.feedback.mu = 0.7;
                 log.committed(&cfg);

@@ -79,6 +79,8 @@ pub struct Reporter {
     /// When the live state was last saved, and whether a failure to save was reported.
     pub(crate) saved_at: Option<Instant>,
     pub(crate) save_error_said: bool,
+    /// Why the handshake refuses the current plant, if it does.
+    pub(crate) handshake: crate::handshake::Refusal,
 }
 
 impl Reporter {
@@ -133,10 +135,17 @@ impl Reporter {
             t_start: 0.0,
             saved_at: None,
             save_error_said: false,
+            handshake: Default::default(),
         })
     }
 
     /// Starts from a restarted daemon's saved state: its controller time and any FAULT.
+    /// Shows the handshake's refusal, if any, in `status`.
+    pub fn with_handshake(mut self, refusal: crate::handshake::Refusal) -> Self {
+        self.handshake = refusal;
+        self
+    }
+
     pub fn resuming(mut self, live: Option<&crate::persist::LiveState>) -> Self {
         if let Some(l) = live {
             self.t_start = l.t;

@@ -64,14 +64,25 @@ fn run_n<const N: usize>(
                 &setup.system,
                 &settings,
                 start_in_fault,
+                true, // the loop requires the handshake (below)
             )
             .map_err(|e| anyhow!("--record: {e}"))?,
         ),
         None => None,
     };
+    let running = Arc::new(AtomicBool::new(true));
+    // The handshake: which plant the loop may control (see `handshake`).
+    let (handshake, refusal) = crate::handshake::spawn(
+        &setup.system,
+        &names,
+        params_tx.clone(),
+        running.clone(),
+        d.core,
+    )?;
     let reporter = Reporter::new(setup.system.clone(), d.clone(), params_tx, rt_rx)?
         .resuming(setup.live.as_ref())
-        .recording_replay(replay);
+        .recording_replay(replay)
+        .with_handshake(refusal);
     // Helper threads stay off the loop's core (it is pinned there below).
     let loop_core = d.core;
     let reporter = std::thread::Builder::new()
@@ -80,7 +91,6 @@ fn run_n<const N: usize>(
             rt::setup::avoid_core(loop_core);
             reporter.run(rx, on_line)
         })?;
-    let running = Arc::new(AtomicBool::new(true));
     let hk = {
         let running = running.clone();
         let every = Duration::from_secs_f64(d.cleanup_every_s);
@@ -112,6 +122,7 @@ fn run_n<const N: usize>(
     if let Some(h) = notifier {
         let _ = h.join();
     }
+    let _ = handshake.join();
     let summary = reporter
         .join()
         .map_err(|_| anyhow!("the reporter thread panicked"))?;
@@ -158,6 +169,7 @@ fn control_loop<const N: usize>(
         setup.system.feedback.max_tau,
         settings,
     );
+    ctl.require_handshake();
     if setup.live.as_ref().is_some_and(|l| l.fault.is_some()) {
         ctl.enter_fault(crate::guard::FaultReason::Restored);
     }

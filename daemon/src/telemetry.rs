@@ -24,6 +24,8 @@ pub enum LoopRequest {
     Resume,
     /// Sleep this many ms between two ticks (`chaosctl debug-stall`, a watchdog check).
     Stall(u64),
+    /// The handshake's verdict on one plant start (`crate::handshake`).
+    Plant { plant_id: u64, agreed: bool },
 }
 
 /// One tick, as the loop saw it.

@@ -64,6 +64,13 @@ pub struct Launch {
     pub duration: Option<f64>,
 }
 
+impl Launch {
+    /// What the arm is, for the handshake with the daemon.
+    pub fn arm(&self) -> protocol::ArmInfo {
+        crate::handshake::describe(&self.system)
+    }
+}
+
 /// Loads and validates everything before anything starts; errors name the field.
 pub fn load(args: &PlantArgs) -> Result<Launch> {
     let system = match (&args.config, &args.preset) {
@@ -106,7 +113,7 @@ pub fn serve<P: Plant>(
 ) -> ExitCode {
     main_with(name, args, |l| {
         let mut plant = make(l)?;
-        crate::run::run(&mut plant, &l.plant, l.duration)
+        crate::run::run(&mut plant, &l.plant, &l.arm(), l.duration)
     })
 }
 

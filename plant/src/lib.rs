@@ -8,6 +8,7 @@
 
 pub mod app;
 pub mod config;
+pub mod handshake;
 pub mod intake;
 pub mod report;
 pub mod run;

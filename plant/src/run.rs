@@ -64,12 +64,22 @@ struct Loop<'a> {
     sample: StateSample,
 }
 
-/// Runs `plant` until SIGINT/SIGTERM or for `duration` seconds.
+/// Runs `plant` until SIGINT/SIGTERM or for `duration` seconds. `arm` describes the arm it moves
+/// ([`crate::handshake::describe`] of the config): a daemon that expects another arm is refused,
+/// and the refusal is the error returned.
 pub fn run<P: Plant>(
     plant: &mut P,
     cfg: &PlantConfig,
+    arm: &protocol::ArmInfo,
     duration: Option<f64>,
 ) -> Result<PlantSummary> {
+    if plant.n() != arm.n as usize {
+        return Err(anyhow!(
+            "the plant has {} joints, but [arm] describes {}",
+            plant.n(),
+            arm
+        ));
+    }
     let names = ServiceNames::new(&cfg.namespace).map_err(|e| anyhow!("plant.namespace: {e}"))?;
     rt::files::create_dir_all(&cfg.output_dir).with_context(|| {
         format!(
@@ -92,6 +102,9 @@ pub fn run<P: Plant>(
         .subscriber_builder()
         .create()
         .map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.command()))?;
+
+    let plant_id = protocol::new_instance_id();
+    let mut handshake = crate::handshake::Handshake::start(&names, *arm, plant_id, cfg.core)?;
 
     plant.activate()?;
     let rt_report = rt::setup::apply(rt::setup::RtRequest {
@@ -128,17 +141,19 @@ pub fn run<P: Plant>(
         plant_time: 0.0,
         seq: 0,
         sample: StateSample {
-            plant_id: protocol::new_instance_id(),
+            plant_id,
             n: plant.n() as u32,
             ..StateSample::default()
         },
     };
     let fault = lp.cycles(plant, start, duration).err();
     plant.deactivate();
+    let refused = handshake.stop();
     let summary = lp.finish(rt_report, start, wall_start)?;
-    match fault {
-        Some(e) => Err(anyhow::Error::new(e).context("the plant stopped")),
-        None => Ok(summary),
+    match (fault, refused) {
+        (Some(e), _) => Err(anyhow::Error::new(e).context("the plant stopped")),
+        (None, Some(why)) => Err(anyhow!(why)),
+        (None, None) => Ok(summary),
     }
 }
 

@@ -15,12 +15,16 @@
 //!   it; later openers only have to ask for *no more* than that. [`qos`] holds the single set of
 //!   settings and the `open_*` helpers that apply them and then check that an existing service
 //!   matches exactly.
+//! * **A handshake before control.** Each side publishes the arm it is built for
+//!   ([`handshake`]); the daemon runs a plant only when both agree, and either names both sides
+//!   when they do not.
 //! * **Versioned type names.** Each sample's iceoryx2 type name carries [`WIRE_VERSION`]. A
 //!   process built with a different layout fails to open the service (`IncompatibleTypes`)
 //!   instead of misreading bytes.
 //!
 //! **Architecture invariant:** this crate does no I/O of its own. It defines types and names, and
-//! its `qos` helpers only open iceoryx2 services when asked to.
+//! its `qos` helpers only open iceoryx2 services when asked to, and `node()` looks at iceoryx2's
+//! directories before it joins.
 //!
 //! Units on the wire: angles in rad, rates in rad/s, accelerations in rad/s², times in ns of
 //! `CLOCK_MONOTONIC` (see [`monotonic_ns`]).
@@ -50,6 +54,7 @@
 //! ```
 
 pub mod control;
+pub mod handshake;
 pub mod names;
 pub mod node;
 pub mod qos;
@@ -58,11 +63,12 @@ pub mod sample;
 pub use control::{
     ControlRequest, ControlResponse, ControlService, Op, Status, TelemetrySample, TelemetryService,
 };
+pub use handshake::{mismatch, ArmInfo, FloatingBase};
 pub use names::{
     validate_namespace, NamespaceError, ServiceNames, DEFAULT_NAMESPACE, MAX_NAMESPACE_LEN,
     SERVICE_ROOT,
 };
-pub use node::{node, NodeError};
+pub use node::{check_dirs, node, DirError, NodeError};
 pub use qos::{
     open_command_service, open_state_service, Channel, CommandService, PubSubQos, ServiceError,
     StateService, COMMAND_QOS, STATE_QOS,
@@ -78,7 +84,7 @@ pub const MIN_JOINTS: usize = 2;
 
 /// Wire-format version, embedded in the iceoryx2 type names of the samples. Bump it whenever a
 /// sample's layout or the meaning of a field changes.
-pub const WIRE_VERSION: u32 = 3;
+pub const WIRE_VERSION: u32 = 4;
 
 /// Nanoseconds of `CLOCK_MONOTONIC`, the clock every `*_ns` stamp on the wire uses.
 ///

@@ -54,6 +54,8 @@ pub struct ServiceNames {
     command: String,
     control: String,
     telemetry: String,
+    plant_info: String,
+    daemon_info: String,
 }
 
 impl ServiceNames {
@@ -67,6 +69,8 @@ impl ServiceNames {
             command: name("command"),
             control: name("control"),
             telemetry: name("telemetry"),
+            plant_info: name("plant/info"),
+            daemon_info: name("daemon/info"),
         })
     }
 
@@ -93,6 +97,16 @@ impl ServiceNames {
     /// Publish-subscribe, daemon → monitors and recorders (`control::TelemetrySample`).
     pub fn telemetry(&self) -> &str {
         &self.telemetry
+    }
+
+    /// Publish-subscribe with history, plant → daemon: the plant's `handshake::ArmInfo`.
+    pub fn plant_info(&self) -> &str {
+        &self.plant_info
+    }
+
+    /// Publish-subscribe with history, daemon → plant: the daemon's `handshake::ArmInfo`.
+    pub fn daemon_info(&self) -> &str {
+        &self.daemon_info
     }
 }
 
@@ -121,6 +135,8 @@ mod tests {
         assert_eq!(names.command(), "chaosd/lab-2_arm/command");
         assert_eq!(names.control(), "chaosd/lab-2_arm/control");
         assert_eq!(names.telemetry(), "chaosd/lab-2_arm/telemetry");
+        assert_eq!(names.plant_info(), "chaosd/lab-2_arm/plant/info");
+        assert_eq!(names.daemon_info(), "chaosd/lab-2_arm/daemon/info");
         assert_eq!(names.to_string(), "chaosd/lab-2_arm/");
     }
 
@@ -142,6 +158,8 @@ mod tests {
             names.command(),
             names.control(),
             names.telemetry(),
+            names.plant_info(),
+            names.daemon_info(),
         ] {
             assert!(iceoryx2::prelude::ServiceName::new(name).is_ok(), "{name}");
         }

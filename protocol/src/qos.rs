@@ -79,6 +79,8 @@ pub enum Channel {
     Command,
     Control,
     Telemetry,
+    PlantInfo,
+    DaemonInfo,
 }
 
 impl fmt::Display for Channel {
@@ -88,6 +90,8 @@ impl fmt::Display for Channel {
             Channel::Command => "command",
             Channel::Control => "control",
             Channel::Telemetry => "telemetry",
+            Channel::PlantInfo => "plant/info",
+            Channel::DaemonInfo => "daemon/info",
         })
     }
 }

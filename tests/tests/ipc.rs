@@ -1,6 +1,7 @@
 //! The daemon and the plant as separate processes over iceoryx2, each test in its own namespace.
 
 use control::{Config, Kinematics, VecN};
+use iceoryx2::port::update_connections::UpdateConnections as _;
 use protocol::{flags, monotonic_ns, Mode, ServiceNames, StateSample};
 use std::time::Duration;
 use tests::*;
@@ -219,6 +220,14 @@ fn nan_and_stale_states_are_rejected_and_never_answered() {
     let names = ServiceNames::new(&ns).unwrap();
     let svc = protocol::open_state_service(&node, &names).unwrap();
     let publisher = svc.publisher_builder().create().unwrap();
+    // A plant describes its arm first (the handshake), or the daemon never runs it.
+    let info = protocol::handshake::open_plant_info_service(&node, &names)
+        .unwrap()
+        .publisher_builder()
+        .create()
+        .unwrap();
+    info.send_copy(protocol::ArmInfo::new(4242, &[1.0; 3], None))
+        .unwrap();
     let mut daemon = Proc::spawn(
         "daemon",
         &bin("chaosd"),
@@ -250,6 +259,8 @@ fn nan_and_stale_states_are_rejected_and_never_answered() {
         s.seq = seq;
         seq += 1;
         publish(&mut s);
+        // Hands the description to the daemon once it subscribes.
+        let _ = info.update_connections();
         std::thread::sleep(Duration::from_millis(1));
         m.poll();
     }

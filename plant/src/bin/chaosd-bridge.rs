@@ -60,7 +60,7 @@ fn main() -> ExitCode {
             spin: Duration::from_secs_f64(l.plant.spin_us * 1e-6),
         };
         let mut bridge = UdpBridge::new(l.system.n(), cfg);
-        let summary = plant::run::run(&mut bridge, &l.plant, l.duration);
+        let summary = plant::run::run(&mut bridge, &l.plant, &l.arm(), l.duration);
         let c = bridge.counters;
         tracing::info!(
             "{} states, {} commands sent; {} timeouts, {} malformed, {} out of order, {} superseded; device lost {} times, restarted {} times",

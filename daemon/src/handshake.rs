@@ -1,0 +1,211 @@
+//! The daemon's half of the handshake (`protocol::handshake`), on its own thread, off the loop.
+//!
+//! This thread publishes the daemon's [`ArmInfo`] on `chaosd/<ns>/daemon/info`, reads the
+//! plant's from `chaosd/<ns>/plant/info`, and judges each plant start (each `plant_id`) once. The
+//! verdict reaches the loop as a [`LoopRequest::Plant`] through the same bounded channel the
+//! control service uses, taken between two ticks; the tick itself only compares the state's
+//! `plant_id` with the agreed one. Until a plant is agreed to, its states are ignored, so the
+//! daemon stays in HOLD and never sends a mismatched plant a RUN command. A refusal is said once
+//! on stderr and kept for `chaosctl status` ([`Refusal`]). A restarted plant has a new id and is
+//! judged again.
+
+use crate::telemetry::LoopRequest;
+use anyhow::{anyhow, Result};
+use control::config::ModelKind;
+use control::Config;
+use iceoryx2::port::update_connections::UpdateConnections as _;
+use protocol::{mismatch, ArmInfo, FloatingBase, ServiceNames};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+/// How often the thread looks for a plant's description.
+const POLL: Duration = Duration::from_millis(2);
+
+/// Why the current plant is refused, if it is (shown by `chaosctl status`).
+pub type Refusal = Arc<Mutex<Option<String>>>;
+
+/// The description of the arm in `system`, for the process with `instance_id`.
+pub fn describe(system: &Config, instance_id: u64) -> ArmInfo {
+    let masses = system.link_masses();
+    let inertias = system.link_inertias();
+    let floating = (system.arm.model == ModelKind::Floating).then(|| FloatingBase {
+        link_masses: &masses,
+        link_inertias: &inertias,
+        base_mass: system.arm.base_mass,
+        base_inertia: system.arm.base_inertia,
+        base_offset: system.arm.base_offset,
+    });
+    ArmInfo::new(instance_id, &system.arm.links, floating)
+}
+
+/// Judges each plant start once.
+pub struct Judge {
+    namespace: String,
+    mine: ArmInfo,
+    judged: Option<u64>,
+    refused_before: bool,
+}
+
+/// A verdict on one plant start.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Verdict {
+    pub plant_id: u64,
+    /// `None`: agreed. Otherwise the refusal, naming both sides.
+    pub refusal: Option<String>,
+}
+
+impl Judge {
+    pub fn new(namespace: &str, mine: ArmInfo) -> Self {
+        Self {
+            namespace: namespace.to_string(),
+            mine,
+            judged: None,
+            refused_before: false,
+        }
+    }
+
+    /// A verdict for a plant start not judged before; `None` for one already judged.
+    pub fn judge(&mut self, plant: &ArmInfo) -> Option<Verdict> {
+        if self.judged == Some(plant.instance_id) {
+            return None;
+        }
+        self.judged = Some(plant.instance_id);
+        Some(Verdict {
+            plant_id: plant.instance_id,
+            refusal: mismatch(&self.namespace, plant, &self.mine),
+        })
+    }
+}
+
+/// Starts the handshake thread; returns once the daemon's description is published. The thread
+/// ends when `running` turns false or the loop's channel closes.
+pub fn spawn(
+    system: &Config,
+    names: &ServiceNames,
+    params_tx: crossbeam::channel::Sender<LoopRequest>,
+    running: Arc<AtomicBool>,
+    loop_core: Option<usize>,
+) -> Result<(JoinHandle<()>, Refusal)> {
+    let mine = describe(system, protocol::new_instance_id());
+    let names = names.clone();
+    let refusal: Refusal = Arc::default();
+    let shown = refusal.clone();
+    let (ready_tx, ready_rx) = crossbeam::channel::bounded::<Result<()>>(1);
+    let handle = std::thread::Builder::new()
+        .name("chaosd-handshake".into())
+        .spawn(move || {
+            rt::setup::avoid_core(loop_core);
+            let ports = (|| -> Result<_> {
+                let node = crate::service::node("chaosd-handshake")?;
+                let ours = protocol::handshake::open_daemon_info_service(&node, &names)?
+                    .publisher_builder()
+                    .create()
+                    .map_err(|e| anyhow!("cannot publish on {}: {e:?} (is another chaosd already running in namespace {:?}?)", names.daemon_info(), names.namespace()))?;
+                ours.send_copy(mine)
+                    .map_err(|e| anyhow!("cannot publish on {}: {e:?}", names.daemon_info()))?;
+                let theirs = protocol::handshake::open_plant_info_service(&node, &names)?
+                    .subscriber_builder()
+                    .create()
+                    .map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.plant_info()))?;
+                Ok((node, ours, theirs))
+            })();
+            let (_node, ours, theirs) = match ports {
+                Ok(p) => {
+                    let _ = ready_tx.send(Ok(()));
+                    p
+                }
+                Err(e) => {
+                    let _ = ready_tx.send(Err(e));
+                    return;
+                }
+            };
+            let mut judge = Judge::new(names.namespace(), mine);
+            let mut pending: Option<LoopRequest> = None;
+            while running.load(Ordering::Relaxed) {
+                // Hands our description to subscribers that joined since (a plant's restart).
+                let _ = ours.update_connections();
+                let mut newest = None;
+                while let Ok(Some(s)) = theirs.receive() {
+                    newest = Some(*s);
+                }
+                if let Some(v) = newest.as_ref().and_then(|p| judge.judge(p)) {
+                    pending = Some(report(&mut judge, &refusal, &v));
+                }
+                if let Some(r) = pending {
+                    match params_tx.try_send(r) {
+                        Ok(()) => pending = None,
+                        Err(crossbeam::channel::TrySendError::Full(_)) => {}
+                        Err(crossbeam::channel::TrySendError::Disconnected(_)) => return,
+                    }
+                }
+                std::thread::sleep(POLL);
+            }
+        })?;
+    match ready_rx.recv() {
+        Ok(Ok(())) => Ok((handle, shown)),
+        Ok(Err(e)) => {
+            let _ = handle.join();
+            Err(e)
+        }
+        Err(_) => Err(anyhow!("the handshake thread ended before it started")),
+    }
+}
+
+/// Says a verdict once (stderr, status) and turns it into the loop's request.
+fn report(judge: &mut Judge, refusal: &Refusal, v: &Verdict) -> LoopRequest {
+    match &v.refusal {
+        Some(why) => {
+            eprintln!("chaosd: {why}; holding until a matching plant starts");
+            judge.refused_before = true;
+        }
+        None if judge.refused_before => {
+            judge.refused_before = false;
+            eprintln!(
+                "chaosd: plant {:?} is {}, as expected; controlling it",
+                judge.namespace, judge.mine
+            );
+        }
+        None => {}
+    }
+    if let Ok(mut g) = refusal.lock() {
+        *g = v.refusal.clone();
+    }
+    LoopRequest::Plant {
+        plant_id: v.plant_id,
+        agreed: v.refusal.is_none(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_plant_start_is_judged_once() {
+        let daemon = describe(&Config::preset("paper").unwrap(), 1);
+        let mut judge = Judge::new("ns", daemon);
+        let mut four = Config::preset("paper").unwrap();
+        four.arm.links = vec![1.0; 4];
+        let plant = describe(&four, 7);
+        let v = judge.judge(&plant).unwrap();
+        assert_eq!(v.plant_id, 7);
+        assert_eq!(
+            v.refusal.as_deref(),
+            Some("plant \"ns\" is a 4-link fixed arm (links 1,1,1,1), daemon expects a 3-link fixed arm (links 1,1,1); refusing")
+        );
+        assert_eq!(judge.judge(&plant), None, "judged once");
+        // The plant restarts with the daemon's arm: agreed.
+        let plant = describe(&Config::preset("paper").unwrap(), 8);
+        assert_eq!(judge.judge(&plant).unwrap().refusal, None);
+    }
+
+    #[test]
+    fn floating_presets_describe_their_base() {
+        let f = describe(&Config::preset("paper-floating").unwrap(), 1);
+        assert_eq!(f.kind, protocol::handshake::KIND_FLOATING);
+        let fixed = describe(&Config::preset("paper").unwrap(), 1);
+        assert!(mismatch("x", &fixed, &f).unwrap().contains("floating arm"));
+    }
+}

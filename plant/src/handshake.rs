@@ -1,0 +1,157 @@
+//! The plant's half of the handshake (`protocol::handshake`), on its own thread, off the loop.
+//!
+//! This thread publishes the plant's [`ArmInfo`] on `chaosd/<ns>/plant/info` (bound to this
+//! start's `plant_id`) and reads the daemon's from `chaosd/<ns>/daemon/info`. When a daemon
+//! describes another arm, it says so (naming both sides), asks the loop to stop, and
+//! [`crate::run::run`] then returns the refusal as its error, so the process exits non-zero. The
+//! plant loop itself does nothing for the handshake.
+
+use anyhow::{anyhow, Result};
+use control::config::ModelKind;
+use control::Config;
+use iceoryx2::port::update_connections::UpdateConnections as _;
+use protocol::{mismatch, ArmInfo, FloatingBase, ServiceNames};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+/// How often the thread looks for a daemon's description.
+const POLL: Duration = Duration::from_millis(2);
+/// How long a refusing plant keeps its description up before it stops.
+const GRACE: Duration = Duration::from_millis(300);
+
+/// The description of the arm in `system` (the plant's `[arm]`).
+pub fn describe(system: &Config) -> ArmInfo {
+    let masses = system.link_masses();
+    let inertias = system.link_inertias();
+    let floating = (system.arm.model == ModelKind::Floating).then(|| FloatingBase {
+        link_masses: &masses,
+        link_inertias: &inertias,
+        base_mass: system.arm.base_mass,
+        base_inertia: system.arm.base_inertia,
+        base_offset: system.arm.base_offset,
+    });
+    ArmInfo::new(0, &system.arm.links, floating)
+}
+
+/// The running handshake thread.
+pub struct Handshake {
+    running: Arc<AtomicBool>,
+    refusal: Arc<Mutex<Option<String>>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Handshake {
+    /// Publishes `mine` (with `plant_id` as its instance id) and starts watching for a daemon.
+    /// Returns once the description is published.
+    pub fn start(
+        names: &ServiceNames,
+        mut mine: ArmInfo,
+        plant_id: u64,
+        avoid_core: Option<usize>,
+    ) -> Result<Self> {
+        mine.instance_id = plant_id;
+        let names = names.clone();
+        let running = Arc::new(AtomicBool::new(true));
+        let refusal = Arc::new(Mutex::new(None));
+        let (run, said) = (running.clone(), refusal.clone());
+        let (ready_tx, ready_rx) = std::sync::mpsc::sync_channel::<Result<()>>(1);
+        let thread = std::thread::Builder::new()
+            .name("plant-handshake".into())
+            .spawn(move || {
+                rt::setup::avoid_core(avoid_core);
+                let ports = (|| -> Result<_> {
+                    let node = protocol::node("chaosd-plant-handshake")?;
+                    let ours = protocol::handshake::open_plant_info_service(&node, &names)?
+                        .publisher_builder()
+                        .create()
+                        .map_err(|e| anyhow!("cannot publish on {}: {e:?} (is another plant already running in namespace {:?}?)", names.plant_info(), names.namespace()))?;
+                    ours.send_copy(mine)
+                        .map_err(|e| anyhow!("cannot publish on {}: {e:?}", names.plant_info()))?;
+                    let theirs = protocol::handshake::open_daemon_info_service(&node, &names)?
+                        .subscriber_builder()
+                        .create()
+                        .map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.daemon_info()))?;
+                    Ok((node, ours, theirs))
+                })();
+                let (_node, ours, theirs) = match ports {
+                    Ok(p) => {
+                        let _ = ready_tx.send(Ok(()));
+                        p
+                    }
+                    Err(e) => {
+                        let _ = ready_tx.send(Err(e));
+                        return;
+                    }
+                };
+                while run.load(Ordering::Relaxed) {
+                    // Hands our description to daemons that joined since.
+                    let _ = ours.update_connections();
+                    let mut newest = None;
+                    while let Ok(Some(s)) = theirs.receive() {
+                        newest = Some(*s);
+                    }
+                    if let Some(why) = newest.and_then(|d| mismatch(names.namespace(), &mine, &d)) {
+                        if let Ok(mut g) = said.lock() {
+                            *g = Some(why);
+                        }
+                        // Stay a moment, so that a daemon that has just joined still gets our
+                        // description and can say why it refuses too.
+                        for _ in 0..(GRACE.as_millis() / POLL.as_millis()) {
+                            let _ = ours.update_connections();
+                            std::thread::sleep(POLL);
+                        }
+                        rt::signal::request_stop();
+                        return;
+                    }
+                    std::thread::sleep(POLL);
+                }
+            })?;
+        let mut hs = Self {
+            running,
+            refusal,
+            thread: Some(thread),
+        };
+        match ready_rx.recv() {
+            Ok(Ok(())) => Ok(hs),
+            Ok(Err(e)) => {
+                hs.stop();
+                Err(e)
+            }
+            Err(_) => Err(anyhow!("the handshake thread ended before it started")),
+        }
+    }
+
+    /// Stops the thread; returns the refusal if a mismatched daemon was seen.
+    pub fn stop(&mut self) -> Option<String> {
+        self.running.store(false, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+        self.refusal.lock().ok().and_then(|g| g.clone())
+    }
+}
+
+impl Drop for Handshake {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_description_follows_the_config() {
+        let mut c = Config::preset("paper").unwrap();
+        c.arm.links = vec![1.0, 0.5, 0.25, 0.125];
+        let d = describe(&c);
+        assert_eq!((d.n, d.kind), (4, protocol::handshake::KIND_FIXED));
+        assert_eq!(&d.links[..4], &[1.0, 0.5, 0.25, 0.125]);
+        let f = describe(&Config::preset("paper-floating").unwrap());
+        assert_eq!(f.kind, protocol::handshake::KIND_FLOATING);
+        assert!(f.base_mass > 0.0);
+    }
+}

@@ -1,0 +1,303 @@
+//! The handshake: each side says which arm it is built for, and a mismatched pair is refused.
+//!
+//! A 4-link plant and a 3-link daemon, or two 3-link arms with different link lengths, would
+//! otherwise meet in silence: the daemon would reject every state (wrong size) and sit in HOLD
+//! with no word why, or control the plant with the wrong model. So the plant publishes an
+//! [`ArmInfo`] on `chaosd/<ns>/plant/info` and the daemon one on `chaosd/<ns>/daemon/info`. Both
+//! services keep the newest sample as history, so a side that starts (or restarts) later still
+//! sees it. Each side compares with [`mismatch`], which returns one line naming both sides; the
+//! daemon then never runs that plant (it keeps HOLD), the plant exits with the message.
+//!
+//! [`ArmInfo`] deliberately has a type name **without** the wire version, and a layout that must
+//! never change (pinned by a test): it is the one sample two builds of different wire versions
+//! can still exchange, so that they can tell each other which versions they speak.
+
+use core::fmt::{self, Write as _};
+
+use iceoryx2::node::Node;
+use iceoryx2::prelude::ZeroCopySend;
+use iceoryx2::service::port_factory::publish_subscribe;
+
+use crate::names::ServiceNames;
+use crate::qos::{open_pubsub, Channel, PubSubQos, ServiceError};
+use crate::{MAX_JOINTS, MIN_JOINTS, WIRE_VERSION};
+
+/// [`ArmInfo::kind`]: a fixed base.
+pub const KIND_FIXED: u32 = 0;
+/// [`ArmInfo::kind`]: a free-floating base.
+pub const KIND_FLOATING: u32 = 1;
+
+/// What one side is built for. Published once at start-up (and kept as history).
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("chaosd::ArmInfo")]
+#[repr(C)]
+pub struct ArmInfo {
+    /// The [`WIRE_VERSION`] of the publisher's build.
+    pub wire_version: u32,
+    /// [`KIND_FIXED`] or [`KIND_FLOATING`].
+    pub kind: u32,
+    /// The publisher's instance id: the plant's `StateSample::plant_id`, or the daemon's
+    /// `CommandSample::daemon_id`. Binds a verdict to one process start.
+    pub instance_id: u64,
+    /// Number of links (joints).
+    pub n: u32,
+    pub reserved: u32,
+    /// Link lengths (m); entries `n..` are zero.
+    pub links: [f64; MAX_JOINTS],
+    /// Floating base only (zero otherwise): link masses (kg) and inertias (kg·m²).
+    pub link_masses: [f64; MAX_JOINTS],
+    pub link_inertias: [f64; MAX_JOINTS],
+    /// Floating base only (zero otherwise): base mass (kg), inertia (kg·m²), offset (m).
+    pub base_mass: f64,
+    pub base_inertia: f64,
+    pub base_offset: f64,
+}
+
+/// The floating base's parameters, for [`ArmInfo::new`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FloatingBase<'a> {
+    pub link_masses: &'a [f64],
+    pub link_inertias: &'a [f64],
+    pub base_mass: f64,
+    pub base_inertia: f64,
+    pub base_offset: f64,
+}
+
+fn copy_in(dst: &mut [f64; MAX_JOINTS], src: &[f64]) {
+    let n = src.len().min(MAX_JOINTS);
+    dst[..n].copy_from_slice(&src[..n]);
+}
+
+impl ArmInfo {
+    /// The description of an arm with these link lengths; `floating` for a free-floating base.
+    /// At most [`MAX_JOINTS`] links are kept (configs are validated long before this).
+    pub fn new(instance_id: u64, links: &[f64], floating: Option<FloatingBase<'_>>) -> Self {
+        let mut info = Self {
+            wire_version: WIRE_VERSION,
+            kind: KIND_FIXED,
+            instance_id,
+            n: links.len().min(MAX_JOINTS) as u32,
+            reserved: 0,
+            links: [0.0; MAX_JOINTS],
+            link_masses: [0.0; MAX_JOINTS],
+            link_inertias: [0.0; MAX_JOINTS],
+            base_mass: 0.0,
+            base_inertia: 0.0,
+            base_offset: 0.0,
+        };
+        copy_in(&mut info.links, links);
+        if let Some(b) = floating {
+            info.kind = KIND_FLOATING;
+            copy_in(&mut info.link_masses, b.link_masses);
+            copy_in(&mut info.link_inertias, b.link_inertias);
+            info.base_mass = b.base_mass;
+            info.base_inertia = b.base_inertia;
+            info.base_offset = b.base_offset;
+        }
+        info
+    }
+
+    fn used(&self) -> usize {
+        (self.n as usize).min(MAX_JOINTS)
+    }
+
+    /// Whether two descriptions are of the same arm (the instance ids aside). Floats are
+    /// compared exactly: both sides read the numbers from a config, and a length that differs in
+    /// the last digit is a different arm.
+    pub fn same_arm(&self, other: &Self) -> bool {
+        let n = self.used();
+        let eq = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+        self.wire_version == other.wire_version
+            && self.kind == other.kind
+            && self.n == other.n
+            && eq(&self.links[..n], &other.links[..n])
+            && (self.kind != KIND_FLOATING
+                || (eq(&self.link_masses[..n], &other.link_masses[..n])
+                    && eq(&self.link_inertias[..n], &other.link_inertias[..n])
+                    && eq(
+                        &[self.base_mass, self.base_inertia, self.base_offset],
+                        &[other.base_mass, other.base_inertia, other.base_offset],
+                    )))
+    }
+}
+
+/// Numbers as a config would write them: `1`, `0.5`, `1e-7`.
+fn list(values: &[f64]) -> String {
+    let mut s = String::new();
+    for (i, v) in values.iter().enumerate() {
+        if i > 0 {
+            s.push(',');
+        }
+        let _ = write!(s, "{v}");
+    }
+    s
+}
+
+impl fmt::Display for ArmInfo {
+    /// `a 3-link fixed arm (links 1,1,1)`; a floating base adds its masses, inertias and base.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let n = self.n as usize;
+        if !(MIN_JOINTS..=MAX_JOINTS).contains(&n) {
+            return write!(f, "an arm with an invalid link count {}", self.n);
+        }
+        match self.kind {
+            KIND_FIXED => write!(f, "a {n}-link fixed arm (links {})", list(&self.links[..n])),
+            KIND_FLOATING => write!(
+                f,
+                "a {n}-link floating arm (links {}; link masses {}; link inertias {}; base mass {}, inertia {}, offset {})",
+                list(&self.links[..n]),
+                list(&self.link_masses[..n]),
+                list(&self.link_inertias[..n]),
+                self.base_mass,
+                self.base_inertia,
+                self.base_offset
+            ),
+            k => write!(f, "an arm of unknown kind {k}"),
+        }
+    }
+}
+
+/// `None` when the plant and the daemon agree; otherwise one line naming both sides, e.g.
+/// `plant "lab" is a 4-link fixed arm (links 1,1,1,1), daemon expects a 3-link fixed arm (links
+/// 1,1,1); refusing`.
+pub fn mismatch(namespace: &str, plant: &ArmInfo, daemon: &ArmInfo) -> Option<String> {
+    if plant.same_arm(daemon) {
+        return None;
+    }
+    if plant.wire_version != daemon.wire_version {
+        return Some(format!(
+            "plant {namespace:?} speaks chaosd wire version {}, daemon wire version {}; refusing (build both from the same chaosd)",
+            plant.wire_version, daemon.wire_version
+        ));
+    }
+    Some(format!(
+        "plant {namespace:?} is {plant}, daemon expects {daemon}; refusing"
+    ))
+}
+
+/// The opened `plant/info` or `daemon/info` service.
+pub type InfoService<S> = publish_subscribe::PortFactory<S, ArmInfo, ()>;
+
+/// QoS of both info services: the newest description is kept as history for late joiners; one
+/// publisher (the plant, or the daemon) per namespace.
+pub const INFO_QOS: PubSubQos = PubSubQos {
+    history_size: 1,
+    subscriber_max_buffer_size: 2,
+    subscriber_max_borrowed_samples: 1,
+    max_publishers: 1,
+    max_subscribers: 8,
+    max_nodes: 16,
+    safe_overflow: true,
+};
+
+/// Opens (or creates) `chaosd/<ns>/plant/info` with [`INFO_QOS`].
+pub fn open_plant_info_service<S: iceoryx2::service::Service>(
+    node: &Node<S>,
+    names: &ServiceNames,
+) -> Result<InfoService<S>, ServiceError> {
+    open_pubsub(node, names.plant_info(), Channel::PlantInfo, &INFO_QOS)
+}
+
+/// Opens (or creates) `chaosd/<ns>/daemon/info` with [`INFO_QOS`].
+pub fn open_daemon_info_service<S: iceoryx2::service::Service>(
+    node: &Node<S>,
+    names: &ServiceNames,
+) -> Result<InfoService<S>, ServiceError> {
+    open_pubsub(node, names.daemon_info(), Channel::DaemonInfo, &INFO_QOS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use core::mem::{align_of, offset_of, size_of};
+
+    fn fixed(links: &[f64]) -> ArmInfo {
+        ArmInfo::new(1, links, None)
+    }
+
+    #[test]
+    fn a_different_link_count_is_refused_naming_both_sides() {
+        let msg = mismatch("ns", &fixed(&[1.0; 4]), &fixed(&[1.0; 3])).unwrap();
+        assert_eq!(
+            msg,
+            "plant \"ns\" is a 4-link fixed arm (links 1,1,1,1), daemon expects a 3-link fixed arm (links 1,1,1); refusing"
+        );
+    }
+
+    #[test]
+    fn different_lengths_are_refused_and_equal_arms_agree() {
+        let msg = mismatch("lab", &fixed(&[1.0, 1.0, 0.5]), &fixed(&[1.0; 3])).unwrap();
+        assert!(
+            msg.contains("links 1,1,0.5") && msg.contains("links 1,1,1"),
+            "{msg}"
+        );
+        let mut other_start = fixed(&[1.0; 3]);
+        other_start.instance_id = 99;
+        assert_eq!(mismatch("lab", &other_start, &fixed(&[1.0; 3])), None);
+    }
+
+    #[test]
+    fn floating_bases_compare_their_base_and_masses() {
+        let masses = [1.0; 3];
+        let inertias = [0.3, 0.2, 0.1];
+        let base = |m| FloatingBase {
+            link_masses: &masses,
+            link_inertias: &inertias,
+            base_mass: m,
+            base_inertia: 200.0,
+            base_offset: 1.0,
+        };
+        let a = ArmInfo::new(1, &[1.0; 3], Some(base(200.0)));
+        let b = ArmInfo::new(2, &[1.0; 3], Some(base(1.0)));
+        assert_eq!(mismatch("x", &a, &a), None);
+        let msg = mismatch("x", &b, &a).unwrap();
+        assert!(
+            msg.contains("floating arm")
+                && msg.contains("base mass 1,")
+                && msg.contains("base mass 200,"),
+            "{msg}"
+        );
+        assert!(mismatch("x", &fixed(&[1.0; 3]), &a)
+            .unwrap()
+            .contains("3-link fixed arm"));
+    }
+
+    #[test]
+    fn a_wire_version_mismatch_names_both_versions() {
+        let mut old = fixed(&[1.0; 3]);
+        old.wire_version = 3;
+        let msg = mismatch("x", &old, &fixed(&[1.0; 3])).unwrap();
+        assert!(
+            msg.contains("wire version 3, daemon wire version 4"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn a_corrupt_count_is_described_not_indexed() {
+        let mut bad = fixed(&[1.0; 3]);
+        bad.n = 1000;
+        let msg = mismatch("x", &bad, &fixed(&[1.0; 3])).unwrap();
+        assert!(msg.contains("invalid link count 1000"), "{msg}");
+    }
+
+    /// This layout must never change: it is how two wire versions tell each other apart.
+    #[test]
+    fn info_layout_is_frozen() {
+        assert_eq!(size_of::<ArmInfo>(), 192);
+        assert_eq!(align_of::<ArmInfo>(), 8);
+        assert_eq!(offset_of!(ArmInfo, wire_version), 0);
+        assert_eq!(offset_of!(ArmInfo, kind), 4);
+        assert_eq!(offset_of!(ArmInfo, instance_id), 8);
+        assert_eq!(offset_of!(ArmInfo, n), 16);
+        assert_eq!(offset_of!(ArmInfo, links), 24);
+        assert_eq!(offset_of!(ArmInfo, link_masses), 72);
+        assert_eq!(offset_of!(ArmInfo, link_inertias), 120);
+        assert_eq!(offset_of!(ArmInfo, base_mass), 168);
+        // SAFETY: type_name only returns the string set by #[type_name].
+        assert_eq!(
+            unsafe { <ArmInfo as ZeroCopySend>::type_name() },
+            "chaosd::ArmInfo"
+        );
+    }
+}
