@@ -248,7 +248,7 @@ fn a_short_soak_injects_faults_and_passes() {
         .lines()
         .find(|l| l.contains("leftovers"))
         .unwrap_or_else(|| panic!("no leftover row:\n{stdout}"));
-    assert!(left.contains("| 0 (checked 4 services"), "{left}");
+    assert!(left.contains("| 0 (checked "), "{left}");
     assert!(dir.join("o/soak/soak.md").is_file());
     std::fs::remove_dir_all(&dir).ok();
 }
