@@ -411,23 +411,7 @@ impl<const N: usize> Controller<N> {
         if self.mode != Mode::Run || s.n as usize != N {
             return;
         }
-        let x = ArmState {
-            q: VecN::<N>::from_column_slice(&s.q[..N]),
-            qd: VecN::<N>::from_column_slice(&s.qd[..N]),
-            phi: s.phi,
-        };
-        let t = self.t + self.dt;
-        let (delay, origin, dt) = (&self.delay, self.delay_origin as f64, self.dt);
-        let held = hold::command(
-            &self.params,
-            &self.model,
-            t,
-            &x,
-            dt,
-            self.settings.first_order_hold,
-            |at| delay.sample(at / dt - origin),
-            &mut self.kin,
-        );
+        let held = self.hold_command(self.t + self.dt, &arm_state(s));
         std::hint::black_box(held);
         // What the tick writes or checks besides the law: the delay line's next slot, the
         // guard, the counters.
@@ -437,29 +421,31 @@ impl<const N: usize> Controller<N> {
         std::hint::black_box(s.validate(N).is_ok());
     }
 
-    /// A fresh, accepted state: run the law, count what it reports, let the guard judge.
-    fn run_law(&mut self, s: &StateSample, now_ns: u64, out: &mut TickOutcome<N>) {
-        self.missed = 0;
-        self.mode = Mode::Run;
-        let x = ArmState {
-            q: VecN::<N>::from_column_slice(&s.q[..N]),
-            qd: VecN::<N>::from_column_slice(&s.qd[..N]),
-            phi: s.phi,
-        };
-        let t = self.t;
-        self.feed_delay((t / self.dt).round() as i64, x.qd);
-        self.last_qd = Some(x.qd);
+    /// The law (and, for a first-order hold, its rate) at controller time `t` on `x`, reading
+    /// the delay line: what both the tick and a rehearsal evaluate.
+    fn hold_command(&mut self, t: f64, x: &ArmState<N>) -> hold::HeldCommand<N> {
         let (delay, origin, dt) = (&self.delay, self.delay_origin as f64, self.dt);
-        let held = hold::command(
+        hold::command(
             &self.params,
             &self.model,
             t,
-            &x,
+            x,
             dt,
             self.settings.first_order_hold,
             |at| delay.sample(at / dt - origin),
             &mut self.kin,
-        );
+        )
+    }
+
+    /// A fresh, accepted state: run the law, count what it reports, let the guard judge.
+    fn run_law(&mut self, s: &StateSample, now_ns: u64, out: &mut TickOutcome<N>) {
+        self.missed = 0;
+        self.mode = Mode::Run;
+        let x = arm_state(s);
+        let t = self.t;
+        self.feed_delay((t / self.dt).round() as i64, x.qd);
+        self.last_qd = Some(x.qd);
+        let held = self.hold_command(t, &x);
         let o = held.output;
         self.count_flags(o.flags);
         out.output = Some(o);
@@ -544,6 +530,15 @@ impl<const N: usize> Controller<N> {
         c.qddd[..N].copy_from_slice(qddd.as_slice());
         self.next_command_seq += 1;
         c
+    }
+}
+
+/// The arm state a sample carries (its first `N` joints).
+fn arm_state<const N: usize>(s: &StateSample) -> ArmState<N> {
+    ArmState {
+        q: VecN::<N>::from_column_slice(&s.q[..N]),
+        qd: VecN::<N>::from_column_slice(&s.qd[..N]),
+        phi: s.phi,
     }
 }
 
