@@ -73,6 +73,8 @@ pub struct Options {
     pub modes: Vec<Mode>,
     /// How long the daemon runs per rate.
     pub seconds: f64,
+    /// `spin_us` of the daemon and the plant, if not their default.
+    pub spin_us: Option<f64>,
 }
 
 impl Options {
@@ -81,6 +83,7 @@ impl Options {
             rates: vec![1_000.0, 2_000.0, 5_000.0, 10_000.0],
             modes: Mode::ALL.to_vec(),
             seconds: if quick { 3.0 } else { 20.0 },
+            spin_us: None,
         }
     }
 
@@ -98,6 +101,11 @@ impl Options {
         }
         if self.modes.is_empty() {
             bail!("e2e modes: at least one of clock, phase, state, udp");
+        }
+        if let Some(s) = self.spin_us {
+            if !(s.is_finite() && (0.0..=100_000.0).contains(&s)) {
+                bail!("e2e spin-us {s}: must be between 0 and 100000");
+            }
         }
         if !(self.seconds.is_finite() && (2.5..=3600.0).contains(&self.seconds)) {
             bail!("e2e seconds {}: must be between 2.5 and 3600", self.seconds);
@@ -127,7 +135,13 @@ pub fn phase_offset_us(rate_hz: f64) -> f64 {
 }
 
 /// The config file of one rate.
-pub fn config_text(namespace: &str, dir: &Path, rate_hz: f64, mode: Mode) -> String {
+pub fn config_text(
+    namespace: &str,
+    dir: &Path,
+    rate_hz: f64,
+    mode: Mode,
+    spin_us: Option<f64>,
+) -> String {
     let trigger = match mode {
         Mode::Clock | Mode::Phase => "clock",
         Mode::State | Mode::Udp => "state",
@@ -137,11 +151,12 @@ pub fn config_text(namespace: &str, dir: &Path, rate_hz: f64, mode: Mode) -> Str
     } else {
         String::new()
     };
+    let spin = spin_us.map_or(String::new(), |s| format!("spin_us = {s:.1}\n"));
     // TOML strings: the path is written as a literal string, so no escaping is needed unless it
     // holds a quote, which `run` refuses.
     format!(
-        "[daemon]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\nreport_every_s = 0.0\ntrigger = \"{trigger}\"\n{phase}\n\
-         [plant]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\ntrigger = \"{trigger}\"\n",
+        "[daemon]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\nreport_every_s = 0.0\ntrigger = \"{trigger}\"\n{phase}{spin}\n\
+         [plant]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\ntrigger = \"{trigger}\"\n{spin}",
         dir = dir.display()
     )
 }
@@ -321,7 +336,7 @@ fn one_rate(
     }
     let cfg = dir.join("config.toml");
     let ns = unique_namespace("e2e");
-    std::fs::write(&cfg, config_text(&ns, &dir, rate_hz, mode))?;
+    std::fs::write(&cfg, config_text(&ns, &dir, rate_hz, mode, opts.spin_us))?;
 
     let (mut plant, mut device) = spawn_plant_side(mode, &cfg, &dir, opts.seconds)?;
     std::thread::sleep(Duration::from_millis(300));
@@ -581,37 +596,52 @@ pub fn targets(results: &[RateResult]) -> Vec<Target> {
         match r.mode {
             Mode::State if core_rate => {
                 let p = &r.plant;
-                out.push(Target::new(
-                    format!("{khz} kHz state-triggered: state → command p50 (µs)"),
-                    num(p, "round_trip", "p50_us"),
-                    Bound::AtMost(2.0),
-                ));
-                out.push(Target::new(
-                    format!("{khz} kHz state-triggered: state → command p99 (µs)"),
-                    num(p, "round_trip", "p99_us"),
-                    Bound::AtMost(10.0),
-                ));
-                out.push(Target::new(
-                    format!("{khz} kHz state-triggered: answered in time (%)"),
-                    p["in_time_share"].as_f64().unwrap_or(f64::NAN) * 100.0,
-                    Bound::AtLeast(99.9),
-                ));
+                out.push(
+                    Target::new(
+                        format!("{khz} kHz state-triggered: state → command p50"),
+                        num(p, "round_trip", "p50_us"),
+                        Bound::AtMost(2.0),
+                    )
+                    .in_unit("µs"),
+                );
+                out.push(
+                    Target::new(
+                        format!("{khz} kHz state-triggered: state → command p99"),
+                        num(p, "round_trip", "p99_us"),
+                        Bound::AtMost(10.0),
+                    )
+                    .in_unit("µs"),
+                );
+                out.push(
+                    Target::new(
+                        format!("{khz} kHz state-triggered: answered in time"),
+                        p["in_time_share"].as_f64().unwrap_or(f64::NAN) * 100.0,
+                        Bound::AtLeast(99.9),
+                    )
+                    .in_unit("%"),
+                );
             }
             Mode::Udp if r.rate_hz == 1_000.0 => {
                 let d = r.device.as_ref().unwrap_or(&Value::Null);
-                out.push(Target::new(
-                    format!("{khz} kHz UDP bridge: device state sent → answer received p99 (µs)"),
-                    num(d, "round_trip", "p99_us"),
-                    Bound::AtMost(100.0),
-                ));
+                out.push(
+                    Target::new(
+                        format!("{khz} kHz UDP bridge: device state sent → answer received p99"),
+                        num(d, "round_trip", "p99_us"),
+                        Bound::AtMost(100.0),
+                    )
+                    .in_unit("µs"),
+                );
             }
             Mode::Phase => {
                 let off = phase_offset_us(r.rate_hz);
-                out.push(Target::new(
-                    format!("{khz} kHz phase-locked: |state age p99 − offset {off} µs| (µs)"),
-                    (num(&r.daemon, "state_age", "p99_us") - off).abs(),
-                    Bound::AtMost(20.0),
-                ));
+                out.push(
+                    Target::new(
+                        format!("{khz} kHz phase-locked: |state age p99 − offset {off} µs|"),
+                        (num(&r.daemon, "state_age", "p99_us") - off).abs(),
+                        Bound::AtMost(20.0),
+                    )
+                    .in_unit("µs"),
+                );
             }
             _ => {}
         }
@@ -692,29 +722,38 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
         .filter(|r| r.mode == Mode::Clock)
         .cloned()
         .collect();
-    // Does the control service disturb the loop? The first rate again, with a client sending
-    // status requests back to back for the whole run.
-    let hammered = one_rate(opts, opts.rates[0], Mode::Clock, &report, Load::Hammered)
-        .with_context(|| "e2e with a client hammering status requests")?;
-    // Does a Prometheus scraper disturb it? The exporter scraped every 100 ms.
-    let scraped = one_rate(opts, opts.rates[0], Mode::Clock, &report, Load::Scraped)
-        .with_context(|| "e2e with the exporter scraped every 100 ms")?;
+    // Does the control service disturb the loop? The first rate's free-running run again, with a
+    // client sending status requests back to back, and with the exporter scraped every 100 ms
+    // (only when the free-running mode is among those asked for: it is the comparison's idle run).
+    let load_runs = match results.first() {
+        Some(idle) => {
+            let hammered = one_rate(opts, idle.rate_hz, Mode::Clock, &report, Load::Hammered)
+                .with_context(|| "e2e with a client hammering status requests")?;
+            let scraped = one_rate(opts, idle.rate_hz, Mode::Clock, &report, Load::Scraped)
+                .with_context(|| "e2e with the exporter scraped every 100 ms")?;
+            Some((idle.clone(), hammered, scraped))
+        }
+        None => None,
+    };
     let rt_line = |v: &Value| match v["realtime"]["sched_fifo"].as_u64() {
         Some(p) => format!("SCHED_FIFO {p}"),
         None => format!("SCHED_OTHER ({})", v["realtime"]["warnings"]),
     };
     report.push(&header("End to end: chaosd and chaosd-plant", command));
     report.push(&format!(
-        "The daemon (core 1, {}) and the plant (core 0, {}) with default settings (hybrid waits, memory locked), \
+        "The daemon (core 1, {}) and the plant (core 0, {}) with default settings (hybrid waits{}, memory locked), \
          {} s per rate. Wake-up lateness and state age as the daemon measures them; the command round trip is \
          the plant's: state published → answering command picked up at the plant's next tick, so it includes \
          waiting for that tick. State age is the age of the newest state at the daemon's tick; the two loops start \
          independently, so it is set by their phase and lies anywhere within one period. CPU is utime + stime over the run (100 % = one core).\n\n",
-        results.first().map_or("?".into(), |r| rt_line(&r.daemon)),
-        results.first().map_or("?".into(), |r| rt_line(&r.plant)),
+        all.first().map_or("?".into(), |r| rt_line(&r.daemon)),
+        all.first().map_or("?".into(), |r| rt_line(&r.plant)),
+        opts.spin_us.map_or(String::new(), |s| format!(" with spin_us = {s}")),
         opts.seconds
     ));
-    report.push(&table(&results));
+    if !results.is_empty() {
+        report.push(&table(&results));
+    }
     report.push(
         "\n**Triggers side by side.** Free-running, the plant applies a command at its next tick, so a \
          command arrives one period after its state by design. State-triggered, the plant publishes, waits for \
@@ -731,13 +770,15 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
             report.push(&format!("{}\n", t.line()));
         }
     }
-    report.push(&format!(
-        "\n**Control requests vs the loop** at {} kHz: the same run idle and with a client sending `status` requests \
-         back to back (each answered before the next is sent) for the whole run, and with `chaosctl exporter` \
-         scraped every 100 ms over HTTP (scrape time: connect → last byte; target ≤ 5 ms).\n\n",
-        hammered.rate_hz / 1000.0
-    ));
-    report.push(&hammer_table(&results[0], &hammered, &scraped));
+    if let Some((idle, hammered, scraped)) = &load_runs {
+        report.push(&format!(
+            "\n**Control requests vs the loop** at {} kHz: the same run idle and with a client sending `status` requests \
+             back to back (each answered before the next is sent) for the whole run, and with `chaosctl exporter` \
+             scraped every 100 ms over HTTP (scrape time: connect → last byte; target ≤ 5 ms).\n\n",
+            hammered.rate_hz / 1000.0
+        ));
+        report.push(&hammer_table(idle, hammered, scraped));
+    }
     let mut panels = vec![
         Panel {
             title: "command round trip (plant)".into(),
@@ -816,6 +857,7 @@ mod tests {
             Path::new("/tmp/x y/1000hz"),
             5_000.0,
             Mode::Clock,
+            None,
         );
         let cfg = control::Config::from_toml_str(&text).unwrap();
         let d = daemon::config::DaemonSetup::from_config(cfg.clone()).unwrap();
@@ -826,12 +868,25 @@ mod tests {
         let plant = cfg.plant.as_ref().unwrap();
         assert_eq!(plant["rate_hz"].as_float(), Some(5_000.0));
         assert_eq!(plant["namespace"].as_str(), Some("bench-e2e-1-2"));
-        let text = config_text("bench-e2e-1-2", Path::new("/tmp/x"), 1_000.0, Mode::Udp);
+        let text = config_text(
+            "bench-e2e-1-2",
+            Path::new("/tmp/x"),
+            1_000.0,
+            Mode::Udp,
+            Some(200.0),
+        );
         let cfg = control::Config::from_toml_str(&text).unwrap();
         let d = daemon::config::DaemonSetup::from_config(cfg).unwrap();
         assert_eq!(d.daemon.trigger, rt::Trigger::State);
+        assert_eq!(d.daemon.spin_us, 200.0);
         for rate in [1_000.0, 10_000.0] {
-            let text = config_text("bench-e2e-1-2", Path::new("/tmp/x"), rate, Mode::Phase);
+            let text = config_text(
+                "bench-e2e-1-2",
+                Path::new("/tmp/x"),
+                rate,
+                Mode::Phase,
+                None,
+            );
             let cfg = control::Config::from_toml_str(&text).unwrap();
             let d = daemon::config::DaemonSetup::from_config(cfg).unwrap();
             assert_eq!(d.daemon.trigger, rt::Trigger::Clock);
@@ -974,16 +1029,23 @@ mod tests {
         assert!(Options {
             rates: vec![50.0],
             modes: Mode::ALL.to_vec(),
-            seconds: 3.0
+            seconds: 3.0,
+            spin_us: None,
         }
         .validate()
         .is_err());
         assert!(Options {
             rates: vec![1000.0],
             modes: Mode::ALL.to_vec(),
-            seconds: 1.0
+            seconds: 1.0,
+            spin_us: None,
         }
         .validate()
         .is_err());
+        let mut o = Options::new(true);
+        o.spin_us = Some(f64::NAN);
+        assert!(o.validate().unwrap_err().to_string().contains("spin-us"));
+        o.spin_us = Some(200.0);
+        assert!(o.validate().is_ok());
     }
 }

@@ -126,6 +126,10 @@ struct E2eArgs {
     /// udp (state-triggered through chaosd-bridge and chaosd-fakebot). Default: all four.
     #[arg(long, value_delimiter = ',')]
     modes: Option<Vec<E2eMode>>,
+    /// How long the daemon and the plant poll without sleeping around an expected sample (µs):
+    /// their `spin_us` [default: the config default].
+    #[arg(long)]
+    spin_us: Option<f64>,
 }
 
 #[derive(Args)]
@@ -200,6 +204,7 @@ fn e2e_opts(quick: bool, a: &E2eArgs) -> Result<e2e::Options> {
     if let Some(r) = &a.rates {
         o.rates = r.clone();
     }
+    o.spin_us = a.spin_us;
     if let Some(m) = &a.modes {
         o.modes = m
             .iter()

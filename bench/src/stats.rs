@@ -151,6 +151,8 @@ pub struct Target {
     pub what: String,
     pub value: f64,
     pub bound: Bound,
+    /// The unit of `value` and the bound: `None` for a ratio (printed `2.50×`).
+    pub unit: Option<&'static str>,
 }
 
 impl Target {
@@ -159,6 +161,24 @@ impl Target {
             what: what.into(),
             value,
             bound,
+            unit: None,
+        }
+    }
+
+    /// The same target for an absolute quantity in `unit` (`"µs"`, `"%"`), not a ratio.
+    pub fn in_unit(self, unit: &'static str) -> Self {
+        Self {
+            unit: Some(unit),
+            ..self
+        }
+    }
+
+    fn show(&self, v: f64) -> String {
+        match self.unit {
+            None => fmt_ratio(v),
+            Some(_) if !v.is_finite() => "n/a".into(),
+            Some(u) if v < 10.0 => format!("{v:.2} {u}"),
+            Some(u) => format!("{v:.1} {u}"),
         }
     }
 
@@ -179,8 +199,8 @@ impl Target {
         format!(
             "- {}: {} (target {op} {}): **{}**",
             self.what,
-            fmt_ratio(self.value),
-            fmt_ratio(l),
+            self.show(self.value),
+            self.show(l),
             if self.met() { "met" } else { "MISSED" }
         )
     }
@@ -299,6 +319,10 @@ mod tests {
             l.contains("7.50×") && l.contains("≤ 6.00×") && l.contains("MISSED"),
             "{l}"
         );
+        let l = Target::new("p99", 35.9, Bound::AtMost(10.0))
+            .in_unit("µs")
+            .line();
+        assert!(l.contains("35.9 µs (target ≤ 10.0 µs)"), "{l}");
     }
 
     #[test]

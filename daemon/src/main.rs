@@ -428,12 +428,13 @@ fn print_answers(s: &DaemonSetup, p: &serde_json::Value) {
     );
     if let Some(share) = p["in_time_share"].as_f64() {
         say!(
-            "answered in time      {:.3} % of {} cycles; {} late cycles, {} late answers dropped, {} brakes after too many late cycles",
+            "answered in time      {:.3} % of {} cycles; {} late cycles, {} late answers dropped, {} brakes after too many late cycles, {} cycles with no controller answering",
             share * 100.0,
             n("answered_in_time") + n("late_cycles"),
             n("late_cycles"),
             n("late_answers"),
-            n("late_brakes")
+            n("late_brakes"),
+            n("silent_cycles")
         );
     }
 }

@@ -28,8 +28,12 @@ pub struct PlantCounters {
     pub write_errors: u64,
     /// State trigger: cycles whose answer came before the answer deadline.
     pub answered_in_time: u64,
-    /// State trigger: cycles without an answer by the deadline.
+    /// State trigger: cycles without an answer by the deadline, while a controller was answering.
     pub late_cycles: u64,
+    /// State trigger: cycles without an answer once the controller had fallen silent: the run of
+    /// unanswered cycles that ended in a command timeout (a controller that stopped or died),
+    /// and every cycle after it until answers return. Not late cycles: nobody was answering.
+    pub silent_cycles: u64,
     /// State trigger: answers that arrived after their deadline (dropped).
     pub late_answers: u64,
     /// State trigger: times `max_late_cycles` late cycles in a row made the plant brake.

@@ -23,14 +23,18 @@ use anyhow::{anyhow, Context, Result};
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
+use iceoryx2::sample_mut_uninit::SampleMutUninit;
 use protocol::{flags, monotonic_ns, CommandSample, Mode, ServiceNames, StateSample};
 use rt::clock::Schedule;
 use rt::trigger::Window;
 use rt::Trigger;
+use std::mem::MaybeUninit;
 use std::time::SystemTime;
 
 type StatePub = Publisher<ipc::Service, StateSample, ()>;
 type CommandSub = Subscriber<ipc::Service, CommandSample, ()>;
+/// A state sample loaned ahead of time, so that the loan is not between the read and the send.
+type StateSlot = SampleMutUninit<ipc::Service, MaybeUninit<StateSample>, ()>;
 
 /// What the plant was last told to do (state trigger: `write` only when this changes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -45,6 +49,8 @@ enum Applied {
 struct Loop<'a> {
     cfg: &'a PlantConfig,
     publisher: StatePub,
+    /// The next state's sample, loaned at the end of the previous cycle.
+    slot: Option<StateSlot>,
     subscriber: CommandSub,
     intake: Intake,
     ring: PublishedRing,
@@ -58,6 +64,8 @@ struct Loop<'a> {
     /// State trigger: late cycles in a row, and whether they made the plant brake.
     late_run: u32,
     late_braking: bool,
+    /// Late cycles since the last command of any kind: reclassified as silent on a timeout.
+    late_since_command: u64,
     /// Integrated plant time (s): what `since` is measured in.
     plant_time: f64,
     seq: u64,
@@ -124,9 +132,11 @@ pub fn run<P: Plant>(
     );
     let start = monotonic_ns();
     let wall_start = SystemTime::now();
+    let slot = publisher.loan_uninit().ok();
     let mut lp = Loop {
         cfg,
         publisher,
+        slot,
         subscriber,
         intake: Intake::new(plant.n(), start),
         ring: PublishedRing::default(),
@@ -138,6 +148,7 @@ pub fn run<P: Plant>(
         timed_out: false,
         late_run: 0,
         late_braking: false,
+        late_since_command: 0,
         plant_time: 0.0,
         seq: 0,
         sample: StateSample {
@@ -203,6 +214,9 @@ impl Loop<'_> {
                 self.await_answer(plant, from)?;
             }
             self.c.ticks += 1;
+            if self.slot.is_none() {
+                self.slot = self.publisher.loan_uninit().ok();
+            }
             behind = if plant.device_clocked() {
                 sched = Schedule::new(period, monotonic_ns());
                 0
@@ -230,6 +244,7 @@ impl Loop<'_> {
                 continue;
             }
             self.last_command_at = Some(now);
+            self.late_since_command = 0;
             if self.cfg.trigger == Trigger::State && cmd.mode == Mode::Run as u32 {
                 self.c.late_answers += 1;
                 continue;
@@ -261,6 +276,9 @@ impl Loop<'_> {
         if silent && self.last_command_at.is_some() && !self.timed_out {
             self.timed_out = true;
             self.c.command_timeouts += 1;
+            // The unanswered cycles that led up to the timeout were the controller leaving.
+            self.c.late_cycles -= self.late_since_command;
+            self.c.silent_cycles += std::mem::take(&mut self.late_since_command);
         } else if !silent {
             self.timed_out = false;
         }
@@ -341,12 +359,21 @@ impl Loop<'_> {
         } else {
             plant.stamp(deadline, now)
         };
-        let at_ns = monotonic_ns();
-        match self.publisher.loan_uninit() {
-            Ok(slot) => match slot.write_payload(*s).send() {
-                Ok(_) => self.c.states_published += 1,
-                Err(_) => self.c.ipc_errors += 1,
-            },
+        let loaned = match self.slot.take() {
+            Some(slot) => Ok(slot),
+            None => self.publisher.loan_uninit(),
+        };
+        // Published = the moment the send starts; the round trip is measured from here.
+        let mut at_ns = monotonic_ns();
+        match loaned {
+            Ok(slot) => {
+                let sample = slot.write_payload(*s);
+                at_ns = monotonic_ns();
+                match sample.send() {
+                    Ok(_) => self.c.states_published += 1,
+                    Err(_) => self.c.ipc_errors += 1,
+                }
+            }
             Err(_) => self.c.ipc_errors += 1,
         }
         self.ring.push(Published {
@@ -400,6 +427,7 @@ impl Loop<'_> {
             return self.late_cycle(plant);
         };
         self.last_command_at = Some(at);
+        self.late_since_command = 0;
         self.current = Some(cmd);
         if cmd.mode == Mode::Run as u32 && cmd.state_seq == want {
             self.record_round_trip(&cmd, at);
@@ -418,7 +446,12 @@ impl Loop<'_> {
         if self.last_command_at.is_none() {
             return Ok(()); // no controller yet: nothing is late
         }
-        self.c.late_cycles += 1;
+        if self.timed_out {
+            self.c.silent_cycles += 1; // the controller is gone: silent, not late
+        } else {
+            self.c.late_cycles += 1;
+            self.late_since_command += 1;
+        }
         self.late_run = self.late_run.saturating_add(1);
         if self.late_run >= self.cfg.max_late_cycles && !self.late_braking {
             self.late_braking = true;

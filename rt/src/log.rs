@@ -13,6 +13,7 @@
 //! the count of the lines it held back.
 
 use std::fmt;
+use std::io::IsTerminal;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 use tracing::{Event, Level, Subscriber};
@@ -29,10 +30,15 @@ pub fn init() {
         },
         Err(_) => (Level::INFO, None),
     };
+    let journald = journald_stderr();
+    // Colour only for a person at a terminal: never into the journal, a file or a pipe.
+    let ansi =
+        !journald && std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none();
     let builder = tracing_subscriber::fmt()
         .with_max_level(level)
+        .with_ansi(ansi)
         .with_writer(std::io::stderr);
-    let installed = if journald_stderr() {
+    let installed = if journald {
         builder.event_format(Journald).try_init()
     } else {
         builder.try_init()
@@ -192,6 +198,7 @@ mod tests {
         let w = buf.clone();
         let b = tracing_subscriber::fmt()
             .with_max_level(Level::INFO)
+            .with_ansi(false)
             .with_writer(move || w.clone());
         if journald {
             tracing::subscriber::with_default(b.event_format(Journald).finish(), f);

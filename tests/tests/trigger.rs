@@ -98,12 +98,20 @@ fn each_state_is_answered_in_its_own_cycle() {
         "{human}"
     );
     assert!(s.daemon.terminate(Duration::from_secs(10)).success());
+    // The plant runs on without a controller for a while: once its command timeout (50 ms) has
+    // passed, those unanswered cycles are "silent" (nobody answering), not late.
+    std::thread::sleep(Duration::from_millis(400));
     assert!(s.plant.terminate(Duration::from_secs(10)).success());
     let p = read_json(&s.dir.path().join("out/plant-summary.json"));
     assert_eq!(p["trigger"], "state", "{p}");
     let answered = p["counters"]["answered_in_time"].as_u64().unwrap();
     assert!(answered > 1000, "{p}");
     assert!(p["in_time_share"].as_f64().unwrap() > 0.5, "{p}");
+    assert_eq!(p["counters"]["command_timeouts"], 1, "{p}");
+    assert!(
+        p["counters"]["silent_cycles"].as_u64().unwrap() >= 100,
+        "{p}"
+    );
     let d = read_json(&s.dir.path().join("out/daemon-summary.json"));
     assert!(d["tracking_rms_m"].as_f64().unwrap() < 1e-2, "{d}");
 }
