@@ -5,6 +5,7 @@
 //! means the daemon and the plant wait, measure and report in exactly the same way, and the
 //! benchmarks measure the code the daemon really runs.
 
+pub mod alloc_count;
 pub mod clock;
 pub mod files;
 pub mod hist;
