@@ -13,7 +13,7 @@ use crate::telemetry::LoopRequest;
 use anyhow::{anyhow, Result};
 use control::config::ModelKind;
 use control::Config;
-use iceoryx2::port::update_connections::UpdateConnections as _;
+use protocol::handshake::{Exchange, Side};
 use protocol::{mismatch, ArmInfo, FloatingBase, ServiceNames};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -97,39 +97,21 @@ pub fn spawn(
         .name("chaosd-handshake".into())
         .spawn(move || {
             rt::setup::avoid_core(loop_core);
-            let ports = (|| -> Result<_> {
-                let node = crate::service::node("chaosd-handshake")?;
-                let ours = protocol::handshake::open_daemon_info_service(&node, &names)?
-                    .publisher_builder()
-                    .create()
-                    .map_err(|e| anyhow!("cannot publish on {}: {e:?} (is another chaosd already running in namespace {:?}?)", names.daemon_info(), names.namespace()))?;
-                ours.send_copy(mine)
-                    .map_err(|e| anyhow!("cannot publish on {}: {e:?}", names.daemon_info()))?;
-                let theirs = protocol::handshake::open_plant_info_service(&node, &names)?
-                    .subscriber_builder()
-                    .create()
-                    .map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.plant_info()))?;
-                Ok((node, ours, theirs))
-            })();
-            let (_node, ours, theirs) = match ports {
-                Ok(p) => {
+            let exchange = match Exchange::open(Side::Daemon, &names, mine) {
+                Ok(x) => {
                     let _ = ready_tx.send(Ok(()));
-                    p
+                    x
                 }
                 Err(e) => {
-                    let _ = ready_tx.send(Err(e));
+                    let _ = ready_tx.send(Err(anyhow!(e)));
                     return;
                 }
             };
             let mut judge = Judge::new(names.namespace(), mine);
             let mut pending: Option<LoopRequest> = None;
             while running.load(Ordering::Relaxed) {
-                // Hands our description to subscribers that joined since (a plant's restart).
-                let _ = ours.update_connections();
-                let mut newest = None;
-                while let Ok(Some(s)) = theirs.receive() {
-                    newest = Some(*s);
-                }
+                // Also hands our description to a plant that joined since (a restart).
+                let newest = exchange.newest_peer();
                 if let Some(v) = newest.as_ref().and_then(|p| judge.judge(p)) {
                     pending = Some(report(&mut judge, &refusal, &v));
                 }

@@ -9,7 +9,7 @@
 use anyhow::{anyhow, Result};
 use control::config::ModelKind;
 use control::Config;
-use iceoryx2::port::update_connections::UpdateConnections as _;
+use protocol::handshake::{Exchange, Side};
 use protocol::{mismatch, ArmInfo, FloatingBase, ServiceNames};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -61,37 +61,19 @@ impl Handshake {
             .name("plant-handshake".into())
             .spawn(move || {
                 rt::setup::avoid_core(avoid_core);
-                let ports = (|| -> Result<_> {
-                    let node = protocol::node("chaosd-plant-handshake")?;
-                    let ours = protocol::handshake::open_plant_info_service(&node, &names)?
-                        .publisher_builder()
-                        .create()
-                        .map_err(|e| anyhow!("cannot publish on {}: {e:?} (is another plant already running in namespace {:?}?)", names.plant_info(), names.namespace()))?;
-                    ours.send_copy(mine)
-                        .map_err(|e| anyhow!("cannot publish on {}: {e:?}", names.plant_info()))?;
-                    let theirs = protocol::handshake::open_daemon_info_service(&node, &names)?
-                        .subscriber_builder()
-                        .create()
-                        .map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.daemon_info()))?;
-                    Ok((node, ours, theirs))
-                })();
-                let (_node, ours, theirs) = match ports {
-                    Ok(p) => {
+                let exchange = match Exchange::open(Side::Plant, &names, mine) {
+                    Ok(x) => {
                         let _ = ready_tx.send(Ok(()));
-                        p
+                        x
                     }
                     Err(e) => {
-                        let _ = ready_tx.send(Err(e));
+                        let _ = ready_tx.send(Err(anyhow!(e)));
                         return;
                     }
                 };
                 while run.load(Ordering::Relaxed) {
-                    // Hands our description to daemons that joined since.
-                    let _ = ours.update_connections();
-                    let mut newest = None;
-                    while let Ok(Some(s)) = theirs.receive() {
-                        newest = Some(*s);
-                    }
+                    // Also hands our description to a daemon that joined since.
+                    let newest = exchange.newest_peer();
                     if let Some(why) = newest.and_then(|d| mismatch(names.namespace(), &mine, &d)) {
                         if let Ok(mut g) = said.lock() {
                             *g = Some(why);
@@ -99,7 +81,7 @@ impl Handshake {
                         // Stay a moment, so that a daemon that has just joined still gets our
                         // description and can say why it refuses too.
                         for _ in 0..(GRACE.as_millis() / POLL.as_millis()) {
-                            let _ = ours.update_connections();
+                            let _ = exchange.newest_peer();
                             std::thread::sleep(POLL);
                         }
                         rt::signal::request_stop();

@@ -15,6 +15,7 @@
 use core::fmt::{self, Write as _};
 
 use iceoryx2::node::Node;
+use iceoryx2::port::update_connections::UpdateConnections as _;
 use iceoryx2::prelude::ZeroCopySend;
 use iceoryx2::service::port_factory::publish_subscribe;
 
@@ -204,6 +205,87 @@ pub fn open_daemon_info_service<S: iceoryx2::service::Service>(
     names: &ServiceNames,
 ) -> Result<InfoService<S>, ServiceError> {
     open_pubsub(node, names.daemon_info(), Channel::DaemonInfo, &INFO_QOS)
+}
+
+/// Which end of the handshake this process is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    Daemon,
+    Plant,
+}
+
+impl Side {
+    fn who(self) -> &'static str {
+        match self {
+            Side::Daemon => "chaosd",
+            Side::Plant => "plant",
+        }
+    }
+}
+
+/// One side's handshake ports: its own description published (and re-offered to peers that
+/// join later), the peer's read. The daemon and the plant run the same exchange on a helper
+/// thread, each judging the peer's description in its own way.
+pub struct Exchange {
+    _node: Node<iceoryx2::prelude::ipc::Service>,
+    ours: iceoryx2::port::publisher::Publisher<iceoryx2::prelude::ipc::Service, ArmInfo, ()>,
+    theirs: iceoryx2::port::subscriber::Subscriber<iceoryx2::prelude::ipc::Service, ArmInfo, ()>,
+}
+
+impl Exchange {
+    /// Opens both info services in `names`, publishes `mine` on `side`'s and subscribes to the
+    /// peer's. The error is one line, for the user.
+    pub fn open(side: Side, names: &ServiceNames, mine: ArmInfo) -> Result<Self, String> {
+        let node_name = match side {
+            Side::Daemon => "chaosd-handshake",
+            Side::Plant => "chaosd-plant-handshake",
+        };
+        let node = crate::node(node_name).map_err(|e| e.to_string())?;
+        let (our_name, their_name) = match side {
+            Side::Daemon => (names.daemon_info(), names.plant_info()),
+            Side::Plant => (names.plant_info(), names.daemon_info()),
+        };
+        let (our_svc, their_svc) = match side {
+            Side::Daemon => (
+                open_daemon_info_service(&node, names),
+                open_plant_info_service(&node, names),
+            ),
+            Side::Plant => (
+                open_plant_info_service(&node, names),
+                open_daemon_info_service(&node, names),
+            ),
+        };
+        let ours = our_svc.map_err(|e| e.to_string())?.publisher_builder().create().map_err(|e| {
+            format!(
+                "cannot publish on {our_name}: {e:?} (is another {} already running in namespace {:?}?)",
+                side.who(),
+                names.namespace()
+            )
+        })?;
+        ours.send_copy(mine)
+            .map_err(|e| format!("cannot publish on {our_name}: {e:?}"))?;
+        let theirs = their_svc
+            .map_err(|e| e.to_string())?
+            .subscriber_builder()
+            .create()
+            .map_err(|e| format!("cannot subscribe to {their_name}: {e:?}"))?;
+        Ok(Self {
+            _node: node,
+            ours,
+            theirs,
+        })
+    }
+
+    /// Offers our description to peers that joined since, and returns the newest description
+    /// the peer published since the last call, if any.
+    pub fn newest_peer(&self) -> Option<ArmInfo> {
+        let _ = self.ours.update_connections();
+        let mut newest = None;
+        while let Ok(Some(s)) = self.theirs.receive() {
+            newest = Some(*s);
+        }
+        newest
+    }
 }
 
 #[cfg(test)]
