@@ -148,6 +148,8 @@ pub struct Controller<const N: usize> {
     plant_id: u64,
     last_seq: Option<u64>,
     last_stamp: u64,
+    /// Whether the newest accepted state said the plant was braking on its command timeout.
+    was_braked: bool,
     last_qd: Option<VecN<N>>,
     missed: u32,
     next_command_seq: u64,
@@ -184,6 +186,7 @@ impl<const N: usize> Controller<N> {
             plant_id: 0,
             last_seq: None,
             last_stamp: 0,
+            was_braked: false,
             last_qd: None,
             missed: 0,
             next_command_seq: 0,
@@ -348,11 +351,19 @@ impl<const N: usize> Controller<N> {
                     let t = (self.settings.t_start + s.stamp_ns.saturating_sub(t0) as f64 * 1e-9)
                         .max(self.t);
                     let g = (t / self.dt).round() as i64;
-                    if restarted || self.last_qd.is_none() || self.mode == Mode::Hold {
-                        // New history: after a restart or a HOLD (the plant was braking, not
-                        // following the last rates) the old q̇ would feed the Pyragas term lies.
+                    // The plant braked on its own (no commands reached it, e.g. while this
+                    // loop was stalled): it has not been following the last rates either.
+                    let braked = s.has_flags(protocol::flags::COMMAND_TIMEOUT)
+                        && self.last_stamp != 0
+                        && !self.was_braked;
+                    self.was_braked = s.has_flags(protocol::flags::COMMAND_TIMEOUT);
+                    if restarted || self.last_qd.is_none() || self.mode == Mode::Hold || braked {
+                        // New history: after a restart, a HOLD or a plant-side brake (the plant
+                        // was braking, not following the last rates) the old q̇ would feed the
+                        // Pyragas term lies, and catching the circle again is a re-entry.
                         self.last_qd = None;
                         self.restart_history(g, VecN::<N>::from_column_slice(&s.qd[..N]));
+                        self.guard.reenter(t);
                     }
                     self.plant_id = s.plant_id;
                     self.last_stamp = s.stamp_ns;
@@ -757,6 +768,44 @@ mod tests {
         // The delay line restarted at the resting state: the Pyragas residual is zero, not
         // |0 − 10| from the rates before the hold.
         assert_eq!(o.output.unwrap().period_residual, 0.0);
+    }
+
+    #[test]
+    fn catching_up_after_a_plant_side_brake_is_a_reentry_not_a_runaway() {
+        // The same excessive demand (a tiny qdd_max set at 0.7 s): on a plant that keeps
+        // following, FAULT after guard_time; on states saying the plant braked on its command
+        // timeout (this daemon was stalled), only once the re-entry window has passed.
+        let run = |braked: bool| {
+            let mut c = controller();
+            let t0 = 1_000_000_000u64;
+            let mut s = state(0, t0);
+            let mut first_fault = None;
+            for k in 0..1500u64 {
+                if k == 700 {
+                    let mut p = *c.params();
+                    p.safety.qdd_max = [1e-6; 6];
+                    c.set_params(p);
+                    if braked {
+                        s.flags |= protocol::flags::COMMAND_TIMEOUT;
+                    }
+                }
+                if k == 702 {
+                    s.flags &= !protocol::flags::COMMAND_TIMEOUT; // commands reach it again
+                }
+                s.seq = k;
+                s.stamp_ns = t0 + k * 1_000_000;
+                if c.tick(Some(&s), s.stamp_ns).fault.is_some() {
+                    first_fault = Some(k);
+                    break;
+                }
+            }
+            first_fault
+        };
+        let plain = run(false).expect("the demand must trip the guard");
+        assert!((700..=722).contains(&plain), "{plain}");
+        let braked = run(true).expect("the window must end");
+        let window = (crate::guard::REENTRY_S * 1e3) as u64;
+        assert!((700 + window..=722 + window).contains(&braked), "{braked}");
     }
 
     #[test]

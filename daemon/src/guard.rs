@@ -11,6 +11,12 @@
 //!   `safety.guard_growth_time`.
 //!
 //! Times are controller time (the states' stamps), so a stalled loop cannot fake a duration.
+//!
+//! Re-entry: when the controller takes over an arm that was not following it (a restarted plant,
+//! the end of a HOLD, a plant that braked on its own because commands stopped coming, e.g. while
+//! this daemon was stalled), the law asks for a burst of acceleration to catch the circle again.
+//! That burst is the filter's job to clamp, not a runaway, so for [`REENTRY_S`] after a re-entry
+//! the demand criterion alone is not applied; the rate, growth and non-finite criteria are.
 //! FAULT is sticky: only an operator's `chaosctl resume` leaves it.
 
 use control::law::flags;
@@ -19,6 +25,8 @@ use control::{ControlOutput, VecN};
 
 /// Measured rates up to this factor of `qd_max` are tolerated (sampling, the filter's margin).
 pub const RATE_SLACK: f64 = 1.05;
+/// How long after a re-entry (controller time, s) the demand criterion waits.
+pub const REENTRY_S: f64 = 0.5;
 /// The tracking error is compared with its value this long ago (s) to decide "growing".
 const GROWTH_STEP: f64 = 0.01;
 
@@ -78,12 +86,21 @@ pub struct Guard {
     growth_since: Option<f64>,
     /// (controller time, tracking error) of the last growth comparison.
     growth_ref: Option<(f64, f64)>,
+    /// Until this controller time the demand criterion is not applied (a re-entry).
+    reentry_until: Option<f64>,
 }
 
 impl Guard {
     /// Forgets everything (after a resume or a restarted plant).
     pub fn reset(&mut self) {
         *self = Self::default();
+    }
+
+    /// The controller takes over an arm that was not following it at controller time `t`: see
+    /// the module's note on re-entry.
+    pub fn reenter(&mut self, t: f64) {
+        self.demand_since = None;
+        self.reentry_until = Some(t + REENTRY_S);
     }
 
     /// Checks one tick at controller time `t`: measured rates `qd`, the law's output `out`.
@@ -108,7 +125,9 @@ impl Guard {
                 for_s,
             });
         }
-        if let Some(for_s) = held(&mut self.demand_since, out.demand > 1.0, t, p.guard_time) {
+        let settling = self.reentry_until.is_some_and(|until| t < until);
+        let over = out.demand > 1.0 && !settling;
+        if let Some(for_s) = held(&mut self.demand_since, over, t, p.guard_time) {
             return Some(FaultReason::Demand {
                 ratio: out.demand,
                 for_s,
@@ -204,6 +223,39 @@ mod tests {
             (0..50).find_map(|k| g.check(k as f64 * 1e-3, &p, &slow, &greedy).map(|r| (k, r)));
         assert!(
             matches!(tripped, Some((20, FaultReason::Demand { .. }))),
+            "{tripped:?}"
+        );
+    }
+
+    #[test]
+    fn after_a_reentry_only_the_demand_criterion_waits() {
+        let p = Config::preset("demo").unwrap().law_params().safety;
+        let slow = VecN::<3>::new(1.0, -2.0, 3.0);
+        let fast = VecN::<3>::new(1.0, -25.0, 3.0);
+        let greedy = output(0.0, 3.0, 0);
+        let mut g = Guard::default();
+        g.reenter(10.0);
+        // Catching up for the whole window: no trip.
+        let ticks = (REENTRY_S * 1e3) as usize;
+        for k in 0..ticks {
+            assert_eq!(g.check(10.0 + k as f64 * 1e-3, &p, &slow, &greedy), None);
+        }
+        // A demand that outlasts the window trips guard_time after it ends.
+        let tripped = (ticks..ticks + 50).find_map(|k| {
+            g.check(10.0 + k as f64 * 1e-3, &p, &slow, &greedy)
+                .map(|r| (k, r))
+        });
+        assert!(
+            matches!(tripped, Some((k, FaultReason::Demand { .. })) if (ticks + 20..=ticks + 21).contains(&k)),
+            "{tripped:?}"
+        );
+        // The rate criterion does not wait.
+        let mut g = Guard::default();
+        g.reenter(0.0);
+        let tripped =
+            (0..50).find_map(|k| g.check(k as f64 * 1e-3, &p, &fast, &greedy).map(|r| (k, r)));
+        assert!(
+            matches!(tripped, Some((20, FaultReason::Rate { .. }))),
             "{tripped:?}"
         );
     }

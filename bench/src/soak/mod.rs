@@ -535,15 +535,24 @@ impl Soak {
     /// Waits until the daemon reports HOLD (after the plant left).
     fn wait_hold(&mut self) -> Result<Status> {
         let until = Instant::now() + RECOVERY_LIMIT;
+        let mut last_mode = None;
         while Instant::now() < until {
             if let Some(s) = self.observe(Some(ANSWER_LIMIT))?.status {
                 if s.mode == "Hold" {
                     return Ok(s);
                 }
+                last_mode = Some(s.mode);
             }
             std::thread::sleep(POLL);
         }
-        bail!("the daemon did not enter HOLD after the plant stopped")
+        match last_mode {
+            Some(m) => {
+                bail!("the daemon did not enter HOLD after the plant stopped (it stayed in {m})")
+            }
+            None => {
+                bail!("the daemon did not enter HOLD after the plant stopped (no status answer)")
+            }
+        }
     }
 
     fn burst(&mut self, f: &Fault, before: &Status, e: &mut Episode) -> Result<()> {
