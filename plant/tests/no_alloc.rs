@@ -76,11 +76,13 @@ fn the_udp_bridge_and_the_wire_format_allocate_nothing() {
     let cfg = BridgeConfig {
         bind,
         device: device.local_addr().unwrap(),
-        timeout: Duration::from_millis(500),
-        lost_after: Duration::from_secs(5),
+        timeout: Duration::from_millis(100),
+        // Lost at the first timeout, so that the news path below runs.
+        lost_after: Duration::from_millis(1),
         period: Duration::from_millis(1),
         wait: rt::WaitStrategy::Hybrid,
         spin: Duration::from_micros(50),
+        loop_core: None,
     };
     let mut bridge = UdpBridge::new(3, cfg);
     bridge.activate().unwrap();
@@ -116,4 +118,27 @@ fn the_udp_bridge_and_the_wire_format_allocate_nothing() {
     assert_eq!(allocs, 0, "the bridge path allocated {allocs} times");
     assert_eq!(bridge.counters.states, 500);
     assert_eq!(bridge.counters.commands_sent, 500);
+
+    // The news paths (device lost, back, restarted) post from the loop: counted too.
+    let news = allocations(|| {
+        assert!(bridge.read(1e-3, &mut out).is_err(), "nothing was sent");
+        let restarted = DeviceState {
+            n: 3,
+            seq: 0,
+            session: 78,
+            ..DeviceState::default()
+        };
+        restarted.encode(&mut sbuf);
+        device.send_to(&sbuf, bind).unwrap();
+        bridge.read(1e-3, &mut out).unwrap();
+    });
+    assert_eq!(
+        news, 0,
+        "reporting the device lost and back allocated {news} times"
+    );
+    assert_eq!(
+        (bridge.counters.device_lost, bridge.counters.device_restarts),
+        (1, 1)
+    );
+    bridge.deactivate();
 }

@@ -10,6 +10,7 @@ pub mod clock;
 pub mod files;
 pub mod hist;
 pub mod log;
+pub mod news;
 pub mod notify;
 pub mod setup;
 pub mod signal;

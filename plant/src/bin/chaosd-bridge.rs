@@ -58,6 +58,7 @@ fn main() -> ExitCode {
             period: Duration::from_secs_f64(1.0 / l.plant.rate_hz),
             wait: l.plant.wait,
             spin: Duration::from_secs_f64(l.plant.spin_us * 1e-6),
+            loop_core: l.plant.core,
         };
         let mut bridge = UdpBridge::new(l.system.n(), cfg);
         let summary = plant::run::run(&mut bridge, &l.plant, &l.arm(), l.duration);

@@ -11,6 +11,7 @@ use super::wait::{poll_datagram, Window};
 use super::wire::{DeviceCommand, DeviceMode, DeviceState, COMMAND_LEN, DEVICE_BRAKING, STATE_LEN};
 use crate::seam::{Actuation, Plant, PlantError};
 use protocol::{flags, monotonic_ns, StateSample, MAX_JOINTS};
+use rt::news::{Courier, Note, Poster};
 use rt::WaitStrategy;
 use serde::Serialize;
 use std::net::{SocketAddr, UdpSocket};
@@ -32,6 +33,8 @@ pub struct BridgeConfig {
     /// due time and blocks outside it (see [`super::wait`]), `Spin` always polls, `Sleep` blocks.
     pub wait: WaitStrategy,
     pub spin: Duration,
+    /// The plant loop's core: the thread that logs the bridge's news stays off it.
+    pub loop_core: Option<usize>,
 }
 
 /// What the bridge counted.
@@ -59,6 +62,31 @@ struct Origin {
     session: u64,
 }
 
+/// What the bridge has to say, posted from inside `read` and logged off the loop
+/// ([`rt::news`]).
+#[derive(Clone, Copy, Debug)]
+enum DeviceNote {
+    Lost { device: SocketAddr, silent_ms: u64 },
+    Back,
+    Restarted,
+}
+
+impl Note for DeviceNote {
+    fn log(&self) {
+        match *self {
+            DeviceNote::Lost { device, silent_ms } => rt::warn_limited!(
+                Duration::from_secs(10),
+                "device lost: no state from {device} for {silent_ms} ms"
+            ),
+            DeviceNote::Back => tracing::info!("the device is back"),
+            DeviceNote::Restarted => rt::warn_limited!(
+                Duration::from_secs(10),
+                "the device restarted (new session)"
+            ),
+        }
+    }
+}
+
 pub struct UdpBridge {
     n: usize,
     cfg: BridgeConfig,
@@ -68,6 +96,9 @@ pub struct UdpBridge {
     lost: bool,
     origins: [Origin; 64],
     pub counters: BridgeCounters,
+    /// Running between `activate` and `deactivate`.
+    courier: Option<Courier<DeviceNote>>,
+    news: Option<Poster<DeviceNote>>,
 }
 
 fn unavailable(what: &'static str, e: Option<std::io::Error>) -> PlantError {
@@ -91,6 +122,15 @@ impl UdpBridge {
                 ..Origin::default()
             }; 64],
             counters: BridgeCounters::default(),
+            courier: None,
+            news: None,
+        }
+    }
+
+    /// Hands `note` to the courier (never logs here: this runs on the loop).
+    fn say(&self, note: DeviceNote) {
+        if let Some(p) = &self.news {
+            p.post(note);
         }
     }
 
@@ -110,10 +150,7 @@ impl UdpBridge {
             }
             Some(l) if l.session != s.session => {
                 self.counters.device_restarts += 1;
-                rt::warn_limited!(
-                    Duration::from_secs(10),
-                    "the device restarted (new session)"
-                );
+                self.say(DeviceNote::Restarted);
                 Some(s)
             }
             _ => Some(s),
@@ -196,14 +233,18 @@ impl UdpBridge {
         if !self.lost && silent >= self.cfg.lost_after.as_nanos() as u64 {
             self.lost = true;
             self.counters.device_lost += 1;
-            rt::warn_limited!(
-                Duration::from_secs(10),
-                "device lost: no state from {} for {} ms",
-                self.cfg.device,
-                silent / 1_000_000
-            );
+            self.say(DeviceNote::Lost {
+                device: self.cfg.device,
+                silent_ms: silent / 1_000_000,
+            });
         }
-        unavailable("no state from the device this cycle", Some(e))
+        // A timeout is the common case (every missed cycle): no boxed source, which would
+        // allocate on the loop. A real socket error is rare and keeps its source.
+        if e.kind() == std::io::ErrorKind::TimedOut {
+            unavailable("no state from the device within the timeout", None)
+        } else {
+            unavailable("no state from the device this cycle", Some(e))
+        }
     }
 
     fn send(&mut self, cmd: &DeviceCommand) -> Result<(), PlantError> {
@@ -247,6 +288,10 @@ impl Plant for UdpBridge {
         // Reads never block: waits happen in `poll_datagram`.
         sock.set_nonblocking(true)
             .map_err(|e| act("cannot make the bridge socket non-blocking", e))?;
+        let courier = Courier::start("bridge-news", 64, self.cfg.loop_core)
+            .map_err(|e| act("cannot start the bridge's news thread", e))?;
+        self.news = Some(courier.poster());
+        self.courier = Some(courier);
         self.socket = Some(sock);
         self.last_rx_ns = monotonic_ns();
         Ok(())
@@ -288,7 +333,7 @@ impl Plant for UdpBridge {
         self.last_rx_ns = monotonic_ns();
         if self.lost {
             self.lost = false;
-            tracing::info!("the device is back");
+            self.say(DeviceNote::Back);
         }
         self.counters.states += 1;
         self.origins[(out.seq % 64) as usize] = Origin {
@@ -305,6 +350,8 @@ impl Plant for UdpBridge {
 
     fn deactivate(&mut self) {
         let _ = self.write(Actuation::Brake);
+        self.news = None;
+        self.courier = None; // logs what is left, then joins
     }
 
     fn device_clocked(&self) -> bool {
