@@ -15,7 +15,7 @@ pub const KEYS: &str = "mu, tau, t_on, feedback (on|off), projection (full|null-
                         task.center X Y, task.radius, task.period, safety (on|off), safety.clearance, \
                         safety.qd_max, safety.qdd_max (one value for all joints, or one per joint), \
                         safety.q_min, safety.q_max (one per joint; inf = unlimited), safety.k0, safety.k1, \
-                        safety.k_rate, safety.guard_time, safety.guard_tracking_error, safety.guard_growth_time";
+                        safety.push_out_speed, safety.k_rate, safety.guard_time, safety.guard_tracking_error, safety.guard_growth_time";
 
 fn on_off(key: &str, v: Option<&str>) -> Result<bool, String> {
     match v {
@@ -107,6 +107,7 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             "safety.q_max" => c.safety.q_max = Some(nums(key, &mut it, cfg.n(), true)?),
             "safety.k0" => c.safety.k0 = num(key, it.next())?,
             "safety.k1" => c.safety.k1 = num(key, it.next())?,
+            "safety.push_out_speed" => c.safety.push_out_speed = num(key, it.next())?,
             "safety.k_rate" => c.safety.k_rate = num(key, it.next())?,
             "safety.guard_time" => c.safety.guard_time = num(key, it.next())?,
             "safety.guard_tracking_error" => c.safety.guard_tracking_error = num(key, it.next())?,
@@ -325,6 +326,8 @@ mod tests {
             ("kp 1000000 kv 1000000", "control.kv"),
             ("task.center 1e5 1e5", "reaches only"),
             ("safety.k1 5", "real roots"),
+            ("safety.push_out_speed 0", "safety.push_out_speed"),
+            ("safety.push_out_speed -1", "must be a finite number > 0"),
             ("safety.qd_max 0", "safety.qd_max[0]"),
             ("safety.qd_max 1 2", "or 3 values"),
             ("safety.q_max 1 1 nan", "not a finite number"),
@@ -339,11 +342,12 @@ mod tests {
         assert!(apply_set(&fast, "kv 3000", 1e-4).is_ok());
         let n = apply_set(
             &c,
-            "safety off safety.qd_max 5 6 7 safety.q_max inf 2 2 projection null-space",
+            "safety off safety.qd_max 5 6 7 safety.q_max inf 2 2 projection null-space safety.push_out_speed 0.05",
             1e-3,
         )
         .unwrap();
         assert!(!n.safety.enabled);
+        assert_eq!(n.safety.params(3).gains().push_out_speed, 0.05);
         assert_eq!(n.safety.params(3).qd_max[..3], [5.0, 6.0, 7.0]);
         assert_eq!(n.safety.params(3).q_max[..3], [f64::INFINITY, 2.0, 2.0]);
         assert_eq!(

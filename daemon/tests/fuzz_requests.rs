@@ -28,6 +28,7 @@ const KEYS: &[&str] = &[
     "safety.q_max",
     "safety.k0",
     "safety.k1",
+    "safety.push_out_speed",
     "safety.k_rate",
     "safety.guard_time",
     "max_tau",

@@ -51,6 +51,9 @@ pub struct SafetyConfig {
     /// Position barriers ḧ + k1 ḣ + k0 h ≥ 0; k1² ≥ 4 k0 (real roots: no overshoot).
     pub k0: f64,
     pub k1: f64,
+    /// The fastest a link is pushed out of an obstacle's clearance (m/s): a link that starts
+    /// inside, or that an obstacle appears on, leaves at no more than this speed.
+    pub push_out_speed: f64,
     /// Rate barriers ḣ + k_rate h ≥ 0 (1/s).
     pub k_rate: f64,
     /// Daemon: a joint rate or the law's acceleration beyond its limit for this long (s) → FAULT.
@@ -73,6 +76,7 @@ impl Default for SafetyConfig {
             qdd_max: Limit::All(1000.0),
             k0: 100.0,
             k1: 20.0,
+            push_out_speed: 0.1,
             k_rate: 50.0,
             guard_time: 0.02,
             guard_tracking_error: 1.0,
@@ -171,6 +175,7 @@ impl SafetyConfig {
                 &format!("must satisfy k1² ≥ 4·k0 = {} so that s² + k1·s + k0 has real roots (no overshoot of a limit)", 4.0 * self.k0),
             ));
         }
+        in_range("push_out_speed", self.push_out_speed, 0.0, 100.0, true)?;
         in_range("k_rate", self.k_rate, 0.0, 1e4, true)?;
         in_range("guard_time", self.guard_time, 0.0, 10.0, false)?;
         in_range(
@@ -209,6 +214,7 @@ impl SafetyConfig {
             qdd_max: self.qdd_max.resolve(n),
             k0: self.k0,
             k1: self.k1,
+            push_out_speed: self.push_out_speed,
             k_rate: self.k_rate,
             guard_time: self.guard_time,
             guard_tracking_error: self.guard_tracking_error,

@@ -46,6 +46,9 @@ pub struct SafetyParams {
     /// Position barriers: ḧ + k1 ḣ + k0 h ≥ 0 (s² + k1 s + k0 has real negative roots).
     pub k0: f64,
     pub k1: f64,
+    /// The fastest a link is pushed out of an obstacle's clearance (m/s): see
+    /// [`rows::BarrierGains::push_out_speed`].
+    pub push_out_speed: f64,
     /// Rate barriers: ḣ + k_rate h ≥ 0.
     pub k_rate: f64,
     /// Daemon's runaway guard: a rate or the law's demand beyond its limit for this long (s).
@@ -57,6 +60,15 @@ pub struct SafetyParams {
 }
 
 impl SafetyParams {
+    /// The obstacle barriers' gains.
+    pub fn gains(&self) -> rows::BarrierGains {
+        rows::BarrierGains {
+            k0: self.k0,
+            k1: self.k1,
+            push_out_speed: self.push_out_speed,
+        }
+    }
+
     /// A filter that is off, with no limits.
     pub fn off() -> Self {
         Self {
@@ -68,6 +80,7 @@ impl SafetyParams {
             qdd_max: [f64::INFINITY; MAX_JOINTS],
             k0: 100.0,
             k1: 20.0,
+            push_out_speed: 0.1,
             k_rate: 50.0,
             guard_time: 0.02,
             guard_tracking_error: 1.0,

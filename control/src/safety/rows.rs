@@ -113,16 +113,36 @@ pub fn point_motions<const N: usize>(
     }
 }
 
+/// The gains of an obstacle barrier's condition ḧ + k1 ḣ + k0 h ≥ 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BarrierGains {
+    pub k0: f64,
+    pub k1: f64,
+    /// Inside the clearance (h < 0) the plain condition pushes out at ḣ → k0|h|/k1, which grows
+    /// with the depth: a link that starts (or has an obstacle appear) deep inside would leave at
+    /// up to 1 m/s and fly into the next obstacle faster than the acceleration limits can brake.
+    /// So the push term k0·h is held above −k1·`push_out_speed`: the way out is taken at no more
+    /// than this speed (m/s). It changes nothing while h ≥ −push_out_speed·k1/k0.
+    pub push_out_speed: f64,
+}
+
+impl BarrierGains {
+    /// b of the row a·q̈ ≥ b, before the motion terms: −k1 ḣ − max(k0 h, −k1 v_out).
+    pub fn rhs(&self, h: f64, hdot: f64) -> f64 {
+        let push = self.k0 * h;
+        let floor = -self.k1 * self.push_out_speed;
+        -self.k1 * hdot - if push < floor { floor } else { push }
+    }
+}
+
 /// The barrier value h = d − r − clearance of link `j` (from P_j to P_{j+1}) against an obstacle,
 /// with the row of its second-order condition: returns (h, a, b).
-#[allow(clippy::too_many_arguments)]
 pub fn obstacle_row<const N: usize>(
     a_pt: &PointMotion<N>,
     b_pt: &PointMotion<N>,
     center: Vec2,
     reach: f64,
-    k0: f64,
-    k1: f64,
+    g: BarrierGains,
 ) -> Option<(f64, VecN<N>, f64)> {
     let e = b_pt.pos - a_pt.pos;
     let l2 = e.norm_squared();
@@ -132,10 +152,10 @@ pub fn obstacle_row<const N: usize>(
         0.0
     };
     if t <= 0.0 {
-        return point_row(a_pt, center, reach, k0, k1);
+        return point_row(a_pt, center, reach, g);
     }
     if t >= 1.0 {
-        return point_row(b_pt, center, reach, k0, k1);
+        return point_row(b_pt, center, reach, g);
     }
     let l = l2.sqrt();
     let rel = center - a_pt.pos;
@@ -153,7 +173,7 @@ pub fn obstacle_row<const N: usize>(
         * (cross(b_pt.drift - a_pt.drift, rel)
             - 2.0 * cross(edot, a_pt.vel)
             - cross(e, a_pt.drift));
-    Some((h, a, -k1 * hdot - k0 * h - drift))
+    Some((h, a, g.rhs(h, hdot) - drift))
 }
 
 /// The same for the distance to one point P: ḧ = u·P̈ + (|Ṗ|² − (u·Ṗ)²)/d.
@@ -161,8 +181,7 @@ fn point_row<const N: usize>(
     p: &PointMotion<N>,
     center: Vec2,
     reach: f64,
-    k0: f64,
-    k1: f64,
+    g: BarrierGains,
 ) -> Option<(f64, VecN<N>, f64)> {
     let w = p.pos - center;
     let d = w.norm();
@@ -175,7 +194,7 @@ fn point_row<const N: usize>(
     let hdot = un;
     let curvature = (p.vel.norm_squared() - un * un) / d;
     let a = p.jac.transpose() * u;
-    Some((h, a, -k1 * hdot - k0 * h - u.dot(&p.drift) - curvature))
+    Some((h, a, g.rhs(h, hdot) - u.dot(&p.drift) - curvature))
 }
 
 /// Calls `f(a, b)` for the row a·q̈ ≥ b of every link against every obstacle.
@@ -189,7 +208,7 @@ pub fn visit_obstacles<const N: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
         let reach = o.radius + p.clearance;
         for j in 0..N {
             if let Some((_, a, b)) =
-                obstacle_row(&points[j], &points[j + 1], o.center, reach, p.k0, p.k1)
+                obstacle_row(&points[j], &points[j + 1], o.center, reach, p.gains())
             {
                 f(&a, b);
             }
@@ -262,8 +281,7 @@ pub fn min_obstacle_barrier<const N: usize>(
                 &points[j + 1],
                 o.center,
                 o.radius + p.clearance,
-                p.k0,
-                p.k1,
+                p.gains(),
             ) {
                 min = min.min(h);
             }
