@@ -217,7 +217,7 @@ fn free_udp_ports() -> Result<(u16, u16)> {
 
 /// Starts `exe args…` with its output in `log`, as a child that dies with us.
 fn spawn_logged(exe: PathBuf, args: &[String], log: &Path) -> Result<ChildGuard> {
-    let f = std::fs::File::create(log)?;
+    let f = rt::files::create(log)?;
     let name = exe.display().to_string();
     let child = plant_command(exe)
         .args(args)

@@ -12,7 +12,7 @@
 //! deadline `phase_offset_us` after the plant's state stamps, so the state age is that offset,
 //! not wherever the two processes' start phases happened to fall.
 
-use crate::controller::Controller;
+use crate::controller::{Controller, TickOutcome};
 use crate::record::{tick_record, TickTimes};
 use crate::telemetry::TickRecord;
 use iceoryx2::port::publisher::Publisher;
@@ -103,6 +103,131 @@ pub fn send<const N: usize>(
     }
 }
 
+/// What one state-triggered tick did on the path from state to command.
+pub struct Answered<const N: usize> {
+    pub got: Option<StateSample>,
+    pub outcome: TickOutcome<N>,
+    pub seen: Drained,
+    /// The state's expected arrival this tick waited around (ns).
+    pub due: u64,
+    pub woke: u64,
+    /// When the command had been sent (ns).
+    pub done: u64,
+}
+
+/// The state-triggered loop's state between ticks. [`state_loop`] calls [`StateLoop::answer`]
+/// then [`StateLoop::after`] until it stops; `daemon/tests/no_alloc.rs` calls the same two.
+pub struct StateLoop<'a> {
+    ports: &'a Ports<'a>,
+    timing: Timing,
+    /// The next command's sample, loaned before its state arrives.
+    slot: Option<CommandSlot>,
+    /// When the next state is due (ns).
+    expected: u64,
+    /// The newest accepted state: what a rehearsal runs the law on while waiting for the next.
+    last: Option<StateSample>,
+    /// Ticks since the last accepted state.
+    missed: u32,
+}
+
+impl<'a> StateLoop<'a> {
+    pub fn new(ports: &'a Ports<'a>, timing: Timing) -> Self {
+        Self {
+            ports,
+            timing,
+            slot: ports.publisher.loan_uninit().ok(),
+            expected: monotonic_ns() + timing.period_ns,
+            last: None,
+            missed: 0,
+        }
+    }
+
+    /// The path from state to command: waits for the next state (rehearsing the law on the last
+    /// one), ticks, and sends into the pre-loaned sample. No allocation.
+    pub fn answer<const N: usize>(&mut self, ctl: &mut Controller<N>) -> Answered<N> {
+        let (timing, expected) = (self.timing, self.expected);
+        // No state for a whole period past its expected arrival: a tick without one.
+        let give_up = expected + timing.period_ns;
+        let mut seen = Drained::default();
+        // While the plant keeps publishing, a late state is most likely a moment away: keep
+        // polling without sleeping until the tick gives up on it (a sleep costs tens of µs here).
+        // After a missed state the window closes as configured, so a dead plant costs no core.
+        let mut window = Window::around(timing.wait, expected, timing.spin_ns);
+        if self.last.is_some() && self.missed == 0 {
+            window = window.open_until(give_up);
+        }
+        let got = {
+            let (ctl, last, sub) = (&mut *ctl, &self.last, self.ports.subscriber);
+            rt::trigger::poll_within(
+                window,
+                give_up,
+                || newest_state(sub, &mut seen),
+                || {
+                    if let Some(s) = last {
+                        ctl.rehearse(s);
+                    }
+                },
+            )
+        };
+        let woke = monotonic_ns();
+        let outcome = ctl.tick(got.as_ref(), woke);
+        crate::watchdog::beat(ctl.counters.ticks);
+        if let Some(c) = outcome.command {
+            send(self.ports.publisher, &mut self.slot, c, ctl);
+        }
+        let done = monotonic_ns();
+        Answered {
+            got,
+            outcome,
+            seen,
+            due: expected,
+            woke,
+            done,
+        }
+    }
+
+    /// Everything off the path, while the plant applies the command: counters, when the next
+    /// state is due, the next loan (iceoryx2's one allocation), `between` (what the control
+    /// service sent), and the telemetry record.
+    pub fn after<const N: usize>(
+        &mut self,
+        ctl: &mut Controller<N>,
+        a: Answered<N>,
+        between: &mut impl FnMut(&mut Controller<N>),
+    ) {
+        let period = self.timing.period_ns;
+        a.seen.into_counters(ctl);
+        if a.outcome.state_age_ns.is_some() {
+            self.last = a.got;
+            self.missed = 0;
+        } else {
+            self.missed += 1;
+        }
+        self.expected = match (a.got, a.outcome.state_age_ns) {
+            (Some(s), Some(_)) => s
+                .stamp_ns
+                .saturating_add(period)
+                .clamp(a.woke, a.woke + 2 * period),
+            _ => (a.due + period).max(a.woke),
+        };
+        if self.slot.is_none() {
+            self.slot = self.ports.publisher.loan_uninit().ok();
+        }
+        between(ctl);
+        let times = TickTimes {
+            due: a.due,
+            woke: a.woke,
+            done: a.done,
+        };
+        let rec = tick_record(ctl, &a.outcome, a.got, times);
+        match self.ports.tx.try_send(rec) {
+            Ok(()) => {}
+            Err(crossbeam::channel::TrySendError::Full(_)) => ctl.counters.telemetry_dropped += 1,
+            Err(crossbeam::channel::TrySendError::Disconnected(_)) => rt::signal::request_stop(),
+        }
+    }
+}
+
 /// Runs state-triggered ticks until a stop request or `timing.end_ns`. `between` runs after each
 /// command has left: it takes what the control service sent (a parameter block, ...) without
 /// waiting, exactly as the clock loop does before its tick.
@@ -112,75 +237,13 @@ pub fn state_loop<const N: usize>(
     timing: Timing,
     mut between: impl FnMut(&mut Controller<N>),
 ) {
-    let period = timing.period_ns;
-    let mut slot = ports.publisher.loan_uninit().ok();
-    let mut expected = monotonic_ns() + period;
-    // The newest accepted state: what a rehearsal runs the law on while waiting for the next.
-    let mut last: Option<StateSample> = None;
-    // Ticks since the last accepted state.
-    let mut missed = 0u32;
+    let mut l = StateLoop::new(ports, timing);
     while !rt::signal::stop_requested() {
         if timing.end_ns.is_some_and(|e| monotonic_ns() >= e) {
             break;
         }
-        // No state for a whole period past its expected arrival: a tick without one.
-        let give_up = expected + period;
-        let mut seen = Drained::default();
-        // While the plant keeps publishing, a late state is most likely a moment away: keep
-        // polling without sleeping until the tick gives up on it (a sleep costs tens of µs here).
-        // After a missed state the window closes as configured, so a dead plant costs no core.
-        let mut window = Window::around(timing.wait, expected, timing.spin_ns);
-        if last.is_some() && missed == 0 {
-            window = window.open_until(give_up);
-        }
-        let got = {
-            let (ctl, last) = (&mut *ctl, &last);
-            rt::trigger::poll_within(
-                window,
-                give_up,
-                || newest_state(ports.subscriber, &mut seen),
-                || {
-                    if let Some(s) = last {
-                        ctl.rehearse(s);
-                    }
-                },
-            )
-        };
-        let woke = monotonic_ns();
-        let o = ctl.tick(got.as_ref(), woke);
-        crate::watchdog::beat(ctl.counters.ticks);
-        if let Some(c) = o.command {
-            send(ports.publisher, &mut slot, c, ctl);
-        }
-        let done = monotonic_ns();
-
-        // Everything below is off the path from state to command.
-        seen.into_counters(ctl);
-        if o.state_age_ns.is_some() {
-            last = got;
-            missed = 0;
-        } else {
-            missed += 1;
-        }
-        let due = expected;
-        expected = match (got, o.state_age_ns) {
-            (Some(s), Some(_)) => s
-                .stamp_ns
-                .saturating_add(period)
-                .clamp(woke, woke + 2 * period),
-            _ => give_up.max(woke),
-        };
-        if slot.is_none() {
-            slot = ports.publisher.loan_uninit().ok();
-        }
-        between(ctl);
-        let times = TickTimes { due, woke, done };
-        let rec = tick_record(ctl, &o, got, times);
-        match ports.tx.try_send(rec) {
-            Ok(()) => {}
-            Err(crossbeam::channel::TrySendError::Full(_)) => ctl.counters.telemetry_dropped += 1,
-            Err(crossbeam::channel::TrySendError::Disconnected(_)) => rt::signal::request_stop(),
-        }
+        let a = l.answer(ctl);
+        l.after(ctl, a, &mut between);
     }
 }
 

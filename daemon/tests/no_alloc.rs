@@ -166,10 +166,12 @@ fn the_clock_loops_tick_allocates_only_iceoryx2s_loan() {
 
 #[test]
 fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
-    // `trigger::state_loop` loans the command sample before the state arrives, so the path
-    // receive → tick → write → send makes no allocation at all; the loan (iceoryx2's one `Rc`)
-    // happens after the send, off the path. These are the loop's own functions.
-    use daemon::trigger::{newest_state, send, Drained};
+    // `StateLoop::answer` and `StateLoop::after` are what `trigger::state_loop` runs, on real
+    // iceoryx2 ports with the loop's channels. The command sample is loaned before the state
+    // arrives, so the path (wait → receive → tick → write → send) makes no allocation at all;
+    // the next loan (iceoryx2's one `Rc`) happens in `after`, off the path.
+    use daemon::telemetry::{LoopRequest, TickRecord};
+    use daemon::trigger::{Ports, StateLoop, Timing};
     iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
     let node = daemon::service::node("no-alloc-state").unwrap();
     let ns = format!(
@@ -184,45 +186,60 @@ fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
     let sub = state_svc.subscriber_builder().create().unwrap();
     let publisher = cmd_svc.publisher_builder().create().unwrap();
     let cmd_sub = cmd_svc.subscriber_builder().create().unwrap();
-    let mut c = controller("paper");
-    let mut slot = publisher.loan_uninit().ok();
-    let path = |c: &mut Controller<3>, slot: &mut Option<_>| -> bool {
-        let mut seen = Drained::default();
-        let got = newest_state(&sub, &mut seen);
-        seen.into_counters(c);
-        // The rehearsal the loop runs while it waits for the next state.
-        if let Some(s) = &got {
-            c.rehearse(s);
-        }
-        let o = c.tick(got.as_ref(), monotonic_ns());
-        daemon::watchdog::beat(c.counters.ticks);
-        match o.command {
-            Some(cmd) => {
-                send(&publisher, slot, cmd, c);
-                true
-            }
-            None => false,
-        }
+    let (params_tx, params_rx) = crossbeam::channel::bounded::<LoopRequest>(16);
+    let (tel_tx, tel_rx) = crossbeam::channel::bounded::<TickRecord>(4096);
+    let ports = Ports {
+        subscriber: &sub,
+        publisher: &publisher,
+        tx: &tel_tx,
     };
+    // The daemon's default wait around each expected arrival, at 1 kHz.
+    let timing = Timing {
+        period_ns: 1_000_000,
+        wait: rt::WaitStrategy::Hybrid,
+        spin_ns: 50_000,
+        end_ns: None,
+    };
+    let mut c = controller("paper");
+    let params = *c.params();
+    let mut between = |c: &mut Controller<3>| daemon::tick::take_request(c, &params_rx);
+    let mut l = StateLoop::new(&ports, timing);
+    // Warm up: the first sends set up connections (and allocate for that).
     for seq in 0..50 {
         plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
-        path(&mut c, &mut slot);
-        slot = publisher.loan_uninit().ok();
+        let a = l.answer(&mut c);
+        l.after(&mut c, a, &mut between);
         while let Ok(Some(_)) = cmd_sub.receive() {}
     }
-    let (mut sent, mut allocs) = (0, 0);
+    let (mut sent, mut on_path, mut off_path, mut records) = (0, 0, 0, 0);
     for seq in 50..2050 {
+        if seq % 100 == 0 {
+            params_tx.try_send(LoopRequest::Params(params)).unwrap();
+        }
+        records += tel_rx.try_iter().count();
         plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
-        let mut ok = false;
-        allocs += allocations(|| ok = path(&mut c, &mut slot));
-        sent += u64::from(ok);
-        assert!(slot.is_none(), "the pre-loaned slot was used");
-        slot = publisher.loan_uninit().ok(); // off the path, as in the loop
+        let before = c.counters.commands;
+        let mut answered = None;
+        on_path += allocations(|| answered = Some(l.answer(&mut c)));
+        sent += c.counters.commands - before;
+        let a = answered.unwrap();
+        assert!(a.got.is_some(), "the state was there to answer");
+        off_path += allocations(|| l.after(&mut c, a, &mut between));
         while let Ok(Some(_)) = cmd_sub.receive() {}
     }
+    records += tel_rx.try_iter().count();
     assert_eq!(sent, 2000);
     assert_eq!(
-        allocs, 0,
-        "the state → command path allocated {allocs} times"
+        records, 2050,
+        "every tick handed its record to the reporter"
+    );
+    assert_eq!(c.counters.params_applied, 20);
+    assert_eq!(
+        on_path, 0,
+        "the state → command path allocated {on_path} times"
+    );
+    assert_eq!(
+        off_path, sent,
+        "off the path: exactly one allocation (iceoryx2's per-loan Rc) per command sent"
     );
 }

@@ -16,14 +16,20 @@ pub fn create_dir_all(path: &Path) -> std::io::Result<()> {
     DirBuilder::new().recursive(true).mode(0o700).create(path)
 }
 
-/// Creates (or truncates) a file with mode 0600.
+/// Creates (or truncates) a file with mode 0600; a file that existed with a wider mode (left
+/// by an older version, or created by hand) is narrowed to 0600 too.
 pub fn create(path: &Path) -> std::io::Result<File> {
-    OpenOptions::new()
+    use std::os::unix::fs::PermissionsExt;
+    let f = OpenOptions::new()
         .write(true)
         .create(true)
         .truncate(true)
         .mode(0o600)
-        .open(path)
+        .open(path)?;
+    if f.metadata()?.permissions().mode() & 0o077 != 0 {
+        f.set_permissions(std::fs::Permissions::from_mode(0o600))?;
+    }
+    Ok(f)
 }
 
 /// Creates a new file with mode 0600; fails if anything exists at `path` (links included).
@@ -55,6 +61,12 @@ mod tests {
         assert_eq!(mode(&dir.join("sub")), 0o700);
         assert_eq!(mode(&dir.join("sub/f")), 0o600);
         assert_eq!(mode(&dir.join("g")), 0o600);
+        // A file left world-readable is narrowed when it is written again.
+        let old = dir.join("old");
+        std::fs::write(&old, b"x").unwrap();
+        std::fs::set_permissions(&old, std::fs::Permissions::from_mode(0o644)).unwrap();
+        super::write(&old, b"y").unwrap();
+        assert_eq!(mode(&old), 0o600);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

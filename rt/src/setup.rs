@@ -53,6 +53,8 @@ fn errno_text() -> String {
 /// Applies `req` to the calling thread (and, for mlockall, the process).
 pub fn apply(req: RtRequest) -> RtReport {
     let mut r = RtReport::default();
+    // Before the pin narrows it: what helper threads may use besides the loop's core.
+    process_cpus();
     if let Some(core) = req.core {
         let ids = core_affinity::get_core_ids().unwrap_or_default();
         match ids.into_iter().find(|c| c.id == core) {
@@ -200,23 +202,46 @@ mod tests {
     }
 }
 
-/// Keeps the calling thread off `core` (the real-time loop's), on every other online CPU.
-/// Helper threads (reporter, cleanup) call this first, so they never take the loop's core even
-/// when they run at the normal priority and the loop sleeps. Returns false, and changes nothing,
-/// on a single-CPU machine, when `core` is `None`, or when the kernel refuses.
+/// The CPUs the process was allowed when first asked (before [`apply`] pins the loop): the
+/// unit's `CPUAffinity=`, a `taskset`, or every online CPU.
+fn process_cpus() -> &'static [usize] {
+    static CPUS: std::sync::OnceLock<Vec<usize>> = std::sync::OnceLock::new();
+    CPUS.get_or_init(|| {
+        // SAFETY: a zeroed cpu_set_t is the empty set; sched_getaffinity(0, …) fills it for the
+        // calling thread; CPU_ISSET only reads inside it.
+        unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
+                return Vec::new();
+            }
+            (0..libc::CPU_SETSIZE as usize)
+                .filter(|&c| libc::CPU_ISSET(c, &set))
+                .collect()
+        }
+    })
+}
+
+/// Keeps the calling thread off `core` (the real-time loop's), on every other CPU the process
+/// is allowed (never widening a unit's `CPUAffinity=` or a `taskset`). Helper threads
+/// (reporter, cleanup) call this first, so they never take the loop's core even when they run at
+/// the normal priority and the loop sleeps. Returns false, and changes nothing, when `core` is
+/// `None`, when the loop's core is the only one allowed, or when the kernel refuses.
 pub fn avoid_core(core: Option<usize>) -> bool {
     let Some(core) = core else { return false };
-    // SAFETY: sysconf has no preconditions.
-    let cpus = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) };
-    if cpus < 2 {
+    let others: Vec<usize> = process_cpus()
+        .iter()
+        .copied()
+        .filter(|&c| c != core)
+        .collect();
+    if others.is_empty() {
         return false;
     }
-    // SAFETY: a zeroed cpu_set_t is the empty set; CPU_SET/ZERO only write inside it, and
-    // sched_setaffinity(0, …) applies to the calling thread.
+    // SAFETY: a zeroed cpu_set_t is the empty set; CPU_SET only writes inside it (every c came
+    // from CPU_ISSET below CPU_SETSIZE), and sched_setaffinity(0, …) applies to the calling
+    // thread.
     unsafe {
         let mut set: libc::cpu_set_t = std::mem::zeroed();
-        libc::CPU_ZERO(&mut set);
-        for c in (0..cpus as usize).filter(|&c| c != core) {
+        for c in others {
             libc::CPU_SET(c, &mut set);
         }
         libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) == 0

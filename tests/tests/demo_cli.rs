@@ -21,8 +21,20 @@ fn a_demo_piped_into_head_does_not_panic_and_still_finishes() {
     let stderr = std::fs::read_to_string(&err).unwrap_or_default();
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(st.success(), "{st:?}\n{stderr}");
-    // It went on to the end: the summaries exist.
+    // It went on to the end: the summaries exist, and every file it wrote is the operator's
+    // alone (the plant's log included, which is opened for the child, not by rt::files::write).
     assert!(dir.path().join("out/daemon-summary.json").exists());
+    use std::os::unix::fs::PermissionsExt;
+    for f in std::fs::read_dir(dir.path().join("out")).unwrap() {
+        let f = f.unwrap();
+        let mode = f.metadata().unwrap().permissions().mode() & 0o777;
+        let want = if f.file_type().unwrap().is_dir() {
+            0o700
+        } else {
+            0o600
+        };
+        assert_eq!(mode, want, "{} is {mode:o}", f.path().display());
+    }
 }
 
 #[test]
