@@ -60,6 +60,9 @@ pub struct ReplayLog {
     pending: VecDeque<String>,
     /// Why the recording stopped, once it has.
     pub stopped: Option<String>,
+    /// Bytes written so far, and the most it may grow to (`daemon.record_max_bytes`).
+    written: u64,
+    max_bytes: u64,
 }
 
 impl ReplayLog {
@@ -77,8 +80,7 @@ impl ReplayLog {
         let mut file = crate::recording::open(&path).map_err(cannot)?;
         let s = settings;
         let config = system_toml(cfg);
-        write!(
-            file,
+        let header = format!(
             "{MAGIC}\nsettings n={} rate_hz={:016x} first_order_hold={} hold_after={} stale_ns={} future_slack_ns={} daemon_id={} t_start={:016x} fault={} handshake={}\nconfig {}\n{config}",
             cfg.n(),
             s.rate_hz.to_bits(),
@@ -91,15 +93,26 @@ impl ReplayLog {
             u8::from(start_in_fault),
             u8::from(handshake),
             config.lines().count(),
-        )
-        .map_err(cannot)?;
+        );
+        file.write_all(header.as_bytes()).map_err(cannot)?;
+        let written = header.len() as u64;
         Ok(Self {
             path,
             file,
             next_tick: 0,
             pending: VecDeque::new(),
             stopped: None,
+            written,
+            max_bytes: u64::MAX,
         })
+    }
+
+    /// Caps the file at `max_bytes`. A replay recording cannot rotate (a replay starts from the
+    /// first tick), so at the cap it stops, says so, and stays a valid recording of every tick
+    /// up to there.
+    pub fn with_max_bytes(mut self, max_bytes: u64) -> Self {
+        self.max_bytes = max_bytes;
+        self
     }
 
     /// A configuration the control service has just sent to the loop.
@@ -135,32 +148,42 @@ impl ReplayLog {
                 "tick records were lost (the telemetry queue was full)",
             ));
         }
+        let mut out = String::with_capacity(700);
         match r.applied {
             Some(Applied::Params) => {
                 let cfg = self.pending.pop_front().ok_or_else(|| {
                     std::io::Error::other("a parameter change reached the loop unannounced")
                 })?;
-                write!(self.file, "P {tick} {}\n{cfg}", cfg.lines().count())?;
+                let _ = write!(out, "P {tick} {}\n{cfg}", cfg.lines().count());
             }
-            Some(Applied::Resume) => writeln!(self.file, "R {tick}")?,
+            Some(Applied::Resume) => {
+                let _ = writeln!(out, "R {tick}");
+            }
             Some(Applied::Plant { plant_id, agreed }) => {
-                writeln!(self.file, "H {tick} {plant_id} {}", u8::from(agreed))?
+                let _ = writeln!(out, "H {tick} {plant_id} {}", u8::from(agreed));
             }
             None => {}
         }
-        let mut line = String::with_capacity(700);
-        let _ = write!(line, "T {tick} {} ", r.now_ns);
+        let _ = write!(out, "T {tick} {} ", r.now_ns);
         match &r.state {
-            Some(s) => state_fields(&mut line, s),
-            None => line.push('-'),
+            Some(s) => state_fields(&mut out, s),
+            None => out.push('-'),
         }
-        line.push(' ');
+        out.push(' ');
         match &r.command {
-            Some(c) => command_fields(&mut line, c),
-            None => line.push('-'),
+            Some(c) => command_fields(&mut out, c),
+            None => out.push('-'),
         }
-        line.push('\n');
-        self.file.write_all(line.as_bytes())?;
+        out.push('\n');
+        if self.written.saturating_add(out.len() as u64) > self.max_bytes {
+            return Err(std::io::Error::other(format!(
+                "it reached daemon.record_max_bytes = {} bytes (a replay recording is one file \
+                 from the first tick: it stops rather than rotates); it replays up to here",
+                self.max_bytes
+            )));
+        }
+        self.file.write_all(out.as_bytes())?;
+        self.written += out.len() as u64;
         self.next_tick += 1;
         Ok(())
     }
@@ -649,9 +672,16 @@ mod tests {
 
     /// Runs a controller on synthetic states with a parameter change and a gap, recording it.
     fn record(dir: &Path) -> PathBuf {
+        record_capped(dir, u64::MAX).unwrap()
+    }
+
+    /// [`record`] into a file capped at `max_bytes`: what `finish` says.
+    fn record_capped(dir: &Path, max_bytes: u64) -> Result<PathBuf, String> {
         let mut cfg = Config::preset("paper").unwrap();
         cfg.feedback.t_on = 0.3;
-        let mut log = ReplayLog::create(dir, "a.replay", &cfg, &settings(), false, true).unwrap();
+        let mut log = ReplayLog::create(dir, "a.replay", &cfg, &settings(), false, true)
+            .unwrap()
+            .with_max_bytes(max_bytes);
         let mut ctl = Controller::<3>::new(
             cfg.model::<3>(),
             cfg.law_params(),
@@ -690,7 +720,7 @@ mod tests {
             };
             log.tick(&tick_record(&ctl, &o, newest, times));
         }
-        log.finish().unwrap()
+        log.finish()
     }
 
     fn dir(name: &str) -> PathBuf {
@@ -724,6 +754,30 @@ mod tests {
         let m = r.first_mismatch.unwrap();
         assert_eq!((m.tick, m.field.as_str()), (200, "command.qdd[1]"));
         assert!(m.recorded.contains(&format!("0x{v:016x}")), "{m}");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_capped_recording_stops_at_its_cap_and_replays_up_to_there() {
+        let d = dir("cap");
+        let full_path = record(&d);
+        let full = std::fs::metadata(&full_path).unwrap().len();
+        std::fs::remove_file(full_path).unwrap();
+        let cap = full / 2;
+        let why = record_capped(&d, cap).unwrap_err();
+        assert!(
+            why.contains("record_max_bytes") && why.contains("stops rather than rotates"),
+            "{why}"
+        );
+        let p = d.join("a.replay");
+        let size = std::fs::metadata(&p).unwrap().len();
+        assert!(
+            size <= cap && size > cap - 1000,
+            "{size} bytes for a cap of {cap}"
+        );
+        let r = replay(&p).unwrap();
+        assert!(r.all_matched(), "{r}");
+        assert!(r.ticks > 100 && r.ticks < 400, "{} ticks", r.ticks);
         std::fs::remove_dir_all(&d).unwrap();
     }
 

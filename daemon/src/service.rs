@@ -66,7 +66,8 @@ fn run_n<const N: usize>(
                 start_in_fault,
                 true, // the loop requires the handshake (below)
             )
-            .map_err(|e| anyhow!("--record: {e}"))?,
+            .map_err(|e| anyhow!("--record: {e}"))?
+            .with_max_bytes(d.record_max_bytes),
         ),
         None => None,
     };
