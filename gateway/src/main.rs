@@ -1,8 +1,9 @@
 //! chaosd-gateway: chaosd across hosts over Zenoh.
 //!
 //! `serve` runs on each host next to its daemons and bridges their iceoryx2 telemetry and control
-//! services to a Zenoh network; `status`, `get`, `set`, `watch` and `fleet` with `--remote
-//! ENDPOINT` reach them from anywhere on that network; `bench` measures the round trip and the
+//! services to a Zenoh network; `status`, `get`, `set`, `obstacle`, `dfc`, `hist`, `record`,
+//! `resume`, `shutdown`, `watch` and `fleet` with `--remote ENDPOINT` reach them from anywhere on
+//! that network (every local control command but `debug-stall`); `bench` measures the round trip and the
 //! telemetry loss. Zenoh lives only in this binary: `chaosd` and `chaosd-plant` never link it,
 //! and `chaosctl --remote …`, `chaosctl gateway` and `chaosctl fleet` run this program.
 //! `main` only maps errors to exit codes (0 done, 1 refused, 2 bad usage, 3 no answer).
@@ -14,6 +15,7 @@ mod serve;
 mod session;
 
 use clap::{Args, Parser, Subcommand};
+use client::online::{pretty, ObstacleAction, RecordAction};
 use protocol::Op;
 use remote::{Fail, Remote, Target};
 use std::process::ExitCode;
@@ -59,6 +61,45 @@ enum Command {
         /// KEY VALUE pairs, as for `chaosctl set`.
         #[arg(required = true, num_args = 1.., allow_negative_numbers = true)]
         pairs: Vec<String>,
+    },
+    /// Add, remove or list a remote daemon's obstacles.
+    Obstacle {
+        #[command(flatten)]
+        target: Target,
+        #[command(subcommand)]
+        action: ObstacleAction,
+    },
+    /// A remote daemon's delayed feedback on (from now) or off.
+    Dfc {
+        #[command(flatten)]
+        target: Target,
+        #[arg(value_parser = ["on", "off"])]
+        state: String,
+    },
+    /// A remote daemon's latency percentiles since its start (or the last reset).
+    Hist {
+        #[command(flatten)]
+        target: Target,
+        /// Reset the histograms.
+        #[arg(long)]
+        reset: bool,
+    },
+    /// Record a remote daemon's state and command streams into its output directory.
+    Record {
+        #[command(flatten)]
+        target: Target,
+        #[command(subcommand)]
+        action: RecordAction,
+    },
+    /// Take a remote daemon out of FAULT (refused when not in FAULT).
+    Resume {
+        #[command(flatten)]
+        target: Target,
+    },
+    /// Stop a remote daemon cleanly.
+    Shutdown {
+        #[command(flatten)]
+        target: Target,
     },
     /// A remote daemon's live telemetry, one line (or JSON object) per sample.
     Watch {
@@ -119,9 +160,41 @@ fn client_command(remote: Option<&str>, timeout: f64, cmd: Command) -> Result<()
             }
         }
         Command::Get { target } => r.request(&target, Op::GetConfig, "")?.1,
-        Command::Set { target, pairs } => {
-            client::online::pretty(&r.request(&target, Op::Set, &pairs.join(" "))?.1)
+        Command::Set { target, pairs } => pretty(&r.request(&target, Op::Set, &pairs.join(" "))?.1),
+        Command::Obstacle { target, action } => {
+            let (op, args) = match action {
+                ObstacleAction::Add {
+                    x,
+                    y,
+                    radius,
+                    margin,
+                } => (Op::ObstacleAdd, format!("{x} {y} {radius} {margin}")),
+                ObstacleAction::Rm { index } => (Op::ObstacleRemove, index.to_string()),
+                ObstacleAction::Ls => (Op::ObstacleList, String::new()),
+            };
+            pretty(&r.request(&target, op, &args)?.1)
         }
+        Command::Dfc { target, state } => {
+            let op = if state == "on" { Op::DfcOn } else { Op::DfcOff };
+            pretty(&r.request(&target, op, "")?.1)
+        }
+        Command::Hist { target, reset } => {
+            let op = if reset {
+                Op::HistReset
+            } else {
+                Op::HistSnapshot
+            };
+            pretty(&r.request(&target, op, "")?.1)
+        }
+        Command::Record { target, action } => {
+            let (op, args) = match action {
+                RecordAction::Start { name } => (Op::RecordStart, name.unwrap_or_default()),
+                RecordAction::Stop => (Op::RecordStop, String::new()),
+            };
+            pretty(&r.request(&target, op, &args)?.1)
+        }
+        Command::Resume { target } => r.request(&target, Op::Resume, "")?.1,
+        Command::Shutdown { target } => r.request(&target, Op::Shutdown, "")?.1,
         Command::Watch {
             target,
             json,

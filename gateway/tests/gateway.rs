@@ -131,6 +131,40 @@ fn two_gateways_status_set_watch_fleet_and_a_read_only_refusal() {
     assert!(err.contains("read-only") && err.contains("host-b"), "{err}");
     assert_eq!(live::status(&b.ns)["mu"].as_f64(), Some(mu_b));
 
+    // The other control commands travel the same way: an obstacle added on A through B's
+    // gateway is listed by A's daemon; listing B's is allowed on its read-only gateway, adding
+    // one or switching its feedback off is refused there.
+    let (code, out, err) = gw(&[
+        "obstacle",
+        "add",
+        "5",
+        "-5",
+        "0.1",
+        "--remote",
+        &eb,
+        "--namespace",
+        &a.ns,
+    ]);
+    assert_eq!(code, 0, "{out} {err}");
+    let (_, listed, _) = live::ctl(&a.ns, &["obstacle", "ls"]);
+    assert!(listed.contains("-5"), "{listed}");
+    let (code, out, err) = gw(&["obstacle", "ls", "--remote", &ea, "--namespace", &b.ns]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.trim_start().starts_with('['), "{out}");
+    for args in [
+        vec!["obstacle", "add", "5", "-5", "0.1"],
+        vec!["dfc", "off"],
+    ] {
+        let mut a2 = args.clone();
+        a2.extend(["--remote", &ea, "--namespace", &b.ns]);
+        let (code, _, err) = gw(&a2);
+        assert_eq!(code, 1, "{args:?}: {err}");
+        assert!(err.contains("read-only"), "{args:?}: {err}");
+    }
+    let (code, out, err) = gw(&["hist", "--remote", &eb, "--namespace", &a.ns]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("lateness"), "{out}");
+
     // watch A through B: consecutive telemetry samples with the new μ.
     let (code, out, err) = gw(&[
         "watch",
