@@ -228,6 +228,8 @@ pub struct DaemonSetup {
     pub live: Option<crate::persist::LiveState>,
     /// A replay recording to write from the first tick (`chaosd run --record NAME`).
     pub record: Option<String>,
+    /// `persist::fingerprint` of the file's settings, before any saved live state replaced them.
+    pub file_fingerprint: String,
 }
 
 impl DaemonSetup {
@@ -242,6 +244,7 @@ impl DaemonSetup {
             None => DaemonConfig::default(),
         };
         let s = Self {
+            file_fingerprint: crate::persist::fingerprint(&system),
             system,
             daemon,
             live: None,

@@ -538,9 +538,13 @@ fn resume_live_state(s: &mut DaemonSetup, fresh: bool) -> Result<()> {
         return daemon::persist::clear(&dir)
             .with_context(|| format!("cannot remove {}", daemon::persist::path(&dir).display()));
     }
-    let Some(live) = daemon::persist::load(&dir, s.system.n())? else {
+    let Some(saved) = daemon::persist::load(&dir, s.system.n())? else {
         return Ok(());
     };
+    let (live, edited) = daemon::persist::adopt(saved, &s.system);
+    if let Some(why) = edited {
+        tracing::warn!("{why}");
+    }
     let (t, fault) = (live.t, live.fault.clone());
     s.resume_from(live).map_err(|e| {
         anyhow::anyhow!("{}: the saved state does not fit this configuration: {e} (start with --fresh to ignore it)", daemon::persist::path(&dir).display())

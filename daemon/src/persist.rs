@@ -30,6 +30,41 @@ pub struct LiveState {
     pub fault: Option<String>,
     /// The running configuration (without `[daemon]` and `[plant]`, which come from the file).
     pub system: Config,
+    /// [`fingerprint`] of the config file's settings the live changes were made on top of. When
+    /// the file's settings differ at the next start, an operator edited the file since: the file
+    /// wins (see [`adopt`]). Absent in states saved before this existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<String>,
+}
+
+/// A stable fingerprint of a config's settings (without `[daemon]` and `[plant]`): FNV-1a 64
+/// of their TOML.
+pub fn fingerprint(system: &Config) -> String {
+    let text = crate::replay::system_toml(system);
+    let h = text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    });
+    format!("{h:016x}")
+}
+
+/// What a start adopts from a saved state, given the settings of the config file it starts with.
+/// If the file was edited since the state was saved (its fingerprint changed), the file's
+/// settings win and the live changes are dropped (`Some(why)` says so); controller time and a
+/// FAULT are kept either way, since neither is the file's to decide.
+pub fn adopt(mut saved: LiveState, file: &Config) -> (LiveState, Option<String>) {
+    let now = fingerprint(file);
+    let edited = saved.file.as_ref().is_some_and(|f| *f != now);
+    let why = edited.then(|| {
+        let mut system = file.clone();
+        system.daemon = None;
+        system.plant = None;
+        saved.system = system;
+        "the config file's settings changed since the live state was saved: starting from the \
+         file (live changes made with chaosctl are dropped; controller time and any FAULT are kept)"
+            .to_string()
+    });
+    saved.file = Some(now);
+    (saved, why)
 }
 
 pub fn path(output_dir: &Path) -> PathBuf {
@@ -115,6 +150,7 @@ mod tests {
             saved_unix_s: unix_now() + 1e3, // in the future: no time added
             fault: Some("joint 2 rate".into()),
             system,
+            file: Some("0123456789abcdef".into()),
         };
         save(&dir, &s).unwrap();
         assert_eq!(load(&dir, 3).unwrap(), Some(s));
@@ -125,5 +161,39 @@ mod tests {
         clear(&dir).unwrap();
         assert_eq!(load(&dir, 3).unwrap(), None);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn an_edited_file_wins_over_the_live_changes_but_time_and_fault_stay() {
+        let file = Config::preset("demo").unwrap();
+        let mut live = file.clone();
+        live.feedback.mu = 1.3; // a chaosctl set on top of the file
+        let saved = LiveState {
+            t: 50.0,
+            saved_unix_s: unix_now(),
+            fault: Some("joint 2 rate".into()),
+            system: live.clone(),
+            file: Some(fingerprint(&file)),
+        };
+        // The same file: the live change is resumed.
+        let (s, why) = adopt(saved.clone(), &file);
+        assert_eq!((s.system.feedback.mu, why), (1.3, None));
+        // The file edited since (another kv): its settings win, time and FAULT stay.
+        let mut edited = file.clone();
+        edited.control.kv = 30.0;
+        let (s, why) = adopt(saved.clone(), &edited);
+        assert!(why.unwrap().contains("changed since"));
+        assert_eq!(
+            (s.system.feedback.mu, s.system.control.kv),
+            (file.feedback.mu, 30.0)
+        );
+        assert_eq!((s.t, s.fault.as_deref()), (50.0, Some("joint 2 rate")));
+        assert_eq!(s.file, Some(fingerprint(&edited)));
+        // A state saved before fingerprints existed: resumed as it is.
+        let old = LiveState {
+            file: None,
+            ..saved
+        };
+        assert_eq!(adopt(old, &edited).0.system.feedback.mu, 1.3);
     }
 }

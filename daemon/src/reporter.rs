@@ -76,6 +76,8 @@ pub struct Reporter {
     pub(crate) fault: Option<(f64, crate::guard::FaultReason)>,
     /// Controller time a restarted daemon resumed from (until the first record).
     pub(crate) t_start: f64,
+    /// The config file's settings this daemon started from (`persist::fingerprint`).
+    file_fingerprint: Option<String>,
     /// When the live state was last saved, and whether a failure to save was reported.
     pub(crate) saved_at: Option<Instant>,
     pub(crate) save_error_said: bool,
@@ -133,20 +135,23 @@ impl Reporter {
             replay: None,
             fault: None,
             t_start: 0.0,
+            file_fingerprint: None,
             saved_at: None,
             save_error_said: false,
             handshake: Default::default(),
         })
     }
 
-    /// Starts from a restarted daemon's saved state: its controller time and any FAULT.
     /// Shows the handshake's refusal, if any, in `status`.
     pub fn with_handshake(mut self, refusal: crate::handshake::Refusal) -> Self {
         self.handshake = refusal;
         self
     }
 
-    pub fn resuming(mut self, live: Option<&crate::persist::LiveState>) -> Self {
+    /// Starts from a restarted daemon's saved state: its controller time and any FAULT.
+    /// `file` is the fingerprint of the config file's settings, saved with every live state.
+    pub fn resuming(mut self, live: Option<&crate::persist::LiveState>, file: String) -> Self {
+        self.file_fingerprint = Some(file);
         if let Some(l) = live {
             self.t_start = l.t;
             if l.fault.is_some() {
@@ -172,6 +177,7 @@ impl Reporter {
             saved_unix_s: crate::persist::unix_now(),
             fault: self.fault.map(|(t, f)| format!("at t = {t:.3} s: {f}")),
             system,
+            file: self.file_fingerprint.clone(),
         };
         self.saved_at = Some(Instant::now());
         match crate::persist::save(&self.daemon.output_dir, &state) {

@@ -81,7 +81,7 @@ fn run_n<const N: usize>(
         d.core,
     )?;
     let reporter = Reporter::new(setup.system.clone(), d.clone(), params_tx, rt_rx)?
-        .resuming(setup.live.as_ref())
+        .resuming(setup.live.as_ref(), setup.file_fingerprint.clone())
         .recording_replay(replay)
         .with_handshake(refusal);
     // Helper threads stay off the loop's core (it is pinned there below).
