@@ -89,4 +89,26 @@ fn a_restarted_daemon_resumes_live_changes_time_and_a_fault() {
         "{st}"
     );
     assert!(st["t"].as_f64().unwrap() < 5.0, "{st}");
+
+    // A file edited since the state was saved wins over the live changes made before the edit.
+    let (code, _, err) = ctl(&ns, &["set", "mu", "0.4"]);
+    assert_eq!(code, 0, "{err}");
+    std::thread::sleep(Duration::from_millis(300));
+    let cfg = sys.dir.path().join("config.toml");
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    std::fs::write(&cfg, format!("[control]\nkp = 30.0\n{text}")).unwrap();
+    restart_daemon(&mut sys, "daemon5", &[]);
+    let st = wait_mode(&ns, "Run");
+    assert_eq!(
+        (st["mu"].as_f64(), st["kp"].as_f64()),
+        (Some(0.0), Some(30.0)),
+        "{st}"
+    );
+    assert!(
+        sys.daemon
+            .log()
+            .contains("changed since the live state was saved"),
+        "{}",
+        sys.daemon.log()
+    );
 }
