@@ -19,10 +19,10 @@ use zenoh::{Session, Wait};
 #[derive(Args, Debug, Clone)]
 pub struct Target {
     /// The daemon's namespace.
-    #[arg(long, default_value = protocol::DEFAULT_NAMESPACE)]
+    #[arg(long, default_value = protocol::DEFAULT_NAMESPACE, global = true)]
     pub namespace: String,
     /// The gateway host serving it (needed only when several hosts serve that namespace).
-    #[arg(long)]
+    #[arg(long, global = true)]
     pub host: Option<String>,
 }
 
