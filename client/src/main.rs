@@ -177,7 +177,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("chaosctl: error: {e:#}");
+            rt::log::fatal("chaosctl", &format!("{e:#}"));
             ExitCode::from(2)
         }
     }

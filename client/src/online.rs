@@ -157,7 +157,8 @@ impl Failure {
             Failure::Usage(m) => (2, m),
             Failure::Unreachable(m) => (3, m),
         };
-        eprintln!("chaosctl: error: {msg}");
+        // `<3>` in front under journald (the exporter runs as a unit), plain on a terminal.
+        rt::log::fatal("chaosctl", &msg);
         ExitCode::from(code)
     }
 }
