@@ -204,6 +204,24 @@ fn two_gateways_status_set_watch_fleet_and_a_read_only_refusal() {
     let (code, _, err) = gw(&["status"]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("--remote"), "{err}");
+    // chaosctl hands --remote commands to chaosd-gateway: the same answers, the same exit codes.
+    let out = Command::new(tests::bin("chaosctl"))
+        .args(["--remote", &eb, "status", "--json", "--namespace", &a.ns])
+        .output()
+        .unwrap();
+    let body = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{body} {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(body.contains("\"host-a\""), "{body}");
+    let out = Command::new(tests::bin("chaosctl"))
+        .args(["status", "--remote", &dead, "--timeout", "1"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no gateway at"));
 
     // Both gateways stop cleanly on SIGTERM.
     assert!(
