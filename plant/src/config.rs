@@ -29,8 +29,9 @@ pub struct PlantConfig {
     /// "state": after publishing a state, wait for the command answering it, up to
     /// `answer_deadline_us`, and apply it in the same cycle. Must match `daemon.trigger`.
     pub trigger: Trigger,
-    /// State trigger: how long after the cycle starts the answer may come (µs); later is a late
-    /// cycle. Default: half the period. Must be below the period.
+    /// State trigger: how long after the state is published the answer may come (µs), and never
+    /// past the end of the cycle; later is a late cycle. Default: half the period. Must be below
+    /// the period.
     pub answer_deadline_us: Option<f64>,
     /// State trigger: this many late cycles in a row make the plant brake (Franka FCI stops
     /// after 20 at 1 kHz). It follows commands again as soon as an answer comes in time.
@@ -145,18 +146,39 @@ impl PlantConfig {
         (1e9 / self.rate_hz).round() as u64
     }
 
-    /// State trigger: the answer deadline after the start of a cycle (ns).
+    /// State trigger: the answer deadline after the state is published (ns).
     pub fn answer_deadline_ns(&self) -> u64 {
         match self.answer_deadline_us {
             Some(us) => (us * 1e3) as u64,
             None => self.period_ns() / 2,
         }
     }
+
+    /// State trigger: when the answer to a state published at `published_ns` is due: the answer
+    /// deadline after it, but never past `cycle_end_ns` (the start of the next cycle, where this
+    /// process owns the clock).
+    pub fn answer_due_ns(&self, published_ns: u64, cycle_end_ns: Option<u64>) -> u64 {
+        let due = published_ns.saturating_add(self.answer_deadline_ns());
+        cycle_end_ns.map_or(due, |end| due.min(end))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_answer_is_due_half_a_period_after_the_state_and_within_the_cycle() {
+        let c = PlantConfig::default(); // 1 kHz: half a period is 500 µs
+                                        // On time: 500 µs after the publication.
+        assert_eq!(c.answer_due_ns(1_000_000, Some(2_000_000)), 1_500_000);
+        // The plant woke 300 µs late: the controller still has its 500 µs, not 200.
+        assert_eq!(c.answer_due_ns(1_300_000, Some(2_000_000)), 1_800_000);
+        // 700 µs late: the answer must still come within the cycle.
+        assert_eq!(c.answer_due_ns(1_700_000, Some(2_000_000)), 2_000_000);
+        // A device-clocked plant: the device ends the cycle.
+        assert_eq!(c.answer_due_ns(1_700_000, None), 2_200_000);
+    }
 
     #[test]
     fn validation_names_the_field() {

@@ -32,7 +32,8 @@ pub struct PlantCounters {
     pub late_cycles: u64,
     /// State trigger: cycles without an answer once the controller had fallen silent: the run of
     /// unanswered cycles that ended in a command timeout (a controller that stopped or died),
-    /// and every cycle after it until answers return. Not late cycles: nobody was answering.
+    /// every cycle after the controller's brake command (a clean shutdown), and every cycle after
+    /// either until answers return. Not late cycles: nobody was answering.
     pub silent_cycles: u64,
     /// State trigger: answers that arrived after their deadline (dropped).
     pub late_answers: u64,

@@ -7,10 +7,13 @@
 //!
 //! With `trigger = "state"` the answer is applied in the same cycle, as FCI and RSI require:
 //! after publishing, the loop waits for the command answering *that* state, up to
-//! `answer_deadline_us` after the cycle started, and `write`s it the moment it arrives. A late or
+//! `answer_deadline_us` after the state went out (within the cycle), and `write`s it the moment
+//! it arrives. A late or
 //! missing answer leaves the previous command running (the plant keeps ramping it) and counts a
 //! late cycle; `max_late_cycles` in a row make the plant brake until answers come in time again.
-//! An answer that arrives after its deadline is counted and dropped.
+//! An answer that arrives after its deadline is counted and dropped. Unanswered cycles after the
+//! controller left (its brake command at shutdown, or `command_timeout_ms` of silence) are
+//! silent, not late: they say nothing about how fast a controller answers.
 //!
 //! Latencies go into fixed-bound histograms in the loop itself (recording never allocates) and
 //! are written at exit ([`crate::report`]).
@@ -206,12 +209,9 @@ impl Loop<'_> {
             };
             let published = self.read_and_publish(plant, elapsed, deadline)?;
             if published && self.cfg.trigger == Trigger::State {
-                let from = if plant.device_clocked() {
-                    monotonic_ns()
-                } else {
-                    deadline
-                };
-                self.await_answer(plant, from)?;
+                // The device's cycle ends when it says (its next state); ours at the next deadline.
+                let cycle_end = (!plant.device_clocked()).then(|| deadline + period);
+                self.await_answer(plant, cycle_end)?;
             }
             self.c.ticks += 1;
             if self.slot.is_none() {
@@ -384,16 +384,22 @@ impl Loop<'_> {
         Ok(true)
     }
 
-    /// State trigger: waits for the command answering the state just published, until the
-    /// answer deadline after `cycle_start`, and writes it at once.
+    /// State trigger: waits for the command answering the state just published, up to the
+    /// answer deadline after the state went out (and never past `cycle_end`), and writes it at
+    /// once.
+    ///
+    /// Why from the publication and not from the cycle's nominal start: the deadline is what the
+    /// controller owes, as with FCI (state sent → command received within the cycle). A cycle
+    /// that starts late because this process woke late is the plant's overrun, counted as such;
+    /// it must not be charged to the controller. `cycle_end` keeps the answer inside the cycle.
     fn await_answer<P: Plant>(
         &mut self,
         plant: &mut P,
-        cycle_start: u64,
+        cycle_end: Option<u64>,
     ) -> Result<(), PlantError> {
         let want = self.sample.seq;
-        let published = self.ring.get(want).map_or(cycle_start, |p| p.at_ns);
-        let deadline = cycle_start + self.cfg.answer_deadline_ns();
+        let published = self.ring.get(want).map_or_else(monotonic_ns, |p| p.at_ns);
+        let deadline = self.cfg.answer_due_ns(published, cycle_end);
         let spin = (self.cfg.spin_us * 1000.0) as u64;
         // The answer is due within microseconds, and a sleep here costs tens of them on a VM:
         // while the controller keeps answering, a hybrid wait polls without sleeping up to the
@@ -446,19 +452,25 @@ impl Loop<'_> {
         if self.last_command_at.is_none() {
             return Ok(()); // no controller yet: nothing is late
         }
-        if self.timed_out {
-            self.c.silent_cycles += 1; // the controller is gone: silent, not late
-        } else {
-            self.c.late_cycles += 1;
-            self.late_since_command += 1;
-        }
         self.late_run = self.late_run.saturating_add(1);
+        if self.timed_out || self.controller_left() {
+            self.c.silent_cycles += 1; // the controller is gone: silent, not late
+            return Ok(());
+        }
+        self.c.late_cycles += 1;
+        self.late_since_command += 1;
         if self.late_run >= self.cfg.max_late_cycles && !self.late_braking {
             self.late_braking = true;
             self.c.late_brakes += 1;
             return self.apply(plant, Applied::Brake);
         }
         Ok(())
+    }
+
+    /// The controller said it stopped: its last command is a brake (the daemon sends one as it
+    /// shuts down). Until it answers again, nobody is late.
+    fn controller_left(&self) -> bool {
+        self.current.is_some_and(|c| c.mode == Mode::Brake as u32)
     }
 
     fn finish(

@@ -158,6 +158,25 @@ fn a_stalled_daemon_makes_late_cycles_the_plant_brakes_and_then_resumes() {
 }
 
 #[test]
+fn after_a_clean_daemon_stop_unanswered_cycles_are_silent_not_late() {
+    let _g = serial();
+    // A long command timeout: only the daemon's brake at shutdown says that it left.
+    let mut s = start("state-left", "command_timeout_ms = 5000");
+    s.m.wait_for("the daemon to run", Duration::from_secs(15), |m| {
+        runs(m) > 200
+    });
+    assert!(s.daemon.terminate(Duration::from_secs(10)).success());
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(s.plant.terminate(Duration::from_secs(10)).success());
+    let p = read_json(&s.dir.path().join("out/plant-summary.json"));
+    let c = &p["counters"];
+    assert_eq!(c["command_timeouts"], 0, "{p}");
+    let silent = c["silent_cycles"].as_u64().unwrap();
+    assert!(silent >= 200, "{p}");
+    assert!(c["late_cycles"].as_u64().unwrap() < silent / 4, "{p}");
+}
+
+#[test]
 fn without_states_the_daemon_holds_and_a_new_plant_resumes_the_run() {
     let _g = serial();
     let mut s = start("state-hold", "");
