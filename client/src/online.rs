@@ -133,6 +133,52 @@ pub enum RecordAction {
     Stop,
 }
 
+// The request each command sends, in one place for `chaosctl` and `chaosd-gateway --remote`.
+
+impl ObstacleAction {
+    /// The request this action sends: its operation and argument string.
+    pub fn request(&self) -> (Op, String) {
+        match self {
+            ObstacleAction::Add {
+                x,
+                y,
+                radius,
+                margin,
+            } => (Op::ObstacleAdd, format!("{x} {y} {radius} {margin}")),
+            ObstacleAction::Rm { index } => (Op::ObstacleRemove, index.to_string()),
+            ObstacleAction::Ls => (Op::ObstacleList, String::new()),
+        }
+    }
+}
+
+impl RecordAction {
+    /// The request this action sends: its operation and argument string.
+    pub fn request(&self) -> (Op, String) {
+        match self {
+            RecordAction::Start { name } => (Op::RecordStart, name.clone().unwrap_or_default()),
+            RecordAction::Stop => (Op::RecordStop, String::new()),
+        }
+    }
+}
+
+/// `dfc on|off` as an operation.
+pub fn dfc_op(state: &str) -> Op {
+    if state == "on" {
+        Op::DfcOn
+    } else {
+        Op::DfcOff
+    }
+}
+
+/// `hist [--reset]` as an operation.
+pub fn hist_op(reset: bool) -> Op {
+    if reset {
+        Op::HistReset
+    } else {
+        Op::HistSnapshot
+    }
+}
+
 /// Why a command failed, and its exit code.
 #[derive(Debug)]
 pub enum Failure {
@@ -412,45 +458,16 @@ pub fn run(cmd: Online) -> ExitCode {
         Online::Set { conn, pairs } => {
             request(&conn, Op::Set, &pairs.join(" ")).map(|b| pretty(&b))
         }
-        Online::Obstacle { conn, action } => match action {
-            ObstacleAction::Add {
-                x,
-                y,
-                radius,
-                margin,
-            } => request(
-                &conn,
-                Op::ObstacleAdd,
-                &format!("{x} {y} {radius} {margin}"),
-            )
-            .map(|b| pretty(&b)),
-            ObstacleAction::Rm { index } => {
-                request(&conn, Op::ObstacleRemove, &index.to_string()).map(|b| pretty(&b))
-            }
-            ObstacleAction::Ls => request(&conn, Op::ObstacleList, "").map(|b| pretty(&b)),
-        },
-        Online::Dfc { conn, state } => request(
-            &conn,
-            if state == "on" { Op::DfcOn } else { Op::DfcOff },
-            "",
-        )
-        .map(|b| pretty(&b)),
-        Online::Hist { conn, reset } => request(
-            &conn,
-            if reset {
-                Op::HistReset
-            } else {
-                Op::HistSnapshot
-            },
-            "",
-        )
-        .map(|b| pretty(&b)),
-        Online::Record { conn, action } => match action {
-            RecordAction::Start { name } => {
-                request(&conn, Op::RecordStart, name.as_deref().unwrap_or("")).map(|b| pretty(&b))
-            }
-            RecordAction::Stop => request(&conn, Op::RecordStop, "").map(|b| pretty(&b)),
-        },
+        Online::Obstacle { conn, action } => {
+            let (op, args) = action.request();
+            request(&conn, op, &args).map(|b| pretty(&b))
+        }
+        Online::Dfc { conn, state } => request(&conn, dfc_op(&state), "").map(|b| pretty(&b)),
+        Online::Hist { conn, reset } => request(&conn, hist_op(reset), "").map(|b| pretty(&b)),
+        Online::Record { conn, action } => {
+            let (op, args) = action.request();
+            request(&conn, op, &args).map(|b| pretty(&b))
+        }
         Online::Shutdown { conn } => request(&conn, Op::Shutdown, ""),
         Online::Resume { conn } => request(&conn, Op::Resume, ""),
         Online::DebugStall { conn, ms } => request(&conn, Op::DebugStall, &ms.to_string()),

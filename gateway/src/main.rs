@@ -3,8 +3,8 @@
 //! `serve` runs on each host next to its daemons and bridges their iceoryx2 telemetry and control
 //! services to a Zenoh network; `status`, `get`, `set`, `obstacle`, `dfc`, `hist`, `record`,
 //! `resume`, `shutdown`, `watch` and `fleet` with `--remote ENDPOINT` reach them from anywhere on
-//! that network (every local control command but `debug-stall`); `bench` measures the round trip and the
-//! telemetry loss. Zenoh lives only in this binary: `chaosd` and `chaosd-plant` never link it,
+//! that network (every local control command but `debug-stall`); `bench` measures the round trip
+//! and the telemetry loss. Zenoh lives only in this binary: `chaosd` and `chaosd-plant` never link it,
 //! and `chaosctl --remote …`, `chaosctl gateway` and `chaosctl fleet` run this program.
 //! `main` only maps errors to exit codes (0 done, 1 refused, 2 bad usage, 3 no answer).
 
@@ -15,7 +15,7 @@ mod serve;
 mod session;
 
 use clap::{Args, Parser, Subcommand};
-use client::online::{pretty, ObstacleAction, RecordAction};
+use client::online::{dfc_op, hist_op, pretty, ObstacleAction, RecordAction};
 use protocol::Op;
 use remote::{Fail, Remote, Target};
 use std::process::ExitCode;
@@ -162,35 +162,13 @@ fn client_command(remote: Option<&str>, timeout: f64, cmd: Command) -> Result<()
         Command::Get { target } => r.request(&target, Op::GetConfig, "")?.1,
         Command::Set { target, pairs } => pretty(&r.request(&target, Op::Set, &pairs.join(" "))?.1),
         Command::Obstacle { target, action } => {
-            let (op, args) = match action {
-                ObstacleAction::Add {
-                    x,
-                    y,
-                    radius,
-                    margin,
-                } => (Op::ObstacleAdd, format!("{x} {y} {radius} {margin}")),
-                ObstacleAction::Rm { index } => (Op::ObstacleRemove, index.to_string()),
-                ObstacleAction::Ls => (Op::ObstacleList, String::new()),
-            };
+            let (op, args) = action.request();
             pretty(&r.request(&target, op, &args)?.1)
         }
-        Command::Dfc { target, state } => {
-            let op = if state == "on" { Op::DfcOn } else { Op::DfcOff };
-            pretty(&r.request(&target, op, "")?.1)
-        }
-        Command::Hist { target, reset } => {
-            let op = if reset {
-                Op::HistReset
-            } else {
-                Op::HistSnapshot
-            };
-            pretty(&r.request(&target, op, "")?.1)
-        }
+        Command::Dfc { target, state } => pretty(&r.request(&target, dfc_op(&state), "")?.1),
+        Command::Hist { target, reset } => pretty(&r.request(&target, hist_op(reset), "")?.1),
         Command::Record { target, action } => {
-            let (op, args) = match action {
-                RecordAction::Start { name } => (Op::RecordStart, name.unwrap_or_default()),
-                RecordAction::Stop => (Op::RecordStop, String::new()),
-            };
+            let (op, args) = action.request();
             pretty(&r.request(&target, op, &args)?.1)
         }
         Command::Resume { target } => r.request(&target, Op::Resume, "")?.1,

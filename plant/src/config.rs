@@ -169,8 +169,8 @@ mod tests {
 
     #[test]
     fn the_answer_is_due_half_a_period_after_the_state_and_within_the_cycle() {
-        let c = PlantConfig::default(); // 1 kHz: half a period is 500 µs
-                                        // On time: 500 µs after the publication.
+        // 1 kHz: half a period is 500 µs. On time: 500 µs after the publication.
+        let c = PlantConfig::default();
         assert_eq!(c.answer_due_ns(1_000_000, Some(2_000_000)), 1_500_000);
         // The plant woke 300 µs late: the controller still has its 500 µs, not 200.
         assert_eq!(c.answer_due_ns(1_300_000, Some(2_000_000)), 1_800_000);

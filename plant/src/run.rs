@@ -8,9 +8,9 @@
 //! With `trigger = "state"` the answer is applied in the same cycle, as FCI and RSI require:
 //! after publishing, the loop waits for the command answering *that* state, up to
 //! `answer_deadline_us` after the state went out (within the cycle), and `write`s it the moment
-//! it arrives. A late or
-//! missing answer leaves the previous command running (the plant keeps ramping it) and counts a
-//! late cycle; `max_late_cycles` in a row make the plant brake until answers come in time again.
+//! it arrives. A late or missing answer leaves the previous command running (the plant keeps
+//! ramping it) and counts a late cycle; `max_late_cycles` in a row make the plant brake until
+//! answers come in time again.
 //! An answer that arrives after its deadline is counted and dropped. Unanswered cycles after the
 //! controller left (its brake command at shutdown, or `command_timeout_ms` of silence) are
 //! silent, not late: they say nothing about how fast a controller answers.
