@@ -95,6 +95,16 @@ struct LatencyArgs {
     /// daemon's].
     #[arg(long, value_parser = clap::value_parser!(u8).range(0..=98))]
     priority: Option<u8>,
+    /// Space the round trips at this period (µs) instead of back to back: the floor at a loop
+    /// rate (1000 = 1 kHz). Defaults to 5 rounds of 1000 round trips.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(10..=1_000_000))]
+    pace_us: Option<u64>,
+    /// How a paced sender waits for its next period.
+    #[arg(long, default_value = "hybrid", requires = "pace_us")]
+    wait: rt::WaitStrategy,
+    /// The hybrid wait's spin window (µs) [default: the daemon's].
+    #[arg(long, requires = "pace_us")]
+    spin_us: Option<f64>,
 }
 
 #[derive(Args)]
@@ -163,6 +173,21 @@ fn command_line() -> String {
 
 fn latency_opts(quick: bool, a: &LatencyArgs) -> Result<latency::Options> {
     let mut o = latency::Options::new(quick);
+    if let Some(us) = a.pace_us {
+        let spin_us = a
+            .spin_us
+            .unwrap_or(daemon::config::DaemonConfig::default().spin_us);
+        if !(spin_us.is_finite() && (0.0..=1e6).contains(&spin_us)) {
+            bail!("--spin-us must be between 0 and 1000000");
+        }
+        o.pace = Some(latency::link::Pace {
+            period_ns: us * 1000,
+            wait: a.wait,
+            spin_ns: (spin_us * 1000.0) as u64,
+        });
+        o.rounds = 5;
+        o.round_trips = 1000;
+    }
     if let Some(r) = a.rounds {
         o.rounds = r;
     }

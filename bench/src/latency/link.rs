@@ -18,6 +18,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::{ipc, CallbackProgression, ServiceName, ZeroCopySend};
 use iceoryx2::waitset::{WaitSet, WaitSetGuard};
 use protocol::{monotonic_ns, CommandSample, Mode, ServiceNames, StateSample, MAX_JOINTS};
+use rt::WaitStrategy;
 
 /// An opened iceoryx2 event service (the benchmark's wake-up path).
 type EventsService<S> = iceoryx2::service::port_factory::event::PortFactory<S>;
@@ -498,6 +499,143 @@ impl<Out: Debug + ZeroCopySend + Copy, In: Debug + ZeroCopySend + Copy> IoxPorts
     }
 }
 
+// ---------------------------------------------------------------------------------------------
+// iceoryx2 blackboard: one latest-value entry per direction, polled through its generation
+// counter. No loan, no queue, no sample returned: a write is a copy into a free cell and one
+// counter increment, and an empty poll is one relaxed load.
+
+type Board = iceoryx2::service::port_factory::blackboard::PortFactory<ipc::Service, u64>;
+type BoardWriter<T> = iceoryx2::port::writer::EntryHandleMut<ipc::Service, u64, T>;
+type BoardReader<T> = iceoryx2::port::reader::EntryHandle<ipc::Service, u64, T>;
+type BoardValue<T> = iceoryx2::port::reader::BlackboardValue<T>;
+
+/// Where a payload carries its round-trip number.
+pub trait Numbered: Copy + Default + Debug + ZeroCopySend + 'static {
+    fn number(&self) -> u64;
+}
+
+impl Numbered for StateSample {
+    fn number(&self) -> u64 {
+        self.seq
+    }
+}
+
+impl Numbered for CommandSample {
+    fn number(&self) -> u64 {
+        self.state_seq
+    }
+}
+
+fn board_name(names: &ServiceNames, dir: &str) -> Result<ServiceName> {
+    let name = format!("chaosd-bench/{}/{dir}-board", names.namespace());
+    ServiceName::new(&name).map_err(|e| anyhow!("bad service name {name}: {e:?}"))
+}
+
+fn create_board<T: Numbered>(
+    node: &iceoryx2::node::Node<ipc::Service>,
+    names: &ServiceNames,
+    dir: &str,
+) -> Result<Board> {
+    node.service_builder(&board_name(names, dir)?)
+        .blackboard_creator::<u64>()
+        .max_readers(1)
+        .max_nodes(2)
+        .add::<T>(0, T::default())
+        .create()
+        .map_err(|e| anyhow!("cannot create the {dir} blackboard: {e:?}"))
+}
+
+fn open_board(
+    node: &iceoryx2::node::Node<ipc::Service>,
+    names: &ServiceNames,
+    dir: &str,
+) -> Result<Board> {
+    node.service_builder(&board_name(names, dir)?)
+        .blackboard_opener::<u64>()
+        .open()
+        .map_err(|e| anyhow!("cannot open the {dir} blackboard: {e:?}"))
+}
+
+/// One side's blackboard entries. Field order is drop order: entries before their services,
+/// services before the node.
+pub struct BoardLink<Out: Numbered, In: Numbered> {
+    out: BoardWriter<Out>,
+    inn: BoardReader<In>,
+    /// The newest value read, whose generation an empty poll compares against.
+    last: std::cell::RefCell<Option<BoardValue<In>>>,
+    _boards: (Board, Board),
+    _node: iceoryx2::node::Node<ipc::Service>,
+}
+
+impl<Out: Numbered, In: Numbered> BoardLink<Out, In> {
+    fn new(node: iceoryx2::node::Node<ipc::Service>, out: Board, inn: Board) -> Result<Self> {
+        let writer = out
+            .writer_builder()
+            .create()
+            .map_err(port_err("blackboard writer"))?;
+        let reader = inn
+            .reader_builder()
+            .create()
+            .map_err(port_err("blackboard reader"))?;
+        Ok(Self {
+            out: writer
+                .entry::<Out>(&0)
+                .map_err(port_err("blackboard writer entry"))?,
+            inn: reader
+                .entry::<In>(&0)
+                .map_err(port_err("blackboard reader entry"))?,
+            last: std::cell::RefCell::new(None),
+            _boards: (out, inn),
+            _node: node,
+        })
+    }
+}
+
+impl BoardLink<StateSample, CommandSample> {
+    /// The parent creates both blackboards (before the peer starts) and writes states.
+    pub fn parent(names: &ServiceNames) -> Result<Self> {
+        let node = node()?;
+        let ping = create_board::<StateSample>(&node, names, "ping")?;
+        let pong = create_board::<CommandSample>(&node, names, "pong")?;
+        Self::new(node, ping, pong)
+    }
+}
+
+impl BoardLink<CommandSample, StateSample> {
+    /// The peer opens them and writes commands.
+    pub fn peer(names: &ServiceNames) -> Result<Self> {
+        let node = node()?;
+        let ping = open_board(&node, names, "ping")?;
+        let pong = open_board(&node, names, "pong")?;
+        Self::new(node, pong, ping)
+    }
+}
+
+impl<Out: Numbered, In: Numbered> Link<Out, In> for BoardLink<Out, In> {
+    #[inline]
+    fn send(&self, v: &Out) -> Result<()> {
+        self.out.update_with_copy(*v);
+        Ok(())
+    }
+
+    #[inline]
+    fn recv(&self, timeout: Duration) -> Result<In> {
+        let mut last = self.last.borrow_mut();
+        let seen = last.as_ref().map_or(0, |v| v.number());
+        let v = spin_until(timeout, || {
+            if last.as_ref().is_some_and(|v| self.inn.is_up_to_date(v)) {
+                return Ok(None);
+            }
+            let v = self.inn.get();
+            let fresh = v.number() != seen;
+            *last = Some(v);
+            Ok(fresh.then_some(()))
+        });
+        v?;
+        Ok(**last.as_ref().expect("a fresh value was just stored"))
+    }
+}
+
 /// iceoryx2, the receiver busy-polls its subscriber (what the daemon's loop does each tick).
 pub struct IoxPoll<'a, Out: Debug + ZeroCopySend + 'static, In: Debug + ZeroCopySend + 'static>(
     pub &'a IoxPorts<Out, In>,
@@ -715,8 +853,10 @@ pub fn ping_block<L: Link<StateSample, CommandSample>>(
     warm: usize,
     n: usize,
     timeout: Duration,
+    pace: Option<Pace>,
     h: &mut Histogram<u64>,
 ) -> Result<()> {
+    let mut next = monotonic_ns();
     let mut s = StateSample {
         plant_id: 1,
         n: 3,
@@ -725,6 +865,9 @@ pub fn ping_block<L: Link<StateSample, CommandSample>>(
         ..StateSample::default()
     };
     for i in 0..warm + n {
+        if let Some(p) = pace {
+            next = p.wait(next);
+        }
         *seq += 1;
         s.seq = *seq;
         let t0 = monotonic_ns();
@@ -747,6 +890,34 @@ pub fn ping_block<L: Link<StateSample, CommandSample>>(
         }
     }
     Ok(())
+}
+
+/// Round trips spaced at a control loop's period instead of back to back.
+///
+/// Why: back to back, both sides stay hot in the caches and on the CPU. A controller at 1 kHz
+/// sends once per millisecond and waits in between, and on a shared host its caches and its
+/// vCPU go cold in that millisecond. Paced, the same ping-pong is the floor under the end-to-end
+/// state → command latency at that rate: what no daemon code can go below on this machine.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Pace {
+    pub period_ns: u64,
+    /// How the sender waits for its next period (the daemon's and the plant's strategies).
+    pub wait: WaitStrategy,
+    /// The hybrid wait's spin window.
+    pub spin_ns: u64,
+}
+
+impl Pace {
+    /// Waits for the period after `last` (or, behind schedule, not at all) and returns its start.
+    pub fn wait(&self, last: u64) -> u64 {
+        let due = last + self.period_ns;
+        let now = monotonic_ns();
+        if due <= now {
+            return now;
+        }
+        rt::wait_until(due, self.wait, self.spin_ns);
+        due
+    }
 }
 
 /// Answers `n` states.
@@ -772,6 +943,58 @@ mod tests {
     const T: Duration = Duration::from_secs(10);
 
     #[test]
+    fn a_pace_waits_one_period_or_restarts_when_behind() {
+        let p = Pace {
+            period_ns: 200_000,
+            wait: WaitStrategy::Hybrid,
+            spin_ns: 50_000,
+        };
+        let t0 = monotonic_ns();
+        let t1 = p.wait(t0);
+        assert_eq!(t1, t0 + 200_000);
+        assert!(monotonic_ns() >= t1);
+        // Far behind: no wait, and the schedule restarts from now.
+        let before = monotonic_ns();
+        let t2 = p.wait(t0 - 1_000_000_000);
+        assert!(t2 >= before);
+    }
+
+    #[test]
+    fn paced_ping_pong_records_every_round_trip() {
+        let region = ShmRegion::anonymous().unwrap();
+        let (parent, peer) = (region.parent(), region.peer());
+        let pace = Pace {
+            period_ns: 100_000,
+            wait: WaitStrategy::Sleep,
+            spin_ns: 0,
+        };
+        std::thread::scope(|s| {
+            s.spawn(move || pong_block(&peer, 50, T).unwrap());
+            let (mut h, mut seq) = (histogram(), 0);
+            let t0 = monotonic_ns();
+            ping_block(&parent, &mut seq, 0, 50, T, Some(pace), &mut h).unwrap();
+            assert_eq!(h.len(), 50);
+            // 50 periods of 100 µs: the pings waited for them.
+            assert!(monotonic_ns() - t0 >= 50 * 100_000);
+        });
+    }
+
+    #[test]
+    fn blackboard_ping_pong_between_threads_answers_every_state() {
+        let names = ServiceNames::new(&crate::latency::unique_namespace("board")).unwrap();
+        let parent = BoardLink::parent(&names).unwrap();
+        let n = 2_000;
+        std::thread::scope(|s| {
+            let names = &names;
+            s.spawn(move || pong_block(&BoardLink::peer(names).unwrap(), n + 10, T).unwrap());
+            let (mut h, mut seq) = (histogram(), 0);
+            // ping_block fails on any reply that answers another state than the one just sent.
+            ping_block(&parent, &mut seq, 10, n, T, None, &mut h).unwrap();
+            assert_eq!(h.len(), n as u64);
+        });
+    }
+
+    #[test]
     fn shared_memory_ping_pong_between_threads() {
         let region = ShmRegion::anonymous().unwrap();
         let n = 20_000;
@@ -780,7 +1003,7 @@ mod tests {
             s.spawn(move || pong_block(&peer, n + 10, T).unwrap());
             let mut h = histogram();
             let mut seq = 0;
-            ping_block(&parent, &mut seq, 10, n, T, &mut h).unwrap();
+            ping_block(&parent, &mut seq, 10, n, T, None, &mut h).unwrap();
             assert_eq!(h.len(), n as u64);
             assert_eq!(seq, n as u64 + 10);
         });
@@ -795,6 +1018,7 @@ mod tests {
             0,
             1,
             Duration::from_millis(50),
+            None,
             &mut histogram(),
         )
         .unwrap_err();
@@ -817,7 +1041,7 @@ mod tests {
 
     #[test]
     fn a_reply_to_another_state_fails_the_block() {
-        let e = ping_block(&Confused, &mut 0, 0, 5, T, &mut histogram())
+        let e = ping_block(&Confused, &mut 0, 0, 5, T, None, &mut histogram())
             .unwrap_err()
             .to_string();
         assert!(e.contains("the reply to state 1"), "{e}");
@@ -846,9 +1070,9 @@ mod tests {
             });
             let mut seq = 0;
             let mut h = histogram();
-            ping_block::<UnixLink>(&pa, &mut seq, 0, 100, T, &mut h).unwrap();
-            ping_block::<UdpLink>(&ua, &mut seq, 0, 100, T, &mut h).unwrap();
-            ping_block(&ca, &mut seq, 0, 100, T, &mut h).unwrap();
+            ping_block::<UnixLink>(&pa, &mut seq, 0, 100, T, None, &mut h).unwrap();
+            ping_block::<UdpLink>(&ua, &mut seq, 0, 100, T, None, &mut h).unwrap();
+            ping_block(&ca, &mut seq, 0, 100, T, None, &mut h).unwrap();
             assert_eq!(h.len(), 300);
         });
     }

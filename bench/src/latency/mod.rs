@@ -24,7 +24,7 @@ use crate::report::{header, Report};
 use crate::stats::{fmt_ns, fmt_ratio, histogram, ratio, summary, Bound, Dist, Table, Target};
 use anyhow::{anyhow, bail, Context, Result};
 use hdrhistogram::Histogram;
-use link::{ChanLink, IoxListen, IoxPoll, IoxPorts, ShmRegion, UdpLink, UnixLink};
+use link::{BoardLink, ChanLink, IoxListen, IoxPoll, IoxPorts, Pace, ShmRegion, UdpLink, UnixLink};
 use protocol::ServiceNames;
 use std::io::{BufRead, Write};
 use std::net::UdpSocket;
@@ -39,6 +39,7 @@ use std::time::Duration;
 pub enum Kind {
     Shm,
     IoxPoll,
+    IoxBoard,
     IoxListener,
     IoxWaitSet,
     Unix,
@@ -47,9 +48,10 @@ pub enum Kind {
 }
 
 impl Kind {
-    pub const ALL: [Kind; 7] = [
+    pub const ALL: [Kind; 8] = [
         Kind::Shm,
         Kind::IoxPoll,
+        Kind::IoxBoard,
         Kind::IoxListener,
         Kind::IoxWaitSet,
         Kind::Unix,
@@ -61,6 +63,7 @@ impl Kind {
         match self {
             Kind::Shm => "shared-memory spin flag (floor)",
             Kind::IoxPoll => "iceoryx2 pub-sub, busy polling",
+            Kind::IoxBoard => "iceoryx2 blackboard (latest value), busy polling",
             Kind::IoxListener => "iceoryx2 pub-sub + event, Listener wait",
             Kind::IoxWaitSet => "iceoryx2 pub-sub + event, WaitSet wait",
             Kind::Unix => "Unix domain socket (stream)",
@@ -73,6 +76,7 @@ impl Kind {
         match self {
             Kind::Shm => "shm-spin",
             Kind::IoxPoll => "iox-poll",
+            Kind::IoxBoard => "iox-board",
             Kind::IoxListener => "iox-listener",
             Kind::IoxWaitSet => "iox-waitset",
             Kind::Unix => "unix",
@@ -113,6 +117,8 @@ pub struct Options {
     pub cores: (usize, usize),
     /// How long a side waits for one message before it gives up.
     pub timeout: Duration,
+    /// Round trips spaced at a loop's period (the floor at that rate), or back to back.
+    pub pace: Option<Pace>,
 }
 
 impl Options {
@@ -124,6 +130,7 @@ impl Options {
             priority: daemon::config::DaemonConfig::default().priority.min(98),
             cores: (0, 1),
             timeout: Duration::from_secs(2),
+            pace: None,
         }
     }
 }
@@ -165,7 +172,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
 fn measure(opts: &Options, out: &Path, command: &str) -> Result<String> {
     let mut report = Report::new(out, "latency")?;
     let (core_a, core_b) = opts.cores;
-    let timeout = opts.timeout;
+    let (timeout, pace) = (opts.timeout, opts.pace);
     let names = ServiceNames::new(&unique_namespace("lat")).map_err(|e| anyhow!("{e}"))?;
 
     // The echo thread first: threads inherit the spawner's affinity, and this one is pinned next.
@@ -191,6 +198,7 @@ fn measure(opts: &Options, out: &Path, command: &str) -> Result<String> {
     // Everything this side needs before the peer starts: its subscriber must exist before the
     // peer's first send, and the peer inherits the memfd and its socketpair end.
     let ports = IoxPorts::parent(&names)?;
+    let board = BoardLink::parent(&names)?;
     let mut shm = ShmRegion::create()?;
     let (unix_ours, unix_theirs) = link::unix_pair()?;
     let udp = UdpSocket::bind("127.0.0.1:0").context("cannot bind a UDP socket on 127.0.0.1")?;
@@ -249,21 +257,28 @@ fn measure(opts: &Options, out: &Path, command: &str) -> Result<String> {
                 peer.send(&format!("run {} {total}", kind.slug()))?;
             }
             let result = match kind {
-                Kind::Shm => link::ping_block(&shm_link, &mut seq, opts.warm, n, timeout, h),
+                Kind::Shm => link::ping_block(&shm_link, &mut seq, opts.warm, n, timeout, pace, h),
                 Kind::IoxPoll => {
-                    link::ping_block(&IoxPoll(&ports), &mut seq, opts.warm, n, timeout, h)
+                    link::ping_block(&IoxPoll(&ports), &mut seq, opts.warm, n, timeout, pace, h)
+                }
+                Kind::IoxBoard => {
+                    link::ping_block(&board, &mut seq, opts.warm, n, timeout, pace, h)
                 }
                 Kind::IoxListener => {
-                    link::ping_block(&IoxListen(&ports), &mut seq, opts.warm, n, timeout, h)
+                    link::ping_block(&IoxListen(&ports), &mut seq, opts.warm, n, timeout, pace, h)
                 }
                 Kind::IoxWaitSet => link::with_waitset(&ports, |l| {
-                    link::ping_block(l, &mut seq, opts.warm, n, timeout, h)
+                    link::ping_block(l, &mut seq, opts.warm, n, timeout, pace, h)
                 }),
                 Kind::Unix => {
-                    link::ping_block::<UnixLink>(&unix, &mut seq, opts.warm, n, timeout, h)
+                    link::ping_block::<UnixLink>(&unix, &mut seq, opts.warm, n, timeout, pace, h)
                 }
-                Kind::Udp => link::ping_block::<UdpLink>(&udp, &mut seq, opts.warm, n, timeout, h),
-                Kind::Crossbeam => link::ping_block(&chan, &mut seq, opts.warm, n, timeout, h),
+                Kind::Udp => {
+                    link::ping_block::<UdpLink>(&udp, &mut seq, opts.warm, n, timeout, pace, h)
+                }
+                Kind::Crossbeam => {
+                    link::ping_block(&chan, &mut seq, opts.warm, n, timeout, pace, h)
+                }
             };
             if let Err(e) = result {
                 let why = if kind.remote() {
@@ -306,11 +321,15 @@ fn measure(opts: &Options, out: &Path, command: &str) -> Result<String> {
         opts.round_trips,
         elapsed.as_secs_f64()
     ));
+    report.push(&pace_line(pace));
     let (text, targets) = table(&hists);
     report.push(&text);
     report.push("\n");
-    for t in &targets {
-        report.push(&t.line());
+    // The targets compare transports back to back; paced, the table is a floor, not a contest.
+    if pace.is_none() {
+        for t in &targets {
+            report.push(&t.line());
+        }
     }
     let floor = summary(&hists[Kind::Shm.index()])[0] as f64;
     let poll = summary(&hists[Kind::IoxPoll.index()])[0] as f64;
@@ -342,6 +361,22 @@ fn measure(opts: &Options, out: &Path, command: &str) -> Result<String> {
         }],
     )?;
     report.finish()
+}
+
+/// What the report says about pacing.
+fn pace_line(pace: Option<Pace>) -> String {
+    match pace {
+        None => "Back to back: each ping leaves as soon as the previous answer came.\n\n".into(),
+        Some(p) => format!(
+            "**Paced**: one ping every {} µs, the sender waiting for it with the `{}` strategy \
+             (spin window {} µs), as the plant does at that rate; the answering side waits as \
+             each transport does (polling ones spin throughout). This is the floor under \
+             chaosd's end-to-end state → command latency at that rate on this machine.\n\n",
+            p.period_ns / 1000,
+            p.wait.name(),
+            p.spin_ns / 1000
+        ),
+    }
 }
 
 /// The results table and the issue's two targets.
@@ -410,6 +445,7 @@ pub fn peer_main(a: &PeerArgs) -> Result<()> {
     let names = ServiceNames::new(&a.namespace).map_err(|e| anyhow!("{e}"))?;
     apply_rt(a.core, a.priority, "latency peer");
     let ports = IoxPorts::peer(&names)?;
+    let board = BoardLink::peer(&names)?;
     let region = ShmRegion::open(a.shm_fd)?;
     let shm = region.peer();
     // SAFETY: the descriptor was inherited from the parent for this purpose and is used once.
@@ -435,6 +471,7 @@ pub fn peer_main(a: &PeerArgs) -> Result<()> {
                 match kind {
                     Kind::Shm => link::pong_block(&shm, n, timeout),
                     Kind::IoxPoll => link::pong_block(&IoxPoll(&ports), n, timeout),
+                    Kind::IoxBoard => link::pong_block(&board, n, timeout),
                     Kind::IoxListener => link::pong_block(&IoxListen(&ports), n, timeout),
                     Kind::IoxWaitSet => {
                         link::with_waitset(&ports, |l| link::pong_block(l, n, timeout))
