@@ -38,20 +38,29 @@ pub enum Mode {
     /// Clock-triggered, the daemon's deadlines phase-locked to the plant's stamps
     /// (`phase_offset_us`, see [`phase_offset_us`]).
     Phase,
-    /// State-triggered over iceoryx2.
+    /// State-triggered over iceoryx2, with the fast lane (`protocol::board`, the default).
     State,
+    /// State-triggered over iceoryx2 pub-sub alone (`fast_lane = false`).
+    PubSub,
     /// State-triggered through chaosd-bridge and chaosd-fakebot over UDP.
     Udp,
 }
 
 impl Mode {
-    pub const ALL: [Mode; 4] = [Mode::Clock, Mode::Phase, Mode::State, Mode::Udp];
+    pub const ALL: [Mode; 5] = [
+        Mode::Clock,
+        Mode::Phase,
+        Mode::PubSub,
+        Mode::State,
+        Mode::Udp,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             Mode::Clock => "free-running (iceoryx2)",
             Mode::Phase => "phase-locked clock (iceoryx2)",
-            Mode::State => "state-triggered (iceoryx2)",
+            Mode::State => "state-triggered (iceoryx2, fast lane)",
+            Mode::PubSub => "state-triggered (iceoryx2 pub-sub only)",
             Mode::Udp => "state-triggered (UDP bridge)",
         }
     }
@@ -61,6 +70,7 @@ impl Mode {
             Mode::Clock => "",
             Mode::Phase => "-phase",
             Mode::State => "-state",
+            Mode::PubSub => "-pubsub",
             Mode::Udp => "-udp",
         }
     }
@@ -144,7 +154,12 @@ pub fn config_text(
 ) -> String {
     let trigger = match mode {
         Mode::Clock | Mode::Phase => "clock",
-        Mode::State | Mode::Udp => "state",
+        Mode::State | Mode::PubSub | Mode::Udp => "state",
+    };
+    let lane = if mode == Mode::PubSub {
+        "fast_lane = false\n"
+    } else {
+        ""
     };
     let phase = if mode == Mode::Phase {
         format!("phase_offset_us = {:.1}\n", phase_offset_us(rate_hz))
@@ -155,8 +170,8 @@ pub fn config_text(
     // TOML strings: the path is written as a literal string, so no escaping is needed unless it
     // holds a quote, which `run` refuses.
     format!(
-        "[daemon]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\nreport_every_s = 0.0\ntrigger = \"{trigger}\"\n{phase}{spin}\n\
-         [plant]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\ntrigger = \"{trigger}\"\n{spin}",
+        "[daemon]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\nreport_every_s = 0.0\ntrigger = \"{trigger}\"\n{lane}{phase}{spin}\n\
+         [plant]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\ntrigger = \"{trigger}\"\n{lane}{spin}",
         dir = dir.display()
     )
 }
@@ -819,7 +834,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
     };
     for r in all
         .iter()
-        .filter(|r| matches!(r.mode, Mode::State | Mode::Udp))
+        .filter(|r| matches!(r.mode, Mode::State | Mode::PubSub | Mode::Udp))
     {
         let path = r.dir.join("plant-round-trip.hgrm");
         let text = std::fs::read_to_string(&path)

@@ -132,8 +132,9 @@ struct E2eArgs {
     #[arg(long, value_delimiter = ',')]
     rates: Option<Vec<f64>>,
     /// Modes (comma-separated): clock (free-running), phase (clock, phase-locked to the plant's
-    /// stamps), state (state-triggered over iceoryx2),
-    /// udp (state-triggered through chaosd-bridge and chaosd-fakebot). Default: all four.
+    /// stamps), pubsub (state-triggered over iceoryx2 pub-sub alone), state (state-triggered
+    /// over iceoryx2 with the fast lane), udp (state-triggered through chaosd-bridge and
+    /// chaosd-fakebot). Default: all five.
     #[arg(long, value_delimiter = ',')]
     modes: Option<Vec<E2eMode>>,
     /// How long the daemon and the plant poll without sleeping around an expected sample (µs):
@@ -160,6 +161,7 @@ enum E2eMode {
     Clock,
     Phase,
     State,
+    Pubsub,
     Udp,
 }
 
@@ -237,6 +239,7 @@ fn e2e_opts(quick: bool, a: &E2eArgs) -> Result<e2e::Options> {
                 E2eMode::Clock => e2e::Mode::Clock,
                 E2eMode::Phase => e2e::Mode::Phase,
                 E2eMode::State => e2e::Mode::State,
+                E2eMode::Pubsub => e2e::Mode::PubSub,
                 E2eMode::Udp => e2e::Mode::Udp,
             })
             .collect();

@@ -49,6 +49,10 @@ pub struct DaemonConfig {
     /// to wait for it: spin = busy-poll, hybrid = sleep until `spin_us` before the state is
     /// due, then poll, sleep = poll every 20 µs). Must match `plant.trigger`.
     pub trigger: Trigger,
+    /// State trigger: also take states from, and write commands to, an iceoryx2 blackboard
+    /// (`protocol::board`), the latest-value fast lane; pub-sub still carries every sample. Off,
+    /// or if the lane cannot be opened, pub-sub alone carries them. Ignored with the clock trigger.
+    pub fast_lane: bool,
     /// Clock trigger: lock the tick's phase to the plant's state stamps, `phase_offset_us`
     /// after each state (µs, below one period), so the state age is small and fixed instead of
     /// wherever the two start phases fell. None (the default): free-running.
@@ -88,6 +92,7 @@ impl Default for DaemonConfig {
             telemetry_hz: 20.0,
             hold: Hold::FirstOrder,
             trigger: Trigger::Clock,
+            fast_lane: true,
             phase_offset_us: None,
             record_max_bytes: 1 << 30,
             record_keep: 4,

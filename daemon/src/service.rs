@@ -175,11 +175,22 @@ fn control_loop<const N: usize>(
         ctl.enter_fault(crate::guard::FaultReason::Restored);
     }
 
-    let rt_report = rt::setup::apply(rt::setup::RtRequest {
+    let mut rt_report = rt::setup::apply(rt::setup::RtRequest {
         core: d.core,
         priority: d.priority,
         lock_memory: d.lock_memory,
     });
+    let lane = if d.trigger == rt::Trigger::State && d.fast_lane {
+        protocol::board::DaemonLane::daemon(&node, names)
+            .map_err(|e| {
+                rt_report
+                    .warnings
+                    .push(format!("fast lane off, pub-sub only: {e}"))
+            })
+            .ok()
+    } else {
+        None
+    };
     let _ = rt_tx.try_send(rt_report.clone());
     // Said by the reporter thread (`log_started`): the loop thread writes no logs.
 
@@ -188,10 +199,12 @@ fn control_loop<const N: usize>(
     let start = monotonic_ns();
     let end = duration.map(|s| start.saturating_add((s * 1e9) as u64));
     if d.trigger == rt::Trigger::State {
+        let lane = lane.as_ref();
         let ports = crate::trigger::Ports {
             subscriber: &subscriber,
             publisher: &publisher,
             tx: &tx,
+            lane,
         };
         let timing = crate::trigger::Timing {
             period_ns: period,

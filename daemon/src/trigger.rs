@@ -5,7 +5,9 @@
 //! tick runs the moment a state arrives, and only what the answer needs stands between the two:
 //! receive → `Controller::tick` → write into a sample loaned *before* the state came → send.
 //! Taking the parameter block, the telemetry record and the next loan all happen after the send,
-//! while the plant is already applying the command. The watchdog stays: a period with no state
+//! while the plant is already applying the command. With the fast lane (`protocol::board`) the
+//! state comes from the state board and the command goes out on the command board; its pub-sub
+//! copy is sent after the path, in [`StateLoop::after`]. The watchdog stays: a period with no state
 //! past its expected arrival is a tick without a state, and `hold_after` of them are HOLD.
 //!
 //! [`PhaseLock`] is the clock loop's counterpart: instead of a free-running phase it puts each
@@ -19,6 +21,7 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use iceoryx2::sample_mut_uninit::SampleMutUninit;
+use protocol::board::{DaemonLane, PUBSUB_EVERY};
 use protocol::{monotonic_ns, CommandSample, StateSample};
 use rt::trigger::Window;
 use rt::WaitStrategy;
@@ -32,6 +35,9 @@ pub struct Ports<'a> {
     pub subscriber: &'a Subscriber<ipc::Service, StateSample, ()>,
     pub publisher: &'a Publisher<ipc::Service, CommandSample, ()>,
     pub tx: &'a crossbeam::channel::Sender<TickRecord>,
+    /// State trigger: the fast lane, if open. States come from it first; commands go out on it,
+    /// and their pub-sub copies after the path.
+    pub lane: Option<&'a DaemonLane>,
 }
 
 /// How the loop waits.
@@ -64,9 +70,42 @@ pub fn newest_state(
     sub: &Subscriber<ipc::Service, StateSample, ()>,
     seen: &mut Drained,
 ) -> Option<StateSample> {
+    newest_state_but(sub, seen, |_| false)
+}
+
+/// The newest state: from the fast lane if it brought one, else from the pub-sub queue, minus
+/// the pub-sub copies of what the lane brought. `poll` counts the wait's polls from 0: while
+/// `lane_first` (the lane brought the last state) pub-sub is looked at every
+/// [`PUBSUB_EVERY`]th poll only. Returns the state and whether it came by the lane.
+pub fn newest_unseen(
+    sub: &Subscriber<ipc::Service, StateSample, ()>,
+    lane: Option<&DaemonLane>,
+    lane_first: bool,
+    poll: u32,
+    seen: &mut Drained,
+) -> Option<(StateSample, bool)> {
+    let Some(lane) = lane else {
+        return newest_state(sub, seen).map(|s| (s, false));
+    };
+    if let Some(s) = lane.take() {
+        return Some((s, true));
+    }
+    if lane_first && poll % PUBSUB_EVERY != PUBSUB_EVERY - 1 {
+        return None;
+    }
+    newest_state_but(sub, seen, |s| lane.seen(s)).map(|s| (s, false))
+}
+
+/// [`newest_state`], dropping the samples `skip` names without counting them.
+fn newest_state_but(
+    sub: &Subscriber<ipc::Service, StateSample, ()>,
+    seen: &mut Drained,
+    skip: impl Fn(&StateSample) -> bool,
+) -> Option<StateSample> {
     let mut newest = None;
     loop {
         match sub.receive() {
+            Ok(Some(s)) if skip(&s) => {}
             Ok(Some(s)) => {
                 if newest.is_some() {
                     seen.superseded += 1;
@@ -128,6 +167,10 @@ pub struct StateLoop<'a> {
     last: Option<StateSample>,
     /// Ticks since the last accepted state.
     missed: u32,
+    /// A command that went out on the fast lane; its pub-sub copy is sent in `after`.
+    copy: Option<CommandSample>,
+    /// The newest state came by the fast lane: wait on the board, and look at pub-sub rarely.
+    lane_first: bool,
 }
 
 impl<'a> StateLoop<'a> {
@@ -139,6 +182,8 @@ impl<'a> StateLoop<'a> {
             expected: monotonic_ns() + timing.period_ns,
             last: None,
             missed: 0,
+            copy: None,
+            lane_first: false,
         }
     }
 
@@ -157,11 +202,20 @@ impl<'a> StateLoop<'a> {
             window = window.open_until(give_up);
         }
         let got = {
-            let (ctl, last, sub) = (&mut *ctl, &self.last, self.ports.subscriber);
+            let (ctl, last, sub, lane) = (
+                &mut *ctl,
+                &self.last,
+                self.ports.subscriber,
+                self.ports.lane,
+            );
+            let (lane_first, mut poll) = (self.lane_first, 0u32);
             rt::trigger::poll_within(
                 window,
                 give_up,
-                || newest_state(sub, &mut seen),
+                || {
+                    poll = poll.wrapping_add(1);
+                    newest_unseen(sub, lane, lane_first, poll - 1, &mut seen)
+                },
                 || {
                     if let Some(s) = last {
                         ctl.rehearse(s);
@@ -170,10 +224,19 @@ impl<'a> StateLoop<'a> {
             )
         };
         let woke = monotonic_ns();
+        let got = got.map(|(s, via_lane)| {
+            self.lane_first = via_lane;
+            s
+        });
         let outcome = ctl.tick(got.as_ref(), woke);
         crate::watchdog::beat(ctl.counters.ticks);
-        if let Some(c) = outcome.command {
-            send(self.ports.publisher, &mut self.slot, c, ctl);
+        match (outcome.command, self.ports.lane) {
+            (Some(c), Some(lane)) => {
+                lane.write(&c);
+                self.copy = Some(c);
+            }
+            (Some(c), None) => send(self.ports.publisher, &mut self.slot, c, ctl),
+            (None, _) => {}
         }
         let done = monotonic_ns();
         Answered {
@@ -186,9 +249,10 @@ impl<'a> StateLoop<'a> {
         }
     }
 
-    /// Everything off the path, while the plant applies the command: counters, when the next
-    /// state is due, the next loan (iceoryx2's one allocation), `between` (what the control
-    /// service sent), and the telemetry record.
+    /// Everything off the path, while the plant applies the command: the pub-sub copy of a
+    /// command that went out on the fast lane, counters, when the next state is due, the next
+    /// loan (iceoryx2's one allocation), `between` (what the control service sent), and the
+    /// telemetry record.
     pub fn after<const N: usize>(
         &mut self,
         ctl: &mut Controller<N>,
@@ -196,6 +260,9 @@ impl<'a> StateLoop<'a> {
         between: &mut impl FnMut(&mut Controller<N>),
     ) {
         let period = self.timing.period_ns;
+        if let Some(c) = self.copy.take() {
+            send(self.ports.publisher, &mut self.slot, c, ctl);
+        }
         a.seen.into_counters(ctl);
         if a.outcome.state_age_ns.is_some() {
             self.last = a.got;

@@ -166,6 +166,17 @@ fn the_clock_loops_tick_allocates_only_iceoryx2s_loan() {
 
 #[test]
 fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
+    state_triggered_path(false);
+}
+
+#[test]
+fn the_state_triggered_path_over_the_fast_lane_allocates_nothing() {
+    // The same, with the lane: the state comes from the board (its pub-sub copy is dropped), the
+    // command goes out on the board, and its pub-sub copy is sent in `after`.
+    state_triggered_path(true);
+}
+
+fn state_triggered_path(fast_lane: bool) {
     // `StateLoop::answer` and `StateLoop::after` are what `trigger::state_loop` runs, on real
     // iceoryx2 ports with the loop's channels. The command sample is loaned before the state
     // arrives, so the path (wait → receive → tick → write → send) makes no allocation at all;
@@ -175,7 +186,8 @@ fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
     iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
     let node = daemon::service::node("no-alloc-state").unwrap();
     let ns = format!(
-        "t-noalloc-st-{}-{}",
+        "t-noalloc-st{}-{}-{}",
+        u8::from(fast_lane),
         std::process::id(),
         monotonic_ns() % 1_000_000_000
     );
@@ -188,10 +200,24 @@ fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
     let cmd_sub = cmd_svc.subscriber_builder().create().unwrap();
     let (params_tx, params_rx) = crossbeam::channel::bounded::<LoopRequest>(16);
     let (tel_tx, tel_rx) = crossbeam::channel::bounded::<TickRecord>(4096);
+    let lane = fast_lane.then(|| protocol::board::DaemonLane::daemon(&node, &names).unwrap());
+    let plant_lane = fast_lane.then(|| protocol::board::PlantLane::plant(&node, &names).unwrap());
+    // What the plant does: with the lane, the state goes on the board, and its pub-sub copy
+    // once the answer is in (`copy`); without, on pub-sub at once.
+    let publish = |s: protocol::StateSample| match &plant_lane {
+        Some(p) => p.write(&s),
+        None => plant_pub.send_copy(s).map(drop).unwrap(),
+    };
+    let copy = |s: protocol::StateSample| {
+        if plant_lane.is_some() {
+            plant_pub.send_copy(s).unwrap();
+        }
+    };
     let ports = Ports {
         subscriber: &sub,
         publisher: &publisher,
         tx: &tel_tx,
+        lane: lane.as_ref(),
     };
     // The daemon's default wait around each expected arrival, at 1 kHz.
     let timing = Timing {
@@ -206,8 +232,10 @@ fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
     let mut l = StateLoop::new(&ports, timing);
     // Warm up: the first sends set up connections (and allocate for that).
     for seq in 0..50 {
-        plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
+        let s = state(seq, monotonic_ns(), 9);
+        publish(s);
         let a = l.answer(&mut c);
+        copy(s);
         l.after(&mut c, a, &mut between);
         while let Ok(Some(_)) = cmd_sub.receive() {}
     }
@@ -217,18 +245,48 @@ fn the_state_triggered_path_from_state_to_command_allocates_nothing() {
             params_tx.try_send(LoopRequest::Params(params)).unwrap();
         }
         records += tel_rx.try_iter().count();
-        plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
+        let s = state(seq, monotonic_ns(), 9);
+        publish(s);
         let before = c.counters.commands;
         let mut answered = None;
         on_path += allocations(|| answered = Some(l.answer(&mut c)));
+        copy(s);
         sent += c.counters.commands - before;
         let a = answered.unwrap();
         assert!(a.got.is_some(), "the state was there to answer");
         off_path += allocations(|| l.after(&mut c, a, &mut between));
-        while let Ok(Some(_)) = cmd_sub.receive() {}
+        // Every command also reached pub-sub (with the lane: its copy, sent in `after`).
+        let mut copies = 0;
+        while let Ok(Some(_)) = cmd_sub.receive() {
+            copies += 1;
+        }
+        assert_eq!(copies, 1, "tick {seq}");
+        if let Some(p) = &plant_lane {
+            assert_eq!(
+                p.take().map(|c| c.state_seq),
+                Some(seq),
+                "the board's answer"
+            );
+        }
     }
     records += tel_rx.try_iter().count();
     assert_eq!(sent, 2000);
+    if fast_lane {
+        // Nothing new on the board, only the pub-sub copies of states the lane brought: they
+        // are neither answered again nor counted as repeats or superseded states.
+        let ticks = c.counters.fresh_states;
+        let a = l.answer(&mut c);
+        assert!(
+            a.got.is_none(),
+            "a copy was taken for a new state: {:?}",
+            a.got
+        );
+        l.after(&mut c, a, &mut between);
+        assert_eq!(c.counters.fresh_states, ticks);
+    }
+    assert_eq!(c.counters.rejected_out_of_order, 0);
+    assert_eq!(c.counters.rejected_stale, 0);
+    assert_eq!(c.counters.superseded, 0);
     assert_eq!(
         records, 2050,
         "every tick handed its record to the reporter"

@@ -36,6 +36,10 @@ pub struct PlantConfig {
     /// State trigger: this many late cycles in a row make the plant brake (Franka FCI stops
     /// after 20 at 1 kHz). It follows commands again as soon as an answer comes in time.
     pub max_late_cycles: u32,
+    /// State trigger: also write each state to, and take answers from, an iceoryx2 blackboard
+    /// (`protocol::board`), the latest-value fast lane; pub-sub still carries every sample. Off,
+    /// or if the lane cannot be opened, pub-sub alone carries them. Ignored with the clock trigger.
+    pub fast_lane: bool,
 }
 
 impl Default for PlantConfig {
@@ -55,6 +59,7 @@ impl Default for PlantConfig {
             trigger: Trigger::Clock,
             answer_deadline_us: None,
             max_late_cycles: 20,
+            fast_lane: true,
         }
     }
 }

@@ -11,6 +11,9 @@
 //! it arrives. A late or missing answer leaves the previous command running (the plant keeps
 //! ramping it) and counts a late cycle; `max_late_cycles` in a row make the plant brake until
 //! answers come in time again.
+//! With `fast_lane` (the default) the state goes out on the state board first and the answer is
+//! taken from the command board (`protocol::board`); the pub-sub state follows once the cycle's
+//! answer is in, off the path.
 //! An answer that arrives after its deadline is counted and dropped. Unanswered cycles after the
 //! controller left (its brake command at shutdown, or `command_timeout_ms` of silence) are
 //! silent, not late: they say nothing about how fast a controller answers.
@@ -27,6 +30,7 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use iceoryx2::sample_mut_uninit::SampleMutUninit;
+use protocol::board::{PlantLane, PUBSUB_EVERY};
 use protocol::{flags, monotonic_ns, CommandSample, Mode, ServiceNames, StateSample};
 use rt::clock::Schedule;
 use rt::trigger::Window;
@@ -73,6 +77,12 @@ struct Loop<'a> {
     plant_time: f64,
     seq: u64,
     sample: StateSample,
+    /// State trigger: the fast lane, if open (`protocol::board`).
+    lane: Option<PlantLane>,
+    /// The state went out on the lane; its pub-sub copy is still to be sent.
+    copy_due: bool,
+    /// The newest answer came by the lane: wait on the board, and look at pub-sub rarely.
+    lane_first: bool,
 }
 
 /// Runs `plant` until SIGINT/SIGTERM or for `duration` seconds. `arm` describes the arm it moves
@@ -114,6 +124,13 @@ pub fn run<P: Plant>(
         .create()
         .map_err(|e| anyhow!("cannot subscribe to {}: {e:?}", names.command()))?;
 
+    let lane = if cfg.trigger == Trigger::State && cfg.fast_lane {
+        PlantLane::plant(&node, &names)
+            .map_err(|e| tracing::warn!("fast lane off, pub-sub only: {e}"))
+            .ok()
+    } else {
+        None
+    };
     let plant_id = protocol::new_instance_id();
     let mut handshake = crate::handshake::Handshake::start(&names, *arm, plant_id, cfg.core)?;
 
@@ -159,6 +176,9 @@ pub fn run<P: Plant>(
             n: plant.n() as u32,
             ..StateSample::default()
         },
+        lane,
+        copy_due: false,
+        lane_first: false,
     };
     let fault = lp.cycles(plant, start, duration).err();
     plant.deactivate();
@@ -213,6 +233,10 @@ impl Loop<'_> {
                 let cycle_end = (!plant.device_clocked()).then(|| deadline + period);
                 self.await_answer(plant, cycle_end)?;
             }
+            if self.copy_due {
+                self.copy_due = false;
+                self.send_state();
+            }
             self.c.ticks += 1;
             if self.slot.is_none() {
                 self.slot = self.publisher.loan_uninit().ok();
@@ -240,6 +264,9 @@ impl Loop<'_> {
                     break;
                 }
             };
+            if self.lane.as_ref().is_some_and(|l| l.seen(&cmd)) {
+                continue; // the pub-sub copy of an answer taken from the fast lane
+            }
             if !self.intake.accept(&cmd) {
                 continue;
             }
@@ -359,29 +386,49 @@ impl Loop<'_> {
         } else {
             plant.stamp(deadline, now)
         };
+        let seq = s.seq;
+        // Published = the moment the state goes out; the round trip is measured from here.
+        let at_ns = match &self.lane {
+            Some(lane) => {
+                let at = monotonic_ns();
+                lane.write(&self.sample);
+                self.c.states_published += 1;
+                self.copy_due = true;
+                at
+            }
+            None => self.send_state(),
+        };
+        self.ring.push(Published {
+            seq,
+            plant_time: self.plant_time,
+            at_ns,
+        });
+        Ok(true)
+    }
+
+    /// Publishes the current state on pub-sub, into the sample loaned at the end of the last
+    /// cycle; returns when the send started. With the fast lane this is the copy for pub-sub's
+    /// readers, sent once the cycle's answer is in.
+    fn send_state(&mut self) -> u64 {
+        let lane_copy = self.lane.is_some();
         let loaned = match self.slot.take() {
             Some(slot) => Ok(slot),
             None => self.publisher.loan_uninit(),
         };
-        // Published = the moment the send starts; the round trip is measured from here.
         let mut at_ns = monotonic_ns();
         match loaned {
             Ok(slot) => {
-                let sample = slot.write_payload(*s);
+                let sample = slot.write_payload(self.sample);
                 at_ns = monotonic_ns();
                 match sample.send() {
+                    Ok(_) if lane_copy => {}
                     Ok(_) => self.c.states_published += 1,
                     Err(_) => self.c.ipc_errors += 1,
                 }
             }
             Err(_) => self.c.ipc_errors += 1,
         }
-        self.ring.push(Published {
-            seq: s.seq,
-            plant_time: self.plant_time,
-            at_ns,
-        });
-        Ok(true)
+        at_ns
     }
 
     /// State trigger: waits for the command answering the state just published, up to the
@@ -411,27 +458,43 @@ impl Loop<'_> {
             window = window.open_until(deadline);
         }
         let (sub, intake, c) = (&self.subscriber, &mut self.intake, &mut self.c);
+        let lane = &self.lane;
+        let (lane_first, mut polls) = (self.lane_first, 0u32);
         let poll = || loop {
-            let cmd = match sub.receive() {
-                Ok(Some(s)) => *s,
-                Ok(None) => return None,
-                Err(_) => {
-                    c.ipc_errors += 1;
-                    return None;
+            // The fast lane first; then pub-sub, minus the copies of what the lane brought
+            // (while the lane brings the answers, only every PUBSUB_EVERY-th poll: a pub-sub
+            // receive costs many board polls).
+            let (cmd, via_lane) = match lane.as_ref().and_then(PlantLane::take) {
+                Some(cmd) => (cmd, true),
+                None => {
+                    polls = polls.wrapping_add(1);
+                    if lane_first && polls % PUBSUB_EVERY != 0 {
+                        return None;
+                    }
+                    match sub.receive() {
+                        Ok(Some(s)) if lane.as_ref().is_some_and(|l| l.seen(&s)) => continue,
+                        Ok(Some(s)) => (*s, false),
+                        Ok(None) => return None,
+                        Err(_) => {
+                            c.ipc_errors += 1;
+                            return None;
+                        }
+                    }
                 }
             };
             if !intake.accept(&cmd) {
                 continue;
             }
             if cmd.state_seq == want || cmd.mode != Mode::Run as u32 {
-                return Some((cmd, monotonic_ns()));
+                return Some((cmd, monotonic_ns(), via_lane));
             }
             c.late_answers += 1;
         };
         let got = rt::trigger::poll_within(window, deadline, poll, || {});
-        let Some((cmd, at)) = got else {
+        let Some((cmd, at, via_lane)) = got else {
             return self.late_cycle(plant);
         };
+        self.lane_first = via_lane;
         self.last_command_at = Some(at);
         self.late_since_command = 0;
         self.current = Some(cmd);

@@ -53,6 +53,7 @@
 //! # }
 //! ```
 
+pub mod board;
 pub mod control;
 pub mod handshake;
 pub mod names;

@@ -114,6 +114,14 @@ pub enum ServiceError {
         source: iceoryx2::service::builder::request_response::RequestResponseOpenOrCreateError,
     },
     #[error(
+        "cannot open ({open:?}) or create ({create:?}) the {channel} blackboard (the fast lane)"
+    )]
+    Board {
+        channel: Channel,
+        open: iceoryx2::service::builder::blackboard::BlackboardOpenError,
+        create: iceoryx2::service::builder::blackboard::BlackboardCreateError,
+    },
+    #[error(
         "no chaosd is serving the {channel} service (is the daemon running in this namespace?)"
     )]
     NotRunning { channel: Channel },
