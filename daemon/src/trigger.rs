@@ -229,7 +229,6 @@ impl<'a> StateLoop<'a> {
             s
         });
         let outcome = ctl.tick(got.as_ref(), woke);
-        crate::watchdog::beat(ctl.counters.ticks);
         match (outcome.command, self.ports.lane) {
             (Some(c), Some(lane)) => {
                 lane.write(&c);
@@ -263,6 +262,9 @@ impl<'a> StateLoop<'a> {
         if let Some(c) = self.copy.take() {
             send(self.ports.publisher, &mut self.slot, c, ctl);
         }
+        // Off the path: the watchdog thread reads this line now and then, and a write to a line
+        // another core holds costs a transfer.
+        crate::watchdog::beat(ctl.counters.ticks);
         a.seen.into_counters(ctl);
         if a.outcome.state_age_ns.is_some() {
             self.last = a.got;
