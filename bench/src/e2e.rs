@@ -6,11 +6,12 @@
 //! 50, memory locked. The plant starts first, then the daemon runs for a fixed time and exits by
 //! itself; the plant is then stopped with SIGTERM so it writes its summary.
 //!
-//! Three modes side by side: today's free-running loops (`trigger = "clock"`), the state trigger
-//! over iceoryx2 (`trigger = "state"`: each state answered in its own cycle), and the same
-//! through the UDP bridge (`chaosd-fakebot` owning the clock ⇄ `chaosd-bridge` ⇄ `chaosd`, on
-//! the loopback). The first table keeps the free-running figures; the second puts the three
-//! modes next to each other at every rate.
+//! The modes side by side: today's free-running loops (`trigger = "clock"`), the same
+//! phase-locked, the state trigger over iceoryx2 (`trigger = "state"`: each state answered in its
+//! own cycle) with pub-sub alone and with the fast lane (`protocol::board`, the default), and the
+//! state trigger through the UDP bridge (`chaosd-fakebot` owning the clock ⇄ `chaosd-bridge` ⇄
+//! `chaosd`, on the loopback). The first table keeps the free-running figures; the second puts
+//! the modes next to each other at every rate, so the lane's gain is a ratio within one run.
 //!
 //! The numbers come from the processes' own summaries (`daemon-summary.json`,
 //! `plant-summary.json`) and `.hgrm` files, so this benchmark reports exactly what the daemon
