@@ -426,14 +426,12 @@ impl<const N: usize> Controller<N> {
         let t = self.t + self.dt;
         let held = self.hold_command(t, &x);
         // What the tick runs besides the law, without its effects: the acceptance checks, the
-        // guard's judgement (on a copy), the command it would build (its number given back),
-        // and what it writes: the delay line's next slot and the counters.
+        // guard's judgement (on a copy), the command it would build, and what it writes: the
+        // delay line's next slot and the counters.
         let _ = std::hint::black_box(self.accept(s, s.stamp_ns));
         let mut guard = self.guard;
         std::hint::black_box(guard.check(t, &self.params.safety, &x.qd, &held.output));
-        let c = self.command(Mode::Run, &held.qdd, &held.qddd, s, s.stamp_ns);
-        self.next_command_seq -= 1;
-        std::hint::black_box(c);
+        std::hint::black_box(self.next_command(Mode::Run, &held.qdd, &held.qddd, s, s.stamp_ns));
         std::hint::black_box(held);
         std::hint::black_box(self.delay.next_slot());
         std::hint::black_box(self.counters);
@@ -533,6 +531,20 @@ impl<const N: usize> Controller<N> {
         answers: &StateSample,
         now_ns: u64,
     ) -> CommandSample {
+        let c = self.next_command(mode, qdd, qddd, answers, now_ns);
+        self.next_command_seq += 1;
+        c
+    }
+
+    /// The command [`Self::command`] builds, without taking its number.
+    fn next_command(
+        &self,
+        mode: Mode,
+        qdd: &VecN<N>,
+        qddd: &VecN<N>,
+        answers: &StateSample,
+        now_ns: u64,
+    ) -> CommandSample {
         let mut c = CommandSample {
             seq: self.next_command_seq,
             state_seq: answers.seq,
@@ -546,7 +558,6 @@ impl<const N: usize> Controller<N> {
         };
         c.qdd[..N].copy_from_slice(qdd.as_slice());
         c.qddd[..N].copy_from_slice(qddd.as_slice());
-        self.next_command_seq += 1;
         c
     }
 }

@@ -21,7 +21,7 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use iceoryx2::sample_mut_uninit::SampleMutUninit;
-use protocol::board::{DaemonLane, PUBSUB_EVERY};
+use protocol::board::{pubsub_due, DaemonLane};
 use protocol::{monotonic_ns, CommandSample, StateSample};
 use rt::trigger::Window;
 use rt::WaitStrategy;
@@ -74,9 +74,9 @@ pub fn newest_state(
 }
 
 /// The newest state: from the fast lane if it brought one, else from the pub-sub queue, minus
-/// the pub-sub copies of what the lane brought. `poll` counts the wait's polls from 0: while
-/// `lane_first` (the lane brought the last state) pub-sub is looked at every
-/// [`PUBSUB_EVERY`]th poll only. Returns the state and whether it came by the lane.
+/// the pub-sub copies of what the lane brought. `poll` counts the wait's polls; while `lane_first`
+/// (the lane brought the last state) pub-sub is looked at only when [`pubsub_due`]. Returns the
+/// state and whether it came by the lane.
 pub fn newest_unseen(
     sub: &Subscriber<ipc::Service, StateSample, ()>,
     lane: Option<&DaemonLane>,
@@ -90,7 +90,7 @@ pub fn newest_unseen(
     if let Some(s) = lane.take() {
         return Some((s, true));
     }
-    if lane_first && poll % PUBSUB_EVERY != PUBSUB_EVERY - 1 {
+    if !pubsub_due(lane_first, poll) {
         return None;
     }
     newest_state_but(sub, seen, |s| lane.seen(s)).map(|s| (s, false))
@@ -214,7 +214,7 @@ impl<'a> StateLoop<'a> {
                 give_up,
                 || {
                     poll = poll.wrapping_add(1);
-                    newest_unseen(sub, lane, lane_first, poll - 1, &mut seen)
+                    newest_unseen(sub, lane, lane_first, poll, &mut seen)
                 },
                 || {
                     if let Some(s) = last {

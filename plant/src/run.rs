@@ -30,7 +30,7 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use iceoryx2::sample_mut_uninit::SampleMutUninit;
-use protocol::board::{PlantLane, PUBSUB_EVERY};
+use protocol::board::{pubsub_due, PlantLane};
 use protocol::{flags, monotonic_ns, CommandSample, Mode, ServiceNames, StateSample};
 use rt::clock::Schedule;
 use rt::trigger::Window;
@@ -81,7 +81,8 @@ struct Loop<'a> {
     lane: Option<PlantLane>,
     /// The state went out on the lane; its pub-sub copy is still to be sent.
     copy_due: bool,
-    /// The newest answer came by the lane: wait on the board, and look at pub-sub rarely.
+    /// The newest answer came by the lane, so the daemon reads it: the pub-sub copy of the state
+    /// waits for the answer, and the wait looks at pub-sub rarely.
     lane_first: bool,
 }
 
@@ -388,12 +389,18 @@ impl Loop<'_> {
         };
         let seq = s.seq;
         // Published = the moment the state goes out; the round trip is measured from here.
+        // The pub-sub copy waits for the answer only while the daemon answers on the lane (so it
+        // reads the lane too); a daemon without it must get the state on pub-sub at once.
         let at_ns = match &self.lane {
             Some(lane) => {
                 let at = monotonic_ns();
                 lane.write(&self.sample);
                 self.c.states_published += 1;
-                self.copy_due = true;
+                if self.lane_first {
+                    self.copy_due = true;
+                } else {
+                    self.send_state();
+                }
                 at
             }
             None => self.send_state(),
@@ -462,13 +469,12 @@ impl Loop<'_> {
         let (lane_first, mut polls) = (self.lane_first, 0u32);
         let poll = || loop {
             // The fast lane first; then pub-sub, minus the copies of what the lane brought
-            // (while the lane brings the answers, only every PUBSUB_EVERY-th poll: a pub-sub
-            // receive costs many board polls).
+            // (while the lane brings the answers, only now and then: see `pubsub_due`).
             let (cmd, via_lane) = match lane.as_ref().and_then(PlantLane::take) {
                 Some(cmd) => (cmd, true),
                 None => {
                     polls = polls.wrapping_add(1);
-                    if lane_first && polls % PUBSUB_EVERY != 0 {
+                    if !pubsub_due(lane_first, polls) {
                         return None;
                     }
                     match sub.receive() {
@@ -512,6 +518,7 @@ impl Loop<'_> {
     /// No answer in time: the previous command stays in force (ramped on by the plant); too
     /// many in a row, and the plant brakes.
     fn late_cycle<P: Plant>(&mut self, plant: &mut P) -> Result<(), PlantError> {
+        self.lane_first = false; // until an answer comes by the lane again
         if self.last_command_at.is_none() {
             return Ok(()); // no controller yet: nothing is late
         }

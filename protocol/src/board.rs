@@ -30,6 +30,20 @@ use std::fmt::Debug;
 /// many board polls.
 pub const PUBSUB_EVERY: u32 = 16;
 
+/// Whether a wait's `poll`-th poll (counted from 1) looks at the pub-sub queue too: always,
+/// unless the lane brought the last sample (`lane_first`); then every [`PUBSUB_EVERY`]th.
+///
+/// ```
+/// use protocol::board::{pubsub_due, PUBSUB_EVERY};
+/// assert!((1..40).all(|p| pubsub_due(false, p)));
+/// let due: Vec<u32> = (1..=40).filter(|&p| pubsub_due(true, p)).collect();
+/// assert_eq!(due, [PUBSUB_EVERY, 2 * PUBSUB_EVERY]);
+/// ```
+#[inline]
+pub fn pubsub_due(lane_first: bool, poll: u32) -> bool {
+    !lane_first || poll.is_multiple_of(PUBSUB_EVERY)
+}
+
 /// The one key of each board.
 const KEY: u64 = 0;
 /// Nodes that may hold a board open at once: the plant, the daemon, a restarted one of each while
