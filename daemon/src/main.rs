@@ -251,6 +251,8 @@ fn spawn_plant_side(
     let mut args = common.to_vec();
     args.extend(["--listen".into(), dev.clone(), "--peer".into(), br.clone()]);
     args.extend(["--summary".into(), summary]);
+    // On the bridge's core above it: see plant::udp::fakebot::Placement.
+    args.push("--beside-plant".into());
     let device = spawn_logged(
         sibling_exe("chaosd-fakebot")?,
         &args,

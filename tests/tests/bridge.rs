@@ -273,6 +273,17 @@ fn bad_bridge_and_fakebot_flags_are_refused() {
         ("chaosd-fakebot", vec!["--config", c, "--max-missed", "0"]),
         ("chaosd-fakebot", vec!["--config", c, "--spike-every", "-1"]),
         ("chaosd-fakebot", vec!["--config", c, "--listen", "nowhere"]),
+        ("chaosd-fakebot", vec!["--config", c, "--priority", "100"]),
+        ("chaosd-fakebot", vec!["--config", c, "--core", "5000"]),
+        (
+            "chaosd-fakebot",
+            vec!["--config", c, "--answer-wait", "maybe"],
+        ),
+        ("chaosd-fakebot", vec!["--config", c, "--wait", "never"]),
+        (
+            "chaosd-fakebot",
+            vec!["--config", c, "--beside-plant", "--priority", "5"],
+        ),
         ("chaosd-bridge", vec!["--config", c, "--device", "1.2.3"]),
         (
             "chaosd-bridge",
@@ -353,6 +364,12 @@ fn the_udp_demo_runs_end_to_end_and_leaves_nothing_running() {
     assert!(
         f["counters"]["answered_in_time"].as_u64().unwrap() > 1000,
         "{f}"
+    );
+    // The demo places the device beside the bridge (on [plant] core, above its priority).
+    let device_log = std::fs::read_to_string(out.join("fakebot.log")).unwrap_or_default();
+    assert!(
+        device_log.contains("chaosd-fakebot: core 0,"),
+        "the device was not pinned beside the bridge:\n{device_log}"
     );
     for key in ["plant pid ", "device pid "] {
         let pid = pid_after(&log, key);

@@ -981,6 +981,7 @@ mod tests {
 
     #[test]
     fn blackboard_ping_pong_between_threads_answers_every_state() {
+        let _g = crate::iox_test_lock();
         let names = ServiceNames::new(&crate::latency::unique_namespace("board")).unwrap();
         let parent = BoardLink::parent(&names).unwrap();
         let n = 2_000;

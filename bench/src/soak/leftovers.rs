@@ -179,6 +179,7 @@ mod tests {
 
     #[test]
     fn a_live_node_and_its_service_are_found_and_gone_once_dropped() {
+        let _g = crate::iox_test_lock();
         let ns = crate::latency::unique_namespace("leftovers");
         let names = protocol::ServiceNames::new(&ns).unwrap();
         let prefix = names.to_string();

@@ -5,7 +5,7 @@ use anyhow::{ensure, Context, Result};
 use clap::Parser;
 use control::with_dof;
 use plant::app::{self, PlantArgs};
-use plant::udp::fakebot::{self, FakebotConfig, FakebotSummary};
+use plant::udp::fakebot::{self, AnswerWait, FakebotConfig, FakebotSummary, Placement};
 use plant::SimPlant;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -49,6 +49,24 @@ struct Args {
     /// Write the counters here as JSON at exit.
     #[arg(long)]
     summary: Option<PathBuf>,
+    /// Run where a device with a clock of its own sits on a machine it shares with the loops:
+    /// on [plant] core, 10 SCHED_FIFO steps above [plant] priority (at most 99), blocking for
+    /// each answer so the bridge it waits on keeps the core. What e2e and the demo use.
+    #[arg(long = "beside-plant", conflicts_with_all = ["core", "priority", "answer_wait"])]
+    beside_plant: bool,
+    /// Pin the device to this core.
+    #[arg(long)]
+    core: Option<usize>,
+    /// SCHED_FIFO priority 1..=99 of the device, or 0 for the normal scheduler.
+    #[arg(long)]
+    priority: Option<u8>,
+    /// How the device waits for its next cycle: sleep, hybrid or spin [default: [plant] wait].
+    #[arg(long)]
+    wait: Option<rt::WaitStrategy>,
+    /// How it waits for each answer: poll (while answers come; for a device with a core of its
+    /// own) or block (in ppoll) [default: poll].
+    #[arg(long = "answer-wait")]
+    answer_wait: Option<AnswerWait>,
 }
 
 fn validate(a: &Args) -> Result<()> {
@@ -82,6 +100,15 @@ fn validate(a: &Args) -> Result<()> {
             "--{name} {v}: must be between 0 and 60000 ms"
         );
     }
+    if let Some(p) = a.priority {
+        ensure!(
+            p <= 99,
+            "--priority {p}: must be 0 (normal scheduler) or a SCHED_FIFO priority 1..=99"
+        );
+    }
+    if let Some(c) = a.core {
+        ensure!(c < 1024, "--core {c}: must be a CPU index below 1024");
+    }
     ensure!(
         a.listen != a.peer,
         "--listen and --peer are both {}",
@@ -94,7 +121,7 @@ fn run(a: &Args) -> Result<FakebotSummary> {
     validate(a)?;
     let l = app::load(&a.plant)?;
     let p = &l.plant;
-    let cfg = FakebotConfig {
+    let mut cfg = FakebotConfig {
         listen: a.listen,
         peer: a.peer,
         rate_hz: p.rate_hz,
@@ -105,9 +132,18 @@ fn run(a: &Args) -> Result<FakebotSummary> {
         restart_every_s: a.restart_every,
         restart_pause_ms: a.restart_pause_ms,
         seed: a.seed,
-        wait: p.wait,
+        wait: a.wait.unwrap_or(p.wait),
         spin_us: p.spin_us,
+        answer_wait: a.answer_wait.unwrap_or(AnswerWait::Poll),
+        placement: Placement {
+            core: a.core,
+            priority: a.priority.unwrap_or(0),
+        },
     };
+    if a.beside_plant {
+        cfg.answer_wait = AnswerWait::Block;
+        cfg.placement = Placement::beside(p.core, p.priority);
+    }
     let period = p.period_ns() as f64 * 1e-9;
     let s = &l.system;
     let c = with_dof!(s.n(), N => fakebot::run::<N>(&cfg, || SimPlant::<N>::new(s.model::<N>(), s.initial_state(), period, p.substeps, p.brake_gain), l.duration))?;
