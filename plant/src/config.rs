@@ -160,11 +160,26 @@ impl PlantConfig {
     }
 
     /// State trigger: when the answer to a state published at `published_ns` is due: the answer
-    /// deadline after it, but never past `cycle_end_ns` (the start of the next cycle, where this
-    /// process owns the clock).
+    /// deadline after it, but never past the end of the cycle it was published in, where this
+    /// process owns the clock (`cycle_end_ns`: the nominal end, one period after the deadline the
+    /// cycle was due at).
+    ///
+    /// A state published after its cycle's nominal end means this process woke more than a
+    /// period late. It skips the periods it missed (its overruns, see `Schedule::advance`), so
+    /// the cycle it runs in ends at the next period boundary, and the controller is held to that
+    /// one, not to a boundary already past.
     pub fn answer_due_ns(&self, published_ns: u64, cycle_end_ns: Option<u64>) -> u64 {
         let due = published_ns.saturating_add(self.answer_deadline_ns());
-        cycle_end_ns.map_or(due, |end| due.min(end))
+        let Some(end) = cycle_end_ns else {
+            return due;
+        };
+        let p = self.period_ns().max(1);
+        let end = if published_ns >= end {
+            end + p * ((published_ns - end) / p + 1)
+        } else {
+            end
+        };
+        due.min(end)
     }
 }
 
@@ -183,6 +198,16 @@ mod tests {
         assert_eq!(c.answer_due_ns(1_700_000, Some(2_000_000)), 2_000_000);
         // A device-clocked plant: the device ends the cycle.
         assert_eq!(c.answer_due_ns(1_700_000, None), 2_200_000);
+        // Woke 1.3 ms late (a held vCPU): the periods it skipped are its overruns; the cycle it
+        // publishes in ends at 3 ms, and the answer is due by then, not by the 2 ms already past.
+        assert_eq!(c.answer_due_ns(2_300_000, Some(2_000_000)), 2_800_000);
+        assert_eq!(c.answer_due_ns(2_700_000, Some(2_000_000)), 3_000_000);
+        assert_eq!(c.answer_due_ns(2_000_000, Some(2_000_000)), 2_500_000);
+        // The next cycle starts where the schedule resumes after the skipped periods.
+        let mut s = rt::clock::Schedule::new(1_000_000, 0);
+        assert_eq!(s.deadline(), 1_000_000);
+        s.advance(2_750_000);
+        assert_eq!(s.deadline(), 3_000_000);
     }
 
     #[test]
