@@ -93,9 +93,9 @@ pub struct Options {
 
 /// Where chaosd-fakebot runs in the UDP mode. A device has its own hardware and clock; on this
 /// 2-vCPU machine it must share a core, and unpinned at the normal scheduler it is kept off both
-/// by the two SCHED_FIFO loops polling for their inputs (it fell 1300-1700 cycles behind in 14 s,
-/// and its round trip p99 was 330-350 µs). So it runs beside the plant: on its core, above its
-/// priority, blocking for each answer (see `plant::udp::fakebot::Placement`).
+/// by the two SCHED_FIFO loops polling for their inputs. So it runs beside the plant: on its
+/// core, above its priority, blocking for each answer (see `plant::udp::fakebot::Placement`;
+/// README, "The device beside the bridge", has the numbers).
 pub const DEVICE_ARGS: [&str; 1] = ["--beside-plant"];
 
 impl Options {
@@ -295,20 +295,34 @@ fn spawn_plant_side(
     Ok((bridge, Some(device)))
 }
 
-/// One sentence on where the UDP mode's device ran.
-fn device_placement(free: bool) -> String {
+/// One sentence on where the UDP mode's device ran: what was asked, and what chaosd-fakebot says
+/// the kernel granted (its log's placement line and warnings, from the first UDP run).
+fn device_placement(free: bool, results: &[RateResult]) -> String {
     if free {
-        "The device ran unpinned at the normal scheduler and polled for its answers \
-         (`--device-free`).\n\n"
-            .into()
-    } else {
-        format!(
-            "The device ran on the bridge's core, 10 SCHED_FIFO steps above it, and blocked for its \
-             answers (`chaosd-fakebot {}`), so its clock preempts the bridge as a device's own \
-             would; `--device-free` runs it unpinned instead.\n\n",
-            DEVICE_ARGS.join(" ")
-        )
+        return "The device ran unpinned at the normal scheduler and polled for its answers \
+                (`--device-free`).\n\n"
+            .into();
     }
+    let granted = results
+        .iter()
+        .filter(|r| r.mode == Mode::Udp)
+        .find_map(|r| std::fs::read_to_string(r.dir.join("fakebot.log")).ok())
+        .map(|log| {
+            log.lines()
+                .filter_map(|l| l.strip_prefix("chaosd-fakebot: "))
+                .filter(|l| l.starts_with("core ") || l.starts_with("warning: "))
+                .collect::<Vec<_>>()
+                .join("; ")
+        })
+        .filter(|g| !g.is_empty())
+        .unwrap_or_else(|| "not reported".into());
+    format!(
+        "The device was asked to run on the bridge's core, 10 SCHED_FIFO steps above it, sleeping \
+         until its cycle and blocking for its answers (`chaosd-fakebot {}`), as a device with a \
+         clock of its own would preempt the bridge; it got: {granted}. `--device-free` runs it \
+         unpinned instead.\n\n",
+        DEVICE_ARGS.join(" ")
+    )
 }
 
 /// What chaosd-fakebot writes at exit in the UDP mode.
@@ -811,7 +825,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
          received, through chaosd-bridge and chaosd.\n\n",
     );
     if opts.modes.contains(&Mode::Udp) {
-        report.push(&device_placement(opts.device_free));
+        report.push(&device_placement(opts.device_free, &all));
     }
     report.push(&modes_table(&all));
     let targets = targets(&all);
@@ -1044,6 +1058,31 @@ mod tests {
             ),
             "{t}"
         );
+        // Where the device ran, as its log says; a run without one says so.
+        let dir = std::env::temp_dir().join(format!("e2e-placement-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(
+            dir.join("fakebot.log"),
+            "chaosd-fakebot: warning: SCHED_FIFO priority 60 refused (EPERM)\n\
+             chaosd-fakebot: core 0, SCHED_OTHER (timer slack 1 ns), memory not locked\n\
+             chaosd-fakebot: round trip ...\n",
+        )
+        .unwrap();
+        let udp = RateResult {
+            mode: Mode::Udp,
+            dir: dir.clone(),
+            ..r.clone()
+        };
+        let p = device_placement(false, &[r.clone(), udp.clone()]);
+        assert!(
+            p.contains(
+                "it got: warning: SCHED_FIFO priority 60 refused (EPERM); core 0, SCHED_OTHER"
+            ),
+            "{p}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(device_placement(false, &[udp]).contains("it got: not reported"));
+        assert!(device_placement(true, &[]).contains("--device-free"));
         assert!(
             t.contains("1.00 ms / 1.01 ms / 1.10 ms / 2.50 ms | 12 % | 30 % |"),
             "{t}"

@@ -203,11 +203,21 @@ mod tests {
         assert_eq!(c.answer_due_ns(2_300_000, Some(2_000_000)), 2_800_000);
         assert_eq!(c.answer_due_ns(2_700_000, Some(2_000_000)), 3_000_000);
         assert_eq!(c.answer_due_ns(2_000_000, Some(2_000_000)), 2_500_000);
-        // The next cycle starts where the schedule resumes after the skipped periods.
-        let mut s = rt::clock::Schedule::new(1_000_000, 0);
-        assert_eq!(s.deadline(), 1_000_000);
-        s.advance(2_750_000);
-        assert_eq!(s.deadline(), 3_000_000);
+        // Whenever the state goes out, its answer is due no later than the deadline the
+        // schedule resumes at after that cycle (so a cycle never runs into the next one), and
+        // exactly then when the cycle's end is what caps it.
+        for published in (1_000_000..6_000_000).step_by(37_000) {
+            let due = c.answer_due_ns(published, Some(2_000_000));
+            let mut s = rt::clock::Schedule::new(1_000_000, 0);
+            assert_eq!(s.deadline(), 1_000_000);
+            s.advance(published);
+            let next = s.deadline();
+            assert!(due <= next, "published {published}: due {due} after {next}");
+            assert!(due > published, "published {published}: due {due}");
+            if published + 500_000 > next {
+                assert_eq!(due, next, "published {published}");
+            }
+        }
     }
 
     #[test]

@@ -443,9 +443,13 @@ impl Loop<'_> {
     /// once.
     ///
     /// Why from the publication and not from the cycle's nominal start: the deadline is what the
-    /// controller owes, as with FCI (state sent → command received within the cycle). A cycle
-    /// that starts late because this process woke late is the plant's overrun, counted as such;
-    /// it must not be charged to the controller. `cycle_end` keeps the answer inside the cycle.
+    /// controller owes, as with FCI (state sent → command received within the cycle), and a
+    /// plant that woke late has not given the controller its time. The cycle's end still caps
+    /// it, because the clock is this process's: a state published late within its cycle leaves
+    /// the controller only the rest of that cycle. A state published after the cycle's end (the
+    /// plant woke more than a period late) belongs to the period the plant resumes in, and is
+    /// due by that period's end (`PlantConfig::answer_due_ns`); the periods skipped are the
+    /// plant's overruns.
     fn await_answer<P: Plant>(
         &mut self,
         plant: &mut P,

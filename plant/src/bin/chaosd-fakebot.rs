@@ -7,6 +7,7 @@ use control::with_dof;
 use plant::app::{self, PlantArgs};
 use plant::udp::fakebot::{self, AnswerWait, FakebotConfig, FakebotSummary, Placement};
 use plant::SimPlant;
+use rt::WaitStrategy;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -50,8 +51,9 @@ struct Args {
     #[arg(long)]
     summary: Option<PathBuf>,
     /// Run where a device with a clock of its own sits on a machine it shares with the loops:
-    /// on [plant] core, 10 SCHED_FIFO steps above [plant] priority (at most 99), blocking for
-    /// each answer so the bridge it waits on keeps the core. What e2e and the demo use.
+    /// on [plant] core, 10 SCHED_FIFO steps above [plant] priority (at most 99), sleeping until
+    /// each cycle and blocking for each answer, so the bridge keeps the core whenever the device
+    /// is not working. What e2e and the demo use.
     #[arg(long = "beside-plant", conflicts_with_all = ["core", "priority", "answer_wait"])]
     beside_plant: bool,
     /// Pin the device to this core.
@@ -64,7 +66,7 @@ struct Args {
     #[arg(long)]
     wait: Option<rt::WaitStrategy>,
     /// How it waits for each answer: poll (while answers come; for a device with a core of its
-    /// own) or block (in ppoll) [default: poll].
+    /// own) or block (in ppoll) [default: block with a --priority above 0, else poll].
     #[arg(long = "answer-wait")]
     answer_wait: Option<AnswerWait>,
 }
@@ -142,7 +144,19 @@ fn run(a: &Args) -> Result<FakebotSummary> {
     };
     if a.beside_plant {
         cfg.answer_wait = AnswerWait::Block;
+        cfg.wait = a.wait.unwrap_or(WaitStrategy::Sleep);
         cfg.placement = Placement::beside(p.core, p.priority);
+    }
+    let realtime = cfg.placement.priority > 0;
+    if realtime && a.answer_wait.is_none() {
+        cfg.answer_wait = AnswerWait::Block;
+    }
+    if realtime && (cfg.answer_wait == AnswerWait::Poll || cfg.wait == WaitStrategy::Spin) {
+        eprintln!(
+            "chaosd-fakebot: warning: at SCHED_FIFO {} a polling device keeps every lower-priority \
+             thread off its core while it polls (the bridge too, if it shares the core)",
+            cfg.placement.priority
+        );
     }
     let period = p.period_ns() as f64 * 1e-9;
     let s = &l.system;

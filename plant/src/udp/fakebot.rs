@@ -12,11 +12,12 @@
 //! Where it runs matters on a small machine. A real device is other hardware with a clock of its
 //! own; an emulator shares the cores with the bridge and the daemon, and two loops at
 //! SCHED_FIFO that poll for their inputs can keep it from running at all until one of them gives
-//! up (measured on 2 vCPUs: device round trip p50 59-77 µs, p99 207-420 µs). So it can be
-//! placed like the device it stands in for ([`Placement`]): pinned to the bridge's core at a
-//! SCHED_FIFO priority above it, where the clock preempts the bridge on time, and blocking for
-//! the answer ([`AnswerWait::Block`]) so the bridge it waits on gets the core; the bridge's send
-//! then wakes it on its own core, without waking an idle vCPU.
+//! up. So it can be placed like the device it stands in for ([`Placement`]): pinned to the
+//! bridge's core at a SCHED_FIFO priority above it, where the clock preempts the bridge on time,
+//! and sleeping until its cycle and blocking for the answer ([`AnswerWait::Block`]), so the
+//! bridge gets the core whenever the device is not working; the bridge's send then wakes it on
+//! its own core, without waking an idle vCPU. README, "The device beside the bridge", has the
+//! numbers.
 
 use super::wait::{poll_datagram, Window};
 use super::wire::{
@@ -89,8 +90,10 @@ pub struct Placement {
 }
 
 impl Placement {
-    /// On a loop's core, 10 SCHED_FIFO steps above its priority (at most 99), so the device's
-    /// clock preempts it; a loop on the normal scheduler (0) gets a device on it too.
+    /// On a loop's core, 10 SCHED_FIFO steps above its priority, so the device's clock preempts
+    /// it; a loop on the normal scheduler (0) gets a device on it too. The cap is 99: a loop at
+    /// 90-98 gets a device fewer steps above it, and a loop at 99 one at its own priority, which
+    /// does not preempt it (the device then starts its cycle when the loop next blocks).
     ///
     /// ```
     /// use plant::udp::fakebot::Placement;
@@ -326,16 +329,21 @@ impl<const N: usize> Device<'_, N> {
         if self.spike_until > monotonic_ns() {
             return; // the answer is delayed in transit: it will be found late
         }
-        // While the bridge keeps answering, its answer is due within microseconds: poll for it
-        // without blocking up to the deadline. After a miss (a stalled or dead bridge), block.
-        let spin = (self.cfg.spin_us * 1e3) as u64;
-        let mut window = Window::around(self.cfg.wait, self.sent_at, spin);
-        if self.s.started && self.s.missed_run == 0 {
-            window = window.open_until(until_ns);
-        }
-        if self.cfg.answer_wait == AnswerWait::Block {
-            window = Window::around(WaitStrategy::Sleep, self.sent_at, 0);
-        }
+        let window = match self.cfg.answer_wait {
+            AnswerWait::Block => Window::around(WaitStrategy::Sleep, self.sent_at, 0),
+            // While the bridge keeps answering, its answer is due within microseconds: poll for
+            // it without blocking up to the deadline. After a miss (a stalled or dead bridge),
+            // block.
+            AnswerWait::Poll => {
+                let spin = (self.cfg.spin_us * 1e3) as u64;
+                let w = Window::around(self.cfg.wait, self.sent_at, spin);
+                if self.s.started && self.s.missed_run == 0 {
+                    w.open_until(until_ns)
+                } else {
+                    w
+                }
+            }
+        };
         if self.pending.is_none() {
             self.pending = poll_datagram(fd, until_ns, window, || self.answer());
         }
