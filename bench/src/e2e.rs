@@ -10,8 +10,9 @@
 //! phase-locked, the state trigger over iceoryx2 (`trigger = "state"`: each state answered in its
 //! own cycle) with pub-sub alone and with the fast lane (`protocol::board`, the default), and the
 //! state trigger through the UDP bridge (`chaosd-fakebot` owning the clock ⇄ `chaosd-bridge` ⇄
-//! `chaosd`, on the loopback). The first table keeps the free-running figures; the second puts
-//! the modes next to each other at every rate, so the lane's gain is a ratio within one run.
+//! `chaosd`, on the loopback), with the device placed beside the bridge and, as before,
+//! unpinned. The first table keeps the free-running figures; the second puts the modes next to
+//! each other at every rate, so the lane's gain and the placement's are ratios within one run.
 //!
 //! The numbers come from the processes' own summaries (`daemon-summary.json`,
 //! `plant-summary.json`) and `.hgrm` files, so this benchmark reports exactly what the daemon
@@ -43,18 +44,28 @@ pub enum Mode {
     State,
     /// State-triggered over iceoryx2 pub-sub alone (`fast_lane = false`).
     PubSub,
-    /// State-triggered through chaosd-bridge and chaosd-fakebot over UDP.
+    /// State-triggered through chaosd-bridge and chaosd-fakebot over UDP, the device placed
+    /// beside the bridge ([`DEVICE_ARGS`]).
     Udp,
+    /// The same, the device unpinned at the normal scheduler and polling for its answers: the
+    /// placement it had before, kept beside `Udp` to show what the placement is worth.
+    UdpFree,
 }
 
 impl Mode {
-    pub const ALL: [Mode; 5] = [
+    pub const ALL: [Mode; 6] = [
         Mode::Clock,
         Mode::Phase,
         Mode::PubSub,
         Mode::State,
         Mode::Udp,
+        Mode::UdpFree,
     ];
+
+    /// Through the UDP bridge, with chaosd-fakebot as the device.
+    pub fn is_udp(self) -> bool {
+        matches!(self, Mode::Udp | Mode::UdpFree)
+    }
 
     pub fn name(self) -> &'static str {
         match self {
@@ -63,6 +74,7 @@ impl Mode {
             Mode::State => "state-triggered (iceoryx2, fast lane)",
             Mode::PubSub => "state-triggered (iceoryx2 pub-sub only)",
             Mode::Udp => "state-triggered (UDP bridge)",
+            Mode::UdpFree => "state-triggered (UDP bridge, device unpinned)",
         }
     }
 
@@ -73,6 +85,7 @@ impl Mode {
             Mode::State => "-state",
             Mode::PubSub => "-pubsub",
             Mode::Udp => "-udp",
+            Mode::UdpFree => "-udp-free",
         }
     }
 }
@@ -86,9 +99,6 @@ pub struct Options {
     pub seconds: f64,
     /// `spin_us` of the daemon and the plant, if not their default.
     pub spin_us: Option<f64>,
-    /// Run chaosd-fakebot unpinned at the normal scheduler, polling for answers, instead of
-    /// placed like a device ([`DEVICE_ARGS`]).
-    pub device_free: bool,
 }
 
 /// Where chaosd-fakebot runs in the UDP mode. A device has its own hardware and clock; on this
@@ -105,7 +115,6 @@ impl Options {
             modes: Mode::ALL.to_vec(),
             seconds: if quick { 3.0 } else { 20.0 },
             spin_us: None,
-            device_free: false,
         }
     }
 
@@ -122,7 +131,7 @@ impl Options {
             );
         }
         if self.modes.is_empty() {
-            bail!("e2e modes: at least one of clock, phase, state, udp");
+            bail!("e2e modes: at least one of clock, phase, pubsub, state, udp, udp-free");
         }
         if let Some(s) = self.spin_us {
             if !(s.is_finite() && (0.0..=100_000.0).contains(&s)) {
@@ -166,7 +175,7 @@ pub fn config_text(
 ) -> String {
     let trigger = match mode {
         Mode::Clock | Mode::Phase => "clock",
-        Mode::State | Mode::PubSub | Mode::Udp => "state",
+        Mode::State | Mode::PubSub | Mode::Udp | Mode::UdpFree => "state",
     };
     let lane = if mode == Mode::PubSub {
         "fast_lane = false\n"
@@ -266,7 +275,6 @@ fn spawn_plant_side(
     cfg: &Path,
     dir: &Path,
     secs: f64,
-    device_free: bool,
 ) -> Result<(Child, Option<Child>)> {
     let base = |exe: &Path| {
         let mut cmd = Command::new(exe);
@@ -275,7 +283,7 @@ fn spawn_plant_side(
             .args(["--duration", &format!("{}", secs + 30.0)]);
         cmd
     };
-    if mode != Mode::Udp {
+    if !mode.is_udp() {
         let cmd = base(&sibling("chaosd-plant")?);
         let plant = Child::spawn("chaosd-plant", cmd, &dir.join("plant.log"), Stdout::Log)?;
         return Ok((plant, None));
@@ -285,7 +293,7 @@ fn spawn_plant_side(
     let mut cmd = base(&sibling("chaosd-fakebot")?);
     cmd.args(["--listen", &d, "--peer", &b, "--summary"])
         .arg(dir.join(DEVICE_SUMMARY));
-    if !device_free {
+    if mode == Mode::Udp {
         cmd.args(DEVICE_ARGS);
     }
     let device = Child::spawn("chaosd-fakebot", cmd, &dir.join("fakebot.log"), Stdout::Log)?;
@@ -295,14 +303,9 @@ fn spawn_plant_side(
     Ok((bridge, Some(device)))
 }
 
-/// One sentence on where the UDP mode's device ran: what was asked, and what chaosd-fakebot says
-/// the kernel granted (its log's placement line and warnings, from the first UDP run).
-fn device_placement(free: bool, results: &[RateResult]) -> String {
-    if free {
-        return "The device ran unpinned at the normal scheduler and polled for its answers \
-                (`--device-free`).\n\n"
-            .into();
-    }
+/// Where the UDP modes' device ran: what was asked, and what chaosd-fakebot says the kernel
+/// granted (its log's placement line and warnings, from the first `udp` run).
+fn device_placement(results: &[RateResult]) -> String {
     let granted = results
         .iter()
         .filter(|r| r.mode == Mode::Udp)
@@ -317,10 +320,10 @@ fn device_placement(free: bool, results: &[RateResult]) -> String {
         .filter(|g| !g.is_empty())
         .unwrap_or_else(|| "not reported".into());
     format!(
-        "The device was asked to run on the bridge's core, 10 SCHED_FIFO steps above it, sleeping \
-         until its cycle and blocking for its answers (`chaosd-fakebot {}`), as a device with a \
-         clock of its own would preempt the bridge; it got: {granted}. `--device-free` runs it \
-         unpinned instead.\n\n",
+        "In the `udp` mode the device was asked to run on the bridge's core, 10 SCHED_FIFO steps \
+         above it, sleeping until its cycle and blocking for its answers (`chaosd-fakebot {}`), \
+         as a device with a clock of its own would preempt the bridge; it got: {granted}. In \
+         `udp-free` it ran unpinned at the normal scheduler and polled for its answers.\n\n",
         DEVICE_ARGS.join(" ")
     )
 }
@@ -399,8 +402,7 @@ fn one_rate(
     let ns = unique_namespace("e2e");
     std::fs::write(&cfg, config_text(&ns, &dir, rate_hz, mode, opts.spin_us))?;
 
-    let (mut plant, mut device) =
-        spawn_plant_side(mode, &cfg, &dir, opts.seconds, opts.device_free)?;
+    let (mut plant, mut device) = spawn_plant_side(mode, &cfg, &dir, opts.seconds)?;
     std::thread::sleep(Duration::from_millis(300));
     if plant.poll_exit().is_some() {
         return Err(plant.failure("it stopped at start-up"));
@@ -511,7 +513,7 @@ fn one_rate(
     };
     let (secs, hz) = (b.0.duration_since(a.0).as_secs_f64(), clock_ticks_per_s());
     let device = match mode {
-        Mode::Udp => Some(read_json(&dir.join(DEVICE_SUMMARY))?),
+        Mode::Udp | Mode::UdpFree => Some(read_json(&dir.join(DEVICE_SUMMARY))?),
         _ => None,
     };
     Ok(RateResult {
@@ -824,8 +826,8 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
          the clock; its column is the whole path as the device sees it: state datagram sent → command datagram \
          received, through chaosd-bridge and chaosd.\n\n",
     );
-    if opts.modes.contains(&Mode::Udp) {
-        report.push(&device_placement(opts.device_free, &all));
+    if opts.modes.iter().any(|m| m.is_udp()) {
+        report.push(&device_placement(&all));
     }
     report.push(&modes_table(&all));
     let targets = targets(&all);
@@ -884,7 +886,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
     };
     for r in all
         .iter()
-        .filter(|r| matches!(r.mode, Mode::State | Mode::PubSub | Mode::Udp))
+        .filter(|r| matches!(r.mode, Mode::State | Mode::PubSub) || r.mode.is_udp())
     {
         let path = r.dir.join("plant-round-trip.hgrm");
         let text = std::fs::read_to_string(&path)
@@ -1073,7 +1075,7 @@ mod tests {
             dir: dir.clone(),
             ..r.clone()
         };
-        let p = device_placement(false, &[r.clone(), udp.clone()]);
+        let p = device_placement(&[r.clone(), udp.clone()]);
         assert!(
             p.contains(
                 "it got: warning: SCHED_FIFO priority 60 refused (EPERM); core 0, SCHED_OTHER"
@@ -1081,8 +1083,7 @@ mod tests {
             "{p}"
         );
         std::fs::remove_dir_all(&dir).unwrap();
-        assert!(device_placement(false, &[udp]).contains("it got: not reported"));
-        assert!(device_placement(true, &[]).contains("--device-free"));
+        assert!(device_placement(&[udp]).contains("it got: not reported"));
         assert!(
             t.contains("1.00 ms / 1.01 ms / 1.10 ms / 2.50 ms | 12 % | 30 % |"),
             "{t}"
@@ -1121,7 +1122,6 @@ mod tests {
             modes: Mode::ALL.to_vec(),
             seconds: 3.0,
             spin_us: None,
-            device_free: false,
         }
         .validate()
         .is_err());
@@ -1130,7 +1130,6 @@ mod tests {
             modes: Mode::ALL.to_vec(),
             seconds: 1.0,
             spin_us: None,
-            device_free: false,
         }
         .validate()
         .is_err());

@@ -142,17 +142,14 @@ struct E2eArgs {
     /// Modes (comma-separated): clock (free-running), phase (clock, phase-locked to the plant's
     /// stamps), pubsub (state-triggered over iceoryx2 pub-sub alone), state (state-triggered
     /// over iceoryx2 with the fast lane), udp (state-triggered through chaosd-bridge and
-    /// chaosd-fakebot). Default: all five.
+    /// chaosd-fakebot, the device beside the bridge), udp-free (the same, the device unpinned).
+    /// Default: all six.
     #[arg(long, value_delimiter = ',')]
     modes: Option<Vec<E2eMode>>,
     /// How long the daemon and the plant poll without sleeping around an expected sample (µs):
     /// their `spin_us` [default: the config default].
     #[arg(long)]
     spin_us: Option<f64>,
-    /// Run chaosd-fakebot unpinned at the normal scheduler, polling for its answers (the udp
-    /// mode's device placement before it was pinned to the plant's core above the bridge).
-    #[arg(long)]
-    device_free: bool,
 }
 
 #[derive(Args)]
@@ -175,6 +172,7 @@ enum E2eMode {
     State,
     Pubsub,
     Udp,
+    UdpFree,
 }
 
 fn command_line() -> String {
@@ -244,7 +242,6 @@ fn e2e_opts(quick: bool, a: &E2eArgs) -> Result<e2e::Options> {
         o.rates = r.clone();
     }
     o.spin_us = a.spin_us;
-    o.device_free = a.device_free;
     if let Some(m) = &a.modes {
         o.modes = m
             .iter()
@@ -254,6 +251,7 @@ fn e2e_opts(quick: bool, a: &E2eArgs) -> Result<e2e::Options> {
                 E2eMode::State => e2e::Mode::State,
                 E2eMode::Pubsub => e2e::Mode::PubSub,
                 E2eMode::Udp => e2e::Mode::Udp,
+                E2eMode::UdpFree => e2e::Mode::UdpFree,
             })
             .collect();
     }
