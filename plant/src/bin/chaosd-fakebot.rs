@@ -5,6 +5,7 @@ use anyhow::{ensure, Context, Result};
 use clap::Parser;
 use control::with_dof;
 use plant::app::{self, PlantArgs};
+use plant::config::PlantConfig;
 use plant::udp::fakebot::{self, AnswerWait, FakebotConfig, FakebotSummary, Placement};
 use plant::SimPlant;
 use rt::WaitStrategy;
@@ -119,11 +120,44 @@ fn validate(a: &Args) -> Result<()> {
     Ok(())
 }
 
+/// Where the device runs and how it waits: `--beside-plant` or the flags one by one. A device
+/// that shares a core (`--beside-plant`) or runs at SCHED_FIFO blocks for its answers unless
+/// told otherwise; one that polls at SCHED_FIFO is warned about.
+fn placement(a: &Args, p: &PlantConfig) -> (Placement, WaitStrategy, AnswerWait) {
+    let (placement, wait) = if a.beside_plant {
+        (
+            Placement::beside(p.core, p.priority),
+            a.wait.unwrap_or(WaitStrategy::Sleep),
+        )
+    } else {
+        let placement = Placement {
+            core: a.core,
+            priority: a.priority.unwrap_or(0),
+        };
+        (placement, a.wait.unwrap_or(p.wait))
+    };
+    let realtime = placement.priority > 0;
+    let answer_wait = a.answer_wait.unwrap_or(if a.beside_plant || realtime {
+        AnswerWait::Block
+    } else {
+        AnswerWait::Poll
+    });
+    if realtime && (answer_wait == AnswerWait::Poll || wait == WaitStrategy::Spin) {
+        eprintln!(
+            "chaosd-fakebot: warning: at SCHED_FIFO {} a polling device keeps every lower-priority \
+             thread off its core while it polls (the bridge too, if it shares the core)",
+            placement.priority
+        );
+    }
+    (placement, wait, answer_wait)
+}
+
 fn run(a: &Args) -> Result<FakebotSummary> {
     validate(a)?;
     let l = app::load(&a.plant)?;
     let p = &l.plant;
-    let mut cfg = FakebotConfig {
+    let (placement, wait, answer_wait) = placement(a, p);
+    let cfg = FakebotConfig {
         listen: a.listen,
         peer: a.peer,
         rate_hz: p.rate_hz,
@@ -134,30 +168,11 @@ fn run(a: &Args) -> Result<FakebotSummary> {
         restart_every_s: a.restart_every,
         restart_pause_ms: a.restart_pause_ms,
         seed: a.seed,
-        wait: a.wait.unwrap_or(p.wait),
+        wait,
         spin_us: p.spin_us,
-        answer_wait: a.answer_wait.unwrap_or(AnswerWait::Poll),
-        placement: Placement {
-            core: a.core,
-            priority: a.priority.unwrap_or(0),
-        },
+        answer_wait,
+        placement,
     };
-    if a.beside_plant {
-        cfg.answer_wait = AnswerWait::Block;
-        cfg.wait = a.wait.unwrap_or(WaitStrategy::Sleep);
-        cfg.placement = Placement::beside(p.core, p.priority);
-    }
-    let realtime = cfg.placement.priority > 0;
-    if realtime && a.answer_wait.is_none() {
-        cfg.answer_wait = AnswerWait::Block;
-    }
-    if realtime && (cfg.answer_wait == AnswerWait::Poll || cfg.wait == WaitStrategy::Spin) {
-        eprintln!(
-            "chaosd-fakebot: warning: at SCHED_FIFO {} a polling device keeps every lower-priority \
-             thread off its core while it polls (the bridge too, if it shares the core)",
-            cfg.placement.priority
-        );
-    }
     let period = p.period_ns() as f64 * 1e-9;
     let s = &l.system;
     let c = with_dof!(s.n(), N => fakebot::run::<N>(&cfg, || SimPlant::<N>::new(s.model::<N>(), s.initial_state(), period, p.substeps, p.brake_gain), l.duration))?;

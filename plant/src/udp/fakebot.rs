@@ -59,8 +59,8 @@ pub struct FakebotConfig {
     pub placement: Placement,
 }
 
-/// How the device waits for the answer to the state it just sent.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// How the device waits for the answer to the state it just sent (`--answer-wait poll|block`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum AnswerWait {
     /// Poll without blocking while answers keep coming (a hybrid window that stays open until
     /// the deadline); block after a miss. The fastest when the device has a core to itself.
@@ -68,17 +68,6 @@ pub enum AnswerWait {
     /// Block in `ppoll` until the answer or the deadline. Required when the device shares a core
     /// with the bridge at a higher priority: polling there would keep the bridge off the core.
     Block,
-}
-
-impl std::str::FromStr for AnswerWait {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "poll" => Ok(Self::Poll),
-            "block" => Ok(Self::Block),
-            _ => Err(format!("answer wait {s:?}: expected poll or block")),
-        }
-    }
 }
 
 /// Where the device's thread runs: a core to pin it to, and a SCHED_FIFO priority (0 = the normal
