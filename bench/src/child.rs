@@ -299,7 +299,39 @@ pub fn parse_stat_cpu(text: &str) -> Result<u64> {
     Ok(field(14)? + field(15)?)
 }
 
-/// Clock ticks per second for [`cpu_ticks`].
+/// Clock ticks each CPU has been stolen so far, indexed by CPU number: time the hypervisor ran
+/// something else while that vCPU wanted to run (`steal`, the 8th value of `/proc/stat`'s
+/// `cpuN` lines).
+pub fn steal_ticks() -> Result<Vec<u64>> {
+    let text = std::fs::read_to_string("/proc/stat").context("cannot read /proc/stat")?;
+    parse_steal(&text)
+}
+
+/// The `steal` column of each `cpuN` line of `/proc/stat`'s text, indexed by N.
+pub fn parse_steal(text: &str) -> Result<Vec<u64>> {
+    let mut out = Vec::new();
+    for line in text.lines() {
+        let mut f = line.split_whitespace();
+        let Some(n) = f.next().and_then(|c| c.strip_prefix("cpu")) else {
+            continue;
+        };
+        let Ok(n) = n.parse::<usize>() else {
+            continue; // the "cpu" total line
+        };
+        let steal = f
+            .nth(7)
+            .ok_or_else(|| anyhow!("/proc/stat line cpu{n} has no steal column"))?
+            .parse::<u64>()
+            .with_context(|| format!("steal of cpu{n} in /proc/stat is not a number"))?;
+        if out.len() <= n {
+            out.resize(n + 1, 0);
+        }
+        out[n] = steal;
+    }
+    Ok(out)
+}
+
+/// Clock ticks per second for [`cpu_ticks`] and [`steal_ticks`].
 pub fn clock_ticks_per_s() -> f64 {
     // SAFETY: sysconf has no preconditions.
     let t = unsafe { libc::sysconf(libc::_SC_CLK_TCK) };
@@ -313,6 +345,19 @@ pub fn clock_ticks_per_s() -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn steal_is_read_per_cpu() {
+        let text = "cpu  7574338 0 501643 6676893 23070 0 23546 35248 0 0\n\
+                    cpu0 3770448 0 260449 3350124 7126 0 7515 17906 0 0\n\
+                    cpu1 3803889 0 241194 3326769 15943 0 16031 17341 0 0\n\
+                    intr 1 2 3\n";
+        assert_eq!(parse_steal(text).unwrap(), vec![17906, 17341]);
+        let short = "cpu0 1 2 3\n";
+        assert!(parse_steal(short).unwrap_err().to_string().contains("cpu0"));
+        // This machine's own: one entry per CPU.
+        assert!(!steal_ticks().unwrap().is_empty());
+    }
 
     fn dir(test: &str) -> PathBuf {
         let d =

@@ -19,7 +19,7 @@
 //! measures about itself. CPU use is sampled from `/proc/<pid>/stat` (utime + stime, all
 //! threads) over a window inside the daemon's run, start-up and shutdown excluded.
 
-use crate::child::{clock_ticks_per_s, cpu_ticks, Child, Stdout};
+use crate::child::{clock_ticks_per_s, cpu_ticks, steal_ticks, Child, Stdout};
 use crate::latency::unique_namespace;
 use crate::plot::Panel;
 use crate::report::{header, Report};
@@ -212,6 +212,9 @@ pub struct RateResult {
     pub plant: Value,
     pub cpu_daemon: f64,
     pub cpu_plant: f64,
+    /// Each CPU's steal over the run (ms): the host running something else on that vCPU. Empty
+    /// if `/proc/stat` could not be read.
+    pub steal_ms: Vec<f64>,
     pub dir: PathBuf,
 }
 
@@ -402,6 +405,7 @@ fn one_rate(
     let ns = unique_namespace("e2e");
     std::fs::write(&cfg, config_text(&ns, &dir, rate_hz, mode, opts.spin_us))?;
 
+    let steal_before = steal_ticks().ok();
     let (mut plant, mut device) = spawn_plant_side(mode, &cfg, &dir, opts.seconds)?;
     std::thread::sleep(Duration::from_millis(300));
     if plant.poll_exit().is_some() {
@@ -485,6 +489,7 @@ fn one_rate(
         }
         std::thread::sleep(Duration::from_millis(5));
     }
+    let steal_after = steal_ticks().ok();
     stop.store(true, Ordering::Relaxed);
     let requests = client.map(|h| h.join().unwrap_or(0));
     let scrapes = match scraper {
@@ -526,6 +531,14 @@ fn one_rate(
         plant: read_json(&dir.join("plant-summary.json"))?,
         cpu_daemon: (b.1 - a.1) as f64 / hz / secs,
         cpu_plant: (b.2 - a.2) as f64 / hz / secs,
+        steal_ms: match (steal_before, steal_after) {
+            (Some(a), Some(b)) if a.len() == b.len() => a
+                .iter()
+                .zip(&b)
+                .map(|(a, b)| b.saturating_sub(*a) as f64 / hz * 1e3)
+                .collect(),
+            _ => Vec::new(),
+        },
         dir,
     })
 }
@@ -809,11 +822,13 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
          {} s per rate. Wake-up lateness and state age as the daemon measures them; the command round trip is \
          the plant's: state published → answering command picked up at the plant's next tick, so it includes \
          waiting for that tick. State age is the age of the newest state at the daemon's tick; the two loops start \
-         independently, so it is set by their phase and lies anywhere within one period. CPU is utime + stime over the run (100 % = one core).\n\n",
+         independently, so it is set by their phase and lies anywhere within one period. CPU is utime + stime over the run (100 % = one core). \
+         Kernel RT throttling: {}.\n\n",
         all.first().map_or("?".into(), |r| rt_line(&r.daemon)),
         all.first().map_or("?".into(), |r| rt_line(&r.plant)),
         opts.spin_us.map_or(String::new(), |s| format!(" with spin_us = {s}")),
-        opts.seconds
+        opts.seconds,
+        rt::throttle::RtLimit::read().map_or("unknown".into(), |l| l.describe())
     ));
     if !results.is_empty() {
         report.push(&table(&results));
@@ -836,6 +851,17 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
         for t in &targets {
             report.push(&format!("{}\n", t.line()));
         }
+    }
+    if all.iter().any(|r| r.plant["in_time_share"].is_f64()) {
+        report.push(
+            "\n**Whose late cycles.** A late cycle is an answer that missed the plant's deadline, half a \
+             period after the state went out. While it polls for a state, the daemon counts each stretch of at \
+             least 10 µs without its core (the host holding the vCPU, an interrupt, a preemption), and each sleep \
+             of that wait that ended late, by how much (`rt::gaps`): one of half a period or more costs at least \
+             one cycle. Steal is the time the host ran something else on that vCPU over the run (`/proc/stat`, \
+             in 10 ms steps).\n\n",
+        );
+        report.push(&crate::late::late_table(&all));
     }
     if let Some((idle, hammered, scraped)) = &load_runs {
         report.push(&format!(
@@ -975,6 +1001,7 @@ mod tests {
             plant,
             cpu_daemon: 0.0,
             cpu_plant: 0.0,
+            steal_ms: Vec::new(),
             dir: PathBuf::new(),
         };
         use serde_json::json as j;
@@ -1034,6 +1061,7 @@ mod tests {
             plant,
             cpu_daemon: 0.12,
             cpu_plant: 0.3,
+            steal_ms: vec![20.0, 10.0],
             dir: PathBuf::new(),
         };
         let hammered = RateResult {

@@ -19,6 +19,7 @@ mod compute;
 mod cyclictest;
 mod e2e;
 mod jitter;
+mod late;
 mod latency;
 mod naive;
 mod plan;

@@ -48,6 +48,12 @@ pub struct Counters {
     /// States from a plant the handshake has not agreed to (not yet, or refused): ignored
     /// unread. Not a rejection: every plant's first states arrive before its handshake.
     pub not_agreed: u64,
+    /// State trigger: stretches of the loop without its core, between two of its clock reads
+    /// (`rt::gaps`): the host stalling the vCPU, an interrupt, a preemption. Late answers with
+    /// these behind them were the machine's, not the law's.
+    pub wait_gaps: rt::gaps::Gaps,
+    /// State trigger: sleeps in that wait that ended late (`rt::gaps::GapMeter::late_wakes`).
+    pub late_wakes: rt::gaps::Gaps,
 }
 
 impl Counters {

@@ -441,6 +441,33 @@ fn print_answers(s: &DaemonSetup, p: &serde_json::Value) {
     }
 }
 
+/// State trigger: how often the daemon's core was gone while it waited for states, so that late
+/// cycles can be told apart from a slow law (see `rt::gaps`).
+fn print_core_gone(s: &DaemonSetup, c: &daemon::controller::Counters) {
+    if s.daemon.trigger != rt::Trigger::State {
+        return;
+    }
+    // Half a period, or the next of the buckets' bounds above it (2 kHz: 500 µs).
+    let half = s.daemon.period_ns() / 2;
+    let bound = rt::gaps::Gaps::BOUNDS_NS
+        .into_iter()
+        .find(|&b| b >= half)
+        .unwrap_or(half);
+    let (g, w) = (&c.wait_gaps, &c.late_wakes);
+    say!(
+        "core gone             while waiting for states: {} stretches of ≥ 10 µs without the core while polling ({:.1} ms in all, longest {:.0} µs), {} sleeps woke ≥ 10 µs late (longest {:.0} µs); {} and {} of them ≥ {} µs (half a period: {} µs)",
+        g.count,
+        g.total_ns as f64 / 1e6,
+        g.max_ns as f64 / 1e3,
+        w.count,
+        w.max_ns as f64 / 1e3,
+        g.at_least(bound),
+        w.at_least(bound),
+        bound / 1000,
+        half / 1000
+    );
+}
+
 fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::Value>, out: &Path) {
     let c = &d.counters;
     say!("\n== chaosd demo report ==");
@@ -483,6 +510,7 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
             }
         );
         print_answers(s, p);
+        print_core_gone(s, c);
     } else {
         say!("command round trip    n/a (the plant wrote no summary)");
     }

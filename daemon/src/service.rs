@@ -191,11 +191,16 @@ fn control_loop<const N: usize>(
     } else {
         None
     };
+    let period = d.period_ns();
+    let spin = (d.spin_us * 1000.0) as u64;
+    let fifo = rt_report.sched_fifo.is_some();
+    let limit = rt::throttle::RtLimit::read();
+    rt_report
+        .warnings
+        .extend(rt::throttle::warning(limit, fifo, d.wait, spin, period));
     let _ = rt_tx.try_send(rt_report.clone());
     // Said by the reporter thread (`log_started`): the loop thread writes no logs.
 
-    let period = d.period_ns();
-    let spin = (d.spin_us * 1000.0) as u64;
     let start = monotonic_ns();
     let end = duration.map(|s| start.saturating_add((s * 1e9) as u64));
     if d.trigger == rt::Trigger::State {

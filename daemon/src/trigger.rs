@@ -23,6 +23,7 @@ use iceoryx2::prelude::ipc;
 use iceoryx2::sample_mut_uninit::SampleMutUninit;
 use protocol::board::{pubsub_due, DaemonLane};
 use protocol::{monotonic_ns, CommandSample, StateSample};
+use rt::gaps::GapMeter;
 use rt::trigger::Window;
 use rt::WaitStrategy;
 use std::mem::MaybeUninit;
@@ -171,6 +172,8 @@ pub struct StateLoop<'a> {
     copy: Option<CommandSample>,
     /// The newest state came by the fast lane: wait on the board, and look at pub-sub rarely.
     lane_first: bool,
+    /// Where the wait for each state lost its core.
+    meter: GapMeter,
 }
 
 impl<'a> StateLoop<'a> {
@@ -184,6 +187,7 @@ impl<'a> StateLoop<'a> {
             missed: 0,
             copy: None,
             lane_first: false,
+            meter: GapMeter::default(),
         }
     }
 
@@ -209,9 +213,10 @@ impl<'a> StateLoop<'a> {
                 self.ports.lane,
             );
             let (lane_first, mut poll) = (self.lane_first, 0u32);
-            rt::trigger::poll_within(
+            rt::trigger::poll_within_metered(
                 window,
                 give_up,
+                &mut self.meter,
                 || {
                     poll = poll.wrapping_add(1);
                     newest_unseen(sub, lane, lane_first, poll, &mut seen)
@@ -224,6 +229,7 @@ impl<'a> StateLoop<'a> {
             )
         };
         let woke = monotonic_ns();
+        self.meter.read_at(woke);
         let got = got.map(|(s, via_lane)| {
             self.lane_first = via_lane;
             s
@@ -238,6 +244,7 @@ impl<'a> StateLoop<'a> {
             (None, _) => {}
         }
         let done = monotonic_ns();
+        self.meter.read_at(done);
         Answered {
             got,
             outcome,
@@ -266,6 +273,8 @@ impl<'a> StateLoop<'a> {
         // another core holds costs a transfer.
         crate::watchdog::beat(ctl.counters.ticks);
         a.seen.into_counters(ctl);
+        ctl.counters.wait_gaps = self.meter.gaps;
+        ctl.counters.late_wakes = self.meter.late_wakes;
         if a.outcome.state_age_ns.is_some() {
             self.last = a.got;
             self.missed = 0;

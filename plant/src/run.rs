@@ -136,11 +136,18 @@ pub fn run<P: Plant>(
     let mut handshake = crate::handshake::Handshake::start(&names, *arm, plant_id, cfg.core)?;
 
     plant.activate()?;
-    let rt_report = rt::setup::apply(rt::setup::RtRequest {
+    let mut rt_report = rt::setup::apply(rt::setup::RtRequest {
         core: cfg.core,
         priority: cfg.priority,
         lock_memory: cfg.lock_memory,
     });
+    rt_report.warnings.extend(rt::throttle::warning(
+        rt::throttle::RtLimit::read(),
+        rt_report.sched_fifo.is_some(),
+        cfg.wait,
+        (cfg.spin_us * 1000.0) as u64,
+        cfg.period_ns(),
+    ));
     for w in &rt_report.warnings {
         tracing::warn!("{w}");
     }

@@ -8,12 +8,14 @@
 pub mod alloc_count;
 pub mod clock;
 pub mod files;
+pub mod gaps;
 pub mod hist;
 pub mod log;
 pub mod news;
 pub mod notify;
 pub mod setup;
 pub mod signal;
+pub mod throttle;
 pub mod trigger;
 
 pub use clock::{wait_until, wait_until_warm, WaitStrategy};

@@ -6,6 +6,7 @@
 //! back within the same cycle. [`poll_until`] is that wait, with the same three strategies as
 //! [`crate::wait_until`], so the daemon and the plant wait for each other exactly alike.
 
+use crate::gaps::GapMeter;
 use crate::{monotonic_ns, WaitStrategy};
 use serde::{Deserialize, Serialize};
 
@@ -163,6 +164,22 @@ pub fn poll_until_warm<T>(
 pub fn poll_within<T>(
     window: Window,
     deadline_ns: u64,
+    poll: impl FnMut() -> Option<T>,
+    warm: impl FnMut(),
+) -> Option<T> {
+    poll_within_metered(window, deadline_ns, &mut GapMeter::default(), poll, warm)
+}
+
+/// [`poll_within`], counting in `meter` the stretches its core was taken while it polled
+/// without sleeping, and how late each sleep ended (see [`crate::gaps`]). The meter's run goes on
+/// from the caller's last read before the call, and is still open on return: the caller's next
+/// read through the meter (`GapMeter::read_at`) counts a stretch that ended inside the successful
+/// poll, without a clock read on the path.
+#[inline]
+pub fn poll_within_metered<T>(
+    window: Window,
+    deadline_ns: u64,
+    meter: &mut GapMeter,
     mut poll: impl FnMut() -> Option<T>,
     mut warm: impl FnMut(),
 ) -> Option<T> {
@@ -172,7 +189,7 @@ pub fn poll_within<T>(
     let wake = window.from_ns.min(deadline_ns);
     let mut slept = wake > monotonic_ns();
     if slept {
-        crate::clock::sleep_until(wake);
+        nap(meter, wake);
     }
     loop {
         if let Some(v) = poll() {
@@ -183,17 +200,25 @@ pub fn poll_within<T>(
             warm();
             continue;
         }
-        let now = monotonic_ns();
+        let now = meter.read();
         if now >= deadline_ns {
             return None;
         }
         if now >= window.to_ns {
-            crate::clock::sleep_until((now + SLEEP_POLL_NS).min(deadline_ns));
+            nap(meter, (now + SLEEP_POLL_NS).min(deadline_ns));
             slept = true;
         } else {
             core::hint::spin_loop();
         }
     }
+}
+
+/// A sleep the wait takes on purpose: not a stretch without the core, but counted if it ends late.
+#[inline]
+fn nap(meter: &mut GapMeter, until_ns: u64) {
+    meter.forget();
+    crate::clock::sleep_until(until_ns);
+    meter.woke(until_ns, monotonic_ns());
 }
 
 #[cfg(test)]
@@ -245,6 +270,44 @@ mod tests {
         assert!(run(false) >= 2);
         let sleep = Window::around(WaitStrategy::Sleep, 7, 50_000);
         assert_eq!(sleep.open_until(u64::MAX), sleep);
+    }
+
+    #[test]
+    fn the_meter_counts_polls_that_lost_the_core_and_never_sleeps() {
+        // The successful poll keeps the core for 300 µs, as a host stall at that moment would:
+        // the wait returns with its run open, and the caller's close counts the stretch.
+        let mut m = GapMeter::default();
+        let mut n = 0;
+        let got = poll_within_metered(
+            Window::ALWAYS,
+            monotonic_ns() + 1_000_000_000,
+            &mut m,
+            || {
+                n += 1;
+                if n < 200 {
+                    return None;
+                }
+                let t = monotonic_ns();
+                while monotonic_ns() < t + 300_000 {}
+                Some(())
+            },
+            || {},
+        );
+        m.close_at(monotonic_ns());
+        assert_eq!(got, Some(()));
+        assert!(
+            m.gaps.count >= 1 && m.gaps.max_ns >= 300_000,
+            "{:?}",
+            m.gaps
+        );
+        // A sleeping wait: 5 ms of sleeps between polls, none of them a gap.
+        let mut m = GapMeter::default();
+        let now = monotonic_ns();
+        let w = Window::around(WaitStrategy::Sleep, now, 0);
+        let got = poll_within_metered(w, now + 5_000_000, &mut m, || None::<()>, || {});
+        m.close_at(monotonic_ns());
+        assert_eq!(got, None);
+        assert!(m.gaps.total_ns < 2_000_000, "sleeps counted: {:?}", m.gaps);
     }
 
     #[test]

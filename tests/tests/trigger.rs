@@ -160,6 +160,15 @@ fn a_stalled_daemon_makes_late_cycles_the_plant_brakes_and_then_resumes() {
     assert!(c["late_brakes"].as_u64().unwrap() >= 1, "{p}");
     assert!(c["late_cycles"].as_u64().unwrap() >= 5, "{p}");
     assert_eq!(c["command_timeouts"], 0, "{p}");
+    // The daemon saw its own stop of at least 200 ms, whatever step of its loop it was in: as a
+    // stretch without its core, or as a sleep that woke that late (`rt::gaps`).
+    let d = read_json(&s.dir.path().join("out/daemon-summary.json"));
+    let longest = ["wait_gaps", "late_wakes"]
+        .map(|k| d["counters"][k]["max_ns"].as_u64().unwrap())
+        .into_iter()
+        .max()
+        .unwrap();
+    assert!(longest >= 190_000_000, "{}", d["counters"]);
 }
 
 #[test]
