@@ -855,10 +855,11 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
     if all.iter().any(|r| r.plant["in_time_share"].is_f64()) {
         report.push(
             "\n**Whose late cycles.** A late cycle is an answer that missed the plant's deadline, half a \
-             period after the state went out. While it polls for a state, the daemon counts each stretch of at \
-             least 10 µs without its core (the host holding the vCPU, an interrupt, a preemption), and each sleep \
-             of that wait that ended late, by how much (`rt::gaps`): one of half a period or more costs at least \
-             one cycle. Steal is the time the host ran something else on that vCPU over the run (`/proc/stat`, \
+             period after the state went out. The daemon counts each stretch of at least 10 µs between two clock \
+             reads of its loop, outside its sleeps: its core was gone (the host holding the vCPU, an interrupt, a \
+             preemption). It also counts each of its sleeps that woke 10 µs or more late, by how much \
+             (`rt::gaps`). A stretch of half a period or more while polling costs at least one cycle; a sleep that \
+             woke that late usually does. Steal is the time the host ran something else on that vCPU over the run (`/proc/stat`, \
              in 10 ms steps).\n\n",
         );
         report.push(&crate::late::late_table(&all));

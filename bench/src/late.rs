@@ -3,8 +3,9 @@
 //! Why this table exists: the same-cycle target (≥ 99.9 % answered in time) leaves 10 late cycles
 //! in 10 000, and on a shared VM the host alone can take more than that. A late cycle is an
 //! answer that missed the plant's deadline, half a period after the state went out. The daemon
-//! counts each stretch its core was taken while it polled for a state, and each sleep of that
-//! wait that ended late (`rt::gaps`); one of at least half a period costs at least one cycle.
+//! counts each stretch of its loop without its core (between two clock reads, outside its
+//! sleeps) and each of its sleeps that ended late (`rt::gaps`); a stretch of at least half a
+//! period while polling costs at least one cycle, and a sleep that ended that late usually does.
 //! `/proc/stat` counts the time the host ran something else on each vCPU (steal, in 10 ms
 //! steps). Side by side with the late cycles,
 //! they say whose the late cycles were.

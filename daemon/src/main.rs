@@ -455,7 +455,7 @@ fn print_core_gone(s: &DaemonSetup, c: &daemon::controller::Counters) {
         .unwrap_or(half);
     let (g, w) = (&c.wait_gaps, &c.late_wakes);
     say!(
-        "core gone             while waiting for states: {} stretches of ≥ 10 µs without the core while polling ({:.1} ms in all, longest {:.0} µs), {} sleeps woke ≥ 10 µs late (longest {:.0} µs); {} and {} of them ≥ {} µs (half a period: {} µs)",
+        "core gone             {} stretches of ≥ 10 µs between two clock reads of the loop ({:.1} ms in all, longest {:.0} µs), {} sleeps woke ≥ 10 µs late (longest {:.0} µs); {} and {} of them ≥ {} µs (half a period: {} µs)",
         g.count,
         g.total_ns as f64 / 1e6,
         g.max_ns as f64 / 1e3,
