@@ -347,7 +347,7 @@ pub fn human_status(body: &str) -> String {
          trigger   {}; state → command p50 {} µs, p99 {} µs; {} of answered states answered within one period\n\
          counters  {} ticks, {} commands, {} rejected samples, {} holds, {} plant restarts, {} params applied\n\
          law       tracking lost on {} ticks, near-singular on {}, target out of reach on {}, non-finite results {}\n\
-         recording {}{}",
+         recording {}{}{}",
         f("namespace"), f("pid"), f("mode"), v["t"].as_f64().unwrap_or(0.0), f("rate_hz"), f("wait"),
         if v["feedback"].as_bool() == Some(true) { "on" } else { "off" }, f("feedback_active"), f("mu"), f("tau"), f("t_on"), f("max_tau"),
         f("kp"), f("kv"), f("alpha"), f("secondary"), f("obstacles"),
@@ -363,7 +363,26 @@ pub fn human_status(body: &str) -> String {
         c["holds_entered"], c["plant_restarts"], c["params_applied"],
         c["track_lost"], c["singular"], c["out_of_reach"], c["nonfinite"],
         v["recording"].as_str().unwrap_or("off"),
+        core_gone(&v),
         v["handshake"].as_str().map_or(String::new(), |why| format!("\nhandshake {why}")),
+    )
+}
+
+/// State trigger: how often the loop's core was gone while it ran (`rt::gaps`), so that late
+/// answers can be told apart from a slow law. Empty for the clock trigger or an older daemon.
+fn core_gone(v: &serde_json::Value) -> String {
+    let (g, w) = (&v["counters"]["wait_gaps"], &v["counters"]["late_wakes"]);
+    if v["trigger"] != "state" || !g.is_object() || !w.is_object() {
+        return String::new();
+    }
+    let n = |x: &serde_json::Value| x.as_u64().unwrap_or(0);
+    format!(
+        "\ncore gone {} stretches of ≥ 10 µs between two clock reads of the loop ({:.1} ms in all, longest {:.0} µs); {} sleeps woke ≥ 10 µs late (longest {:.0} µs)",
+        n(&g["count"]),
+        n(&g["total_ns"]) as f64 / 1e6,
+        n(&g["max_ns"]) as f64 / 1e3,
+        n(&w["count"]),
+        n(&w["max_ns"]) as f64 / 1e3,
     )
 }
 

@@ -102,6 +102,10 @@ fn each_state_is_answered_in_its_own_cycle() {
         human.contains("trigger   state; state → command p50"),
         "{human}"
     );
+    assert!(
+        human.contains("\ncore gone ") && human.contains("between two clock reads of the loop"),
+        "{human}"
+    );
     assert!(s.daemon.terminate(Duration::from_secs(10)).success());
     // The plant runs on without a controller for a while: once its command timeout (50 ms) has
     // passed, those unanswered cycles are "silent" (nobody answering), not late.
