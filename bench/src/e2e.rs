@@ -856,11 +856,12 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
         report.push(
             "\n**Whose late cycles.** A late cycle is an answer that missed the plant's deadline, half a \
              period after the state went out. The daemon counts each stretch of at least 10 µs between two clock \
-             reads of its loop, outside its sleeps: its core was gone (the host holding the vCPU, an interrupt, a \
+             reads of its loop, outside its tick and its sleeps: its core was gone (the host holding the vCPU, an interrupt, a \
              preemption). It also counts each of its sleeps that woke 10 µs or more late, by how much \
-             (`rt::gaps`). A stretch of half a period or more while polling costs at least one cycle; a sleep that \
-             woke that late usually does. Steal is the time the host ran something else on that vCPU over the run (`/proc/stat`, \
-             in 10 ms steps).\n\n",
+             (`rt::gaps`). A stretch of half a period or more, or a sleep that woke that late, can cost one cycle or \
+             more (one of 0.9 ms at 10 kHz, nine). Steal is the time the host ran something else on that vCPU \
+             (`/proc/stat`), counted in 10 ms steps over the whole run with its start-up, so each figure is good \
+             to about ±10 ms.\n\n",
         );
         report.push(&crate::late::late_table(&all));
     }

@@ -5,7 +5,7 @@
 //! answer that missed the plant's deadline, half a period after the state went out. The daemon
 //! counts each stretch of its loop without its core (between two clock reads, outside its
 //! sleeps) and each of its sleeps that ended late (`rt::gaps`); a stretch of at least half a
-//! period while polling costs at least one cycle, and a sleep that ended that late usually does.
+//! period, or a sleep that ended that late, can cost one cycle or more.
 //! `/proc/stat` counts the time the host ran something else on each vCPU (steal, in 10 ms
 //! steps). Side by side with the late cycles,
 //! they say whose the late cycles were.
@@ -29,7 +29,7 @@ pub fn late_table(results: &[RateResult]) -> String {
     for r in results.iter().filter(|r| r.plant["in_time_share"].is_f64()) {
         let (d, p) = (&r.daemon, &r.plant);
         let (g, w) = (&d["counters"]["wait_gaps"], &d["counters"]["late_wakes"]);
-        let half_period_ns = 0.5e9 / r.rate_hz;
+        let half_period_ns = (0.5e9 / r.rate_hz) as u64;
         let longest = num(&g["max_ns"]).max(num(&w["max_ns"]));
         t.row(vec![
             format!("{} kHz", r.rate_hz / 1000.0),
@@ -52,22 +52,22 @@ pub fn late_table(results: &[RateResult]) -> String {
     t.render()
 }
 
-/// How many of the gaps were at least `ns` long, from `by_length` (`rt::gaps::Gaps`): exact
-/// when `ns` is one of its bounds, else counted from the bound above it (and marked "≥").
-fn at_least(g: &Value, ns: f64) -> String {
+/// How many of the gaps were at least `ns` long, from `by_length` (`rt::gaps::Gaps`), counted
+/// from `Gaps::bound_for(ns)`; when that is not `ns` itself, the bound used is named.
+fn at_least(g: &Value, ns: u64) -> String {
     let Some(buckets) = g["by_length"].as_array() else {
         return "-".into();
     };
-    let bounds = rt::gaps::Gaps::BOUNDS_NS;
-    let from = bounds.partition_point(|&lo| (lo as f64) < ns);
+    let bound = rt::gaps::Gaps::bound_for(ns);
+    let from = rt::gaps::Gaps::BOUNDS_NS.partition_point(|&lo| lo < bound);
     let n: u64 = buckets[from.min(buckets.len())..]
         .iter()
         .filter_map(Value::as_u64)
         .sum();
-    if bounds.get(from).is_some_and(|&lo| lo as f64 == ns) {
+    if bound == ns {
         n.to_string()
     } else {
-        format!("≥ {n}")
+        format!("{n} (≥ {} µs)", bound / 1000)
     }
 }
 
@@ -130,8 +130,9 @@ mod tests {
             "{t}"
         );
         assert!(!t.contains("free-running"), "{t}");
-        // 2 kHz: 250 µs is no bound; counted from 500 µs and marked.
-        assert_eq!(at_least(&gaps, 250_000.0), "≥ 4");
-        assert_eq!(at_least(&json!({}), 50_000.0), "-");
+        // 2 kHz: 250 µs is no bound; counted from 500 µs, and said so. 100 Hz: from 2 ms.
+        assert_eq!(at_least(&gaps, 250_000), "4 (≥ 500 µs)");
+        assert_eq!(at_least(&gaps, 5_000_000), "0 (≥ 2000 µs)");
+        assert_eq!(at_least(&json!({}), 50_000), "-");
     }
 }

@@ -229,7 +229,9 @@ impl<'a> StateLoop<'a> {
             )
         };
         let woke = monotonic_ns();
-        self.meter.read_at(woke);
+        // The tick (woke → done) is the compute histogram's, not the meter's: a slow law must
+        // not pass for a missing core.
+        self.meter.close_at(woke);
         let got = got.map(|(s, via_lane)| {
             self.lane_first = via_lane;
             s

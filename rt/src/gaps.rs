@@ -8,9 +8,11 @@
 //! Counting those stretches costs a subtraction per read, no system call, and tells an operator
 //! whether late answers were the controller's doing or the machine's.
 //!
-//! The caller reads the clock through the meter at each step of its loop (the wait's polls, the
-//! tick's start and end), so every stretch between two steps is watched. Only the sleeps the wait
-//! takes on purpose are not: the meter forgets its last read before each. A sleep that ends late
+//! The caller reads the clock through the meter at each step of its loop: each poll, and the end
+//! of its tick. So every stretch of the loop is watched (its waits, the rehearsal after a sleep,
+//! its bookkeeping after the send, a few microseconds each) except two: the tick itself, which
+//! the caller times on its own so that a slow law never passes for a missing core, and the sleeps
+//! the wait takes on purpose (the meter forgets its last read before each). A sleep that ends late
 //! is counted apart ([`GapMeter::late_wakes`]), by how far past the time it asked for it woke.
 //! On a VM that is tens of microseconds when nothing is wrong, and far more when the host does
 //! not run the vCPU when its timer fires.
@@ -47,10 +49,27 @@ impl Gaps {
         self.by_length[b] += 1;
     }
 
-    /// How many were at least `ns` long (`ns` one of [`Gaps::BOUNDS_NS`], else the next bound
-    /// above it).
+    /// The bound [`Gaps::at_least`] counts from for `ns`: the first of [`Gaps::BOUNDS_NS`] at or
+    /// above it, or the last one (2 ms) for anything longer.
+    ///
+    /// ```
+    /// use rt::gaps::Gaps;
+    /// assert_eq!(Gaps::bound_for(50_000), 50_000); // half a period at 10 kHz
+    /// assert_eq!(Gaps::bound_for(250_000), 500_000); // at 2 kHz
+    /// assert_eq!(Gaps::bound_for(5_000_000), 2_000_000); // at 100 Hz
+    /// ```
+    pub fn bound_for(ns: u64) -> u64 {
+        let last = Self::BOUNDS_NS[Self::BOUNDS_NS.len() - 1];
+        Self::BOUNDS_NS
+            .into_iter()
+            .find(|&b| b >= ns)
+            .unwrap_or(last)
+    }
+
+    /// How many were at least [`Gaps::bound_for`]`(ns)` long.
     pub fn at_least(&self, ns: u64) -> u64 {
-        let from = Self::BOUNDS_NS.partition_point(|&lo| lo < ns);
+        let bound = Self::bound_for(ns);
+        let from = Self::BOUNDS_NS.partition_point(|&lo| lo < bound);
         self.by_length[from..].iter().sum()
     }
 }
@@ -100,7 +119,8 @@ impl GapMeter {
         self.last_ns = now_ns;
     }
 
-    /// Ends the polling run at `now_ns`, the caller's first read after it.
+    /// Ends the run at `now_ns`, the caller's first read after it; nothing counts until the next
+    /// read opens another.
     #[inline]
     pub fn close_at(&mut self, now_ns: u64) {
         self.note(now_ns);
@@ -141,5 +161,25 @@ impl GapMeter {
         if d >= Self::MIN_NS {
             self.gaps.add(d);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stretches_land_in_the_bucket_of_their_bound() {
+        let mut g = Gaps::default();
+        for ns in [10_000, 19_999, 20_000, 1_999_999, 2_000_000, u64::MAX] {
+            g.add(ns);
+        }
+        assert_eq!(g.by_length, [2, 1, 0, 0, 0, 0, 1, 2]);
+        assert_eq!((g.count, g.max_ns, g.total_ns), (6, u64::MAX, u64::MAX));
+        assert_eq!(g.at_least(10_000), 6);
+        assert_eq!(g.at_least(20_000), 4);
+        // Between bounds: from the bound above. Past the last: from the last.
+        assert_eq!(g.at_least(15_000), 4);
+        assert_eq!(g.at_least(50_000_000), 2);
     }
 }

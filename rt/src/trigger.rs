@@ -187,7 +187,8 @@ pub fn poll_within_metered<T>(
         return Some(v);
     }
     let wake = window.from_ns.min(deadline_ns);
-    let mut slept = wake > monotonic_ns();
+    // Through the meter: the stretch since the caller's last read ends here, not in the sleep.
+    let mut slept = wake > meter.read();
     if slept {
         nap(meter, wake);
     }
@@ -308,6 +309,19 @@ mod tests {
         m.close_at(monotonic_ns());
         assert_eq!(got, None);
         assert!(m.gaps.total_ns < 2_000_000, "sleeps counted: {:?}", m.gaps);
+    }
+
+    #[test]
+    fn a_stretch_before_the_first_sleep_is_counted_not_forgotten() {
+        // The caller's last read was 300 µs ago (a stall after it); the wait then sleeps until
+        // its window opens. The stretch ends at the wait's first read, before the sleep.
+        let mut m = GapMeter::default();
+        let now = monotonic_ns();
+        m.read_at(now - 300_000);
+        let w = Window::around(WaitStrategy::Hybrid, now + 2_000_000, 50_000);
+        let got = poll_within_metered(w, now + 2_000_000, &mut m, || None::<()>, || {});
+        assert_eq!(got, None);
+        assert!(m.gaps.max_ns >= 300_000, "{:?}", m.gaps);
     }
 
     #[test]

@@ -103,7 +103,7 @@ fn each_state_is_answered_in_its_own_cycle() {
         "{human}"
     );
     assert!(
-        human.contains("\ncore gone ") && human.contains("between two clock reads of the loop"),
+        human.contains("\ncore gone ") && human.contains("sleeps woke ≥ 500 µs late"),
         "{human}"
     );
     assert!(s.daemon.terminate(Duration::from_secs(10)).success());
@@ -165,14 +165,13 @@ fn a_stalled_daemon_makes_late_cycles_the_plant_brakes_and_then_resumes() {
     assert!(c["late_cycles"].as_u64().unwrap() >= 5, "{p}");
     assert_eq!(c["command_timeouts"], 0, "{p}");
     // The daemon saw its own stop of at least 200 ms, whatever step of its loop it was in: as a
-    // stretch without its core, or as a sleep that woke that late (`rt::gaps`).
+    // stretch without its core or a sleep that woke that late (`rt::gaps`), or in a tick.
     let d = read_json(&s.dir.path().join("out/daemon-summary.json"));
-    let longest = ["wait_gaps", "late_wakes"]
-        .map(|k| d["counters"][k]["max_ns"].as_u64().unwrap())
-        .into_iter()
-        .max()
-        .unwrap();
-    assert!(longest >= 190_000_000, "{}", d["counters"]);
+    let seen = ["wait_gaps", "late_wakes"].map(|k| d["counters"][k]["max_ns"].as_u64().unwrap());
+    // Or, stopped inside a tick, as that tick's compute time.
+    let tick_ns = (d["compute"]["max_us"].as_f64().unwrap() * 1e3) as u64;
+    let longest = seen.into_iter().chain([tick_ns]).max().unwrap();
+    assert!(longest >= 190_000_000, "{} {}", d["counters"], d["compute"]);
 }
 
 #[test]
