@@ -188,10 +188,12 @@ pub fn config_text(
         String::new()
     };
     let spin = spin_us.map_or(String::new(), |s| format!("spin_us = {s:.1}\n"));
+    // A state may be a whole period old when read: at low rates, more than the default 5 ms.
+    let stale_ms = (2e3 / rate_hz).max(5.0);
     // TOML strings: the path is written as a literal string, so no escaping is needed unless it
     // holds a quote, which `run` refuses.
     format!(
-        "[daemon]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\nreport_every_s = 0.0\ntrigger = \"{trigger}\"\n{lane}{phase}{spin}\n\
+        "[daemon]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\nreport_every_s = 0.0\nstale_ms = {stale_ms:.1}\ntrigger = \"{trigger}\"\n{lane}{phase}{spin}\n\
          [plant]\nnamespace = \"{namespace}\"\noutput_dir = '{dir}'\nrate_hz = {rate_hz:.1}\ntrigger = \"{trigger}\"\n{lane}{spin}",
         dir = dir.display()
     )

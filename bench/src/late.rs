@@ -55,15 +55,11 @@ pub fn late_table(results: &[RateResult]) -> String {
 /// How many of the gaps were at least `ns` long, from `by_length` (`rt::gaps::Gaps`), counted
 /// from `Gaps::bound_for(ns)`; when that is not `ns` itself, the bound used is named.
 fn at_least(g: &Value, ns: u64) -> String {
-    let Some(buckets) = g["by_length"].as_array() else {
+    let parsed = serde_json::from_value::<rt::gaps::Gaps>(g.clone());
+    let (Some(g), true) = (parsed.ok(), g["by_length"].is_array()) else {
         return "-".into();
     };
-    let bound = rt::gaps::Gaps::bound_for(ns);
-    let from = rt::gaps::Gaps::BOUNDS_NS.partition_point(|&lo| lo < bound);
-    let n: u64 = buckets[from.min(buckets.len())..]
-        .iter()
-        .filter_map(Value::as_u64)
-        .sum();
+    let (bound, n) = (rt::gaps::Gaps::bound_for(ns), g.at_least(ns));
     if bound == ns {
         n.to_string()
     } else {

@@ -371,29 +371,18 @@ pub fn human_status(body: &str) -> String {
 /// State trigger: how often the loop's core was gone while it ran (`rt::gaps`), so that late
 /// answers can be told apart from a slow law. Empty for the clock trigger or an older daemon.
 fn core_gone(v: &serde_json::Value) -> String {
-    let (g, w) = (&v["counters"]["wait_gaps"], &v["counters"]["late_wakes"]);
-    if v["trigger"] != "state" || !g.is_object() || !w.is_object() {
+    let gaps = |k: &str| serde_json::from_value::<rt::gaps::Gaps>(v["counters"][k].clone()).ok();
+    let (Some(g), Some(w), Some(rate)) =
+        (gaps("wait_gaps"), gaps("late_wakes"), v["rate_hz"].as_f64())
+    else {
+        return String::new();
+    };
+    if v["trigger"] != "state" || rate <= 0.0 {
         return String::new();
     }
-    let n = |x: &serde_json::Value| x.as_u64().unwrap_or(0);
-    // Sleeps that woke 10 µs late are routine on a VM; the ones that matter are as late as half
-    // a period (or the buckets' bound above it).
-    let half = v["rate_hz"]
-        .as_f64()
-        .map_or(0, |r| (0.5e9 / r.max(1.0)) as u64);
-    let bound = rt::gaps::Gaps::bound_for(half);
-    let from = rt::gaps::Gaps::BOUNDS_NS.partition_point(|&lo| lo < bound);
-    let late: u64 = w["by_length"]
-        .as_array()
-        .map_or(0, |b| b.iter().skip(from).filter_map(|x| x.as_u64()).sum());
     format!(
-        "\ncore gone {} stretches of ≥ 10 µs between two clock reads of the loop, outside its tick ({:.1} ms in all, longest {:.0} µs); {} sleeps woke ≥ {} µs late (latest {:.0} µs)",
-        n(&g["count"]),
-        n(&g["total_ns"]) as f64 / 1e6,
-        n(&g["max_ns"]) as f64 / 1e3,
-        late,
-        bound / 1000,
-        n(&w["max_ns"]) as f64 / 1e3,
+        "\ncore gone {}",
+        rt::gaps::describe(&g, &w, (1e9 / rate) as u64)
     )
 }
 

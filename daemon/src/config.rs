@@ -296,6 +296,33 @@ impl DaemonSetup {
                     ),
                 });
             }
+            // State-triggered, the plant's states set the pace: a daemon expecting them at
+            // another rate sleeps through most of them (at a tenth of the rate, 99 % go late).
+            let plant_rate = plant
+                .get("rate_hz")
+                .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+                .unwrap_or(1000.0);
+            // The newest state may be a whole plant period old when a tick reads it: older than
+            // `stale_ms`, every state would be refused and the daemon would never leave HOLD.
+            if plant_rate > 0.0 && self.daemon.stale_ms <= 1e3 / plant_rate {
+                return Err(ConfigError::Invalid {
+                    field: "daemon.stale_ms".into(),
+                    value: self.daemon.stale_ms.to_string(),
+                    expected: format!(
+                        "must exceed one plant period ({:.3} ms at plant.rate_hz = {plant_rate}), or states are refused as stale before they are used",
+                        1e3 / plant_rate
+                    ),
+                });
+            }
+            if self.daemon.trigger == rt::Trigger::State && plant_rate != self.daemon.rate_hz {
+                return Err(ConfigError::Invalid {
+                    field: "daemon.rate_hz".into(),
+                    value: self.daemon.rate_hz.to_string(),
+                    expected: format!(
+                        "must equal plant.rate_hz = {plant_rate} with trigger = \"state\": each state is answered in its own cycle, so both ends run at the plant's rate"
+                    ),
+                });
+            }
         }
         // The delay line is filled once per tick, so τ must span at least one tick.
         let dt = 1.0 / self.daemon.rate_hz;
@@ -400,6 +427,12 @@ mod tests {
             bad("[daemon]\nphase_offset_us = 100\ntrigger = \"state\"\n")
                 .contains("daemon.phase_offset_us")
         );
+        assert!(bad("[daemon]\nrate_hz = 100\n[plant]\nrate_hz = 100\n")
+            .contains("daemon.stale_ms = 5: must exceed one plant period (10.000 ms"));
+        assert!(bad(
+            "[daemon]\ntrigger = \"state\"\nrate_hz = 100\n[plant]\ntrigger = \"state\"\n"
+        )
+        .contains("must equal plant.rate_hz = 1000"));
         let ok = "[daemon]\ntrigger = \"state\"\n[plant]\ntrigger = \"state\"\n";
         assert!(DaemonSetup::from_config(Config::parse(ok).unwrap()).is_ok());
     }

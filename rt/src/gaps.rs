@@ -23,6 +23,7 @@ use serde::{Deserialize, Serialize};
 /// Stretches of at least [`GapMeter::MIN_NS`] between two clock reads of a loop (or, for
 /// [`GapMeter::late_wakes`], sleeps that ended that late).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Gaps {
     pub count: u64,
     pub total_ns: u64,
@@ -72,6 +73,34 @@ impl Gaps {
         let from = Self::BOUNDS_NS.partition_point(|&lo| lo < bound);
         self.by_length[from..].iter().sum()
     }
+}
+
+/// One line on a loop with period `period_ns`: its stretches without the core (`gaps`) and
+/// how many of them, and of its late wake-ups (`late_wakes`), reached half a period (counted
+/// from [`Gaps::bound_for`] it). The daemon's report and `chaosctl status` both print it.
+///
+/// ```
+/// use rt::gaps::{describe, Gaps};
+/// let mut g = Gaps::default();
+/// g.add(900_000);
+/// let line = describe(&g, &Gaps::default(), 1_000_000);
+/// assert!(line.starts_with("1 stretches of ≥ 10 µs"), "{line}");
+/// assert!(line.contains("1 of them, and 0 sleeps woke ≥ 500 µs late"), "{line}");
+/// ```
+pub fn describe(gaps: &Gaps, late_wakes: &Gaps, period_ns: u64) -> String {
+    let half = period_ns / 2;
+    let bound = Gaps::bound_for(half);
+    format!(
+        "{} stretches of ≥ 10 µs between two clock reads of the loop, outside its tick ({:.1} ms in all, longest {:.0} µs); {} of them, and {} sleeps woke ≥ {} µs late (half a period: {} µs; the latest woke {:.0} µs late)",
+        gaps.count,
+        gaps.total_ns as f64 / 1e6,
+        gaps.max_ns as f64 / 1e3,
+        gaps.at_least(bound),
+        late_wakes.at_least(bound),
+        bound / 1000,
+        half / 1000,
+        late_wakes.max_ns as f64 / 1e3,
+    )
 }
 
 /// The clock reads of a polling wait, and the [`Gaps`] between them.
