@@ -6,6 +6,7 @@
 mod analysis;
 mod exporter;
 mod plot;
+mod robot;
 mod setup;
 mod simulate;
 
@@ -64,6 +65,8 @@ enum Command {
         /// The recording file.
         recording: std::path::PathBuf,
     },
+    /// Robot models from URDF: `robot show ROBOT`, `robot eval ROBOT --q …`.
+    Robot(robot::RobotCmd),
     /// Print a preset as a TOML config file to start from.
     Config {
         #[arg(long, default_value = "paper")]
@@ -170,6 +173,7 @@ fn main() -> ExitCode {
         Command::ArmFigure(a) => analysis::arm_figure::run(a),
         Command::Merge(m) => merge(m),
         Command::Exporter(a) => exporter::run(a),
+        Command::Robot(a) => robot::run(a),
         Command::Config { preset } => control::Config::preset(&preset)
             .map(|c| print!("{}", c.to_toml_string()))
             .map_err(Into::into),

@@ -16,6 +16,7 @@ pub mod delay;
 pub mod dual;
 pub mod hold;
 pub mod law;
+pub mod model;
 pub mod safety;
 pub mod secondary;
 pub mod sim;

@@ -68,6 +68,8 @@ ROBOTS = [
     ("kinova", "erd:kinova_description/robots/kinova.urdf", "j2s6s200_link_base",
      "j2s6s200_end_effector"),
     ("z1", "erd:z1_description/urdf/z1.urdf", "link00", "gripperStator"),
+    # Ours: prismatic joints, axes off x/y/z, a tilted base, a load on an off-chain joint.
+    ("quirks", "control/tests/fixtures/urdf/quirks.urdf", "base", "tcp"),
 ]
 
 MOVABLE = ("revolute", "continuous", "prismatic")

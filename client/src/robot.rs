@@ -1,0 +1,239 @@
+//! `chaosctl robot`: look at a robot model and evaluate it at one state.
+//!
+//! This is how a user checks a description before a controller drives it, and how scripts
+//! compare chaosd with pinocchio: `eval --json` prints exactly the quantities the golden tests
+//! compare, from the same function (`Chain::evaluate`).
+
+use anyhow::{bail, Context};
+use control::model::{Chain, ChainJoint};
+use nalgebra::Vector3;
+
+#[derive(clap::Args, Debug)]
+pub struct RobotCmd {
+    #[command(subcommand)]
+    action: Action,
+}
+
+#[derive(clap::Subcommand, Debug)]
+enum Action {
+    /// The chain: joints, axes, limits, link masses, total mass and reach.
+    Show {
+        #[command(flatten)]
+        which: Which,
+    },
+    /// Pose, Jacobian, J̇q̇, mass matrix, RNEA, gravity and ABA at one state.
+    Eval {
+        #[command(flatten)]
+        which: Which,
+        /// Joint positions, a comma list (rad or m); missing vectors are zero.
+        #[arg(long, allow_hyphen_values = true)]
+        q: Option<String>,
+        /// Joint velocities.
+        #[arg(long, allow_hyphen_values = true)]
+        qd: Option<String>,
+        /// Joint accelerations (for RNEA).
+        #[arg(long, allow_hyphen_values = true)]
+        qdd: Option<String>,
+        /// Joint torques or forces (for ABA).
+        #[arg(long, allow_hyphen_values = true)]
+        tau: Option<String>,
+        /// One JSON object: tip_pose, jacobian, jdot_qd, mass_matrix, rnea, gravity, aba.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(clap::Args, Debug)]
+struct Which {
+    /// A built-in robot (panda, planar3) or a path to a URDF file.
+    robot: String,
+    /// The chain's base link (default: the root link).
+    #[arg(long)]
+    base: Option<String>,
+    /// The chain's tip link (default: the only leaf).
+    #[arg(long)]
+    tip: Option<String>,
+    /// Gravity in the base frame, m/s² (default 0,0,-9.81).
+    #[arg(long, allow_hyphen_values = true)]
+    gravity: Option<String>,
+}
+
+impl Which {
+    fn load(&self) -> anyhow::Result<Chain> {
+        let mut chain =
+            daemon::robot::load(&self.robot, self.base.as_deref(), self.tip.as_deref())?;
+        if let Some(g) = &self.gravity {
+            let g = parse_list("--gravity", g, 3)?;
+            chain.gravity = Vector3::new(g[0], g[1], g[2]);
+        }
+        Ok(chain)
+    }
+}
+
+pub fn run(cmd: RobotCmd) -> anyhow::Result<()> {
+    match cmd.action {
+        Action::Show { which } => {
+            let chain = which.load()?;
+            print!("{}", describe(&chain, &which.robot));
+            Ok(())
+        }
+        Action::Eval {
+            which,
+            q,
+            qd,
+            qdd,
+            tau,
+            json,
+        } => {
+            let chain = which.load()?;
+            let n = chain.dof();
+            let vec = |name, v: &Option<String>| match v {
+                Some(text) => parse_list(name, text, n),
+                None => Ok(vec![0.0; n]),
+            };
+            let e = chain.evaluate(
+                &vec("--q", &q)?,
+                &vec("--qd", &qd)?,
+                &vec("--qdd", &qdd)?,
+                &vec("--tau", &tau)?,
+            )?;
+            if json {
+                println!("{}", serde_json::to_string(&e)?);
+            } else {
+                print!("{}", pretty(&e, n));
+            }
+            Ok(())
+        }
+    }
+}
+
+/// A comma list of exactly `n` finite numbers.
+fn parse_list(name: &str, text: &str, n: usize) -> anyhow::Result<Vec<f64>> {
+    let v = text
+        .split(',')
+        .map(|s| {
+            let s = s.trim();
+            s.parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .with_context(|| format!("{name}: {s:?} is not a finite number"))
+        })
+        .collect::<anyhow::Result<Vec<f64>>>()?;
+    if v.len() != n {
+        bail!("{name} has {} entries; the chain has {n} joints", v.len());
+    }
+    Ok(v)
+}
+
+fn limit(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:.4}")
+    } else {
+        "-".into()
+    }
+}
+
+fn joint_row(i: usize, j: &ChainJoint, w: usize) -> String {
+    let a = j.axis;
+    format!(
+        "{:>2}  {:<w$} {:<10} ({:>5.2}, {:>5.2}, {:>5.2})  {:>8} {:>8} {:>8} {:>8}  {:>8.3}  {}\n",
+        i + 1,
+        j.name,
+        j.kind.name(),
+        a.x,
+        a.y,
+        a.z,
+        limit(j.limits.lower),
+        limit(j.limits.upper),
+        limit(j.limits.velocity),
+        limit(j.limits.effort),
+        j.body.mass,
+        j.links.join(", ")
+    )
+}
+
+/// The `robot show` text.
+pub fn describe(chain: &Chain, spec: &str) -> String {
+    let mut s = format!(
+        "robot {:?} ({spec}): chain {} -> {}, {} joints\n",
+        chain.robot,
+        chain.base,
+        chain.tip,
+        chain.dof()
+    );
+    let w = chain
+        .joints
+        .iter()
+        .map(|j| j.name.len())
+        .max()
+        .unwrap_or(5)
+        .max(5);
+    s.push_str(&format!(
+        "{:>2}  {:<w$} {:<10} {:<21}  {:>8} {:>8} {:>8} {:>8}  {:>8}  {}\n",
+        "#",
+        "joint",
+        "type",
+        "axis (own frame)",
+        "lower",
+        "upper",
+        "velocity",
+        "effort",
+        "mass kg",
+        "links (body)"
+    ));
+    for (i, j) in chain.joints.iter().enumerate() {
+        s.push_str(&joint_row(i, j, w));
+    }
+    let g = chain.gravity;
+    s.push_str(&format!(
+        "total mass {:.3} kg moved by the joints (the base and what hangs off it are ground)\n\
+         reach {:.3} m (joint 1 to the tip, at full stretch)\n\
+         gravity ({}, {}, {}) m/s² in the base frame\n",
+        chain.mass(),
+        chain.reach(),
+        g.x,
+        g.y,
+        g.z
+    ));
+    if let Some(j) = chain
+        .joints
+        .iter()
+        .rev()
+        .scan(0.0, |m, j| {
+            *m += j.body.mass;
+            Some((*m, j))
+        })
+        .find(|(m, _)| *m <= 0.0)
+    {
+        s.push_str(&format!(
+            "warning: joint {:?} moves no mass: the mass matrix is singular and ABA is undefined\n",
+            j.1.name
+        ));
+    }
+    s
+}
+
+fn pretty(e: &control::model::Evaluation, n: usize) -> String {
+    let rows = |name: &str, v: &[f64], cols: usize| {
+        let mut s = format!("{name}\n");
+        for r in v.chunks(cols) {
+            let line: Vec<String> = r.iter().map(|x| format!("{x:>12.6}")).collect();
+            s.push_str(&format!("  {}\n", line.join(" ")));
+        }
+        s
+    };
+    [
+        rows("tip pose (4×4, base frame)", &e.tip_pose, 4),
+        rows("jacobian (6×n: vx vy vz wx wy wz)", &e.jacobian, n),
+        rows(
+            "jdot_qd (classical acceleration of the tip at q̈ = 0: linear, angular)",
+            &e.jdot_qd,
+            6,
+        ),
+        rows("mass matrix", &e.mass_matrix, n),
+        rows("rnea τ(q, q̇, q̈)", &e.rnea, n),
+        rows("gravity g(q)", &e.gravity, n),
+        rows("aba q̈(q, q̇, τ)", &e.aba, n),
+    ]
+    .concat()
+}

@@ -1,0 +1,74 @@
+//! How a robot description reaches a process: a built-in name or a URDF file.
+//!
+//! The math crate parses text and does no I/O; this is the one place that turns what a user
+//! typed (`panda`, `./my_arm.urdf`) into that text, with a size limit so that a wrong path to a
+//! huge file fails at once instead of filling memory.
+
+use control::model::{builtin, Chain, ModelError, BUILTIN, MAX_URDF_BYTES};
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// Why a robot could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum RobotError {
+    #[error("cannot read robot description {path}: {error}")]
+    Read {
+        path: PathBuf,
+        error: std::io::Error,
+    },
+    #[error("robot description {path} is over {limit} bytes")]
+    TooLarge { path: PathBuf, limit: usize },
+    #[error("{origin}: {error}")]
+    Model { origin: String, error: ModelError },
+}
+
+/// Loads the chain from `base` to `tip` of a built-in robot (by name) or of a URDF file.
+///
+/// ```
+/// let chain = daemon::robot::load("panda", None, None).unwrap();
+/// assert_eq!(chain.dof(), 7);
+/// let e = daemon::robot::load("ur99", None, None).unwrap_err().to_string();
+/// assert!(e.contains("panda, planar3"), "{e}");
+/// ```
+pub fn load(spec: &str, base: Option<&str>, tip: Option<&str>) -> Result<Chain, RobotError> {
+    let (origin, text) = match builtin(spec) {
+        Ok(text) => (format!("built-in robot {spec:?}"), text.to_string()),
+        Err(unknown) if looks_like_a_name(spec) => {
+            return Err(RobotError::Model {
+                origin: format!("robot {spec:?}"),
+                error: unknown,
+            })
+        }
+        Err(_) => (spec.to_string(), read(Path::new(spec))?),
+    };
+    Chain::from_urdf(&text, base, tip).map_err(|error| RobotError::Model { origin, error })
+}
+
+/// A bare word that is not a file here: the user meant a built-in robot.
+fn looks_like_a_name(spec: &str) -> bool {
+    !spec.contains('/') && !spec.ends_with(".urdf") && !Path::new(spec).exists()
+}
+
+fn read(path: &Path) -> Result<String, RobotError> {
+    let err = |error| RobotError::Read {
+        path: path.to_path_buf(),
+        error,
+    };
+    let file = std::fs::File::open(path).map_err(err)?;
+    let mut text = String::new();
+    file.take(MAX_URDF_BYTES as u64 + 1)
+        .read_to_string(&mut text)
+        .map_err(err)?;
+    if text.len() > MAX_URDF_BYTES {
+        return Err(RobotError::TooLarge {
+            path: path.to_path_buf(),
+            limit: MAX_URDF_BYTES,
+        });
+    }
+    Ok(text)
+}
+
+/// The built-in robots' names, for help texts.
+pub fn builtin_names() -> String {
+    BUILTIN.map(|(n, _)| n).join(", ")
+}
