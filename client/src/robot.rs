@@ -63,7 +63,7 @@ impl Which {
         let mut chain =
             daemon::robot::load(&self.robot, self.base.as_deref(), self.tip.as_deref())?;
         if let Some(g) = &self.gravity {
-            let g = parse_list("--gravity", g, 3)?;
+            let g = parse_list("--gravity", g, 3, "x,y,z")?;
             chain.gravity = Vector3::new(g[0], g[1], g[2]);
         }
         Ok(chain)
@@ -88,7 +88,7 @@ pub fn run(cmd: RobotCmd) -> anyhow::Result<()> {
             let chain = which.load()?;
             let n = chain.dof();
             let vec = |name, v: &Option<String>| match v {
-                Some(text) => parse_list(name, text, n),
+                Some(text) => parse_list(name, text, n, "one per joint"),
                 None => Ok(vec![0.0; n]),
             };
             let e = chain.evaluate(
@@ -107,8 +107,8 @@ pub fn run(cmd: RobotCmd) -> anyhow::Result<()> {
     }
 }
 
-/// A comma list of exactly `n` finite numbers.
-fn parse_list(name: &str, text: &str, n: usize) -> anyhow::Result<Vec<f64>> {
+/// A comma list of exactly `n` finite numbers (`what` says why `n`).
+fn parse_list(name: &str, text: &str, n: usize, what: &str) -> anyhow::Result<Vec<f64>> {
     let v = text
         .split(',')
         .map(|s| {
@@ -120,7 +120,7 @@ fn parse_list(name: &str, text: &str, n: usize) -> anyhow::Result<Vec<f64>> {
         })
         .collect::<anyhow::Result<Vec<f64>>>()?;
     if v.len() != n {
-        bail!("{name} has {} entries; the chain has {n} joints", v.len());
+        bail!("{name} has {} entries; expected {n} ({what})", v.len());
     }
     Ok(v)
 }

@@ -6,7 +6,8 @@
 //! `Chain::evaluate`, the function `chaosctl robot eval` prints, and must agree to 1e-9,
 //! relative where the value is larger than 1.
 
-use control::model::Chain;
+use control::model::{Chain, Frames};
+use nalgebra::SVector;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -36,6 +37,21 @@ fn close(what: &str, ours: &[f64], theirs: &[f64], ctx: &str) -> f64 {
         worst = worst.max(err);
     }
     worst
+}
+
+/// Every chain joint's child link frame, row-major 4×4 each.
+fn link_poses(chain: &Chain, q: &[f64]) -> Vec<f64> {
+    control::with_dof!(chain.dof(), N => {
+        let model = chain.model::<N>().unwrap();
+        let mut frames = Frames::<N>::default();
+        model.frames(&SVector::<f64, N>::from_column_slice(q), &mut frames);
+        (0..N)
+            .flat_map(|i| {
+                let m = frames.link(&model, i).matrix();
+                (0..16).map(move |k| m[(k / 4, k % 4)])
+            })
+            .collect()
+    })
 }
 
 fn check(name: &str) {
@@ -78,6 +94,13 @@ fn check(name: &str) {
         ] {
             worst = worst.max(close(what, ours, &floats(&case[what]), &ctx));
         }
+        let links = link_poses(&chain, &floats(&case["q"]));
+        worst = worst.max(close(
+            "link_poses",
+            &links,
+            &floats(&case["link_poses"]),
+            &ctx,
+        ));
     }
     eprintln!("{name}: worst relative error {worst:.2e}");
 }

@@ -185,6 +185,12 @@ class Chain:
         pin.framesForwardKinematics(self.model, self.data, qp)
         return (self.oMb.inverse() * self.data.oMf[self.tip_id]).homogeneous
 
+    def link_poses(self, qp):
+        """Each chain joint's child link frame (pinocchio's joint frame), base frame, n × 4×4."""
+        pin.forwardKinematics(self.model, self.data, qp)
+        return np.array([(self.oMb.inverse() * self.data.oMi[i]).homogeneous
+                         for i in range(1, self.n + 1)])
+
     def jacobian(self, qp):
         pin.computeJointJacobians(self.model, self.data, qp)
         pin.updateFramePlacements(self.model, self.data)
@@ -316,6 +322,7 @@ def case(arm, q, qd, qdd, tau):
         "qdd": floats(qdd),
         "tau": floats(tau),
         "tip_pose": floats(arm.tip_pose(qp)),
+        "link_poses": floats(arm.link_poses(qp)),
         "jacobian": floats(arm.jacobian(qp)),
         "jdot_qd": floats(arm.jdot_qd(qp, qd)),
         "mass_matrix": floats(arm.mass_matrix(qp)),

@@ -345,13 +345,11 @@ fn check_inertial(link: &str, mass: f64, inertia: &Matrix3<f64>) -> Result<(), M
             mass,
         });
     }
-    // A zero tensor is a point mass (or a massless placeholder), common and harmless.
-    if inertia.iter().all(|&x| x == 0.0) {
-        return Ok(());
-    }
+    // Zero principal moments are real descriptions' point masses and thin rods (pinocchio takes
+    // them too); a negative one beyond rounding is a tensor no body has.
     let eig = inertia.symmetric_eigenvalues();
     let scale = eig.abs().max();
-    if eig.min() <= 1e-12 * scale {
+    if eig.min() < -(1e-12 * scale + 1e-18) {
         return Err(ModelError::Inertia {
             link: link.to_string(),
             eigenvalues: format!("{:.3e}, {:.3e}, {:.3e}", eig[0], eig[1], eig[2]),

@@ -72,7 +72,7 @@ pub enum ModelError {
     #[error("link {link:?} has mass {mass}; a mass must be zero or positive")]
     NegativeMass { link: String, mass: f64 },
     #[error(
-        "link {link:?}: the inertia tensor is not positive definite (eigenvalues {eigenvalues})"
+        "link {link:?}: the inertia tensor has a negative principal moment (eigenvalues {eigenvalues}): no body has that inertia"
     )]
     Inertia { link: String, eigenvalues: String },
     #[error("joint {joint:?}: limit lower = {lower} is above upper = {upper}")]

@@ -7,7 +7,7 @@
 use super::chain::{Body, Chain};
 use super::pose::Pose;
 use super::ModelError;
-use nalgebra::{SVector, Vector3};
+use nalgebra::{Matrix3, SVector, Vector3};
 
 pub type VecN<const N: usize> = SVector<f64, N>;
 
@@ -24,6 +24,8 @@ pub struct Model<const N: usize> {
     pub tip: Pose,
     /// Gravity in the base frame.
     pub gravity: Vector3<f64>,
+    /// How joint i's frame was turned to put its axis on z (see [`Frames::link`]).
+    pub turn: [Matrix3<f64>; N],
 }
 
 impl Chain {
@@ -48,6 +50,7 @@ impl Chain {
             body: std::array::from_fn(|i| self.joints[i].body),
             tip: self.tip_placement,
             gravity: self.gravity,
+            turn: std::array::from_fn(|i| self.joints[i].turn),
         })
     }
 }
@@ -64,6 +67,17 @@ impl<const N: usize> Default for Frames<N> {
         Self {
             body: [Pose::IDENTITY; N],
             tip: Pose::IDENTITY,
+        }
+    }
+}
+
+impl<const N: usize> Frames<N> {
+    /// Joint i's child link frame as the URDF defines it (pinocchio's joint frame). The body
+    /// frames share its origin but are turned so that the joint axis is z.
+    pub fn link(&self, model: &Model<N>, i: usize) -> Pose {
+        Pose {
+            rot: self.body[i].rot * model.turn[i].transpose(),
+            pos: self.body[i].pos,
         }
     }
 }
