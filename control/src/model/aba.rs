@@ -37,9 +37,19 @@ impl<const N: usize> Model<N> {
             d[i] = s[i].dot(&u[i]);
             uu[i] = tau[i] - s[i].dot(&pa[i]);
             if i > 0 {
-                let articulated = ia[i] - u[i] * u[i].transpose() / d[i];
-                let bias = pa[i] + articulated * c[i] + u[i] * (uu[i] / d[i]);
-                ia[i - 1] += articulated;
+                // The parent sees Ia = IA − u uᵀ/d and pa = pA + Ia c + u·uu/d, folded so that
+                // Ia is never formed: one rank-one update of the parent's matrix.
+                let uc = u[i].dot(&c[i]);
+                let bias = pa[i] + ia[i] * c[i] + u[i] * ((uu[i] - uc) / d[i]);
+                let inv = 1.0 / d[i];
+                let (parent, rest) = ia.split_at_mut(i);
+                let (p, a, ui) = (&mut parent[i - 1], &rest[0], &u[i]);
+                for col in 0..6 {
+                    let k = ui[col] * inv;
+                    for row in 0..6 {
+                        p[(row, col)] += a[(row, col)] - ui[row] * k;
+                    }
+                }
                 pa[i - 1] += bias;
             }
         }

@@ -53,6 +53,7 @@ impl Pose {
     }
 
     /// `self · other`: `other` expressed in `self`'s parent frame.
+    #[inline]
     pub fn then(&self, other: &Pose) -> Pose {
         Pose {
             rot: self.rot * other.rot,
@@ -69,6 +70,7 @@ impl Pose {
     }
 
     /// A point given in the child frame, in the parent frame.
+    #[inline(always)]
     pub fn apply(&self, x: &Vector3<f64>) -> Vector3<f64> {
         self.rot * x + self.pos
     }

@@ -1,10 +1,13 @@
 //! Inverse dynamics by the recursive Newton-Euler algorithm (Featherstone 2008, §5.3).
 //!
-//! Run in the base frame (see `spatial`): velocities and accelerations go out along the chain,
-//! body wrenches come back as plain sums. Gravity enters as an upward acceleration of the base.
+//! Velocities and accelerations go out along the chain in the base frame; each body's wrench is
+//! Newton-Euler about its centre of mass (the inertia tensor applied in the body's own frame, so
+//! it is never rotated whole), and the wrenches come back as plain sums. Gravity enters as an
+//! upward acceleration of the base.
 
 use super::fixed::{Frames, Model, VecN};
-use super::spatial::{Force, Inertia, Motion};
+use super::spatial::{Force, Motion};
+use nalgebra::Vector3;
 
 impl<const N: usize> Model<N> {
     /// τ = M(q)q̈ + C(q,q̇)q̇ + g(q).
@@ -26,7 +29,7 @@ impl<const N: usize> Model<N> {
         let mut s = [Motion::ZERO; N];
         let mut v = Motion::ZERO;
         let mut a = Motion {
-            w: nalgebra::Vector3::zeros(),
+            w: Vector3::zeros(),
             v: -self.gravity,
         };
         for i in 0..N {
@@ -35,8 +38,7 @@ impl<const N: usize> Model<N> {
             let vj = s[i].scaled(qd[i]);
             v = v.plus(&vj);
             a = a.plus(&s[i].scaled(qdd[i])).plus(&v.cross(&vj));
-            let inertia = Inertia::of(&self.body[i], fr);
-            f[i] = inertia.apply(&a).plus(&v.cross_force(&inertia.apply(&v)));
+            f[i] = self.body_wrench(i, fr, &v, &a);
         }
         let mut tau = VecN::zeros();
         let mut child = Force::ZERO;
@@ -45,6 +47,25 @@ impl<const N: usize> Model<N> {
             tau[i] = s[i].dot(&child);
         }
         tau
+    }
+
+    /// The wrench (about the base origin) that moves body `i`, at pose `fr`, with spatial
+    /// velocity `v` and acceleration `a`: Newton about the centre of mass c, Euler in the body's
+    /// frame, N + c × F.
+    #[inline(always)]
+    fn body_wrench(&self, i: usize, fr: &super::Pose, v: &Motion, a: &Motion) -> Force {
+        let b = &self.body[i];
+        let c = fr.apply(&b.com);
+        let vc = v.v + v.w.cross(&c);
+        let ac = a.v + a.w.cross(&c) + v.w.cross(&vc);
+        let force = ac * b.mass;
+        let rt = fr.rot.transpose();
+        let (wl, wdl) = (rt * v.w, rt * a.w);
+        let euler = b.inertia * wdl + wl.cross(&(b.inertia * wl));
+        Force {
+            n: fr.rot * euler + c.cross(&force),
+            f: force,
+        }
     }
 
     /// The gravity torques g(q): RNEA at rest.

@@ -125,15 +125,27 @@ impl Inertia {
     #[inline(always)]
     pub fn of(body: &Body, pose: &Pose) -> Inertia {
         let c = pose.apply(&body.com);
-        let r = &pose.rot;
-        let ic = r * body.inertia * r.transpose();
         let m = body.mass;
-        let csq = c.norm_squared();
-        let mut i = ic - (c * c.transpose()) * m;
-        i[(0, 0)] += m * csq;
-        i[(1, 1)] += m * csq;
-        i[(2, 2)] += m * csq;
-        Inertia { m, h: c * m, i }
+        // R I Rᵀ is symmetric: R·I in full, then only the upper triangle of (R·I)·Rᵀ.
+        let r = &pose.rot;
+        let ri = r * body.inertia;
+        let e = |a: usize, b: usize| {
+            ri[(a, 0)] * r[(b, 0)] + ri[(a, 1)] * r[(b, 1)] + ri[(a, 2)] * r[(b, 2)]
+        };
+        let (xx, yy, zz) = (
+            c.y * c.y + c.z * c.z,
+            c.x * c.x + c.z * c.z,
+            c.x * c.x + c.y * c.y,
+        );
+        let (ixx, iyy, izz) = (e(0, 0) + m * xx, e(1, 1) + m * yy, e(2, 2) + m * zz);
+        let ixy = e(0, 1) - m * c.x * c.y;
+        let ixz = e(0, 2) - m * c.x * c.z;
+        let iyz = e(1, 2) - m * c.y * c.z;
+        Inertia {
+            m,
+            h: c * m,
+            i: Matrix3::new(ixx, ixy, ixz, ixy, iyy, iyz, ixz, iyz, izz),
+        }
     }
 
     #[inline(always)]
