@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
 
 /// Largest supported arm (also the size of the wire samples' arrays).
-pub const MAX_JOINTS: usize = 6;
+pub const MAX_JOINTS: usize = 7;
 /// Smallest supported arm.
 pub const MIN_JOINTS: usize = 2;
 
@@ -629,6 +629,10 @@ macro_rules! with_dof {
             }
             6 => {
                 const $N: usize = 6;
+                $body
+            }
+            7 => {
+                const $N: usize = 7;
                 $body
             }
             other => panic!("unsupported arm size {other}: validate the config first"),
