@@ -714,6 +714,26 @@ mod tests {
     }
 
     #[test]
+    fn a_seven_link_arm_fits_and_an_eight_link_one_does_not() {
+        // A Panda's link lengths (m), with a circle it can reach.
+        let seven = Config::parse(
+            "[arm]\nlinks = [0.333, 0.316, 0.0825, 0.384, 0.088, 0.107, 0.1]\n\
+             [task]\ncenter = [0.5, 0.6]\nradius = 0.2\n",
+        )
+        .unwrap();
+        assert_eq!(seven.n(), MAX_JOINTS);
+        seven.validate().unwrap();
+        assert_eq!(with_dof!(seven.n(), N => N), 7);
+        let e = Config::parse("[arm]\nlinks = [1, 1, 1, 1, 1, 1, 1, 1]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("arm.links") && e.contains("must list 2 to 7 link lengths"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn default_inertias_are_the_papers() {
         let c = Config::default();
         assert_eq!(c.link_inertias(), vec![0.30000000000000004, 0.2, 0.1]);

@@ -360,6 +360,22 @@ mod tests {
     }
 
     #[test]
+    fn a_seven_link_arm_is_described_whole() {
+        let panda = [0.333, 0.316, 0.0825, 0.384, 0.088, 0.107, 0.1];
+        let a = fixed(&panda);
+        assert_eq!(a.n, 7);
+        assert_eq!(mismatch("x", &a, &a), None);
+        let mut last = panda;
+        last[6] = 0.2;
+        let msg = mismatch("x", &fixed(&last), &a).unwrap();
+        assert!(
+            msg.contains("7-link fixed arm (links 0.333,0.316,0.0825,0.384,0.088,0.107,0.2)")
+                && msg.contains("0.107,0.1);"),
+            "{msg}"
+        );
+    }
+
+    #[test]
     fn a_corrupt_count_is_described_not_indexed() {
         let mut bad = fixed(&[1.0; 3]);
         bad.n = 1000;

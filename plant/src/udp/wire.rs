@@ -238,6 +238,37 @@ mod tests {
     }
 
     #[test]
+    fn a_seven_joint_arm_round_trips() {
+        let s = DeviceState {
+            n: 7,
+            q: [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7],
+            qd: [-0.1, -0.2, -0.3, -0.4, -0.5, -0.6, -0.7],
+            ..state()
+        };
+        let mut b = [0u8; STATE_LEN];
+        s.encode(&mut b);
+        assert_eq!(f64::from_le_bytes(b[96..104].try_into().unwrap()), 0.7);
+        assert_eq!(f64::from_le_bytes(b[152..160].try_into().unwrap()), -0.7);
+        assert_eq!(DeviceState::decode(&b), Ok(s));
+        let c = DeviceCommand {
+            n: 7,
+            seq: 1,
+            session: 2,
+            mode: DeviceMode::Run,
+            qdd: [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0],
+            qddd: [-1.0, -2.0, -3.0, -4.0, -5.0, -6.0, -7.0],
+        };
+        let mut b = [0u8; COMMAND_LEN];
+        c.encode(&mut b);
+        assert_eq!(f64::from_le_bytes(b[80..88].try_into().unwrap()), 7.0);
+        assert_eq!(f64::from_le_bytes(b[136..144].try_into().unwrap()), -7.0);
+        assert_eq!(DeviceCommand::decode(&b), Ok(c));
+        let mut eight = b;
+        eight[6..8].copy_from_slice(&8u16.to_le_bytes());
+        assert_eq!(DeviceCommand::decode(&eight), Err(WireError::Joints(8)));
+    }
+
+    #[test]
     fn round_trips_and_pins_the_layout() {
         let mut b = [0u8; STATE_LEN];
         state().encode(&mut b);
