@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
 
 /// Largest supported arm (also the size of the wire samples' arrays).
-pub const MAX_JOINTS: usize = 6;
+pub const MAX_JOINTS: usize = 7;
 /// Smallest supported arm.
 pub const MIN_JOINTS: usize = 2;
 
@@ -631,6 +631,10 @@ macro_rules! with_dof {
                 const $N: usize = 6;
                 $body
             }
+            7 => {
+                const $N: usize = 7;
+                $body
+            }
             other => panic!("unsupported arm size {other}: validate the config first"),
         }
     };
@@ -706,6 +710,26 @@ mod tests {
             e.len() < 1024 && e.contains("arm.links"),
             "{} bytes",
             e.len()
+        );
+    }
+
+    #[test]
+    fn a_seven_link_arm_fits_and_an_eight_link_one_does_not() {
+        // A Panda's link lengths (m), with a circle it can reach.
+        let seven = Config::parse(
+            "[arm]\nlinks = [0.333, 0.316, 0.0825, 0.384, 0.088, 0.107, 0.1]\n\
+             [task]\ncenter = [0.5, 0.6]\nradius = 0.2\n",
+        )
+        .unwrap();
+        assert_eq!(seven.n(), MAX_JOINTS);
+        seven.validate().unwrap();
+        assert_eq!(with_dof!(seven.n(), N => N), 7);
+        let e = Config::parse("[arm]\nlinks = [1, 1, 1, 1, 1, 1, 1, 1]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("arm.links") && e.contains("must list 2 to 7 link lengths"),
+            "{e}"
         );
     }
 

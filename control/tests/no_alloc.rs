@@ -68,7 +68,11 @@ fn the_safety_filter_allocates_nothing_on_any_path() {
         ];
         arms.push(cfg);
     }
-    for links in [vec![0.8, 0.8, 0.7, 0.7], vec![0.8, 0.7, 0.6, 0.5, 0.4]] {
+    for links in [
+        vec![0.8, 0.8, 0.7, 0.7],
+        vec![0.8, 0.7, 0.6, 0.5, 0.4],
+        vec![0.6, 0.6, 0.5, 0.5, 0.4, 0.4, 0.3], // the most joints chaosd runs (MAX_JOINTS)
+    ] {
         let mut cfg = arms[0].clone();
         cfg.sim.q0 = Some(vec![0.3; links.len()]);
         cfg.arm.links = links;

@@ -10,12 +10,12 @@ use control::safety::rows::{
 use control::safety::{filter, SafetyParams};
 use control::secondary::{Obstacle, ObstacleSet};
 use control::sim::ArmState;
-use control::{with_dof, Config, RunStats, Simulation};
+use control::{with_dof, Config, RunStats, Simulation, MAX_JOINTS};
 
 fn points<const N: usize>(model: &ArmModel<N>, x: &ArmState<N>) -> (Points<N>, Kinematics<N>) {
     let mut kin = Kinematics::default();
     model.kinematics(x.phi, &x.q, &x.qd, &mut kin);
-    let mut pts = [PointMotion::default(); 7];
+    let mut pts = [PointMotion::default(); MAX_JOINTS + 1];
     point_motions(model, &kin, x.phi, &x.q, &x.qd, &mut pts);
     (pts, kin)
 }
@@ -153,10 +153,10 @@ fn limits() -> SafetyParams {
     SafetyParams {
         enabled: true,
         clearance: 0.05,
-        qd_max: [8.0; 6],
-        qdd_max: [400.0; 6],
-        q_min: [-2.0; 6],
-        q_max: [2.5; 6],
+        qd_max: [8.0; MAX_JOINTS],
+        qdd_max: [400.0; MAX_JOINTS],
+        q_min: [-2.0; MAX_JOINTS],
+        q_max: [2.5; MAX_JOINTS],
         ..SafetyParams::off()
     }
 }

@@ -193,7 +193,7 @@ impl DaemonConfig {
                 "must be between 64 and 65536",
             ));
         }
-        // A file must hold the header and a row (a 6-link row is about 500 bytes).
+        // A file must hold the header and a row (a 7-link row is about 530 bytes).
         if !(4096..=1 << 40).contains(&self.record_max_bytes) {
             return Err(invalid(
                 "record_max_bytes",

@@ -807,7 +807,7 @@ mod tests {
             for k in 0..1500u64 {
                 if k == 700 {
                     let mut p = *c.params();
-                    p.safety.qdd_max = [1e-6; 6];
+                    p.safety.qdd_max = [1e-6; control::MAX_JOINTS];
                     c.set_params(p);
                     if braked {
                         s.flags |= protocol::flags::COMMAND_TIMEOUT;
@@ -839,7 +839,7 @@ mod tests {
         let mut s = state(0, t0);
         s.qd[1] = 60.0;
         let mut p = *c.params();
-        p.safety.qd_max = [20.0; 6];
+        p.safety.qd_max = [20.0; control::MAX_JOINTS];
         c.set_params(p);
         let mut tripped_at = None;
         for k in 0..100u64 {

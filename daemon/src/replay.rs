@@ -11,10 +11,10 @@
 //! record it already sends. The file is owner-only and stays in the output directory
 //! ([`crate::recording::resolve`]).
 //!
-//! # Format (text, version 1; every `f64` as the 16 hex digits of its bits)
+//! # Format (text, version 2; every `f64` as the 16 hex digits of its bits)
 //!
 //! ```text
-//! chaosd-replay 1
+//! chaosd-replay 2
 //! settings n=3 rate_hz=<f64> first_order_hold=1 hold_after=5 stale_ns=5000000 \
 //!          future_slack_ns=1000000 daemon_id=<u64> t_start=<f64> fault=0 handshake=1
 //! config <k>                  the running configuration as TOML, k lines follow
@@ -25,9 +25,11 @@
 //! G <tick> <missing>          <missing> records never reached the reporter: the recording ends
 //! ```
 //! (the `settings` line is one line). `<state>` is `-` (nothing received) or
-//! `seq,stamp_ns,plant_id,n,flags,phi,q[0..6],qd[0..6]`; `<command>` is `-` (none sent) or
-//! `seq,state_seq,state_stamp_ns,stamp_ns,daemon_id,mode,n,qdd[0..6],qddd[0..6]`. Integers are
-//! decimal. Ticks count from 0 at the daemon's start.
+//! `seq,stamp_ns,plant_id,n,flags,phi,q[0..7],qd[0..7]`; `<command>` is `-` (none sent) or
+//! `seq,state_seq,state_stamp_ns,stamp_ns,daemon_id,mode,n,qdd[0..7],qddd[0..7]`: every array
+//! whole, `MAX_JOINTS` entries. Integers are decimal. Ticks count from 0 at the daemon's start.
+//! Version 1 was the same with arrays of 6 entries (before the joint capacity became 7); it is
+//! refused by name.
 
 use crate::controller::{Applied, Controller, ControllerSettings};
 use crate::telemetry::TickRecord;
@@ -39,7 +41,9 @@ use std::fmt::Write as _;
 use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
 
-const MAGIC: &str = "chaosd-replay 1";
+const MAGIC: &str = "chaosd-replay 2";
+/// The header of format 1 (arrays of 6 entries), which this build cannot read.
+const MAGIC_V1: &str = "chaosd-replay 1";
 /// No line of a valid recording comes near this.
 const MAX_LINE: u64 = 16 * 1024;
 
@@ -501,6 +505,7 @@ struct Header {
 fn header<R: BufRead>(lines: &mut Lines<R>) -> Result<Header> {
     match lines.next()? {
         Some(MAGIC) => {}
+        Some(MAGIC_V1) => bail!("a replay recording of format 1 (6-joint arrays, chaosd before wire version 5); this build reads format 2: replay it with the build that recorded it"),
         _ => bail!("not a chaosd replay recording (the first line is not {MAGIC:?}; `chaosctl record` CSV files cannot be replayed)"),
     }
     let line = lines
@@ -743,7 +748,7 @@ mod tests {
         let mut lines: Vec<String> = text.lines().map(String::from).collect();
         let i = lines.iter().position(|l| l.starts_with("T 200 ")).unwrap();
         let mut fields: Vec<String> = lines[i].split(',').map(String::from).collect();
-        let qdd1 = fields.len() - 12 + 1; // the command's qdd[1]
+        let qdd1 = fields.len() - 2 * MAX_JOINTS + 1; // the command's qdd[1]
         let v = u64::from_str_radix(&fields[qdd1], 16).unwrap() ^ 1;
         fields[qdd1] = format!("{v:016x}");
         lines[i] = fields.join(",");
@@ -811,6 +816,10 @@ mod tests {
                 "lost tick records",
             ),
             (format!("{}\n", "x".repeat(100_000)), "longer than"),
+            (
+                text.replacen("chaosd-replay 2", "chaosd-replay 1", 1),
+                "format 1 (6-joint arrays",
+            ),
         ] {
             std::fs::write(&p, &bad).unwrap();
             let e = replay(&p).unwrap_err().to_string();

@@ -188,7 +188,7 @@ impl ControlResponse {
 
 /// One telemetry sample, published by the daemon at `daemon.telemetry_hz`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::TelemetrySample.v2")]
+#[type_name("chaosd::TelemetrySample.v3")]
 #[repr(C)]
 pub struct TelemetrySample {
     pub seq: u64,
@@ -349,5 +349,25 @@ mod tests {
         for v in 1..=13 {
             assert_eq!(Op::try_from(v).unwrap() as u32, v);
         }
+    }
+
+    /// The telemetry layout carries per-joint arrays of `MAX_JOINTS`; if this test fails, the
+    /// layout changed: bump the version in its `type_name`.
+    #[test]
+    fn telemetry_layout_is_pinned() {
+        use core::mem::{align_of, offset_of, size_of};
+        assert_eq!(MAX_JOINTS, 7);
+        assert_eq!(size_of::<TelemetrySample>(), 432);
+        assert_eq!(align_of::<TelemetrySample>(), 8);
+        assert_eq!(offset_of!(TelemetrySample, phi), 168);
+        assert_eq!(offset_of!(TelemetrySample, q), 176);
+        assert_eq!(offset_of!(TelemetrySample, qd), 232);
+        assert_eq!(offset_of!(TelemetrySample, faults), 288);
+        assert_eq!(offset_of!(TelemetrySample, state_age_us), 400);
+        // SAFETY: type_name only returns the string set by #[type_name].
+        assert_eq!(
+            unsafe { <TelemetrySample as ZeroCopySend>::type_name() },
+            "chaosd::TelemetrySample.v3"
+        );
     }
 }

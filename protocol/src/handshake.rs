@@ -9,8 +9,12 @@
 //! daemon then never runs that plant (it keeps HOLD), the plant exits with the message.
 //!
 //! [`ArmInfo`] deliberately has a type name **without** the wire version, and a layout that must
-//! never change (pinned by a test): it is the one sample two builds of different wire versions
-//! can still exchange, so that they can tell each other which versions they speak.
+//! not change (pinned by a test): it is the one sample two builds of different wire versions
+//! can still exchange, so that they can tell each other which versions they speak. Its arrays
+//! are [`MAX_JOINTS`] long, so the one change so far came with the joint capacity (6 → 7, wire
+//! version 4 → 5: 192 → 216 bytes). A build of wire version ≤ 4 and one of version ≥ 5 therefore
+//! cannot exchange it either: whichever starts second fails to open the info service
+//! (`IncompatibleTypes`) instead of naming both versions.
 
 use core::fmt::{self, Write as _};
 
@@ -347,10 +351,26 @@ mod tests {
     #[test]
     fn a_wire_version_mismatch_names_both_versions() {
         let mut old = fixed(&[1.0; 3]);
-        old.wire_version = 3;
+        old.wire_version = 4;
         let msg = mismatch("x", &old, &fixed(&[1.0; 3])).unwrap();
         assert!(
-            msg.contains("wire version 3, daemon wire version 4"),
+            msg.contains("wire version 4, daemon wire version 5"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn a_seven_link_arm_is_described_whole() {
+        let panda = [0.333, 0.316, 0.0825, 0.384, 0.088, 0.107, 0.1];
+        let a = fixed(&panda);
+        assert_eq!(a.n, 7);
+        assert_eq!(mismatch("x", &a, &a), None);
+        let mut last = panda;
+        last[6] = 0.2;
+        let msg = mismatch("x", &fixed(&last), &a).unwrap();
+        assert!(
+            msg.contains("7-link fixed arm (links 0.333,0.316,0.0825,0.384,0.088,0.107,0.2)")
+                && msg.contains("0.107,0.1);"),
             "{msg}"
         );
     }
@@ -363,19 +383,23 @@ mod tests {
         assert!(msg.contains("invalid link count 1000"), "{msg}");
     }
 
-    /// This layout must never change: it is how two wire versions tell each other apart.
+    /// This layout must not change: it is how two wire versions tell each other apart. It last
+    /// changed with the joint capacity (6 → 7 joints, wire version 5; it was 192 bytes).
     #[test]
     fn info_layout_is_frozen() {
-        assert_eq!(size_of::<ArmInfo>(), 192);
+        assert_eq!(MAX_JOINTS, 7);
+        assert_eq!(size_of::<ArmInfo>(), 216);
         assert_eq!(align_of::<ArmInfo>(), 8);
         assert_eq!(offset_of!(ArmInfo, wire_version), 0);
         assert_eq!(offset_of!(ArmInfo, kind), 4);
         assert_eq!(offset_of!(ArmInfo, instance_id), 8);
         assert_eq!(offset_of!(ArmInfo, n), 16);
         assert_eq!(offset_of!(ArmInfo, links), 24);
-        assert_eq!(offset_of!(ArmInfo, link_masses), 72);
-        assert_eq!(offset_of!(ArmInfo, link_inertias), 120);
-        assert_eq!(offset_of!(ArmInfo, base_mass), 168);
+        assert_eq!(offset_of!(ArmInfo, link_masses), 80);
+        assert_eq!(offset_of!(ArmInfo, link_inertias), 136);
+        assert_eq!(offset_of!(ArmInfo, base_mass), 192);
+        assert_eq!(offset_of!(ArmInfo, base_inertia), 200);
+        assert_eq!(offset_of!(ArmInfo, base_offset), 208);
         // SAFETY: type_name only returns the string set by #[type_name].
         assert_eq!(
             unsafe { <ArmInfo as ZeroCopySend>::type_name() },

@@ -31,7 +31,7 @@ pub mod flags {
 
 /// The plant's measured state, published once per plant tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::StateSample.v4")]
+#[type_name("chaosd::StateSample.v5")]
 #[repr(C)]
 pub struct StateSample {
     /// Per-plant sequence number, +1 per published sample, starting at 0 after each plant start.
@@ -227,7 +227,7 @@ impl From<Mode> for u32 {
 
 /// The daemon's command, published once per control tick in answer to a [`StateSample`].
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::CommandSample.v4")]
+#[type_name("chaosd::CommandSample.v5")]
 #[repr(C)]
 pub struct CommandSample {
     /// Per-daemon sequence number, +1 per published command, starting at 0 after each start.
@@ -421,7 +421,7 @@ mod tests {
 
     #[test]
     fn wrong_joint_count_is_rejected() {
-        for n in [0u32, 1, 7, 100, u32::MAX] {
+        for n in [0u32, 1, 8, 100, u32::MAX] {
             let mut s = good_state(4);
             s.n = n;
             assert_eq!(
@@ -510,7 +510,7 @@ mod tests {
         s.n = 9;
         assert_eq!(
             s.validate(4).unwrap_err().to_string(),
-            "state sample has n = 9; supported arms have 2..=6 joints"
+            "state sample has n = 9; supported arms have 2..=7 joints"
         );
     }
 
@@ -525,8 +525,8 @@ mod tests {
     /// `WIRE_VERSION` and the `type_name`s.
     #[test]
     fn state_layout_is_pinned() {
-        assert_eq!(MAX_JOINTS, 6);
-        assert_eq!(size_of::<StateSample>(), 136);
+        assert_eq!(MAX_JOINTS, 7);
+        assert_eq!(size_of::<StateSample>(), 152);
         assert_eq!(align_of::<StateSample>(), 8);
         assert_eq!(offset_of!(StateSample, seq), 0);
         assert_eq!(offset_of!(StateSample, stamp_ns), 8);
@@ -535,12 +535,13 @@ mod tests {
         assert_eq!(offset_of!(StateSample, flags), 28);
         assert_eq!(offset_of!(StateSample, phi), 32);
         assert_eq!(offset_of!(StateSample, q), 40);
-        assert_eq!(offset_of!(StateSample, qd), 88);
+        assert_eq!(offset_of!(StateSample, qd), 96);
     }
 
     #[test]
     fn command_layout_is_pinned() {
-        assert_eq!(size_of::<CommandSample>(), 144);
+        assert_eq!(MAX_JOINTS, 7);
+        assert_eq!(size_of::<CommandSample>(), 160);
         assert_eq!(align_of::<CommandSample>(), 8);
         assert_eq!(offset_of!(CommandSample, seq), 0);
         assert_eq!(offset_of!(CommandSample, state_seq), 8);
@@ -550,7 +551,7 @@ mod tests {
         assert_eq!(offset_of!(CommandSample, mode), 40);
         assert_eq!(offset_of!(CommandSample, n), 44);
         assert_eq!(offset_of!(CommandSample, qdd), 48);
-        assert_eq!(offset_of!(CommandSample, qddd), 96);
+        assert_eq!(offset_of!(CommandSample, qddd), 104);
     }
 
     #[test]

@@ -93,7 +93,8 @@ fn json(p: &Path) -> serde_json::Value {
 fn spray_garbage(to: &str) -> u64 {
     let s = UdpSocket::bind("127.0.0.1:0").unwrap();
     let mut sent = 0;
-    for len in [0usize, 1, 7, 64, 127, 128, 129, 143, 144, 145, 500] {
+    // Around the command (144 bytes) and state (160 bytes) lengths of UDP wire version 2.
+    for len in [0usize, 1, 7, 64, 143, 144, 145, 159, 160, 161, 500] {
         let mut b = vec![0xA5u8; len];
         if len >= 4 {
             b[..4].copy_from_slice(b"CDST");

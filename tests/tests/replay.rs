@@ -85,7 +85,7 @@ fn a_live_run_replays_bit_for_bit_and_a_tampered_recording_is_caught() {
         .rposition(|l| l.starts_with("T ") && !l.ends_with(" -"))
         .expect("a tick with a command");
     let mut fields: Vec<String> = lines[i].split(',').map(String::from).collect();
-    let qdd0 = fields.len() - 12;
+    let qdd0 = fields.len() - 2 * protocol::MAX_JOINTS; // the command's qdd[0]
     let v = u64::from_str_radix(&fields[qdd0], 16).unwrap() ^ 1;
     fields[qdd0] = format!("{v:016x}");
     lines[i] = fields.join(",");

@@ -860,7 +860,7 @@ pub fn ping_block<L: Link<StateSample, CommandSample>>(
     let mut s = StateSample {
         plant_id: 1,
         n: 3,
-        q: [0.1, 0.2, 0.3, 0.0, 0.0, 0.0],
+        q: std::array::from_fn(|i| [0.1, 0.2, 0.3].get(i).copied().unwrap_or(0.0)),
         qd: [0.01; MAX_JOINTS],
         ..StateSample::default()
     };

@@ -115,7 +115,7 @@ pub struct Filtered<const N: usize> {
 /// let model = cfg.model::<3>();
 /// let mut p = SafetyParams::off();
 /// p.enabled = true;
-/// p.qdd_max = [100.0; 6];
+/// p.qdd_max = [100.0; control::MAX_JOINTS];
 /// let (q, qd) = (VecN::<3>::new(0.0, 1.5, 1.5), VecN::<3>::zeros());
 /// let mut kin = Kinematics::default();
 /// model.kinematics(0.0, &q, &qd, &mut kin);

@@ -13,19 +13,20 @@
 //!   (the simulator's model), owns the clock, counts late and missing answers, and can inject
 //!   packet loss, delay spikes and its own restart.
 //!
-//! ## Wire format, version 1
+//! ## Wire format, version 2
 //!
 //! One UDP datagram per message, fixed size, all integers and floats **little-endian**, floats
-//! IEEE-754 binary64. Arrays always have 6 entries (`MAX_JOINTS`); entries `n..` are zero and
+//! IEEE-754 binary64. Arrays always have 7 entries (`MAX_JOINTS`); entries `n..` are zero and
 //! ignored. A receiver drops (and counts) every datagram whose length, magic, version, `n`
-//! (2..=6), mode or used floats (finite) are wrong; it never trusts a field it has not checked.
+//! (2..=7), mode or used floats (finite) are wrong; it never trusts a field it has not checked.
+//! (Version 1 had arrays of 6 entries: a 144-byte state and a 128-byte command.)
 //!
-//! **State** (device → bridge, 144 bytes, sent once per device cycle):
+//! **State** (device → bridge, 160 bytes, sent once per device cycle):
 //!
 //! | offset | type | field |
 //! |---|---|---|
 //! | 0 | `[u8; 4]` | magic `b"CDST"` |
-//! | 4 | u16 | version = 1 |
+//! | 4 | u16 | version = 2 |
 //! | 6 | u16 | `n`, joints in use |
 //! | 8 | u64 | `seq`: the device's cycle counter, +1 per cycle, 0 at each device start |
 //! | 16 | u64 | `session`: random per device start; a new value means the device restarted |
@@ -34,22 +35,22 @@
 //! | 36 | u32 | missed answers in a row |
 //! | 40 | u32 | missed answers since start (saturating) |
 //! | 44 | u32 | reserved, 0 |
-//! | 48 | `[f64; 6]` | `q`, joint angles (rad) |
-//! | 96 | `[f64; 6]` | `qd`, joint rates (rad/s) |
+//! | 48 | `[f64; 7]` | `q`, joint angles (rad) |
+//! | 104 | `[f64; 7]` | `qd`, joint rates (rad/s) |
 //!
-//! **Command** (bridge → device, 128 bytes, at most one per state):
+//! **Command** (bridge → device, 144 bytes, at most one per state):
 //!
 //! | offset | type | field |
 //! |---|---|---|
 //! | 0 | `[u8; 4]` | magic `b"CDCM"` |
-//! | 4 | u16 | version = 1 |
+//! | 4 | u16 | version = 2 |
 //! | 6 | u16 | `n`, must equal the device's |
 //! | 8 | u64 | `seq` of the state this answers (echoed) |
 //! | 16 | u64 | `session` of that state (echoed) |
 //! | 24 | u32 | mode: 0 run, 1 hold (come to rest and stay), 2 brake |
 //! | 28 | u32 | reserved, 0 |
-//! | 32 | `[f64; 6]` | `qdd`: q̈ at the answered state (rad/s²) |
-//! | 80 | `[f64; 6]` | `qddd`: its rate (rad/s³); the device applies q̈ + q⃛·s, s from the answered state |
+//! | 32 | `[f64; 7]` | `qdd`: q̈ at the answered state (rad/s²) |
+//! | 88 | `[f64; 7]` | `qddd`: its rate (rad/s³); the device applies q̈ + q⃛·s, s from the answered state |
 //!
 //! **Timing rules (the device's side).** A command answers in time if it echoes the `seq` and
 //! `session` of the newest state and arrives before the device's next cycle starts; the device

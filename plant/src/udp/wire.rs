@@ -4,16 +4,24 @@
 
 use protocol::MAX_JOINTS;
 
-/// Protocol version carried in every packet.
-pub const VERSION: u16 = 1;
+/// Protocol version carried in every packet. 2: arrays of 7 entries (version 1 had 6).
+pub const VERSION: u16 = 2;
 /// `b"CDST"`: a state packet (device → bridge).
 pub const STATE_MAGIC: [u8; 4] = *b"CDST";
 /// `b"CDCM"`: a command packet (bridge → device).
 pub const COMMAND_MAGIC: [u8; 4] = *b"CDCM";
-/// Size of a state packet (bytes).
-pub const STATE_LEN: usize = 144;
-/// Size of a command packet (bytes).
-pub const COMMAND_LEN: usize = 128;
+/// Bytes of one per-joint array: `MAX_JOINTS` f64s.
+const ARRAY_BYTES: usize = 8 * MAX_JOINTS;
+/// Offset of the state's `q` (after its fixed 48-byte header), then of its `qd`.
+const STATE_Q: usize = 48;
+const STATE_QD: usize = STATE_Q + ARRAY_BYTES;
+/// Size of a state packet (bytes): 160 for 7 joints.
+pub const STATE_LEN: usize = STATE_QD + ARRAY_BYTES;
+/// Offset of the command's `qdd` (after its fixed 32-byte header), then of its `qddd`.
+const COMMAND_QDD: usize = 32;
+const COMMAND_QDDD: usize = COMMAND_QDD + ARRAY_BYTES;
+/// Size of a command packet (bytes): 144 for 7 joints.
+pub const COMMAND_LEN: usize = COMMAND_QDDD + ARRAY_BYTES;
 
 /// Device state flag: the device is braking (too many missed answers, or told to).
 pub const DEVICE_BRAKING: u32 = 1 << 0;
@@ -144,8 +152,8 @@ impl DeviceState {
         b[32..36].copy_from_slice(&self.flags.to_le_bytes());
         b[36..40].copy_from_slice(&self.missed_run.to_le_bytes());
         b[40..44].copy_from_slice(&self.missed_total.to_le_bytes());
-        put_f64s(b, 48, &self.q);
-        put_f64s(b, 96, &self.qd);
+        put_f64s(b, STATE_Q, &self.q);
+        put_f64s(b, STATE_QD, &self.qd);
     }
 
     pub fn decode(b: &[u8]) -> Result<Self, WireError> {
@@ -160,8 +168,8 @@ impl DeviceState {
             missed_total: u32_at(b, 40),
             ..Self::default()
         };
-        f64s_at(b, 48, n, &mut s.q)?;
-        f64s_at(b, 96, n, &mut s.qd)?;
+        f64s_at(b, STATE_Q, n, &mut s.q)?;
+        f64s_at(b, STATE_QD, n, &mut s.qd)?;
         Ok(s)
     }
 }
@@ -175,8 +183,8 @@ impl DeviceCommand {
         b[8..16].copy_from_slice(&self.seq.to_le_bytes());
         b[16..24].copy_from_slice(&self.session.to_le_bytes());
         b[24..28].copy_from_slice(&(self.mode as u32).to_le_bytes());
-        put_f64s(b, 32, &self.qdd);
-        put_f64s(b, 80, &self.qddd);
+        put_f64s(b, COMMAND_QDD, &self.qdd);
+        put_f64s(b, COMMAND_QDDD, &self.qddd);
     }
 
     pub fn decode(b: &[u8]) -> Result<Self, WireError> {
@@ -195,8 +203,8 @@ impl DeviceCommand {
             qdd: [0.0; MAX_JOINTS],
             qddd: [0.0; MAX_JOINTS],
         };
-        f64s_at(b, 32, n, &mut c.qdd)?;
-        f64s_at(b, 80, n, &mut c.qddd)?;
+        f64s_at(b, COMMAND_QDD, n, &mut c.qdd)?;
+        f64s_at(b, COMMAND_QDDD, n, &mut c.qddd)?;
         Ok(c)
     }
 }
@@ -214,9 +222,50 @@ mod tests {
             flags: DEVICE_BRAKING,
             missed_run: 2,
             missed_total: 9,
-            q: [0.1, 0.2, 0.3, 0.0, 0.0, 0.0],
-            qd: [-1.0, 2.0, -3.0, 0.0, 0.0, 0.0],
+            q: [0.1, 0.2, 0.3, 0.0, 0.0, 0.0, 0.0],
+            qd: [-1.0, 2.0, -3.0, 0.0, 0.0, 0.0, 0.0],
         }
+    }
+
+    /// The byte layout is the protocol (the table in the module doc of `udp`). If this test
+    /// fails, the layout changed: bump `VERSION` and the table.
+    #[test]
+    fn the_layout_is_pinned() {
+        assert_eq!(MAX_JOINTS, 7);
+        assert_eq!((STATE_Q, STATE_QD, STATE_LEN), (48, 104, 160));
+        assert_eq!((COMMAND_QDD, COMMAND_QDDD, COMMAND_LEN), (32, 88, 144));
+        assert_eq!(VERSION, 2);
+    }
+
+    #[test]
+    fn a_seven_joint_arm_round_trips() {
+        let s = DeviceState {
+            n: 7,
+            q: [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7],
+            qd: [-0.1, -0.2, -0.3, -0.4, -0.5, -0.6, -0.7],
+            ..state()
+        };
+        let mut b = [0u8; STATE_LEN];
+        s.encode(&mut b);
+        assert_eq!(f64::from_le_bytes(b[96..104].try_into().unwrap()), 0.7);
+        assert_eq!(f64::from_le_bytes(b[152..160].try_into().unwrap()), -0.7);
+        assert_eq!(DeviceState::decode(&b), Ok(s));
+        let c = DeviceCommand {
+            n: 7,
+            seq: 1,
+            session: 2,
+            mode: DeviceMode::Run,
+            qdd: [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0],
+            qddd: [-1.0, -2.0, -3.0, -4.0, -5.0, -6.0, -7.0],
+        };
+        let mut b = [0u8; COMMAND_LEN];
+        c.encode(&mut b);
+        assert_eq!(f64::from_le_bytes(b[80..88].try_into().unwrap()), 7.0);
+        assert_eq!(f64::from_le_bytes(b[136..144].try_into().unwrap()), -7.0);
+        assert_eq!(DeviceCommand::decode(&b), Ok(c));
+        let mut eight = b;
+        eight[6..8].copy_from_slice(&8u16.to_le_bytes());
+        assert_eq!(DeviceCommand::decode(&eight), Err(WireError::Joints(8)));
     }
 
     #[test]
@@ -225,21 +274,21 @@ mod tests {
         state().encode(&mut b);
         assert_eq!(&b[0..4], b"CDST");
         assert_eq!(u64_at(&b, 8), 42);
-        assert_eq!(f64::from_le_bytes(b[96..104].try_into().unwrap()), -1.0);
+        assert_eq!(f64::from_le_bytes(b[104..112].try_into().unwrap()), -1.0);
         assert_eq!(DeviceState::decode(&b), Ok(state()));
         let c = DeviceCommand {
             n: 3,
             seq: 42,
             session: 5,
             mode: DeviceMode::Hold,
-            qdd: [1.0, 2.0, 3.0, 0.0, 0.0, 0.0],
-            qddd: [4.0, 5.0, 6.0, 0.0, 0.0, 0.0],
+            qdd: [1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 0.0],
+            qddd: [4.0, 5.0, 6.0, 0.0, 0.0, 0.0, 0.0],
         };
         let mut b = [0u8; COMMAND_LEN];
         c.encode(&mut b);
         assert_eq!(&b[0..4], b"CDCM");
         assert_eq!(u32_at(&b, 24), 1);
-        assert_eq!(f64::from_le_bytes(b[80..88].try_into().unwrap()), 4.0);
+        assert_eq!(f64::from_le_bytes(b[88..96].try_into().unwrap()), 4.0);
         assert_eq!(DeviceCommand::decode(&b), Ok(c));
     }
 
