@@ -86,19 +86,15 @@ impl Pose {
 
 /// A rotation taking the z axis onto the unit vector `a` (any one: the angle about `a` is free).
 pub fn z_onto(a: &Vector3<f64>) -> Matrix3<f64> {
-    let z = Vector3::z();
-    let c = a.z;
-    if c > 1.0 - 1e-15 {
-        return Matrix3::identity();
+    if a.z < 0.0 {
+        // Near −z the formula below divides by ~0: go through the half turn about x instead.
+        let flip = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
+        return flip * z_onto(&Vector3::new(a.x, -a.y, -a.z));
     }
-    if c < -1.0 + 1e-15 {
-        return Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
-    }
-    // Rodrigues about k = z × a / |z × a| by the angle between z and a.
-    let k = z.cross(a).normalize();
-    let s = (1.0 - c * c).sqrt();
+    // Rodrigues with k = z × a (|k| = sin θ, c = cos θ): R = I + [k]× + [k]×² / (1 + c).
+    let k = Vector3::z().cross(a);
     let kx = k.cross_matrix();
-    Matrix3::identity() + kx * s + kx * kx * (1.0 - c)
+    Matrix3::identity() + kx + kx * kx / (1.0 + a.z)
 }
 
 #[cfg(test)]
