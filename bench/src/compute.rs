@@ -5,6 +5,8 @@
 //! naive law is a straight port of the numpy reference (dynamic matrices, SVD pseudo-inverse) and
 //! computes the same q̈ (tested in `naive`). The Lyapunov pair is `control::analysis`'s Benettin
 //! driver on the arm, the workload of `chaosctl lyapunov | sweep`, next to the plain run it doubles.
+//! The robot model's table (Panda: FK + Jacobian + J̇q̇, RNEA, CRBA, ABA against a naive
+//! implementation, `k` and pinocchio) is `model_timing`'s.
 
 use crate::naive;
 use crate::plot::Panel;
@@ -61,8 +63,15 @@ fn states(n: usize) -> Vec<ArmState<3>> {
 }
 
 /// Runs the benchmark on a thread pinned to `core` and returns its report.
-pub fn run(quick: bool, core: usize, out: &Path, command: &str) -> Result<String> {
+pub fn run(
+    quick: bool,
+    core: usize,
+    pinocchio: &Path,
+    out: &Path,
+    command: &str,
+) -> Result<String> {
     let (out, command) = (out.to_path_buf(), command.to_string());
+    let pinocchio = pinocchio.to_path_buf();
     std::thread::Builder::new()
         .name("compute".into())
         .spawn(move || {
@@ -74,7 +83,7 @@ pub fn run(quick: bool, core: usize, out: &Path, command: &str) -> Result<String
             for w in &rt.warnings {
                 eprintln!("chaosd-bench: compute: warning: {w}; timings will be noisier");
             }
-            measure(quick, &out, &command)
+            measure(quick, &pinocchio, &out, &command)
         })?
         .join()
         .map_err(|_| anyhow!("the compute thread panicked"))?
@@ -159,7 +168,7 @@ fn filter_cost(
     }))
 }
 
-fn measure(quick: bool, out: &Path, command: &str) -> Result<String> {
+fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<String> {
     let mut report = Report::new(out, "compute")?;
     let (batches, batch) = if quick { (300, 200) } else { (3000, 1000) };
     let xs = states(1024);
@@ -313,6 +322,7 @@ fn measure(quick: bool, out: &Path, command: &str) -> Result<String> {
          (`Controller::rehearse`).\n\n",
     );
     report.push(&crate::tick::table(quick)?);
+    crate::model_timing::section(quick, pinocchio, &mut report)?;
     report.push(&format!(
         "\n300 s simulation (RK4, dt = 1 ms, fixed base, manipulability): {:.3} s wall, {:.0} simulated s per wall s \
          (target < 0.3 s; the plain numpy reference takes about 139 s, numba about 2.6 s: {:.0}× and {:.0}× slower)\n",

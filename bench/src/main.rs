@@ -9,7 +9,9 @@
 //! * `latency`: state → command round trips over iceoryx2 and the alternatives (`latency`).
 //! * `jitter`:  loop wake-up lateness per wait strategy, next to cyclictest (`jitter`).
 //! * `e2e`:     the real daemon and plant processes at 1 to 10 kHz (`e2e`).
-//! * `compute`: the control law, an RK4 step, a 300 s run and a Lyapunov pair (`compute`).
+//! * `compute`: the control law, an RK4 step, a 300 s run and a Lyapunov pair (`compute`), and
+//!   the robot model (FK + Jacobian + J̇q̇, RNEA, CRBA, ABA on the Panda) next to a naive
+//!   implementation, the `k` crate and pinocchio (`model_timing`).
 //! * `all`:     the four in a row, and one summary.
 //! * `soak`:    the real daemon and plant for N seconds under injected faults; a verdict table,
 //!   and a non-zero exit if anything was lost, not recovered or left behind (`soak`).
@@ -21,13 +23,20 @@ mod e2e;
 mod jitter;
 mod late;
 mod latency;
+mod model_timing;
 mod naive;
+mod naive_model;
 mod plan;
 mod plot;
 mod report;
 mod soak;
 mod stats;
 mod tick;
+
+/// Counts allocations (armed per thread, only around what is counted): the compute benchmark
+/// reports the robot model's allocations per call with it.
+#[global_allocator]
+static ALLOCATOR: rt::alloc_count::Counting = rt::alloc_count::Counting;
 
 /// Held by the unit tests that make iceoryx2 nodes in this process: the soak's leftover check
 /// counts every node of a pid as its own, so it must not run while another test has one open.
@@ -71,11 +80,15 @@ enum Cmd {
     /// The real chaosd and chaosd-plant processes at 1, 2, 5 and 10 kHz.
     E2e(E2eArgs),
     /// Control-law evaluation, RK4 step, a 300 s simulation and a Lyapunov pair, next to a naive
-    /// implementation.
+    /// implementation; the robot model on the Panda next to a naive one, `k` and pinocchio.
     Compute {
         /// Core to pin to.
         #[arg(long, default_value_t = 0)]
         core: usize,
+        /// pinocchio's timings (scripts/pinocchio-timings/run.sh writes them); absent → the
+        /// table says "not built".
+        #[arg(long, default_value = model_timing::DEFAULT_PINOCCHIO)]
+        pinocchio: PathBuf,
     },
     /// latency, jitter, e2e and compute in a row, with one summary file.
     All {
@@ -272,7 +285,16 @@ fn all(quick: bool, out: &Path, priority: Option<u8>, command: &str) -> Result<S
         ("latency", latency::run(&lat, out, command)),
         ("jitter", jitter::run(&jit, out, command)),
         ("e2e", e2e::run(&e2e::Options::new(quick), out, command)),
-        ("compute", compute::run(quick, 0, out, command)),
+        (
+            "compute",
+            compute::run(
+                quick,
+                0,
+                Path::new(model_timing::DEFAULT_PINOCCHIO),
+                out,
+                command,
+            ),
+        ),
     ];
     let mut text = String::new();
     let mut failed = Vec::new();
@@ -319,7 +341,7 @@ fn main() -> ExitCode {
         Cmd::Latency(a) => latency_opts(quick, a).and_then(|o| latency::run(&o, out, &command)),
         Cmd::Jitter(a) => jitter_opts(quick, a).and_then(|o| jitter::run(&o, out, &command)),
         Cmd::E2e(a) => e2e_opts(quick, a).and_then(|o| e2e::run(&o, out, &command)),
-        Cmd::Compute { core } => compute::run(quick, *core, out, &command),
+        Cmd::Compute { core, pinocchio } => compute::run(quick, *core, pinocchio, out, &command),
         Cmd::All { priority } => all(quick, out, *priority, &command),
         Cmd::Soak(a) => soak::run(
             &soak::Options {
