@@ -3,7 +3,7 @@
 //! O(N) and without forming M. In the base frame an articulated inertia passes to its parent
 //! unchanged (no 6×6 transform), which leaves a rank-one downdate per joint as the main cost.
 
-use super::fixed::{Frames, Model, VecN};
+use super::fixed::{Model, VecN};
 use super::spatial::{Inertia, Motion};
 use nalgebra::{Matrix6, Vector6};
 
@@ -11,15 +11,15 @@ impl<const N: usize> Model<N> {
     /// q̈ from the joint torques τ: the q̈ for which [`Model::rnea`] gives back τ.
     #[inline]
     pub fn aba(&self, q: &VecN<N>, qd: &VecN<N>, tau: &VecN<N>) -> VecN<N> {
-        let mut frames = Frames::default();
-        self.frames(q, &mut frames);
+        let mut pose = super::Pose::IDENTITY;
         let mut s = [Vector6::zeros(); N];
         let mut c = [Vector6::zeros(); N];
         let mut ia = [Matrix6::zeros(); N];
         let mut pa = [Vector6::zeros(); N];
         let mut v = Motion::ZERO;
         for i in 0..N {
-            let fr = &frames.body[i];
+            pose = self.body_pose(i, &pose, q[i]);
+            let fr = &pose;
             let si = Motion::axis(self.prismatic[i], &fr.rot.column(2).into_owned(), &fr.pos);
             let vj = si.scaled(qd[i]);
             v = v.plus(&vj);

@@ -88,19 +88,26 @@ impl<const N: usize> Model<N> {
     /// `out.body[i].pos`.
     #[inline]
     pub fn frames(&self, q: &VecN<N>, out: &mut Frames<N>) {
-        let mut parent = Pose::IDENTITY;
+        let mut pose = Pose::IDENTITY;
         for i in 0..N {
-            let pl = &self.placement[i];
-            let mut f = if i == 0 { *pl } else { parent.then(pl) };
-            if self.prismatic[i] {
-                f.pos += f.rot.column(2) * q[i];
-            } else {
-                rotate_about_z(&mut f, q[i]);
-            }
-            out.body[i] = f;
-            parent = f;
+            pose = self.body_pose(i, &pose, q[i]);
+            out.body[i] = pose;
         }
-        out.tip = parent.then(&self.tip);
+        out.tip = pose.then(&self.tip);
+    }
+
+    /// Body i's frame from body i−1's (`parent`; the base's, the identity, for i = 0): one step
+    /// of [`Model::frames`], for the recursions that need each pose only once.
+    #[inline(always)]
+    pub fn body_pose(&self, i: usize, parent: &Pose, qi: f64) -> Pose {
+        let pl = &self.placement[i];
+        let mut f = if i == 0 { *pl } else { parent.then(pl) };
+        if self.prismatic[i] {
+            f.pos += f.rot.column(2) * qi;
+        } else {
+            rotate_about_z(&mut f, qi);
+        }
+        f
     }
 }
 

@@ -5,7 +5,7 @@
 //! it is never rotated whole), and the wrenches come back as plain sums. Gravity enters as an
 //! upward acceleration of the base.
 
-use super::fixed::{Frames, Model, VecN};
+use super::fixed::{Model, VecN};
 use super::spatial::{Force, Motion};
 use nalgebra::Vector3;
 
@@ -23,8 +23,7 @@ impl<const N: usize> Model<N> {
     /// ```
     #[inline]
     pub fn rnea(&self, q: &VecN<N>, qd: &VecN<N>, qdd: &VecN<N>) -> VecN<N> {
-        let mut frames = Frames::default();
-        self.frames(q, &mut frames);
+        let mut pose = super::Pose::IDENTITY;
         let mut f = [Force::ZERO; N];
         let mut s = [Motion::ZERO; N];
         let mut v = Motion::ZERO;
@@ -33,7 +32,8 @@ impl<const N: usize> Model<N> {
             v: -self.gravity,
         };
         for i in 0..N {
-            let fr = &frames.body[i];
+            pose = self.body_pose(i, &pose, q[i]);
+            let fr = &pose;
             s[i] = Motion::axis(self.prismatic[i], &fr.rot.column(2).into_owned(), &fr.pos);
             let vj = s[i].scaled(qd[i]);
             v = v.plus(&vj);
