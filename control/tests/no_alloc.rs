@@ -98,3 +98,33 @@ fn the_safety_filter_allocates_nothing_on_any_path() {
         });
     }
 }
+
+#[test]
+fn the_robot_models_algorithms_allocate_nothing() {
+    use control::model::{builtin, Chain, TipKinematics};
+    use nalgebra::SVector;
+    let model = Chain::from_urdf(builtin("panda").unwrap(), None, None)
+        .unwrap()
+        .model::<7>()
+        .unwrap();
+    let mut k = TipKinematics::default();
+    let mut frames = control::model::Frames::default();
+    let n = allocations(|| {
+        for i in 0..200 {
+            let x = i as f64 * 0.01;
+            let (q, qd, qdd) = (
+                SVector::from([x; 7]),
+                SVector::from([0.5 - x; 7]),
+                SVector::from([x * 2.0; 7]),
+            );
+            model.frames(&q, &mut frames);
+            model.tip_kinematics(&q, &qd, &mut k);
+            let tau = model.rnea(&q, &qd, &qdd);
+            std::hint::black_box(model.mass_matrix(&q));
+            std::hint::black_box(model.gravity_torques(&q));
+            std::hint::black_box(model.aba(&q, &qd, &tau));
+            std::hint::black_box(frames.link(&model, 3));
+        }
+    });
+    assert_eq!(n, 0, "the model's algorithms allocated {n} times");
+}
