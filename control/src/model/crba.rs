@@ -3,7 +3,8 @@
 //! In the base frame a subtree's composite inertia is the sum of its bodies' inertias, so the
 //! backward pass is one addition per body, and M_ki = S_k · (I_i^c S_i) for k ≤ i.
 
-use super::fixed::{Frames, Model, VecN};
+use super::fixed::{Model, VecN};
+use super::pose::Pose;
 use super::spatial::{Inertia, Motion};
 use nalgebra::SMatrix;
 
@@ -20,22 +21,36 @@ impl<const N: usize> Model<N> {
     /// ```
     #[inline]
     pub fn mass_matrix(&self, q: &VecN<N>) -> SMatrix<f64, N, N> {
-        let mut frames = Frames::default();
-        self.frames(q, &mut frames);
-        let mut s = [Motion::ZERO; N];
+        // Forward: each joint's axis (as a 6-vector column of S) and body inertia, base frame.
+        let mut axes = SMatrix::<f64, 6, N>::zeros();
+        let mut bodies = [Inertia::default(); N];
+        let mut pose = Pose::IDENTITY;
         for i in 0..N {
-            let fr = &frames.body[i];
-            s[i] = Motion::axis(self.prismatic[i], &fr.rot.column(2).into_owned(), &fr.pos);
+            pose = self.body_pose(i, &pose, q[i]);
+            let s = Motion::axis(
+                self.prismatic[i],
+                &pose.rot.column(2).into_owned(),
+                &pose.pos,
+            );
+            axes.set_column(i, &s.to_vector());
+            bodies[i] = Inertia::of(&self.body[i], &pose);
         }
+        // Backward: column i is Sᵀ·(I_i^c S_i). Its entries below the diagonal would need the
+        // composite of a later body; they are taken from the upper triangle at the end.
         let mut m = SMatrix::<f64, N, N>::zeros();
         let mut composite = Inertia::default();
         for i in (0..N).rev() {
-            composite.add(&Inertia::of(&self.body[i], &frames.body[i]));
-            let f = composite.apply(&s[i]);
-            for k in 0..=i {
-                let mki = s[k].dot(&f);
-                m[(k, i)] = mki;
-                m[(i, k)] = mki;
+            composite.add(&bodies[i]);
+            let s = Motion {
+                w: axes.fixed_view::<3, 1>(0, i).into_owned(),
+                v: axes.fixed_view::<3, 1>(3, i).into_owned(),
+            };
+            let f = composite.apply(&s).to_vector();
+            m.set_column(i, &axes.tr_mul(&f));
+        }
+        for i in 0..N {
+            for k in i + 1..N {
+                m[(k, i)] = m[(i, k)];
             }
         }
         m
