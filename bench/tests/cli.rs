@@ -252,3 +252,88 @@ fn a_one_minute_soak_injects_faults_and_passes() {
     assert!(dir.join("o/soak/soak.md").is_file());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `compute --quick` with a pinocchio timings file: the robot model table has a row per
+/// implementation and operation, chaosd's calls allocate nothing and the naive ones do, the
+/// file's numbers are shown with their ratio, and the k row says whether k was built.
+#[test]
+fn compute_reports_the_robot_model_table() {
+    let _g = serial();
+    let dir = scratch("compute");
+    let rows: Vec<String> = [
+        "rnea",
+        "crba",
+        "crba_world",
+        "aba",
+        "aba_world",
+        "gravity",
+        "fk_jacobian",
+        "fk_jdot_qd",
+        "fk_jacobian_jdot_qd",
+    ]
+    .iter()
+    .map(|k| {
+        format!(
+            r#""{k}": {{"label": "{k}", "p50_ns": 4321.0, "p90_ns": 4400.0, "p99_ns": 5000.0, "p999_ns": 6000.0, "max_ns": 9000.0}}"#
+        )
+    })
+    .collect();
+    let json = format!(
+        r#"{{"pinocchio_version": "9.9.9", "flags": "-O3", "template_instantiation": false, "cpu": "test", "tip": "panda_link8", "dof": 7, "rows": {{{}}}}}"#,
+        rows.join(", ")
+    );
+    std::fs::write(dir.join("pin.json"), json).unwrap();
+    let out = run(
+        &[
+            "--quick",
+            "--out",
+            "o",
+            "compute",
+            "--pinocchio",
+            "pin.json",
+        ],
+        &dir,
+        Duration::from_secs(600),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "stdout:\n{stdout}\nstderr:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let row = |op: &str, who: &str| {
+        stdout
+            .lines()
+            .find(|l| l.starts_with(&format!("| {op}")) && l.contains(who))
+            .unwrap_or_else(|| panic!("no row {op} / {who}:\n{stdout}"))
+            .split('|')
+            .map(|c| c.trim().to_string())
+            .collect::<Vec<_>>()
+    };
+    for op in ["FK + tip Jacobian + J̇q̇", "RNEA", "CRBA", "ABA", "gravity"] {
+        let c = row(op, "chaosd");
+        assert_eq!(c[8], "0", "chaosd allocates in {op}: {c:?}");
+        assert_eq!(c[9], "1.0×", "{c:?}");
+        let n = row(op, "naive");
+        assert!(n[8].parse::<f64>().unwrap() > 0.0, "{n:?}");
+        let p = row(op, "pinocchio 9.9.9");
+        assert_eq!(p[3], "4.32 µs", "{p:?}");
+        assert!(p[9].ends_with('×'), "{p:?}");
+    }
+    for op in ["FK + tip Jacobian + J̇q̇", "RNEA", "CRBA", "ABA"] {
+        let c = row(op, "chaosd");
+        assert!(
+            c[10].ends_with(": met") || c[10].ends_with(": MISSED"),
+            "{c:?}"
+        );
+    }
+    let k = row("FK + tip Jacobian (no J̇q̇)", "k 0.32");
+    if cfg!(feature = "k-crate") {
+        assert!(k[3].ends_with("µs") || k[3].ends_with("ns"), "{k:?}");
+    } else {
+        assert!(k[2].contains("not built"), "{k:?}");
+    }
+    assert!(stdout.contains("Targets (Panda, p50)"), "{stdout}");
+    assert!(dir.join("o/compute/model-rnea-chaosd.hgrm").is_file());
+    std::fs::remove_dir_all(&dir).ok();
+}

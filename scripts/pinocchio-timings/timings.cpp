@@ -97,7 +97,7 @@ int main(int argc, char **argv) {
   const std::string model_path = argv[1], tip = argv[2], out_path = argv[3];
   std::string urdf = model_path;
   int core = 0;
-  std::size_t rounds = 10, batches = 2000, batch = 100;
+  std::size_t rounds = 10, batches = 10000, batch = 100;
   for (int i = 4; i + 1 < argc; i += 2) {
     std::string a = argv[i];
     if (a == "--urdf") {
