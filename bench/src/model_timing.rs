@@ -198,6 +198,8 @@ struct Series<'a> {
     batches: usize,
     f: Box<dyn FnMut(usize) + 'a>,
     h: Histogram<u64>,
+    /// p50 of each round alone: how much the machine's load moved during the run.
+    round_p50: Vec<u64>,
     allocs: Option<f64>,
 }
 
@@ -218,6 +220,7 @@ impl<'a> Series<'a> {
             batches,
             f,
             h: histogram(),
+            round_p50: Vec::new(),
             allocs: None,
         }
     }
@@ -300,8 +303,9 @@ fn fmt_allocs(a: Option<f64>) -> String {
     }
 }
 
-/// Times the model, writes its `.hgrm` files and pushes its table and notes onto `report`.
-pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<()> {
+/// Times the model, writes its `.hgrm` files and returns its table and notes.
+pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<String> {
+    let mut text = String::new();
     let chain = panda()?;
     let model: Model<N> = chain.model::<N>()?;
     let naive = NaiveModel::new(&chain);
@@ -440,7 +444,10 @@ pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<()>
     }
     for _ in 0..rounds {
         for s in series.iter_mut() {
-            record(&mut s.h, s.batches, s.batch, &mut next, &mut *s.f);
+            let mut h = histogram();
+            record(&mut h, s.batches, s.batch, &mut next, &mut *s.f);
+            s.round_p50.push(h.value_at_quantile(0.5));
+            s.h.add(&h).map_err(|e| anyhow!("{e}"))?;
         }
     }
 
@@ -627,15 +634,15 @@ pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<()>
         report.hgrm(&format!("model-{}-{}", s.op, s.who), &s.h)?;
     }
 
-    report.push(&format!(
+    text.push_str(&format!(
         "\n### Robot model: the {N}-joint Panda (`robots/panda.urdf`, tip panda_link8)\n\n\
          {STATES} random states within the joint limits, one per call, timed per call in batches \
          (chaosd 100 calls, naive 10, k 20), implementations interleaved over {rounds} rounds; \
          percentiles over batches. Allocations counted per call (`rt::alloc_count`).\n\n"
     ));
-    report.push(&table.render());
+    text.push_str(&table.render());
     match &pin {
-        Some(p) => report.push(&format!(
+        Some(p) => text.push_str(&format!(
             "\npinocchio {} ({}{}) on {}, from {}, measured by its own run \
              (scripts/pinocchio-timings/run.sh) with the same method; its CRBA fills the upper \
              triangle only, chaosd's the whole matrix.\n",
@@ -649,17 +656,36 @@ pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<()>
             p.cpu,
             pinocchio.display()
         )),
-        None => report.push(&format!(
+        None => text.push_str(&format!(
             "\npinocchio: no timings at {} (scripts/pinocchio-timings/run.sh writes them; \
              `chaosd-bench compute --pinocchio FILE` reads another file).\n",
             pinocchio.display()
         )),
     }
-    report.push(&format!(
+    let spread: Vec<String> = series
+        .iter()
+        .map(|s| {
+            let lo = s.round_p50.iter().min().copied().unwrap_or(0);
+            let hi = s.round_p50.iter().max().copied().unwrap_or(0);
+            format!(
+                "{} {} {}–{}",
+                s.who,
+                s.op,
+                fmt_ns(lo as f64),
+                fmt_ns(hi as f64)
+            )
+        })
+        .collect();
+    text.push_str(&format!(
+        "p50 of each round alone, lowest–highest (the machine's load moves; the interleaved \
+         implementations move together): {}\n",
+        spread.join(", ")
+    ));
+    text.push_str(&format!(
         "Targets (Panda, p50): {}\n",
         target_lines.join("; ")
     ));
-    Ok(())
+    Ok(text)
 }
 
 #[cfg(test)]
