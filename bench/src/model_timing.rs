@@ -204,6 +204,21 @@ struct Series<'a> {
 }
 
 impl<'a> Series<'a> {
+    /// chaosd's fixed-size call: 100 calls per batch.
+    fn chaosd(
+        op: &'static str,
+        label: &str,
+        batches: usize,
+        f: Box<dyn FnMut(usize) + 'a>,
+    ) -> Self {
+        Self::new(op, "chaosd", label, 100, batches, f)
+    }
+
+    /// The naive implementation, ~20× slower: 10 calls per batch.
+    fn naive(op: &'static str, label: &str, batches: usize, f: Box<dyn FnMut(usize) + 'a>) -> Self {
+        Self::new(op, "naive", label, 10, batches, f)
+    }
+
     fn new(
         op: &'static str,
         who: &'static str,
@@ -319,22 +334,18 @@ pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<Str
     let mut tk = TipKinematics::<N>::default();
     let mut series: Vec<Series> = Vec::new();
     let (m, nv, x) = (&model, &naive, &xs);
-    series.push(Series::new(
+    series.push(Series::chaosd(
         "kin",
-        "chaosd",
         "chaosd `tip_kinematics` (fixed size)",
-        100,
         fast,
         Box::new(move |i| {
             m.tip_kinematics(&x[i].q, &x[i].qd, &mut tk);
             black_box(&tk);
         }),
     ));
-    series.push(Series::new(
+    series.push(Series::naive(
         "kin",
-        "naive",
         "naive (DMatrix, 4×4 Rodrigues, J̇ as a matrix)",
-        10,
         slow,
         Box::new(move |i| {
             black_box(nv.tip_kinematics(&x[i].dq, &x[i].dqd));
@@ -354,81 +365,65 @@ pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<Str
             }),
         ));
     }
-    series.push(Series::new(
+    series.push(Series::chaosd(
         "rnea",
-        "chaosd",
         "chaosd `rnea`",
-        100,
         fast,
         Box::new(move |i| {
             black_box(m.rnea(&x[i].q, &x[i].qd, &x[i].qdd));
         }),
     ));
-    series.push(Series::new(
+    series.push(Series::naive(
         "rnea",
-        "naive",
         "naive (body-frame Featherstone, 6×6 DMatrix)",
-        10,
         slow,
         Box::new(move |i| {
             black_box(nv.rnea(&x[i].dq, &x[i].dqd, &x[i].dqdd));
         }),
     ));
-    series.push(Series::new(
+    series.push(Series::chaosd(
         "crba",
-        "chaosd",
         "chaosd `mass_matrix`",
-        100,
         fast,
         Box::new(move |i| {
             black_box(m.mass_matrix(&x[i].q));
         }),
     ));
-    series.push(Series::new(
+    series.push(Series::naive(
         "crba",
-        "naive",
         "naive (n + 1 RNEA columns)",
-        10,
         slow,
         Box::new(move |i| {
             black_box(nv.mass_matrix(&x[i].dq));
         }),
     ));
-    series.push(Series::new(
+    series.push(Series::chaosd(
         "aba",
-        "chaosd",
         "chaosd `aba`",
-        100,
         fast,
         Box::new(move |i| {
             black_box(m.aba(&x[i].q, &x[i].qd, &x[i].tau));
         }),
     ));
-    series.push(Series::new(
+    series.push(Series::naive(
         "aba",
-        "naive",
         "naive (M⁻¹(τ − h) by LU)",
-        10,
         slow,
         Box::new(move |i| {
             black_box(nv.aba(&x[i].dq, &x[i].dqd, &x[i].dtau));
         }),
     ));
-    series.push(Series::new(
+    series.push(Series::chaosd(
         "gravity",
-        "chaosd",
         "chaosd `gravity_torques`",
-        100,
         fast,
         Box::new(move |i| {
             black_box(m.gravity_torques(&x[i].q));
         }),
     ));
-    series.push(Series::new(
+    series.push(Series::naive(
         "gravity",
-        "naive",
         "naive (RNEA at rest)",
-        10,
         slow,
         Box::new(move |i| {
             black_box(nv.gravity_torques(&x[i].dq));

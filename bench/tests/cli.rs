@@ -27,6 +27,17 @@ fn scratch(test: &str) -> PathBuf {
 }
 
 /// Runs `args`, killing the process if it is still running after `limit`.
+/// The stdout of a run that must have succeeded (else both streams, in the failure message).
+fn succeeded(out: &Output) -> String {
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "stdout:\n{stdout}\nstderr:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
 fn run(args: &[&str], cwd: &Path, limit: Duration) -> Output {
     let mut child = Command::new(exe())
         .args(args)
@@ -69,12 +80,7 @@ fn a_small_latency_run_reports_every_transport() {
         &dir,
         Duration::from_secs(300),
     );
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "stdout:\n{stdout}\nstderr:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = succeeded(&out);
     for label in [
         "shared-memory spin flag (floor)",
         "iceoryx2 pub-sub, busy polling",
@@ -218,12 +224,7 @@ fn a_one_minute_soak_injects_faults_and_passes() {
         &dir,
         Duration::from_secs(600),
     );
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "stdout:\n{stdout}\nstderr:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = succeeded(&out);
     assert!(stdout.contains("**Verdict: PASS**"), "{stdout}");
     // At least two faults were injected, each detected and recovered.
     let injected: usize = stdout
@@ -295,12 +296,7 @@ fn compute_reports_the_robot_model_table() {
         &dir,
         Duration::from_secs(600),
     );
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "stdout:\n{stdout}\nstderr:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = succeeded(&out);
     let row = |op: &str, who: &str| {
         stdout
             .lines()
