@@ -4,7 +4,7 @@
 //! typed (`panda`, `./my_arm.urdf`) into that text, with a size limit so that a wrong path to a
 //! huge file fails at once instead of filling memory.
 
-use control::model::{builtin, Chain, ModelError, BUILTIN, MAX_URDF_BYTES};
+use control::model::{builtin, Chain, ModelError, MAX_URDF_BYTES};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -66,9 +66,4 @@ fn read(path: &Path) -> Result<String, RobotError> {
         });
     }
     Ok(text)
-}
-
-/// The built-in robots' names, for help texts.
-pub fn builtin_names() -> String {
-    BUILTIN.map(|(n, _)| n).join(", ")
 }
