@@ -9,6 +9,7 @@ mod plot;
 mod robot;
 mod setup;
 mod simulate;
+mod spatial;
 
 use clap::{Parser, Subcommand};
 use client::online;
@@ -174,9 +175,17 @@ fn main() -> ExitCode {
         Command::Merge(m) => merge(m),
         Command::Exporter(a) => exporter::run(a),
         Command::Robot(a) => robot::run(a),
-        Command::Config { preset } => control::Config::preset(&preset)
-            .map(|c| print!("{}", c.to_toml_string()))
-            .map_err(Into::into),
+        Command::Config { preset } => {
+            match control::spatial::config::SpatialConfig::preset(&preset) {
+                Some(c) => {
+                    print!("{}", c.to_toml());
+                    Ok(())
+                }
+                None => control::Config::preset(&preset)
+                    .map(|c| print!("{}", c.to_toml_string()))
+                    .map_err(Into::into),
+            }
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

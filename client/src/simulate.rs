@@ -93,6 +93,19 @@ pub fn run_config(
 }
 
 pub fn run(args: SimulateArgs) -> Result<()> {
+    if args.stride == 0 {
+        bail!("--stride 0: must be at least 1");
+    }
+    if let Some(mut cfg) = crate::spatial::load(&args.model.setup, args.model.mu)? {
+        return crate::spatial::simulate(
+            &mut cfg,
+            args.duration,
+            args.transient,
+            args.csv.as_deref(),
+            args.stride,
+            args.json,
+        );
+    }
     let mut cfg = args.model.load()?;
     set_duration(&mut cfg, args.duration, args.transient)?;
     if args.stride == 0 {

@@ -32,7 +32,7 @@ pub enum ConfigError {
         value: String,
         expected: String,
     },
-    #[error("unknown preset {0:?} (known presets: {known})", known = PRESETS.join(", "))]
+    #[error("unknown preset {0:?} (known presets: {known}, and the spatial panda)", known = PRESETS.join(", "))]
     UnknownPreset(String),
 }
 

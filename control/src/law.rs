@@ -12,6 +12,7 @@
 //! filtered command, and a disabled filter costs one branch.
 
 use crate::arm::{ArmModel, Jac, Kinematics, Vec2, VecN};
+use crate::resolve::{resolve, NullTerms};
 use crate::safety::{self, SafetyParams};
 use crate::secondary::{self, ObstacleSet, PotentialWeights};
 use crate::task::Circle;
@@ -185,8 +186,6 @@ pub fn evaluate<const N: usize>(
     }
     let err = target.p - kin.p;
     let task_acc = target.a + (target.v - j * qd) * params.kv + err * params.kp - kin.jdot_qd;
-    let mut qdd = jpinv * task_acc;
-
     let mut secondary_value = 0.0;
     let eta = match params.secondary {
         Secondary::None => None,
@@ -201,20 +200,19 @@ pub fn evaluate<const N: usize>(
             Some(-g)
         }
     };
-    if let Some(eta) = eta {
-        // α(I − J⁺J)η without forming the n×n projector.
-        qdd += (eta - jpinv * (j * eta)) * params.alpha;
-    }
-
     let diff = qd - qd_delayed;
-    if params.feedback_active(t) {
-        let term = match params.projection {
-            Projection::Full => diff,
-            Projection::NullSpace => diff - jpinv * (j * diff),
-        };
-        qdd -= term * params.mu;
+    let feedback = params.feedback_active(t);
+    if feedback {
         flag |= flags::FEEDBACK_ACTIVE;
     }
+    let terms = NullTerms {
+        eta,
+        alpha: params.alpha,
+        diff,
+        mu: feedback.then_some(params.mu),
+        projection: params.projection,
+    };
+    let mut qdd = resolve(j, &jpinv, &task_acc, &terms);
     let demand = (0..N)
         .map(|i| qdd[i].abs() / params.safety.qdd_max[i])
         .fold(0.0, f64::max);

@@ -17,9 +17,11 @@ pub mod dual;
 pub mod hold;
 pub mod law;
 pub mod model;
+pub mod resolve;
 pub mod safety;
 pub mod secondary;
 pub mod sim;
+pub mod spatial;
 pub mod stability;
 pub mod task;
 

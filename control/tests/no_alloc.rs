@@ -128,3 +128,33 @@ fn the_robot_models_algorithms_allocate_nothing() {
     });
     assert_eq!(n, 0, "the model's algorithms allocated {n} times");
 }
+
+#[test]
+fn the_panda_step_allocates_nothing_in_position_and_pose_with_obstacles() {
+    use control::model::{builtin, Chain};
+    use control::spatial::config::SpatialConfig;
+    use control::spatial::SpatialSimulation;
+    let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
+    for kind in ["position", "pose"] {
+        let mut cfg = SpatialConfig::preset("panda").unwrap();
+        cfg.task.kind = kind.into();
+        cfg.feedback.t_on = 0.5;
+        // A sphere next to the elbow: the capsule points and rows are built on every step.
+        cfg.obstacles.push(control::spatial::config::SphereEntry {
+            center: [0.25, 0.0, 0.75],
+            radius: 0.05,
+            margin: 0.1,
+        });
+        cfg.law.secondary = "obstacles".into();
+        let s = cfg.setup::<7>(&chain).unwrap();
+        control::with_task_rows!(s.params.task.kind, |M| {
+            let mut sim = SpatialSimulation::<7, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
+            let n = allocations(|| {
+                for _ in 0..1500 {
+                    std::hint::black_box(sim.step());
+                }
+            });
+            assert_eq!(n, 0, "{kind}: the spatial step allocated {n} times");
+        });
+    }
+}

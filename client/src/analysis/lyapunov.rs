@@ -60,6 +60,29 @@ pub fn verdict(e: &LyapunovEstimate) -> &'static str {
 }
 
 pub fn run(args: LyapunovCmd) -> Result<()> {
+    if let Some(cfg) = crate::spatial::load(&args.model.setup, args.model.mu)? {
+        let l = &args.lyapunov;
+        let (report, growth) =
+            crate::spatial::lyapunov(&cfg, l.duration, l.window, l.d0, l.renorm, l.blocks)?;
+        if let Some(path) = &args.csv {
+            write_growth(path, &growth)?;
+        }
+        if args.json {
+            println!("{}", serde_json::to_string_pretty(&report)?);
+        } else {
+            println!(
+                "λ_max = {:+.4} ± {:.4} 1/s over {:.0}..{:.0} s ({} intervals, μ = {}): {}",
+                report.lambda_max,
+                report.stderr,
+                report.window[0],
+                report.window[1],
+                report.intervals,
+                report.mu,
+                report.verdict
+            );
+        }
+        return Ok(());
+    }
     let cfg = args.model.load()?;
     check_config(&cfg)?;
     let spec = args.lyapunov.spec(&cfg, args.classify.config()?)?;

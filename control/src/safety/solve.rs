@@ -10,7 +10,7 @@
 //! infeasible one it stops after a fixed number of sweeps and the result is flagged.
 
 use super::Filtered;
-use crate::arm::{Jac, VecN};
+use crate::arm::VecN;
 use crate::config::MAX_JOINTS;
 use crate::law::flags;
 use crate::secondary::MAX_OBSTACLES;
@@ -35,9 +35,10 @@ fn tol(b: f64) -> f64 {
     TOL * (1.0 + b.abs())
 }
 
-/// The unit vector spanning J's null space for n = 3 (None if J has rank < 2 or n ≠ 3).
-pub fn null_vector<const N: usize>(j: &Jac<N>) -> Option<VecN<N>> {
-    if N != 3 {
+/// The unit vector spanning J's null space for n = 3 and a 2-row task (None if J has rank < 2,
+/// n ≠ 3 or m ≠ 2).
+pub fn null_vector<const N: usize, const M: usize>(j: &SMatrix<f64, M, N>) -> Option<VecN<N>> {
+    if N != 3 || M != 2 {
         return None;
     }
     let r = |c: usize, k: usize| j[(c, k)];
@@ -50,11 +51,11 @@ pub fn null_vector<const N: usize>(j: &Jac<N>) -> Option<VecN<N>> {
 }
 
 /// Solves for the filtered q̈ (see the module doc), then clamps to the acceleration limits.
-pub fn smallest_change<const N: usize>(
+pub fn smallest_change<const N: usize, const M: usize>(
     visit: Visit<'_, N>,
     joint_box: JointBox<'_>,
-    j: &Jac<N>,
-    jpinv: &SMatrix<f64, N, 2>,
+    j: &SMatrix<f64, M, N>,
+    jpinv: &SMatrix<f64, N, M>,
     qdd: &VecN<N>,
     qdd_max: &[f64; MAX_JOINTS],
 ) -> Filtered<N> {
@@ -175,8 +176,12 @@ impl<const N: usize> Rows<N> {
     }
 
     /// The smallest δ = N z that meets every row, if the null space can.
-    fn null_space(&mut self, j: &Jac<N>, jpinv: &SMatrix<f64, N, 2>) -> Option<VecN<N>> {
-        if N <= 2 {
+    fn null_space<const M: usize>(
+        &mut self,
+        j: &SMatrix<f64, M, N>,
+        jpinv: &SMatrix<f64, N, M>,
+    ) -> Option<VecN<N>> {
+        if N <= M {
             return None;
         }
         let projected = Self {

@@ -1,0 +1,301 @@
+//! The offline commands on a spatial robot: `simulate`, `lyapunov` and `sweep` with
+//! `--preset panda` or a config file that has a `[robot]` table.
+//!
+//! The flags mean what they mean for the planar arm and are applied to the spatial file the same
+//! way; the run itself is [`control::spatial`], and the CSV keeps the planar columns
+//! (t,q1..qn,qd1..qdn) so scripts that read one read the other.
+
+use crate::setup::SetupArgs;
+use anyhow::{bail, Context, Result};
+use control::analysis::lyapunov::{Benettin, Growth};
+use control::config::ProjectionKind;
+use control::spatial::config::{is_spatial, SpatialConfig, SpatialSetup};
+use control::spatial::sim::run;
+use control::spatial::{SpatialSimulation, SpatialSummary};
+use control::{with_dof, with_task_rows};
+use serde::Serialize;
+use std::io::Write;
+use std::path::Path;
+
+/// The spatial set-up named by the flags, or None for a planar one.
+pub fn load(setup: &SetupArgs, mu: Option<f64>) -> Result<Option<SpatialConfig>> {
+    let mut cfg = match (&setup.config, &setup.preset) {
+        (Some(path), _) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read config file {}", path.display()))?;
+            if !is_spatial(&text) {
+                return Ok(None);
+            }
+            SpatialConfig::from_toml(&text).with_context(|| format!("in {}", path.display()))?
+        }
+        (None, Some(p)) => match SpatialConfig::preset(p) {
+            Some(c) => c,
+            None => return Ok(None),
+        },
+        (None, None) => return Ok(None),
+    };
+    if setup.model.is_some() {
+        bail!(
+            "--model applies to the planar arm; a spatial robot is given by [robot] in its config"
+        );
+    }
+    if let Some(v) = mu {
+        cfg.feedback.mu = v;
+    }
+    if let Some(v) = setup.tau {
+        cfg.feedback.tau = Some(v);
+    }
+    if let Some(v) = setup.t_on {
+        cfg.feedback.t_on = v;
+    }
+    if let Some(v) = setup.dt {
+        cfg.sim.dt = v;
+    }
+    if let Some(v) = &setup.q0 {
+        cfg.sim.q0 = v.0.clone();
+    }
+    if let Some(v) = &setup.qd0 {
+        cfg.sim.qd0 = Some(v.0.clone());
+    }
+    if let Some(on) = setup.safety {
+        cfg.safety.enabled = on;
+    }
+    if let Some(p) = setup.projection {
+        cfg.feedback.projection = match p {
+            ProjectionKind::Full => "full".into(),
+            ProjectionKind::NullSpace => "null-space".into(),
+        };
+    }
+    Ok(Some(cfg))
+}
+
+/// Loads the robot and calls `f` with the checked set-up, `N` the joint count and `M` the task
+/// rows bound as consts.
+macro_rules! with_setup {
+    ($cfg:expr, |$setup:ident, $n:ident, $m:ident| $body:expr) => {{
+        let cfg: &SpatialConfig = $cfg;
+        let chain = daemon::robot::load(
+            &cfg.robot.description,
+            cfg.robot.base.as_deref(),
+            cfg.robot.tip.as_deref(),
+        )?;
+        let kind = cfg.task_kind()?;
+        with_dof!(chain.dof(), $n => {
+            let $setup: SpatialSetup<$n> = cfg.setup::<$n>(&chain)?;
+            with_task_rows!(kind, |$m| $body)
+        })
+    }};
+}
+
+/// What `simulate --json` prints for a spatial robot.
+#[derive(Serialize)]
+pub struct SpatialReport {
+    pub robot: String,
+    pub n: usize,
+    pub task: String,
+    pub mu: f64,
+    pub tau: f64,
+    pub t_on: f64,
+    pub projection: String,
+    pub secondary: String,
+    pub alpha: f64,
+    pub dt: f64,
+    pub final_q: Vec<f64>,
+    pub final_qd: Vec<f64>,
+    #[serde(flatten)]
+    pub summary: SpatialSummary,
+}
+
+/// `chaosctl simulate` on a spatial robot.
+pub fn simulate(
+    cfg: &mut SpatialConfig,
+    duration: Option<f64>,
+    transient: Option<f64>,
+    csv: Option<&Path>,
+    stride: u64,
+    json: bool,
+) -> Result<()> {
+    if let Some(d) = duration {
+        cfg.sim.duration = d;
+    }
+    if let Some(t) = transient {
+        cfg.sim.transient = t;
+    }
+    let mut out = match csv {
+        Some(p) => Some(std::io::BufWriter::new(
+            std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
+        )),
+        None => None,
+    };
+    let report = with_setup!(cfg, |s, N, M| {
+        if let Some(w) = out.as_mut() {
+            let q: Vec<String> = (1..=N).map(|i| format!("q{i}")).collect();
+            let qd: Vec<String> = (1..=N).map(|i| format!("qd{i}")).collect();
+            writeln!(w, "t,{},{}", q.join(","), qd.join(","))?;
+        }
+        let mut sim =
+            SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        let mut err = None;
+        let mut k = 0u64;
+        let summary = run(&mut sim, s.duration, s.transient, |t, x, _| {
+            if let Some(w) = out.as_mut() {
+                if k % stride == 0 && err.is_none() {
+                    let row: Vec<String> =
+                        x.q.iter()
+                            .chain(x.qd.iter())
+                            .map(|v| format!("{v:.9}"))
+                            .collect();
+                    err = writeln!(w, "{t:.6},{}", row.join(",")).err();
+                }
+            }
+            k += 1;
+        });
+        if let Some(e) = err {
+            return Err(e.into());
+        }
+        let x = sim.state();
+        report(cfg, N, s.dt, x.q.as_slice(), x.qd.as_slice(), summary)
+    });
+    if let Some(mut w) = out {
+        w.flush()?;
+    }
+    if json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print(&report);
+        if let Some(p) = csv {
+            println!("  trajectory       {} (every {stride} steps)", p.display());
+        }
+    }
+    Ok(())
+}
+
+fn report(
+    cfg: &SpatialConfig,
+    n: usize,
+    dt: f64,
+    q: &[f64],
+    qd: &[f64],
+    summary: SpatialSummary,
+) -> SpatialReport {
+    SpatialReport {
+        robot: cfg.robot.description.clone(),
+        n,
+        task: format!("{} {}", cfg.task.kind, cfg.task.path),
+        mu: cfg.feedback.mu,
+        tau: cfg.feedback.tau.unwrap_or(cfg.task.period),
+        t_on: cfg.feedback.t_on,
+        projection: cfg.feedback.projection.clone(),
+        secondary: cfg.law.secondary.clone(),
+        alpha: cfg.law.alpha,
+        dt,
+        final_q: q.to_vec(),
+        final_qd: qd.to_vec(),
+        summary,
+    }
+}
+
+fn opt(v: Option<f64>, unit: &str) -> String {
+    v.map(|x| format!("{x:.3e} {unit}"))
+        .unwrap_or_else(|| "n/a".into())
+}
+
+/// The human report.
+pub fn print(r: &SpatialReport) {
+    let s = &r.summary;
+    println!(
+        "{} ({} joints), {} task, {} s: secondary {} (α = {}), feedback μ = {} τ = {} s from t = {} s ({})",
+        r.robot, r.n, r.task, s.duration, r.secondary, r.alpha, r.mu, r.tau, r.t_on, r.projection
+    );
+    println!(
+        "  tracking error   rms {:.3e} m, max {:.3e} m",
+        s.rms_tracking_error, s.max_tracking_error
+    );
+    if s.max_orientation_error > 0.0 {
+        println!("  orientation err  max {:.3e} rad", s.max_orientation_error);
+    }
+    println!(
+        "  period residual  before {} → final {}",
+        opt(s.period_residual_before, "rad/s"),
+        opt(s.period_residual_final, "rad/s")
+    );
+    println!(
+        "  joint drift      {} per period (last two periods)",
+        opt(s.drift_per_period, "rad")
+    );
+    println!(
+        "  joint speeds     max {:.3} rad/s ({:.0}% of the limit)",
+        s.max_joint_speed,
+        100.0 * s.max_speed_ratio
+    );
+    println!(
+        "  joint margin     min {} to a position limit",
+        opt(s.min_joint_margin, "rad")
+    );
+    if let Some(c) = s.min_clearance {
+        println!("  clearance        min {c:.3} m");
+    }
+    println!(
+        "  safety filter    active {:.2} s, left the null space {} steps, infeasible {} steps",
+        s.safety_active_time, s.safety_left_null_space_steps, s.safety_infeasible_steps
+    );
+    if !s.finite {
+        println!("  the state became non-finite: the run stopped early");
+    }
+    println!(
+        "  final q          {:?}",
+        r.final_q
+            .iter()
+            .map(|v| (v * 1e4).round() / 1e4)
+            .collect::<Vec<_>>()
+    );
+}
+
+/// λ_max of a spatial run: the same Benettin driver and norm as the planar arm's.
+#[derive(Serialize)]
+pub struct SpatialLyapunov {
+    pub lambda_max: f64,
+    pub stderr: f64,
+    pub window: [f64; 2],
+    pub intervals: usize,
+    pub d0: f64,
+    pub renorm: f64,
+    pub mu: f64,
+    pub verdict: &'static str,
+}
+
+/// `chaosctl lyapunov` on a spatial robot.
+pub fn lyapunov(
+    cfg: &SpatialConfig,
+    duration: f64,
+    window: Option<[f64; 2]>,
+    d0: f64,
+    renorm: Option<f64>,
+    blocks: usize,
+) -> Result<(SpatialLyapunov, Vec<Growth>)> {
+    let renorm = renorm.unwrap_or(cfg.task.period);
+    let window = window.unwrap_or([duration / 3.0, duration]);
+    let (e, growth) = with_setup!(cfg, |s, N, M| {
+        let sim = SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        let mut b = Benettin::new(sim, d0, renorm)?;
+        b.advance_to(duration)?;
+        (
+            b.estimate(window[0], window[1], blocks)?,
+            b.growth().to_vec(),
+        )
+    });
+    let verdict = crate::analysis::lyapunov::verdict(&e);
+    Ok((
+        SpatialLyapunov {
+            lambda_max: e.lambda_max,
+            stderr: e.stderr,
+            window: e.window,
+            intervals: e.intervals,
+            d0,
+            renorm,
+            mu: cfg.feedback.mu,
+            verdict,
+        },
+        growth,
+    ))
+}

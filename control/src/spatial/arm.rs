@@ -1,0 +1,199 @@
+//! A URDF chain as the control law sees it: a tool point on the tip, link capsules for the
+//! obstacles, and the motion of any point of any link.
+//!
+//! The law needs more than [`Model::tip_kinematics`]: the secondary tasks and the safety filter
+//! need the position, Jacobian, velocity and drift (J̇q̇) of points along every link. One forward
+//! pass stores, for each body, its origin, axis, angular velocity, angular acceleration and
+//! origin acceleration at q̈ = 0; any point's motion then follows in O(n) without another pass.
+
+use super::task::Vec3;
+use crate::config::MAX_JOINTS;
+use crate::model::{Frames, Model};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector6};
+
+pub type VecN<const N: usize> = SVector<f64, N>;
+/// Rows of a point's Jacobian: ṗ = J q̇.
+pub type Jac3<const N: usize> = SMatrix<f64, 3, N>;
+
+/// The chain, the tool point and the link capsules.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpatialArm<const N: usize> {
+    pub model: Model<N>,
+    /// The tool point in the tip frame (the zero vector: the tip link's origin).
+    pub tool: Vec3,
+    /// Capsule radius of link j, the segment from joint j's origin to joint j+1's (the last
+    /// one to the tool point); 0 for a bare segment.
+    pub radii: [f64; N],
+}
+
+/// Kinematics at one state, in the base frame.
+#[derive(Clone, Copy, Debug)]
+pub struct SpatialKinematics<const N: usize> {
+    pub frames: Frames<N>,
+    /// The tool point and the tip's orientation.
+    pub p: Vec3,
+    pub rot: Matrix3<f64>,
+    /// 6×N at the tool point: rows v then ω.
+    pub jac: SMatrix<f64, 6, N>,
+    /// The tool point's classical acceleration and the angular one at q̈ = 0.
+    pub jdot_qd: Vector6<f64>,
+    /// Per body: angular velocity, angular acceleration and origin acceleration at q̈ = 0.
+    pub w: [Vec3; N],
+    pub wd: [Vec3; N],
+    pub acc: [Vec3; N],
+}
+
+impl<const N: usize> Default for SpatialKinematics<N> {
+    fn default() -> Self {
+        Self {
+            frames: Frames::default(),
+            p: Vec3::zeros(),
+            rot: Matrix3::identity(),
+            jac: SMatrix::zeros(),
+            jdot_qd: Vector6::zeros(),
+            w: [Vec3::zeros(); N],
+            wd: [Vec3::zeros(); N],
+            acc: [Vec3::zeros(); N],
+        }
+    }
+}
+
+/// Position, Jacobian, velocity and drift (J̇q̇) of one point of the arm.
+#[derive(Clone, Copy, Debug)]
+pub struct PointMotion<const N: usize> {
+    pub pos: Vec3,
+    pub jac: Jac3<N>,
+    pub vel: Vec3,
+    pub drift: Vec3,
+}
+
+impl<const N: usize> Default for PointMotion<N> {
+    fn default() -> Self {
+        Self {
+            pos: Vec3::zeros(),
+            jac: Jac3::zeros(),
+            vel: Vec3::zeros(),
+            drift: Vec3::zeros(),
+        }
+    }
+}
+
+/// The capsule end points P_0 … P_N (joint origins, then the tool point).
+pub type Points<const N: usize> = [PointMotion<N>; MAX_JOINTS + 1];
+
+impl<const N: usize> SpatialKinematics<N> {
+    /// Joint i's axis and origin in the base frame.
+    #[inline(always)]
+    pub fn axis(&self, i: usize) -> Vec3 {
+        self.frames.body[i].rot.column(2).into_owned()
+    }
+    #[inline(always)]
+    pub fn origin(&self, i: usize) -> Vec3 {
+        self.frames.body[i].pos
+    }
+}
+
+impl<const N: usize> SpatialArm<N> {
+    /// A bare chain: the tool at the tip link's origin, no capsule radii.
+    pub fn new(model: Model<N>) -> Self {
+        Self {
+            model,
+            tool: Vec3::zeros(),
+            radii: [0.0; N],
+        }
+    }
+
+    /// One forward pass: frames, tool pose, 6×N Jacobian, J̇q̇ and every body's motion.
+    ///
+    /// ```
+    /// # use control::model::{builtin, Chain};
+    /// # use control::spatial::{SpatialArm, SpatialKinematics};
+    /// # use nalgebra::SVector;
+    /// let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
+    /// let arm = SpatialArm::new(chain.model::<7>().unwrap());
+    /// let mut k = SpatialKinematics::default();
+    /// arm.kinematics(&SVector::zeros(), &SVector::zeros(), &mut k);
+    /// assert!((k.p.z - (0.333 + 0.316 + 0.384 - 0.107)).abs() < 1e-12); // flange points down
+    /// ```
+    #[inline]
+    pub fn kinematics(&self, q: &VecN<N>, qd: &VecN<N>, out: &mut SpatialKinematics<N>) {
+        self.model.frames(q, &mut out.frames);
+        let tip = out.frames.tip;
+        out.rot = tip.rot;
+        let p = tip.pos + tip.rot * self.tool;
+        out.p = p;
+        let (mut w, mut wd, mut acc) = (Vec3::zeros(), Vec3::zeros(), Vec3::zeros());
+        let mut o_prev = Vec3::zeros();
+        for i in 0..N {
+            let (z, o) = (out.axis(i), out.origin(i));
+            let r = o - o_prev;
+            acc += wd.cross(&r) + w.cross(&w.cross(&r));
+            if self.model.prismatic[i] {
+                acc += w.cross(&z) * (2.0 * qd[i]);
+                out.jac.fixed_view_mut::<3, 1>(0, i).copy_from(&z);
+                out.jac.fixed_view_mut::<3, 1>(3, i).fill(0.0);
+            } else {
+                wd += w.cross(&z) * qd[i];
+                w += z * qd[i];
+                let col = z.cross(&(p - o));
+                out.jac.fixed_view_mut::<3, 1>(0, i).copy_from(&col);
+                out.jac.fixed_view_mut::<3, 1>(3, i).copy_from(&z);
+            }
+            (out.w[i], out.wd[i], out.acc[i]) = (w, wd, acc);
+            o_prev = o;
+        }
+        let r = p - o_prev;
+        let a = acc + wd.cross(&r) + w.cross(&w.cross(&r));
+        out.jdot_qd = Vector6::new(a.x, a.y, a.z, wd.x, wd.y, wd.z);
+    }
+
+    /// The motion of point `x` (base frame) fixed to body `body`.
+    #[inline]
+    pub fn point_motion(
+        &self,
+        kin: &SpatialKinematics<N>,
+        body: usize,
+        x: Vec3,
+        qd: &VecN<N>,
+    ) -> PointMotion<N> {
+        let mut jac = Jac3::<N>::zeros();
+        for k in 0..=body {
+            let z = kin.axis(k);
+            let col = if self.model.prismatic[k] {
+                z
+            } else {
+                z.cross(&(x - kin.origin(k)))
+            };
+            jac.set_column(k, &col);
+        }
+        let r = x - kin.origin(body);
+        let (w, wd) = (kin.w[body], kin.wd[body]);
+        PointMotion {
+            pos: x,
+            jac,
+            vel: jac * qd,
+            drift: kin.acc[body] + wd.cross(&r) + w.cross(&w.cross(&r)),
+        }
+    }
+
+    /// P_0 … P_{N−1} (joint origins, P_j on body j) and P_N (the tool point): link j is the
+    /// capsule from P_j to P_{j+1}.
+    pub fn capsule_points(&self, kin: &SpatialKinematics<N>, qd: &VecN<N>, out: &mut Points<N>) {
+        for j in 0..N {
+            // Joint j's origin does not move with q_j (revolute), so it is a point of body j−1;
+            // on body j it has the same motion and Jacobian columns 0..j−1 (column j is zero).
+            out[j] = self.point_motion(kin, j, kin.origin(j), qd);
+        }
+        out[N] = self.point_motion(kin, N - 1, kin.p, qd);
+    }
+
+    /// The capsule end points without their motion (clearance, drawing).
+    pub fn capsule_positions(&self, kin: &SpatialKinematics<N>) -> [Vec3; MAX_JOINTS + 1] {
+        let mut out = [Vec3::zeros(); MAX_JOINTS + 1];
+        for j in 0..N {
+            out[j] = kin.origin(j);
+        }
+        out[N] = kin.p;
+        out
+    }
+}

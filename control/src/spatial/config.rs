@@ -1,0 +1,498 @@
+//! The spatial set-up as a TOML file: which robot, which task, the law's gains, the feedback,
+//! the limits and the run (SCIENCE.md §8). `chaosctl config --preset panda` prints one.
+//!
+//! A file with a `[robot]` table is a spatial set-up; every planar config (no `[robot]`) keeps
+//! its own format and meaning. The robot is named here but read by the caller (a built-in name
+//! or a URDF path): this crate does no I/O. Limits come from the URDF, and the file may only
+//! tighten them, so a typo cannot loosen what the arm's maker allows.
+
+use super::arm::SpatialArm;
+use super::law::{SpatialParams, SpatialSecondary};
+use super::secondary::{Sphere, SphereSet, MAX_SPHERES};
+use super::task::{Path, Shape, SpatialTask, TaskKind, Vec3};
+use super::SpatialKinematics;
+use crate::config::{ConfigError, MAX_JOINTS};
+use crate::law::Projection;
+use crate::model::Chain;
+use crate::safety::SafetyParams;
+use nalgebra::{Rotation3, SVector};
+use serde::{Deserialize, Serialize};
+
+/// Franka's published acceleration limits (SCIENCE.md §9), used for the built-in Panda; URDF
+/// has no acceleration limits.
+pub const PANDA_QDD_MAX: [f64; 7] = [15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0];
+/// The acceleration limit of a joint whose robot publishes none (rad/s² or m/s²).
+pub const DEFAULT_QDD_MAX: f64 = 10.0;
+/// The Panda's ready pose, a comfortable start in the middle of its workspace.
+pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpatialConfig {
+    pub robot: RobotSection,
+    pub task: TaskSection,
+    #[serde(default)]
+    pub law: LawSection,
+    #[serde(default)]
+    pub feedback: FeedbackSection,
+    #[serde(default)]
+    pub safety: LimitsSection,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub obstacles: Vec<SphereEntry>,
+    pub sim: SimSection,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotSection {
+    /// A built-in robot's name (`chaosctl robot show panda`) or a URDF file's path.
+    pub description: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tip: Option<String>,
+    /// The tool point in the tip link's frame (m).
+    #[serde(default)]
+    pub tool: [f64; 3],
+    /// Capsule radius per link (m); default 0.05 each.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub link_radii: Option<Vec<f64>>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TaskSection {
+    /// "position" (m = 3) or "pose" (m = 6).
+    pub kind: String,
+    /// "circle" or "eight".
+    pub path: String,
+    /// Centre (m, base frame); default: where the tool starts, so the path's start point
+    /// (c + r·u) is one radius above it along u.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub center: Option<[f64; 3]>,
+    pub normal: [f64; 3],
+    pub radius: f64,
+    pub period: f64,
+    /// Pose task: the tool orientation as roll, pitch, yaw (rad); default: the start's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orientation_rpy: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LawSection {
+    pub kp: f64,
+    pub kv: f64,
+    pub alpha: f64,
+    /// "none", "manipulability", "centring" or "obstacles".
+    pub secondary: String,
+    pub obstacle_weight: f64,
+    pub null_damping: f64,
+    pub damping_threshold: f64,
+    pub damping_max: f64,
+    pub track_loss: f64,
+}
+
+impl Default for LawSection {
+    fn default() -> Self {
+        Self {
+            kp: 40.0,
+            kv: 15.0,
+            alpha: 0.0,
+            secondary: "none".into(),
+            obstacle_weight: 2.0,
+            null_damping: 0.0,
+            damping_threshold: 0.05,
+            damping_max: 0.05,
+            track_loss: 0.05,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FeedbackSection {
+    pub mu: f64,
+    /// Default: the task's period.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tau: Option<f64>,
+    pub t_on: f64,
+    /// "full" or "null-space".
+    pub projection: String,
+}
+
+impl Default for FeedbackSection {
+    fn default() -> Self {
+        Self {
+            mu: 0.0,
+            tau: None,
+            t_on: 0.0,
+            projection: "full".into(),
+        }
+    }
+}
+
+/// The safety filter's switches and gains; the limits themselves come from the robot.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LimitsSection {
+    pub enabled: bool,
+    pub clearance: f64,
+    /// Scales every rate limit from the URDF (≤ 1: only tighter).
+    pub velocity_scale: f64,
+    /// Per-joint acceleration limits; default: the robot's published ones (Panda) or 10.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub qdd_max: Option<Vec<f64>>,
+}
+
+impl Default for LimitsSection {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            clearance: 0.02,
+            velocity_scale: 1.0,
+            qdd_max: None,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereEntry {
+    pub center: [f64; 3],
+    pub radius: f64,
+    #[serde(default = "default_margin")]
+    pub margin: f64,
+}
+
+fn default_margin() -> f64 {
+    0.1
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimSection {
+    pub dt: f64,
+    pub duration: f64,
+    #[serde(default)]
+    pub transient: f64,
+    pub q0: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub qd0: Option<Vec<f64>>,
+}
+
+fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
+    ConfigError::Invalid {
+        field: field.into(),
+        value: format!("{value:?}"),
+        expected: expected.into(),
+    }
+}
+
+fn positive(field: &str, v: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(field, v, "a finite number > 0"))
+    }
+}
+
+fn non_negative(field: &str, v: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(field, v, "a finite number ≥ 0"))
+    }
+}
+
+/// Whether a TOML text is a spatial set-up (has a `[robot]` table).
+pub fn is_spatial(text: &str) -> bool {
+    text.parse::<toml::Table>()
+        .map(|t| t.contains_key("robot"))
+        .unwrap_or(false)
+}
+
+/// Everything a run needs, checked against the robot.
+#[derive(Debug, Clone, Copy)]
+pub struct SpatialSetup<const N: usize> {
+    pub arm: SpatialArm<N>,
+    pub params: SpatialParams,
+    pub q0: SVector<f64, N>,
+    pub qd0: SVector<f64, N>,
+    pub dt: f64,
+    pub duration: f64,
+    pub transient: f64,
+}
+
+impl SpatialConfig {
+    /// The built-in spatial presets: `panda` (the study's working set-up, docs/panda-study.md).
+    pub fn preset(name: &str) -> Option<Self> {
+        (name == "panda").then(|| toml::from_str(PANDA).expect("the panda preset parses"))
+    }
+
+    pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
+        toml::from_str(text).map_err(|e| ConfigError::Parse(e.message().to_string()))
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("a config serialises")
+    }
+
+    pub fn task_kind(&self) -> Result<TaskKind, ConfigError> {
+        match self.task.kind.as_str() {
+            "position" => Ok(TaskKind::Position),
+            "pose" => Ok(TaskKind::Pose),
+            k => Err(invalid("task.kind", k, "\"position\" or \"pose\"")),
+        }
+    }
+
+    fn check(&self) -> Result<(), ConfigError> {
+        positive("task.radius", self.task.radius)?;
+        positive("task.period", self.task.period)?;
+        positive("sim.dt", self.sim.dt)?;
+        positive("sim.duration", self.sim.duration)?;
+        non_negative("sim.transient", self.sim.transient)?;
+        for (f, v) in [
+            ("law.kp", self.law.kp),
+            ("law.kv", self.law.kv),
+            ("law.alpha", self.law.alpha),
+            ("law.obstacle_weight", self.law.obstacle_weight),
+            ("law.null_damping", self.law.null_damping),
+            ("law.damping_max", self.law.damping_max),
+            ("feedback.mu", self.feedback.mu),
+            ("feedback.t_on", self.feedback.t_on),
+            ("safety.clearance", self.safety.clearance),
+        ] {
+            non_negative(f, v)?;
+        }
+        positive("law.damping_threshold", self.law.damping_threshold)?;
+        positive("law.track_loss", self.law.track_loss)?;
+        if let Some(tau) = self.feedback.tau {
+            positive("feedback.tau", tau)?;
+        }
+        let s = self.safety.velocity_scale;
+        if !(s > 0.0 && s <= 1.0) {
+            return Err(invalid("safety.velocity_scale", s, "a number in (0, 1]"));
+        }
+        if self.obstacles.len() > MAX_SPHERES {
+            return Err(invalid(
+                "obstacles",
+                self.obstacles.len(),
+                &format!("at most {MAX_SPHERES} spheres"),
+            ));
+        }
+        for (i, o) in self.obstacles.iter().enumerate() {
+            positive(&format!("obstacles[{i}].radius"), o.radius)?;
+            non_negative(&format!("obstacles[{i}].margin"), o.margin)?;
+            if !o.center.iter().all(|v| v.is_finite()) {
+                return Err(invalid(
+                    &format!("obstacles[{i}].center"),
+                    o.center,
+                    "finite",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn per_joint(
+        field: &str,
+        v: &[f64],
+        n: usize,
+    ) -> Result<SVector<f64, MAX_JOINTS>, ConfigError> {
+        if v.len() != n || !v.iter().all(|x| x.is_finite()) {
+            return Err(invalid(
+                field,
+                v,
+                &format!("{n} finite numbers, one per joint"),
+            ));
+        }
+        Ok(SVector::from_fn(|i, _| v.get(i).copied().unwrap_or(0.0)))
+    }
+
+    fn secondary(&self) -> Result<SpatialSecondary, ConfigError> {
+        Ok(match self.law.secondary.as_str() {
+            "none" => SpatialSecondary::None,
+            "manipulability" => SpatialSecondary::Manipulability,
+            "centring" => SpatialSecondary::Centring,
+            "obstacles" => SpatialSecondary::Obstacles,
+            s => {
+                return Err(invalid(
+                    "law.secondary",
+                    s,
+                    "\"none\", \"manipulability\", \"centring\" or \"obstacles\"",
+                ))
+            }
+        })
+    }
+
+    fn projection(&self) -> Result<Projection, ConfigError> {
+        match self.feedback.projection.as_str() {
+            "full" => Ok(Projection::Full),
+            "null-space" => Ok(Projection::NullSpace),
+            p => Err(invalid(
+                "feedback.projection",
+                p,
+                "\"full\" or \"null-space\"",
+            )),
+        }
+    }
+
+    /// The limits: the URDF's, the published acceleration limits, tightened by the file.
+    fn limits(&self, chain: &Chain) -> Result<SafetyParams, ConfigError> {
+        let n = chain.dof();
+        let mut s = SafetyParams::off();
+        s.enabled = self.safety.enabled;
+        s.clearance = self.safety.clearance;
+        let qdd = match &self.safety.qdd_max {
+            Some(v) => Self::per_joint("safety.qdd_max", v, n)?,
+            None if self.robot.description == "panda" && n == 7 => {
+                SVector::from_fn(|i, _| PANDA_QDD_MAX.get(i).copied().unwrap_or(0.0))
+            }
+            None => SVector::repeat(DEFAULT_QDD_MAX),
+        };
+        for (i, j) in chain.joints.iter().enumerate() {
+            s.q_min[i] = j.limits.lower;
+            s.q_max[i] = j.limits.upper;
+            s.qd_max[i] = j.limits.velocity * self.safety.velocity_scale;
+            if qdd[i].is_nan() || qdd[i] <= 0.0 {
+                return Err(invalid("safety.qdd_max", qdd[i], "numbers > 0"));
+            }
+            s.qdd_max[i] = qdd[i];
+        }
+        Ok(s)
+    }
+
+    /// Checks the file against `chain` and builds the run; `N` must be the chain's joint count.
+    pub fn setup<const N: usize>(&self, chain: &Chain) -> Result<SpatialSetup<N>, ConfigError> {
+        self.check()?;
+        let model = chain
+            .model::<N>()
+            .map_err(|e| invalid("robot.description", &self.robot.description, &e.to_string()))?;
+        let mut arm = SpatialArm::new(model);
+        arm.tool = Vec3::from(self.robot.tool);
+        if !arm.tool.iter().all(|v| v.is_finite()) {
+            return Err(invalid("robot.tool", self.robot.tool, "3 finite numbers"));
+        }
+        let radii = match &self.robot.link_radii {
+            Some(r) => Self::per_joint("robot.link_radii", r, N)?,
+            None => SVector::repeat(0.05),
+        };
+        if radii.iter().any(|&r| r < 0.0) {
+            return Err(invalid("robot.link_radii", radii.as_slice(), "numbers ≥ 0"));
+        }
+        arm.radii = std::array::from_fn(|i| radii[i]);
+        let q0 = SVector::<f64, N>::from_column_slice(
+            Self::per_joint("sim.q0", &self.sim.q0, N)?
+                .as_slice()
+                .get(..N)
+                .unwrap_or(&[]),
+        );
+        let qd0 = match &self.sim.qd0 {
+            Some(v) => SVector::<f64, N>::from_column_slice(
+                &Self::per_joint("sim.qd0", v, N)?.as_slice()[..N],
+            ),
+            None => SVector::zeros(),
+        };
+        let mut kin = SpatialKinematics::default();
+        arm.kinematics(&q0, &qd0, &mut kin);
+        let shape = match self.task.path.as_str() {
+            "circle" => Shape::Circle,
+            "eight" => Shape::Eight,
+            p => return Err(invalid("task.path", p, "\"circle\" or \"eight\"")),
+        };
+        let normal = Vec3::from(self.task.normal);
+        let probe = Path::new(shape, Vec3::zeros(), normal, 1.0, 1.0)
+            .ok_or_else(|| invalid("task.normal", self.task.normal, "a non-zero vector"))?;
+        let center = match self.task.center {
+            Some(c) => Vec3::from(c),
+            None => kin.p - probe.position(0.0) * self.task.radius,
+        };
+        let path = Path::new(shape, center, normal, self.task.radius, self.task.period)
+            .ok_or_else(|| invalid("task.normal", self.task.normal, "a non-zero vector"))?;
+        let orientation = match self.task.orientation_rpy {
+            Some([r, p, y]) => Rotation3::from_euler_angles(r, p, y),
+            None => Rotation3::from_matrix_unchecked(kin.rot),
+        };
+        let safety = self.limits(chain)?;
+        let mut spheres = SphereSet::default();
+        for o in &self.obstacles {
+            spheres.push(Sphere {
+                center: Vec3::from(o.center),
+                radius: o.radius,
+                margin: o.margin,
+            });
+        }
+        let params = SpatialParams {
+            task: SpatialTask {
+                kind: self.task_kind()?,
+                path,
+                orientation,
+            },
+            kp: self.law.kp,
+            kv: self.law.kv,
+            alpha: self.law.alpha,
+            secondary: self.secondary()?,
+            spheres,
+            weight: self.law.obstacle_weight,
+            null_damping: self.law.null_damping,
+            damping_threshold: self.law.damping_threshold,
+            damping_max: self.law.damping_max,
+            mu: self.feedback.mu,
+            tau: self.feedback.tau.unwrap_or(self.task.period),
+            t_on: self.feedback.t_on,
+            feedback: true,
+            projection: self.projection()?,
+            safety,
+            track_loss: self.law.track_loss,
+        };
+        Ok(SpatialSetup {
+            arm,
+            params,
+            q0,
+            qd0,
+            dt: self.sim.dt,
+            duration: self.sim.duration,
+            transient: self.sim.transient,
+        })
+    }
+}
+
+/// The study's working set-up (docs/panda-study.md): a 0.15 m circle in the vertical plane in
+/// front of the Panda, position task, joint-limit centring α = 20, feedback μ = 3 projected into
+/// the null space from t = 60 s, the safety filter on. It starts off the cycle (a small kick on
+/// joints 1 and 3) and runs 60 s without feedback first.
+pub const PANDA: &str = r#"
+[robot]
+description = "panda"
+tool = [0.0, 0.0, 0.1034]
+link_radii = [0.08, 0.08, 0.07, 0.07, 0.07, 0.06, 0.05]
+
+[task]
+kind = "position"
+path = "circle"
+normal = [1.0, 0.0, 0.0]
+radius = 0.15
+period = 2.0
+
+[law]
+kp = 40.0
+kv = 15.0
+alpha = 20.0
+secondary = "centring"
+
+[feedback]
+mu = 3.0
+t_on = 60.0
+projection = "null-space"
+
+[safety]
+enabled = true
+
+[sim]
+dt = 0.001
+duration = 200.0
+transient = 5.0
+q0 = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]
+qd0 = [0.1, 0.0, -0.1, 0.0, 0.0, 0.0, 0.0]
+"#;

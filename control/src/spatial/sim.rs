@@ -1,0 +1,260 @@
+//! The deterministic closed loop on a spatial arm: the kinematic plant (q̈ is commanded) under the
+//! spatial law, with the conventions of SCIENCE.md §3 (RK4, the law at every stage, q̇(s − τ)
+//! from the delay line, time = step · dt).
+//!
+//! It shares the planar simulation's integrator, state and delay line, and implements the
+//! Lyapunov driver's [`Trajectory`], so λ_max of a spatial arm comes from the same code and the
+//! same norm (q, q̇ and, with feedback, the stored q̇ history) as the planar arm's.
+
+use super::arm::{SpatialArm, SpatialKinematics, VecN};
+use super::law::{evaluate, SpatialOutput, SpatialParams};
+use crate::analysis::lyapunov::{
+    generic_direction, history_distance2, rescale_history, shift_history, Trajectory,
+};
+use crate::delay::DelayLine;
+use crate::law::flags;
+use crate::sim::{plant_derivative, rk4_step, ArmState};
+
+/// A spatial closed loop for a task of `M` rows. `step` allocates nothing.
+#[derive(Clone, Debug)]
+pub struct SpatialSimulation<const N: usize, const M: usize> {
+    pub arm: SpatialArm<N>,
+    pub params: SpatialParams,
+    dt: f64,
+    delay: DelayLine<N>,
+    step_index: u64,
+    state: ArmState<N>,
+    kin: SpatialKinematics<N>,
+}
+
+impl<const N: usize, const M: usize> SpatialSimulation<N, M> {
+    /// `max_tau` fixes the delay-line capacity. Panics if `M` is not the task's row count: the
+    /// caller picks `M` from `params.task.kind` (see [`super::with_task_rows`]).
+    pub fn new(
+        arm: SpatialArm<N>,
+        params: SpatialParams,
+        dt: f64,
+        q0: VecN<N>,
+        qd0: VecN<N>,
+        max_tau: f64,
+    ) -> Self {
+        assert_eq!(M, params.task.kind.rows(), "task rows and M disagree");
+        let max_tau = max_tau.max(params.tau);
+        Self {
+            arm,
+            params,
+            dt,
+            delay: DelayLine::new(max_tau / dt, qd0),
+            step_index: 0,
+            state: ArmState {
+                q: q0,
+                qd: qd0,
+                phi: 0.0,
+            },
+            kin: SpatialKinematics::default(),
+        }
+    }
+
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+    pub fn step_index(&self) -> u64 {
+        self.step_index
+    }
+    pub fn time(&self) -> f64 {
+        self.step_index as f64 * self.dt
+    }
+    pub fn state(&self) -> &ArmState<N> {
+        &self.state
+    }
+
+    /// Advances one step of dt; returns the law's output at the start of the step.
+    pub fn step(&mut self) -> SpatialOutput<N> {
+        let k = self.step_index as f64;
+        self.delay.push(self.state.qd);
+        let tau_steps = self.params.tau / self.dt;
+        let (dt, arm, params, delay) = (self.dt, &self.arm, &self.params, &self.delay);
+        let kin = &mut self.kin;
+        let mut first = None;
+        self.state = rk4_step(&self.state, dt, |c, x| {
+            let s = (k + c) * dt;
+            let delayed = delay.sample(k + c - tau_steps);
+            let out = evaluate::<N, M>(params, arm, s, &x.q, &x.qd, &delayed, kin);
+            if first.is_none() {
+                first = Some(out);
+            }
+            plant_derivative(x, &out.qdd, 0.0)
+        });
+        self.step_index += 1;
+        first.expect("rk4 evaluates stage 1")
+    }
+}
+
+impl<const N: usize, const M: usize> Trajectory for SpatialSimulation<N, M> {
+    fn time(&self) -> f64 {
+        SpatialSimulation::time(self)
+    }
+    fn advance_to(&mut self, t: f64) {
+        let target = (t / self.dt).round().max(0.0) as u64;
+        while self.step_index < target {
+            self.step();
+            if !self.state.is_finite() {
+                return;
+            }
+        }
+    }
+    fn is_finite(&self) -> bool {
+        self.state.is_finite()
+    }
+    fn distance2(&self, other: &Self) -> f64 {
+        let (a, b) = (&self.state, &other.state);
+        let mut d2 = (b.q - a.q).norm_squared() + (b.qd - a.qd).norm_squared();
+        if self.params.mu != 0.0 && self.params.feedback {
+            d2 += history_distance2(&self.delay, &other.delay);
+        }
+        d2
+    }
+    fn rescale(&self, other: &mut Self, factor: f64) {
+        let a = self.state;
+        let b = &mut other.state;
+        b.q = a.q + (b.q - a.q) * factor;
+        b.qd = a.qd + (b.qd - a.qd) * factor;
+        if self.params.mu != 0.0 && self.params.feedback {
+            rescale_history(&self.delay, &mut other.delay, factor);
+        }
+    }
+    fn perturbed(&self, eps: f64) -> Self {
+        let mut o = self.clone();
+        let dir: Vec<f64> = generic_direction(2 * N).collect();
+        for i in 0..N {
+            o.state.q[i] += eps * dir[i];
+            o.state.qd[i] += eps * dir[N + i];
+        }
+        if self.params.mu != 0.0 && self.params.feedback {
+            let dqd = VecN::<N>::from_fn(|i, _| eps * dir[N + i]);
+            shift_history(&mut o.delay, &dqd);
+        }
+        o
+    }
+}
+
+/// What a spatial run did, in SCIENCE.md units (m, rad, s).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct SpatialSummary {
+    pub duration: f64,
+    pub rms_tracking_error: f64,
+    pub max_tracking_error: f64,
+    pub max_orientation_error: f64,
+    /// Mean |q̇(t) − q̇(t − T)| over the 10 periods before feedback (or the first 10 after the
+    /// transient without feedback), and over the last 10 periods.
+    pub period_residual_before: Option<f64>,
+    pub period_residual_final: Option<f64>,
+    /// |q(kT) − q((k−1)T)| at the last two stroboscopic samples: the joint drift per period.
+    pub drift_per_period: Option<f64>,
+    pub max_joint_speed: f64,
+    /// max over the run of max_i |q̇_i| / q̇_max,i (above 1: a rate limit was exceeded).
+    pub max_speed_ratio: f64,
+    pub min_joint_margin: Option<f64>,
+    pub min_clearance: Option<f64>,
+    pub singular_fraction: f64,
+    pub track_lost_fraction: f64,
+    pub safety_active_time: f64,
+    pub safety_left_null_space_steps: u64,
+    pub safety_infeasible_steps: u64,
+    pub nonfinite_steps: u64,
+    /// Whether the state stayed finite to the end.
+    pub finite: bool,
+}
+
+/// Runs `sim` for `duration` s, calling `each(t, state, output)` every step, and summarises.
+pub fn run<const N: usize, const M: usize>(
+    sim: &mut SpatialSimulation<N, M>,
+    duration: f64,
+    transient: f64,
+    mut each: impl FnMut(f64, &ArmState<N>, &SpatialOutput<N>),
+) -> SpatialSummary {
+    let dt = sim.dt();
+    let p = sim.params;
+    let period = p.task.path.period;
+    let steps = (duration / dt).round() as u64;
+    let per = (period / dt).round().max(1.0) as u64;
+    let mut hist = DelayLine::<N>::new(period / dt, sim.state().qd);
+    let mut s = SpatialSummary {
+        duration,
+        min_joint_margin: None,
+        finite: true,
+        ..Default::default()
+    };
+    let (mut sq, mut n_after) = (0.0, 0u64);
+    let (mut before, mut after) = ((0.0, 0u64), (0.0, 0u64));
+    let (mut singular, mut lost, mut active) = (0u64, 0u64, 0u64);
+    let feedback = p.feedback && p.mu != 0.0;
+    let before_end = if feedback {
+        p.t_on
+    } else {
+        transient + 10.0 * period
+    };
+    let mut strobe = [None, None];
+    let (mut margin, mut clear) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..steps {
+        let k = sim.step_index();
+        let t = sim.time();
+        let x = *sim.state();
+        let out = sim.step();
+        each(t, &x, &out);
+        hist.push(x.qd);
+        let resid = (x.qd - hist.sample(k as f64 - period / dt)).norm();
+        if t >= period && t < before_end && t >= before_end - 10.0 * period {
+            before.0 += resid;
+            before.1 += 1;
+        }
+        if t >= duration - 10.0 * period {
+            after.0 += resid;
+            after.1 += 1;
+        }
+        if k.is_multiple_of(per) {
+            strobe = [strobe[1], Some(x.q)];
+        }
+        if t >= transient {
+            sq += out.tracking_error * out.tracking_error;
+            n_after += 1;
+            s.max_tracking_error = s.max_tracking_error.max(out.tracking_error);
+            s.max_orientation_error = s.max_orientation_error.max(out.orientation_error);
+        }
+        s.max_joint_speed = s.max_joint_speed.max(x.qd.amax());
+        let ratio = (0..N)
+            .map(|i| x.qd[i].abs() / p.safety.qd_max[i])
+            .fold(0.0, f64::max);
+        s.max_speed_ratio = s.max_speed_ratio.max(ratio);
+        margin = margin.min(out.joint_margin);
+        clear = clear.min(out.clearance);
+        singular += u64::from(out.flags & flags::SINGULAR != 0);
+        lost += u64::from(out.flags & flags::TRACK_LOST != 0);
+        active += u64::from(out.flags & flags::SAFETY_ACTIVE != 0);
+        s.safety_left_null_space_steps += u64::from(out.flags & flags::SAFETY_LEFT_NULL_SPACE != 0);
+        s.safety_infeasible_steps += u64::from(out.flags & flags::SAFETY_INFEASIBLE != 0);
+        s.nonfinite_steps += u64::from(out.flags & flags::NONFINITE != 0);
+        if !sim.state().is_finite() {
+            s.finite = false;
+            break;
+        }
+    }
+    let mean = |(sum, n): (f64, u64)| (n > 0).then(|| sum / n as f64);
+    s.rms_tracking_error = if n_after > 0 {
+        (sq / n_after as f64).sqrt()
+    } else {
+        0.0
+    };
+    s.period_residual_before = mean(before);
+    s.period_residual_final = mean(after);
+    if let [Some(a), Some(b)] = strobe {
+        s.drift_per_period = Some((b - a).norm());
+    }
+    s.min_joint_margin = margin.is_finite().then_some(margin);
+    s.min_clearance = clear.is_finite().then_some(clear);
+    let n = steps.max(1) as f64;
+    s.singular_fraction = singular as f64 / n;
+    s.track_lost_fraction = lost as f64 / n;
+    s.safety_active_time = active as f64 * dt;
+    s
+}

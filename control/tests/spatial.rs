@@ -1,0 +1,306 @@
+//! The spatial law's pieces against finite differences, and the closed loop on the Panda.
+
+use control::law::Projection;
+use control::model::{builtin, Chain};
+use control::resolve::{damped_pinv_m, min_eigenvalue};
+use control::safety::rows::BarrierGains;
+use control::safety::SafetyParams;
+use control::spatial::arm::Points;
+use control::spatial::safety::capsule_row;
+use control::spatial::secondary::{centring, manipulability, potential};
+use control::spatial::sim::run;
+use control::spatial::*;
+use nalgebra::{Rotation3, SMatrix, SVector};
+
+type V7 = SVector<f64, 7>;
+
+fn panda(tool: Vec3) -> SpatialArm<7> {
+    let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
+    let mut arm = SpatialArm::new(chain.model::<7>().unwrap());
+    arm.tool = tool;
+    arm.radii = [0.06, 0.06, 0.06, 0.06, 0.05, 0.05, 0.04];
+    arm
+}
+
+fn state(seed: u64) -> (V7, V7) {
+    let mut x = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    let mut r = || {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (x >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    (V7::from_fn(|_, _| 1.5 * r()), V7::from_fn(|_, _| r()))
+}
+
+fn kin(arm: &SpatialArm<7>, q: &V7, qd: &V7) -> SpatialKinematics<7> {
+    let mut k = SpatialKinematics::default();
+    arm.kinematics(q, qd, &mut k);
+    k
+}
+
+#[test]
+fn tool_jacobian_and_drift_match_finite_differences() {
+    let arm = panda(Vec3::new(0.05, -0.02, 0.1));
+    let h = 1e-6;
+    for seed in 0..5 {
+        let (q, qd) = state(seed);
+        let k = kin(&arm, &q, &qd);
+        let (a, b) = (kin(&arm, &(q - qd * h), &qd), kin(&arm, &(q + qd * h), &qd));
+        let v = (b.p - a.p) / (2.0 * h);
+        assert!((v - k.jac.fixed_rows::<3>(0) * qd).norm() < 1e-8);
+        // J̇q̇ = d/dt (J q̇) at fixed q̇.
+        let jd = (b.jac * qd - a.jac * qd) / (2.0 * h);
+        assert!(
+            (jd - k.jdot_qd).norm() < 1e-6,
+            "{}",
+            (jd - k.jdot_qd).norm()
+        );
+    }
+}
+
+fn fd_gradient(f: impl Fn(&V7) -> f64, q: &V7) -> V7 {
+    let h = 1e-6;
+    V7::from_fn(|i, _| {
+        let mut e = V7::zeros();
+        e[i] = h;
+        (f(&(q + e)) - f(&(q - e))) / (2.0 * h)
+    })
+}
+
+#[test]
+fn manipulability_gradient_matches_finite_differences_for_3_and_6_rows() {
+    let arm = panda(Vec3::new(0.04, 0.0, 0.1));
+    for seed in 0..6 {
+        let (q, _) = state(seed);
+        let k = kin(&arm, &q, &V7::zeros());
+        let j3: SMatrix<f64, 3, 7> = k.jac.fixed_rows::<3>(0).into_owned();
+        let (w, g) = manipulability(&arm, &k, &j3);
+        let f = |q: &V7| {
+            let k = kin(&arm, q, &V7::zeros());
+            manipulability(&arm, &k, &k.jac.fixed_rows::<3>(0).into_owned()).0
+        };
+        assert!((w - f(&q)).abs() < 1e-15);
+        let fd = fd_gradient(f, &q);
+        assert!((g - fd).norm() < 1e-6 * (1.0 + fd.norm()), "{g} {fd}");
+        let (_, g6) = manipulability(&arm, &k, &k.jac);
+        let f6 = |q: &V7| {
+            let k = kin(&arm, q, &V7::zeros());
+            manipulability(&arm, &k, &k.jac).0
+        };
+        let fd6 = fd_gradient(f6, &q);
+        assert!((g6 - fd6).norm() < 1e-6 * (1.0 + fd6.norm()), "{g6} {fd6}");
+    }
+}
+
+#[test]
+fn centring_and_potential_gradients_match_finite_differences() {
+    let arm = panda(Vec3::new(0.0, 0.0, 0.1));
+    let (lo, hi) = (
+        [-2.9, -1.8, -2.9, -3.1, -2.9, 0.0, -2.9],
+        [2.9, 1.8, 2.9, -0.1, 2.9, 3.8, 2.9],
+    );
+    let points_at = |q: &V7| {
+        let k = kin(&arm, q, &V7::zeros());
+        let mut p: Points<7> = [Default::default(); control::MAX_JOINTS + 1];
+        arm.capsule_points(&k, &V7::zeros(), &mut p);
+        p
+    };
+    for seed in 0..6 {
+        let (q, _) = state(seed);
+        let (_, g) = centring(&q, &lo, &hi);
+        let fd = fd_gradient(|q| centring(q, &lo, &hi).0, &q);
+        assert!((g - fd).norm() < 1e-7);
+        // A sphere near the elbow, so some capsules are inside its zone.
+        let p = points_at(&q);
+        let mut spheres = SphereSet::default();
+        spheres.push(Sphere {
+            center: p[3].pos + Vec3::new(0.05, 0.03, -0.02),
+            radius: 0.05,
+            margin: 0.1,
+        });
+        let (h, g) = potential(&arm, &p, &spheres, 2.0);
+        assert!(h > 0.0);
+        let fd = fd_gradient(|q| potential(&arm, &points_at(q), &spheres, 2.0).0, &q);
+        assert!((g - fd).norm() < 1e-6 * (1.0 + fd.norm()), "{g} {fd}");
+    }
+}
+
+#[test]
+fn capsule_rows_give_the_barrier_second_derivative() {
+    let arm = panda(Vec3::new(0.0, 0.0, 0.1));
+    let g = BarrierGains {
+        k0: 100.0,
+        k1: 20.0,
+        push_out_speed: 0.1,
+    };
+    let h_of = |q: &V7, qd: &V7, j: usize, c: Vec3| {
+        let k = kin(&arm, q, qd);
+        let mut p: Points<7> = [Default::default(); control::MAX_JOINTS + 1];
+        arm.capsule_points(&k, qd, &mut p);
+        capsule_row(&p[j], &p[j + 1], c, 0.1, g).unwrap()
+    };
+    let mut checked = 0;
+    for seed in 0..8 {
+        let (q, qd) = state(seed);
+        let qdd = V7::from_fn(|i, _| 0.3 * (i as f64 - 3.0));
+        let k = kin(&arm, &q, &qd);
+        for j in [1usize, 3, 5] {
+            let (a, b) = (
+                arm.capsule_positions(&k)[j],
+                arm.capsule_positions(&k)[j + 1],
+            );
+            // Off the middle of the link (interior piece) and off its far end (point piece).
+            for c in [
+                (a + b) * 0.5 + Vec3::new(0.2, -0.1, 0.15),
+                b + (b - a) * 0.5 + Vec3::new(0.05, 0.05, 0.0),
+            ] {
+                let (h0, row, rhs) = h_of(&q, &qd, j, c);
+                let dt = 1e-5;
+                let at = |s: f64| {
+                    let q = q + qd * s + qdd * (0.5 * s * s);
+                    let qd = qd + qdd * s;
+                    h_of(&q, &qd, j, c).0
+                };
+                let hdot = (at(dt) - at(-dt)) / (2.0 * dt);
+                let hddot = (at(dt) - 2.0 * h0 + at(-dt)) / (dt * dt);
+                let drift = g.rhs(h0, hdot) - rhs;
+                let predicted = row.dot(&qdd) + drift;
+                assert!(
+                    (predicted - hddot).abs() < 1e-3 * (1.0 + hddot.abs()),
+                    "link {j}: {predicted} vs {hddot}"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 48);
+}
+
+#[test]
+fn jacobi_eigenvalue_and_pseudo_inverse() {
+    let m = SMatrix::<f64, 3, 3>::new(4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 1.0);
+    let e = m.symmetric_eigenvalues().min();
+    assert!((min_eigenvalue(m) - e).abs() < 1e-12);
+    // A rank-deficient task: damped, finite, and flagged by λ > 0.
+    let mut j = SMatrix::<f64, 6, 7>::zeros();
+    j[(0, 0)] = 1.0;
+    let (p, smin, lambda) = damped_pinv_m(&j, 0.05, 0.05);
+    assert!(smin < 1e-12 && lambda > 0.0 && p.iter().all(|v| v.is_finite()));
+}
+
+fn panda_params(arm: &SpatialArm<7>, kind: TaskKind) -> (SpatialParams, V7) {
+    let q0 = V7::from_row_slice(&[0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]);
+    let k = kin(arm, &q0, &V7::zeros());
+    let path = Path::new(Shape::Circle, k.p - Vec3::z() * 0.15, Vec3::x(), 0.15, 2.0).unwrap();
+    let mut safety = SafetyParams::off();
+    safety.q_min[..7].copy_from_slice(&[
+        -2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973,
+    ]);
+    safety.q_max[..7].copy_from_slice(&[2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973]);
+    let p = SpatialParams {
+        task: SpatialTask {
+            kind,
+            path,
+            orientation: Rotation3::from_matrix_unchecked(k.rot),
+        },
+        kp: 40.0,
+        kv: 15.0,
+        alpha: 20.0,
+        secondary: SpatialSecondary::Centring,
+        spheres: SphereSet::default(),
+        weight: 2.0,
+        null_damping: 0.0,
+        damping_threshold: 0.05,
+        damping_max: 0.05,
+        mu: 3.0,
+        tau: 2.0,
+        t_on: 0.0,
+        feedback: true,
+        projection: Projection::NullSpace,
+        safety,
+        track_loss: 0.05,
+    };
+    (p, q0)
+}
+
+#[test]
+fn the_panda_tracks_its_circle_in_position_and_pose() {
+    let arm = panda(Vec3::new(0.0, 0.0, 0.1034));
+    for kind in [TaskKind::Position, TaskKind::Pose] {
+        let (p, q0) = panda_params(&arm, kind);
+        let mut qd0 = V7::zeros();
+        qd0[0] = 0.1;
+        let s = control::with_task_rows!(kind, |M| {
+            let mut sim = SpatialSimulation::<7, M>::new(arm, p, 0.001, q0, qd0, 2.0);
+            run(&mut sim, 20.0, 5.0, |_, _, _| {})
+        });
+        assert!(s.finite && s.max_tracking_error < 1e-6, "{kind:?}: {s:?}");
+        assert!(s.max_orientation_error < 1e-6, "{kind:?}: {s:?}");
+    }
+}
+
+#[test]
+fn centring_with_projected_feedback_makes_the_self_motion_periodic() {
+    // The study's finding (docs/panda-study.md): each alone fails, together they converge.
+    let arm = panda(Vec3::new(0.0, 0.0, 0.1034));
+    let mut qd0 = V7::zeros();
+    (qd0[0], qd0[2]) = (0.1, -0.1);
+    let summary = |alpha: f64, mu: f64| {
+        let (mut p, q0) = panda_params(&arm, TaskKind::Position);
+        (p.alpha, p.mu) = (alpha, mu);
+        let mut sim = SpatialSimulation::<7, 3>::new(arm, p, 0.001, q0, qd0, 2.0);
+        run(&mut sim, 150.0, 5.0, |_, _, _| {})
+    };
+    let both = summary(20.0, 3.0);
+    assert!(both.period_residual_final.unwrap() < 1e-2, "{both:?}");
+    assert!(both.min_joint_margin.unwrap() > 0.3, "{both:?}");
+    let pyragas_only = summary(0.0, 3.0);
+    assert!(
+        pyragas_only.period_residual_final.unwrap() > 0.1,
+        "{pyragas_only:?}"
+    );
+    let centring_only = summary(20.0, 0.0);
+    assert!(centring_only.max_joint_speed > 5.0, "{centring_only:?}");
+}
+
+#[test]
+fn the_panda_preset_builds_and_bad_keys_are_named() {
+    use control::spatial::config::SpatialConfig;
+    let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
+    let cfg = SpatialConfig::preset("panda").unwrap();
+    let s = cfg.setup::<7>(&chain).unwrap();
+    // Limits from the URDF and Franka's acceleration table.
+    assert_eq!(s.params.safety.qd_max[4], 2.61);
+    assert_eq!(s.params.safety.qdd_max[1], 7.5);
+    assert_eq!(s.params.safety.q_max[3], -0.0698);
+    // The tool starts on its path.
+    let k = kin(&s.arm, &s.q0, &V7::zeros());
+    assert!((s.params.task.path.position(0.0) - k.p).norm() < 1e-12);
+    // It round-trips through TOML.
+    assert_eq!(SpatialConfig::from_toml(&cfg.to_toml()).unwrap(), cfg);
+    let bad = |edit: &dyn Fn(&mut SpatialConfig), field: &str| {
+        let mut c = cfg.clone();
+        edit(&mut c);
+        let e = c.setup::<7>(&chain).unwrap_err().to_string();
+        assert!(e.contains(field), "{field}: {e}");
+    };
+    bad(&|c| c.task.kind = "orbit".into(), "task.kind");
+    bad(&|c| c.task.radius = f64::NAN, "task.radius");
+    bad(&|c| c.task.normal = [0.0; 3], "task.normal");
+    bad(&|c| c.sim.q0.pop().map(drop).unwrap_or(()), "sim.q0");
+    bad(&|c| c.law.secondary = "curiosity".into(), "law.secondary");
+    bad(
+        &|c| c.feedback.projection = "sideways".into(),
+        "feedback.projection",
+    );
+    bad(&|c| c.safety.velocity_scale = 1.5, "safety.velocity_scale");
+    bad(
+        &|c| c.robot.link_radii = Some(vec![0.1; 3]),
+        "robot.link_radii",
+    );
+    assert!(SpatialConfig::from_toml("[robot]\ndescription = \"panda\"\nwheels = 4\n").is_err());
+    assert!(SpatialConfig::preset("paper").is_none());
+}
