@@ -14,25 +14,25 @@ variant() {
   sed -e "$2" "$out/panda.toml" > "$out/$1.toml"
 }
 common='s/^enabled = true/enabled = false/; s/^t_on = 60.0/t_on = 0.0/'
-variant pure        "$common; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 3.0/mu = 0.0/"
-variant pyragas     "$common; s/^alpha = 20.0/alpha = 0.0/; s/^projection = .*/projection = \"full\"/"
-variant pyragas-ns  "$common; s/^alpha = 20.0/alpha = 0.0/"
-variant centring    "$common; s/^mu = 3.0/mu = 0.0/"
+variant pure        "$common; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 0.0/"
+variant pyragas     "$common; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 3.0/; s/^projection = .*/projection = \"full\"/"
+variant pyragas-ns  "$common; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 3.0/"
+variant centring    "$common; s/^mu = 1.0/mu = 0.0/"
 variant both        "$common"
 variant both-full   "$common; s/^projection = .*/projection = \"full\"/"
-variant both-mu1    "$common; s/^mu = 3.0/mu = 1.0/"
+variant both-mu3    "$common; s/^mu = 1.0/mu = 3.0/"
 variant manip       "$common; s/^secondary = .*/secondary = \"manipulability\"/; s/^alpha = 20.0/alpha = 5.0/"
-variant damping     "$common; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 3.0/mu = 0.0/; s/^secondary = .*/secondary = \"none\"/; s/^null_damping = 0.0/null_damping = 2.0/"
-variant barrier     "s/^alpha = 20.0/alpha = 0.0/; s/^mu = 3.0/mu = 0.0/"
+variant damping     "$common; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 0.0/; s/^secondary = .*/secondary = \"none\"/; s/^null_damping = 0.0/null_damping = 2.0/"
+variant barrier     "s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 0.0/"
 variant barrier-ns  "s/^alpha = 20.0/alpha = 0.0/; s/^t_on = 60.0/t_on = 0.0/"
 variant pose        "$common; s/^kind = \"position\"/kind = \"pose\"/"
-variant pose-pure   "$common; s/^kind = \"position\"/kind = \"pose\"/; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 3.0/mu = 0.0/"
+variant pose-pure   "$common; s/^kind = \"position\"/kind = \"pose\"/; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 0.0/"
 variant offaxis     "$common; s/^tool = .*/tool = [0.05, 0.0, 0.1034]/"
-variant offaxis-pure "$common; s/^tool = .*/tool = [0.05, 0.0, 0.1034]/; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 3.0/mu = 0.0/"
+variant offaxis-pure "$common; s/^tool = .*/tool = [0.05, 0.0, 0.1034]/; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 0.0/"
 cp "$out/panda.toml" "$out/preset.toml"
 
 printf '| variant | residual before → final (rad/s) | drift / period (rad) | max speed (rad/s) | min margin (rad) | filter active (s) | λ_max (1/s) |\n|---|---|---|---|---|---|---|\n' > "$out/table.md"
-for v in pure pyragas pyragas-ns centring both both-full both-mu1 manip damping barrier barrier-ns pose pose-pure offaxis offaxis-pure preset; do
+for v in pure pyragas pyragas-ns centring both both-full both-mu3 manip damping barrier barrier-ns pose pose-pure offaxis offaxis-pure preset; do
   $ctl simulate --config "$out/$v.toml" --json > "$out/$v.json"
   lam=$($ctl lyapunov --config "$out/$v.toml" --duration 150 --window 50:150 \
         | sed -n 's/^λ_max = \([^ ]*\) ± \([^ ]*\) .*/\1 ± \2/p')

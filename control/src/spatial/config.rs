@@ -459,7 +459,7 @@ impl SpatialConfig {
 }
 
 /// The study's working set-up (docs/panda-study.md): a 0.15 m circle in the vertical plane in
-/// front of the Panda, position task, joint-limit centring α = 20, feedback μ = 3 projected into
+/// front of the Panda, position task, joint-limit centring α = 20, feedback μ = 1 projected into
 /// the null space from t = 60 s, the safety filter on. It starts off the cycle (a small kick on
 /// joints 1 and 3) and runs 60 s without feedback first.
 pub const PANDA: &str = r#"
@@ -482,7 +482,7 @@ alpha = 20.0
 secondary = "centring"
 
 [feedback]
-mu = 3.0
+mu = 1.0
 t_on = 60.0
 projection = "null-space"
 
