@@ -10,6 +10,8 @@ mod robot;
 mod setup;
 mod simulate;
 mod spatial;
+mod spatial_figure;
+mod spatial_sweep;
 
 use clap::{Parser, Subcommand};
 use client::online;

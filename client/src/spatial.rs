@@ -251,6 +251,14 @@ pub fn print(r: &SpatialReport) {
     );
 }
 
+/// One run of `cfg` to its duration: the summary alone.
+pub fn run_summary(cfg: &SpatialConfig) -> Result<SpatialSummary> {
+    Ok(with_setup!(cfg, |s, N, M| {
+        let mut sim = SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        run(&mut sim, s.duration, s.transient, |_, _, _| {})
+    }))
+}
+
 /// λ_max of a spatial run: the same Benettin driver and norm as the planar arm's.
 #[derive(Serialize)]
 pub struct SpatialLyapunov {

@@ -45,3 +45,9 @@ print(f"| {v} | {f(d['period_residual_before'])} → {f(d['period_residual_final
 PY
 done
 cat "$out/table.md"
+
+# The μ sweeps (with centring: the preset without the filter and with feedback from t = 0;
+# without: the pyragas-ns variant) and the arm figure of the preset.
+$ctl sweep --config "$out/both.toml" --mu 0:3:0.25 --duration 150 --window 50:150 --output "$out/sweep"
+$ctl sweep --config "$out/pyragas-ns.toml" --mu 0:3:0.25 --duration 150 --window 50:150 --output "$out/sweep-no-centring"
+$ctl arm-figure --preset panda --from 195 --frames 6 --output "$out/arm"

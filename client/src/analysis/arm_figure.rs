@@ -140,6 +140,11 @@ pub fn run(args: ArmFigureCmd) -> Result<()> {
     if model.setup.config.is_none() && model.setup.preset.is_none() {
         model.setup.preset = Some("paper-obstacle".into());
     }
+    if let Some(cfg) = crate::spatial::load(&model.setup, model.mu)? {
+        crate::spatial_figure::draw(&cfg, args.from, args.span, args.frames, &args.output)?;
+        println!("wrote {}.png and .svg", args.output.display());
+        return Ok(());
+    }
     let mut base = model.load()?;
     args.obstacles.apply(&mut base)?;
     let span = args.span.unwrap_or(base.task.period);

@@ -104,6 +104,9 @@ fn grid(plan: &Plan) -> Grid {
 }
 
 pub fn run(args: SweepCmd) -> Result<()> {
+    if let Some(cfg) = crate::spatial::load(&args.model.setup, None)? {
+        return spatial(&args, &cfg);
+    }
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
     let work = |(i, c): &(usize, Config)| row(*i, c, &plan.spec);
@@ -298,6 +301,34 @@ fn print_obstacles(rows: &[Row], starts: &[Config], mus: &[f64]) {
         }
         println!();
     }
+}
+
+/// The sweep on a spatial robot: one start (the config's), λ_max and the run's summary per μ.
+fn spatial(args: &SweepCmd, cfg: &control::spatial::config::SpatialConfig) -> Result<()> {
+    if args.shard.is_some() || !args.starts.starts.is_empty() {
+        anyhow::bail!("--shard and --start apply to the planar arm; a spatial sweep runs one start, its config's (set sim.q0 or --q0)");
+    }
+    let mus = match &args.model.mu {
+        Some(r) => r.0.clone(),
+        None => super::parse_range("0:3:0.25").map_err(anyhow::Error::msg)?,
+    };
+    let l = &args.lyapunov;
+    let t0 = Instant::now();
+    let rows = crate::spatial_sweep::sweep(
+        cfg, &mus, l.duration, l.window, l.d0, l.blocks, args.jobs, &args.output,
+    )?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        crate::spatial_sweep::print(&rows);
+        println!(
+            "{} runs in {:.1} s; wrote {} and its .png/.svg",
+            rows.len(),
+            t0.elapsed().as_secs_f64(),
+            crate::plot::with_ext(&args.output, "csv").display()
+        );
+    }
+    Ok(())
 }
 
 fn plot(

@@ -1,0 +1,186 @@
+//! `chaosctl sweep` on a spatial robot: for each μ, λ_max (Benettin, the planar norm) and what the
+//! run did (final period residual, joint drift per period, speed, margin to the limits), in
+//! parallel; writes PREFIX.csv and a two-panel figure (λ_max and log₁₀ residual against μ).
+
+use crate::analysis::parallel::{jobs, run_all};
+use crate::plot::{Chart, Figure, Panel, Rule, Series, Style, DARK, PALETTE};
+use crate::spatial::{lyapunov, run_summary};
+use anyhow::{Context, Result};
+use control::spatial::config::SpatialConfig;
+use serde::Serialize;
+use std::io::Write;
+use std::path::Path;
+
+/// One μ of the sweep.
+#[derive(Serialize, Clone, Debug)]
+pub struct SpatialRow {
+    pub mu: f64,
+    pub lambda_max: Option<f64>,
+    pub stderr: Option<f64>,
+    pub residual_final: Option<f64>,
+    pub drift_per_period: Option<f64>,
+    pub max_joint_speed: Option<f64>,
+    pub min_joint_margin: Option<f64>,
+    pub error: Option<String>,
+}
+
+fn row(cfg: &SpatialConfig, mu: f64, duration: f64, window: [f64; 2], d0: f64, blocks: usize) -> SpatialRow {
+    let mut c = cfg.clone();
+    c.feedback.mu = mu;
+    c.sim.duration = duration;
+    let mut r = SpatialRow {
+        mu,
+        lambda_max: None,
+        stderr: None,
+        residual_final: None,
+        drift_per_period: None,
+        max_joint_speed: None,
+        min_joint_margin: None,
+        error: None,
+    };
+    match lyapunov(&c, duration, Some(window), d0, None, blocks) {
+        Ok((l, _)) => (r.lambda_max, r.stderr) = (Some(l.lambda_max), Some(l.stderr)),
+        Err(e) => r.error = Some(format!("{e:#}")),
+    }
+    match run_summary(&c) {
+        Ok(s) => {
+            r.residual_final = s.period_residual_final;
+            r.drift_per_period = s.drift_per_period;
+            r.max_joint_speed = Some(s.max_joint_speed);
+            r.min_joint_margin = s.min_joint_margin;
+        }
+        Err(e) => r.error = Some(format!("{e:#}")),
+    }
+    r
+}
+
+/// Runs the sweep and writes its files; returns the rows in μ order.
+#[allow(clippy::too_many_arguments)]
+pub fn sweep(
+    cfg: &SpatialConfig,
+    mus: &[f64],
+    duration: f64,
+    window: Option<[f64; 2]>,
+    d0: f64,
+    blocks: usize,
+    threads: Option<usize>,
+    prefix: &Path,
+) -> Result<Vec<SpatialRow>> {
+    let window = window.unwrap_or([duration / 3.0, duration]);
+    // Fail early, once, on a set-up that cannot run.
+    crate::spatial::run_summary(&{
+        let mut c = cfg.clone();
+        c.sim.duration = c.sim.dt;
+        c
+    })?;
+    let rows = run_all(mus, jobs(threads), "sweep", |&mu| {
+        row(cfg, mu, duration, window, d0, blocks)
+    })?;
+    write_csv(&crate::plot::with_ext(prefix, "csv"), &rows)?;
+    plot(prefix, &rows, cfg, window)?;
+    Ok(rows)
+}
+
+fn cell(v: Option<f64>) -> String {
+    v.map(|x| format!("{x:.6e}")).unwrap_or_default()
+}
+
+fn write_csv(path: &Path, rows: &[SpatialRow]) -> Result<()> {
+    let mut w = std::io::BufWriter::new(
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
+    );
+    writeln!(w, "mu,lambda_max,stderr,residual_final,drift_per_period,max_joint_speed,min_joint_margin,error")?;
+    for r in rows {
+        writeln!(
+            w,
+            "{},{},{},{},{},{},{},{}",
+            r.mu,
+            cell(r.lambda_max),
+            cell(r.stderr),
+            cell(r.residual_final),
+            cell(r.drift_per_period),
+            cell(r.max_joint_speed),
+            cell(r.min_joint_margin),
+            r.error.as_deref().unwrap_or("").replace(',', ";")
+        )?;
+    }
+    w.flush()?;
+    Ok(())
+}
+
+fn plot(prefix: &Path, rows: &[SpatialRow], cfg: &SpatialConfig, window: [f64; 2]) -> Result<()> {
+    let ok: Vec<&SpatialRow> = rows.iter().filter(|r| r.lambda_max.is_some()).collect();
+    let lambda = Series::new(
+        Some("λ_max ± stderr".into()),
+        PALETTE[0],
+        Style::LineMarkers { width: 2, size: 3 },
+        ok.iter().map(|r| (r.mu, r.lambda_max.unwrap_or(f64::NAN))).collect(),
+    )
+    .yerr(ok.iter().map(|r| r.stderr.unwrap_or(0.0)).collect());
+    let zero = Rule {
+        value: 0.0,
+        vertical: false,
+        color: DARK,
+        label: None,
+    };
+    let residual = Series::new(
+        Some("log₁₀ final residual |q̇(t) − q̇(t − T)|".into()),
+        PALETTE[1],
+        Style::LineMarkers { width: 2, size: 3 },
+        rows.iter()
+            .filter_map(|r| r.residual_final.filter(|v| *v > 0.0).map(|v| (r.mu, v.log10())))
+            .collect(),
+    );
+    let title = format!(
+        "{}: {} {} task, {} α = {}, projection {}",
+        cfg.robot.description, cfg.task.kind, cfg.task.path, cfg.law.secondary, cfg.law.alpha,
+        cfg.feedback.projection
+    );
+    Figure {
+        title: Some(title),
+        panels: vec![
+            Panel::Chart(Chart {
+                title: format!("λ_max over {:.0}–{:.0} s", window[0], window[1]),
+                x_label: "Pyragas gain μ (1/s)".into(),
+                y_label: "λ_max (1/s)".into(),
+                series: vec![lambda],
+                rules: vec![zero],
+                legend: true,
+                ..Default::default()
+            }),
+            Panel::Chart(Chart {
+                title: "period residual over the last 10 periods".into(),
+                x_label: "Pyragas gain μ (1/s)".into(),
+                y_label: "log₁₀ residual (rad/s)".into(),
+                series: vec![residual],
+                legend: true,
+                ..Default::default()
+            }),
+        ],
+        cols: 2,
+        panel_size: (640, 460),
+    }
+    .save(prefix)?;
+    Ok(())
+}
+
+/// The rows as a table.
+pub fn print(rows: &[SpatialRow]) {
+    println!("      μ   λ_max (1/s)       residual   drift/period  max speed  min margin");
+    let f = |v: Option<f64>| v.map(|x| format!("{x:.2e}")).unwrap_or_else(|| "—".into());
+    for r in rows {
+        let lam = match (r.lambda_max, r.stderr) {
+            (Some(l), Some(s)) => format!("{l:+.4} ± {s:.4}"),
+            _ => "—".into(),
+        };
+        println!(
+            "{:7.3}  {lam:>16}  {:>12}  {:>12}  {:>9}  {:>10}{}",
+            r.mu,
+            f(r.residual_final),
+            f(r.drift_per_period),
+            f(r.max_joint_speed),
+            f(r.min_joint_margin),
+            r.error.as_deref().map(|e| format!("  ({e})")).unwrap_or_default()
+        );
+    }
+}
