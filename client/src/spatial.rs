@@ -139,7 +139,7 @@ pub fn simulate(
         let mut k = 0u64;
         let summary = run(&mut sim, s.duration, s.transient, |t, x, _| {
             if let Some(w) = out.as_mut() {
-                if k % stride == 0 && err.is_none() {
+                if k.is_multiple_of(stride) && err.is_none() {
                     let row: Vec<String> =
                         x.q.iter()
                             .chain(x.qd.iter())
@@ -254,7 +254,8 @@ pub fn print(r: &SpatialReport) {
 /// One run of `cfg` to its duration: the summary alone.
 pub fn run_summary(cfg: &SpatialConfig) -> Result<SpatialSummary> {
     Ok(with_setup!(cfg, |s, N, M| {
-        let mut sim = SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        let mut sim =
+            SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
         run(&mut sim, s.duration, s.transient, |_, _, _| {})
     }))
 }

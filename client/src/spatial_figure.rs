@@ -42,12 +42,12 @@ fn simulate(cfg: &SpatialConfig, from: f64, span: f64, frames: usize) -> Result<
             let mut k = 0u64;
             let mut kin = SpatialKinematics::<N>::default();
             run(&mut sim, from + span, 0.0, |t, x, out| {
-                if k % stride == 0 {
+                if k.is_multiple_of(stride) {
                     d.joints.push((t, x.q.iter().copied().collect()));
                 }
                 if k >= start {
                     d.path.push([out.p.x, out.p.y, out.p.z]);
-                    if (k - start) % every == 0 && d.frames.len() < frames {
+                    if (k - start).is_multiple_of(every) && d.frames.len() < frames {
                         s.arm.kinematics(&x.q, &x.qd, &mut kin);
                         let pts = s.arm.capsule_positions(&kin);
                         let mut arm = vec![[0.0; 3]];
@@ -77,8 +77,13 @@ fn view(cfg: &SpatialConfig, d: &Drawn, h: usize, v: usize, title: &str) -> Char
     let mut series = Vec::new();
     for o in &cfg.obstacles {
         series.push(
-            Series::new(None, GREY, Style::Fill, circle((o.center[h], o.center[v]), o.radius))
-                .alpha(0.4),
+            Series::new(
+                None,
+                GREY,
+                Style::Fill,
+                circle((o.center[h], o.center[v]), o.radius),
+            )
+            .alpha(0.4),
         );
     }
     let n = d.frames.len().max(1);
@@ -124,7 +129,13 @@ fn view(cfg: &SpatialConfig, d: &Drawn, h: usize, v: usize, title: &str) -> Char
 }
 
 /// Draws the figure to PREFIX.png and PREFIX.svg.
-pub fn draw(cfg: &SpatialConfig, from: f64, span: Option<f64>, frames: usize, prefix: &Path) -> Result<()> {
+pub fn draw(
+    cfg: &SpatialConfig,
+    from: f64,
+    span: Option<f64>,
+    frames: usize,
+    prefix: &Path,
+) -> Result<()> {
     if !(from.is_finite() && from >= 0.0) {
         bail!("--from {from}: must be a time ≥ 0 s");
     }

@@ -24,7 +24,14 @@ pub struct SpatialRow {
     pub error: Option<String>,
 }
 
-fn row(cfg: &SpatialConfig, mu: f64, duration: f64, window: [f64; 2], d0: f64, blocks: usize) -> SpatialRow {
+fn row(
+    cfg: &SpatialConfig,
+    mu: f64,
+    duration: f64,
+    window: [f64; 2],
+    d0: f64,
+    blocks: usize,
+) -> SpatialRow {
     let mut c = cfg.clone();
     c.feedback.mu = mu;
     c.sim.duration = duration;
@@ -114,7 +121,9 @@ fn plot(prefix: &Path, rows: &[SpatialRow], cfg: &SpatialConfig, window: [f64; 2
         Some("λ_max ± stderr".into()),
         PALETTE[0],
         Style::LineMarkers { width: 2, size: 3 },
-        ok.iter().map(|r| (r.mu, r.lambda_max.unwrap_or(f64::NAN))).collect(),
+        ok.iter()
+            .map(|r| (r.mu, r.lambda_max.unwrap_or(f64::NAN)))
+            .collect(),
     )
     .yerr(ok.iter().map(|r| r.stderr.unwrap_or(0.0)).collect());
     let zero = Rule {
@@ -128,12 +137,20 @@ fn plot(prefix: &Path, rows: &[SpatialRow], cfg: &SpatialConfig, window: [f64; 2
         PALETTE[1],
         Style::LineMarkers { width: 2, size: 3 },
         rows.iter()
-            .filter_map(|r| r.residual_final.filter(|v| *v > 0.0).map(|v| (r.mu, v.log10())))
+            .filter_map(|r| {
+                r.residual_final
+                    .filter(|v| *v > 0.0)
+                    .map(|v| (r.mu, v.log10()))
+            })
             .collect(),
     );
     let title = format!(
         "{}: {} {} task, {} α = {}, projection {}",
-        cfg.robot.description, cfg.task.kind, cfg.task.path, cfg.law.secondary, cfg.law.alpha,
+        cfg.robot.description,
+        cfg.task.kind,
+        cfg.task.path,
+        cfg.law.secondary,
+        cfg.law.alpha,
         cfg.feedback.projection
     );
     Figure {
@@ -180,7 +197,10 @@ pub fn print(rows: &[SpatialRow]) {
             f(r.drift_per_period),
             f(r.max_joint_speed),
             f(r.min_joint_margin),
-            r.error.as_deref().map(|e| format!("  ({e})")).unwrap_or_default()
+            r.error
+                .as_deref()
+                .map(|e| format!("  ({e})"))
+                .unwrap_or_default()
         );
     }
 }

@@ -304,3 +304,18 @@ fn the_panda_preset_builds_and_bad_keys_are_named() {
     assert!(SpatialConfig::from_toml("[robot]\ndescription = \"panda\"\nwheels = 4\n").is_err());
     assert!(SpatialConfig::preset("paper").is_none());
 }
+
+#[test]
+fn the_closed_form_3x3_eigenvalue_agrees_with_jacobi() {
+    use control::resolve::min_eigenvalue_3;
+    for seed in 0..20 {
+        let (q, _) = state(seed);
+        let m = SMatrix::<f64, 3, 7>::from_fn(|r, c| (q[c] * (r as f64 + 1.0)).sin());
+        let a = m * m.transpose();
+        assert!((min_eigenvalue_3(&a) - min_eigenvalue(a)).abs() < 1e-12 * (1.0 + a.norm()));
+    }
+    // Repeated and zero eigenvalues.
+    assert!(min_eigenvalue_3(&SMatrix::<f64, 3, 3>::identity()) == 1.0);
+    let r1 = nalgebra::Vector3::new(1.0, 2.0, 3.0);
+    assert!(min_eigenvalue_3(&(r1 * r1.transpose())).abs() < 1e-12);
+}

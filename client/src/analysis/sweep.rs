@@ -315,7 +315,14 @@ fn spatial(args: &SweepCmd, cfg: &control::spatial::config::SpatialConfig) -> Re
     let l = &args.lyapunov;
     let t0 = Instant::now();
     let rows = crate::spatial_sweep::sweep(
-        cfg, &mus, l.duration, l.window, l.d0, l.blocks, args.jobs, &args.output,
+        cfg,
+        &mus,
+        l.duration,
+        l.window,
+        l.d0,
+        l.blocks,
+        args.jobs,
+        &args.output,
     )?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&rows)?);

@@ -124,11 +124,6 @@ pub fn evaluate<const N: usize, const M: usize>(
         - kin.jdot_qd;
     let task_acc: SVector<f64, M> = sec::rows::<M>(&desired);
 
-    let mut points: Points<N> = [Default::default(); crate::config::MAX_JOINTS + 1];
-    let need_points = !params.spheres.is_empty();
-    if need_points {
-        arm.capsule_points(kin, qd, &mut points);
-    }
     let (secondary_value, eta) = match params.secondary {
         SpatialSecondary::None => (0.0, None),
         SpatialSecondary::Manipulability => {
@@ -139,10 +134,13 @@ pub fn evaluate<const N: usize, const M: usize>(
             let (c, g) = sec::centring(q, &params.safety.q_min, &params.safety.q_max);
             (c, Some(-g))
         }
-        SpatialSecondary::Obstacles => {
+        SpatialSecondary::Obstacles if !params.spheres.is_empty() => {
+            let mut points: Points<N> = [Default::default(); crate::config::MAX_JOINTS + 1];
+            arm.capsule_points(kin, qd, &mut points);
             let (h, g) = sec::potential(arm, &points, &params.spheres, params.weight);
             (h, Some(-g))
         }
+        SpatialSecondary::Obstacles => (0.0, Some(VecN::<N>::zeros())),
     };
     let diff = qd - qd_delayed;
     let feedback = params.feedback_active(t);

@@ -118,11 +118,13 @@ pub fn filter<const N: usize, const M: usize>(
             flags: 0,
         };
     }
-    let mut points: Points<N> = [PointMotion::default(); MAX_JOINTS + 1];
-    if !spheres.is_empty() {
-        arm.capsule_points(kin, qd, &mut points);
-    }
-    let visit = |f: &mut dyn FnMut(&VecN<N>, f64)| visit_spheres(p, arm, spheres, &points, f);
     let (lo, hi) = joint_box(p, q, qd);
+    if spheres.is_empty() {
+        let none = |_: &mut dyn FnMut(&VecN<N>, f64)| {};
+        return solve::smallest_change(&none, (&lo, &hi), j, jpinv, qdd, &p.qdd_max);
+    }
+    let mut points: Points<N> = [PointMotion::default(); MAX_JOINTS + 1];
+    arm.capsule_points(kin, qd, &mut points);
+    let visit = |f: &mut dyn FnMut(&VecN<N>, f64)| visit_spheres(p, arm, spheres, &points, f);
     solve::smallest_change(&visit, (&lo, &hi), j, jpinv, qdd, &p.qdd_max)
 }

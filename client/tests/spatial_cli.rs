@@ -1,0 +1,166 @@
+//! The offline commands on the Panda, end to end through the built binary: `config --preset
+//! panda` round-trips, `simulate` keeps the planar CSV columns, `lyapunov`, `sweep` and
+//! `arm-figure` run, and bad spatial input is one line and exit code 2.
+
+use serde_json::Value;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn chaosctl(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_chaosctl"))
+        .args(args)
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .output()
+        .expect("run chaosctl")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("chaosd-spatial-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+fn ok(o: &Output) -> String {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8(o.stdout.clone()).unwrap()
+}
+
+#[test]
+fn the_panda_preset_prints_runs_and_keeps_the_csv_columns() {
+    let toml = ok(&chaosctl(&["config", "--preset", "panda"]));
+    assert!(toml.contains("[robot]") && toml.contains("description = \"panda\""));
+    let cfg = tmp("panda.toml");
+    std::fs::write(&cfg, &toml).unwrap();
+    let csv = tmp("panda.csv");
+    let out = ok(&chaosctl(&[
+        "simulate",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--duration",
+        "4",
+        "--csv",
+        csv.to_str().unwrap(),
+        "--stride",
+        "100",
+        "--json",
+    ]));
+    let r: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(r["n"], 7);
+    assert!(r["max_tracking_error"].as_f64().unwrap() < 1e-6, "{r}");
+    assert!(r["min_joint_margin"].as_f64().unwrap() > 0.0, "{r}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let want: Vec<String> = std::iter::once("t".to_string())
+        .chain((1..=7).map(|i| format!("q{i}")))
+        .chain((1..=7).map(|i| format!("qd{i}")))
+        .collect();
+    assert_eq!(header, want);
+    assert_eq!(lines.count(), 40);
+    // Flags apply as for the planar arm: without feedback the residual stays large.
+    let off: Value = serde_json::from_str(&ok(&chaosctl(&[
+        "simulate",
+        "--preset",
+        "panda",
+        "--duration",
+        "4",
+        "--mu",
+        "0",
+        "--json",
+    ])))
+    .unwrap();
+    assert_eq!(off["mu"], 0.0);
+}
+
+#[test]
+fn lyapunov_sweep_and_arm_figure_run_on_the_panda() {
+    let out = ok(&chaosctl(&[
+        "lyapunov",
+        "--preset",
+        "panda",
+        "--t-on",
+        "0",
+        "--safety",
+        "off",
+        "--duration",
+        "30",
+        "--window",
+        "10:30",
+        "--json",
+    ]));
+    let l: Value = serde_json::from_str(&out).unwrap();
+    assert!(l["lambda_max"].as_f64().unwrap().is_finite() && l["intervals"].as_u64().unwrap() >= 4);
+    let prefix = tmp("sweep");
+    let out = ok(&chaosctl(&[
+        "sweep",
+        "--preset",
+        "panda",
+        "--mu",
+        "0:1:1",
+        "--duration",
+        "20",
+        "--window",
+        "5:20",
+        "--output",
+        prefix.to_str().unwrap(),
+        "--json",
+    ]));
+    let rows: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(rows.as_array().unwrap().len(), 2);
+    for ext in ["csv", "png", "svg"] {
+        assert!(prefix.with_extension(ext).exists(), "{ext}");
+    }
+    let fig = tmp("arm");
+    ok(&chaosctl(&[
+        "arm-figure",
+        "--preset",
+        "panda",
+        "--from",
+        "2",
+        "--frames",
+        "3",
+        "--output",
+        fig.to_str().unwrap(),
+    ]));
+    assert!(fig.with_extension("png").exists());
+}
+
+#[test]
+fn bad_spatial_input_is_one_line_and_exit_2() {
+    let cfg = tmp("bad.toml");
+    let base = ok(&chaosctl(&["config", "--preset", "panda"]));
+    for (edit, needle) in [
+        (
+            base.replace("kind = \"position\"", "kind = \"orbit\""),
+            "task.kind",
+        ),
+        (
+            base.replace("description = \"panda\"", "description = \"nobot\""),
+            "nobot",
+        ),
+        (
+            base.replace("radius = 0.15", "radius = -1.0"),
+            "task.radius",
+        ),
+        (format!("{base}\nwheels = 4\n"), "wheels"),
+    ] {
+        std::fs::write(&cfg, edit).unwrap();
+        let o = chaosctl(&[
+            "simulate",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--duration",
+            "1",
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{needle}: {err}");
+        assert!(
+            err.contains(needle) && err.trim().lines().count() == 1,
+            "{needle}: {err}"
+        );
+    }
+    let o = chaosctl(&["simulate", "--preset", "panda", "--model", "floating"]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = chaosctl(&["sweep", "--preset", "panda", "--start", "0,1,2"]);
+    assert_eq!(o.status.code(), Some(2));
+}
