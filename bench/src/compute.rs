@@ -22,7 +22,7 @@ use std::path::Path;
 use std::time::Instant;
 
 /// Per-call latency of `f`, measured in batches (the clock costs more than one call).
-fn per_call(
+pub(crate) fn per_call(
     batches: usize,
     batch: usize,
     mut f: impl FnMut(usize),
@@ -325,6 +325,7 @@ fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<S
          (`Controller::rehearse`).\n\n",
     );
     report.push(&crate::tick::table(quick)?);
+    report.push(&crate::spatial_timing::section(quick)?);
     report.push(&model);
     report.push(&format!(
         "\n300 s simulation (RK4, dt = 1 ms, fixed base, manipulability): {:.3} s wall, {:.0} simulated s per wall s \

@@ -30,6 +30,7 @@ mod plan;
 mod plot;
 mod report;
 mod soak;
+mod spatial_timing;
 mod stats;
 mod tick;
 

@@ -469,6 +469,14 @@ impl Config {
         crate::stability::check(self, s.dt, &format!("sim.dt = {} s", s.dt))
     }
 
+    /// The model and the law's parameters as the block a control tick runs.
+    pub fn tick_law<const N: usize>(&self) -> crate::tick_law::TickLaw<N> {
+        crate::tick_law::TickLaw::Planar {
+            model: self.model::<N>(),
+            params: self.law_params(),
+        }
+    }
+
     /// The control-law parameter block (the config must be valid).
     pub fn law_params(&self) -> LawParams {
         let c = &self.control;

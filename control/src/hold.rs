@@ -9,9 +9,10 @@
 //! with its rate q⃛; the plant ramps q̈ = q̈₀ + q⃛·s over the period. At 1 kHz this tracks to
 //! ~1e-5 m and follows the continuous system's orbits (`tests/sampled_data.rs`).
 
-use crate::arm::{ArmModel, Kinematics, VecN};
-use crate::law::{evaluate, ControlOutput, LawParams};
+use crate::arm::{ArmModel, VecN};
+use crate::law::ControlOutput;
 use crate::sim::{plant_derivative, rk4_step, ArmState};
+use crate::tick_law::{LawScratch, TickLaw};
 
 /// A command for one hold interval.
 #[derive(Clone, Copy, Debug)]
@@ -28,25 +29,27 @@ pub struct HeldCommand<const N: usize> {
 /// `delayed(t)` returns q̇(t − τ)'s source signal at time t (the delay line, read by the caller).
 #[allow(clippy::too_many_arguments)]
 pub fn command<const N: usize>(
-    params: &LawParams,
-    model: &ArmModel<N>,
+    law: &TickLaw<N>,
     t: f64,
     x: &ArmState<N>,
     h: f64,
     first_order: bool,
     mut delayed: impl FnMut(f64) -> VecN<N>,
-    kin: &mut Kinematics<N>,
+    scratch: &mut LawScratch<N>,
 ) -> HeldCommand<N> {
-    let d0 = delayed(t - params.tau);
-    let out = evaluate(params, model, t, x.phi, &x.q, &x.qd, &d0, kin);
+    let tau = law.tau();
+    let d0 = delayed(t - tau);
+    let out = law.evaluate(t, x, &d0, scratch);
     let mut qddd = VecN::<N>::zeros();
     if first_order && h > 0.0 {
         let u = out.qdd;
-        let q = x.q + x.qd * h + u * (0.5 * h * h);
-        let qd = x.qd + u * h;
-        let phi = x.phi + out.base_rate * h;
-        let d1 = delayed(t + h - params.tau);
-        let next = evaluate(params, model, t + h, phi, &q, &qd, &d1, kin);
+        let predicted = ArmState {
+            q: x.q + x.qd * h + u * (0.5 * h * h),
+            qd: x.qd + u * h,
+            phi: x.phi + out.base_rate * h,
+        };
+        let d1 = delayed(t + h - tau);
+        let next = law.evaluate(t + h, &predicted, &d1, scratch);
         qddd = (next.qdd - u) / h;
         if !qddd.iter().all(|v| v.is_finite()) {
             qddd = VecN::<N>::zeros();

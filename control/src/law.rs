@@ -11,12 +11,14 @@
 //! evaluation so that the offline simulation, the analysis and the daemon all get the same
 //! filtered command, and a disabled filter costs one branch.
 
-use crate::arm::{ArmModel, Jac, Kinematics, Vec2, VecN};
+use crate::arm::{ArmModel, Jac, Kinematics, VecN};
 use crate::resolve::{resolve, NullTerms};
 use crate::safety::{self, SafetyParams};
 use crate::secondary::{self, ObstacleSet, PotentialWeights};
 use crate::task::Circle;
-use nalgebra::{Matrix2, SMatrix};
+use nalgebra::{Matrix2, SMatrix, Vector3};
+
+type Vec3 = Vector3<f64>;
 
 /// Which secondary task drives the null space.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -100,9 +102,13 @@ pub mod flags {
 #[derive(Clone, Copy, Debug)]
 pub struct ControlOutput<const N: usize> {
     pub qdd: VecN<N>,
-    pub p: Vec2,
-    pub p_desired: Vec2,
+    /// The end effector (tool point) and its target, in the base frame (z = 0 in the plane).
+    pub p: Vec3,
+    pub p_desired: Vec3,
+    /// |p_d − p| (m).
     pub tracking_error: f64,
+    /// |log(R_d Rᵀ)| (rad) for a pose task; 0 otherwise.
+    pub orientation_error: f64,
     pub sigma_min: f64,
     /// The damping λ used (0 away from singularities).
     pub damping: f64,
@@ -254,9 +260,10 @@ pub fn evaluate<const N: usize>(
     }
     ControlOutput {
         qdd,
-        p: kin.p,
-        p_desired: target.p,
+        p: Vec3::new(kin.p.x, kin.p.y, 0.0),
+        p_desired: Vec3::new(target.p.x, target.p.y, 0.0),
         tracking_error,
+        orientation_error: 0.0,
         sigma_min: smin,
         damping: lambda,
         secondary_value,

@@ -24,6 +24,7 @@ pub mod sim;
 pub mod spatial;
 pub mod stability;
 pub mod task;
+pub mod tick_law;
 
 pub use arm::{ArmModel, FixedArm, FloatingArm, Jac, Kinematics, Vec2, VecN};
 pub use config::{Config, ConfigError, MAX_JOINTS, MIN_JOINTS};

@@ -424,15 +424,15 @@ impl<const N: usize> RunStats<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::arm::Vec2;
     use crate::Config;
 
     fn output(clearance: f64, joint_margin: f64, flags: u32) -> ControlOutput<3> {
         ControlOutput {
             qdd: VecN::<3>::zeros(),
-            p: Vec2::zeros(),
-            p_desired: Vec2::zeros(),
+            p: nalgebra::Vector3::zeros(),
+            p_desired: nalgebra::Vector3::zeros(),
             tracking_error: 0.0,
+            orientation_error: 0.0,
             sigma_min: 1.0,
             damping: 0.0,
             secondary_value: 0.0,

@@ -2,31 +2,23 @@
 //! follows the continuous system; a zero-order hold does not.
 
 use control::hold::{command, integrate};
-use control::{ArmState, Config, DelayLine, Kinematics, RunStats, Simulation};
+use control::tick_law::LawScratch;
+use control::{ArmState, Config, DelayLine, RunStats, Simulation};
 
 /// Runs the sampled loop for `seconds`: law at each tick, hold over the period. Returns
 /// (RMS tracking error after 2 s, mean period residual over the last 3 s).
 fn sampled(rate: f64, first_order: bool, seconds: f64) -> (f64, f64) {
     let cfg = near_orbit();
-    let (p, m) = (cfg.law_params(), cfg.model::<3>());
+    let (law, m) = (cfg.tick_law::<3>(), cfg.model::<3>());
     let dt = 1.0 / rate;
     let mut x: ArmState<3> = cfg.initial_state();
     let mut dl = DelayLine::<3>::new(2.0 / dt, x.qd);
-    let mut k = Kinematics::default();
+    let mut k = LawScratch::default();
     let (mut sq, mut n, mut res, mut nr) = (0.0, 0, 0.0, 0);
     for i in 0..(seconds / dt) as usize {
         let t = i as f64 * dt;
         dl.push(x.qd);
-        let c = command(
-            &p,
-            &m,
-            t,
-            &x,
-            dt,
-            first_order,
-            |s| dl.sample(s / dt),
-            &mut k,
-        );
+        let c = command(&law, t, &x, dt, first_order, |s| dl.sample(s / dt), &mut k);
         if t > 2.0 {
             sq += c.output.tracking_error.powi(2);
             n += 1;

@@ -7,7 +7,8 @@
 
 use crate::guard::{FaultReason, Guard};
 use control::hold;
-use control::{ArmModel, ArmState, ControlOutput, DelayLine, Kinematics, LawParams, VecN};
+use control::tick_law::{LawScratch, TickLaw};
+use control::{ArmState, ControlOutput, DelayLine, LawParams, VecN};
 use protocol::{CommandSample, Mode, StateSample};
 use serde::Serialize;
 
@@ -138,12 +139,11 @@ pub struct ControllerSettings {
 }
 
 pub struct Controller<const N: usize> {
-    model: ArmModel<N>,
-    params: LawParams,
+    law: TickLaw<N>,
     settings: ControllerSettings,
     dt: f64,
     delay: DelayLine<N>,
-    kin: Kinematics<N>,
+    scratch: LawScratch<N>,
     /// Stamp of the first state ever accepted: controller time 0.
     t0_stamp: Option<u64>,
     /// Controller time of the newest accepted state (s).
@@ -171,20 +171,14 @@ pub struct Controller<const N: usize> {
 
 impl<const N: usize> Controller<N> {
     /// `max_tau` fixes the delay-line capacity for the daemon's whole life.
-    pub fn new(
-        model: ArmModel<N>,
-        params: LawParams,
-        max_tau: f64,
-        settings: ControllerSettings,
-    ) -> Self {
+    pub fn new(law: TickLaw<N>, max_tau: f64, settings: ControllerSettings) -> Self {
         let dt = 1.0 / settings.rate_hz;
         Self {
-            model,
-            params,
+            law,
             settings,
             dt,
-            delay: DelayLine::new(max_tau.max(params.tau) / dt, VecN::<N>::zeros()),
-            kin: Kinematics::default(),
+            delay: DelayLine::new(max_tau.max(law.tau()) / dt, VecN::<N>::zeros()),
+            scratch: LawScratch::default(),
             t0_stamp: None,
             t: settings.t_start,
             delay_origin: 0,
@@ -204,13 +198,24 @@ impl<const N: usize> Controller<N> {
         }
     }
 
-    pub fn params(&self) -> &LawParams {
-        &self.params
+    /// The law this controller runs.
+    pub fn law(&self) -> &TickLaw<N> {
+        &self.law
+    }
+
+    /// The planar law's parameters (None when the arm is a spatial one).
+    pub fn params(&self) -> Option<&LawParams> {
+        self.law.planar_params()
     }
 
     /// Swaps in a validated parameter block (at a tick boundary; no allocation).
     pub fn set_params(&mut self, p: LawParams) {
-        self.params = p;
+        match &mut self.law {
+            TickLaw::Planar { params, .. } => *params = p,
+            // Only a planar system's requests make planar blocks (`control_service`); the
+            // daemon does not run spatial arms yet, so this arm of the match cannot be reached.
+            TickLaw::Spatial { .. } => unreachable!("a planar parameter block for a spatial arm"),
+        }
         self.applied = Some(Applied::Params);
         self.counters.params_applied += 1;
     }
@@ -436,7 +441,7 @@ impl<const N: usize> Controller<N> {
         // delay line's next slot and the counters.
         let _ = std::hint::black_box(self.accept(s, s.stamp_ns));
         let mut guard = self.guard;
-        std::hint::black_box(guard.check(t, &self.params.safety, &x.qd, &held.output));
+        std::hint::black_box(guard.check(t, self.law.safety(), &x.qd, &held.output));
         std::hint::black_box(self.next_command(Mode::Run, &held.qdd, &held.qddd, s, s.stamp_ns));
         std::hint::black_box(held);
         std::hint::black_box(self.delay.next_slot());
@@ -448,14 +453,13 @@ impl<const N: usize> Controller<N> {
     fn hold_command(&mut self, t: f64, x: &ArmState<N>) -> hold::HeldCommand<N> {
         let (delay, origin, dt) = (&self.delay, self.delay_origin as f64, self.dt);
         hold::command(
-            &self.params,
-            &self.model,
+            &self.law,
             t,
             x,
             dt,
             self.settings.first_order_hold,
             |at| delay.sample(at / dt - origin),
-            &mut self.kin,
+            &mut self.scratch,
         )
     }
 
@@ -471,7 +475,7 @@ impl<const N: usize> Controller<N> {
         let o = held.output;
         self.count_flags(o.flags);
         out.output = Some(o);
-        if let Some(reason) = self.guard.check(t, &self.params.safety, &x.qd, &o) {
+        if let Some(reason) = self.guard.check(t, self.law.safety(), &x.qd, &o) {
             self.mode = Mode::Fault;
             self.fault = Some(reason);
             self.counters.faults += 1;
@@ -593,7 +597,7 @@ mod tests {
             daemon_id: 9,
             t_start: 0.0,
         };
-        Controller::new(cfg.model::<3>(), cfg.law_params(), 2.0, settings)
+        Controller::new(cfg.tick_law::<3>(), 2.0, settings)
     }
 
     fn state(seq: u64, stamp: u64) -> StateSample {
@@ -626,7 +630,7 @@ mod tests {
                 daemon_id: 9,
                 t_start: 0.0,
             };
-            Controller::<3>::new(cfg.model::<3>(), cfg.law_params(), 2.0, settings)
+            Controller::<3>::new(cfg.tick_law::<3>(), 2.0, settings)
         };
         let (mut plain, mut rehearsed) = (make(), make());
         let mut sim = control::Simulation::new(
@@ -769,7 +773,7 @@ mod tests {
     #[test]
     fn history_restarts_after_a_hold_and_long_gaps_are_not_filled_with_old_rates() {
         let mut c = controller();
-        let mut p = *c.params();
+        let mut p = *c.params().unwrap();
         p.mu = 1.0;
         p.t_on = 0.0;
         c.set_params(p);
@@ -806,7 +810,7 @@ mod tests {
             let mut first_fault = None;
             for k in 0..1500u64 {
                 if k == 700 {
-                    let mut p = *c.params();
+                    let mut p = *c.params().unwrap();
                     p.safety.qdd_max = [1e-6; control::MAX_JOINTS];
                     c.set_params(p);
                     if braked {
@@ -838,7 +842,7 @@ mod tests {
         let t0 = 1_000_000_000u64;
         let mut s = state(0, t0);
         s.qd[1] = 60.0;
-        let mut p = *c.params();
+        let mut p = *c.params().unwrap();
         p.safety.qd_max = [20.0; control::MAX_JOINTS];
         c.set_params(p);
         let mut tripped_at = None;

@@ -24,7 +24,7 @@ pub fn tick_record<const N: usize>(
     newest: Option<StateSample>,
     times: TickTimes,
 ) -> TickRecord {
-    let (law, p) = (o.output, ctl.params());
+    let (law, (mu, tau, t_on, feedback_on)) = (o.output, ctl.law().feedback());
     TickRecord {
         t: ctl.time(),
         lateness_ns: times.woke.saturating_sub(times.due),
@@ -37,10 +37,10 @@ pub fn tick_record<const N: usize>(
         tracking_error: law.map_or(f64::NAN, |l| l.tracking_error),
         period_residual: law.map_or(f64::NAN, |l| l.period_residual),
         clearance: law.map_or(f64::INFINITY, |l| l.clearance),
-        mu: p.mu,
-        tau: p.tau,
-        t_on: p.t_on,
-        feedback_on: p.feedback,
+        mu,
+        tau,
+        t_on,
+        feedback_on,
         feedback_active: law.is_some_and(|l| l.flags & law_flags::FEEDBACK_ACTIVE != 0),
         counters: ctl.counters,
         state: newest,

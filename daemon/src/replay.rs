@@ -574,12 +574,7 @@ pub fn replay_from(r: impl BufRead) -> Result<ReplayReport> {
 }
 
 fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Result<ReplayReport> {
-    let mut ctl = Controller::<N>::new(
-        h.cfg.model::<N>(),
-        h.cfg.law_params(),
-        h.cfg.feedback.max_tau,
-        h.settings,
-    );
+    let mut ctl = Controller::<N>::new(h.cfg.tick_law::<N>(), h.cfg.feedback.max_tau, h.settings);
     if h.start_in_fault {
         ctl.enter_fault(crate::guard::FaultReason::Restored);
     }
@@ -687,12 +682,7 @@ mod tests {
         let mut log = ReplayLog::create(dir, "a.replay", &cfg, &settings(), false, true)
             .unwrap()
             .with_max_bytes(max_bytes);
-        let mut ctl = Controller::<3>::new(
-            cfg.model::<3>(),
-            cfg.law_params(),
-            cfg.feedback.max_tau,
-            settings(),
-        );
+        let mut ctl = Controller::<3>::new(cfg.tick_law::<3>(), cfg.feedback.max_tau, settings());
         // As the daemon runs: no plant is controlled until the handshake agrees to it (tick 20),
         // and a refusal of the same plant later (tick 300) stops control again.
         ctl.require_handshake();

@@ -165,8 +165,7 @@ fn control_loop<const N: usize>(
         .context("cannot write the effective config")?;
 
     let mut ctl = Controller::<N>::new(
-        setup.system.model::<N>(),
-        setup.system.law_params(),
+        setup.system.tick_law::<N>(),
         setup.system.feedback.max_tau,
         settings,
     );

@@ -32,7 +32,7 @@ fn controller(preset: &str) -> Controller<3> {
         daemon_id: 1,
         t_start: 0.0,
     };
-    Controller::new(cfg.model::<3>(), cfg.law_params(), 2.0, settings)
+    Controller::new(cfg.tick_law::<3>(), 2.0, settings)
 }
 
 fn state(seq: u64, stamp: u64, plant_id: u64) -> StateSample {
@@ -90,6 +90,74 @@ fn controller_tick_allocates_nothing() {
     }
 }
 
+/// The Panda's controller: the `panda` preset's spatial law behind the same `Controller`.
+fn panda_controller() -> (Controller<7>, [f64; 7]) {
+    use control::model::{builtin, Chain};
+    use control::spatial::config::SpatialConfig;
+    let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
+    let mut cfg = SpatialConfig::preset("panda").unwrap();
+    cfg.feedback.t_on = 0.5;
+    // A sphere beside the forearm: the capsule rows are built on every tick.
+    cfg.obstacles.push(control::spatial::config::SphereEntry {
+        center: [0.45, 0.2, 0.5],
+        radius: 0.05,
+        margin: 0.1,
+    });
+    let s = cfg.setup::<7>(&chain).unwrap();
+    let law = control::tick_law::TickLaw::Spatial {
+        arm: s.arm,
+        params: s.params,
+    };
+    let settings = ControllerSettings {
+        rate_hz: 1000.0,
+        first_order_hold: true,
+        hold_after: 10,
+        stale_ns: 5_000_000,
+        future_slack_ns: 1_000_000,
+        daemon_id: 1,
+        t_start: 0.0,
+    };
+    let q0 = std::array::from_fn(|i| s.q0[i]);
+    (Controller::new(law, 2.0, settings), q0)
+}
+
+#[test]
+fn the_panda_controller_tick_allocates_nothing() {
+    let (mut c, q0) = panda_controller();
+    let t0 = 1_000_000_000u64;
+    let (mut q, mut qd) = (q0, [0.0f64; 7]);
+    let sample = |seq: u64, now: u64, q: &[f64; 7], qd: &[f64; 7]| {
+        let mut s = StateSample {
+            seq,
+            stamp_ns: now,
+            plant_id: 5,
+            n: 7,
+            ..StateSample::default()
+        };
+        s.q[..7].copy_from_slice(q);
+        s.qd[..7].copy_from_slice(qd);
+        s
+    };
+    c.tick(Some(&sample(0, t0, &q, &qd)), t0);
+    let n = allocations(|| {
+        for k in 1..3000u64 {
+            let now = t0 + k * 1_000_000;
+            let input = (k % 100 < 90).then(|| sample(k, now, &q, &qd));
+            let out = c.tick(input.as_ref(), now);
+            // Follow the commands (a kinematic plant, Euler), so the arm moves as it would.
+            if let Some(cmd) = out.command {
+                for i in 0..7 {
+                    qd[i] += cmd.qdd[i] * 1e-3;
+                    q[i] += qd[i] * 1e-3;
+                }
+            }
+        }
+    });
+    assert_eq!(n, 0, "the Panda's Controller::tick allocated {n} times");
+    assert!(c.counters.commands > 2500 && c.counters.holds_entered > 0);
+    assert_eq!(c.counters.nonfinite, 0);
+}
+
 #[test]
 fn the_clock_loops_tick_allocates_only_iceoryx2s_loan() {
     // `ClockTick::run` is the function `service::control_loop` calls every period, on real
@@ -122,7 +190,7 @@ fn the_clock_loops_tick_allocates_only_iceoryx2s_loan() {
         requests: &params_rx,
     };
     let mut sched = rt::clock::Schedule::new(1_000_000, monotonic_ns());
-    let params = *c.params();
+    let params = *c.params().unwrap();
     // Warm up: the first sends set up connections (and allocate for that).
     for _ in 0..50 {
         plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
@@ -227,7 +295,7 @@ fn state_triggered_path(fast_lane: bool) {
         end_ns: None,
     };
     let mut c = controller("paper");
-    let params = *c.params();
+    let params = *c.params().unwrap();
     let mut between = |c: &mut Controller<3>| daemon::tick::take_request(c, &params_rx);
     let mut l = StateLoop::new(&ports, timing);
     // Warm up: the first sends set up connections (and allocate for that).

@@ -19,6 +19,7 @@
 //! filter never allocates.
 
 pub mod config;
+pub mod dual_qp;
 pub mod rows;
 pub mod solve;
 

@@ -9,6 +9,7 @@
 //! allocates nothing and, for a feasible problem, converges to the exact minimiser; for an
 //! infeasible one it stops after a fixed number of sweeps and the result is flagged.
 
+use super::dual_qp::{self, Outcome};
 use super::Filtered;
 use crate::arm::VecN;
 use crate::config::MAX_JOINTS;
@@ -122,7 +123,7 @@ pub fn smallest_change<const N: usize, const M: usize>(
                 Some(d) => d,
                 None => {
                     flag |= flags::SAFETY_LEFT_NULL_SPACE;
-                    let (d, ok) = rows.full_space();
+                    let (d, ok) = rows.full_space::<M>();
                     if !ok {
                         flag |= flags::SAFETY_INFEASIBLE;
                     }
@@ -184,20 +185,36 @@ impl<const N: usize> Rows<N> {
         if N <= M {
             return None;
         }
-        let projected = Self {
-            a: core::array::from_fn(|k| {
-                let a = self.a[k];
-                a - j.transpose() * (jpinv.transpose() * a)
-            }),
+        let mut projected = Self {
+            a: [VecN::<N>::zeros(); MAX_ROWS],
             h: self.h,
             m: self.m,
         };
+        for k in 0..self.m {
+            let a = self.a[k];
+            projected.a[k] = a - j.transpose() * (jpinv.transpose() * a);
+        }
+        if M != 2 {
+            match dual_qp::solve(&projected.a[..self.m], &projected.h[..self.m]) {
+                Outcome::Solved(d) => return Some(d),
+                Outcome::Infeasible => return None,
+                Outcome::Undecided => {}
+            }
+        }
         let (d, ok) = projected.hildreth();
         ok.then_some(d)
     }
 
-    /// The smallest δ in the full joint space; `false` if no δ meets every row.
-    fn full_space(&mut self) -> (VecN<N>, bool) {
+    /// The smallest δ in the full joint space; `false` if no δ meets every row. Spatial tasks
+    /// (m ≠ 2) try the exact dual active-set method first; the planar arm keeps Hildreth's
+    /// iterates, to which its published numbers are pinned.
+    fn full_space<const M: usize>(&mut self) -> (VecN<N>, bool) {
+        if M != 2 {
+            match dual_qp::solve(&self.a[..self.m], &self.h[..self.m]) {
+                Outcome::Solved(d) => return (d, true),
+                Outcome::Infeasible | Outcome::Undecided => {}
+            }
+        }
         self.hildreth()
     }
 

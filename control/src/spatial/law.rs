@@ -11,7 +11,7 @@
 use super::arm::{Points, SpatialArm, SpatialKinematics, VecN};
 use super::secondary::{self as sec, SphereSet};
 use super::task::{orientation_error, SpatialTask, Vec3};
-use crate::law::{flags, Projection};
+use crate::law::{flags, ControlOutput, Projection};
 use crate::resolve::{damped_pinv_m, resolve, NullTerms};
 use crate::safety::SafetyParams;
 use nalgebra::{SMatrix, SVector, Vector6};
@@ -60,26 +60,6 @@ impl SpatialParams {
     }
 }
 
-/// The command and what the law learnt computing it.
-#[derive(Clone, Copy, Debug)]
-pub struct SpatialOutput<const N: usize> {
-    pub qdd: VecN<N>,
-    pub p: Vec3,
-    pub p_desired: Vec3,
-    /// |p_d − p| (m).
-    pub tracking_error: f64,
-    /// |log(R_d Rᵀ)| (rad) for the pose task, 0 for the position task.
-    pub orientation_error: f64,
-    pub sigma_min: f64,
-    pub damping: f64,
-    pub secondary_value: f64,
-    pub period_residual: f64,
-    pub clearance: f64,
-    pub joint_margin: f64,
-    pub demand: f64,
-    pub flags: u32,
-}
-
 /// Evaluates the law at time t for state (q, q̇) with delayed velocity q̇(t − τ); `M` must be
 /// the task's row count (3: position, 6: pose). `kin` is scratch.
 #[inline]
@@ -92,7 +72,7 @@ pub fn evaluate<const N: usize, const M: usize>(
     qd: &VecN<N>,
     qd_delayed: &VecN<N>,
     kin: &mut SpatialKinematics<N>,
-) -> SpatialOutput<N> {
+) -> ControlOutput<N> {
     debug_assert_eq!(M, params.task.kind.rows());
     arm.kinematics(q, qd, kin);
     let target = params.task.at(t);
@@ -192,7 +172,7 @@ pub fn evaluate<const N: usize, const M: usize>(
         qdd = VecN::<N>::zeros();
         flag |= flags::NONFINITE;
     }
-    SpatialOutput {
+    ControlOutput {
         qdd,
         p: kin.p,
         p_desired: target.p,
@@ -205,6 +185,7 @@ pub fn evaluate<const N: usize, const M: usize>(
         clearance,
         joint_margin: params.safety.joint_margin(q),
         demand,
+        base_rate: 0.0,
         flags: flag,
     }
 }

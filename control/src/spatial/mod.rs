@@ -14,7 +14,7 @@ pub mod sim;
 pub mod task;
 
 pub use arm::{SpatialArm, SpatialKinematics};
-pub use law::{SpatialOutput, SpatialParams, SpatialSecondary};
+pub use law::{SpatialParams, SpatialSecondary};
 pub use secondary::{Sphere, SphereSet};
 pub use sim::{SpatialSimulation, SpatialSummary};
 pub use task::{Path, Shape, SpatialTask, Target, TaskKind, Vec3};

@@ -7,12 +7,13 @@
 //! same norm (q, q̇ and, with feedback, the stored q̇ history) as the planar arm's.
 
 use super::arm::{SpatialArm, SpatialKinematics, VecN};
-use super::law::{evaluate, SpatialOutput, SpatialParams};
+use super::law::{evaluate, SpatialParams};
 use crate::analysis::lyapunov::{
     generic_direction, history_distance2, rescale_history, shift_history, Trajectory,
 };
 use crate::delay::DelayLine;
 use crate::law::flags;
+use crate::law::ControlOutput;
 use crate::sim::{plant_derivative, rk4_step, ArmState};
 
 /// A spatial closed loop for a task of `M` rows. `step` allocates nothing.
@@ -69,7 +70,7 @@ impl<const N: usize, const M: usize> SpatialSimulation<N, M> {
     }
 
     /// Advances one step of dt; returns the law's output at the start of the step.
-    pub fn step(&mut self) -> SpatialOutput<N> {
+    pub fn step(&mut self) -> ControlOutput<N> {
         let k = self.step_index as f64;
         self.delay.push(self.state.qd);
         let tau_steps = self.params.tau / self.dt;
@@ -171,7 +172,7 @@ pub fn run<const N: usize, const M: usize>(
     sim: &mut SpatialSimulation<N, M>,
     duration: f64,
     transient: f64,
-    mut each: impl FnMut(f64, &ArmState<N>, &SpatialOutput<N>),
+    mut each: impl FnMut(f64, &ArmState<N>, &ControlOutput<N>),
 ) -> SpatialSummary {
     let dt = sim.dt();
     let p = sim.params;

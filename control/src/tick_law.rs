@@ -1,0 +1,112 @@
+//! The law a control tick runs, whichever arm it drives: the paper's planar arm (closed-form
+//! kinematics, [`crate::law`]) or a URDF chain ([`crate::spatial`]).
+//!
+//! The daemon's controller, the sampled-data hold and the benchmarks hold a [`TickLaw`] and never
+//! ask which it is: both evaluate to the same [`ControlOutput`], read q̇(t − τ) from the same delay
+//! line and obey the same [`SafetyParams`] (the runaway guard's limits). One `match` per
+//! evaluation is the whole cost of the choice; the scratch for both lives side by side so a
+//! switch never allocates.
+
+use crate::arm::{ArmModel, Kinematics, VecN};
+use crate::law::{self, ControlOutput, LawParams};
+use crate::safety::SafetyParams;
+use crate::sim::ArmState;
+use crate::spatial::{law as spatial_law, SpatialArm, SpatialKinematics, SpatialParams, TaskKind};
+
+/// The arm model and the parameters of its law, as one `Copy` block.
+// The spatial variant is the larger by far (a URDF model, spheres); boxing it would put the
+// tick's law behind a pointer and lose `Copy`, which the swap at a tick boundary relies on.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TickLaw<const N: usize> {
+    Planar {
+        model: ArmModel<N>,
+        params: LawParams,
+    },
+    Spatial {
+        arm: SpatialArm<N>,
+        params: SpatialParams,
+    },
+}
+
+/// Kinematics scratch for either law.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LawScratch<const N: usize> {
+    pub planar: Kinematics<N>,
+    pub spatial: SpatialKinematics<N>,
+}
+
+impl<const N: usize> TickLaw<N> {
+    /// The law at time t on state x, with the delayed velocity q̇(t − τ).
+    #[inline]
+    pub fn evaluate(
+        &self,
+        t: f64,
+        x: &ArmState<N>,
+        delayed: &VecN<N>,
+        scratch: &mut LawScratch<N>,
+    ) -> ControlOutput<N> {
+        match self {
+            TickLaw::Planar { model, params } => law::evaluate(
+                params,
+                model,
+                t,
+                x.phi,
+                &x.q,
+                &x.qd,
+                delayed,
+                &mut scratch.planar,
+            ),
+            TickLaw::Spatial { arm, params } => {
+                let k = &mut scratch.spatial;
+                match params.task.kind {
+                    TaskKind::Position => {
+                        spatial_law::evaluate::<N, 3>(params, arm, t, &x.q, &x.qd, delayed, k)
+                    }
+                    TaskKind::Pose => {
+                        spatial_law::evaluate::<N, 6>(params, arm, t, &x.q, &x.qd, delayed, k)
+                    }
+                }
+            }
+        }
+    }
+
+    /// φ̇ for the state (the planar floating base turns; every other arm has a fixed base).
+    #[inline]
+    pub fn base_rate(&self, x: &ArmState<N>) -> f64 {
+        match self {
+            TickLaw::Planar {
+                model: ArmModel::Floating(f),
+                ..
+            } => f.base_rate(&x.q, &x.qd),
+            _ => 0.0,
+        }
+    }
+
+    pub fn safety(&self) -> &SafetyParams {
+        match self {
+            TickLaw::Planar { params, .. } => &params.safety,
+            TickLaw::Spatial { params, .. } => &params.safety,
+        }
+    }
+
+    /// (μ, τ, t_on, feedback switch).
+    pub fn feedback(&self) -> (f64, f64, f64, bool) {
+        match self {
+            TickLaw::Planar { params: p, .. } => (p.mu, p.tau, p.t_on, p.feedback),
+            TickLaw::Spatial { params: p, .. } => (p.mu, p.tau, p.t_on, p.feedback),
+        }
+    }
+
+    pub fn tau(&self) -> f64 {
+        self.feedback().1
+    }
+
+    /// The planar law's parameters (None for a spatial arm).
+    pub fn planar_params(&self) -> Option<&LawParams> {
+        match self {
+            TickLaw::Planar { params, .. } => Some(params),
+            TickLaw::Spatial { .. } => None,
+        }
+    }
+}
