@@ -260,6 +260,23 @@ pub fn run_summary(cfg: &SpatialConfig) -> Result<SpatialSummary> {
     }))
 }
 
+/// The stroboscopic section of a spatial run and its classification.
+pub fn section(
+    cfg: &SpatialConfig,
+    duration: f64,
+    transient: f64,
+    classify: &control::analysis::ClassifyConfig,
+) -> Result<(
+    control::analysis::Section,
+    control::analysis::Classification,
+)> {
+    Ok(with_setup!(cfg, |s, N, M| {
+        let mut sim =
+            SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        control::spatial::sim::section(&mut sim, duration, transient, classify)
+    }))
+}
+
 /// λ_max of a spatial run: the same Benettin driver and norm as the planar arm's.
 #[derive(Serialize)]
 pub struct SpatialLyapunov {

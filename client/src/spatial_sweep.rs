@@ -21,6 +21,8 @@ pub struct SpatialRow {
     pub drift_per_period: Option<f64>,
     pub max_joint_speed: Option<f64>,
     pub min_joint_margin: Option<f64>,
+    /// The Poincaré class of the section from the window's start (the planar arm's rule).
+    pub motion: Option<String>,
     pub error: Option<String>,
 }
 
@@ -43,10 +45,15 @@ fn row(
         drift_per_period: None,
         max_joint_speed: None,
         min_joint_margin: None,
+        motion: None,
         error: None,
     };
     match lyapunov(&c, duration, Some(window), d0, None, blocks) {
         Ok((l, _)) => (r.lambda_max, r.stderr) = (Some(l.lambda_max), Some(l.stderr)),
+        Err(e) => r.error = Some(format!("{e:#}")),
+    }
+    match crate::spatial::section(&c, duration, window[0], &Default::default()) {
+        Ok((_, class)) => r.motion = Some(class.motion.label()),
         Err(e) => r.error = Some(format!("{e:#}")),
     }
     match run_summary(&c) {
@@ -96,14 +103,18 @@ fn write_csv(path: &Path, rows: &[SpatialRow]) -> Result<()> {
     let mut w = std::io::BufWriter::new(
         std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
     );
-    writeln!(w, "mu,lambda_max,stderr,residual_final,drift_per_period,max_joint_speed,min_joint_margin,error")?;
+    writeln!(
+        w,
+        "mu,lambda_max,stderr,motion,residual_final,drift_per_period,max_joint_speed,min_joint_margin,error"
+    )?;
     for r in rows {
         writeln!(
             w,
-            "{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{}",
             r.mu,
             cell(r.lambda_max),
             cell(r.stderr),
+            r.motion.as_deref().unwrap_or(""),
             cell(r.residual_final),
             cell(r.drift_per_period),
             cell(r.max_joint_speed),
@@ -183,7 +194,7 @@ fn plot(prefix: &Path, rows: &[SpatialRow], cfg: &SpatialConfig, window: [f64; 2
 
 /// The rows as a table.
 pub fn print(rows: &[SpatialRow]) {
-    println!("      μ   λ_max (1/s)       residual   drift/period  max speed  min margin");
+    println!("      μ   λ_max (1/s)       Poincaré class       residual  drift/period  max speed  min margin");
     let f = |v: Option<f64>| v.map(|x| format!("{x:.2e}")).unwrap_or_else(|| "—".into());
     for r in rows {
         let lam = match (r.lambda_max, r.stderr) {
@@ -191,8 +202,9 @@ pub fn print(rows: &[SpatialRow]) {
             _ => "—".into(),
         };
         println!(
-            "{:7.3}  {lam:>16}  {:>12}  {:>12}  {:>9}  {:>10}{}",
+            "{:7.3}  {lam:>16}  {:<18}  {:>11}  {:>12}  {:>9}  {:>10}{}",
             r.mu,
+            r.motion.as_deref().unwrap_or("—"),
             f(r.residual_final),
             f(r.drift_per_period),
             f(r.max_joint_speed),

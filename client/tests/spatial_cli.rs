@@ -110,6 +110,25 @@ fn lyapunov_sweep_and_arm_figure_run_on_the_panda() {
     for ext in ["csv", "png", "svg"] {
         assert!(prefix.with_extension(ext).exists(), "{ext}");
     }
+    let out = ok(&chaosctl(&[
+        "poincare",
+        "--preset",
+        "panda",
+        "--t-on",
+        "0",
+        "--safety",
+        "off",
+        "--duration",
+        "120",
+        "--transient",
+        "30",
+        "--output",
+        tmp("poincare").to_str().unwrap(),
+        "--json",
+    ]));
+    let p: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(p["points"], 46);
+    assert!(tmp("poincare").with_extension("csv").exists());
     let fig = tmp("arm");
     ok(&chaosctl(&[
         "arm-figure",

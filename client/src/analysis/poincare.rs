@@ -45,6 +45,9 @@ struct Report<'a> {
 }
 
 pub fn run(args: PoincareCmd) -> Result<()> {
+    if let Some(cfg) = crate::spatial::load(&args.model.setup, args.model.mu)? {
+        return spatial(&args, &cfg);
+    }
     let cfg = args.model.load()?;
     check_config(&cfg)?;
     super::check_run_window(args.duration, args.transient)?;
@@ -55,14 +58,53 @@ pub fn run(args: PoincareCmd) -> Result<()> {
         classify: args.classify.config()?,
     };
     let run = analyse_config(&cfg, &spec)?;
-    let sec = &run.section;
-    let c = &run.classification;
+    let who = Run {
+        n: cfg.n(),
+        mu: cfg.feedback.mu,
+        q0: cfg.q0(),
+    };
+    report(&args, &spec, &who, &run.section, &run.classification)
+}
+
+/// Which run a section belongs to, for the CSV header and the titles.
+pub struct Run {
+    pub n: usize,
+    pub mu: f64,
+    pub q0: Vec<f64>,
+}
+
+/// `poincare` on a spatial robot: the same section, rule, files and report.
+fn spatial(args: &PoincareCmd, cfg: &control::spatial::config::SpatialConfig) -> Result<()> {
+    super::check_run_window(args.duration, args.transient)?;
+    let spec = RunSpec {
+        duration: args.duration,
+        transient: args.transient,
+        lyapunov: None,
+        classify: args.classify.config()?,
+    };
+    let (sec, c) = crate::spatial::section(cfg, args.duration, args.transient, &spec.classify)?;
+    let who = Run {
+        n: cfg.sim.q0.len(),
+        mu: cfg.feedback.mu,
+        q0: cfg.sim.q0.clone(),
+    };
+    report(args, &spec, &who, &sec, &c)
+}
+
+/// Writes the CSV and the figure, and prints (or prints as JSON) the verdict.
+fn report(
+    args: &PoincareCmd,
+    spec: &RunSpec,
+    who: &Run,
+    sec: &control::analysis::Section,
+    c: &Classification,
+) -> Result<()> {
     let csv = with_ext(&args.output, "csv");
     {
         let file = std::fs::File::create(&csv)
             .with_context(|| format!("cannot create {}", csv.display()))?;
         let mut w = std::io::BufWriter::new(file);
-        let n = cfg.n();
+        let n = who.n;
         let offset = sec.dim - 2 * n;
         let mut header = String::from("t");
         if offset == 1 {
@@ -81,7 +123,7 @@ pub fn run(args: PoincareCmd) -> Result<()> {
         w.flush()?;
     }
     // Plot: q̇_i against q_i, and the return distances over time.
-    let n = cfg.n();
+    let n = who.n;
     let offset = sec.dim - 2 * n;
     let shifted = sec_without_phi(sec, offset);
     let (t0, t1) = (
@@ -112,8 +154,8 @@ pub fn run(args: PoincareCmd) -> Result<()> {
     let files = Figure {
         title: Some(format!(
             "Poincaré section t = kT, μ = {}, q0 = ({}): {}{k}",
-            cfg.feedback.mu,
-            fmt_list(&cfg.q0()),
+            who.mu,
+            fmt_list(&who.q0),
             c.motion.label()
         )),
         panels,
@@ -123,8 +165,8 @@ pub fn run(args: PoincareCmd) -> Result<()> {
     .save(&args.output)?;
     if args.json {
         let r = Report {
-            mu: cfg.feedback.mu,
-            q0: cfg.q0(),
+            mu: who.mu,
+            q0: who.q0.clone(),
             points: sec.len(),
             first: sec.times.first().copied().unwrap_or(f64::NAN),
             last: sec.times.last().copied().unwrap_or(f64::NAN),
@@ -135,8 +177,8 @@ pub fn run(args: PoincareCmd) -> Result<()> {
     }
     println!(
         "chaosd Poincaré section: μ = {}, q0 = ({}), t = kT from {} to {} s ({} points)",
-        cfg.feedback.mu,
-        fmt_list(&cfg.q0()),
+        who.mu,
+        fmt_list(&who.q0),
         sec.times.first().copied().unwrap_or(f64::NAN),
         sec.times.last().copied().unwrap_or(f64::NAN),
         sec.len()

@@ -259,3 +259,30 @@ pub fn run<const N: usize, const M: usize>(
     s.safety_active_time = active as f64 * dt;
     s
 }
+
+/// The stroboscopic section x(kT) = (q, q̇) of `sim` from `transient` to `duration` (q compared
+/// modulo 2π, as for the planar arm), and its classification by the planar arm's rule.
+pub fn section<const N: usize, const M: usize>(
+    sim: &mut SpatialSimulation<N, M>,
+    duration: f64,
+    transient: f64,
+    cfg: &crate::analysis::ClassifyConfig,
+) -> (crate::analysis::Section, crate::analysis::Classification) {
+    let period = sim.params.task.path.period;
+    let mut sec = crate::analysis::Section::new(2 * N, N);
+    let periods = (duration / period + 1e-9).floor() as u64;
+    for k in 0..=periods {
+        let t = k as f64 * period;
+        sim.advance_to(t);
+        if !sim.state().is_finite() {
+            break;
+        }
+        if t >= transient - 1e-9 * period {
+            let x = sim.state();
+            let coords: Vec<f64> = x.q.iter().chain(x.qd.iter()).copied().collect();
+            sec.push(t, &coords);
+        }
+    }
+    let class = crate::analysis::classify(&sec, cfg);
+    (sec, class)
+}
