@@ -182,4 +182,15 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
     assert_eq!(o.status.code(), Some(2));
     let o = chaosctl(&["sweep", "--preset", "panda", "--start", "0,1,2"]);
     assert_eq!(o.status.code(), Some(2));
+    // Commands that run only the planar arm say so, for the preset and for a [robot] file.
+    std::fs::write(&cfg, &base).unwrap();
+    for args in [
+        vec!["orbits", "--preset", "panda"],
+        vec!["basins", "--config", cfg.to_str().unwrap()],
+    ] {
+        let o = chaosctl(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("spatial robot's set-up"), "{args:?}: {err}");
+    }
 }

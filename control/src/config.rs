@@ -34,6 +34,9 @@ pub enum ConfigError {
     },
     #[error("unknown preset {0:?} (known presets: {known}, and the spatial panda)", known = PRESETS.join(", "))]
     UnknownPreset(String),
+    /// A spatial robot's set-up given where only the planar arm runs yet.
+    #[error("{0} is a spatial robot's set-up; so far only `chaosctl config|simulate|lyapunov|sweep|poincare|arm-figure` run spatial robots (the daemon, the plant, orbits and basins take the planar arm)")]
+    Spatial(String),
 }
 
 /// Largest config text accepted: a config is a few hundred bytes; a huge file is a mistake, and
@@ -322,6 +325,7 @@ impl Config {
                 c.feedback.t_on = 8.0;
                 c.sim.duration = 25.0;
             }
+            "panda" => return Err(ConfigError::Spatial("preset \"panda\"".into())),
             other => return Err(ConfigError::UnknownPreset(other.to_string())),
         }
         Ok(c)
@@ -334,6 +338,9 @@ impl Config {
                 "the config is {} bytes; at most {MAX_CONFIG_BYTES} are accepted",
                 text.len()
             )));
+        }
+        if crate::spatial::config::is_spatial(text) {
+            return Err(ConfigError::Spatial("a config with a [robot] table".into()));
         }
         toml::from_str(text).map_err(|e| ConfigError::Parse(excerpt(&e.to_string())))
     }

@@ -231,7 +231,20 @@ impl SpatialConfig {
     }
 
     pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
-        toml::from_str(text).map_err(|e| ConfigError::Parse(e.message().to_string()))
+        if text.len() > crate::config::MAX_CONFIG_BYTES {
+            return Err(ConfigError::Parse(format!(
+                "the config is {} bytes; at most {} are accepted",
+                text.len(),
+                crate::config::MAX_CONFIG_BYTES
+            )));
+        }
+        toml::from_str(text).map_err(|e: toml::de::Error| {
+            let line = e
+                .span()
+                .map(|s| text.get(..s.start).unwrap_or(text).matches('\n').count() + 1);
+            let at = line.map(|l| format!("line {l}: ")).unwrap_or_default();
+            ConfigError::Parse(crate::config::excerpt(&format!("{at}{}", e.message())))
+        })
     }
 
     pub fn to_toml(&self) -> String {
