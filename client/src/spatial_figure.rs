@@ -175,15 +175,7 @@ pub fn draw(
     };
     let w = format!("{:.1}–{:.1} s", from, from + span);
     Figure {
-        title: Some(format!(
-            "{}: {} {} task, {} α = {}, projection {}",
-            cfg.robot.description,
-            cfg.task.kind,
-            cfg.task.path,
-            cfg.law.secondary,
-            cfg.law.alpha,
-            cfg.feedback.projection
-        )),
+        title: Some(cfg.describe()),
         panels: vec![
             Panel::Chart(view(cfg, &d, 0, 2, &format!("side view (x–z), {w}"))),
             Panel::Chart(view(cfg, &d, 1, 2, &format!("front view (y–z), {w}"))),

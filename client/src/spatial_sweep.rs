@@ -155,15 +155,7 @@ fn plot(prefix: &Path, rows: &[SpatialRow], cfg: &SpatialConfig, window: [f64; 2
             })
             .collect(),
     );
-    let title = format!(
-        "{}: {} {} task, {} α = {}, projection {}",
-        cfg.robot.description,
-        cfg.task.kind,
-        cfg.task.path,
-        cfg.law.secondary,
-        cfg.law.alpha,
-        cfg.feedback.projection
-    );
+    let title = cfg.describe();
     Figure {
         title: Some(title),
         panels: vec![

@@ -23,7 +23,12 @@ fn controller(preset: &str) -> Controller<3> {
     let mut cfg = Config::preset(preset).unwrap();
     cfg.feedback.mu = 1.0;
     cfg.feedback.t_on = 0.5;
-    let settings = ControllerSettings {
+    Controller::new(cfg.tick_law::<3>(), 2.0, settings())
+}
+
+/// 1 kHz, first-order hold, HOLD after 10 missed ticks.
+fn settings() -> ControllerSettings {
+    ControllerSettings {
         rate_hz: 1000.0,
         first_order_hold: true,
         hold_after: 10,
@@ -31,8 +36,7 @@ fn controller(preset: &str) -> Controller<3> {
         future_slack_ns: 1_000_000,
         daemon_id: 1,
         t_start: 0.0,
-    };
-    Controller::new(cfg.tick_law::<3>(), 2.0, settings)
+    }
 }
 
 fn state(seq: u64, stamp: u64, plant_id: u64) -> StateSample {
@@ -108,17 +112,8 @@ fn panda_controller() -> (Controller<7>, [f64; 7]) {
         arm: s.arm,
         params: s.params,
     };
-    let settings = ControllerSettings {
-        rate_hz: 1000.0,
-        first_order_hold: true,
-        hold_after: 10,
-        stale_ns: 5_000_000,
-        future_slack_ns: 1_000_000,
-        daemon_id: 1,
-        t_start: 0.0,
-    };
     let q0 = std::array::from_fn(|i| s.q0[i]);
-    (Controller::new(law, 2.0, settings), q0)
+    (Controller::new(law, 2.0, settings()), q0)
 }
 
 #[test]

@@ -247,6 +247,19 @@ impl SpatialConfig {
         })
     }
 
+    /// One line for titles: robot, task, secondary task, projection.
+    pub fn describe(&self) -> String {
+        format!(
+            "{}: {} {} task, {} α = {}, projection {}",
+            self.robot.description,
+            self.task.kind,
+            self.task.path,
+            self.law.secondary,
+            self.law.alpha,
+            self.feedback.projection
+        )
+    }
+
     pub fn to_toml(&self) -> String {
         toml::to_string(self).expect("a config serialises")
     }
