@@ -38,54 +38,79 @@ fn num(x: f64) -> String {
 /// Checks `cfg` against a loop of step `dt`; `step` names where dt comes from (for messages).
 pub fn check(cfg: &Config, dt: f64, step: &str) -> Result<(), ConfigError> {
     let c = &cfg.control;
-    if c.kv * dt >= MAX_GAIN_DT {
+    let s = &cfg.safety;
+    let barriers = [("safety.k1", s.k1), ("safety.k_rate", s.k_rate)];
+    check_sampled(
+        &Sampled {
+            prefix: "control",
+            kp: c.kp,
+            kv: c.kv,
+            period: cfg.task.period,
+            barriers: if s.enabled { &barriers } else { &[] },
+        },
+        dt,
+        step,
+    )?;
+    check_reach(cfg)
+}
+
+/// What a sampled loop's stability depends on, for either arm: the law's gains (named
+/// `{prefix}.kp`, `{prefix}.kv`), the task period and the safety filter's first-order barrier
+/// gains (empty when the filter is off).
+pub struct Sampled<'a> {
+    pub prefix: &'a str,
+    pub kp: f64,
+    pub kv: f64,
+    pub period: f64,
+    pub barriers: &'a [(&'a str, f64)],
+}
+
+/// The rules of the module doc at step `dt` (`step` names where dt comes from).
+pub fn check_sampled(g: &Sampled, dt: f64, step: &str) -> Result<(), ConfigError> {
+    if g.kv * dt >= MAX_GAIN_DT {
         return Err(refuse(
-            "control.kv",
-            c.kv,
+            &format!("{}.kv", g.prefix),
+            g.kv,
             format!(
                 "K_v·dt = {} at {step}: must be < {MAX_GAIN_DT} (the sampled error dynamics are unstable from K_v·dt = 2; chaosd keeps a factor 2), so K_v < {}",
-                num(c.kv * dt),
+                num(g.kv * dt),
                 num(MAX_GAIN_DT / dt)
             ),
         ));
     }
-    if c.kp > 0.0 && c.kp * dt * dt >= c.kv * dt {
+    if g.kp > 0.0 && g.kp * dt * dt >= g.kv * dt {
         return Err(refuse(
-            "control.kp",
-            c.kp,
+            &format!("{}.kp", g.prefix),
+            g.kp,
             format!(
                 "K_p·dt² = {:.3e} at {step}: must be < K_v·dt = {:.3e} (unstable from 2·K_v·dt; chaosd keeps a factor 2), so K_p < K_v/dt = {}",
-                c.kp * dt * dt,
-                c.kv * dt,
-                num(c.kv / dt)
+                g.kp * dt * dt,
+                g.kv * dt,
+                num(g.kv / dt)
             ),
         ));
     }
     let min_period = MIN_TASK_STEPS * dt;
-    if cfg.task.period < min_period {
+    if g.period < min_period {
         return Err(refuse(
             "task.period",
-            cfg.task.period,
+            g.period,
             format!(
                 "must span at least {MIN_TASK_STEPS} control steps at {step}: ≥ {min_period} s"
             ),
         ));
     }
-    check_reach(cfg)?;
-    let s = &cfg.safety;
-    if s.enabled {
-        for (name, k) in [("safety.k1", s.k1), ("safety.k_rate", s.k_rate)] {
-            if k * dt >= MAX_GAIN_DT {
-                return Err(refuse(
-                    name,
-                    k,
-                    format!(
-                        "{name}·dt = {} at {step}: must be < {MAX_GAIN_DT}, so < {}",
-                        num(k * dt),
-                        num(MAX_GAIN_DT / dt)
-                    ),
-                ));
-            }
+    for &(name, k) in g.barriers {
+        if k * dt >= MAX_GAIN_DT {
+            return Err(refuse(
+                name,
+                k,
+                format!(
+                    "{name}·dt = {} at {step}: must be < {MAX_GAIN_DT}, so < {}",
+                    num(k * dt),
+                    num(MAX_GAIN_DT / dt)
+                ),
+            ));
         }
     }
     Ok(())

@@ -301,6 +301,13 @@ fn the_panda_preset_builds_and_bad_keys_are_named() {
         &|c| c.robot.link_radii = Some(vec![0.1; 3]),
         "robot.link_radii",
     );
+    // Accepted by their types, refused as runs: the planar arm's sampled-loop rules, the delay
+    // line's bound and the arm's reach.
+    bad(&|c| c.sim.dt = 0.5, "law.kv");
+    bad(&|c| c.law.kp = 1e12, "law.kp");
+    bad(&|c| c.task.period = 0.01, "task.period");
+    bad(&|c| c.feedback.tau = Some(1e9), "feedback.tau");
+    bad(&|c| c.task.radius = 5.0, "task.radius");
     assert!(SpatialConfig::from_toml("[robot]\ndescription = \"panda\"\nwheels = 4\n").is_err());
     assert!(SpatialConfig::preset("paper").is_none());
 }

@@ -23,6 +23,8 @@ use serde::{Deserialize, Serialize};
 pub const PANDA_QDD_MAX: [f64; 7] = [15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0];
 /// The acceleration limit of a joint whose robot publishes none (rad/s² or m/s²).
 pub const DEFAULT_QDD_MAX: f64 = 10.0;
+/// The longest delay τ (s) a spatial set-up may ask for (the planar `feedback.max_tau` bound).
+pub const MAX_TAU: f64 = 60.0;
 /// The Panda's ready pose, a comfortable start in the middle of its workspace.
 pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
 
@@ -293,9 +295,29 @@ impl SpatialConfig {
         }
         positive("law.damping_threshold", self.law.damping_threshold)?;
         positive("law.track_loss", self.law.track_loss)?;
-        if let Some(tau) = self.feedback.tau {
-            positive("feedback.tau", tau)?;
+        let tau = self.feedback.tau.unwrap_or(self.task.period);
+        if !(tau.is_finite() && tau >= self.sim.dt && tau <= MAX_TAU) {
+            return Err(invalid(
+                "feedback.tau",
+                tau,
+                &format!(
+                    "must be between sim.dt = {} s and {MAX_TAU} s (the delay line holds τ/dt samples)",
+                    self.sim.dt
+                ),
+            ));
         }
+        let step = format!("sim.dt = {} s", self.sim.dt);
+        crate::stability::check_sampled(
+            &crate::stability::Sampled {
+                prefix: "law",
+                kp: self.law.kp,
+                kv: self.law.kv,
+                period: self.task.period,
+                barriers: &[],
+            },
+            self.sim.dt,
+            &step,
+        )?;
         let s = self.safety.velocity_scale;
         if !(s > 0.0 && s <= 1.0) {
             return Err(invalid("safety.velocity_scale", s, "a number in (0, 1]"));
@@ -440,7 +462,23 @@ impl SpatialConfig {
             Some([r, p, y]) => Rotation3::from_euler_angles(r, p, y),
             None => Rotation3::from_matrix_unchecked(kin.rot),
         };
+        check_reach(&arm, &path, chain.reach())?;
         let safety = self.limits(chain)?;
+        if safety.enabled {
+            let barriers = [("safety.k1", safety.k1), ("safety.k_rate", safety.k_rate)];
+            let g = crate::stability::Sampled {
+                prefix: "law",
+                kp: self.law.kp,
+                kv: self.law.kv,
+                period: self.task.period,
+                barriers: &barriers,
+            };
+            crate::stability::check_sampled(
+                &g,
+                self.sim.dt,
+                &format!("sim.dt = {} s", self.sim.dt),
+            )?;
+        }
         let mut spheres = SphereSet::default();
         for o in &self.obstacles {
             spheres.push(Sphere {
@@ -482,6 +520,30 @@ impl SpatialConfig {
             transient: self.sim.transient,
         })
     }
+}
+
+/// Every point of the path must lie within the chain's full stretch (plus the tool offset) of
+/// joint 1: a path beyond it makes the law chase the target into a singularity.
+fn check_reach<const N: usize>(
+    arm: &SpatialArm<N>,
+    path: &Path,
+    reach: f64,
+) -> Result<(), ConfigError> {
+    let joint1 = arm.model.placement[0].pos;
+    let limit = reach + arm.tool.norm();
+    let far = (0..64)
+        .map(|k| (path.position(path.period * k as f64 / 64.0) - joint1).norm())
+        .fold(0.0, f64::max);
+    if far > limit {
+        return Err(invalid(
+            "task.radius",
+            path.radius,
+            &format!(
+                "the path reaches {far:.3} m from joint 1; the arm reaches at most {limit:.3} m (full stretch plus the tool)"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The study's working set-up (docs/panda-study.md): a 0.15 m circle in the vertical plane in
