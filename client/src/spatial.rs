@@ -74,7 +74,7 @@ pub fn load(setup: &SetupArgs, mu: Option<f64>) -> Result<Option<SpatialConfig>>
 macro_rules! with_setup {
     ($cfg:expr, |$setup:ident, $n:ident, $m:ident| $body:expr) => {{
         let cfg: &SpatialConfig = $cfg;
-        let chain = daemon::robot::load(
+        let chain = rt::robot::load(
             &cfg.robot.description,
             cfg.robot.base.as_deref(),
             cfg.robot.tip.as_deref(),

@@ -21,7 +21,7 @@ struct Drawn {
 }
 
 fn simulate(cfg: &SpatialConfig, from: f64, span: f64, frames: usize) -> Result<Drawn> {
-    let chain = daemon::robot::load(
+    let chain = rt::robot::load(
         &cfg.robot.description,
         cfg.robot.base.as_deref(),
         cfg.robot.tip.as_deref(),

@@ -23,6 +23,7 @@ pub mod secondary;
 pub mod sim;
 pub mod spatial;
 pub mod stability;
+pub mod system;
 pub mod task;
 pub mod tick_law;
 
@@ -31,4 +32,5 @@ pub use config::{Config, ConfigError, MAX_JOINTS, MIN_JOINTS};
 pub use delay::DelayLine;
 pub use law::{ControlOutput, LawParams, Secondary};
 pub use sim::{ArmState, RunStats, Simulation, Summary};
+pub use system::System;
 pub use task::Circle;

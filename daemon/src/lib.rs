@@ -19,7 +19,7 @@ pub mod replay;
 pub mod reporter;
 pub mod requests;
 pub mod residual;
-pub mod robot;
+
 pub mod rotate;
 pub mod service;
 pub mod telemetry;

@@ -11,10 +11,16 @@
 //! [`ArmInfo`] deliberately has a type name **without** the wire version, and a layout that must
 //! not change (pinned by a test): it is the one sample two builds of different wire versions
 //! can still exchange, so that they can tell each other which versions they speak. Its arrays
-//! are [`MAX_JOINTS`] long, so the one change so far came with the joint capacity (6 → 7, wire
-//! version 4 → 5: 192 → 216 bytes). A build of wire version ≤ 4 and one of version ≥ 5 therefore
-//! cannot exchange it either: whichever starts second fails to open the info service
-//! (`IncompatibleTypes`) instead of naming both versions.
+//! are [`MAX_JOINTS`] long, so it changed with the joint capacity (6 → 7, wire version 4 → 5:
+//! 192 → 216 bytes), and again when URDF chains joined the planar arms (version 6: the robot's
+//! name and fingerprint, 288 bytes). Builds on either side of such a change cannot exchange it:
+//! whichever starts second fails to open the info service (`IncompatibleTypes`) instead of naming
+//! both versions.
+//!
+//! A URDF chain ([`KIND_CHAIN`]) is described by its name and a fingerprint of every number of
+//! its model (`control::System::identity`): two processes that loaded different descriptions,
+//! base or tip links, tool points or link radii are refused by name, so a Panda daemon never
+//! drives a plant built for another chain.
 
 use core::fmt::{self, Write as _};
 
@@ -31,6 +37,10 @@ use crate::{MAX_JOINTS, MIN_JOINTS, WIRE_VERSION};
 pub const KIND_FIXED: u32 = 0;
 /// [`ArmInfo::kind`]: a free-floating base.
 pub const KIND_FLOATING: u32 = 1;
+/// [`ArmInfo::kind`]: a serial chain from a robot description (URDF).
+pub const KIND_CHAIN: u32 = 2;
+/// Bytes of a chain's name kept in [`ArmInfo::robot`] (longer names are cut).
+pub const ROBOT_NAME_BYTES: usize = 64;
 
 /// What one side is built for. Published once at start-up (and kept as history).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
@@ -56,6 +66,11 @@ pub struct ArmInfo {
     pub base_mass: f64,
     pub base_inertia: f64,
     pub base_offset: f64,
+    /// Chain only (zero otherwise): the robot's name and its base and tip links, UTF-8, zero
+    /// padded.
+    pub robot: [u8; ROBOT_NAME_BYTES],
+    /// Chain only: a hash of every number of the chain's model.
+    pub fingerprint: u64,
 }
 
 /// The floating base's parameters, for [`ArmInfo::new`].
@@ -89,6 +104,8 @@ impl ArmInfo {
             base_mass: 0.0,
             base_inertia: 0.0,
             base_offset: 0.0,
+            robot: [0; ROBOT_NAME_BYTES],
+            fingerprint: 0,
         };
         copy_in(&mut info.links, links);
         if let Some(b) = floating {
@@ -100,6 +117,39 @@ impl ArmInfo {
             info.base_offset = b.base_offset;
         }
         info
+    }
+
+    /// The description of a URDF chain of `n` joints named `name` (cut to
+    /// [`ROBOT_NAME_BYTES`] at a character boundary), with its model's `fingerprint`.
+    ///
+    /// ```
+    /// let a = protocol::ArmInfo::chain(1, 7, "panda (panda_link0 → panda_link8)", 42);
+    /// let b = protocol::ArmInfo::chain(2, 7, "panda (panda_link0 → panda_link7)", 43);
+    /// let why = protocol::mismatch("lab", &a, &b).unwrap();
+    /// assert!(why.contains("panda_link8") && why.contains("panda_link7"), "{why}");
+    /// assert!(protocol::mismatch("lab", &a, &a).is_none());
+    /// ```
+    pub fn chain(instance_id: u64, n: usize, name: &str, fingerprint: u64) -> Self {
+        let mut info = Self::new(instance_id, &[], None);
+        info.kind = KIND_CHAIN;
+        info.n = n.min(MAX_JOINTS) as u32;
+        let mut end = name.len().min(ROBOT_NAME_BYTES);
+        while !name.is_char_boundary(end) {
+            end -= 1;
+        }
+        info.robot[..end].copy_from_slice(&name.as_bytes()[..end]);
+        info.fingerprint = fingerprint;
+        info
+    }
+
+    /// A chain's name as sent (invalid UTF-8 from a peer shows as a placeholder).
+    pub fn robot_name(&self) -> &str {
+        let end = self
+            .robot
+            .iter()
+            .position(|&b| b == 0)
+            .unwrap_or(ROBOT_NAME_BYTES);
+        core::str::from_utf8(&self.robot[..end]).unwrap_or("<not UTF-8>")
     }
 
     fn used(&self) -> usize {
@@ -115,6 +165,8 @@ impl ArmInfo {
         self.wire_version == other.wire_version
             && self.kind == other.kind
             && self.n == other.n
+            && (self.kind != KIND_CHAIN
+                || (self.robot == other.robot && self.fingerprint == other.fingerprint))
             && eq(&self.links[..n], &other.links[..n])
             && (self.kind != KIND_FLOATING
                 || (eq(&self.link_masses[..n], &other.link_masses[..n])
@@ -156,6 +208,12 @@ impl fmt::Display for ArmInfo {
                 self.base_mass,
                 self.base_inertia,
                 self.base_offset
+            ),
+            KIND_CHAIN => write!(
+                f,
+                "a {n}-joint {} (model fingerprint {:016x})",
+                self.robot_name(),
+                self.fingerprint
             ),
             k => write!(f, "an arm of unknown kind {k}"),
         }
@@ -351,10 +409,14 @@ mod tests {
     #[test]
     fn a_wire_version_mismatch_names_both_versions() {
         let mut old = fixed(&[1.0; 3]);
-        old.wire_version = 4;
+        old.wire_version = WIRE_VERSION - 1;
         let msg = mismatch("x", &old, &fixed(&[1.0; 3])).unwrap();
+        let both = format!(
+            "wire version {}, daemon wire version {WIRE_VERSION}",
+            WIRE_VERSION - 1
+        );
         assert!(
-            msg.contains("wire version 4, daemon wire version 5"),
+            msg.contains(&both),
             "{msg}"
         );
     }
@@ -384,11 +446,11 @@ mod tests {
     }
 
     /// This layout must not change: it is how two wire versions tell each other apart. It last
-    /// changed with the joint capacity (6 → 7 joints, wire version 5; it was 192 bytes).
+    /// changed when URDF chains joined (wire version 6; it was 216 bytes).
     #[test]
     fn info_layout_is_frozen() {
         assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<ArmInfo>(), 216);
+        assert_eq!(size_of::<ArmInfo>(), 288);
         assert_eq!(align_of::<ArmInfo>(), 8);
         assert_eq!(offset_of!(ArmInfo, wire_version), 0);
         assert_eq!(offset_of!(ArmInfo, kind), 4);
@@ -400,6 +462,8 @@ mod tests {
         assert_eq!(offset_of!(ArmInfo, base_mass), 192);
         assert_eq!(offset_of!(ArmInfo, base_inertia), 200);
         assert_eq!(offset_of!(ArmInfo, base_offset), 208);
+        assert_eq!(offset_of!(ArmInfo, robot), 216);
+        assert_eq!(offset_of!(ArmInfo, fingerprint), 280);
         // SAFETY: type_name only returns the string set by #[type_name].
         assert_eq!(
             unsafe { <ArmInfo as ZeroCopySend>::type_name() },

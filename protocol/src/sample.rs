@@ -31,7 +31,7 @@ pub mod flags {
 
 /// The plant's measured state, published once per plant tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::StateSample.v5")]
+#[type_name("chaosd::StateSample.v6")]
 #[repr(C)]
 pub struct StateSample {
     /// Per-plant sequence number, +1 per published sample, starting at 0 after each plant start.
@@ -227,7 +227,7 @@ impl From<Mode> for u32 {
 
 /// The daemon's command, published once per control tick in answer to a [`StateSample`].
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::CommandSample.v5")]
+#[type_name("chaosd::CommandSample.v6")]
 #[repr(C)]
 pub struct CommandSample {
     /// Per-daemon sequence number, +1 per published command, starting at 0 after each start.

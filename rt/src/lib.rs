@@ -13,6 +13,7 @@ pub mod hist;
 pub mod log;
 pub mod news;
 pub mod notify;
+pub mod robot;
 pub mod setup;
 pub mod signal;
 pub mod throttle;

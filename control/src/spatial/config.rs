@@ -42,6 +42,12 @@ pub struct SpatialConfig {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub obstacles: Vec<SphereEntry>,
     pub sim: SimSection,
+    /// The daemon's own table (`chaosd`), passed through untouched as in a planar file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub daemon: Option<toml::Table>,
+    /// The plant's own table (`chaosd-plant`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plant: Option<toml::Table>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -411,6 +417,21 @@ impl SpatialConfig {
         Ok(s)
     }
 
+    /// The sampled-loop rules at a control step `dt` other than `sim.dt` (the daemon's period;
+    /// `step` names it), with the barrier gains when the filter is on.
+    pub fn check_step(&self, chain: &Chain, dt: f64, step: &str) -> Result<(), ConfigError> {
+        let safety = self.limits(chain)?;
+        let barriers = [("safety.k1", safety.k1), ("safety.k_rate", safety.k_rate)];
+        let g = crate::stability::Sampled {
+            prefix: "law",
+            kp: self.law.kp,
+            kv: self.law.kv,
+            period: self.task.period,
+            barriers: if safety.enabled { &barriers } else { &[] },
+        };
+        crate::stability::check_sampled(&g, dt, step)
+    }
+
     /// Checks the file against `chain` and builds the run; `N` must be the chain's joint count.
     pub fn setup<const N: usize>(&self, chain: &Chain) -> Result<SpatialSetup<N>, ConfigError> {
         self.check()?;
@@ -464,21 +485,7 @@ impl SpatialConfig {
         };
         check_reach(&arm, &path, chain.reach())?;
         let safety = self.limits(chain)?;
-        if safety.enabled {
-            let barriers = [("safety.k1", safety.k1), ("safety.k_rate", safety.k_rate)];
-            let g = crate::stability::Sampled {
-                prefix: "law",
-                kp: self.law.kp,
-                kv: self.law.kv,
-                period: self.task.period,
-                barriers: &barriers,
-            };
-            crate::stability::check_sampled(
-                &g,
-                self.sim.dt,
-                &format!("sim.dt = {} s", self.sim.dt),
-            )?;
-        }
+        self.check_step(chain, self.sim.dt, &format!("sim.dt = {} s", self.sim.dt))?;
         let mut spheres = SphereSet::default();
         for o in &self.obstacles {
             spheres.push(Sphere {

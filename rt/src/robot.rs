@@ -2,9 +2,12 @@
 //!
 //! The math crate parses text and does no I/O; this is the one place that turns what a user
 //! typed (`panda`, `./my_arm.urdf`) into that text, with a size limit so that a wrong path to a
-//! huge file fails at once instead of filling memory.
+//! huge file fails at once instead of filling memory. It lives here, beside the other shared
+//! plumbing, because the daemon, the plant and the client must read a config the same way and
+//! the daemon may not depend on the plant.
 
 use control::model::{builtin, Chain, ModelError, MAX_URDF_BYTES};
+use control::{ConfigError, System};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -25,9 +28,9 @@ pub enum RobotError {
 /// Loads the chain from `base` to `tip` of a built-in robot (by name) or of a URDF file.
 ///
 /// ```
-/// let chain = daemon::robot::load("panda", None, None).unwrap();
+/// let chain = rt::robot::load("panda", None, None).unwrap();
 /// assert_eq!(chain.dof(), 7);
-/// let e = daemon::robot::load("ur99", None, None).unwrap_err().to_string();
+/// let e = rt::robot::load("ur99", None, None).unwrap_err().to_string();
 /// assert!(e.contains("panda, planar3"), "{e}");
 /// ```
 pub fn load(spec: &str, base: Option<&str>, tip: Option<&str>) -> Result<Chain, RobotError> {
@@ -66,4 +69,26 @@ fn read(path: &Path) -> Result<String, RobotError> {
         });
     }
     Ok(text)
+}
+
+/// Loads a config file's text (or a preset) as a [`System`]: a `[robot]` table's chain is read
+/// with [`load`].
+///
+/// ```
+/// let s = rt::robot::preset("panda").unwrap();
+/// assert_eq!(s.n(), 7);
+/// assert_eq!(rt::robot::preset("demo").unwrap().n(), 3);
+/// ```
+pub fn preset(name: &str) -> Result<System, ConfigError> {
+    System::preset(name, &resolve)
+}
+
+/// Parses a config file's text as a [`System`] (see [`preset`]).
+pub fn parse(text: &str) -> Result<System, ConfigError> {
+    System::parse(text, &resolve)
+}
+
+/// [`load`] as `System` wants it.
+pub fn resolve(spec: &str, base: Option<&str>, tip: Option<&str>) -> Result<Chain, String> {
+    load(spec, base, tip).map_err(|e| e.to_string())
 }

@@ -1,0 +1,293 @@
+//! What a daemon and a plant run: the paper's planar arm or a URDF chain, from one config file.
+//!
+//! Both processes read the same file and must agree on the arm. A file with a `[robot]` table is
+//! a spatial set-up ([`SpatialConfig`]); any other is the planar one ([`Config`]). This enum is
+//! the one place that tells them apart, so the daemon's loop, its handshake and the plant ask it
+//! for what they need (the joint count, the law, the start, the arm's identity) and never parse
+//! a file twice. The robot description itself is read by the caller (`rt::robot`): this crate
+//! does no I/O, so [`System::parse`] takes the chain resolver as an argument.
+
+use crate::config::{Config, ConfigError};
+use crate::model::Chain;
+use crate::spatial::config::{is_spatial, SpatialConfig};
+use crate::tick_law::TickLaw;
+use crate::{ArmState, VecN};
+
+/// The spatial half: the file and the chain its `[robot]` names.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpatialSystem {
+    pub config: SpatialConfig,
+    pub chain: Chain,
+}
+
+/// A whole set-up, planar or spatial.
+#[derive(Clone, Debug, PartialEq)]
+pub enum System {
+    Planar(Config),
+    Spatial(Box<SpatialSystem>),
+}
+
+/// Loads the chain a `[robot]` table names: `(description, base, tip)`.
+pub type Resolve<'a> = &'a dyn Fn(&str, Option<&str>, Option<&str>) -> Result<Chain, String>;
+
+/// Who the arm is, for the handshake: a name a person reads and a fingerprint of every number.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Identity {
+    /// `panda (panda_link0 → panda_link8)`.
+    pub name: String,
+    /// FNV-1a of the chain's numbers, the tool point and the link radii.
+    pub fingerprint: u64,
+}
+
+impl System {
+    /// Parses a file's text (spatial when it has a `[robot]` table) and validates it.
+    pub fn parse(text: &str, resolve: Resolve) -> Result<Self, ConfigError> {
+        if !is_spatial(text) {
+            let c = Config::from_toml_str(text)?;
+            c.validate()?;
+            return Ok(System::Planar(c));
+        }
+        Self::spatial(SpatialConfig::from_toml(text)?, resolve)
+    }
+
+    /// A built-in set-up: the planar presets and the spatial `panda`.
+    pub fn preset(name: &str, resolve: Resolve) -> Result<Self, ConfigError> {
+        match SpatialConfig::preset(name) {
+            Some(c) => Self::spatial(c, resolve),
+            None => Ok(System::Planar(Config::preset(name)?)),
+        }
+    }
+
+    /// Loads the chain of a spatial file and checks the file against it.
+    pub fn spatial(config: SpatialConfig, resolve: Resolve) -> Result<Self, ConfigError> {
+        let r = &config.robot;
+        let chain = resolve(&r.description, r.base.as_deref(), r.tip.as_deref()).map_err(
+            |e| ConfigError::Invalid {
+                field: "robot.description".into(),
+                value: format!("{:?}", r.description),
+                expected: e,
+            },
+        )?;
+        let s = System::Spatial(Box::new(SpatialSystem { config, chain }));
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// The joint count.
+    pub fn n(&self) -> usize {
+        match self {
+            System::Planar(c) => c.n(),
+            System::Spatial(s) => s.chain.dof(),
+        }
+    }
+
+    pub fn planar(&self) -> Option<&Config> {
+        match self {
+            System::Planar(c) => Some(c),
+            System::Spatial(_) => None,
+        }
+    }
+
+    /// Validates the whole set-up (for a spatial one, against its chain).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        match self {
+            System::Planar(c) => c.validate(),
+            System::Spatial(s) => {
+                let n = s.chain.dof();
+                if !(crate::MIN_JOINTS..=crate::MAX_JOINTS).contains(&n) {
+                    return Err(ConfigError::Invalid {
+                        field: "robot.description".into(),
+                        value: format!("{:?}", s.config.robot.description),
+                        expected: format!(
+                            "a chain of {} to {} joints (this one has {n})",
+                            crate::MIN_JOINTS,
+                            crate::MAX_JOINTS
+                        ),
+                    });
+                }
+                crate::with_dof!(n, N => s.config.setup::<N>(&s.chain).map(|_| ()))
+            }
+        }
+    }
+
+    /// The sampled-loop rules at the daemon's step `dt` (`step` names where dt comes from), and
+    /// τ ≥ dt (the delay line is filled once per tick).
+    pub fn check_step(&self, dt: f64, step: &str) -> Result<(), ConfigError> {
+        match self {
+            System::Planar(c) => crate::stability::check(c, dt, step)?,
+            System::Spatial(s) => s.config.check_step(&s.chain, dt, step)?,
+        }
+        let tau = self.feedback().tau;
+        if tau < dt {
+            return Err(ConfigError::Invalid {
+                field: "feedback.tau".into(),
+                value: format!("{tau}"),
+                expected: format!("must be at least one control period ({dt} s at {step})"),
+            });
+        }
+        Ok(())
+    }
+
+    /// The law a control tick runs; `N` must be [`System::n`]. The set-up was validated.
+    pub fn tick_law<const N: usize>(&self) -> TickLaw<N> {
+        match self {
+            System::Planar(c) => c.tick_law::<N>(),
+            System::Spatial(s) => {
+                let set = s
+                    .config
+                    .setup::<N>(&s.chain)
+                    .expect("a validated spatial set-up builds");
+                TickLaw::Spatial {
+                    arm: set.arm,
+                    params: set.params,
+                }
+            }
+        }
+    }
+
+    /// The state a simulated plant starts from; `N` must be [`System::n`].
+    pub fn initial_state<const N: usize>(&self) -> ArmState<N> {
+        match self {
+            System::Planar(c) => c.initial_state(),
+            System::Spatial(s) => {
+                let q = &s.config.sim.q0;
+                let qd = s.config.sim.qd0.clone().unwrap_or_else(|| vec![0.0; N]);
+                ArmState {
+                    q: VecN::<N>::from_fn(|i, _| q.get(i).copied().unwrap_or(0.0)),
+                    qd: VecN::<N>::from_fn(|i, _| qd.get(i).copied().unwrap_or(0.0)),
+                    phi: 0.0,
+                }
+            }
+        }
+    }
+
+    /// The feedback settings every arm has.
+    pub fn feedback(&self) -> Feedback {
+        match self {
+            System::Planar(c) => Feedback {
+                mu: c.feedback.mu,
+                tau: c.feedback.tau,
+                t_on: c.feedback.t_on,
+                max_tau: c.feedback.max_tau,
+            },
+            System::Spatial(s) => {
+                let f = &s.config.feedback;
+                Feedback {
+                    mu: f.mu,
+                    tau: f.tau.unwrap_or(s.config.task.period),
+                    t_on: f.t_on,
+                    max_tau: crate::spatial::config::MAX_TAU,
+                }
+            }
+        }
+    }
+
+    /// Sets μ and t_on and switches the feedback on (the demo's schedule).
+    pub fn schedule_feedback(&mut self, mu: f64, t_on: f64) {
+        match self {
+            System::Planar(c) => {
+                c.feedback.mu = mu;
+                c.feedback.t_on = t_on;
+                c.feedback.enabled = true;
+            }
+            System::Spatial(s) => {
+                s.config.feedback.mu = mu;
+                s.config.feedback.t_on = t_on;
+            }
+        }
+    }
+
+    /// The `[daemon]` and `[plant]` tables the file carries for the processes.
+    pub fn tables(&self) -> (&Option<toml::Table>, &Option<toml::Table>) {
+        match self {
+            System::Planar(c) => (&c.daemon, &c.plant),
+            System::Spatial(s) => (&s.config.daemon, &s.config.plant),
+        }
+    }
+
+    pub fn tables_mut(&mut self) -> (&mut Option<toml::Table>, &mut Option<toml::Table>) {
+        match self {
+            System::Planar(c) => (&mut c.daemon, &mut c.plant),
+            System::Spatial(s) => (&mut s.config.daemon, &mut s.config.plant),
+        }
+    }
+
+    /// The file again, tables included.
+    pub fn to_toml(&self) -> String {
+        match self {
+            System::Planar(c) => c.to_toml_string(),
+            System::Spatial(s) => s.config.to_toml(),
+        }
+    }
+
+    /// A spatial arm's identity (a planar arm's is its link lengths, in the handshake itself).
+    pub fn identity(&self) -> Option<Identity> {
+        let System::Spatial(s) = self else {
+            return None;
+        };
+        let c = &s.chain;
+        let r = &s.config.robot;
+        // Debug prints every float exactly (shortest round-trip form), so equal text is equal
+        // numbers; the description string is left out, so a copy of the URDF elsewhere agrees.
+        let text = format!("{:?}|{:?}|{:?}", c, r.tool, r.link_radii);
+        Some(Identity {
+            name: format!("{} ({} → {})", c.robot, c.base, c.tip),
+            fingerprint: fnv1a(text.as_bytes()),
+        })
+    }
+}
+
+/// The feedback settings of [`System::feedback`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Feedback {
+    pub mu: f64,
+    pub tau: f64,
+    pub t_on: f64,
+    pub max_tau: f64,
+}
+
+/// 64-bit FNV-1a: a stable hash (std's `DefaultHasher` may change between Rust releases, and
+/// two builds must agree).
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn builtin(d: &str, b: Option<&str>, t: Option<&str>) -> Result<Chain, String> {
+        let text = crate::model::builtin(d).map_err(|e| e.to_string())?;
+        Chain::from_urdf(text, b, t).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn tells_planar_from_spatial_and_names_the_arm() {
+        let p = System::preset("demo", &builtin).unwrap();
+        assert_eq!((p.n(), p.identity()), (3, None));
+        let s = System::preset("panda", &builtin).unwrap();
+        assert_eq!(s.n(), 7);
+        let id = s.identity().unwrap();
+        assert_eq!(id.name, "panda (panda_link0 → panda_link8)");
+        let again = System::parse(&s.to_toml(), &builtin).unwrap();
+        assert_eq!(again.identity().unwrap(), id);
+        let short = System::parse(
+            &s.to_toml().replace("[robot]\n", "[robot]\ntip = \"panda_link7\"\n"),
+            &builtin,
+        )
+        .unwrap();
+        assert_ne!(short.identity().unwrap().fingerprint, id.fingerprint);
+        let e = System::parse(&s.to_toml().replace("\"panda\"", "\"ur99\""), &builtin);
+        assert!(e.unwrap_err().to_string().contains("robot.description"));
+    }
+
+    #[test]
+    fn the_control_step_is_checked_for_either_arm() {
+        let s = System::preset("panda", &builtin).unwrap();
+        assert!(s.check_step(0.001, "daemon.rate_hz = 1000").is_ok());
+        let e = s.check_step(0.05, "daemon.rate_hz = 20").unwrap_err();
+        assert!(e.to_string().contains("daemon.rate_hz = 20"), "{e}");
+    }
+}
