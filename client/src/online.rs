@@ -107,14 +107,11 @@ pub enum Online {
 
 #[derive(Subcommand, Debug)]
 pub enum ObstacleAction {
-    /// Add an obstacle at (X, Y) with RADIUS (m).
+    /// Add an obstacle: `X Y RADIUS` (a circle, planar arm) or `X Y Z RADIUS` (a sphere,
+    /// spatial robot), in m.
     Add {
-        #[arg(allow_negative_numbers = true)]
-        x: f64,
-        #[arg(allow_negative_numbers = true)]
-        y: f64,
-        #[arg(allow_negative_numbers = true)]
-        radius: f64,
+        #[arg(allow_negative_numbers = true, num_args = 3..=4, value_names = ["X", "Y", "[Z]", "RADIUS"])]
+        values: Vec<f64>,
         /// Safety margin (m).
         #[arg(long, default_value_t = 0.1)]
         margin: f64,
@@ -139,12 +136,10 @@ impl ObstacleAction {
     /// The request this action sends: its operation and argument string.
     pub fn request(&self) -> (Op, String) {
         match self {
-            ObstacleAction::Add {
-                x,
-                y,
-                radius,
-                margin,
-            } => (Op::ObstacleAdd, format!("{x} {y} {radius} {margin}")),
+            ObstacleAction::Add { values, margin } => {
+                let v: Vec<String> = values.iter().map(f64::to_string).collect();
+                (Op::ObstacleAdd, format!("{} margin={margin}", v.join(" ")))
+            }
             ObstacleAction::Rm { index } => (Op::ObstacleRemove, index.to_string()),
             ObstacleAction::Ls => (Op::ObstacleList, String::new()),
         }
@@ -341,6 +336,7 @@ pub fn human_status(body: &str) -> String {
     let c = &v["counters"];
     format!(
         "chaosd in namespace {} (pid {}): {} at t = {:.1} s, {} Hz {} wait\n\
+         arm       {}\n\
          feedback  {} (active: {}), μ = {}, τ = {} s, t_on = {} s, max τ = {} s\n\
          control   K_p = {}, K_v = {}, α = {}, secondary {}, {} obstacles; recent tracking error {} m\n\
          timing    lateness p50 {} µs, p99 {} µs, max {} µs; overruns {}\n\
@@ -349,6 +345,7 @@ pub fn human_status(body: &str) -> String {
          law       tracking lost on {} ticks, near-singular on {}, target out of reach on {}, non-finite results {}\n\
          recording {}{}{}",
         f("namespace"), f("pid"), f("mode"), v["t"].as_f64().unwrap_or(0.0), f("rate_hz"), f("wait"),
+        v["arm"].as_str().unwrap_or("n/a"),
         if v["feedback"].as_bool() == Some(true) { "on" } else { "off" }, f("feedback_active"), f("mu"), f("tau"), f("t_on"), f("max_tau"),
         f("kp"), f("kv"), f("alpha"), f("secondary"), f("obstacles"),
         v["tracking_error_recent"].as_f64().map_or("n/a".into(), |x| format!("{x:.2e}")),

@@ -10,7 +10,7 @@
 use crate::config::{Config, ConfigError};
 use crate::model::Chain;
 use crate::spatial::config::{is_spatial, SpatialConfig};
-use crate::tick_law::TickLaw;
+use crate::tick_law::{ParamBlock, TickLaw};
 use crate::{ArmState, VecN};
 
 /// The spatial half: the file and the chain its `[robot]` names.
@@ -193,7 +193,60 @@ impl System {
             System::Spatial(s) => {
                 s.config.feedback.mu = mu;
                 s.config.feedback.t_on = t_on;
+                s.config.feedback.enabled = true;
             }
+        }
+    }
+
+    /// The running law's parameters as a block for [`TickLaw::set`]. The set-up was validated.
+    pub fn param_block(&self) -> ParamBlock {
+        match self {
+            System::Planar(c) => ParamBlock::Planar(c.law_params()),
+            System::Spatial(s) => ParamBlock::Spatial(crate::with_dof!(s.chain.dof(), N => {
+                s.config.setup::<N>(&s.chain).expect("a validated spatial set-up builds").params
+            })),
+        }
+    }
+
+    /// What a report says about the arm's safety settings.
+    pub fn safety(&self) -> SafetySummary {
+        match self {
+            System::Planar(c) => SafetySummary {
+                enabled: c.safety.enabled,
+                clearance: c.safety.clearance,
+                track_loss: c.control.track_loss,
+                obstacles: c.control.obstacles.len(),
+            },
+            System::Spatial(s) => SafetySummary {
+                enabled: s.config.safety.enabled,
+                clearance: s.config.safety.clearance,
+                track_loss: s.config.law.track_loss,
+                obstacles: s.config.obstacles.len(),
+            },
+        }
+    }
+
+    /// One line naming the arm: `3-link planar arm, fixed base` or `panda (panda_link0 →
+    /// panda_link8), 7 joints, position task`.
+    pub fn describe_arm(&self) -> String {
+        match self {
+            System::Planar(c) => format!(
+                "{}-link planar arm, {} base",
+                c.n(),
+                if c.arm.model == crate::config::ModelKind::Floating {
+                    "floating"
+                } else {
+                    "fixed"
+                }
+            ),
+            System::Spatial(s) => format!(
+                "{} ({} → {}), {} joints, {} task",
+                s.chain.robot,
+                s.chain.base,
+                s.chain.tip,
+                s.chain.dof(),
+                s.config.task.kind
+            ),
         }
     }
 
@@ -222,19 +275,37 @@ impl System {
 
     /// A spatial arm's identity (a planar arm's is its link lengths, in the handshake itself).
     pub fn identity(&self) -> Option<Identity> {
-        let System::Spatial(s) = self else {
-            return None;
-        };
-        let c = &s.chain;
-        let r = &s.config.robot;
+        match self {
+            System::Planar(_) => None,
+            System::Spatial(s) => Some(s.identity()),
+        }
+    }
+}
+
+impl SpatialSystem {
+    /// Who the arm is: the chain's name and a fingerprint of its numbers.
+    pub fn identity(&self) -> Identity {
+        let c = &self.chain;
+        let r = &self.config.robot;
         // Debug prints every float exactly (shortest round-trip form), so equal text is equal
         // numbers; the description string is left out, so a copy of the URDF elsewhere agrees.
         let text = format!("{:?}|{:?}|{:?}", c, r.tool, r.link_radii);
-        Some(Identity {
+        Identity {
             name: format!("{} ({} → {})", c.robot, c.base, c.tip),
             fingerprint: fnv1a(text.as_bytes()),
-        })
+        }
     }
+}
+
+/// The safety settings of [`System::safety`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SafetySummary {
+    pub enabled: bool,
+    /// Required clearance (m).
+    pub clearance: f64,
+    /// Tracking error (m) above which tracking counts as lost.
+    pub track_loss: f64,
+    pub obstacles: usize,
 }
 
 /// The feedback settings of [`System::feedback`].

@@ -29,6 +29,23 @@ pub enum TickLaw<const N: usize> {
     },
 }
 
+/// A new parameter block for a running [`TickLaw`] (the daemon's live changes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ParamBlock {
+    Planar(LawParams),
+    Spatial(SpatialParams),
+}
+
+impl ParamBlock {
+    /// The limits the block's law obeys.
+    pub fn safety(&self) -> &SafetyParams {
+        match self {
+            ParamBlock::Planar(p) => &p.safety,
+            ParamBlock::Spatial(p) => &p.safety,
+        }
+    }
+}
+
 /// Kinematics scratch for either law.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct LawScratch<const N: usize> {
@@ -100,6 +117,16 @@ impl<const N: usize> TickLaw<N> {
 
     pub fn tau(&self) -> f64 {
         self.feedback().1
+    }
+
+    /// Swaps in a parameter block of the same kind of arm; false (and unchanged) otherwise.
+    pub fn set(&mut self, block: ParamBlock) -> bool {
+        match (self, block) {
+            (TickLaw::Planar { params, .. }, ParamBlock::Planar(p)) => *params = p,
+            (TickLaw::Spatial { params, .. }, ParamBlock::Spatial(p)) => *params = p,
+            _ => return false,
+        }
+        true
     }
 
     /// The planar law's parameters (None for a spatial arm).

@@ -5,7 +5,7 @@
 //! plant process and is checked there; the daemon never needs it.
 
 use control::config::ConfigError;
-use control::Config;
+use control::{Config, System};
 use rt::{Trigger, WaitStrategy};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -227,7 +227,8 @@ impl DaemonConfig {
 /// Everything the daemon runs from.
 #[derive(Clone, Debug)]
 pub struct DaemonSetup {
-    pub system: Config,
+    /// The arm and its law: the planar arm or a URDF chain.
+    pub system: System,
     pub daemon: DaemonConfig,
     /// The live state a restarted daemon resumes (`persist`), if any.
     pub live: Option<crate::persist::LiveState>,
@@ -238,10 +239,15 @@ pub struct DaemonSetup {
 }
 
 impl DaemonSetup {
-    /// Splits a parsed file into the system and `[daemon]` parts and validates both.
+    /// A planar file's set-up (see [`DaemonSetup::from_system`]).
     pub fn from_config(system: Config) -> Result<Self, ConfigError> {
+        Self::from_system(System::Planar(system))
+    }
+
+    /// Splits a parsed file into the system and `[daemon]` parts and validates both.
+    pub fn from_system(system: System) -> Result<Self, ConfigError> {
         system.validate()?;
-        let daemon: DaemonConfig = match &system.daemon {
+        let daemon: DaemonConfig = match system.tables().0 {
             Some(t) => t
                 .clone()
                 .try_into()
@@ -249,7 +255,10 @@ impl DaemonSetup {
             None => DaemonConfig::default(),
         };
         let s = Self {
-            file_fingerprint: crate::persist::fingerprint(&system),
+            file_fingerprint: system
+                .planar()
+                .map(crate::persist::fingerprint)
+                .unwrap_or_default(),
             system,
             daemon,
             live: None,
@@ -265,7 +274,8 @@ impl DaemonSetup {
         self.daemon.validate()?;
         // With the plant's table in the same file, check the two loops fit together: the daemon
         // must see a state at least every `hold_after` ticks, or it holds after every state.
-        if let Some(plant) = &self.system.plant {
+        let plant_table = self.system.tables().1;
+        if let Some(plant) = plant_table {
             let rate = plant
                 .get("rate_hz")
                 .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
@@ -282,7 +292,7 @@ impl DaemonSetup {
                 });
             }
         }
-        if let Some(plant) = &self.system.plant {
+        if let Some(plant) = plant_table {
             let plant_trigger = plant
                 .get("trigger")
                 .and_then(|v| v.as_str())
@@ -324,24 +334,11 @@ impl DaemonSetup {
                 });
             }
         }
-        // The delay line is filled once per tick, so τ must span at least one tick.
-        let dt = 1.0 / self.daemon.rate_hz;
-        control::stability::check(
-            &self.system,
-            dt,
+        // The sampled-loop rules at the daemon's own step; τ must span at least one tick.
+        self.system.check_step(
+            1.0 / self.daemon.rate_hz,
             &format!("daemon.rate_hz = {}", self.daemon.rate_hz),
-        )?;
-        if self.system.feedback.tau < dt {
-            return Err(ConfigError::Invalid {
-                field: "feedback.tau".into(),
-                value: format!("{}", self.system.feedback.tau),
-                expected: format!(
-                    "must be at least one control period ({dt} s at daemon.rate_hz = {})",
-                    self.daemon.rate_hz
-                ),
-            });
-        }
-        Ok(())
+        )
     }
 
     pub fn load(path: &Path) -> anyhow::Result<Self> {
@@ -355,16 +352,16 @@ impl DaemonSetup {
         }
         let text = std::fs::read_to_string(path)
             .map_err(|e| anyhow::anyhow!("cannot read config file {}: {e}", path.display()))?;
-        let cfg =
-            Config::from_toml_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-        Self::from_config(cfg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+        let system = rt::robot::parse(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        Self::from_system(system).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
     }
 
     /// Adopts a saved live state: its system settings, with this file's `[daemon]` and `[plant]`.
     pub fn resume_from(&mut self, live: crate::persist::LiveState) -> Result<(), ConfigError> {
-        let mut system = live.system.clone();
-        system.daemon = self.system.daemon.clone();
-        system.plant = self.system.plant.clone();
+        let mut system = System::Planar(live.system.clone());
+        let (daemon, plant) = self.system.tables();
+        let (d, p) = system.tables_mut();
+        (*d, *p) = (daemon.clone(), plant.clone());
         let before = std::mem::replace(&mut self.system, system);
         if let Err(e) = self.validate() {
             self.system = before;
@@ -391,8 +388,8 @@ impl DaemonSetup {
     /// The whole file, with the effective `[daemon]` table, for the plant and for the record.
     pub fn to_toml(&self) -> String {
         let mut c = self.system.clone();
-        c.daemon = toml::Table::try_from(&self.daemon).ok();
-        c.to_toml_string()
+        *c.tables_mut().0 = toml::Table::try_from(&self.daemon).ok();
+        c.to_toml()
     }
 }
 

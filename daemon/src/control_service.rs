@@ -1,13 +1,14 @@
 //! The control service: `chaosctl` requests, answered on the reporter thread.
 //!
-//! The reporter keeps the running [`Config`]; a change is validated in [`crate::requests`] and
-//! sent to the loop as a whole `LawParams` block, which the loop swaps in between two ticks. A
-//! request can never stall the loop: the loop only ever does a `try_recv`.
+//! The reporter keeps the running [`System`]; a change is validated in [`crate::requests`] (or
+//! [`crate::spatial_requests`] for a URDF chain) and sent to the loop as a whole parameter block,
+//! which the loop swaps in between two ticks. A request can never stall the loop: the loop only
+//! ever does a `try_recv`.
 
 use crate::recording::Recording;
 use crate::reporter::Reporter;
 use crate::telemetry::LoopRequest;
-use control::Config;
+use control::System;
 use protocol::{ControlRequest, ControlResponse, Op, Status};
 use rt::hist::Percentiles;
 use std::time::Instant;
@@ -26,27 +27,84 @@ impl Reporter {
     }
 
     /// Sends a validated configuration to the loop and adopts it.
-    fn commit(&mut self, new: Config) -> Result<String, String> {
+    fn commit(&mut self, new: System) -> Result<String, String> {
         self.params_tx
-            .try_send(LoopRequest::Params(new.law_params()))
+            .try_send(LoopRequest::Params(new.param_block()))
             .map_err(|_| {
                 "the control loop has not taken the previous change yet; try again".to_string()
             })?;
-        self.cfg = new;
-        if let Some(log) = self.replay.as_mut() {
-            log.committed(&self.cfg);
+        self.system = new;
+        self.limits.set_limits(*self.system.param_block().safety());
+        if let (Some(log), System::Planar(c)) = (self.replay.as_mut(), &self.system) {
+            log.committed(c);
         }
         self.save_live_state();
-        let f = &self.cfg.feedback;
-        let c = &self.cfg.control;
-        Ok(serde_json::json!({
-            "applied": "at the next tick",
-            "mu": f.mu, "tau": f.tau, "t_on": f.t_on, "feedback": f.enabled,
-            "kp": c.kp, "kv": c.kv, "alpha": c.alpha, "secondary": c.secondary,
-            "obstacles": c.obstacles.len(),
-            "task": self.cfg.task,
-        })
-        .to_string())
+        let mut answer = self.law_settings();
+        answer["applied"] = "at the next tick".into();
+        Ok(answer.to_string())
+    }
+
+    /// The law's settings as `status` and a change's answer show them.
+    fn law_settings(&self) -> serde_json::Value {
+        let fb = self.system.feedback();
+        let mut v = match &self.system {
+            System::Planar(c) => serde_json::json!({
+                "feedback": c.feedback.enabled,
+                "kp": c.control.kp, "kv": c.control.kv, "alpha": c.control.alpha,
+                "secondary": c.control.secondary, "task": c.task,
+            }),
+            System::Spatial(s) => {
+                let c = &s.config;
+                serde_json::json!({
+                    "robot": s.identity().name,
+                    "feedback": c.feedback.enabled, "projection": c.feedback.projection,
+                    "kp": c.law.kp, "kv": c.law.kv, "alpha": c.law.alpha,
+                    "secondary": c.law.secondary, "task": c.task,
+                })
+            }
+        };
+        v["mu"] = fb.mu.into();
+        v["tau"] = fb.tau.into();
+        v["t_on"] = fb.t_on.into();
+        v["max_tau"] = fb.max_tau.into();
+        v["obstacles"] = self.system.safety().obstacles.into();
+        v
+    }
+
+    /// Applies one change request to the running set-up (not yet committed).
+    fn change(&self, op: Op, args: &str, now: f64) -> Result<System, String> {
+        use crate::{requests as p, spatial_requests as s};
+        let t = self.min_tau;
+        match &self.system {
+            System::Planar(c) => match op {
+                Op::Set => p::apply_set(c, args, t),
+                Op::DfcOn => p::apply_dfc(c, true, now),
+                Op::DfcOff => p::apply_dfc(c, false, now),
+                Op::ObstacleAdd => p::apply_obstacle_add(c, args),
+                _ => p::apply_obstacle_remove(c, args),
+            }
+            .map(System::Planar),
+            System::Spatial(c) => match op {
+                Op::Set => s::apply_set(c, args, t),
+                Op::DfcOn => s::apply_dfc(c, true, now, t),
+                Op::DfcOff => s::apply_dfc(c, false, now, t),
+                Op::ObstacleAdd => s::apply_obstacle_add(c, args, t),
+                _ => s::apply_obstacle_remove(c, args, t),
+            }
+            .map(|n| System::Spatial(Box::new(n))),
+        }
+    }
+
+    /// The obstacles as `obstacle ls` lists them (2-D circles or 3-D spheres).
+    fn obstacles(&self) -> serde_json::Value {
+        let row = |i: usize, c: &[f64], r: f64, m: f64| {
+            serde_json::json!({"index": i, "center": c, "radius": r, "margin": m})
+        };
+        let rows: Vec<_> = match &self.system {
+            System::Planar(c) => c.control.obstacles.iter().enumerate().map(|(i, o)| row(i, &o.center, o.radius, o.margin)).collect(),
+            System::Spatial(s) => s.config.obstacles.iter().enumerate().map(|(i, o)| row(i, &o.center, o.radius, o.margin)).collect(),
+        };
+        serde_json::json!(rows)
     }
 
     /// Percentiles since start or the last `hist --reset` (the exit files always cover the run).
@@ -68,7 +126,8 @@ impl Reporter {
     fn status(&self) -> String {
         let r = self.last;
         let tr = self.window_track;
-        serde_json::json!({
+        let law = self.law_settings();
+        let mut v = serde_json::json!({
             "namespace": self.names.namespace(),
             "pid": std::process::id(),
             "rate_hz": self.daemon.rate_hz,
@@ -76,19 +135,15 @@ impl Reporter {
             "mode": r.map(|r| format!("{:?}", r.mode)),
             "handshake": self.handshake.lock().ok().and_then(|g| g.clone()),
             "fault": self.fault.map(|(t, f)| format!("at t = {t:.3} s: {f}")),
-            "safety": self.cfg.safety.enabled,
+            "arm": self.system.describe_arm(),
+            "n": self.system.n(),
+            "safety": self.system.safety().enabled,
             "t": r.map(|r| r.t),
             "mu": r.map(|r| r.mu),
             "tau": r.map(|r| r.tau),
             "t_on": r.map(|r| r.t_on),
             "feedback": r.map(|r| r.feedback_on),
             "feedback_active": self.last_feedback_active,
-            "kp": self.cfg.control.kp,
-            "kv": self.cfg.control.kv,
-            "alpha": self.cfg.control.alpha,
-            "secondary": self.cfg.control.secondary,
-            "obstacles": self.cfg.control.obstacles.len(),
-            "max_tau": self.cfg.feedback.max_tau,
             "tracking_error_recent": if tr.1 > 0 { Some((tr.0 / tr.1 as f64).sqrt()) } else { None },
             "counters": r.map(|r| r.counters),
             "histograms": self.percentiles(),
@@ -101,8 +156,13 @@ impl Reporter {
             "phase_offset_us": self.daemon.phase_offset_us,
             "state_to_command": Percentiles::of(&self.state_to_command),
             "answered_within_period": self.answered_share(),
-        })
-        .to_string()
+        });
+        for k in ["kp", "kv", "alpha", "secondary", "obstacles", "max_tau", "robot", "projection"] {
+            if let Some(x) = law.get(k) {
+                v[k] = x.clone();
+            }
+        }
+        v.to_string()
     }
 
     /// Answers one request. Refusals leave everything unchanged.
@@ -131,24 +191,14 @@ impl Reporter {
         let result: Result<String, String> = match op {
             Op::Status => Ok(self.status()),
             Op::GetConfig => {
-                let mut c = self.cfg.clone();
-                c.daemon = toml::Table::try_from(&self.daemon).ok();
-                Ok(c.to_toml_string())
+                let mut c = self.system.clone();
+                *c.tables_mut().0 = toml::Table::try_from(&self.daemon).ok();
+                Ok(c.to_toml())
             }
-            Op::Set => crate::requests::apply_set(&self.cfg, args, self.min_tau).and_then(|c| self.commit(c)),
-            Op::DfcOn => crate::requests::apply_dfc(&self.cfg, true, now).and_then(|c| self.commit(c)),
-            Op::DfcOff => crate::requests::apply_dfc(&self.cfg, false, now).and_then(|c| self.commit(c)),
-            Op::ObstacleAdd => crate::requests::apply_obstacle_add(&self.cfg, args).and_then(|c| self.commit(c)),
-            Op::ObstacleRemove => crate::requests::apply_obstacle_remove(&self.cfg, args).and_then(|c| self.commit(c)),
-            Op::ObstacleList => Ok(serde_json::json!(self
-                .cfg
-                .control
-                .obstacles
-                .iter()
-                .enumerate()
-                .map(|(i, o)| serde_json::json!({"index": i, "center": o.center, "radius": o.radius, "margin": o.margin}))
-                .collect::<Vec<_>>())
-            .to_string()),
+            Op::Set | Op::DfcOn | Op::DfcOff | Op::ObstacleAdd | Op::ObstacleRemove => {
+                self.change(op, args, now).and_then(|c| self.commit(c))
+            }
+            Op::ObstacleList => Ok(self.obstacles().to_string()),
             Op::HistSnapshot => Ok(self.percentiles().to_string()),
             Op::HistReset => {
                 for h in &mut self.snap {
@@ -188,7 +238,7 @@ impl Reporter {
         let r = Recording::start(
             &self.daemon.output_dir,
             args,
-            self.cfg.n(),
+            self.system.n(),
             self.daemon.record_limit(),
         )?;
         let answer = serde_json::json!({"path": r.path}).to_string();

@@ -7,7 +7,7 @@
 
 use crate::guard::{FaultReason, Guard};
 use control::hold;
-use control::tick_law::{LawScratch, TickLaw};
+use control::tick_law::{LawScratch, ParamBlock, TickLaw};
 use control::{ArmState, ControlOutput, DelayLine, LawParams, VecN};
 use protocol::{CommandSample, Mode, StateSample};
 use serde::Serialize;
@@ -208,16 +208,16 @@ impl<const N: usize> Controller<N> {
         self.law.planar_params()
     }
 
-    /// Swaps in a validated parameter block (at a tick boundary; no allocation).
-    pub fn set_params(&mut self, p: LawParams) {
-        match &mut self.law {
-            TickLaw::Planar { params, .. } => *params = p,
-            // Only a planar system's requests make planar blocks (`control_service`); the
-            // daemon does not run spatial arms yet, so this arm of the match cannot be reached.
-            TickLaw::Spatial { .. } => unreachable!("a planar parameter block for a spatial arm"),
+    /// Swaps in a validated parameter block (at a tick boundary; no allocation). A block for
+    /// another kind of arm is refused (false) and changes nothing: the control service builds
+    /// blocks from the same set-up the loop runs, so it never sends one.
+    pub fn set_params(&mut self, p: ParamBlock) -> bool {
+        if !self.law.set(p) {
+            return false;
         }
         self.applied = Some(Applied::Params);
         self.counters.params_applied += 1;
+        true
     }
 
     pub fn mode(&self) -> Mode {
@@ -776,7 +776,7 @@ mod tests {
         let mut p = *c.params().unwrap();
         p.mu = 1.0;
         p.t_on = 0.0;
-        c.set_params(p);
+        c.set_params(ParamBlock::Planar(p));
         let t0 = 1_000_000_000u64;
         let mut s = state(0, t0);
         s.qd[0] = 10.0;
@@ -812,7 +812,7 @@ mod tests {
                 if k == 700 {
                     let mut p = *c.params().unwrap();
                     p.safety.qdd_max = [1e-6; control::MAX_JOINTS];
-                    c.set_params(p);
+                    c.set_params(ParamBlock::Planar(p));
                     if braked {
                         s.flags |= protocol::flags::COMMAND_TIMEOUT;
                     }
@@ -844,7 +844,7 @@ mod tests {
         s.qd[1] = 60.0;
         let mut p = *c.params().unwrap();
         p.safety.qd_max = [20.0; control::MAX_JOINTS];
-        c.set_params(p);
+        c.set_params(ParamBlock::Planar(p));
         let mut tripped_at = None;
         for k in 0..100u64 {
             s.seq = k;

@@ -12,7 +12,7 @@
 use crate::telemetry::LoopRequest;
 use anyhow::{anyhow, Result};
 use control::config::ModelKind;
-use control::Config;
+use control::System;
 use protocol::handshake::{Exchange, Side};
 use protocol::{mismatch, ArmInfo, FloatingBase, ServiceNames};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -27,7 +27,14 @@ const POLL: Duration = Duration::from_millis(2);
 pub type Refusal = Arc<Mutex<Option<String>>>;
 
 /// The description of the arm in `system`, for the process with `instance_id`.
-pub fn describe(system: &Config, instance_id: u64) -> ArmInfo {
+pub fn describe(system: &System, instance_id: u64) -> ArmInfo {
+    let system = match system {
+        System::Planar(c) => c,
+        System::Spatial(s) => {
+            let id = s.identity();
+            return ArmInfo::chain(instance_id, s.chain.dof(), &id.name, id.fingerprint);
+        }
+    };
     let masses = system.link_masses();
     let inertias = system.link_inertias();
     let floating = (system.arm.model == ModelKind::Floating).then(|| FloatingBase {
@@ -82,7 +89,7 @@ impl Judge {
 /// Starts the handshake thread; returns once the daemon's description is published. The thread
 /// ends when `running` turns false or the loop's channel closes.
 pub fn spawn(
-    system: &Config,
+    system: &System,
     names: &ServiceNames,
     params_tx: crossbeam::channel::Sender<LoopRequest>,
     running: Arc<AtomicBool>,
@@ -163,14 +170,19 @@ fn report(judge: &mut Judge, refusal: &Refusal, v: &Verdict) -> LoopRequest {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use control::Config;
+
+    fn planar(name: &str) -> System {
+        System::Planar(Config::preset(name).unwrap())
+    }
 
     #[test]
     fn each_plant_start_is_judged_once() {
-        let daemon = describe(&Config::preset("paper").unwrap(), 1);
+        let daemon = describe(&planar("paper"), 1);
         let mut judge = Judge::new("ns", daemon);
         let mut four = Config::preset("paper").unwrap();
         four.arm.links = vec![1.0; 4];
-        let plant = describe(&four, 7);
+        let plant = describe(&System::Planar(four), 7);
         let v = judge.judge(&plant).unwrap();
         assert_eq!(v.plant_id, 7);
         assert_eq!(
@@ -179,15 +191,39 @@ mod tests {
         );
         assert_eq!(judge.judge(&plant), None, "judged once");
         // The plant restarts with the daemon's arm: agreed.
-        let plant = describe(&Config::preset("paper").unwrap(), 8);
+        let plant = describe(&planar("paper"), 8);
         assert_eq!(judge.judge(&plant).unwrap().refusal, None);
     }
 
     #[test]
     fn floating_presets_describe_their_base() {
-        let f = describe(&Config::preset("paper-floating").unwrap(), 1);
+        let f = describe(&planar("paper-floating"), 1);
         assert_eq!(f.kind, protocol::handshake::KIND_FLOATING);
-        let fixed = describe(&Config::preset("paper").unwrap(), 1);
+        let fixed = describe(&planar("paper"), 1);
         assert!(mismatch("x", &fixed, &f).unwrap().contains("floating arm"));
+    }
+
+    #[test]
+    fn a_panda_daemon_refuses_a_planar_plant_and_another_chain_naming_both() {
+        let panda = rt::robot::preset("panda").unwrap();
+        let mut judge = Judge::new("lab", describe(&panda, 1));
+        let why = judge.judge(&describe(&planar("paper"), 2)).unwrap().refusal.unwrap();
+        assert!(
+            why.contains("3-link fixed arm (links 1,1,1)")
+                && why.contains("7-joint panda (panda_link0 → panda_link8)"),
+            "{why}"
+        );
+        let System::Spatial(mut short) = panda.clone() else {
+            unreachable!("panda is spatial")
+        };
+        short.config.robot.tip = Some("panda_link7".into());
+        short.chain = rt::robot::load("panda", None, Some("panda_link7")).unwrap();
+        let why = judge
+            .judge(&describe(&System::Spatial(short), 3))
+            .unwrap()
+            .refusal
+            .unwrap();
+        assert!(why.contains("panda_link7") && why.contains("panda_link8"), "{why}");
+        assert_eq!(judge.judge(&describe(&panda, 4)).unwrap().refusal, None);
     }
 }

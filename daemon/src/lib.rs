@@ -12,6 +12,7 @@ pub mod control_service;
 pub mod controller;
 pub mod guard;
 pub mod handshake;
+pub mod limits;
 pub mod persist;
 pub mod record;
 pub mod recording;
@@ -22,6 +23,7 @@ pub mod residual;
 
 pub mod rotate;
 pub mod service;
+pub mod spatial_requests;
 pub mod telemetry;
 pub mod tick;
 pub mod trigger;

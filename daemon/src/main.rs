@@ -3,7 +3,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
-use control::Config;
+
 use daemon::config::DaemonSetup;
 use daemon::telemetry::DaemonSummary;
 use rt::WaitStrategy;
@@ -54,9 +54,9 @@ enum Cmd {
     Demo {
         #[command(flatten)]
         common: Common,
-        /// Seconds to run.
-        #[arg(long, default_value_t = 25.0)]
-        duration: f64,
+        /// Seconds to run (default 25 for the planar arm, 60 for the Panda).
+        #[arg(long)]
+        duration: Option<f64>,
         /// Pyragas gain switched on part-way (default: the config's, or 0.2 if that is 0).
         #[arg(long)]
         mu: Option<f64>,
@@ -93,9 +93,15 @@ struct Common {
     /// TOML config file.
     #[arg(long, conflicts_with = "preset")]
     config: Option<PathBuf>,
-    /// A built-in set-up (paper, paper-eq11, paper-obstacle, paper-floating, demo).
-    #[arg(long)]
+    /// A built-in set-up (paper, paper-eq11, paper-obstacle, paper-floating, demo; panda for
+    /// the 7-joint Panda).
+    #[arg(long, conflicts_with = "robot")]
     preset: Option<String>,
+    /// A built-in robot's set-up: `panda` (the Panda study's working set-up, the same as
+    /// `--preset panda`), or `planar` (the paper's 3-link arm: the `demo` preset in `demo`,
+    /// `paper` elsewhere). A URDF robot of your own is named in a config's [robot] table.
+    #[arg(long, conflicts_with = "config")]
+    robot: Option<String>,
     /// Overrides daemon.namespace.
     #[arg(long)]
     namespace: Option<String>,
@@ -112,11 +118,27 @@ struct Common {
 }
 
 impl Common {
+    /// The preset a `--robot` name stands for (`planar`: `planar_preset`).
+    fn robot_preset(&self, planar_preset: &str) -> Result<Option<String>> {
+        Ok(match self.robot.as_deref() {
+            None => None,
+            Some("planar") => Some(planar_preset.into()),
+            Some("panda") => Some("panda".into()),
+            Some(other) => bail!(
+                "--robot {other:?}: the built-in robots are panda and planar; for a URDF of your own, name it in a config's [robot] table (docs/your-robot.md) and pass --config"
+            ),
+        })
+    }
+
     fn setup(&self) -> Result<DaemonSetup> {
-        let mut s = match (&self.config, &self.preset) {
+        let preset = match self.robot_preset("paper")? {
+            Some(p) => Some(p),
+            None => self.preset.clone(),
+        };
+        let mut s = match (&self.config, &preset) {
             (Some(p), _) => DaemonSetup::load(p)?,
-            (None, Some(name)) => DaemonSetup::from_config(Config::preset(name)?)?,
-            (None, None) => DaemonSetup::from_config(Config::preset("paper")?)?,
+            (None, Some(name)) => DaemonSetup::from_system(rt::robot::preset(name)?)?,
+            (None, None) => DaemonSetup::from_system(rt::robot::preset("paper")?)?,
         };
         if let Some(ns) = &self.namespace {
             s.daemon.namespace = ns.clone();
@@ -289,13 +311,12 @@ fn print_device(out: &Path) {
 
 fn demo(
     common: &Common,
-    duration: f64,
+    duration: Option<f64>,
     mu: Option<f64>,
     t_on: Option<f64>,
     trigger: Option<rt::Trigger>,
     bridge: Option<BridgeKind>,
 ) -> Result<()> {
-    check_duration(duration)?;
     if bridge == Some(BridgeKind::Udp) && trigger == Some(rt::Trigger::Clock) {
         bail!(
             "--bridge udp needs --trigger state: the device expects each answer within its cycle"
@@ -308,33 +329,37 @@ fn demo(
     };
     let mut s = if common.config.is_none() && common.preset.is_none() {
         Common {
-            preset: Some("demo".into()),
+            preset: Some(common.robot_preset("demo")?.unwrap_or("demo".into())),
+            robot: None,
             ..common.clone()
         }
         .setup()?
     } else {
         common.setup()?
     };
+    // The Panda's self-motion settles over tens of periods (docs/panda-study.md): a planar
+    // demo's 25 s would end before the feedback had shown anything.
+    let duration = duration.unwrap_or(match s.system {
+        control::System::Planar(_) => 25.0,
+        control::System::Spatial(_) => 60.0,
+    });
+    check_duration(duration)?;
     if common.namespace.is_none() {
         s.daemon.namespace = format!("demo-{}", std::process::id());
     }
     if common.output.is_none() {
         s.daemon.output_dir = PathBuf::from("out/demo");
     }
-    s.system.feedback.mu = mu.unwrap_or(if s.system.feedback.mu > 0.0 {
-        s.system.feedback.mu
-    } else {
-        0.2
-    });
-    let cfg_t_on = s.system.feedback.t_on;
-    s.system.feedback.t_on = t_on.unwrap_or(if cfg_t_on > 0.0 && cfg_t_on < duration {
-        cfg_t_on
+    let fb = s.system.feedback();
+    let mu = mu.unwrap_or(if fb.mu > 0.0 { fb.mu } else { 0.2 });
+    let t_on = t_on.unwrap_or(if fb.t_on > 0.0 && fb.t_on < duration {
+        fb.t_on
     } else {
         duration / 3.0
     });
-    s.system.feedback.enabled = true;
+    s.system.schedule_feedback(mu, t_on);
     // The plant reads the same file: give it our namespace and output directory.
-    let mut plant = s.system.plant.clone().unwrap_or_default();
+    let mut plant = s.system.tables().1.clone().unwrap_or_default();
     if let Some(t) = trigger {
         s.daemon.trigger = t;
         plant.insert("trigger".into(), t.name().into());
@@ -348,7 +373,7 @@ fn demo(
         "output_dir".into(),
         s.daemon.output_dir.display().to_string().into(),
     );
-    s.system.plant = Some(plant);
+    *s.system.tables_mut().1 = Some(plant);
     s.validate()?;
     let out = s.daemon.output_dir.clone();
     rt::files::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
@@ -362,15 +387,15 @@ fn demo(
     rt::signal::install();
     let log_path = out.join("plant.log");
     let (mut guard, mut device) = spawn_plant_side(bridge, &cfg_path, &out, duration)?;
+    let fb = s.system.feedback();
     say!(
-        "chaosd demo: {}-link arm, {} model, {} Hz, plant pid {}, namespace {:?}; μ = {} from t = {:.1} s; {duration} s",
-        s.system.n(),
-        if s.system.arm.model == control::config::ModelKind::Floating { "floating-base" } else { "fixed-base" },
+        "chaosd demo: {}, {} Hz, plant pid {}, namespace {:?}; μ = {} from t = {:.1} s; {duration} s",
+        s.system.describe_arm(),
         s.daemon.rate_hz,
         guard.0.as_ref().map_or(0, |c| c.id()),
         s.daemon.namespace,
-        s.system.feedback.mu,
-        s.system.feedback.t_on
+        fb.mu,
+        fb.t_on
     );
     if let Some(d) = &device.0 {
         say!(
@@ -468,7 +493,7 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
     match (d.period_residual_before, d.period_residual_after) {
         (Some(b), Some(a)) => say!(
             "period residual       mean |q̇(t) − q̇(t−τ)|: {b:.3} rad/s before feedback → {a:.3} rad/s over the last 5 s with μ = {} ({})",
-            s.system.feedback.mu,
+            s.system.feedback().mu,
             if a == 0.0 { "periodic to rounding".to_string() } else if a <= b { format!("{:.1}× smaller", b / a) } else { format!("{:.1}× LARGER: not settled on a period-T orbit", a / b) }
         ),
         (b, a) => {
@@ -511,16 +536,19 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
     if c.track_lost + c.out_of_reach + c.nonfinite > 0 {
         say!(
             "tracking loss         error above control.track_loss = {} m on {} ticks, the start-up transient included ({} near-singular, {} with the target out of reach, {} non-finite results)",
-            s.system.control.track_loss, c.track_lost, c.singular, c.out_of_reach, c.nonfinite
+            s.system.safety().track_loss, c.track_lost, c.singular, c.out_of_reach, c.nonfinite
         );
     }
-    let sf = &s.system.safety;
+    let sf = s.system.safety();
     say!(
         "safety                filter {}: acted on {} ticks, left the null space on {} (tracking gave way), {} without a command meeting every limit; {} runaway-guard faults{}",
         if sf.enabled { "on" } else { "OFF" },
         c.safety_active, c.safety_left_null_space, c.safety_infeasible, c.faults,
         d.min_clearance_m.map_or(String::new(), |m| format!("; min clearance {m:.3} m (required {} m)", sf.clearance))
     );
+    if let Some(line) = d.joint_limits.one_line() {
+        say!("joint limits          {line}");
+    }
     say!("real-time set-up      {}", d.realtime.one_line());
     // Only the files that were written: a plant that died writes none of its own.
     let listed = |names: &[&str]| {
@@ -558,10 +586,19 @@ fn resume_live_state(s: &mut DaemonSetup, fresh: bool) -> Result<()> {
         return daemon::persist::clear(&dir)
             .with_context(|| format!("cannot remove {}", daemon::persist::path(&dir).display()));
     }
+    let Some(file) = s.system.planar() else {
+        if daemon::persist::path(&dir).exists() {
+            tracing::warn!(
+                "{} is a planar arm's live state; a spatial robot's live changes are not kept across restarts yet, so this start uses the config file alone",
+                daemon::persist::path(&dir).display()
+            );
+        }
+        return Ok(());
+    };
     let Some(saved) = daemon::persist::load(&dir, s.system.n())? else {
         return Ok(());
     };
-    let (live, edited) = daemon::persist::adopt(saved, &s.system);
+    let (live, edited) = daemon::persist::adopt(saved, file);
     if let Some(why) = edited {
         tracing::warn!("{why}");
     }
@@ -572,8 +609,8 @@ fn resume_live_state(s: &mut DaemonSetup, fresh: bool) -> Result<()> {
     tracing::info!(
         "resuming the live state saved in {}: controller time {t:.3} s, μ = {}, {} obstacles{} (--fresh starts from the file)",
         daemon::persist::path(&dir).display(),
-        s.system.feedback.mu,
-        s.system.control.obstacles.len(),
+        s.system.feedback().mu,
+        s.system.safety().obstacles,
         fault.map_or(String::new(), |f| format!(", in FAULT ({f}): `chaosctl resume` to control again"))
     );
     Ok(())

@@ -623,7 +623,7 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
                 if cfg.n() != N {
                     bail!("line {no}: a parameter change for {} links", cfg.n());
                 }
-                ctl.set_params(cfg.law_params());
+                ctl.set_params(control::tick_law::ParamBlock::Planar(cfg.law_params()));
                 rep.param_changes += 1;
             }
             "R" => {
@@ -694,7 +694,7 @@ mod tests {
             if k == 150 {
                 cfg.feedback.mu = 0.7;
                 log.committed(&cfg);
-                ctl.set_params(cfg.law_params());
+                ctl.set_params(control::tick_law::ParamBlock::Planar(cfg.law_params()));
             }
             let now = t0 + k * 1_000_000 + (k * 7919) % 300_000;
             let mut s = StateSample {

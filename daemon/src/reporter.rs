@@ -14,7 +14,7 @@ use crate::config::DaemonConfig;
 use crate::recording::Recording;
 use crate::telemetry::{DaemonSummary, LoopRequest, TickRecord, SUMMARY_FILE};
 use anyhow::anyhow;
-use control::Config;
+use control::System;
 use hdrhistogram::Histogram;
 use protocol::{Mode, ServiceNames, StateSample, TelemetrySample};
 use rt::hist::{self, Percentiles};
@@ -34,7 +34,7 @@ pub struct Reporter {
     pub(crate) names: ServiceNames,
     pub(crate) daemon: DaemonConfig,
     /// The running configuration: the only copy that changes.
-    pub(crate) cfg: Config,
+    pub(crate) system: System,
     pub(crate) params_tx: crossbeam::channel::Sender<LoopRequest>,
     pub(crate) rt_rx: crossbeam::channel::Receiver<rt::setup::RtReport>,
     pub(crate) min_tau: f64,
@@ -83,24 +83,28 @@ pub struct Reporter {
     pub(crate) save_error_said: bool,
     /// Why the handshake refuses the current plant, if it does.
     pub(crate) handshake: crate::handshake::Refusal,
+    /// How close the arm came to its joint limits.
+    pub(crate) limits: crate::limits::LimitWatch,
 }
 
 impl Reporter {
     pub fn new(
-        cfg: Config,
+        system: System,
         daemon: DaemonConfig,
         params_tx: crossbeam::channel::Sender<LoopRequest>,
         rt_rx: crossbeam::channel::Receiver<rt::setup::RtReport>,
     ) -> anyhow::Result<Self> {
         let names =
             ServiceNames::new(&daemon.namespace).map_err(|e| anyhow!("daemon.namespace: {e}"))?;
+        let limits = crate::limits::LimitWatch::new(*system.param_block().safety(), system.n());
         Ok(Self {
+            limits,
             names,
             report_every: (daemon.report_every_s > 0.0)
                 .then(|| Duration::from_secs_f64(daemon.report_every_s)),
             min_tau: 1.0 / daemon.rate_hz,
             daemon,
-            cfg,
+            system,
             params_tx,
             rt_rx,
             realtime: Default::default(),
@@ -168,8 +172,12 @@ impl Reporter {
     }
 
     /// Saves the live configuration, controller time and FAULT for a restart (see `persist`).
+    /// A spatial robot's live changes are not kept yet: the file is the whole truth on restart.
     pub(crate) fn save_live_state(&mut self) {
-        let mut system = self.cfg.clone();
+        let System::Planar(cfg) = &self.system else {
+            return;
+        };
+        let mut system = cfg.clone();
         system.daemon = None;
         system.plant = None;
         let state = crate::persist::LiveState {
@@ -244,6 +252,12 @@ impl Reporter {
             if r.clearance.is_finite() {
                 self.min_clearance = self.min_clearance.min(r.clearance);
             }
+            if let Some(st) = &r.state {
+                self.limits.observe_state(st);
+            }
+            if let Some(c) = &r.command {
+                self.limits.observe_command(c);
+            }
             self.tel.min_clearance = self.tel.min_clearance.min(r.clearance);
             if r.law_flags & control::law::flags::IN_SAFETY_ZONE != 0 {
                 self.safety_ticks += 1;
@@ -296,7 +310,7 @@ impl Reporter {
             mode: r.mode as u32,
             feedback_on: u32::from(r.feedback_on),
             feedback_active: u32::from(self.last_feedback_active),
-            n: self.cfg.n() as u32,
+            n: self.system.n() as u32,
             mu: r.mu,
             tau: r.tau,
             t_on: r.t_on,
@@ -533,6 +547,7 @@ impl Reporter {
             period_residual_after: residual_after,
             feedback_on_at_s: self.feedback_on_at,
             min_clearance_m: self.min_clearance.is_finite().then_some(self.min_clearance),
+            joint_limits: self.limits.seen(),
             time_in_safety_zone_s: self.safety_ticks as f64 / self.daemon.rate_hz,
             files: Vec::new(),
         };

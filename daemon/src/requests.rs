@@ -17,7 +17,7 @@ pub const KEYS: &str = "mu, tau, t_on, feedback (on|off), projection (full|null-
                         safety.q_min, safety.q_max (one per joint; inf = unlimited), safety.k0, safety.k1, \
                         safety.push_out_speed, safety.k_rate, safety.guard_time, safety.guard_tracking_error, safety.guard_growth_time";
 
-fn on_off(key: &str, v: Option<&str>) -> Result<bool, String> {
+pub(crate) fn on_off(key: &str, v: Option<&str>) -> Result<bool, String> {
     match v {
         Some("on" | "true" | "1") => Ok(true),
         Some("off" | "false" | "0") => Ok(false),
@@ -63,7 +63,7 @@ fn limit<'a>(
     Ok(control::safety::config::Limit::Each(v))
 }
 
-fn num(key: &str, v: Option<&str>) -> Result<f64, String> {
+pub(crate) fn num(key: &str, v: Option<&str>) -> Result<f64, String> {
     let v = v.ok_or_else(|| format!("{key}: missing value"))?;
     let x: f64 = v
         .parse()
@@ -183,20 +183,38 @@ pub fn apply_dfc(cfg: &Config, on: bool, now: f64) -> Result<Config, String> {
     Ok(c)
 }
 
+/// An obstacle's positional numbers and its margin: `margin=M` anywhere, or one more number
+/// after the `positions` (the older form), else 0.1 m.
+pub(crate) fn obstacle_args<'a>(
+    args: &'a str,
+    positions: usize,
+    usage: &str,
+) -> Result<(Vec<&'a str>, f64), String> {
+    let mut v: Vec<&str> = Vec::new();
+    let mut margin = None;
+    for w in args.split_whitespace() {
+        match w.strip_prefix("margin=") {
+            Some(m) => margin = Some(num("margin", Some(m))?),
+            None => v.push(w),
+        }
+    }
+    if margin.is_none() && v.len() == positions + 1 {
+        margin = Some(num("margin", v.pop())?);
+    }
+    if v.len() != positions {
+        return Err(format!("obstacle add needs {usage}, got {} numbers", v.len()));
+    }
+    Ok((v, margin.unwrap_or(0.1)))
+}
+
 /// `X Y RADIUS [MARGIN]`.
 pub fn apply_obstacle_add(cfg: &Config, args: &str) -> Result<Config, String> {
-    let v: Vec<&str> = args.split_whitespace().collect();
-    if !(3..=4).contains(&v.len()) {
-        return Err("obstacle add needs X Y RADIUS [MARGIN] (m)".into());
-    }
+    let usage = "X Y RADIUS [MARGIN] (m) for the planar arm";
+    let (v, margin) = obstacle_args(args, 3, usage)?;
     let o = ObstacleConfig {
         center: [num("x", Some(v[0]))?, num("y", Some(v[1]))?],
         radius: num("radius", Some(v[2]))?,
-        margin: if v.len() == 4 {
-            num("margin", Some(v[3]))?
-        } else {
-            0.1
-        },
+        margin,
     };
     validate_obstacle("obstacle", &o).map_err(|e| e.to_string())?;
     let mut c = cfg.clone();

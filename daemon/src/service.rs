@@ -56,12 +56,17 @@ fn run_n<const N: usize>(
     let (rt_tx, rt_rx) = crossbeam::channel::bounded::<rt::setup::RtReport>(1);
     let settings = setup.controller_settings(protocol::new_instance_id());
     let start_in_fault = setup.live.as_ref().is_some_and(|l| l.fault.is_some());
-    let replay = match &setup.record {
-        Some(name) => Some(
+    let replay = match (&setup.record, setup.system.planar()) {
+        (Some(_), None) => {
+            return Err(anyhow!(
+                "--record: replay recordings are made of the planar arm only so far (`chaosctl record start` records a spatial robot's ticks as CSV)"
+            ))
+        }
+        (Some(name), Some(planar)) => Some(
             crate::replay::ReplayLog::create(
                 &d.output_dir,
                 name,
-                &setup.system,
+                planar,
                 &settings,
                 start_in_fault,
                 true, // the loop requires the handshake (below)
@@ -69,7 +74,7 @@ fn run_n<const N: usize>(
             .map_err(|e| anyhow!("--record: {e}"))?
             .with_max_bytes(d.record_max_bytes),
         ),
-        None => None,
+        (None, _) => None,
     };
     let running = Arc::new(AtomicBool::new(true));
     // The handshake: which plant the loop may control (see `handshake`).
@@ -166,7 +171,7 @@ fn control_loop<const N: usize>(
 
     let mut ctl = Controller::<N>::new(
         setup.system.tick_law::<N>(),
-        setup.system.feedback.max_tau,
+        setup.system.feedback().max_tau,
         settings,
     );
     ctl.require_handshake();

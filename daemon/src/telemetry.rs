@@ -7,7 +7,7 @@
 //! ([`crate::recording`]), and serves the control service ([`crate::control_service`]).
 
 use crate::controller::Counters;
-use control::LawParams;
+use control::tick_law::ParamBlock;
 use protocol::{CommandSample, Mode, StateSample};
 use rt::hist::Percentiles;
 use serde::Serialize;
@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 #[derive(Clone, Copy, Debug)]
 pub enum LoopRequest {
     /// A validated parameter block, swapped in between two ticks.
-    Params(LawParams),
+    Params(ParamBlock),
     /// Leave FAULT (`chaosctl resume`).
     Resume,
     /// Sleep this many ms between two ticks (`chaosctl debug-stall`, a watchdog check).
@@ -85,6 +85,8 @@ pub struct DaemonSummary {
     pub period_residual_after: Option<f64>,
     pub feedback_on_at_s: Option<f64>,
     pub min_clearance_m: Option<f64>,
+    /// How close the arm came to its joint limits (states the law used, commands sent).
+    pub joint_limits: crate::limits::LimitsSeen,
     pub time_in_safety_zone_s: f64,
     pub files: Vec<PathBuf>,
 }

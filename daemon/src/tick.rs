@@ -70,7 +70,9 @@ impl ClockTick<'_> {
 /// Applies at most one request from the control service (never blocks).
 pub fn take_request<const N: usize>(ctl: &mut Controller<N>, rx: &Receiver<LoopRequest>) {
     match rx.try_recv() {
-        Ok(LoopRequest::Params(p)) => ctl.set_params(p),
+        Ok(LoopRequest::Params(p)) => {
+            ctl.set_params(p);
+        }
         Ok(LoopRequest::Resume) => {
             ctl.resume();
         }

@@ -32,7 +32,7 @@ use crate::config::PlantConfig;
 use crate::report::PlantSummary;
 use crate::seam::Plant;
 use anyhow::{anyhow, Context, Result};
-use control::Config;
+use control::System;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -59,7 +59,7 @@ pub struct PlantArgs {
 /// A validated start: the whole system config, the `[plant]` table, and the run length.
 #[derive(Clone, Debug)]
 pub struct Launch {
-    pub system: Config,
+    pub system: System,
     pub plant: PlantConfig,
     pub duration: Option<f64>,
 }
@@ -77,13 +77,12 @@ pub fn load(args: &PlantArgs) -> Result<Launch> {
         (Some(p), _) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read config file {}", p.display()))?;
-            Config::from_toml_str(&text).with_context(|| format!("in {}", p.display()))?
+            rt::robot::parse(&text).with_context(|| format!("in {}", p.display()))?
         }
-        (None, Some(name)) => Config::preset(name)?,
-        (None, None) => Config::preset("paper")?,
+        (None, Some(name)) => rt::robot::preset(name)?,
+        (None, None) => rt::robot::preset("paper")?,
     };
-    system.validate()?;
-    let mut plant = PlantConfig::from_table(system.plant.as_ref())?;
+    let mut plant = PlantConfig::from_table(system.tables().1.as_ref())?;
     if let Some(ns) = &args.namespace {
         plant.namespace = ns.clone();
     }

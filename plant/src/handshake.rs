@@ -8,7 +8,7 @@
 
 use anyhow::{anyhow, Result};
 use control::config::ModelKind;
-use control::Config;
+use control::System;
 use protocol::handshake::{Exchange, Side};
 use protocol::{mismatch, ArmInfo, FloatingBase, ServiceNames};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -21,8 +21,15 @@ const POLL: Duration = Duration::from_millis(2);
 /// How long a refusing plant keeps its description up before it stops.
 const GRACE: Duration = Duration::from_millis(300);
 
-/// The description of the arm in `system` (the plant's `[arm]`).
-pub fn describe(system: &Config) -> ArmInfo {
+/// The description of the arm in `system` (the plant's `[arm]`, or its `[robot]`).
+pub fn describe(system: &System) -> ArmInfo {
+    let system = match system {
+        System::Planar(c) => c,
+        System::Spatial(s) => {
+            let id = s.identity();
+            return ArmInfo::chain(0, s.chain.dof(), &id.name, id.fingerprint);
+        }
+    };
     let masses = system.link_masses();
     let inertias = system.link_inertias();
     let floating = (system.arm.model == ModelKind::Floating).then(|| FloatingBase {
@@ -127,13 +134,16 @@ mod tests {
 
     #[test]
     fn the_description_follows_the_config() {
-        let mut c = Config::preset("paper").unwrap();
+        let mut c = control::Config::preset("paper").unwrap();
         c.arm.links = vec![1.0, 0.5, 0.25, 0.125];
-        let d = describe(&c);
+        let d = describe(&System::Planar(c));
         assert_eq!((d.n, d.kind), (4, protocol::handshake::KIND_FIXED));
         assert_eq!(&d.links[..4], &[1.0, 0.5, 0.25, 0.125]);
-        let f = describe(&Config::preset("paper-floating").unwrap());
+        let f = describe(&rt::robot::preset("paper-floating").unwrap());
         assert_eq!(f.kind, protocol::handshake::KIND_FLOATING);
         assert!(f.base_mass > 0.0);
+        let p = describe(&rt::robot::preset("panda").unwrap());
+        assert_eq!((p.n, p.kind), (7, protocol::handshake::KIND_CHAIN));
+        assert_eq!(p.robot_name(), "panda (panda_link0 → panda_link8)");
     }
 }

@@ -26,7 +26,7 @@ fn main() -> ExitCode {
         let (system, cfg) = (&l.system, &l.plant);
         let period = cfg.period_ns() as f64 * 1e-9;
         with_dof!(system.n(), N => {
-            let mut sim = SimPlant::<N>::new(system.model::<N>(), system.initial_state(), period, cfg.substeps, cfg.brake_gain);
+            let mut sim = SimPlant::<N>::for_system(system, period, cfg.substeps, cfg.brake_gain);
             let summary = plant::run::run(&mut sim, cfg, &l.arm(), l.duration);
             if sim.time_jumps() > 0 {
                 tracing::warn!("{} stalls longer than {} s were skipped, not simulated", sim.time_jumps(), plant::sim::MAX_CATCH_UP_S);

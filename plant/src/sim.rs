@@ -14,7 +14,7 @@
 use crate::seam::{Actuation, Plant, PlantError};
 use control::hold;
 use control::sim::{plant_derivative, rk4_step};
-use control::{ArmModel, ArmState, VecN};
+use control::{ArmModel, ArmState, FixedArm, System, VecN};
 use protocol::{flags, StateSample};
 
 pub struct SimPlant<const N: usize> {
@@ -57,6 +57,18 @@ impl<const N: usize> SimPlant<N> {
             since: 0.0,
             braking: true,
         }
+    }
+
+    /// The simulated arm a config describes: the planar arm's model (a floating base turns), or
+    /// a URDF chain on its fixed base. `N` must be `system.n()`.
+    pub fn for_system(system: &System, period: f64, substeps: u32, brake_gain: f64) -> Self {
+        let model = match system {
+            System::Planar(c) => c.model::<N>(),
+            // The kinematic plant integrates q̈ alone: a fixed base has φ̇ = 0 and the link
+            // lengths are never read.
+            System::Spatial(_) => ArmModel::Fixed(FixedArm::new([0.0; N])),
+        };
+        Self::new(model, system.initial_state(), period, substeps, brake_gain)
     }
 
     pub fn state(&self) -> &ArmState<N> {

@@ -120,6 +120,8 @@ impl Default for LawSection {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct FeedbackSection {
+    /// The switch (`chaosctl dfc on|off`); μ = 0 also leaves the law as the paper's.
+    pub enabled: bool,
     pub mu: f64,
     /// Default: the task's period.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -132,6 +134,7 @@ pub struct FeedbackSection {
 impl Default for FeedbackSection {
     fn default() -> Self {
         Self {
+            enabled: true,
             mu: 0.0,
             tau: None,
             t_on: 0.0,
@@ -512,7 +515,7 @@ impl SpatialConfig {
             mu: self.feedback.mu,
             tau: self.feedback.tau.unwrap_or(self.task.period),
             t_on: self.feedback.t_on,
-            feedback: true,
+            feedback: self.feedback.enabled,
             projection: self.projection()?,
             safety,
             track_loss: self.law.track_loss,

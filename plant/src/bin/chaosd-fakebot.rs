@@ -175,7 +175,7 @@ fn run(a: &Args) -> Result<FakebotSummary> {
     };
     let period = p.period_ns() as f64 * 1e-9;
     let s = &l.system;
-    let c = with_dof!(s.n(), N => fakebot::run::<N>(&cfg, || SimPlant::<N>::new(s.model::<N>(), s.initial_state(), period, p.substeps, p.brake_gain), l.duration))?;
+    let c = with_dof!(s.n(), N => fakebot::run::<N>(&cfg, || SimPlant::<N>::for_system(s, period, p.substeps, p.brake_gain), l.duration))?;
     if let Some(path) = &a.summary {
         rt::files::write(path, serde_json::to_string_pretty(&c)?)
             .with_context(|| format!("cannot write {}", path.display()))?;

@@ -1,0 +1,189 @@
+//! `chaosctl set`, `dfc` and `obstacle` on a spatial robot: the same all-or-nothing rule as the
+//! planar [`crate::requests`].
+//!
+//! A change is made to a copy of the running [`SpatialSystem`]'s file and checked against its
+//! chain by the same `setup` that guards start-up, and at the daemon's own step, so a client can
+//! never set what a config file could not. The keys are the spatial file's (`law.*`,
+//! `feedback.*`, `task.*`, `safety.*`), short forms as for the planar arm. These functions do no
+//! I/O.
+
+use crate::requests::{num, on_off};
+use control::spatial::config::SphereEntry;
+use control::system::SpatialSystem;
+use control::System;
+
+/// Keys `set` accepts on a spatial robot, for the error message.
+pub const KEYS: &str = "mu, tau, t_on, feedback (on|off), projection (full|null-space), kp, kv, alpha, \
+                        secondary (none|manipulability|centring|obstacles), obstacle_weight, null_damping, \
+                        damping_threshold, damping_max, track_loss, task.center X Y Z, task.radius, task.period, \
+                        safety (on|off), safety.clearance, safety.velocity_scale";
+
+/// Applies `KEY VALUE… [KEY VALUE…]` to a copy of `s`; `min_tau` is one control period.
+pub fn apply_set(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialSystem, String> {
+    let mut n = s.clone();
+    let c = &mut n.config;
+    let mut it = args.split_whitespace();
+    let mut any = false;
+    while let Some(key) = it.next() {
+        any = true;
+        let k = key
+            .trim_start_matches("feedback.")
+            .trim_start_matches("law.");
+        macro_rules! f {
+            () => {
+                num(key, it.next())
+            };
+        }
+        match k {
+            "mu" => c.feedback.mu = f!()?,
+            "tau" => c.feedback.tau = Some(f!()?),
+            "t_on" => c.feedback.t_on = f!()?,
+            "feedback" | "enabled" | "dfc" => c.feedback.enabled = on_off(key, it.next())?,
+            "projection" => c.feedback.projection = word(key, it.next(), &["full", "null-space"])?,
+            "kp" => c.law.kp = f!()?,
+            "kv" => c.law.kv = f!()?,
+            "alpha" => c.law.alpha = f!()?,
+            "secondary" => {
+                let kinds = ["none", "manipulability", "centring", "obstacles"];
+                c.law.secondary = word(key, it.next(), &kinds)?
+            }
+            "obstacle_weight" => c.law.obstacle_weight = f!()?,
+            "null_damping" => c.law.null_damping = f!()?,
+            "damping_threshold" => c.law.damping_threshold = f!()?,
+            "damping_max" => c.law.damping_max = f!()?,
+            "track_loss" => c.law.track_loss = f!()?,
+            "task.center" | "center" => c.task.center = Some([f!()?, f!()?, f!()?]),
+            "task.radius" | "radius" => c.task.radius = f!()?,
+            "task.period" | "period" => c.task.period = f!()?,
+            "safety" | "safety.enabled" => c.safety.enabled = on_off(key, it.next())?,
+            "safety.clearance" => c.safety.clearance = f!()?,
+            "safety.velocity_scale" => c.safety.velocity_scale = f!()?,
+            _ => return Err(format!("unknown key {key:?}; keys: {KEYS}")),
+        }
+    }
+    if !any {
+        return Err(format!("set needs KEY VALUE pairs; keys: {KEYS}"));
+    }
+    checked(n, min_tau)
+}
+
+/// A word out of `allowed` for `key`.
+fn word(key: &str, v: Option<&str>, allowed: &[&str]) -> Result<String, String> {
+    match v {
+        Some(w) if allowed.contains(&w) => Ok(w.to_string()),
+        other => Err(format!("{key}: {other:?} is not one of {}", allowed.join(", "))),
+    }
+}
+
+/// Feedback on from controller time `now`, or off.
+pub fn apply_dfc(s: &SpatialSystem, on: bool, now: f64, min_tau: f64) -> Result<SpatialSystem, String> {
+    let mut n = s.clone();
+    n.config.feedback.enabled = on;
+    if on {
+        n.config.feedback.t_on = now.max(0.0);
+        if n.config.feedback.mu == 0.0 {
+            return Err("feedback.mu is 0: set a gain first (chaosctl set mu 1)".into());
+        }
+    }
+    checked(n, min_tau)
+}
+
+/// `X Y Z RADIUS [MARGIN]` (m): a sphere.
+pub fn apply_obstacle_add(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialSystem, String> {
+    let usage = "X Y Z RADIUS [MARGIN] (m) on a spatial robot";
+    let (v, margin) = crate::requests::obstacle_args(args, 4, usage)?;
+    let sphere = SphereEntry {
+        center: [num("x", Some(v[0]))?, num("y", Some(v[1]))?, num("z", Some(v[2]))?],
+        radius: num("radius", Some(v[3]))?,
+        margin,
+    };
+    let mut n = s.clone();
+    n.config.obstacles.push(sphere);
+    checked(n, min_tau)
+}
+
+/// `INDEX` (as listed by `obstacle ls`).
+pub fn apply_obstacle_remove(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialSystem, String> {
+    let i: usize = args
+        .trim()
+        .parse()
+        .map_err(|_| format!("obstacle rm needs an index, got {:?}", args.trim()))?;
+    let mut n = s.clone();
+    if i >= n.config.obstacles.len() {
+        return Err(format!("no obstacle {i}: there are {}", n.config.obstacles.len()));
+    }
+    n.config.obstacles.remove(i);
+    checked(n, min_tau)
+}
+
+/// The new set-up, if it validates against the chain and at the daemon's step.
+fn checked(n: SpatialSystem, min_tau: f64) -> Result<SpatialSystem, String> {
+    let system = System::Spatial(Box::new(n));
+    system.validate().map_err(|e| e.to_string())?;
+    let step = format!("the daemon's {:.0} Hz", 1.0 / min_tau);
+    system.check_step(min_tau, &step).map_err(|e| e.to_string())?;
+    match system {
+        System::Spatial(s) => Ok(*s),
+        System::Planar(_) => Err("not a spatial set-up".into()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn panda() -> SpatialSystem {
+        match rt::robot::preset("panda").unwrap() {
+            System::Spatial(s) => *s,
+            System::Planar(_) => panic!("panda is spatial"),
+        }
+    }
+
+    #[test]
+    fn set_changes_all_or_nothing() {
+        let p = panda();
+        let n = apply_set(&p, "mu 0.5 law.kp 30 projection full", 1e-3).unwrap();
+        assert_eq!((n.config.feedback.mu, n.config.law.kp), (0.5, 30.0));
+        assert_eq!(n.config.feedback.projection, "full");
+        for (args, says) in [
+            ("mu -1", "feedback.mu"),
+            ("kp", "missing value"),
+            ("bogus 1", "unknown key"),
+            ("secondary wobble", "centring"),
+            ("task.radius 5", "reach"),
+            ("", "KEY VALUE"),
+            ("kp 1e9", "law.kp"),
+        ] {
+            let e = apply_set(&p, args, 1e-3).unwrap_err();
+            assert!(e.contains(says), "{args}: {e}");
+        }
+    }
+
+    #[test]
+    fn spheres_are_added_and_removed_in_3d() {
+        let p = panda();
+        let n = apply_obstacle_add(&p, "0.5 0.2 0.4 0.05", 1e-3).unwrap();
+        assert_eq!(n.config.obstacles.len(), 1);
+        assert_eq!(n.config.obstacles[0].center, [0.5, 0.2, 0.4]);
+        assert!(apply_obstacle_add(&p, "0.5 0.2 0.05 margin=0.1", 1e-3)
+            .unwrap_err()
+            .contains("X Y Z RADIUS"));
+        let m = apply_obstacle_add(&p, "0.5 0.2 0.4 0.05 margin=0.2", 1e-3).unwrap();
+        assert_eq!(m.config.obstacles[0].margin, 0.2);
+        assert!(apply_obstacle_add(&p, "0.5 0.2 nan 0.05", 1e-3).is_err());
+        assert!(apply_obstacle_add(&p, "0.5 0.2 0.4 -1", 1e-3).is_err());
+        let back = apply_obstacle_remove(&n, "0", 1e-3).unwrap();
+        assert!(back.config.obstacles.is_empty());
+        assert!(apply_obstacle_remove(&n, "3", 1e-3).unwrap_err().contains("no obstacle 3"));
+    }
+
+    #[test]
+    fn dfc_needs_a_gain() {
+        let mut p = panda();
+        let on = apply_dfc(&p, true, 12.0, 1e-3).unwrap();
+        assert_eq!((on.config.feedback.enabled, on.config.feedback.t_on), (true, 12.0));
+        p.config.feedback.mu = 0.0;
+        assert!(apply_dfc(&p, true, 1.0, 1e-3).unwrap_err().contains("mu"));
+        assert!(!apply_dfc(&p, false, 1.0, 1e-3).unwrap().config.feedback.enabled);
+    }
+}
