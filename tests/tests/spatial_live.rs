@@ -1,0 +1,112 @@
+//! The Panda through the real processes: `chaosd demo --robot panda`, a daemon and a plant on a
+//! spatial config taking live 3-D changes, and the handshake refusing a planar plant.
+
+use std::time::Duration;
+use tests::live::*;
+use tests::*;
+
+const PANDA: &str = control::spatial::config::PANDA;
+
+#[test]
+fn the_panda_demo_runs_daemon_and_plant_inside_the_limits_and_the_feedback_shows() {
+    let _g = serial();
+    let dir = TempDir::new(&unique_namespace("panda-demo"));
+    let out = dir.path().join("out");
+    let o = std::process::Command::new(bin("chaosd"))
+        .args(["demo", "--robot", "panda", "--duration", "14", "--t-on", "5"])
+        .args(["--output", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    assert!(
+        stdout.contains("panda (panda_link0 → panda_link8), 7 joints, position task"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("0 states outside a position or speed limit, 0 commands beyond an acceleration limit"),
+        "{stdout}"
+    );
+    let s = read_json(&out.join("daemon-summary.json"));
+    assert!(s["counters"]["ticks"].as_u64().unwrap() > 10_000, "{s}");
+    assert_eq!(s["counters"]["faults"], 0, "{s}");
+    assert!(s["tracking_rms_m"].as_f64().unwrap() < 1e-3, "{s}");
+    // Chaotic before, settling with μ = 1 from t = 5 s: the last 5 s are well below.
+    let before = s["period_residual_before"].as_f64().unwrap();
+    let after = s["period_residual_after"].as_f64().unwrap();
+    assert!(before > 0.3 && after < 0.6 * before, "{before} → {after}");
+    let limits = &s["joint_limits"];
+    assert!(limits["min_position_margin"].as_f64().unwrap() > 0.0, "{limits}");
+    assert!(limits["peak_speed_fraction"].as_f64().unwrap() <= 1.0, "{limits}");
+}
+
+#[test]
+fn a_live_panda_takes_spheres_and_gains_and_refuses_what_its_file_could_not_say() {
+    let _g = serial();
+    let sys = start("panda-live", PANDA);
+    let st = status(&sys.ns);
+    assert_eq!(st["n"], 7, "{st}");
+    assert_eq!(st["robot"], "panda (panda_link0 → panda_link8)", "{st}");
+    let (code, out, err) = ctl(&sys.ns, &["obstacle", "add", "1.0", "-1.0", "1.5", "0.05"]);
+    assert_eq!(code, 0, "{out}{err}");
+    let (code, out, err) = ctl(&sys.ns, &["obstacle", "ls"]);
+    assert_eq!(code, 0, "{err}");
+    let listed: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(listed[0]["center"], serde_json::json!([1.0, -1.0, 1.5]), "{out}");
+    for (args, says) in [
+        (&["obstacle", "add", "1.0", "-1.0", "0.05"][..], "X Y Z RADIUS"),
+        (&["set", "kp", "1e9"][..], "law.kp"),
+        (&["set", "secondary", "wobble"][..], "centring"),
+        (&["set", "links", "1"][..], "unknown key"),
+    ] {
+        let (code, out, err) = ctl(&sys.ns, args);
+        assert_ne!(code, 0, "{args:?} was accepted: {out}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+    let (code, _, err) = ctl(&sys.ns, &["set", "mu", "0.5", "projection", "full"]);
+    assert_eq!(code, 0, "{err}");
+    std::thread::sleep(Duration::from_millis(300));
+    let st = status(&sys.ns);
+    assert_eq!((st["mu"].as_f64(), st["projection"].as_str()), (Some(0.5), Some("full")), "{st}");
+    assert_eq!((st["mode"].as_str(), st["obstacles"].as_u64()), (Some("Run"), Some(1)), "{st}");
+    let (code, _, err) = ctl(&sys.ns, &["obstacle", "rm", "0"]);
+    assert_eq!(code, 0, "{err}");
+    let (code, text, err) = ctl(&sys.ns, &["status"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(text.contains("arm       panda (panda_link0 → panda_link8), 7 joints"), "{text}");
+}
+
+#[test]
+fn a_panda_daemon_and_a_planar_plant_refuse_each_other_naming_both() {
+    let _g = serial();
+    let ns = unique_namespace("panda-hs");
+    let dir = TempDir::new(&ns);
+    let d = dir.path().join("d");
+    let p = dir.path().join("p");
+    std::fs::create_dir_all(&d).unwrap();
+    std::fs::create_dir_all(&p).unwrap();
+    let daemon_cfg = write_config(&d, &ns, "", PANDA);
+    let plant_cfg = write_config(&p, &ns, "", "");
+    let _daemon = Proc::spawn(
+        "daemon",
+        &bin("chaosd"),
+        &["run", "--config", daemon_cfg.to_str().unwrap()],
+        dir.path(),
+    );
+    let mut plant = Proc::spawn(
+        "plant",
+        &bin("chaosd-plant"),
+        &["--config", plant_cfg.to_str().unwrap()],
+        dir.path(),
+    );
+    let st = plant.wait_exit(Duration::from_secs(15));
+    assert!(!st.success(), "the plant accepted a Panda daemon:\n{}", plant.log());
+    let log = plant.log();
+    assert!(
+        log.contains("is a 3-link fixed arm (links 1,1,1), daemon expects a 7-joint panda (panda_link0 → panda_link8)"),
+        "{log}"
+    );
+}
