@@ -24,7 +24,7 @@ macro_rules! say {
 #[command(
     name = "chaosd",
     version,
-    about = "Real-time chaos-control daemon for a redundant planar arm"
+    about = "Real-time chaos-control daemon for a redundant arm (the paper's planar arm or a URDF robot)"
 )]
 struct Cli {
     #[command(subcommand)]
