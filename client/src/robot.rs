@@ -60,8 +60,7 @@ struct Which {
 
 impl Which {
     fn load(&self) -> anyhow::Result<Chain> {
-        let mut chain =
-            rt::robot::load(&self.robot, self.base.as_deref(), self.tip.as_deref())?;
+        let mut chain = rt::robot::load(&self.robot, self.base.as_deref(), self.tip.as_deref())?;
         if let Some(g) = &self.gravity {
             let g = parse_list("--gravity", g, 3, "x,y,z")?;
             chain.gravity = Vector3::new(g[0], g[1], g[2]);

@@ -21,6 +21,8 @@ pub struct SpatialSystem {
 }
 
 /// A whole set-up, planar or spatial.
+// Built once at start-up and on a live change, never on the loop: size does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum System {
     Planar(Config),
@@ -61,13 +63,13 @@ impl System {
     /// Loads the chain of a spatial file and checks the file against it.
     pub fn spatial(config: SpatialConfig, resolve: Resolve) -> Result<Self, ConfigError> {
         let r = &config.robot;
-        let chain = resolve(&r.description, r.base.as_deref(), r.tip.as_deref()).map_err(
-            |e| ConfigError::Invalid {
+        let chain = resolve(&r.description, r.base.as_deref(), r.tip.as_deref()).map_err(|e| {
+            ConfigError::Invalid {
                 field: "robot.description".into(),
                 value: format!("{:?}", r.description),
                 expected: e,
-            },
-        )?;
+            }
+        })?;
         let s = System::Spatial(Box::new(SpatialSystem { config, chain }));
         s.validate()?;
         Ok(s)
@@ -345,7 +347,8 @@ mod tests {
         let again = System::parse(&s.to_toml(), &builtin).unwrap();
         assert_eq!(again.identity().unwrap(), id);
         let short = System::parse(
-            &s.to_toml().replace("[robot]\n", "[robot]\ntip = \"panda_link7\"\n"),
+            &s.to_toml()
+                .replace("[robot]\n", "[robot]\ntip = \"panda_link7\"\n"),
             &builtin,
         )
         .unwrap();

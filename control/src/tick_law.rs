@@ -30,6 +30,8 @@ pub enum TickLaw<const N: usize> {
 }
 
 /// A new parameter block for a running [`TickLaw`] (the daemon's live changes).
+// Not boxed: it crosses to the loop by value, and the loop frees nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ParamBlock {
     Planar(LawParams),

@@ -255,10 +255,7 @@ impl DaemonSetup {
             None => DaemonConfig::default(),
         };
         let s = Self {
-            file_fingerprint: system
-                .planar()
-                .map(crate::persist::fingerprint)
-                .unwrap_or_default(),
+            file_fingerprint: crate::persist::fingerprint(&system),
             system,
             daemon,
             live: None,
@@ -352,13 +349,14 @@ impl DaemonSetup {
         }
         let text = std::fs::read_to_string(path)
             .map_err(|e| anyhow::anyhow!("cannot read config file {}: {e}", path.display()))?;
-        let system = rt::robot::parse(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        let system =
+            rt::robot::parse(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         Self::from_system(system).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
     }
 
     /// Adopts a saved live state: its system settings, with this file's `[daemon]` and `[plant]`.
     pub fn resume_from(&mut self, live: crate::persist::LiveState) -> Result<(), ConfigError> {
-        let mut system = System::Planar(live.system.clone());
+        let mut system = live.system.to_system()?;
         let (daemon, plant) = self.system.tables();
         let (d, p) = system.tables_mut();
         (*d, *p) = (daemon.clone(), plant.clone());

@@ -97,12 +97,22 @@ impl Reporter {
 
     /// The obstacles as `obstacle ls` lists them (2-D circles or 3-D spheres).
     fn obstacles(&self) -> serde_json::Value {
-        let row = |i: usize, c: &[f64], r: f64, m: f64| {
-            serde_json::json!({"index": i, "center": c, "radius": r, "margin": m})
-        };
+        let row = |i: usize, c: &[f64], r: f64, m: f64| serde_json::json!({"index": i, "center": c, "radius": r, "margin": m});
         let rows: Vec<_> = match &self.system {
-            System::Planar(c) => c.control.obstacles.iter().enumerate().map(|(i, o)| row(i, &o.center, o.radius, o.margin)).collect(),
-            System::Spatial(s) => s.config.obstacles.iter().enumerate().map(|(i, o)| row(i, &o.center, o.radius, o.margin)).collect(),
+            System::Planar(c) => c
+                .control
+                .obstacles
+                .iter()
+                .enumerate()
+                .map(|(i, o)| row(i, &o.center, o.radius, o.margin))
+                .collect(),
+            System::Spatial(s) => s
+                .config
+                .obstacles
+                .iter()
+                .enumerate()
+                .map(|(i, o)| row(i, &o.center, o.radius, o.margin))
+                .collect(),
         };
         serde_json::json!(rows)
     }
@@ -157,7 +167,16 @@ impl Reporter {
             "state_to_command": Percentiles::of(&self.state_to_command),
             "answered_within_period": self.answered_share(),
         });
-        for k in ["kp", "kv", "alpha", "secondary", "obstacles", "max_tau", "robot", "projection"] {
+        for k in [
+            "kp",
+            "kv",
+            "alpha",
+            "secondary",
+            "obstacles",
+            "max_tau",
+            "robot",
+            "projection",
+        ] {
             if let Some(x) = law.get(k) {
                 v[k] = x.clone();
             }
@@ -209,7 +228,9 @@ impl Reporter {
             }
             Op::RecordStart => self.start_recording(args),
             Op::RecordStop => match self.recording.take() {
-                None if self.recording_error.is_some() => Err(self.recording_error.take().unwrap_or_default()),
+                None if self.recording_error.is_some() => {
+                    Err(self.recording_error.take().unwrap_or_default())
+                }
                 Some(r) => r.finish(),
                 None => Err("not recording".into()),
             },
@@ -219,9 +240,12 @@ impl Reporter {
             }
             Op::Resume => self.resume(),
             Op::DebugStall => crate::requests::parse_stall(args).and_then(|ms| {
-                self.params_tx.try_send(LoopRequest::Stall(ms)).map_err(|_| {
-                    "the control loop has not taken the previous request yet; try again".to_string()
-                })?;
+                self.params_tx
+                    .try_send(LoopRequest::Stall(ms))
+                    .map_err(|_| {
+                        "the control loop has not taken the previous request yet; try again"
+                            .to_string()
+                    })?;
                 Ok(format!("stalling the control loop for {ms} ms"))
             }),
         };

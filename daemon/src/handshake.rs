@@ -207,7 +207,11 @@ mod tests {
     fn a_panda_daemon_refuses_a_planar_plant_and_another_chain_naming_both() {
         let panda = rt::robot::preset("panda").unwrap();
         let mut judge = Judge::new("lab", describe(&panda, 1));
-        let why = judge.judge(&describe(&planar("paper"), 2)).unwrap().refusal.unwrap();
+        let why = judge
+            .judge(&describe(&planar("paper"), 2))
+            .unwrap()
+            .refusal
+            .unwrap();
         assert!(
             why.contains("3-link fixed arm (links 1,1,1)")
                 && why.contains("7-joint panda (panda_link0 → panda_link8)"),
@@ -223,7 +227,10 @@ mod tests {
             .unwrap()
             .refusal
             .unwrap();
-        assert!(why.contains("panda_link7") && why.contains("panda_link8"), "{why}");
+        assert!(
+            why.contains("panda_link7") && why.contains("panda_link8"),
+            "{why}"
+        );
         assert_eq!(judge.judge(&describe(&panda, 4)).unwrap().refusal, None);
     }
 }

@@ -72,7 +72,12 @@ impl LimitWatch {
             }
             let speed = s.qd[i].abs() / l.qd_max[i];
             if l.qd_max[i].is_finite() {
-                peak(&mut seen.peak_speed_fraction, &mut seen.peak_speed_joint, speed, i);
+                peak(
+                    &mut seen.peak_speed_fraction,
+                    &mut seen.peak_speed_joint,
+                    speed,
+                    i,
+                );
             }
             outside |= margin < -SLACK || speed > 1.0 + SLACK;
         }
@@ -103,13 +108,24 @@ impl LimitsSeen {
     pub fn one_line(&self) -> Option<String> {
         let mut parts = Vec::new();
         if let Some(m) = self.min_position_margin {
-            parts.push(format!("closest to a position limit {m:.3} rad (joint {})", self.min_position_joint));
+            parts.push(format!(
+                "closest to a position limit {m:.3} rad (joint {})",
+                self.min_position_joint
+            ));
         }
         if let Some(f) = self.peak_speed_fraction {
-            parts.push(format!("peak speed {:.0} % of its limit (joint {})", f * 100.0, self.peak_speed_joint));
+            parts.push(format!(
+                "peak speed {:.0} % of its limit (joint {})",
+                f * 100.0,
+                self.peak_speed_joint
+            ));
         }
         if let Some(f) = self.peak_acceleration_fraction {
-            parts.push(format!("peak commanded q̈ {:.0} % of its limit (joint {})", f * 100.0, self.peak_acceleration_joint));
+            parts.push(format!(
+                "peak commanded q̈ {:.0} % of its limit (joint {})",
+                f * 100.0,
+                self.peak_acceleration_joint
+            ));
         }
         if parts.is_empty() {
             return None;
@@ -135,8 +151,10 @@ mod tests {
         l.qd_max[0] = 2.0;
         l.qdd_max[0] = 10.0;
         let mut w = LimitWatch::new(l, 2);
-        let mut s = StateSample::default();
-        s.n = 2;
+        let mut s = StateSample {
+            n: 2,
+            ..Default::default()
+        };
         s.q[0] = 0.75;
         s.qd[0] = 1.0;
         w.observe_state(&s);
@@ -147,7 +165,10 @@ mod tests {
         w.observe_command(&c);
         let seen = w.seen();
         assert_eq!(seen.min_position_margin, Some(-0.25));
-        assert_eq!((seen.peak_speed_fraction, seen.peak_acceleration_fraction), (Some(0.5), Some(0.5)));
+        assert_eq!(
+            (seen.peak_speed_fraction, seen.peak_acceleration_fraction),
+            (Some(0.5), Some(0.5))
+        );
         assert_eq!((seen.states_outside, seen.commands_outside), (1, 0));
         assert!(seen.one_line().unwrap().contains("1 states outside"));
         let none = LimitWatch::new(SafetyParams::off(), 2);

@@ -586,19 +586,10 @@ fn resume_live_state(s: &mut DaemonSetup, fresh: bool) -> Result<()> {
         return daemon::persist::clear(&dir)
             .with_context(|| format!("cannot remove {}", daemon::persist::path(&dir).display()));
     }
-    let Some(file) = s.system.planar() else {
-        if daemon::persist::path(&dir).exists() {
-            tracing::warn!(
-                "{} is a planar arm's live state; a spatial robot's live changes are not kept across restarts yet, so this start uses the config file alone",
-                daemon::persist::path(&dir).display()
-            );
-        }
-        return Ok(());
-    };
     let Some(saved) = daemon::persist::load(&dir, s.system.n())? else {
         return Ok(());
     };
-    let (live, edited) = daemon::persist::adopt(saved, file);
+    let (live, edited) = daemon::persist::adopt(saved, &s.system);
     if let Some(why) = edited {
         tracing::warn!("{why}");
     }

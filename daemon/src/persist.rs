@@ -10,7 +10,8 @@
 //! Not kept: the delay-line history (a restarted daemon starts a fresh one, as after HOLD), the
 //! histograms and counters (each run writes its own files).
 
-use control::Config;
+use control::spatial::config::SpatialConfig;
+use control::{Config, ConfigError, System};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -29,7 +30,7 @@ pub struct LiveState {
     /// The daemon was in FAULT, and why.
     pub fault: Option<String>,
     /// The running configuration (without `[daemon]` and `[plant]`, which come from the file).
-    pub system: Config,
+    pub system: SavedSystem,
     /// [`fingerprint`] of the config file's settings the live changes were made on top of. When
     /// the file's settings differ at the next start, an operator edited the file since: the file
     /// wins (see [`adopt`]). Absent in states saved before this existed.
@@ -37,10 +38,45 @@ pub struct LiveState {
     pub file: Option<String>,
 }
 
+/// The saved set-up: a planar file's tables, or a spatial one's (told apart by its `[robot]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum SavedSystem {
+    Spatial(SpatialConfig),
+    Planar(Config),
+}
+
+impl SavedSystem {
+    /// `system` without its `[daemon]` and `[plant]` tables.
+    pub fn of(system: &System) -> Self {
+        let mut s = system.clone();
+        let (d, p) = s.tables_mut();
+        (*d, *p) = (None, None);
+        match s {
+            System::Planar(c) => SavedSystem::Planar(c),
+            System::Spatial(b) => SavedSystem::Spatial(b.config),
+        }
+    }
+
+    /// The set-up again (a spatial one's robot description is read anew), validated.
+    pub fn to_system(&self) -> Result<System, ConfigError> {
+        match self {
+            SavedSystem::Planar(c) => {
+                c.validate()?;
+                Ok(System::Planar(c.clone()))
+            }
+            SavedSystem::Spatial(c) => System::spatial(c.clone(), &rt::robot::resolve),
+        }
+    }
+}
+
 /// A stable fingerprint of a config's settings (without `[daemon]` and `[plant]`): FNV-1a 64
 /// of their TOML.
-pub fn fingerprint(system: &Config) -> String {
-    let text = crate::replay::system_toml(system);
+pub fn fingerprint(system: &System) -> String {
+    let text = match SavedSystem::of(system) {
+        SavedSystem::Planar(c) => c.to_toml_string(),
+        SavedSystem::Spatial(c) => c.to_toml(),
+    };
     let h = text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
         (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
     });
@@ -51,14 +87,11 @@ pub fn fingerprint(system: &Config) -> String {
 /// If the file was edited since the state was saved (its fingerprint changed), the file's
 /// settings win and the live changes are dropped (`Some(why)` says so); controller time and a
 /// FAULT are kept either way, since neither is the file's to decide.
-pub fn adopt(mut saved: LiveState, file: &Config) -> (LiveState, Option<String>) {
+pub fn adopt(mut saved: LiveState, file: &System) -> (LiveState, Option<String>) {
     let now = fingerprint(file);
     let edited = saved.file.as_ref().is_some_and(|f| *f != now);
     let why = edited.then(|| {
-        let mut system = file.clone();
-        system.daemon = None;
-        system.plant = None;
-        saved.system = system;
+        saved.system = SavedSystem::of(file);
         "the config file's settings changed since the live state was saved: starting from the \
          file (live changes made with chaosctl are dropped; controller time and any FAULT are kept)"
             .to_string()
@@ -99,12 +132,12 @@ pub fn load(output_dir: &Path, n: usize) -> anyhow::Result<Option<LiveState>> {
     }
     let mut s: LiveState =
         toml::from_str(&text).map_err(|e| bad(control::config::excerpt(&e.to_string())))?;
-    s.system.validate().map_err(|e| bad(e.to_string()))?;
+    let system = s.system.to_system().map_err(|e| bad(e.to_string()))?;
     s.t += (unix_now() - s.saved_unix_s).clamp(0.0, 1e7);
-    if s.system.n() != n || !s.t.is_finite() || s.t < 0.0 {
+    if system.n() != n || !s.t.is_finite() || s.t < 0.0 {
         return Err(bad(format!(
             "saved for a {}-link arm at t = {}; this configuration has {n} links",
-            s.system.n(),
+            system.n(),
             s.t
         )));
     }
@@ -149,7 +182,7 @@ mod tests {
             t: 123.5,
             saved_unix_s: unix_now() + 1e3, // in the future: no time added
             fault: Some("joint 2 rate".into()),
-            system,
+            system: SavedSystem::Planar(system),
             file: Some("0123456789abcdef".into()),
         };
         save(&dir, &s).unwrap();
@@ -163,30 +196,38 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    fn mu_kv(s: &LiveState) -> (f64, f64) {
+        let System::Planar(c) = s.system.to_system().unwrap() else {
+            panic!("a planar state")
+        };
+        (c.feedback.mu, c.control.kv)
+    }
+
     #[test]
     fn an_edited_file_wins_over_the_live_changes_but_time_and_fault_stay() {
         let file = Config::preset("demo").unwrap();
         let mut live = file.clone();
         live.feedback.mu = 1.3; // a chaosctl set on top of the file
+        let file = System::Planar(file);
         let saved = LiveState {
             t: 50.0,
             saved_unix_s: unix_now(),
             fault: Some("joint 2 rate".into()),
-            system: live.clone(),
+            system: SavedSystem::Planar(live.clone()),
             file: Some(fingerprint(&file)),
         };
         // The same file: the live change is resumed.
         let (s, why) = adopt(saved.clone(), &file);
-        assert_eq!((s.system.feedback.mu, why), (1.3, None));
+        assert_eq!((mu_kv(&s).0, why), (1.3, None));
         // The file edited since (another kv): its settings win, time and FAULT stay.
         let mut edited = file.clone();
-        edited.control.kv = 30.0;
+        let System::Planar(c) = &mut edited else {
+            unreachable!()
+        };
+        c.control.kv = 30.0;
         let (s, why) = adopt(saved.clone(), &edited);
         assert!(why.unwrap().contains("changed since"));
-        assert_eq!(
-            (s.system.feedback.mu, s.system.control.kv),
-            (file.feedback.mu, 30.0)
-        );
+        assert_eq!(mu_kv(&s), (file.feedback().mu, 30.0));
         assert_eq!((s.t, s.fault.as_deref()), (50.0, Some("joint 2 rate")));
         assert_eq!(s.file, Some(fingerprint(&edited)));
         // A state saved before fingerprints existed: resumed as it is.
@@ -194,6 +235,30 @@ mod tests {
             file: None,
             ..saved
         };
-        assert_eq!(adopt(old, &edited).0.system.feedback.mu, 1.3);
+        assert_eq!(mu_kv(&adopt(old, &edited).0).0, 1.3);
+    }
+
+    #[test]
+    fn a_spatial_state_reads_back_as_a_spatial_system() {
+        let dir = std::env::temp_dir().join(format!("chaosd-persist-sp-{}", std::process::id()));
+        rt::files::create_dir_all(&dir).unwrap();
+        let mut panda = rt::robot::preset("panda").unwrap();
+        let System::Spatial(b) = &mut panda else {
+            unreachable!()
+        };
+        b.config.feedback.mu = 0.4;
+        let s = LiveState {
+            t: 9.0,
+            saved_unix_s: unix_now() + 1e3,
+            fault: None,
+            system: SavedSystem::of(&panda),
+            file: Some(fingerprint(&panda)),
+        };
+        save(&dir, &s).unwrap();
+        let back = load(&dir, 7).unwrap().unwrap();
+        assert_eq!(back, s);
+        assert_eq!(back.system.to_system().unwrap().feedback().mu, 0.4);
+        assert!(load(&dir, 3).unwrap_err().to_string().contains("7-link"));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

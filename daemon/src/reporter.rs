@@ -172,14 +172,8 @@ impl Reporter {
     }
 
     /// Saves the live configuration, controller time and FAULT for a restart (see `persist`).
-    /// A spatial robot's live changes are not kept yet: the file is the whole truth on restart.
     pub(crate) fn save_live_state(&mut self) {
-        let System::Planar(cfg) = &self.system else {
-            return;
-        };
-        let mut system = cfg.clone();
-        system.daemon = None;
-        system.plant = None;
+        let system = crate::persist::SavedSystem::of(&self.system);
         let state = crate::persist::LiveState {
             t: self.last.map_or(self.t_start, |r| r.t),
             saved_unix_s: crate::persist::unix_now(),

@@ -202,7 +202,10 @@ pub(crate) fn obstacle_args<'a>(
         margin = Some(num("margin", v.pop())?);
     }
     if v.len() != positions {
-        return Err(format!("obstacle add needs {usage}, got {} numbers", v.len()));
+        return Err(format!(
+            "obstacle add needs {usage}, got {} numbers",
+            v.len()
+        ));
     }
     Ok((v, margin.unwrap_or(0.1)))
 }

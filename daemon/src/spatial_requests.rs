@@ -71,12 +71,20 @@ pub fn apply_set(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialS
 fn word(key: &str, v: Option<&str>, allowed: &[&str]) -> Result<String, String> {
     match v {
         Some(w) if allowed.contains(&w) => Ok(w.to_string()),
-        other => Err(format!("{key}: {other:?} is not one of {}", allowed.join(", "))),
+        other => Err(format!(
+            "{key}: {other:?} is not one of {}",
+            allowed.join(", ")
+        )),
     }
 }
 
 /// Feedback on from controller time `now`, or off.
-pub fn apply_dfc(s: &SpatialSystem, on: bool, now: f64, min_tau: f64) -> Result<SpatialSystem, String> {
+pub fn apply_dfc(
+    s: &SpatialSystem,
+    on: bool,
+    now: f64,
+    min_tau: f64,
+) -> Result<SpatialSystem, String> {
     let mut n = s.clone();
     n.config.feedback.enabled = on;
     if on {
@@ -89,11 +97,19 @@ pub fn apply_dfc(s: &SpatialSystem, on: bool, now: f64, min_tau: f64) -> Result<
 }
 
 /// `X Y Z RADIUS [MARGIN]` (m): a sphere.
-pub fn apply_obstacle_add(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialSystem, String> {
+pub fn apply_obstacle_add(
+    s: &SpatialSystem,
+    args: &str,
+    min_tau: f64,
+) -> Result<SpatialSystem, String> {
     let usage = "X Y Z RADIUS [MARGIN] (m) on a spatial robot";
     let (v, margin) = crate::requests::obstacle_args(args, 4, usage)?;
     let sphere = SphereEntry {
-        center: [num("x", Some(v[0]))?, num("y", Some(v[1]))?, num("z", Some(v[2]))?],
+        center: [
+            num("x", Some(v[0]))?,
+            num("y", Some(v[1]))?,
+            num("z", Some(v[2]))?,
+        ],
         radius: num("radius", Some(v[3]))?,
         margin,
     };
@@ -103,14 +119,21 @@ pub fn apply_obstacle_add(s: &SpatialSystem, args: &str, min_tau: f64) -> Result
 }
 
 /// `INDEX` (as listed by `obstacle ls`).
-pub fn apply_obstacle_remove(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialSystem, String> {
+pub fn apply_obstacle_remove(
+    s: &SpatialSystem,
+    args: &str,
+    min_tau: f64,
+) -> Result<SpatialSystem, String> {
     let i: usize = args
         .trim()
         .parse()
         .map_err(|_| format!("obstacle rm needs an index, got {:?}", args.trim()))?;
     let mut n = s.clone();
     if i >= n.config.obstacles.len() {
-        return Err(format!("no obstacle {i}: there are {}", n.config.obstacles.len()));
+        return Err(format!(
+            "no obstacle {i}: there are {}",
+            n.config.obstacles.len()
+        ));
     }
     n.config.obstacles.remove(i);
     checked(n, min_tau)
@@ -121,7 +144,9 @@ fn checked(n: SpatialSystem, min_tau: f64) -> Result<SpatialSystem, String> {
     let system = System::Spatial(Box::new(n));
     system.validate().map_err(|e| e.to_string())?;
     let step = format!("the daemon's {:.0} Hz", 1.0 / min_tau);
-    system.check_step(min_tau, &step).map_err(|e| e.to_string())?;
+    system
+        .check_step(min_tau, &step)
+        .map_err(|e| e.to_string())?;
     match system {
         System::Spatial(s) => Ok(*s),
         System::Planar(_) => Err("not a spatial set-up".into()),
@@ -174,16 +199,27 @@ mod tests {
         assert!(apply_obstacle_add(&p, "0.5 0.2 0.4 -1", 1e-3).is_err());
         let back = apply_obstacle_remove(&n, "0", 1e-3).unwrap();
         assert!(back.config.obstacles.is_empty());
-        assert!(apply_obstacle_remove(&n, "3", 1e-3).unwrap_err().contains("no obstacle 3"));
+        assert!(apply_obstacle_remove(&n, "3", 1e-3)
+            .unwrap_err()
+            .contains("no obstacle 3"));
     }
 
     #[test]
     fn dfc_needs_a_gain() {
         let mut p = panda();
         let on = apply_dfc(&p, true, 12.0, 1e-3).unwrap();
-        assert_eq!((on.config.feedback.enabled, on.config.feedback.t_on), (true, 12.0));
+        assert_eq!(
+            (on.config.feedback.enabled, on.config.feedback.t_on),
+            (true, 12.0)
+        );
         p.config.feedback.mu = 0.0;
         assert!(apply_dfc(&p, true, 1.0, 1e-3).unwrap_err().contains("mu"));
-        assert!(!apply_dfc(&p, false, 1.0, 1e-3).unwrap().config.feedback.enabled);
+        assert!(
+            !apply_dfc(&p, false, 1.0, 1e-3)
+                .unwrap()
+                .config
+                .feedback
+                .enabled
+        );
     }
 }

@@ -198,7 +198,11 @@ fn the_clock_loops_tick_allocates_only_iceoryx2s_loan() {
     for i in 0..2000 {
         if i % 100 == 0 {
             // A control-service change now and then, and a resume (a no-op outside FAULT).
-            params_tx.try_send(LoopRequest::Params(control::tick_law::ParamBlock::Planar(params))).unwrap();
+            params_tx
+                .try_send(LoopRequest::Params(control::tick_law::ParamBlock::Planar(
+                    params,
+                )))
+                .unwrap();
         } else if i % 100 == 50 {
             params_tx.try_send(LoopRequest::Resume).unwrap();
         }
@@ -305,7 +309,11 @@ fn state_triggered_path(fast_lane: bool) {
     let (mut sent, mut on_path, mut off_path, mut records) = (0, 0, 0, 0);
     for seq in 50..2050 {
         if seq % 100 == 0 {
-            params_tx.try_send(LoopRequest::Params(control::tick_law::ParamBlock::Planar(params))).unwrap();
+            params_tx
+                .try_send(LoopRequest::Params(control::tick_law::ParamBlock::Planar(
+                    params,
+                )))
+                .unwrap();
         }
         records += tel_rx.try_iter().count();
         let s = state(seq, monotonic_ns(), 9);

@@ -415,10 +415,7 @@ mod tests {
             "wire version {}, daemon wire version {WIRE_VERSION}",
             WIRE_VERSION - 1
         );
-        assert!(
-            msg.contains(&both),
-            "{msg}"
-        );
+        assert!(msg.contains(&both), "{msg}");
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! The Panda through the real processes: `chaosd demo --robot panda`, a daemon and a plant on a
-//! spatial config taking live 3-D changes, and the handshake refusing a planar plant.
+//! spatial config taking live 3-D changes (kept across a daemon restart), and the handshake
+//! refusing a planar plant.
 
 use std::time::Duration;
 use tests::live::*;
@@ -13,7 +14,15 @@ fn the_panda_demo_runs_daemon_and_plant_inside_the_limits_and_the_feedback_shows
     let dir = TempDir::new(&unique_namespace("panda-demo"));
     let out = dir.path().join("out");
     let o = std::process::Command::new(bin("chaosd"))
-        .args(["demo", "--robot", "panda", "--duration", "14", "--t-on", "5"])
+        .args([
+            "demo",
+            "--robot",
+            "panda",
+            "--duration",
+            "14",
+            "--t-on",
+            "5",
+        ])
         .args(["--output", out.to_str().unwrap()])
         .output()
         .unwrap();
@@ -27,7 +36,9 @@ fn the_panda_demo_runs_daemon_and_plant_inside_the_limits_and_the_feedback_shows
         "{stdout}"
     );
     assert!(
-        stdout.contains("0 states outside a position or speed limit, 0 commands beyond an acceleration limit"),
+        stdout.contains(
+            "0 states outside a position or speed limit, 0 commands beyond an acceleration limit"
+        ),
         "{stdout}"
     );
     let s = read_json(&out.join("daemon-summary.json"));
@@ -39,8 +50,14 @@ fn the_panda_demo_runs_daemon_and_plant_inside_the_limits_and_the_feedback_shows
     let after = s["period_residual_after"].as_f64().unwrap();
     assert!(before > 0.3 && after < 0.6 * before, "{before} → {after}");
     let limits = &s["joint_limits"];
-    assert!(limits["min_position_margin"].as_f64().unwrap() > 0.0, "{limits}");
-    assert!(limits["peak_speed_fraction"].as_f64().unwrap() <= 1.0, "{limits}");
+    assert!(
+        limits["min_position_margin"].as_f64().unwrap() > 0.0,
+        "{limits}"
+    );
+    assert!(
+        limits["peak_speed_fraction"].as_f64().unwrap() <= 1.0,
+        "{limits}"
+    );
 }
 
 #[test]
@@ -55,9 +72,16 @@ fn a_live_panda_takes_spheres_and_gains_and_refuses_what_its_file_could_not_say(
     let (code, out, err) = ctl(&sys.ns, &["obstacle", "ls"]);
     assert_eq!(code, 0, "{err}");
     let listed: serde_json::Value = serde_json::from_str(&out).unwrap();
-    assert_eq!(listed[0]["center"], serde_json::json!([1.0, -1.0, 1.5]), "{out}");
+    assert_eq!(
+        listed[0]["center"],
+        serde_json::json!([1.0, -1.0, 1.5]),
+        "{out}"
+    );
     for (args, says) in [
-        (&["obstacle", "add", "1.0", "-1.0", "0.05"][..], "X Y Z RADIUS"),
+        (
+            &["obstacle", "add", "1.0", "-1.0", "0.05"][..],
+            "X Y Z RADIUS",
+        ),
         (&["set", "kp", "1e9"][..], "law.kp"),
         (&["set", "secondary", "wobble"][..], "centring"),
         (&["set", "links", "1"][..], "unknown key"),
@@ -70,13 +94,53 @@ fn a_live_panda_takes_spheres_and_gains_and_refuses_what_its_file_could_not_say(
     assert_eq!(code, 0, "{err}");
     std::thread::sleep(Duration::from_millis(300));
     let st = status(&sys.ns);
-    assert_eq!((st["mu"].as_f64(), st["projection"].as_str()), (Some(0.5), Some("full")), "{st}");
-    assert_eq!((st["mode"].as_str(), st["obstacles"].as_u64()), (Some("Run"), Some(1)), "{st}");
+    assert_eq!(
+        (st["mu"].as_f64(), st["projection"].as_str()),
+        (Some(0.5), Some("full")),
+        "{st}"
+    );
+    assert_eq!(
+        (st["mode"].as_str(), st["obstacles"].as_u64()),
+        (Some("Run"), Some(1)),
+        "{st}"
+    );
     let (code, _, err) = ctl(&sys.ns, &["obstacle", "rm", "0"]);
     assert_eq!(code, 0, "{err}");
     let (code, text, err) = ctl(&sys.ns, &["status"]);
     assert_eq!(code, 0, "{err}");
-    assert!(text.contains("arm       panda (panda_link0 → panda_link8), 7 joints"), "{text}");
+    assert!(
+        text.contains("arm       panda (panda_link0 → panda_link8), 7 joints"),
+        "{text}"
+    );
+
+    // kill -9 and start again from the same file: the live changes come back.
+    let mut sys = sys;
+    sys.daemon.kill9();
+    let cfg = sys.dir.path().join("config.toml");
+    let args = ["run", "--config", cfg.to_str().unwrap()];
+    sys.daemon = Proc::spawn("daemon2", &bin("chaosd"), &args, sys.dir.path());
+    let until = std::time::Instant::now() + Duration::from_secs(15);
+    let st = loop {
+        let (code, out, _) = ctl(&sys.ns, &["status", "--json"]);
+        if code == 0 {
+            let st: serde_json::Value = serde_json::from_str(&out).unwrap();
+            if st["mode"] == "Run" {
+                break st;
+            }
+        }
+        assert!(std::time::Instant::now() < until, "{}", sys.daemon.log());
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert_eq!(
+        (st["mu"].as_f64(), st["projection"].as_str()),
+        (Some(0.5), Some("full")),
+        "{st}"
+    );
+    assert!(
+        sys.daemon.log().contains("resuming the live state"),
+        "{}",
+        sys.daemon.log()
+    );
 }
 
 #[test]
@@ -103,7 +167,11 @@ fn a_panda_daemon_and_a_planar_plant_refuse_each_other_naming_both() {
         dir.path(),
     );
     let st = plant.wait_exit(Duration::from_secs(15));
-    assert!(!st.success(), "the plant accepted a Panda daemon:\n{}", plant.log());
+    assert!(
+        !st.success(),
+        "the plant accepted a Panda daemon:\n{}",
+        plant.log()
+    );
     let log = plant.log();
     assert!(
         log.contains("is a 3-link fixed arm (links 1,1,1), daemon expects a 7-joint panda (panda_link0 → panda_link8)"),
