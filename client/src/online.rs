@@ -110,7 +110,8 @@ pub enum ObstacleAction {
     /// Add an obstacle: `X Y RADIUS` (a circle, planar arm) or `X Y Z RADIUS` (a sphere,
     /// spatial robot), in m.
     Add {
-        #[arg(allow_negative_numbers = true, num_args = 3..=4, value_names = ["X", "Y", "[Z]", "RADIUS"])]
+        /// X Y RADIUS (planar arm) or X Y Z RADIUS (spatial robot), in m.
+        #[arg(allow_negative_numbers = true, required = true, num_args = 3..=4, value_name = "NUMBER")]
         values: Vec<f64>,
         /// Safety margin (m).
         #[arg(long, default_value_t = 0.1)]
