@@ -12,7 +12,7 @@ use control::config::ProjectionKind;
 use control::spatial::config::{is_spatial, SpatialConfig, SpatialSetup};
 use control::spatial::sim::run;
 use control::spatial::{SpatialSimulation, SpatialSummary};
-use control::{with_dof, with_task_rows};
+use control::{with_dof, with_task_rows, ArmState};
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
@@ -324,4 +324,60 @@ pub fn lyapunov(
         },
         growth,
     ))
+}
+
+/// One seed of `orbits` on a spatial robot: where the loop with feedback gain `seed_mu` ended
+/// (at a multiple of T), and the μ = 0 period-T orbit Newton's method found from there.
+#[derive(Serialize)]
+pub struct SpatialOrbit {
+    pub seed_mu: f64,
+    /// |Φ_T(x) − x| at the seed, with the feedback off: how far the seed already was from a
+    /// period-T orbit.
+    pub seed_residual: f64,
+    pub orbit: Result<control::analysis::PeriodicOrbit, String>,
+    /// ln|largest multiplier| / T at μ = 0 (1/s): > 0, unstable without the feedback.
+    pub floquet_exponent: Option<f64>,
+}
+
+/// `chaosctl orbits` on a spatial robot: for each gain, run the set-up `duration` s (rounded
+/// to whole periods), then find the μ = 0 loop's period-T orbit from the end state.
+pub fn orbits(
+    cfg: &SpatialConfig,
+    gains: &[f64],
+    duration: f64,
+    newton: &control::analysis::NewtonConfig,
+) -> Result<Vec<SpatialOrbit>> {
+    use control::analysis::newton_orbit;
+    use control::spatial::sim::stroboscopic_map;
+    let period = cfg.task.period;
+    if cfg.feedback.tau.is_some_and(|t| (t - period).abs() > 1e-9) {
+        bail!("orbits needs τ = T (feedback.tau = {:?} s, task.period = {period} s): only then does the feedback vanish on period-T orbits", cfg.feedback.tau);
+    }
+    let mut out = Vec::new();
+    for &mu in gains {
+        let found = with_setup!(cfg, |s, N, M| {
+            let steps = control::analysis::period_steps(period, s.dt)?;
+            let mut p = s.params;
+            p.mu = mu;
+            let mut sim = SpatialSimulation::<N, M>::new(s.arm, p, s.dt, s.q0, s.qd0, p.tau);
+            for _ in 0..(duration / period).round() as u64 * steps {
+                sim.step();
+            }
+            let seed = *sim.state();
+            let map = |x: &ArmState<N>| stroboscopic_map::<N, M>(&s.arm, &s.params, s.dt, steps, x);
+            let y = map(&seed);
+            let seed_residual =
+                ((y.q - seed.q).norm_squared() + (y.qd - seed.qd).norm_squared()).sqrt();
+            (seed_residual, newton_orbit(&map, &seed, newton))
+        });
+        let (seed_residual, orbit) = found;
+        let floquet_exponent = orbit.as_ref().ok().map(|o| o.floquet_exponent(period));
+        out.push(SpatialOrbit {
+            seed_mu: mu,
+            seed_residual,
+            orbit: orbit.map_err(|e| e.to_string()),
+            floquet_exponent,
+        });
+    }
+    Ok(out)
 }

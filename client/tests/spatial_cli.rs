@@ -185,7 +185,7 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
     // Commands that run only the planar arm say so, for the preset and for a [robot] file.
     std::fs::write(&cfg, &base).unwrap();
     for args in [
-        vec!["orbits", "--preset", "panda"],
+        vec!["basins", "--preset", "panda"],
         vec!["basins", "--config", cfg.to_str().unwrap()],
     ] {
         let o = chaosctl(&args);
@@ -193,4 +193,43 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
         assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains("spatial robot's set-up"), "{args:?}: {err}");
     }
+}
+
+#[test]
+fn orbits_finds_the_cycle_the_feedback_settles_on_and_it_is_neutral_without_it() {
+    let o = chaosctl(&[
+        "orbits",
+        "--preset",
+        "panda",
+        "--seed-mu",
+        "0.5",
+        "--seed-duration",
+        "100",
+        "--json",
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let found: Vec<_> = v.as_array().unwrap().iter().collect();
+    assert_eq!(
+        found.len(),
+        2,
+        "the preset's μ = 1 and --seed-mu 0.5: {out}"
+    );
+    for f in found {
+        let orbit = &f["orbit"]["Ok"];
+        assert!(orbit["residual"].as_f64().unwrap() < 1e-9, "{f}");
+        // The null space's four directions are elliptic at μ = 0: eight multipliers on the unit
+        // circle, so without the feedback nothing attracts the self-motion to this cycle.
+        let on_circle = orbit["multipliers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|m| (m[0].as_f64().unwrap().hypot(m[1].as_f64().unwrap()) - 1.0).abs() < 1e-3)
+            .count();
+        assert_eq!(on_circle, 8, "{f}");
+    }
+    let o = chaosctl(&["orbits", "--preset", "panda", "--mu", "0:1:0.5"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("planar arm only"));
 }

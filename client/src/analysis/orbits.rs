@@ -164,6 +164,9 @@ enum Seeding {
 }
 
 pub fn run(args: OrbitsCmd) -> Result<()> {
+    if let Some(cfg) = crate::spatial::load(&args.model.setup, None)? {
+        return spatial(&args, &cfg);
+    }
     let (base, mus) = args.model.load("0:3:0.1")?;
     if base.arm.model != ModelKind::Fixed {
         bail!("orbits needs the fixed-base model (--model fixed): the floating base's attitude drifts, so its motion never closes after one period");
@@ -447,6 +450,77 @@ fn plot(
         panel_size: (1000, 560),
     }
     .save(prefix)
+}
+
+/// How close to 1 a multiplier's modulus counts as on the unit circle (the finite-difference
+/// monodromy is good to about 1e-6).
+const UNIT_CIRCLE: f64 = 1e-3;
+
+/// A spatial robot: the orbit each seeding gain's run settles on, found again at μ = 0, and its
+/// Floquet multipliers there (the μ scan of λ_max on it is planar-only so far).
+fn spatial(args: &OrbitsCmd, cfg: &control::spatial::config::SpatialConfig) -> Result<()> {
+    if args.model.mu.is_some() {
+        bail!("--mu: the λ_max scan over μ on each orbit runs on the planar arm only; for a spatial robot use `chaosctl sweep`");
+    }
+    if !(args.seed_duration.is_finite() && args.seed_duration >= cfg.task.period) {
+        bail!(
+            "--seed-duration {}: must be at least one period ({} s)",
+            args.seed_duration,
+            cfg.task.period
+        );
+    }
+    let mut gains = args.seed_mu.0.clone();
+    if cfg.feedback.mu > 0.0 && !gains.contains(&cfg.feedback.mu) {
+        gains.insert(0, cfg.feedback.mu);
+    }
+    for &m in &gains {
+        if !(m.is_finite() && (0.0..=100.0).contains(&m)) {
+            bail!("--seed-mu {m}: each gain must be in [0, 100]");
+        }
+    }
+    let found = crate::spatial::orbits(cfg, &gains, args.seed_duration, &NewtonConfig::default())?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&found)?);
+        return Ok(());
+    }
+    println!(
+        "period-T orbits of {} at μ = 0 (T = {} s), seeded by {} s runs with feedback from t = {} s:",
+        cfg.describe(),
+        cfg.task.period,
+        args.seed_duration,
+        cfg.feedback.t_on
+    );
+    for o in &found {
+        let what = match &o.orbit {
+            Ok(orb) => {
+                let on_circle = orb
+                    .multipliers
+                    .iter()
+                    .filter(|m| (m[0].hypot(m[1]) - 1.0).abs() < UNIT_CIRCLE)
+                    .count();
+                let rho = orb.max_multiplier();
+                let verdict = if rho > 1.0 + UNIT_CIRCLE {
+                    "unstable without the feedback"
+                } else if rho >= 1.0 - UNIT_CIRCLE {
+                    "neutral without the feedback: nothing pulls the self-motion onto it"
+                } else {
+                    "stable without the feedback"
+                };
+                format!(
+                    "Newton converged in {} iterations (residual {:.1e}); largest Floquet multiplier |ρ| = {rho:.4}, {on_circle} of {} on the unit circle (±{UNIT_CIRCLE}): {verdict}",
+                    orb.iterations,
+                    orb.residual,
+                    orb.multipliers.len(),
+                )
+            }
+            Err(e) => format!("no orbit: {e}"),
+        };
+        println!(
+            "  seed μ = {}: |Φ_T(x) − x| = {:.2e} at the seed; {what}",
+            o.seed_mu, o.seed_residual
+        );
+    }
+    Ok(())
 }
 
 #[cfg(test)]

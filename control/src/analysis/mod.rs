@@ -24,8 +24,8 @@ pub mod run;
 pub use closed_loop::{wrap_angle, ArmFlow};
 pub use lyapunov::{Benettin, Growth, LyapunovError, LyapunovEstimate, Trajectory};
 pub use orbits::{
-    close_returns, find_orbit, orbit_stability, NewtonConfig, OrbitCatalog, OrbitError,
-    OrbitStability, PeriodicOrbit, StabilitySpec, Verdict,
+    close_returns, find_orbit, newton_orbit, orbit_stability, NewtonConfig, OrbitCatalog,
+    OrbitError, OrbitStability, PeriodicOrbit, StabilitySpec, Verdict,
 };
 pub use poincare::{classify, zero_one_k, Classification, ClassifyConfig, Motion, Section};
 pub use run::{

@@ -144,15 +144,13 @@ pub fn stroboscopic_map<const N: usize>(
     *sim.state()
 }
 
+/// A stroboscopic map Φ_T of some arm's loop (the planar arm's [`stroboscopic_map`], or a
+/// spatial one's `control::spatial::sim::stroboscopic_map`).
+pub type PeriodMap<'a, const N: usize> = &'a dyn Fn(&ArmState<N>) -> ArmState<N>;
+
 /// F(x) = Φ_T(x) − x with angle differences wrapped.
-fn residual_map<const N: usize>(
-    model: &ArmModel<N>,
-    params: &LawParams,
-    dt: f64,
-    steps: u64,
-    x: &DVector<f64>,
-) -> DVector<f64> {
-    let y = stroboscopic_map(model, params, dt, steps, &to_state::<N>(x));
+fn residual_map<const N: usize>(map: PeriodMap<N>, x: &DVector<f64>) -> DVector<f64> {
+    let y = map(&to_state::<N>(x));
     DVector::from_fn(2 * N, |i, _| {
         if i < N {
             wrap_angle(y.q[i] - x[i])
@@ -171,6 +169,11 @@ pub fn monodromy<const N: usize>(
     x: &ArmState<N>,
     h: f64,
 ) -> DMatrix<f64> {
+    monodromy_of(&|y| stroboscopic_map(model, params, dt, steps, y), x, h)
+}
+
+/// DΦ_T of any period map at `x` by central differences.
+pub fn monodromy_of<const N: usize>(map: PeriodMap<N>, x: &ArmState<N>, h: f64) -> DMatrix<f64> {
     let base: Vec<f64> = x.q.iter().chain(x.qd.iter()).copied().collect();
     let mut m = DMatrix::zeros(2 * N, 2 * N);
     for j in 0..2 * N {
@@ -178,10 +181,7 @@ pub fn monodromy<const N: usize>(
         let mut minus = plus.clone();
         plus[j] += h;
         minus[j] -= h;
-        let (a, b) = (
-            stroboscopic_map(model, params, dt, steps, &to_state::<N>(&plus)),
-            stroboscopic_map(model, params, dt, steps, &to_state::<N>(&minus)),
-        );
+        let (a, b) = (map(&to_state::<N>(&plus)), map(&to_state::<N>(&minus)));
         for i in 0..N {
             m[(i, j)] = wrap_angle(a.q[i] - b.q[i]) / (2.0 * h);
             m[(N + i, j)] = (a.qd[i] - b.qd[i]) / (2.0 * h);
@@ -215,6 +215,20 @@ pub fn find_orbit<const N: usize>(
     check_fixed(model)?;
     let steps =
         period_steps(params.task.period, dt).map_err(|e| OrbitError::Invalid(e.to_string()))?;
+    newton_orbit(
+        &|y| stroboscopic_map(model, params, dt, steps, y),
+        seed,
+        cfg,
+    )
+}
+
+/// Newton's method on Φ_T(x) − x from `seed`, for any arm's period map. Joint differences are
+/// wrapped to (−π, π], as for revolute joints.
+pub fn newton_orbit<const N: usize>(
+    map: PeriodMap<N>,
+    seed: &ArmState<N>,
+    cfg: &NewtonConfig,
+) -> Result<PeriodicOrbit, OrbitError> {
     let mut x = DVector::from_fn(2 * N, |i, _| if i < N { seed.q[i] } else { seed.qd[i - N] });
     let norm = |v: &DVector<f64>| {
         let n = v.norm();
@@ -224,7 +238,7 @@ pub fn find_orbit<const N: usize>(
             f64::INFINITY
         }
     };
-    let mut f = residual_map(model, params, dt, steps, &x);
+    let mut f = residual_map(map, &x);
     let mut r = norm(&f);
     let mut iterations = 0;
     while r > cfg.tol {
@@ -235,7 +249,7 @@ pub fn find_orbit<const N: usize>(
             });
         }
         iterations += 1;
-        let jac = monodromy(model, params, dt, steps, &to_state::<N>(&x), cfg.fd_step)
+        let jac = monodromy_of(map, &to_state::<N>(&x), cfg.fd_step)
             - DMatrix::<f64>::identity(2 * N, 2 * N);
         let mut step = jac.lu().solve(&(-&f)).ok_or(OrbitError::Singular)?;
         let len = step.norm();
@@ -249,7 +263,7 @@ pub fn find_orbit<const N: usize>(
         let mut accepted = false;
         for _ in 0..12 {
             let trial = &x + &step * alpha;
-            let ft = residual_map(model, params, dt, steps, &trial);
+            let ft = residual_map(map, &trial);
             let rt = norm(&ft);
             if rt < r {
                 x = trial;
@@ -271,7 +285,7 @@ pub fn find_orbit<const N: usize>(
         x[i] = wrap_angle(x[i]);
     }
     let state = to_state::<N>(&x);
-    let m = monodromy(model, params, dt, steps, &state, cfg.fd_step);
+    let m = monodromy_of(map, &state, cfg.fd_step);
     Ok(PeriodicOrbit {
         q: state.q.iter().copied().collect(),
         qd: state.qd.iter().copied().collect(),

@@ -286,3 +286,22 @@ pub fn section<const N: usize, const M: usize>(
     let class = crate::analysis::classify(&sec, cfg);
     (sec, class)
 }
+
+/// The stroboscopic map of the loop without feedback: `steps` steps (one task period) from t = 0
+/// and state `x`. On a period-T orbit the Pyragas term vanishes, so the orbits the feedback can
+/// stabilise are this map's fixed points (`control::analysis::newton_orbit`).
+pub fn stroboscopic_map<const N: usize, const M: usize>(
+    arm: &SpatialArm<N>,
+    params: &SpatialParams,
+    dt: f64,
+    steps: u64,
+    x: &ArmState<N>,
+) -> ArmState<N> {
+    let mut p = *params;
+    p.feedback = false;
+    let mut sim = SpatialSimulation::<N, M>::new(*arm, p, dt, x.q, x.qd, p.tau);
+    for _ in 0..steps {
+        sim.step();
+    }
+    *sim.state()
+}
