@@ -381,3 +381,70 @@ pub fn orbits(
     }
     Ok(out)
 }
+
+/// One spatial run for `basins`: the classification of its section, its RMS tracking error and
+/// its last section point (to tell orbits apart).
+pub fn run_end(
+    cfg: &SpatialConfig,
+    duration: f64,
+    transient: f64,
+    classify: &control::analysis::ClassifyConfig,
+) -> Result<(control::analysis::Classification, f64, Vec<f64>)> {
+    Ok(with_setup!(cfg, |s, N, M| {
+        let mut sim =
+            SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        let period = s.params.task.path.period;
+        let mut sec = control::analysis::Section::new(2 * N, N);
+        let mut last = Vec::new();
+        let summary = run(&mut sim, duration, transient, |t, x, _| {
+            let k = (t / period).round();
+            if (t - k * period).abs() < 0.5 * s.dt && t >= transient - 1e-9 && x.is_finite() {
+                last = x.q.iter().chain(x.qd.iter()).copied().collect();
+                sec.push(t, &last);
+            }
+        });
+        let class = control::analysis::classify(&sec, classify);
+        (class, summary.rms_tracking_error, last)
+    }))
+}
+
+/// Checks a spatial set-up against its robot (loads the chain), without running it.
+pub fn check(cfg: &SpatialConfig) -> Result<()> {
+    with_setup!(cfg, |_s, N, M| ());
+    Ok(())
+}
+
+/// Newton's method at μ = 0 from a section point (q, q̇) of a run of `cfg`: one line on the
+/// period-T orbit there (residual, largest multiplier, how many on the unit circle), or None.
+pub fn refine(cfg: &SpatialConfig, point: &[f64]) -> Option<String> {
+    use control::analysis::{newton_orbit, NewtonConfig};
+    let found = (|| -> Result<control::analysis::PeriodicOrbit> {
+        Ok(with_setup!(cfg, |s, N, M| {
+            if point.len() != 2 * N {
+                bail!("a section point of {} numbers for {N} joints", point.len());
+            }
+            let steps = control::analysis::period_steps(s.params.task.path.period, s.dt)?;
+            let map = |x: &ArmState<N>| {
+                control::spatial::sim::stroboscopic_map::<N, M>(&s.arm, &s.params, s.dt, steps, x)
+            };
+            let seed = ArmState::<N> {
+                q: control::VecN::<N>::from_fn(|i, _| point[i]),
+                qd: control::VecN::<N>::from_fn(|i, _| point[N + i]),
+                phi: 0.0,
+            };
+            newton_orbit(&map, &seed, &NewtonConfig::default())?
+        }))
+    })();
+    let o = found.ok()?;
+    let on_circle = o
+        .multipliers
+        .iter()
+        .filter(|m| (m[0].hypot(m[1]) - 1.0).abs() < 1e-3)
+        .count();
+    Some(format!(
+        "at μ = 0 a period-T orbit (Newton residual {:.1e}), largest |ρ| = {:.4}, {on_circle} of {} multipliers on the unit circle",
+        o.residual,
+        o.max_multiplier(),
+        o.multipliers.len()
+    ))
+}

@@ -182,17 +182,18 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
     assert_eq!(o.status.code(), Some(2));
     let o = chaosctl(&["sweep", "--preset", "panda", "--start", "0,1,2"]);
     assert_eq!(o.status.code(), Some(2));
-    // Commands that run only the planar arm say so, for the preset and for a [robot] file.
+    // What runs only the planar arm says so.
     std::fs::write(&cfg, &base).unwrap();
-    for args in [
-        vec!["basins", "--preset", "panda"],
-        vec!["basins", "--config", cfg.to_str().unwrap()],
-    ] {
-        let o = chaosctl(&args);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
-        assert!(err.contains("spatial robot's set-up"), "{args:?}: {err}");
-    }
+    let o = chaosctl(&[
+        "basins",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--shard",
+        "0/2",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("planar arm only"), "{err}");
 }
 
 #[test]
@@ -232,4 +233,35 @@ fn orbits_finds_the_cycle_the_feedback_settles_on_and_it_is_neutral_without_it()
     let o = chaosctl(&["orbits", "--preset", "panda", "--mu", "0:1:0.5"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("planar arm only"));
+}
+
+#[test]
+fn basins_on_the_panda_chaotic_without_feedback_and_settling_with_it() {
+    let dir = std::env::temp_dir().join(format!("chaosd-pbasins-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("b");
+    let o = chaosctl(&[
+        "basins",
+        "--preset",
+        "panda",
+        "--t-on",
+        "0",
+        "--vary",
+        "q1=-0.2:0.2:0.2",
+        "--mu",
+        "0:1:1",
+        "--json",
+        "--output",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cells: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let cells = cells.as_array().unwrap();
+    assert_eq!(cells.len(), 6);
+    for c in cells {
+        let want = if c["mu"] == 0.0 { "irregular" } else { "orbit" };
+        assert_eq!(c["outcome"], want, "{c}");
+    }
+    assert!(dir.join("b.csv").exists() && dir.join("b.png").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -35,7 +35,7 @@ pub enum ConfigError {
     #[error("unknown preset {0:?} (known presets: {known}, and the spatial panda)", known = PRESETS.join(", "))]
     UnknownPreset(String),
     /// A spatial robot's set-up given where only the planar arm runs yet.
-    #[error("{0} is a spatial robot's set-up; `chaosd`, `chaosd-plant` and `chaosctl config|simulate|lyapunov|sweep|poincare|arm-figure` run spatial robots, but this command takes the planar arm only")]
+    #[error("{0} is a spatial robot's set-up; `chaosd`, `chaosd-plant` and `chaosctl config|simulate|lyapunov|sweep|poincare|orbits|basins|arm-figure` run spatial robots, but this command takes the planar arm only")]
     Spatial(String),
 }
 

@@ -212,6 +212,9 @@ fn run_end(c: &Config, spec: &RunSpec) -> Result<RunEnd, String> {
 }
 
 pub fn run(args: BasinsCmd) -> Result<()> {
+    if let Some(cfg) = crate::spatial::load(&args.model.setup, None)? {
+        return super::basins_spatial::run(&args, &cfg);
+    }
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
     let work = |c: &Config| run_end(c, &plan.spec);
@@ -227,30 +230,65 @@ pub fn run(args: BasinsCmd) -> Result<()> {
         return Ok(());
     }
     let runs = run_all(&plan.cells, threads, "basins", work)?;
-    finish(&args, &plan, &runs)
+    let base = plan.map_base(&args);
+    finish(&args, &base, &runs)
+}
+
+/// Notes on the settled orbits, one per section point.
+pub(crate) type Refine<'a> = Box<dyn Fn(&[Vec<f64>]) -> Vec<Option<String>> + 'a>;
+
+/// What the map needs to know of the set-up, whichever arm it is.
+pub(crate) struct MapBase<'a> {
+    pub n: usize,
+    /// The section has one more coordinate (the floating base's attitude).
+    pub floating: bool,
+    /// The start coordinates of the varied kind (q or q̇) the rows do not vary, for titles.
+    pub fixed: Vec<f64>,
+    pub mus: Vec<f64>,
+    /// (varied start value, μ) of each grid point, rows (starts) outer, μ inner.
+    pub cells: Vec<(f64, f64)>,
+    /// A note on each settled orbit (Newton at μ = 0), by its section point.
+    pub refine: Refine<'a>,
+}
+
+impl Plan {
+    fn map_base<'a>(&'a self, args: &BasinsCmd) -> MapBase<'a> {
+        let start = |c: &Config| if args.vary.rate { c.qd0() } else { c.q0() };
+        MapBase {
+            n: self.base.n(),
+            floating: self.base.arm.model == ModelKind::Floating,
+            fixed: start(&self.base),
+            mus: self.mus.clone(),
+            cells: self
+                .cells
+                .iter()
+                .map(|c| (start(c)[args.vary.joint], c.feedback.mu))
+                .collect(),
+            refine: Box::new(|points| refine(&self.base, points)),
+        }
+    }
 }
 
 /// `chaosctl merge` of basins shards: the same CSV, map and plot as the unsharded run.
 pub fn merge(args: BasinsCmd, files: Vec<Loaded>) -> Result<()> {
     let plan = plan(&args)?;
     let runs: Vec<Result<RunEnd, String>> = shard::collect(&grid(&args, &plan), files)?;
-    finish(&args, &plan, &runs)
+    let base = plan.map_base(&args);
+    finish(&args, &base, &runs)
 }
 
 /// Names the orbits, writes the CSV and plot, prints the map.
-fn finish(args: &BasinsCmd, plan: &Plan, runs: &[Result<RunEnd, String>]) -> Result<()> {
-    let (base, mus, cells) = (&plan.base, &plan.mus, &plan.cells);
-    let n = base.n();
+pub(crate) fn finish(
+    args: &BasinsCmd,
+    base: &MapBase,
+    runs: &[Result<RunEnd, String>],
+) -> Result<()> {
+    let (mus, n) = (&base.mus, base.n);
     // Name the period-1 orbits in a fixed order (by start, then μ) so labels are reproducible.
     // Controlled orbits at different μ differ by up to ~1e-3 (discretisation), distinct orbits by O(1).
-    let mut catalog = OrbitCatalog::new(
-        2 * n + usize::from(base.arm.model == ModelKind::Floating),
-        n,
-        0.05,
-    );
+    let mut catalog = OrbitCatalog::new(2 * n + usize::from(base.floating), n, 0.05);
     let mut out = Vec::with_capacity(runs.len());
-    for (c, r) in cells.iter().zip(runs) {
-        let start = if args.vary.rate { c.qd0() } else { c.q0() }[args.vary.joint];
+    for (&(start, mu), r) in base.cells.iter().zip(runs) {
         let (outcome, k01, rms) = match r {
             Err(e) => (Outcome::Failed { error: e.clone() }, None, None),
             Ok(a) => {
@@ -272,7 +310,7 @@ fn finish(args: &BasinsCmd, plan: &Plan, runs: &[Result<RunEnd, String>]) -> Res
             }
         };
         out.push(Cell {
-            mu: c.feedback.mu,
+            mu,
             start,
             outcome,
             k01,
@@ -282,16 +320,16 @@ fn finish(args: &BasinsCmd, plan: &Plan, runs: &[Result<RunEnd, String>]) -> Res
     let orbit_points: Vec<Vec<f64>> = (0..catalog.len())
         .map(|i| catalog.point(i).to_vec())
         .collect();
-    let refined = refine(base, &orbit_points);
+    let refined = (base.refine)(&orbit_points);
 
     let csv = with_ext(&args.output, "csv");
     write_csv(&csv, &out)?;
-    let files = plot(args, base, mus, &out, catalog.len())?;
+    let files = plot(args, &base.fixed, mus, &out, catalog.len())?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
     }
-    print_map(args, base, mus, &out);
+    print_map(args, &base.fixed, mus, &out);
     for (i, p) in orbit_points.iter().enumerate() {
         println!(
             "  orbit {}: x(kT) ≈ ({}){}",
@@ -366,16 +404,11 @@ fn symbol(o: &Outcome) -> String {
     }
 }
 
-fn print_map(args: &BasinsCmd, base: &Config, mus: &[f64], cells: &[Cell]) {
+fn print_map(args: &BasinsCmd, fixed: &[f64], mus: &[f64], cells: &[Cell]) {
     let name = coord_name(&args.vary);
-    let fixed = if args.vary.rate {
-        base.qd0()
-    } else {
-        base.q0()
-    };
     println!(
         "chaosd basins: {name} varied (rows), μ (columns); the other coordinates from ({}); {} s runs, section from {} s",
-        fmt_list(&fixed),
+        fmt_list(fixed),
         args.duration,
         args.transient
     );
@@ -464,7 +497,7 @@ fn lighten(c: RGBColor) -> RGBColor {
 
 fn plot(
     args: &BasinsCmd,
-    base: &Config,
+    fixed: &[f64],
     mus: &[f64],
     cells: &[Cell],
     orbits: usize,
@@ -496,17 +529,12 @@ fn plot(
     };
     let name = coord_name(&args.vary);
     let unit = if args.vary.rate { "rad/s" } else { "rad" };
-    let fixed = if args.vary.rate {
-        base.qd0()
-    } else {
-        base.q0()
-    };
     let grid = Grid {
         title: format!(
             "end state after {} s (section from {} s); other start coordinates ({})",
             args.duration,
             args.transient,
-            fmt_list(&fixed)
+            fmt_list(fixed)
         ),
         x_label: "Pyragas gain μ (1/s)".into(),
         y_label: format!("initial {name} ({unit})"),

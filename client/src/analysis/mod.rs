@@ -8,6 +8,7 @@
 
 pub mod arm_figure;
 pub mod basins;
+pub mod basins_spatial;
 pub mod figures;
 pub mod lyapunov;
 pub mod obstacles;
