@@ -587,7 +587,7 @@ fn positive(field: &str, v: f64, max: f64) -> Result<(), ConfigError> {
     }
 }
 
-fn range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
+pub(crate) fn range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
     if v.is_finite() && v >= lo && v <= hi {
         Ok(())
     } else {

@@ -172,6 +172,7 @@ mod tests {
         assert_eq!(n.config.feedback.projection, "full");
         for (args, says) in [
             ("mu -1", "feedback.mu"),
+            ("mu 1e9", "[0, 100]"),
             ("kp", "missing value"),
             ("bogus 1", "unknown key"),
             ("secondary wobble", "centring"),

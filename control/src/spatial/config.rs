@@ -296,12 +296,13 @@ impl SpatialConfig {
             ("law.obstacle_weight", self.law.obstacle_weight),
             ("law.null_damping", self.law.null_damping),
             ("law.damping_max", self.law.damping_max),
-            ("feedback.mu", self.feedback.mu),
             ("feedback.t_on", self.feedback.t_on),
             ("safety.clearance", self.safety.clearance),
         ] {
             non_negative(f, v)?;
         }
+        // The planar bound: the same gain may not mean a runaway on one arm and not the other.
+        crate::config::range("feedback.mu", self.feedback.mu, 0.0, 100.0)?;
         positive("law.damping_threshold", self.law.damping_threshold)?;
         positive("law.track_loss", self.law.track_loss)?;
         let tau = self.feedback.tau.unwrap_or(self.task.period);
