@@ -11,6 +11,7 @@
 
 pub mod analysis;
 pub mod arm;
+pub mod command;
 pub mod config;
 pub mod delay;
 pub mod dual;
@@ -18,6 +19,7 @@ pub mod hold;
 pub mod law;
 pub mod model;
 pub mod resolve;
+pub mod rigid_body;
 pub mod safety;
 pub mod secondary;
 pub mod sim;

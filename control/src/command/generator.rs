@@ -1,0 +1,221 @@
+//! The motion generator: the law's q̈ integrated into the reference a real arm follows, and the
+//! command for the configured interface.
+//!
+//! Each tick the limited acceleration ramp (q̈ + q⃛·s, the law's first-order hold) advances the
+//! reference (q_r, q̇_r) exactly over one period, as a motion generator on a robot does. Position
+//! and velocity modes send the reference at the end of the period; torque mode sends computed
+//! torque on the measured state, τ = M(q)q̈ + C(q,q̇)q̇ + g(q) (RNEA), plus a joint PD on the
+//! reference error, limited in rate and size; acceleration mode sends the limited q̈ itself, with
+//! the reference re-anchored on the measured state every tick (the plant integrates q̈ itself).
+//!
+//! The generator restarts from the measured state whenever the stream restarts (the first tick
+//! of a run, after a HOLD or a FAULT), so the first command continues the arm's own motion.
+//! [`MotionGenerator::next`] computes without changing anything (a rehearsal calls it);
+//! [`MotionGenerator::commit`] makes a computed tick the stream's.
+
+use super::limiter::{Limiter, MotionState, Saturations, Step};
+use super::mode::CommandMode;
+use crate::arm::VecN;
+use crate::model::Model;
+
+/// Torque mode's joint PD on (q_r − q, q̇_r − q̇), N·m/rad and N·m·s/rad.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CommandGains<const N: usize> {
+    pub kp: VecN<N>,
+    pub kd: VecN<N>,
+}
+
+/// One tick's command in every interface's terms (the plant uses the one its mode names).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Command<const N: usize> {
+    pub mode: CommandMode,
+    /// The reference at the end of the period.
+    pub q: VecN<N>,
+    pub qd: VecN<N>,
+    /// The limited acceleration ramp over the period.
+    pub qdd: VecN<N>,
+    pub qddd: VecN<N>,
+    /// Torque mode's command (zero otherwise).
+    pub tau: VecN<N>,
+    /// Which limits clamped each joint this tick (bits of `LimitKind`).
+    pub hits: [u8; N],
+}
+
+/// The generator's state and settings.
+#[derive(Debug, Clone)]
+pub struct MotionGenerator<const N: usize> {
+    mode: CommandMode,
+    limiter: Limiter<N>,
+    gains: CommandGains<N>,
+    /// The controller's model of the arm (torque mode's inverse dynamics).
+    model: Option<Model<N>>,
+    reference: MotionState<N>,
+    last_tau: VecN<N>,
+    pub saturations: Saturations<N>,
+}
+
+impl<const N: usize> MotionGenerator<N> {
+    /// Torque mode needs `model`; the others ignore it.
+    pub fn new(
+        mode: CommandMode,
+        limiter: Limiter<N>,
+        gains: CommandGains<N>,
+        model: Option<Model<N>>,
+    ) -> Result<Self, &'static str> {
+        if mode == CommandMode::Torque && model.is_none() {
+            return Err("torque mode needs the robot's dynamic model (a [robot] description)");
+        }
+        Ok(Self {
+            mode,
+            limiter,
+            gains,
+            model,
+            reference: MotionState::at_rest(VecN::<N>::zeros(), VecN::<N>::zeros()),
+            last_tau: VecN::<N>::zeros(),
+            saturations: Saturations::default(),
+        })
+    }
+
+    /// A generator that passes q̈ through untouched: acceleration mode with no limits.
+    pub fn passthrough(dt: f64) -> Self {
+        let limiter = Limiter::new(&super::JointLimits::NONE, dt, 0.0, false);
+        let gains = CommandGains {
+            kp: VecN::<N>::zeros(),
+            kd: VecN::<N>::zeros(),
+        };
+        Self::new(CommandMode::Acceleration, limiter, gains, None).expect("no model needed")
+    }
+
+    pub fn mode(&self) -> CommandMode {
+        self.mode
+    }
+
+    pub fn limiter(&self) -> &Limiter<N> {
+        &self.limiter
+    }
+
+    /// The reference the stream has reached.
+    pub fn reference(&self) -> &MotionState<N> {
+        &self.reference
+    }
+
+    /// Starts the stream again from the measured state, at rest in acceleration.
+    pub fn restart(&mut self, q: &VecN<N>, qd: &VecN<N>) {
+        self.reference = MotionState::at_rest(*q, *qd);
+        self.last_tau = match &self.model {
+            Some(m) if self.mode == CommandMode::Torque => m.rnea(q, qd, &VecN::<N>::zeros()),
+            _ => VecN::<N>::zeros(),
+        };
+    }
+
+    /// This tick's command on the measured (q, q̇) for the law's ramp q̈ + q⃛·s. Changes nothing.
+    pub fn next(&self, q: &VecN<N>, qd: &VecN<N>, qdd: &VecN<N>, qddd: &VecN<N>) -> Command<N> {
+        let from = match self.mode {
+            CommandMode::Acceleration => MotionState {
+                q: *q,
+                qd: *qd,
+                qdd: self.reference.qdd,
+            },
+            _ => self.reference,
+        };
+        let Step {
+            end,
+            qdd: a,
+            qddd: r,
+            mut hits,
+        } = self.limiter.step(&from, qdd, qddd);
+        let tau = match (&self.model, self.mode) {
+            (Some(m), CommandMode::Torque) => {
+                let e = from.q - q;
+                let ed = from.qd - qd;
+                let ff = m.rnea(q, qd, &a);
+                let pd = self.gains.kp.component_mul(&e) + self.gains.kd.component_mul(&ed);
+                self.limiter.torque(&self.last_tau, &(ff + pd), &mut hits)
+            }
+            _ => VecN::<N>::zeros(),
+        };
+        Command {
+            mode: self.mode,
+            q: end.q,
+            qd: end.qd,
+            qdd: a,
+            qddd: r,
+            tau,
+            hits,
+        }
+    }
+
+    /// Makes `c` (computed by [`Self::next`] this tick) the stream's last command.
+    pub fn commit(&mut self, c: &Command<N>) {
+        self.reference = MotionState {
+            q: c.q,
+            qd: c.qd,
+            qdd: c.qdd + c.qddd * self.limiter_dt(),
+        };
+        self.last_tau = c.tau;
+        self.saturations.add(&c.hits);
+    }
+
+    fn limiter_dt(&self) -> f64 {
+        self.limiter.dt()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::command::{JointLimits, MakerTable};
+    use crate::model::{builtin, Chain};
+
+    fn panda(mode: CommandMode) -> (MotionGenerator<7>, Model<7>) {
+        let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
+        let model = chain.model::<7>().unwrap();
+        let limits = JointLimits::<7>::described(&chain, MakerTable::for_robot("panda", 7));
+        let gains = CommandGains {
+            kp: VecN::<7>::repeat(100.0),
+            kd: VecN::<7>::repeat(10.0),
+        };
+        let g = MotionGenerator::new(
+            mode,
+            Limiter::new(&limits, 1e-3, 0.02, true),
+            gains,
+            Some(model),
+        );
+        (g.unwrap(), model)
+    }
+
+    #[test]
+    fn position_mode_integrates_the_ramp_exactly() {
+        let (mut g, _) = panda(CommandMode::Position);
+        let q = VecN::<7>::from_column_slice(&crate::spatial::config::PANDA_READY);
+        g.restart(&q, &VecN::zeros());
+        let a = VecN::<7>::repeat(0.5);
+        for _ in 0..100 {
+            let c = g.next(&q, &VecN::zeros(), &a, &VecN::zeros());
+            assert_eq!(c.hits, [0; 7]);
+            g.commit(&c);
+        }
+        // 0.1 s at 0.5 rad/s²: q̇ = 0.05, q moved by 0.0025.
+        let r = g.reference();
+        assert!((r.qd[0] - 0.05).abs() < 1e-12 && (r.q[0] - q[0] - 0.0025).abs() < 1e-12);
+    }
+
+    #[test]
+    fn torque_mode_is_inverse_dynamics_on_the_reference() {
+        let (mut g, model) = panda(CommandMode::Torque);
+        let q = VecN::<7>::from_column_slice(&crate::spatial::config::PANDA_READY);
+        let qd = VecN::<7>::repeat(0.1);
+        g.restart(&q, &qd);
+        // On the reference, with a small q̈: RNEA alone, within the rate limit of the start.
+        let a = VecN::<7>::repeat(0.01);
+        let c = g.next(&q, &qd, &a, &VecN::zeros());
+        let expect = model.rnea(&q, &qd, &a);
+        assert!((c.tau - expect).norm() < 1e-9, "{} vs {}", c.tau, expect);
+        // A reference error adds the PD.
+        let off = q + VecN::<7>::repeat(1e-3);
+        let c = g.next(&off, &qd, &a, &VecN::zeros());
+        let expect = model.rnea(&off, &qd, &a) - VecN::<7>::repeat(0.1);
+        assert!((c.tau - expect).norm() < 1e-9);
+        assert!(MotionGenerator::new(CommandMode::Torque, *g.limiter(), g.gains, None).is_err());
+    }
+}

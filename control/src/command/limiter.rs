@@ -1,0 +1,373 @@
+//! Keeping a command stream continuous and inside the arm's limits, one tick at a time.
+//!
+//! A robot judges the stream, not the single command: successive positions imply a velocity,
+//! an acceleration and a jerk, and any of them beyond its limit is a reflex stop. So the limiter
+//! shapes the acceleration the law asks for as libfranka's `limitRate` does: clamp the jerk
+//! against the last commanded acceleration, then the acceleration (with a bound that shrinks as
+//! the velocity nears its limit, so the jerk limit can still level it off), then the velocity
+//! (with a bound that shrinks near a position limit, so the arm can still stop before it), then
+//! the position. Every limit is derated by a margin, and the velocity further by what three lost
+//! packets at full acceleration would add (libfranka's assumption).
+//!
+//! A value inside every limit passes bit for bit unchanged, so a run that never saturates is the
+//! run without a limiter (the planar results, with no limits at all, are untouched).
+
+use super::limits::JointLimits;
+use crate::arm::VecN;
+
+/// The kinds of limit, in the order of a saturation table's columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LimitKind {
+    Position,
+    Velocity,
+    Acceleration,
+    Jerk,
+    Torque,
+    TorqueRate,
+}
+
+/// How many [`LimitKind`]s there are.
+pub const LIMIT_KINDS: usize = 6;
+
+impl LimitKind {
+    pub const ALL: [LimitKind; LIMIT_KINDS] = [
+        LimitKind::Position,
+        LimitKind::Velocity,
+        LimitKind::Acceleration,
+        LimitKind::Jerk,
+        LimitKind::Torque,
+        LimitKind::TorqueRate,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            LimitKind::Position => "position",
+            LimitKind::Velocity => "velocity",
+            LimitKind::Acceleration => "acceleration",
+            LimitKind::Jerk => "jerk",
+            LimitKind::Torque => "torque",
+            LimitKind::TorqueRate => "torque_rate",
+        }
+    }
+
+    fn bit(self) -> u8 {
+        1 << self as u8
+    }
+}
+
+/// Ticks on which each joint's command was clamped, per [`LimitKind`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Saturations<const N: usize> {
+    pub counts: [[u64; LIMIT_KINDS]; N],
+}
+
+impl<const N: usize> Default for Saturations<N> {
+    fn default() -> Self {
+        Self {
+            counts: [[0; LIMIT_KINDS]; N],
+        }
+    }
+}
+
+impl<const N: usize> Saturations<N> {
+    /// Adds one tick's clamps (a bit per [`LimitKind`] for each joint).
+    pub fn add(&mut self, hits: &[u8; N]) {
+        for (row, &h) in self.counts.iter_mut().zip(hits) {
+            for (k, c) in row.iter_mut().enumerate() {
+                *c += u64::from(h >> k & 1);
+            }
+        }
+    }
+
+    /// All joints' count for one kind.
+    pub fn total(&self, kind: LimitKind) -> u64 {
+        self.counts.iter().map(|r| r[kind as usize]).sum()
+    }
+
+    /// Every clamp of every kind.
+    pub fn sum(&self) -> u64 {
+        LimitKind::ALL.iter().map(|&k| self.total(k)).sum()
+    }
+}
+
+/// A commanded motion: where the stream is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionState<const N: usize> {
+    pub q: VecN<N>,
+    pub qd: VecN<N>,
+    /// The acceleration at the end of the last interval (the next one's jerk starts here).
+    pub qdd: VecN<N>,
+}
+
+impl<const N: usize> MotionState<N> {
+    pub fn at_rest(q: VecN<N>, qd: VecN<N>) -> Self {
+        Self {
+            q,
+            qd,
+            qdd: VecN::<N>::zeros(),
+        }
+    }
+}
+
+/// One interval of a limited stream.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Step<const N: usize> {
+    /// The motion at the end of the interval.
+    pub end: MotionState<N>,
+    /// The acceleration at its start and its rate over it (0 on a clamped joint).
+    pub qdd: VecN<N>,
+    pub qddd: VecN<N>,
+    /// Which limits clamped each joint (bits of [`LimitKind`]).
+    pub hits: [u8; N],
+}
+
+/// The derated limits and the period they are applied at.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limiter<const N: usize> {
+    l: JointLimits<N>,
+    dt: f64,
+    enabled: bool,
+}
+
+/// Lost packets the velocity margin allows for, at full acceleration (libfranka's value).
+pub const LOST_PACKETS: f64 = 3.0;
+
+impl<const N: usize> Limiter<N> {
+    /// Limits derated by `margin` (a fraction, e.g. 0.02) at period `dt`; `enabled = false`
+    /// passes every command unchanged (to show what the limiter prevents).
+    pub fn new(limits: &JointLimits<N>, dt: f64, margin: f64, enabled: bool) -> Self {
+        let k = 1.0 - margin;
+        let mut l = *limits;
+        for i in 0..N {
+            let half = 0.5 * margin * (l.q_max[i] - l.q_min[i]);
+            if half.is_finite() {
+                l.q_min[i] += half;
+                l.q_max[i] -= half;
+            }
+            l.qdd[i] *= k;
+            l.jerk[i] *= k;
+            l.qd[i] = l.qd[i] * k - LOST_PACKETS * dt * l.qdd[i];
+            l.tau[i] *= k;
+            l.tau_rate[i] *= k;
+        }
+        Self { l, dt, enabled }
+    }
+
+    /// The period the limits are applied at (s).
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    pub fn enabled(&self) -> bool {
+        self.enabled
+    }
+
+    /// The derated limits in force.
+    pub fn limits(&self) -> &JointLimits<N> {
+        &self.l
+    }
+
+    /// The stream's next interval from `last`, asked to accelerate by `qdd + qddd·s`.
+    pub fn step(&self, last: &MotionState<N>, qdd: &VecN<N>, qddd: &VecN<N>) -> Step<N> {
+        let mut s = Step {
+            end: *last,
+            qdd: *qdd,
+            qddd: *qddd,
+            hits: [0; N],
+        };
+        for i in 0..N {
+            if self.enabled {
+                self.shape(i, last, &mut s);
+            }
+            let (a, r, h) = (s.qdd[i], s.qddd[i], self.dt);
+            let v = last.qd[i];
+            s.end.qd[i] = v + a * h + 0.5 * r * h * h;
+            s.end.q[i] = last.q[i] + v * h + 0.5 * a * h * h + r * h * h * h / 6.0;
+            s.end.qdd[i] = a + r * h;
+            if self.enabled {
+                self.keep_inside(i, last, &mut s);
+            }
+        }
+        s
+    }
+
+    /// Jerk, then acceleration, then velocity, for joint `i` (the interval's start values).
+    fn shape(&self, i: usize, last: &MotionState<N>, s: &mut Step<N>) {
+        let (l, h) = (&self.l, self.dt);
+        let (v, a_last) = (last.qd[i], last.qdd[i]);
+        let mut a = s.qdd[i];
+        let mut clamp = |a: &mut f64, lo: f64, hi: f64, kind: LimitKind| {
+            if *a > hi || *a < lo {
+                *a = a.clamp(lo, hi.max(lo));
+                s.hits[i] |= kind.bit();
+            }
+        };
+        let dj = l.jerk[i] * h;
+        clamp(&mut a, a_last - dj, a_last + dj, LimitKind::Jerk);
+        let (v_lo, v_hi) = self.velocity_bounds(i, last.q[i]);
+        let (a_lo, a_hi) = self.acceleration_bounds(i, v, v_lo, v_hi);
+        clamp(&mut a, a_lo, a_hi, LimitKind::Acceleration);
+        // The hard speed limit at the end of the interval with a constant `a`.
+        let v_end = v + a * h;
+        if v_end.abs() > l.qd[i] {
+            a = (v_end.clamp(-l.qd[i], l.qd[i]) - v) / h;
+            s.hits[i] |= LimitKind::Velocity.bit();
+        }
+        if a != s.qdd[i] {
+            s.qdd[i] = a;
+            s.qddd[i] = 0.0;
+        }
+    }
+
+    /// The velocity range at position `q`: the speed limit, and no faster towards a position
+    /// limit than the joint can still stop from at half its acceleration limit, allowing for
+    /// the lag of the acceleration bound that follows it (`qdd / jerk` seconds at full speed).
+    fn velocity_bounds(&self, i: usize, q: f64) -> (f64, f64) {
+        let l = &self.l;
+        let lag = if l.jerk[i].is_finite() && l.qd[i].is_finite() {
+            l.qd[i] * l.qdd[i] / l.jerk[i]
+        } else {
+            0.0
+        };
+        let stop = |room: f64| (l.qdd[i] * (room - lag).max(0.0)).sqrt();
+        let hi = l.qd[i].min(stop(l.q_max[i] - q));
+        let lo = (-l.qd[i]).max(-stop(q - l.q_min[i]));
+        (lo, hi)
+    }
+
+    /// libfranka's acceleration range at velocity `v`: the bound falls linearly to 0 as `v`
+    /// nears its limit, at the slope the jerk limit allows.
+    fn acceleration_bounds(&self, i: usize, v: f64, v_lo: f64, v_hi: f64) -> (f64, f64) {
+        let (a, j) = (self.l.qdd[i], self.l.jerk[i]);
+        if !(a.is_finite() && j.is_finite()) {
+            return (-a, a);
+        }
+        let slope = j / a;
+        (
+            (-a).max(slope * (v_lo - v)).min(a),
+            a.min(slope * (v_hi - v)).max(-a),
+        )
+    }
+
+    /// The last resort: a position outside its limit is put back on it, at rest.
+    fn keep_inside(&self, i: usize, last: &MotionState<N>, s: &mut Step<N>) {
+        let (lo, hi) = (self.l.q_min[i], self.l.q_max[i]);
+        let q = s.end.q[i];
+        if q > hi || q < lo {
+            s.end.q[i] = q.clamp(lo, hi).clamp(last.q[i].min(q), last.q[i].max(q));
+            s.end.qd[i] = 0.0;
+            s.end.qdd[i] = 0.0;
+            s.qdd[i] = 0.0;
+            s.qddd[i] = 0.0;
+            s.hits[i] |= LimitKind::Position.bit();
+        }
+    }
+
+    /// A torque command limited in rate (from `last`), then in size.
+    pub fn torque(&self, last: &VecN<N>, tau: &VecN<N>, hits: &mut [u8; N]) -> VecN<N> {
+        let mut out = *tau;
+        if !self.enabled {
+            return out;
+        }
+        for i in 0..N {
+            let d = self.l.tau_rate[i] * self.dt;
+            let t = out[i].clamp(last[i] - d, last[i] + d);
+            if t != out[i] {
+                hits[i] |= LimitKind::TorqueRate.bit();
+            }
+            let m = self.l.tau[i];
+            out[i] = t.clamp(-m, m);
+            if out[i] != t {
+                hits[i] |= LimitKind::Torque.bit();
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::command::limits::PANDA;
+
+    fn panda_limits() -> JointLimits<7> {
+        let mut l = JointLimits::<7>::NONE;
+        for i in 0..7 {
+            l.q_min[i] = PANDA.q_min[i];
+            l.q_max[i] = PANDA.q_max[i];
+            l.qd[i] = PANDA.qd[i];
+            l.qdd[i] = PANDA.qdd[i];
+            l.jerk[i] = PANDA.jerk[i];
+            l.tau[i] = PANDA.tau[i];
+            l.tau_rate[i] = PANDA.tau_rate[i];
+        }
+        l
+    }
+
+    fn ready() -> MotionState<7> {
+        MotionState::at_rest(
+            VecN::<7>::from_column_slice(&crate::spatial::config::PANDA_READY),
+            VecN::<7>::zeros(),
+        )
+    }
+
+    #[test]
+    fn values_inside_every_limit_pass_bit_for_bit() {
+        let lim = Limiter::new(&panda_limits(), 1e-3, 0.02, true);
+        let a = VecN::<7>::repeat(0.5);
+        let r = VecN::<7>::repeat(2.0);
+        let s = lim.step(&ready(), &a, &r);
+        assert_eq!((s.qdd, s.qddd, s.hits), (a, r, [0; 7]));
+        let off = Limiter::new(&panda_limits(), 1e-3, 0.02, false);
+        assert_eq!(off.step(&ready(), &a, &r).end, s.end);
+        // Without any limit (the planar arm) nothing is ever clamped.
+        let none = Limiter::new(&JointLimits::<7>::NONE, 1e-3, 0.02, true);
+        let huge = VecN::<7>::repeat(1e6);
+        assert_eq!(none.step(&ready(), &huge, &huge).hits, [0; 7]);
+    }
+
+    /// Drives each joint hard into every limit for 3 s and checks, on the stream itself as a
+    /// robot would (finite differences of the commanded positions), that no limit is ever broken.
+    #[test]
+    fn a_violent_demand_gives_a_stream_inside_every_limit() {
+        let l = panda_limits();
+        let dt = 1e-3;
+        let lim = Limiter::new(&l, dt, 0.02, true);
+        let mut m = ready();
+        let mut qs = vec![m.q];
+        let mut sat = Saturations::<7>::default();
+        for k in 0..3000 {
+            // Full speed towards the upper limits, then a sudden reversal.
+            let sign = if k < 1500 { 1.0 } else { -1.0 };
+            let demand = VecN::<7>::repeat(sign * 1e4);
+            let s = lim.step(&m, &demand, &VecN::<7>::zeros());
+            sat.add(&s.hits);
+            m = s.end;
+            qs.push(m.q);
+        }
+        for i in 0..7 {
+            let v: Vec<f64> = qs.windows(2).map(|w| (w[1][i] - w[0][i]) / dt).collect();
+            let a: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
+            let j: Vec<f64> = a.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
+            let max = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(qs.iter().all(|q| q[i] >= l.q_min[i] && q[i] <= l.q_max[i]));
+            assert!(max(&v) <= l.qd[i], "joint {i}: v {}", max(&v));
+            assert!(max(&a) <= l.qdd[i] * 1.0001, "joint {i}: a {}", max(&a));
+            assert!(max(&j) <= l.jerk[i] * 1.0001, "joint {i}: j {}", max(&j));
+        }
+        assert!(sat.total(LimitKind::Jerk) > 0 && sat.total(LimitKind::Acceleration) > 0);
+    }
+
+    #[test]
+    fn torque_is_limited_in_rate_then_size() {
+        let lim = Limiter::new(&panda_limits(), 1e-3, 0.0, true);
+        let mut hits = [0u8; 7];
+        let t = lim.torque(&VecN::zeros(), &VecN::repeat(50.0), &mut hits);
+        assert_eq!(t[0], 1.0);
+        assert_eq!(hits[0], LimitKind::TorqueRate.bit());
+        let mut hits = [0u8; 7];
+        let t = lim.torque(&VecN::repeat(11.9), &VecN::repeat(50.0), &mut hits);
+        assert_eq!((t[0], t[6]), (12.9, 12.0));
+        assert_ne!(hits[6] & LimitKind::Torque.bit(), 0);
+    }
+}

@@ -1,0 +1,223 @@
+//! `[plant.rigid_body]`: the simulated arm's physics, checked at start-up.
+
+use super::{mismatched, RigidBody, Sensor};
+use crate::arm::VecN;
+use crate::config::ConfigError;
+use crate::model::{Chain, Model};
+use serde::{Deserialize, Serialize};
+
+/// A joint servo's gains, per joint (N·m/rad, N·m·s/rad).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ServoGains<const N: usize> {
+    pub kp: VecN<N>,
+    pub kd: VecN<N>,
+}
+
+impl<const N: usize> ServoGains<N> {
+    /// Gains that give each joint, alone with its own inertia `m_ii`, the natural frequency
+    /// `hz` and damping ratio `zeta`.
+    pub fn from_bandwidth(m_diag: &VecN<N>, hz: f64, zeta: f64) -> Self {
+        let w = std::f64::consts::TAU * hz;
+        Self {
+            kp: m_diag * (w * w),
+            kd: m_diag * (2.0 * zeta * w),
+        }
+    }
+
+    /// Refuses gains a discrete servo at step `h` cannot run stably on joints of inertia
+    /// `m_diag` (with a factor of ~4 to spare: k_d·h/m ≤ 0.5 and k_p·h²/m ≤ 0.1). The error
+    /// names `field` (`{field}.kp` / `.kd` style prefix) and the joint.
+    pub fn check(&self, m_diag: &VecN<N>, h: f64, kp: &str, kd: &str) -> Result<(), ConfigError> {
+        for i in 0..N {
+            let m = m_diag[i];
+            let (p, d) = (self.kp[i], self.kd[i]);
+            if !(p.is_finite() && p >= 0.0) {
+                return Err(invalid(kp, p, "finite gains ≥ 0"));
+            }
+            if !(d.is_finite() && d >= 0.0) {
+                return Err(invalid(kd, d, "finite gains ≥ 0"));
+            }
+            if d * h / m > 0.5 {
+                return Err(invalid(
+                    kd,
+                    d,
+                    &format!(
+                    "at most {:.4} for joint {} (inertia {m:.4} kg·m²): a larger gain makes the \
+                     servo unstable at its {:.0} Hz rate", 0.5 * m / h, i + 1, 1.0 / h),
+                ));
+            }
+            if p * h * h / m > 0.1 {
+                return Err(invalid(
+                    kp,
+                    p,
+                    &format!(
+                    "at most {:.1} for joint {} (inertia {m:.4} kg·m²): a larger gain makes the \
+                     servo unstable at its {:.0} Hz rate", 0.1 * m / (h * h), i + 1, 1.0 / h),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The arm's physics; every field is optional, the defaults give an ideal arm with a stiff
+/// servo.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RigidBodyConfig {
+    /// Viscous friction per joint (N·m·s/rad); default none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub viscous: Option<Vec<f64>>,
+    /// Coulomb friction per joint (N·m); default none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coulomb: Option<Vec<f64>>,
+    /// The joint rate over which Coulomb friction reaches its level (rad/s, tanh).
+    pub coulomb_width: f64,
+    /// An unmodelled point mass at the tip (kg), at `payload_com` in the tip link's frame (m).
+    pub payload: f64,
+    pub payload_com: [f64; 3],
+    /// Every link's mass and inertia, as a multiple of the description's.
+    pub mass_scale: f64,
+    /// Encoder step (rad); 0: exact positions.
+    pub encoder_resolution: f64,
+    /// Sensor noise, standard deviations: q (rad), q̇ (rad/s), τ (N·m).
+    pub noise_q: f64,
+    pub noise_qd: f64,
+    pub noise_tau: f64,
+    /// The noise generator's seed (the same seed gives the same run).
+    pub seed: u64,
+    /// The joint servo (position and velocity modes): each joint's natural frequency (Hz) and
+    /// damping ratio on its inertia at the start, unless `servo_kp`/`servo_kd` give gains.
+    pub servo_bandwidth_hz: f64,
+    pub servo_damping: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub servo_kp: Option<Vec<f64>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub servo_kd: Option<Vec<f64>>,
+}
+
+impl Default for RigidBodyConfig {
+    fn default() -> Self {
+        Self {
+            viscous: None,
+            coulomb: None,
+            coulomb_width: 0.02,
+            payload: 0.0,
+            payload_com: [0.0; 3],
+            mass_scale: 1.0,
+            encoder_resolution: 0.0,
+            noise_q: 0.0,
+            noise_qd: 0.0,
+            noise_tau: 0.0,
+            seed: 1,
+            servo_bandwidth_hz: 30.0,
+            servo_damping: 1.0,
+            servo_kp: None,
+            servo_kd: None,
+        }
+    }
+}
+
+fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
+    ConfigError::Invalid {
+        field: field.into(),
+        value: format!("{value:?}"),
+        expected: expected.into(),
+    }
+}
+
+/// A per-joint list, or `default` for every joint.
+fn per_joint<const N: usize>(
+    field: &str,
+    v: &Option<Vec<f64>>,
+    default: f64,
+) -> Result<VecN<N>, ConfigError> {
+    match v {
+        None => Ok(VecN::<N>::repeat(default)),
+        Some(v) if v.len() != N => Err(invalid(field, v, &format!("{N} numbers, one per joint"))),
+        Some(v) if v.iter().all(|x| x.is_finite() && *x >= 0.0) => {
+            Ok(VecN::<N>::from_column_slice(v))
+        }
+        Some(v) => Err(invalid(field, v, "finite numbers ≥ 0")),
+    }
+}
+
+impl RigidBodyConfig {
+    /// The simulated arm for `chain` starting at (q0, q̇0), its servo at step `h` (the plant's
+    /// substep), torques clamped to `tau_max`. `prefix` names the table in errors
+    /// (`plant.rigid_body`).
+    pub fn build<const N: usize>(
+        &self,
+        chain: &Chain,
+        start: (VecN<N>, VecN<N>),
+        tau_max: VecN<N>,
+        h: f64,
+        prefix: &str,
+    ) -> Result<(RigidBody<N>, Sensor<N>), ConfigError> {
+        let f = |name: &str| format!("{prefix}.{name}");
+        let scalars = [
+            ("coulomb_width", self.coulomb_width, true),
+            ("payload", self.payload, false),
+            ("mass_scale", self.mass_scale, true),
+            ("encoder_resolution", self.encoder_resolution, false),
+            ("noise_q", self.noise_q, false),
+            ("noise_qd", self.noise_qd, false),
+            ("noise_tau", self.noise_tau, false),
+            ("servo_bandwidth_hz", self.servo_bandwidth_hz, true),
+            ("servo_damping", self.servo_damping, false),
+        ];
+        for (name, v, positive) in scalars {
+            if !(v.is_finite() && (v > 0.0 || (!positive && v == 0.0))) {
+                let want = if positive {
+                    "a number > 0"
+                } else {
+                    "a number ≥ 0"
+                };
+                return Err(invalid(&f(name), v, want));
+            }
+        }
+        if !self.payload_com.iter().all(|v| v.is_finite()) {
+            return Err(invalid(
+                &f("payload_com"),
+                self.payload_com,
+                "3 finite numbers",
+            ));
+        }
+        let described: Model<N> = chain
+            .model::<N>()
+            .map_err(|e| invalid("robot.description", &chain.robot, &e.to_string()))?;
+        let model = mismatched(&described, self.payload, self.payload_com, self.mass_scale);
+        let m = model.mass_matrix(&start.0).diagonal();
+        let auto = ServoGains::from_bandwidth(&m, self.servo_bandwidth_hz, self.servo_damping);
+        let servo = ServoGains {
+            kp: match &self.servo_kp {
+                Some(_) => per_joint::<N>(&f("servo_kp"), &self.servo_kp, 0.0)?,
+                None => auto.kp,
+            },
+            kd: match &self.servo_kd {
+                Some(_) => per_joint::<N>(&f("servo_kd"), &self.servo_kd, 0.0)?,
+                None => auto.kd,
+            },
+        };
+        let gains_field = if self.servo_kp.is_some() {
+            "servo_kp"
+        } else {
+            "servo_bandwidth_hz"
+        };
+        let damping_field = if self.servo_kd.is_some() {
+            "servo_kd"
+        } else {
+            "servo_bandwidth_hz"
+        };
+        servo.check(&m, h, &f(gains_field), &f(damping_field))?;
+        let arm = RigidBody::new(model, start.0, start.1, tau_max)
+            .with_friction(
+                per_joint::<N>(&f("viscous"), &self.viscous, 0.0)?,
+                per_joint::<N>(&f("coulomb"), &self.coulomb, 0.0)?,
+                self.coulomb_width,
+            )
+            .with_servo(servo);
+        let noise = [self.noise_q, self.noise_qd, self.noise_tau];
+        Ok((arm, Sensor::new(self.encoder_resolution, noise, self.seed)))
+    }
+}
