@@ -37,7 +37,7 @@ fn the_servo_holds_a_set_point_against_gravity_and_follows_a_moving_one() {
         qd: V7::zeros(),
         qdd: V7::zeros(),
     };
-    for _ in 0..1000 {
+    for _ in 0..3000 {
         arm.advance(&drive, 0.0, 1e-3, 4);
     }
     assert!(

@@ -99,6 +99,19 @@ impl<const N: usize> MotionGenerator<N> {
         &self.reference
     }
 
+    /// The state the law runs on. Position and velocity modes run it on the reference, as a
+    /// motion generator does (libfranka's `q_d`): the arm's servo lags the reference, and a law
+    /// that closed its loop through that lag would see its own commands late and wind the
+    /// reference up (tried: the Panda's self-motion then ran away within 3 s). The arm follows
+    /// a reference that is itself a clean run of the law. Torque and acceleration modes act on
+    /// the arm directly, so their law runs on the measured state.
+    pub fn law_state(&self, q: &VecN<N>, qd: &VecN<N>) -> (VecN<N>, VecN<N>) {
+        match self.mode {
+            CommandMode::Position | CommandMode::Velocity => (self.reference.q, self.reference.qd),
+            CommandMode::Acceleration | CommandMode::Torque => (*q, *qd),
+        }
+    }
+
     /// Starts the stream again from the measured state, at rest in acceleration.
     pub fn restart(&mut self, q: &VecN<N>, qd: &VecN<N>) {
         self.reference = MotionState::at_rest(*q, *qd);

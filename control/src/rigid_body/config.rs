@@ -13,46 +13,78 @@ pub struct ServoGains<const N: usize> {
     pub kd: VecN<N>,
 }
 
+/// Joint inertia (N×N).
+pub type Inertia<const N: usize> = nalgebra::SMatrix<f64, N, N>;
+
 impl<const N: usize> ServoGains<N> {
-    /// Gains that give each joint, alone with its own inertia `m_ii`, the natural frequency
-    /// `hz` and damping ratio `zeta`.
-    pub fn from_bandwidth(m_diag: &VecN<N>, hz: f64, zeta: f64) -> Self {
+    /// Gains that give each joint the natural frequency `hz` and damping ratio `zeta` on the
+    /// smallest inertia it shows in any of the postures whose inertias are `ms`: the inertia it
+    /// has when the other joints move freely, 1/(M⁻¹)ᵢᵢ. No coupled mode of the arm then runs far
+    /// above `hz` anywhere (joints whose axes line up share a light, fast mode).
+    pub fn from_bandwidth(ms: &[Inertia<N>], hz: f64, zeta: f64) -> Self {
         let w = std::f64::consts::TAU * hz;
+        let mut apparent = VecN::<N>::repeat(f64::INFINITY);
+        for m in ms {
+            let a = m
+                .try_inverse()
+                .map(|inv| inv.diagonal().map(|x| 1.0 / x))
+                .unwrap_or_else(|| m.diagonal());
+            apparent = apparent.zip_map(&a, f64::min);
+        }
         Self {
-            kp: m_diag * (w * w),
-            kd: m_diag * (2.0 * zeta * w),
+            kp: apparent * (w * w),
+            kd: apparent * (2.0 * zeta * w),
         }
     }
 
-    /// Refuses gains a discrete servo at step `h` cannot run stably on joints of inertia
-    /// `m_diag` (with a factor of ~4 to spare: k_d·h/m ≤ 0.5 and k_p·h²/m ≤ 0.1). The error
-    /// names `field` (`{field}.kp` / `.kd` style prefix) and the joint.
-    pub fn check(&self, m_diag: &VecN<N>, h: f64, kp: &str, kd: &str) -> Result<(), ConfigError> {
-        for i in 0..N {
-            let m = m_diag[i];
-            let (p, d) = (self.kp[i], self.kd[i]);
-            if !(p.is_finite() && p >= 0.0) {
-                return Err(invalid(kp, p, "finite gains ≥ 0"));
+    /// Refuses gains a discrete servo at step `h` cannot run stably on an arm whose inertia, in
+    /// the postures tried, is each of `ms`. Joint servos couple through M, so the test is on the
+    /// arm's modes, the eigenvalues λ of M⁻¹K: with a factor of ~4 to spare,
+    /// λ(M⁻¹K_d)·h ≤ 0.5 and λ(M⁻¹K_p)·h² ≤ 0.1. The error names the field (`kp`, `kd`) and
+    /// the joint that moves most in the fastest mode.
+    pub fn check(&self, ms: &[Inertia<N>], h: f64, kp: &str, kd: &str) -> Result<(), ConfigError> {
+        for (field, k) in [(kp, &self.kp), (kd, &self.kd)] {
+            if !k.iter().all(|v| v.is_finite() && *v >= 0.0) {
+                return Err(invalid(field, k.as_slice(), "finite gains ≥ 0"));
             }
-            if !(d.is_finite() && d >= 0.0) {
-                return Err(invalid(kd, d, "finite gains ≥ 0"));
-            }
-            if d * h / m > 0.5 {
+        }
+        for m in ms {
+            self.check_one(m, h, kp, kd)?;
+        }
+        Ok(())
+    }
+
+    fn check_one(&self, m: &Inertia<N>, h: f64, kp: &str, kd: &str) -> Result<(), ConfigError> {
+        let inv = m.try_inverse().ok_or_else(|| {
+            invalid(
+                "robot.description",
+                "singular inertia",
+                "a chain whose joints all carry mass",
+            )
+        })?;
+        for (field, k, bound, power) in [(kd, &self.kd, 0.5, 1), (kp, &self.kp, 0.1, 2)] {
+            let root = k.map(f64::sqrt);
+            let a = Inertia::<N>::from_diagonal(&root) * inv * Inertia::<N>::from_diagonal(&root);
+            // At start-up only: a dynamic matrix, since the fixed-size eigen solver needs
+            // bounds a const generic cannot give.
+            let eig = nalgebra::DMatrix::from_column_slice(N, N, a.as_slice()).symmetric_eigen();
+            let (i, lambda) = eig.eigenvalues.argmax();
+            let x = lambda * h.powi(power);
+            if x > bound {
+                let (joint, _) = eig.eigenvectors.column(i).iter().enumerate().fold(
+                    (0, 0.0),
+                    |(bj, bv), (j, v)| if v.abs() > bv { (j, v.abs()) } else { (bj, bv) },
+                );
                 return Err(invalid(
-                    kd,
-                    d,
+                    field,
+                    k.as_slice(),
                     &format!(
-                    "at most {:.4} for joint {} (inertia {m:.4} kg·m²): a larger gain makes the \
-                     servo unstable at its {:.0} Hz rate", 0.5 * m / h, i + 1, 1.0 / h),
-                ));
-            }
-            if p * h * h / m > 0.1 {
-                return Err(invalid(
-                    kp,
-                    p,
-                    &format!(
-                    "at most {:.1} for joint {} (inertia {m:.4} kg·m²): a larger gain makes the \
-                     servo unstable at its {:.0} Hz rate", 0.1 * m / (h * h), i + 1, 1.0 / h),
+                    "gains at most {:.2e} times these: the arm's fastest mode (mostly joint {}) \
+                     would make the servo unstable at its {:.0} Hz rate",
+                    bound / x,
+                    joint + 1,
+                    1.0 / h
+                ),
                 ));
             }
         }
@@ -110,7 +142,7 @@ impl Default for RigidBodyConfig {
             noise_qd: 0.0,
             noise_tau: 0.0,
             seed: 1,
-            servo_bandwidth_hz: 30.0,
+            servo_bandwidth_hz: 50.0,
             servo_damping: 1.0,
             servo_kp: None,
             servo_kd: None,
@@ -187,8 +219,8 @@ impl RigidBodyConfig {
             .model::<N>()
             .map_err(|e| invalid("robot.description", &chain.robot, &e.to_string()))?;
         let model = mismatched(&described, self.payload, self.payload_com, self.mass_scale);
-        let m = model.mass_matrix(&start.0).diagonal();
-        let auto = ServoGains::from_bandwidth(&m, self.servo_bandwidth_hz, self.servo_damping);
+        let ms = inertias(&model, chain, &start.0);
+        let auto = ServoGains::from_bandwidth(&ms, self.servo_bandwidth_hz, self.servo_damping);
         let servo = ServoGains {
             kp: match &self.servo_kp {
                 Some(_) => per_joint::<N>(&f("servo_kp"), &self.servo_kp, 0.0)?,
@@ -209,7 +241,7 @@ impl RigidBodyConfig {
         } else {
             "servo_bandwidth_hz"
         };
-        servo.check(&m, h, &f(gains_field), &f(damping_field))?;
+        servo.check(&ms, h, &f(gains_field), &f(damping_field))?;
         let arm = RigidBody::new(model, start.0, start.1, tau_max)
             .with_friction(
                 per_joint::<N>(&f("viscous"), &self.viscous, 0.0)?,
@@ -220,4 +252,35 @@ impl RigidBodyConfig {
         let noise = [self.noise_q, self.noise_qd, self.noise_tau];
         Ok((arm, Sensor::new(self.encoder_resolution, noise, self.seed)))
     }
+}
+
+/// How many postures besides the start [`inertias`] samples.
+pub const POSTURES: usize = 64;
+
+/// The arm's inertia at the start `q0` and at [`POSTURES`] postures spread over the joints'
+/// ranges (a fixed low-discrepancy sequence: the same set every time), for the gain rules
+/// above. Start-up only.
+pub fn inertias<const N: usize>(model: &Model<N>, chain: &Chain, q0: &VecN<N>) -> Vec<Inertia<N>> {
+    // Additive recurrence with the generalised golden ratio for N dimensions (R_N sequence).
+    let mut phi = 2.0f64;
+    for _ in 0..32 {
+        phi = (1.0 + phi).powf(1.0 / (N as f64 + 1.0));
+    }
+    let alpha: Vec<f64> = (1..=N)
+        .map(|i| (1.0 / phi.powi(i as i32)).fract())
+        .collect();
+    let mut out = vec![model.mass_matrix(q0)];
+    for k in 1..=POSTURES {
+        let q = VecN::<N>::from_fn(|i, _| {
+            let l = &chain.joints[i].limits;
+            let (lo, hi) = if l.lower.is_finite() && l.upper.is_finite() {
+                (l.lower, l.upper)
+            } else {
+                (-std::f64::consts::PI, std::f64::consts::PI)
+            };
+            lo + (hi - lo) * (0.5 + alpha[i] * k as f64).fract()
+        });
+        out.push(model.mass_matrix(&q));
+    }
+    out
 }

@@ -14,9 +14,11 @@
 //! substep (the servo runs at the substep rate) and held over the substep's RK4 step.
 
 mod config;
+mod device;
 mod sensor;
 
-pub use config::{RigidBodyConfig, ServoGains};
+pub use config::{inertias, Inertia, RigidBodyConfig, ServoGains, POSTURES};
+pub use device::{Device, DeviceCommand};
 pub use sensor::{Measured, Sensor};
 
 use crate::arm::VecN;
@@ -37,6 +39,8 @@ pub enum Drive<const N: usize> {
     },
     /// Follow q̈ by the arm's own inverse dynamics.
     Accelerate(VecN<N>),
+    /// Follow the ramp q̈ + q⃛·s (s from the drive's start) by the arm's own inverse dynamics.
+    Ramp { qdd: VecN<N>, qddd: VecN<N> },
     /// Come to rest: the servo holds the position reached, with damping.
     Hold,
 }
@@ -150,6 +154,10 @@ impl<const N: usize> RigidBody<N> {
         let wanted = match drive {
             Drive::Torque(t) => *t,
             Drive::Accelerate(a) => self.model.rnea(&q, &qd, a) + self.friction(&qd),
+            Drive::Ramp { qdd, qddd } => {
+                let a = qdd + qddd * since.max(0.0);
+                self.model.rnea(&q, &qd, &a) + self.friction(&qd)
+            }
             Drive::Track {
                 q: qr,
                 qd: qdr,

@@ -147,6 +147,14 @@ impl<const N: usize> SpatialArm<N> {
         out.jdot_qd = Vector6::new(a.x, a.y, a.z, wd.x, wd.y, wd.z);
     }
 
+    /// Where the tool point is at `q` (base frame): the measured arm's, when the law runs on a
+    /// reference.
+    pub fn tool_position(&self, q: &VecN<N>) -> Vec3 {
+        let mut frames = Frames::<N>::default();
+        self.model.frames(q, &mut frames);
+        frames.tip.pos + frames.tip.rot * self.tool
+    }
+
     /// The motion of point `x` (base frame) fixed to body `body`.
     #[inline]
     pub fn point_motion(

@@ -41,6 +41,9 @@ pub struct SpatialConfig {
     pub safety: LimitsSection,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub obstacles: Vec<SphereEntry>,
+    /// The interface the daemon sends and its limiter (SCIENCE.md §9).
+    #[serde(default)]
+    pub command: crate::command::CommandSection,
     pub sim: SimSection,
     /// The daemon's own table (`chaosd`), passed through untouched as in a planar file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -425,6 +428,7 @@ impl SpatialConfig {
     /// `step` names it), with the barrier gains when the filter is on.
     pub fn check_step(&self, chain: &Chain, dt: f64, step: &str) -> Result<(), ConfigError> {
         let safety = self.limits(chain)?;
+        self.check_command(chain, dt)?;
         let barriers = [("safety.k1", safety.k1), ("safety.k_rate", safety.k_rate)];
         let g = crate::stability::Sampled {
             prefix: "law",
@@ -434,6 +438,22 @@ impl SpatialConfig {
             barriers: if safety.enabled { &barriers } else { &[] },
         };
         crate::stability::check_sampled(&g, dt, step)
+    }
+
+    /// The command interface's generator at period `dt` (`N` = the chain's joint count): every
+    /// `[command]` field checked against the chain, the PD gains at `dt`.
+    pub fn generator<const N: usize>(
+        &self,
+        chain: &Chain,
+        dt: f64,
+    ) -> Result<crate::command::MotionGenerator<N>, ConfigError> {
+        let q0 = SVector::<f64, N>::from_fn(|i, _| self.sim.q0.get(i).copied().unwrap_or(0.0));
+        self.command
+            .generator::<N>(chain, &self.robot.description, &q0, dt)
+    }
+
+    fn check_command(&self, chain: &Chain, dt: f64) -> Result<(), ConfigError> {
+        crate::with_dof!(chain.dof(), N => self.generator::<N>(chain, dt).map(|_| ()))
     }
 
     /// Checks the file against `chain` and builds the run; `N` must be the chain's joint count.

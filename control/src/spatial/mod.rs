@@ -6,6 +6,7 @@
 //! Jacobian and task acceleration to [`crate::resolve`], so the law proper exists once.
 
 pub mod arm;
+pub mod commanded;
 pub mod config;
 pub mod law;
 pub mod safety;

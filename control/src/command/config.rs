@@ -1,0 +1,144 @@
+//! `[command]`: which interface the daemon sends and how the stream is limited.
+
+use super::{
+    CommandGains, CommandMode, JointLimits, LimitOverrides, Limiter, MakerTable, MotionGenerator,
+};
+use crate::arm::VecN;
+use crate::config::ConfigError;
+use crate::model::Chain;
+use crate::rigid_body::ServoGains;
+use serde::{Deserialize, Serialize};
+
+/// The default derating of every limit (2 %).
+pub const DEFAULT_MARGIN: f64 = 0.02;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CommandSection {
+    /// "acceleration", "velocity", "position" or "torque". Changing it takes a restart.
+    pub mode: CommandMode,
+    /// Pass every command through the limiter (off only to show what it prevents).
+    pub limiter: bool,
+    /// Every limit is derated by this fraction (0 ≤ margin < 0.5).
+    pub margin: f64,
+    /// Torque mode's joint PD: each joint's natural frequency (Hz) and damping ratio on its
+    /// inertia at the start, unless `kp`/`kd` give gains (N·m/rad, N·m·s/rad).
+    pub pd_bandwidth_hz: f64,
+    pub pd_damping: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub kp: Option<Vec<f64>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub kd: Option<Vec<f64>>,
+    /// Tighter limits than the description's.
+    #[serde(skip_serializing_if = "is_default")]
+    pub limits: LimitOverrides,
+}
+
+fn is_default(o: &LimitOverrides) -> bool {
+    *o == LimitOverrides::default()
+}
+
+impl Default for CommandSection {
+    fn default() -> Self {
+        Self {
+            mode: CommandMode::Acceleration,
+            limiter: true,
+            margin: DEFAULT_MARGIN,
+            pd_bandwidth_hz: 10.0,
+            pd_damping: 1.0,
+            kp: None,
+            kd: None,
+            limits: LimitOverrides::default(),
+        }
+    }
+}
+
+fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
+    ConfigError::Invalid {
+        field: field.into(),
+        value: format!("{value:?}"),
+        expected: expected.into(),
+    }
+}
+
+fn gains<const N: usize>(field: &str, v: &[f64]) -> Result<VecN<N>, ConfigError> {
+    if v.len() != N || !v.iter().all(|x| x.is_finite() && *x >= 0.0) {
+        return Err(invalid(
+            field,
+            v,
+            &format!("{N} finite numbers ≥ 0, one per joint"),
+        ));
+    }
+    Ok(VecN::<N>::from_column_slice(v))
+}
+
+impl CommandSection {
+    /// The limits the stream obeys: the description's (`robot` names a maker's table), tightened
+    /// by `[command.limits]`.
+    pub fn limits<const N: usize>(
+        &self,
+        chain: &Chain,
+        robot: &str,
+    ) -> Result<JointLimits<N>, ConfigError> {
+        JointLimits::<N>::described(chain, MakerTable::for_robot(robot, N))
+            .tightened(&self.limits, "command.limits")
+    }
+
+    /// The daemon's generator at period `dt` for `chain` starting at `q0`, with every field
+    /// checked (the PD gains must be stable at `dt` on the arm's inertia).
+    pub fn generator<const N: usize>(
+        &self,
+        chain: &Chain,
+        robot: &str,
+        q0: &VecN<N>,
+        dt: f64,
+    ) -> Result<MotionGenerator<N>, ConfigError> {
+        if !(self.margin.is_finite() && (0.0..0.5).contains(&self.margin)) {
+            return Err(invalid(
+                "command.margin",
+                self.margin,
+                "a fraction in [0, 0.5)",
+            ));
+        }
+        for (f, v) in [
+            ("command.pd_bandwidth_hz", self.pd_bandwidth_hz),
+            ("command.pd_damping", self.pd_damping),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(invalid(f, v, "a number > 0"));
+            }
+        }
+        let limits = self.limits::<N>(chain, robot)?;
+        let model = chain
+            .model::<N>()
+            .map_err(|e| invalid("robot.description", robot, &e.to_string()))?;
+        let ms = crate::rigid_body::inertias(&model, chain, q0);
+        let auto = ServoGains::from_bandwidth(&ms, self.pd_bandwidth_hz, self.pd_damping);
+        let g = CommandGains {
+            kp: match &self.kp {
+                Some(v) => gains::<N>("command.kp", v)?,
+                None => auto.kp,
+            },
+            kd: match &self.kd {
+                Some(v) => gains::<N>("command.kd", v)?,
+                None => auto.kd,
+            },
+        };
+        if self.mode == CommandMode::Torque {
+            let kp = if self.kp.is_some() {
+                "command.kp"
+            } else {
+                "command.pd_bandwidth_hz"
+            };
+            let kd = if self.kd.is_some() {
+                "command.kd"
+            } else {
+                "command.pd_bandwidth_hz"
+            };
+            ServoGains { kp: g.kp, kd: g.kd }.check(&ms, dt, kp, kd)?;
+        }
+        let limiter = Limiter::new(&limits, dt, self.margin, self.limiter);
+        MotionGenerator::new(self.mode, limiter, g, Some(model))
+            .map_err(|e| invalid("command.mode", self.mode.name(), e))
+    }
+}

@@ -1,0 +1,102 @@
+//! The arm as a device: it takes a command in its interface and turns it into what its motors
+//! do, as a robot's own controller does.
+//!
+//! * torque: applied as sent (clamped to the torque limits by [`RigidBody`]);
+//! * position: the joint servo follows the commanded position, reached at the end of the period
+//!   (the set-point moves on from the previous one at the commanded rate);
+//! * velocity: the device integrates the commanded rate into its own set-point and the servo
+//!   follows that, so the daemon's reference position never reaches it;
+//! * acceleration: the arm's own inverse dynamics turns q̈ (ramped) into torque.
+//!
+//! Shared by the plant process and the offline loop, so both run the same device.
+
+use super::{Drive, Measured, RigidBody, Sensor};
+use crate::arm::VecN;
+use crate::command::CommandMode;
+
+/// One command as the device receives it (the fields its mode does not use are ignored).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeviceCommand<const N: usize> {
+    pub mode: CommandMode,
+    pub q: VecN<N>,
+    pub qd: VecN<N>,
+    pub qdd: VecN<N>,
+    pub qddd: VecN<N>,
+    pub tau: VecN<N>,
+}
+
+/// The simulated robot: its physics, its sensors and its command handling.
+#[derive(Debug, Clone)]
+pub struct Device<const N: usize> {
+    pub arm: RigidBody<N>,
+    pub sensor: Sensor<N>,
+    drive: Drive<N>,
+    /// Where the drive's reference is at the start of the current period, relative to the
+    /// period's start (position mode: the command is for the period's end).
+    offset: f64,
+    /// Velocity mode's own set-point.
+    set_point: Option<VecN<N>>,
+}
+
+impl<const N: usize> Device<N> {
+    pub fn new(arm: RigidBody<N>, sensor: Sensor<N>) -> Self {
+        Self {
+            arm,
+            sensor,
+            drive: Drive::Hold,
+            offset: 0.0,
+            set_point: None,
+        }
+    }
+
+    /// Takes the command for the next period of `dt` seconds.
+    pub fn command(&mut self, c: &DeviceCommand<N>, dt: f64) {
+        if c.mode != CommandMode::Velocity {
+            self.set_point = None;
+        }
+        self.offset = 0.0;
+        self.drive = match c.mode {
+            CommandMode::Torque => Drive::Torque(c.tau),
+            CommandMode::Acceleration => Drive::Ramp {
+                qdd: c.qdd,
+                qddd: c.qddd,
+            },
+            CommandMode::Position => {
+                // Reached at the period's end: the reference runs from dt before it.
+                self.offset = -dt;
+                Drive::Track {
+                    q: c.q,
+                    qd: c.qd,
+                    qdd: VecN::<N>::zeros(),
+                }
+            }
+            CommandMode::Velocity => {
+                let from = *self.set_point.get_or_insert(self.arm.state.q);
+                self.set_point = Some(from + c.qd * dt);
+                Drive::Track {
+                    q: from,
+                    qd: c.qd,
+                    qdd: VecN::<N>::zeros(),
+                }
+            }
+        };
+    }
+
+    /// No command to follow: come to rest and hold (a brake on a real arm).
+    pub fn hold(&mut self) {
+        self.drive = Drive::Hold;
+        self.set_point = None;
+    }
+
+    /// Advances one period of `dt` in `substeps`.
+    pub fn advance(&mut self, dt: f64, substeps: u32) {
+        self.arm.advance(&self.drive, self.offset, dt, substeps);
+        // A command is for one period; a late one keeps its reference moving on.
+        self.offset += dt;
+    }
+
+    /// What the sensors read now (and the torque applied over the last substep).
+    pub fn measure(&mut self) -> Measured<N> {
+        self.sensor.measure(&self.arm.state, &self.arm.applied)
+    }
+}

@@ -1,0 +1,152 @@
+//! The sampled-data loop through a command interface and a dynamic arm, offline.
+//!
+//! What the daemon and the plant do across two processes, in one: each period the law runs on
+//! the measured state (first-order hold, delay line on the measured rates), the motion
+//! generator turns its q̈ into the configured command through the limiter, and the device
+//! (`rigid_body::Device`: servo, friction, payload, sensors) follows it for one period. It
+//! answers "does this mode track, and does the feedback still work?" in seconds, and is what
+//! the bench's acceptance table and the tests run; the live processes are checked separately.
+
+use crate::arm::VecN;
+use crate::command::{CommandMode, LimitKind, LIMIT_KINDS};
+use crate::config::ConfigError;
+use crate::delay::DelayLine;
+use crate::hold;
+use crate::rigid_body::{Device, DeviceCommand, RigidBodyConfig};
+use crate::sim::ArmState;
+use crate::system::System;
+use crate::tick_law::LawScratch;
+
+/// What a run showed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CommandedRun {
+    pub mode: CommandMode,
+    /// Tracking error after the transient: RMS and peak (m).
+    pub tracking_rms: f64,
+    pub tracking_max: f64,
+    /// RMS of the period residual ‖q̇(t) − q̇(t − τ)‖ over the last τ before the feedback comes
+    /// on, and over the run's last τ (rad/s).
+    pub residual_before: f64,
+    pub residual_after: f64,
+    /// Limiter clamps (ticks × joints) per [`LimitKind`].
+    pub saturations: [u64; LIMIT_KINDS],
+    /// Plant substeps in which a torque hit the arm's limit.
+    pub plant_torque_saturations: u64,
+    /// Peak |q̇_i| / q̇_max,i (the description's limits).
+    pub peak_speed_fraction: f64,
+    /// Peak |q_r − q| (rad): how far the arm lags its reference.
+    pub reference_lag: f64,
+}
+
+/// Runs `system` (spatial) for `duration` s at period `dt` against the dynamic arm `plant` in
+/// `substeps` per period. `N` must be the chain's joint count.
+pub fn run<const N: usize>(
+    system: &System,
+    plant: &RigidBodyConfig,
+    dt: f64,
+    substeps: u32,
+    duration: f64,
+    transient: f64,
+) -> Result<CommandedRun, ConfigError> {
+    let System::Spatial(s) = system else {
+        return Err(ConfigError::Spatial(
+            "command interfaces need a robot model: use a [robot] set-up".into(),
+        ));
+    };
+    let mut gen = s.config.generator::<N>(&s.chain, dt)?;
+    let law = system.tick_law::<N>();
+    let crate::tick_law::TickLaw::Spatial { arm: arm_model, .. } = &law else {
+        unreachable!("a spatial system has a spatial law")
+    };
+    let arm_model = *arm_model;
+    let described = s
+        .config
+        .command
+        .limits::<N>(&s.chain, &s.config.robot.description)?;
+    let x0: ArmState<N> = system.initial_state();
+    let tau_max = VecN::<N>::from_column_slice(&described.tau);
+    let (arm, sensor) = plant.build::<N>(
+        &s.chain,
+        (x0.q, x0.qd),
+        tau_max,
+        dt / f64::from(substeps.max(1)),
+        "plant.rigid_body",
+    )?;
+    let mut device = Device::new(arm, sensor);
+    let fb = system.feedback();
+    let mut delay = DelayLine::new(fb.max_tau.max(fb.tau) / dt, x0.qd);
+    let mut scratch = LawScratch::default();
+    gen.restart(&x0.q, &x0.qd);
+    let steps = (duration / dt).round() as u64;
+    let window = (fb.tau / dt).round().max(1.0) as u64;
+    let t_on = (fb.t_on / dt).round() as u64;
+    let mut out = CommandedRun {
+        mode: gen.mode(),
+        tracking_rms: 0.0,
+        tracking_max: 0.0,
+        residual_before: 0.0,
+        residual_after: 0.0,
+        saturations: [0; LIMIT_KINDS],
+        plant_torque_saturations: 0,
+        peak_speed_fraction: 0.0,
+        reference_lag: 0.0,
+    };
+    let (mut tracked, mut before, mut after) = (0u64, 0u64, 0u64);
+    for k in 0..steps {
+        let t = k as f64 * dt;
+        let m = device.measure();
+        let (q, qd) = gen.law_state(&m.q, &m.qd);
+        let x = ArmState { q, qd, phi: 0.0 };
+        delay.push(x.qd);
+        let held = hold::command(
+            &law,
+            t,
+            &x,
+            dt,
+            true,
+            |at| delay.sample(at / dt),
+            &mut scratch,
+        );
+        let o = held.output;
+        out.reference_lag = out.reference_lag.max((gen.reference().q - m.q).amax());
+        let c = gen.next(&m.q, &m.qd, &held.qdd, &held.qddd);
+        gen.commit(&c);
+        let cmd = DeviceCommand {
+            mode: c.mode,
+            q: c.q,
+            qd: c.qd,
+            qdd: c.qdd,
+            qddd: c.qddd,
+            tau: c.tau,
+        };
+        device.command(&cmd, dt);
+        device.advance(dt, substeps);
+        // The arm's own error (the law's is its reference's in position and velocity modes).
+        let e = (arm_model.tool_position(&m.q) - o.p_desired).norm();
+        if t >= transient {
+            out.tracking_rms += e * e;
+            out.tracking_max = out.tracking_max.max(e);
+            tracked += 1;
+        }
+        if k + window >= t_on && k < t_on {
+            out.residual_before += o.period_residual * o.period_residual;
+            before += 1;
+        }
+        if k + window >= steps {
+            out.residual_after += o.period_residual * o.period_residual;
+            after += 1;
+        }
+        for i in 0..N {
+            let f = m.qd[i].abs() / described.qd[i];
+            out.peak_speed_fraction = out.peak_speed_fraction.max(f);
+        }
+    }
+    out.tracking_rms = (out.tracking_rms / tracked.max(1) as f64).sqrt();
+    out.residual_before = (out.residual_before / before.max(1) as f64).sqrt();
+    out.residual_after = (out.residual_after / after.max(1) as f64).sqrt();
+    for kind in LimitKind::ALL {
+        out.saturations[kind as usize] = gen.saturations.total(kind);
+    }
+    out.plant_torque_saturations = device.arm.torque_saturations;
+    Ok(out)
+}
