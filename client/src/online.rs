@@ -73,8 +73,11 @@ pub enum Online {
         #[command(subcommand)]
         action: RecordAction,
     },
-    /// Leave FAULT (the runaway guard tripped and the plant is braking): the daemon holds until
-    /// the next fresh state, then controls again with a fresh history. Refused when not in FAULT.
+    /// Leave FAULT (the runaway guard tripped, or the device stopped with a reflex error, and
+    /// the arm is braking): the daemon sends HOLD (a device clears its reflex stop on it) until
+    /// the next fresh state, then controls again with a fresh history. Refused when not in
+    /// FAULT. `recover` is the same command, by libfranka's name.
+    #[command(visible_alias = "recover")]
     Resume {
         #[command(flatten)]
         conn: Conn,

@@ -200,6 +200,34 @@ impl System {
         }
     }
 
+    /// The command interface this set-up sends (the planar arm: acceleration, always).
+    pub fn command_mode(&self) -> crate::command::CommandMode {
+        match self {
+            System::Planar(_) => crate::command::CommandMode::Acceleration,
+            System::Spatial(s) => s.config.command.mode,
+        }
+    }
+
+    /// Whether commands pass the limiter (the planar arm has no limits to enforce).
+    pub fn limiter_on(&self) -> bool {
+        match self {
+            System::Planar(_) => false,
+            System::Spatial(s) => s.config.command.limiter,
+        }
+    }
+
+    /// The motion generator and limiter at the daemon's period `dt` (`N` = [`System::n`]). The
+    /// planar arm has no maker's limits: its q̈ passes through untouched, as it always has.
+    pub fn generator<const N: usize>(
+        &self,
+        dt: f64,
+    ) -> Result<crate::command::MotionGenerator<N>, ConfigError> {
+        match self {
+            System::Planar(_) => Ok(crate::command::MotionGenerator::passthrough(dt)),
+            System::Spatial(s) => s.config.generator::<N>(&s.chain, dt),
+        }
+    }
+
     /// The running law's parameters as a block for [`TickLaw::set`]. The set-up was validated.
     pub fn param_block(&self) -> ParamBlock {
         match self {

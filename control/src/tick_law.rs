@@ -131,6 +131,15 @@ impl<const N: usize> TickLaw<N> {
         true
     }
 
+    /// Where a spatial arm's tool point is at `q` (None for the planar arm, whose law always
+    /// runs on the measured state).
+    pub fn tool_position(&self, q: &VecN<N>) -> Option<crate::spatial::task::Vec3> {
+        match self {
+            TickLaw::Planar { .. } => None,
+            TickLaw::Spatial { arm, .. } => Some(arm.tool_position(q)),
+        }
+    }
+
     /// The planar law's parameters (None for a spatial arm).
     pub fn planar_params(&self) -> Option<&LawParams> {
         match self {

@@ -166,6 +166,8 @@ impl Reporter {
             "phase_offset_us": self.daemon.phase_offset_us,
             "state_to_command": Percentiles::of(&self.state_to_command),
             "answered_within_period": self.answered_share(),
+            "command": self.saturations.to_json(),
+            "device": protocol::DeviceStatus::from_code(self.device).map(|d| d.to_string()),
         });
         for k in [
             "kp",

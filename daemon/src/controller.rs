@@ -6,6 +6,7 @@
 //! a mock clock, and its allocation-freedom proven without shared memory in the way.
 
 use crate::guard::{FaultReason, Guard};
+use control::command::{Command, MotionGenerator};
 use control::hold;
 use control::tick_law::{LawScratch, ParamBlock, TickLaw};
 use control::{ArmState, ControlOutput, DelayLine, LawParams, VecN};
@@ -121,6 +122,9 @@ pub struct TickOutcome<const N: usize> {
     pub fault: Option<FaultReason>,
     /// The change applied since the previous tick, if any.
     pub applied: Option<Applied>,
+    /// Which limits the limiter applied to each joint's command (bits of
+    /// `control::command::LimitKind`).
+    pub limiter_hits: [u8; protocol::MAX_JOINTS],
 }
 
 /// Tick-independent settings.
@@ -166,6 +170,12 @@ pub struct Controller<const N: usize> {
     /// `None`: every plant is controlled (tests, tools). `Some(id)`: only states of plant `id`,
     /// the one the handshake agreed to (0: none yet). Set between ticks, never on the tick.
     agreed_plant: Option<u64>,
+    /// The law's q̈ into the configured command interface, through the limiter.
+    generator: MotionGenerator<N>,
+    /// A device error already turned into a FAULT: not again until the device reports none.
+    device_fault_latched: bool,
+    /// Controller time of the last RUN command (the generator advances by the time since).
+    last_run_t: Option<f64>,
     pub counters: Counters,
 }
 
@@ -194,8 +204,23 @@ impl<const N: usize> Controller<N> {
             fault: None,
             applied: None,
             agreed_plant: None,
+            generator: MotionGenerator::passthrough(dt),
+            device_fault_latched: false,
+            last_run_t: None,
             counters: Counters::default(),
         }
+    }
+
+    /// This controller with the command interface and limiter `generator` (built from the
+    /// set-up at the same rate); without one, q̈ passes through unlimited.
+    pub fn with_generator(mut self, generator: MotionGenerator<N>) -> Self {
+        self.generator = generator;
+        self
+    }
+
+    /// The command interface, its limiter and its saturation counts.
+    pub fn generator(&self) -> &MotionGenerator<N> {
+        &self.generator
     }
 
     /// The law this controller runs.
@@ -351,6 +376,7 @@ impl<const N: usize> Controller<N> {
             plant_restarted: false,
             fault: None,
             applied: self.applied.take(),
+            limiter_hits: [0; protocol::MAX_JOINTS],
         };
         let mut fresh = None;
         if let Some(s) = newest {
@@ -373,8 +399,16 @@ impl<const N: usize> Controller<N> {
                         // was braking, not following the last rates) the old q̇ would feed the
                         // Pyragas term lies, and catching the circle again is a re-entry.
                         self.last_qd = None;
-                        self.restart_history(g, VecN::<N>::from_column_slice(&s.qd[..N]));
+                        let x = arm_state::<N>(s);
+                        self.restart_generator(&x);
+                        self.restart_history(g, x.qd);
                         self.guard.reenter(t);
+                    } else if s.has_flags(protocol::flags::BRAKING) {
+                        // The device is braking on its own (its answers went missing): it is
+                        // not following the stream, so the stream follows it, and starts
+                        // again from where the arm is when the device resumes.
+                        let x = arm_state::<N>(s);
+                        self.restart_generator(&x);
                     }
                     self.plant_id = s.plant_id;
                     self.last_stamp = s.stamp_ns;
@@ -389,6 +423,9 @@ impl<const N: usize> Controller<N> {
                     fresh = Some(s);
                 }
                 Err(r) => {
+                    if r == Rejection::PlantFault {
+                        self.device_fault(s, &mut out);
+                    }
                     match r {
                         Rejection::Invalid(_) => self.counters.rejected_invalid += 1,
                         Rejection::Stale { .. } => self.counters.rejected_stale += 1,
@@ -421,6 +458,32 @@ impl<const N: usize> Controller<N> {
         out
     }
 
+    /// A state flagged FAULT that names a device error: the daemon goes to FAULT, naming the
+    /// joint and the reason, once per device error (a resume does not re-enter it while the
+    /// device still reports the same stop; a state without one re-arms it).
+    fn device_fault(&mut self, s: &StateSample, out: &mut TickOutcome<N>) {
+        let Some(status) = s
+            .device_status()
+            .filter(|d| *d != protocol::DeviceStatus::Ok)
+        else {
+            return;
+        };
+        if self.device_fault_latched {
+            return;
+        }
+        self.device_fault_latched = true;
+        let reason = FaultReason::Device {
+            status,
+            joint: s.device_joint,
+        };
+        if self.mode != Mode::Fault {
+            self.mode = Mode::Fault;
+            self.fault = Some(reason);
+            self.counters.faults += 1;
+            out.fault = Some(reason);
+        }
+    }
+
     /// Runs the law on `s` as the next tick would and throws the result away, changing nothing
     /// but scratch space.
     ///
@@ -433,7 +496,8 @@ impl<const N: usize> Controller<N> {
         if self.mode != Mode::Run || s.n as usize != N {
             return;
         }
-        let x = arm_state(s);
+        let m = arm_state(s);
+        let x = self.law_state(&m);
         let t = self.t + self.dt;
         let held = self.hold_command(t, &x);
         // What the tick runs besides the law, without its effects: the acceptance checks, the
@@ -442,7 +506,8 @@ impl<const N: usize> Controller<N> {
         let _ = std::hint::black_box(self.accept(s, s.stamp_ns));
         let mut guard = self.guard;
         std::hint::black_box(guard.check(t, self.law.safety(), &x.qd, &held.output));
-        std::hint::black_box(self.next_command(Mode::Run, &held.qdd, &held.qddd, s, s.stamp_ns));
+        let c = self.generator.next(&m.q, &m.qd, &held.qdd, &held.qddd);
+        std::hint::black_box(self.next_command(Mode::Run, &c, s, s.stamp_ns));
         std::hint::black_box(held);
         std::hint::black_box(self.delay.next_slot());
         std::hint::black_box(self.counters);
@@ -467,12 +532,20 @@ impl<const N: usize> Controller<N> {
     fn run_law(&mut self, s: &StateSample, now_ns: u64, out: &mut TickOutcome<N>) {
         self.missed = 0;
         self.mode = Mode::Run;
-        let x = arm_state(s);
+        self.device_fault_latched = false;
+        let m = arm_state(s);
+        let x = self.law_state(&m);
         let t = self.t;
         self.feed_delay((t / self.dt).round() as i64, x.qd);
         self.last_qd = Some(x.qd);
         let held = self.hold_command(t, &x);
-        let o = held.output;
+        let mut o = held.output;
+        if x.q != m.q {
+            // The law ran on the reference: the tracking error reported is the arm's own.
+            if let Some(p) = self.law.tool_position(&m.q) {
+                o.tracking_error = (p - o.p_desired).norm();
+            }
+        }
         self.count_flags(o.flags);
         out.output = Some(o);
         if let Some(reason) = self.guard.check(t, self.law.safety(), &x.qd, &o) {
@@ -483,7 +556,44 @@ impl<const N: usize> Controller<N> {
             out.command = Some(self.fault_command(s, now_ns));
             return;
         }
-        out.command = Some(self.command(Mode::Run, &held.qdd, &held.qddd, s, now_ns));
+        // A state that went missing is time the device moved on by: the reference does too.
+        let periods = self.last_run_t.map_or(1, |last| {
+            ((t - last) / self.dt).round().clamp(1.0, 16.0) as u32
+        });
+        self.last_run_t = Some(t);
+        let c = self
+            .generator
+            .next_over(&m.q, &m.qd, &held.qdd, &held.qddd, periods);
+        self.generator.commit(&c);
+        out.limiter_hits[..N].copy_from_slice(&c.hits);
+        out.command = Some(self.command(Mode::Run, &c, s, now_ns));
+    }
+
+    /// The command stream starts again from the arm's measured state `x`.
+    fn restart_generator(&mut self, x: &ArmState<N>) {
+        self.generator.restart(&x.q, &x.qd);
+        self.last_run_t = None;
+    }
+
+    /// The state the law runs on: the measured one, or the generator's reference in position
+    /// and velocity modes (`MotionGenerator::law_state`).
+    fn law_state(&self, m: &ArmState<N>) -> ArmState<N> {
+        let (q, qd) = self.generator.law_state(&m.q, &m.qd);
+        ArmState { q, qd, phi: m.phi }
+    }
+
+    /// A command that moves nothing (HOLD, BRAKE, FAULT), in the configured interface.
+    fn still(&self) -> Command<N> {
+        let zero = VecN::<N>::zeros();
+        Command {
+            mode: self.generator.mode(),
+            q: zero,
+            qd: zero,
+            qdd: zero,
+            qddd: zero,
+            tau: zero,
+            hits: [0; N],
+        }
     }
 
     fn count_flags(&mut self, f: u32) {
@@ -513,14 +623,12 @@ impl<const N: usize> Controller<N> {
             out.command = Some(self.fault_command(&last, now_ns));
         } else if self.mode == Mode::Hold && self.last_seq.is_some() {
             // Tell the plant to hold while its states are missing or unusable.
-            let zero = VecN::<N>::zeros();
-            out.command = Some(self.command(Mode::Hold, &zero, &zero, &last, now_ns));
+            out.command = Some(self.command(Mode::Hold, &self.still(), &last, now_ns));
         }
     }
 
     fn fault_command(&mut self, answers: &StateSample, now_ns: u64) -> CommandSample {
-        let zero = VecN::<N>::zeros();
-        self.command(Mode::Fault, &zero, &zero, answers, now_ns)
+        self.command(Mode::Fault, &self.still(), answers, now_ns)
     }
 
     /// A braking command for shutdown.
@@ -529,19 +637,17 @@ impl<const N: usize> Controller<N> {
             seq: self.last_seq.unwrap_or(0),
             ..StateSample::default()
         };
-        let zero = VecN::<N>::zeros();
-        self.command(Mode::Brake, &zero, &zero, &last, now_ns)
+        self.command(Mode::Brake, &self.still(), &last, now_ns)
     }
 
     fn command(
         &mut self,
         mode: Mode,
-        qdd: &VecN<N>,
-        qddd: &VecN<N>,
+        cmd: &Command<N>,
         answers: &StateSample,
         now_ns: u64,
     ) -> CommandSample {
-        let c = self.next_command(mode, qdd, qddd, answers, now_ns);
+        let c = self.next_command(mode, cmd, answers, now_ns);
         self.next_command_seq += 1;
         c
     }
@@ -550,8 +656,7 @@ impl<const N: usize> Controller<N> {
     fn next_command(
         &self,
         mode: Mode,
-        qdd: &VecN<N>,
-        qddd: &VecN<N>,
+        cmd: &Command<N>,
         answers: &StateSample,
         now_ns: u64,
     ) -> CommandSample {
@@ -563,11 +668,18 @@ impl<const N: usize> Controller<N> {
             daemon_id: self.settings.daemon_id,
             mode: mode.into(),
             n: N as u32,
-            qdd: [0.0; protocol::MAX_JOINTS],
-            qddd: [0.0; protocol::MAX_JOINTS],
+            interface: cmd.mode.code(),
+            ..CommandSample::default()
         };
-        c.qdd[..N].copy_from_slice(qdd.as_slice());
-        c.qddd[..N].copy_from_slice(qddd.as_slice());
+        c.qdd[..N].copy_from_slice(cmd.qdd.as_slice());
+        c.qddd[..N].copy_from_slice(cmd.qddd.as_slice());
+        // An acceleration command is q̈ and its rate alone (recordings compare it field by
+        // field); the other interfaces carry their reference, and torque its torques.
+        if cmd.mode != control::command::CommandMode::Acceleration {
+            c.q[..N].copy_from_slice(cmd.q.as_slice());
+            c.qd[..N].copy_from_slice(cmd.qd.as_slice());
+            c.tau[..N].copy_from_slice(cmd.tau.as_slice());
+        }
         c
     }
 }

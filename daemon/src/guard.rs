@@ -52,6 +52,12 @@ pub enum FaultReason {
         limit: f64,
         for_s: f64,
     },
+    /// The device stopped with a reflex error (the state sample's `device` status), on
+    /// `joint` (1-based; 0: not one joint).
+    Device {
+        status: protocol::DeviceStatus,
+        joint: u32,
+    },
 }
 
 impl std::fmt::Display for FaultReason {
@@ -74,6 +80,10 @@ impl std::fmt::Display for FaultReason {
                 f,
                 "tracking error {error:.3} m above safety.guard_tracking_error = {limit} m and growing for {for_s:.2} s"
             ),
+            FaultReason::Device { status, joint: 0 } => write!(f, "the device stopped: {status}"),
+            FaultReason::Device { status, joint } => {
+                write!(f, "the device stopped: joint {joint} {status}")
+            }
         }
     }
 }

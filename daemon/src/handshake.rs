@@ -11,10 +11,9 @@
 
 use crate::telemetry::LoopRequest;
 use anyhow::{anyhow, Result};
-use control::config::ModelKind;
 use control::System;
 use protocol::handshake::{Exchange, Side};
-use protocol::{mismatch, ArmInfo, FloatingBase, ServiceNames};
+use protocol::{mismatch, ArmInfo, ServiceNames};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -28,23 +27,7 @@ pub type Refusal = Arc<Mutex<Option<String>>>;
 
 /// The description of the arm in `system`, for the process with `instance_id`.
 pub fn describe(system: &System, instance_id: u64) -> ArmInfo {
-    let system = match system {
-        System::Planar(c) => c,
-        System::Spatial(s) => {
-            let id = s.identity();
-            return ArmInfo::chain(instance_id, s.chain.dof(), &id.name, id.fingerprint);
-        }
-    };
-    let masses = system.link_masses();
-    let inertias = system.link_inertias();
-    let floating = (system.arm.model == ModelKind::Floating).then(|| FloatingBase {
-        link_masses: &masses,
-        link_inertias: &inertias,
-        base_mass: system.arm.base_mass,
-        base_inertia: system.arm.base_inertia,
-        base_offset: system.arm.base_offset,
-    });
-    ArmInfo::new(instance_id, &system.arm.links, floating)
+    rt::robot::arm_info(system, instance_id)
 }
 
 /// Judges each plant start once.

@@ -22,6 +22,7 @@ pub mod requests;
 pub mod residual;
 
 pub mod rotate;
+pub mod saturations;
 pub mod service;
 pub mod spatial_requests;
 pub mod telemetry;

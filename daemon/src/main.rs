@@ -73,6 +73,15 @@ enum Cmd {
         /// the loopback, with the state trigger.
         #[arg(long, value_enum)]
         bridge: Option<BridgeKind>,
+        /// The command interface (a robot set-up only): acceleration, velocity, position or
+        /// torque. Velocity, position and torque run the rigid-body plant (its joint servo, its
+        /// masses) unless the config's [plant] names the dynamics.
+        #[arg(long, value_parser = control::command::CommandMode::parse)]
+        mode: Option<control::command::CommandMode>,
+        /// Send the commands as the law asks, without the limiter: to see what it prevents
+        /// (through --bridge udp, the device's reflex stops).
+        #[arg(long = "no-limiter")]
+        no_limiter: bool,
     },
     /// Validate a config file and print the effective settings.
     CheckConfig {
@@ -307,15 +316,25 @@ fn print_device(out: &Path) {
         "device cycles         {} cycles, {} answered in time, {} missed, {} late answers, {} brakes; {} states and {} commands lost (injected)",
         n("cycles"), n("answered_in_time"), n("missed"), n("late_answers"), n("brakes"), n("states_lost"), n("commands_lost")
     );
+    say!(
+        "device reflexes       {} reflex stops{}",
+        n("reflex_stops"),
+        v["first_reflex"]
+            .as_str()
+            .map_or(String::new(), |f| format!("; the first {f}"))
+    );
 }
+
+/// `--mode` and whether the limiter is on (`--no-limiter`).
+type CommandChoice = (Option<control::command::CommandMode>, bool);
 
 fn demo(
     common: &Common,
     duration: Option<f64>,
-    mu: Option<f64>,
-    t_on: Option<f64>,
+    (mu, t_on): (Option<f64>, Option<f64>),
     trigger: Option<rt::Trigger>,
     bridge: Option<BridgeKind>,
+    (mode, limiter): CommandChoice,
 ) -> Result<()> {
     if bridge == Some(BridgeKind::Udp) && trigger == Some(rt::Trigger::Clock) {
         bail!(
@@ -360,6 +379,7 @@ fn demo(
     s.system.schedule_feedback(mu, t_on);
     // The plant reads the same file: give it our namespace and output directory.
     let mut plant = s.system.tables().1.clone().unwrap_or_default();
+    choose_command(&mut s.system, &mut plant, mode, limiter)?;
     if let Some(t) = trigger {
         s.daemon.trigger = t;
         plant.insert("trigger".into(), t.name().into());
@@ -430,6 +450,36 @@ fn demo(
             status.map_or("no status".into(), |s| s.to_string()),
             log_path.display()
         );
+    }
+    Ok(())
+}
+
+/// Applies `--mode` and `--no-limiter` to the set-up, and gives a non-acceleration mode the
+/// rigid-body plant unless `[plant]` already names the dynamics.
+fn choose_command(
+    system: &mut control::System,
+    plant: &mut toml::Table,
+    mode: Option<control::command::CommandMode>,
+    limiter: bool,
+) -> Result<()> {
+    use control::command::CommandMode;
+    let control::System::Spatial(sp) = system else {
+        if let Some(m) = mode.filter(|&m| m != CommandMode::Acceleration) {
+            bail!("--mode {m}: the paper's planar arm has no mass model and takes accelerations only; try --robot panda");
+        }
+        if !limiter {
+            bail!(
+                "--no-limiter: the paper's planar arm has no limits to enforce; try --robot panda"
+            );
+        }
+        return Ok(());
+    };
+    if let Some(m) = mode {
+        sp.config.command.mode = m;
+    }
+    sp.config.command.limiter = limiter;
+    if sp.config.command.mode != CommandMode::Acceleration && !plant.contains_key("dynamics") {
+        plant.insert("dynamics".into(), "rigid-body".into());
     }
     Ok(())
 }
@@ -549,6 +599,20 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
     if let Some(line) = d.joint_limits.one_line() {
         say!("joint limits          {line}");
     }
+    if let control::System::Spatial(_) = s.system {
+        say!(
+            "command               {} mode; {}",
+            d.command.mode,
+            d.command.one_line()
+        );
+        say!(
+            "device                {} reflex stops{}",
+            d.device_stops,
+            d.first_device_stop
+                .as_ref()
+                .map_or(String::new(), |f| format!("; the first {f}"))
+        );
+    }
     say!("real-time set-up      {}", d.realtime.one_line());
     // Only the files that were written: a plant that died writes none of its own.
     let listed = |names: &[&str]| {
@@ -639,7 +703,16 @@ fn main() -> ExitCode {
             t_on,
             trigger,
             bridge,
-        } => demo(&common, duration, mu, t_on, trigger, bridge),
+            mode,
+            no_limiter,
+        } => demo(
+            &common,
+            duration,
+            (mu, t_on),
+            trigger,
+            bridge,
+            (mode, !no_limiter),
+        ),
         Cmd::CheckConfig { common } => common.setup().map(|s| print!("{}", s.to_toml())),
     };
     match result {

@@ -41,6 +41,8 @@ pub struct LiveState {
 /// The saved set-up: a planar file's tables, or a spatial one's (told apart by its `[robot]`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
+// Built when the live state is saved or loaded, never on the loop: size does not matter.
+#[allow(clippy::large_enum_variant)]
 pub enum SavedSystem {
     Spatial(SpatialConfig),
     Planar(Config),

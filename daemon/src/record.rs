@@ -47,5 +47,6 @@ pub fn tick_record<const N: usize>(
         now_ns: times.woke,
         applied: o.applied,
         command: o.command,
+        limiter_hits: o.limiter_hits,
     }
 }

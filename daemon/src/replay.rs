@@ -313,8 +313,8 @@ fn parse_command(text: &str) -> Result<Option<CommandSample>> {
         daemon_id: f.int()?,
         mode: f.int()?,
         n: f.int()?,
-        qdd: [0.0; MAX_JOINTS],
-        qddd: [0.0; MAX_JOINTS],
+        // Recordings are of acceleration-mode runs: q̈ and its rate are the whole command.
+        ..CommandSample::default()
     };
     for v in c.qdd.iter_mut().chain(c.qddd.iter_mut()) {
         *v = f.f64()?;

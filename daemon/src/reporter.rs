@@ -85,6 +85,13 @@ pub struct Reporter {
     pub(crate) handshake: crate::handshake::Refusal,
     /// How close the arm came to its joint limits.
     pub(crate) limits: crate::limits::LimitWatch,
+    /// How often the limiter clamped each joint's command, per kind of limit.
+    pub(crate) saturations: crate::saturations::SaturationTable,
+    /// The device status on the newest state received.
+    pub(crate) device: u32,
+    /// Reflex stops the device reported, and the first one (controller time, reason).
+    pub(crate) device_stops: u64,
+    pub(crate) first_device_stop: Option<String>,
 }
 
 impl Reporter {
@@ -97,8 +104,17 @@ impl Reporter {
         let names =
             ServiceNames::new(&daemon.namespace).map_err(|e| anyhow!("daemon.namespace: {e}"))?;
         let limits = crate::limits::LimitWatch::new(*system.param_block().safety(), system.n());
+        let saturations = crate::saturations::SaturationTable::new(
+            system.command_mode(),
+            system.limiter_on(),
+            system.n(),
+        );
         Ok(Self {
             limits,
+            saturations,
+            device: 0,
+            device_stops: 0,
+            first_device_stop: None,
             names,
             report_every: (daemon.report_every_s > 0.0)
                 .then(|| Duration::from_secs_f64(daemon.report_every_s)),
@@ -196,6 +212,11 @@ impl Reporter {
     }
 
     fn record(&mut self, r: &TickRecord) {
+        if let Some(f @ crate::guard::FaultReason::Device { .. }) = r.fault {
+            self.device_stops += 1;
+            self.first_device_stop
+                .get_or_insert_with(|| format!("at t = {:.3} s: {f}", r.t));
+        }
         if let Some(f) = r.fault {
             // Said once, when it trips; `status` keeps saying it while the daemon is in FAULT.
             tracing::error!(
@@ -252,6 +273,7 @@ impl Reporter {
             if let Some(c) = &r.command {
                 self.limits.observe_command(c);
             }
+            self.saturations.observe(&r.limiter_hits);
             self.tel.min_clearance = self.tel.min_clearance.min(r.clearance);
             if r.law_flags & control::law::flags::IN_SAFETY_ZONE != 0 {
                 self.safety_ticks += 1;
@@ -278,6 +300,9 @@ impl Reporter {
         }
         if r.ran_law && r.state.is_some() {
             self.last_state = r.state;
+        }
+        if let Some(st) = &r.state {
+            self.device = st.device;
         }
         if r.ran_law {
             self.last_feedback_active = r.feedback_active;
@@ -331,6 +356,11 @@ impl Reporter {
             ..TelemetrySample::default()
         };
         self.metrics.fill(&mut t, c);
+        t.interface = self.saturations.mode.code();
+        t.device = self.device;
+        for kind in control::command::LimitKind::ALL {
+            t.saturations[kind as usize] = self.saturations.total(kind);
+        }
         if let Some(s) = self.last_state {
             t.state_seq = s.seq;
             t.phi = s.phi;
@@ -542,6 +572,9 @@ impl Reporter {
             feedback_on_at_s: self.feedback_on_at,
             min_clearance_m: self.min_clearance.is_finite().then_some(self.min_clearance),
             joint_limits: self.limits.seen(),
+            command: self.saturations,
+            device_stops: self.device_stops,
+            first_device_stop: self.first_device_stop.clone(),
             time_in_safety_zone_s: self.safety_ticks as f64 / self.daemon.rate_hz,
             files: Vec::new(),
         };

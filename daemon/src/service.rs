@@ -169,11 +169,13 @@ fn control_loop<const N: usize>(
     rt::files::write(&d.output_dir.join("config.toml"), setup.to_toml())
         .context("cannot write the effective config")?;
 
+    let generator = setup.system.generator::<N>(1.0 / d.rate_hz)?;
     let mut ctl = Controller::<N>::new(
         setup.system.tick_law::<N>(),
         setup.system.feedback().max_tau,
         settings,
-    );
+    )
+    .with_generator(generator);
     ctl.require_handshake();
     if setup.live.as_ref().is_some_and(|l| l.fault.is_some()) {
         ctl.enter_fault(crate::guard::FaultReason::Restored);

@@ -59,6 +59,8 @@ pub struct TickRecord {
     pub applied: Option<crate::controller::Applied>,
     /// The command published, if any.
     pub command: Option<CommandSample>,
+    /// Which limits the limiter applied to each joint (bits of `control::command::LimitKind`).
+    pub limiter_hits: [u8; protocol::MAX_JOINTS],
 }
 
 /// What the reporter learnt over the run.
@@ -87,6 +89,12 @@ pub struct DaemonSummary {
     pub min_clearance_m: Option<f64>,
     /// How close the arm came to its joint limits (states the law used, commands sent).
     pub joint_limits: crate::limits::LimitsSeen,
+    /// The command interface and how often the limiter clamped each joint, per kind.
+    pub command: crate::saturations::SaturationTable,
+    /// Reflex stops the device reported (each a FAULT naming the joint and reason), and the
+    /// first.
+    pub device_stops: u64,
+    pub first_device_stop: Option<String>,
     pub time_in_safety_zone_s: f64,
     pub files: Vec<PathBuf>,
 }

@@ -121,6 +121,7 @@ mod tests {
             counters: Counters::default(),
             state: None,
             command: None,
+            limiter_hits: [0; protocol::MAX_JOINTS],
             now_ns: 0,
             applied: None,
         }

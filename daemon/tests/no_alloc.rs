@@ -107,13 +107,19 @@ fn panda_controller() -> (Controller<7>, [f64; 7]) {
         radius: 0.05,
         margin: 0.1,
     });
+    // Torque mode: computed torque (RNEA), the joint PD and the limiter run on every tick.
+    cfg.command.mode = control::command::CommandMode::Torque;
     let s = cfg.setup::<7>(&chain).unwrap();
     let law = control::tick_law::TickLaw::Spatial {
         arm: s.arm,
         params: s.params,
     };
     let q0 = std::array::from_fn(|i| s.q0[i]);
-    (Controller::new(law, 2.0, settings()), q0)
+    let generator = cfg.generator::<7>(&chain, 1e-3).unwrap();
+    (
+        Controller::new(law, 2.0, settings()).with_generator(generator),
+        q0,
+    )
 }
 
 #[test]
@@ -150,6 +156,7 @@ fn the_panda_controller_tick_allocates_nothing() {
     });
     assert_eq!(n, 0, "the Panda's Controller::tick allocated {n} times");
     assert!(c.counters.commands > 2500 && c.counters.holds_entered > 0);
+    assert_eq!(c.generator().mode(), control::command::CommandMode::Torque);
     assert_eq!(c.counters.nonfinite, 0);
 }
 

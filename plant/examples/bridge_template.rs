@@ -55,7 +55,18 @@ impl Plant for Bridge {
                     self.qd_ref[j] += (qdd[j] + qddd[j] * mid) * self.period;
                 }
             }
+            // With `[command] mode = "velocity"` (a `[robot]` set-up) the daemon integrates,
+            // limits and sends q̇_r itself: pass it on.
+            Actuation::Velocity { qd, .. } => self.qd_ref.copy_from_slice(&qd[..3]),
             Actuation::Hold | Actuation::Brake => self.qd_ref = [0.0; 3],
+            // This robot takes no positions or torques; the handshake refuses such a daemon
+            // before it sends one (declare what yours takes in your plant's set-up).
+            Actuation::Position { .. } | Actuation::Torque { .. } => {
+                return Err(PlantError::Fault {
+                    what: "this robot takes velocity commands only",
+                    source: None,
+                })
+            }
         }
         let sent = self.driver.command_velocity(&self.qd_ref);
         sent.map_err(|e| PlantError::Unavailable {

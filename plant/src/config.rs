@@ -40,6 +40,21 @@ pub struct PlantConfig {
     /// (`protocol::board`), the latest-value fast lane; pub-sub still carries every sample. Off,
     /// or if the lane cannot be opened, pub-sub alone carries them. Ignored with the clock trigger.
     pub fast_lane: bool,
+    /// "kinematic": the commanded motion is the motion (q̈ integrated, a position reached, no
+    /// masses). "rigid-body": the arm's dynamics (`[plant.rigid_body]`: friction, payload,
+    /// sensors, the joint servo of position and velocity modes). Torque commands need it.
+    pub dynamics: Dynamics,
+    /// The rigid-body arm's physics.
+    pub rigid_body: control::rigid_body::RigidBodyConfig,
+}
+
+/// How the simulated arm moves.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Dynamics {
+    #[default]
+    Kinematic,
+    RigidBody,
 }
 
 impl Default for PlantConfig {
@@ -60,6 +75,8 @@ impl Default for PlantConfig {
             answer_deadline_us: None,
             max_late_cycles: 20,
             fast_lane: true,
+            dynamics: Dynamics::Kinematic,
+            rigid_body: Default::default(),
         }
     }
 }

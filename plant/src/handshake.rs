@@ -7,10 +7,9 @@
 //! plant loop itself does nothing for the handshake.
 
 use anyhow::{anyhow, Result};
-use control::config::ModelKind;
 use control::System;
 use protocol::handshake::{Exchange, Side};
-use protocol::{mismatch, ArmInfo, FloatingBase, ServiceNames};
+use protocol::{mismatch, ArmInfo, ServiceNames};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -23,23 +22,7 @@ const GRACE: Duration = Duration::from_millis(300);
 
 /// The description of the arm in `system` (the plant's `[arm]`, or its `[robot]`).
 pub fn describe(system: &System) -> ArmInfo {
-    let system = match system {
-        System::Planar(c) => c,
-        System::Spatial(s) => {
-            let id = s.identity();
-            return ArmInfo::chain(0, s.chain.dof(), &id.name, id.fingerprint);
-        }
-    };
-    let masses = system.link_masses();
-    let inertias = system.link_inertias();
-    let floating = (system.arm.model == ModelKind::Floating).then(|| FloatingBase {
-        link_masses: &masses,
-        link_inertias: &inertias,
-        base_mass: system.arm.base_mass,
-        base_inertia: system.arm.base_inertia,
-        base_offset: system.arm.base_offset,
-    });
-    ArmInfo::new(0, &system.arm.links, floating)
+    rt::robot::arm_info(system, 0)
 }
 
 /// The running handshake thread.

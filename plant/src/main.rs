@@ -24,9 +24,8 @@ fn main() -> ExitCode {
     let args = Args::parse();
     app::main_with("chaosd-plant", &args.plant, |l| {
         let (system, cfg) = (&l.system, &l.plant);
-        let period = cfg.period_ns() as f64 * 1e-9;
         with_dof!(system.n(), N => {
-            let mut sim = SimPlant::<N>::for_system(system, period, cfg.substeps, cfg.brake_gain);
+            let mut sim = SimPlant::<N>::from_config(system, cfg)?;
             let summary = plant::run::run(&mut sim, cfg, &l.arm(), l.duration);
             if sim.time_jumps() > 0 {
                 tracing::warn!("{} stalls longer than {} s were skipped, not simulated", sim.time_jumps(), plant::sim::MAX_CATCH_UP_S);

@@ -346,13 +346,8 @@ impl Loop<'_> {
     fn apply<P: Plant>(&mut self, plant: &mut P, what: Applied) -> Result<(), PlantError> {
         let result = match (what, self.current) {
             (Applied::Run, Some(cmd)) => {
-                let n = cmd.n as usize;
-                plant.write(Actuation::Accelerate {
-                    qdd: &cmd.qdd[..n],
-                    qddd: &cmd.qddd[..n],
-                    since: self.ring.since(cmd.state_seq, self.plant_time),
-                    answers: cmd.state_seq,
-                })
+                let since = self.ring.since(cmd.state_seq, self.plant_time);
+                plant.write(crate::seam::actuation(&cmd, since))
             }
             (Applied::Hold, _) => plant.write(Actuation::Hold),
             _ => plant.write(Actuation::Brake),

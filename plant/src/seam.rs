@@ -17,7 +17,10 @@
 //!   calls `read`. A device that sends its state on its own clock (FCI, RSI, the UDP bridge)
 //!   returns `true` from [`Plant::device_clocked`]; the loop then does not wait, and `read`
 //!   blocks until the device's next state arrives (or returns [`PlantError::Unavailable`]).
-//! * **What the modes mean.** [`Actuation::Accelerate`] follows the daemon's command.
+//! * **What the modes mean.** [`Actuation::Accelerate`], [`Actuation::Position`],
+//!   [`Actuation::Velocity`] and [`Actuation::Torque`] follow the daemon's command in the
+//!   interface the set-up names (`[command] mode`); a plant that does not take one refuses it at
+//!   the handshake, before any command.
 //!   [`Actuation::Hold`] (protocol `Mode::Hold`, sent by the daemon when it lacks fresh states)
 //!   means: bring the joints to rest with the plant's own deceleration and keep them there,
 //!   ready to follow the next `Accelerate` at once. [`Actuation::Brake`] (`Mode::Brake`,
@@ -44,6 +47,27 @@ pub enum Actuation<'a> {
         since: f64,
         /// The `seq` of the published state this command answers (a device protocol that
         /// echoes its own cycle counter maps it back; `read` saw that number in `out.seq`).
+        answers: u64,
+    },
+    /// Follow the reference position `q` (and its rate `qd`), to be reached one period after
+    /// the answered state, `since` seconds ago (a position interface: Franka's joint positions,
+    /// a UR `servoJ`). `qd` may be used as velocity feed-forward.
+    Position {
+        q: &'a [f64],
+        qd: &'a [f64],
+        since: f64,
+        answers: u64,
+    },
+    /// Follow the reference velocity `qd` (a velocity interface).
+    Velocity {
+        qd: &'a [f64],
+        since: f64,
+        answers: u64,
+    },
+    /// Apply the joint torques `tau` (N·m) until the next write (an effort interface).
+    Torque {
+        tau: &'a [f64],
+        since: f64,
         answers: u64,
     },
     /// Come to rest with the plant's own deceleration and hold the position, ready to resume.
@@ -104,7 +128,8 @@ pub enum PlantError {
 ///             Actuation::Accelerate { qdd, qddd, since, .. } => {
 ///                 [qdd[0] + qddd[0] * since, qdd[1] + qddd[1] * since]
 ///             }
-///             Actuation::Hold | Actuation::Brake => [-self.qd[0] * 20.0, -self.qd[1] * 20.0],
+///             // This arm takes accelerations only (its handshake says so).
+///             _ => [-self.qd[0] * 20.0, -self.qd[1] * 20.0],
 ///         };
 ///         Ok(())
 ///     }
@@ -163,5 +188,36 @@ pub trait Plant {
     /// the loop does not wait for its own deadlines.
     fn device_clocked(&self) -> bool {
         false
+    }
+}
+
+/// The actuation a RUN command asks for, in its interface (`since`: how long ago the answered
+/// state was published, in plant time).
+pub fn actuation(cmd: &protocol::CommandSample, since: f64) -> Actuation<'_> {
+    let n = (cmd.n as usize).min(protocol::MAX_JOINTS);
+    let answers = cmd.state_seq;
+    match cmd.interface {
+        protocol::interface::POSITION => Actuation::Position {
+            q: &cmd.q[..n],
+            qd: &cmd.qd[..n],
+            since,
+            answers,
+        },
+        protocol::interface::VELOCITY => Actuation::Velocity {
+            qd: &cmd.qd[..n],
+            since,
+            answers,
+        },
+        protocol::interface::TORQUE => Actuation::Torque {
+            tau: &cmd.tau[..n],
+            since,
+            answers,
+        },
+        _ => Actuation::Accelerate {
+            qdd: &cmd.qdd[..n],
+            qddd: &cmd.qddd[..n],
+            since,
+            answers,
+        },
     }
 }

@@ -11,23 +11,45 @@
 //! integrated in one `read`, the rest is skipped and counted ([`SimPlant::time_jumps`]). That
 //! bound lives here, not in the loop, because only a simulator has time to catch up.
 
+use crate::config::{Dynamics, PlantConfig};
 use crate::seam::{Actuation, Plant, PlantError};
+use control::command::{CommandMode, JointLimits};
 use control::hold;
+use control::rigid_body::{Device, DeviceCommand};
 use control::sim::{plant_derivative, rk4_step};
-use control::{ArmModel, ArmState, FixedArm, System, VecN};
+use control::{ArmModel, ArmState, ConfigError, FixedArm, System, VecN};
 use protocol::{flags, StateSample};
 
+/// How the arm moves between two reads.
+enum Physics<const N: usize> {
+    /// The command is the motion: q̈ integrated, or a position (velocity) reached exactly.
+    Kinematic(ArmModel<N>),
+    /// The rigid-body arm: a device with dynamics, servo and sensors.
+    RigidBody(Box<Device<N>>),
+}
+
+/// What a kinematic arm follows.
+#[derive(Clone, Copy)]
+enum Follow<const N: usize> {
+    Ramp,
+    Position { q: VecN<N>, qd: VecN<N> },
+    Velocity(VecN<N>),
+}
+
 pub struct SimPlant<const N: usize> {
-    model: ArmModel<N>,
+    physics: Physics<N>,
     state: ArmState<N>,
     substeps: u32,
     brake_gain: f64,
     qdd: VecN<N>,
     qddd: VecN<N>,
+    follow: Follow<N>,
     since: f64,
     braking: bool,
     period: f64,
     time_jumps: u64,
+    /// The torques the arm applied over the last substep (rigid body; zeros otherwise).
+    tau: VecN<N>,
 }
 
 /// The most simulated time one `read` integrates after a stall (s).
@@ -37,7 +59,7 @@ pub const MAX_CATCH_UP_S: f64 = 1.0;
 const MAX_RAMP_PERIODS: f64 = 3.0;
 
 impl<const N: usize> SimPlant<N> {
-    /// A simulated arm integrating `period` seconds per cycle in `substeps` RK4 steps.
+    /// A kinematic arm integrating `period` seconds per cycle in `substeps` RK4 steps.
     pub fn new(
         model: ArmModel<N>,
         initial: ArmState<N>,
@@ -48,18 +70,20 @@ impl<const N: usize> SimPlant<N> {
         Self {
             period,
             time_jumps: 0,
-            model,
+            physics: Physics::Kinematic(model),
             state: initial,
             substeps: substeps.max(1),
             brake_gain,
             qdd: VecN::<N>::zeros(),
             qddd: VecN::<N>::zeros(),
+            follow: Follow::Ramp,
             since: 0.0,
             braking: true,
+            tau: VecN::<N>::zeros(),
         }
     }
 
-    /// The simulated arm a config describes: the planar arm's model (a floating base turns), or
+    /// The kinematic arm a config describes: the planar arm's model (a floating base turns), or
     /// a URDF chain on its fixed base. `N` must be `system.n()`.
     pub fn for_system(system: &System, period: f64, substeps: u32, brake_gain: f64) -> Self {
         let model = match system {
@@ -69,6 +93,60 @@ impl<const N: usize> SimPlant<N> {
             System::Spatial(_) => ArmModel::Fixed(FixedArm::new([0.0; N])),
         };
         Self::new(model, system.initial_state(), period, substeps, brake_gain)
+    }
+
+    /// The arm `[plant]` asks for: kinematic, or the rigid-body arm of `[plant.rigid_body]`.
+    /// Refuses, naming the field, a combination that cannot run (torque commands to a
+    /// kinematic arm, rigid-body dynamics without a robot model).
+    pub fn from_config(system: &System, cfg: &PlantConfig) -> Result<Self, ConfigError> {
+        let period = cfg.period_ns() as f64 * 1e-9;
+        let mut sim = Self::for_system(system, period, cfg.substeps, cfg.brake_gain);
+        let mode = system.command_mode();
+        match (cfg.dynamics, system) {
+            (Dynamics::Kinematic, _) if mode == CommandMode::Torque => Err(ConfigError::Invalid {
+                field: "plant.dynamics".into(),
+                value: "\"kinematic\"".into(),
+                expected: "\"rigid-body\" with command.mode = \"torque\": a kinematic arm has no \
+                           masses to apply torques to"
+                    .into(),
+            }),
+            (Dynamics::Kinematic, _) => Ok(sim),
+            (Dynamics::RigidBody, System::Planar(_)) => Err(ConfigError::Invalid {
+                field: "plant.dynamics".into(),
+                value: "\"rigid-body\"".into(),
+                expected: "\"kinematic\" for the paper's planar arm, which has no mass model; \
+                           name a robot in [robot] for rigid-body dynamics"
+                    .into(),
+            }),
+            (Dynamics::RigidBody, System::Spatial(s)) => {
+                let x = sim.state;
+                let limits = s
+                    .config
+                    .command
+                    .limits::<N>(&s.chain, &s.config.robot.description)?;
+                let tau_max = VecN::<N>::from_column_slice(&limits.tau);
+                let h = period / f64::from(sim.substeps);
+                let (arm, sensor) = cfg.rigid_body.build::<N>(
+                    &s.chain,
+                    (x.q, x.qd),
+                    tau_max,
+                    h,
+                    "plant.rigid_body",
+                )?;
+                sim.physics = Physics::RigidBody(Box::new(Device::new(arm, sensor)));
+                Ok(sim)
+            }
+        }
+    }
+
+    /// The same arm, at rest: a device powers up standing still, whatever the set-up's q̇0
+    /// (which seeds the law's self-motion in a simulation, not a real arm's).
+    pub fn at_rest(mut self) -> Self {
+        self.state.qd = VecN::<N>::zeros();
+        if let Physics::RigidBody(d) = &mut self.physics {
+            d.arm.state.qd = VecN::<N>::zeros();
+        }
+        self
     }
 
     pub fn state(&self) -> &ArmState<N> {
@@ -82,6 +160,12 @@ impl<const N: usize> SimPlant<N> {
 
     /// Integrates one period of `dt` with the current actuation.
     fn step(&mut self, dt: f64) {
+        if let Physics::RigidBody(d) = &mut self.physics {
+            d.advance(dt, self.substeps);
+            let m = d.measure();
+            (self.state.q, self.state.qd, self.tau) = (m.q, m.qd, m.tau);
+            return;
+        }
         if self.braking {
             let h = dt / self.substeps as f64;
             for _ in 0..self.substeps {
@@ -90,28 +174,66 @@ impl<const N: usize> SimPlant<N> {
                     plant_derivative(x, &(-x.qd * gain), self.base_rate(x))
                 });
             }
-        } else {
-            let max_ramp = MAX_RAMP_PERIODS * dt;
-            self.state = hold::integrate(
-                &self.model,
-                &self.state,
-                &self.qdd,
-                &self.qddd,
-                self.since,
-                max_ramp,
-                dt,
-                self.substeps,
-            );
-            self.since += dt;
+            return;
         }
+        match self.follow {
+            Follow::Ramp => {
+                let Physics::Kinematic(model) = &self.physics else {
+                    return;
+                };
+                let max_ramp = MAX_RAMP_PERIODS * dt;
+                self.state = hold::integrate(
+                    model,
+                    &self.state,
+                    &self.qdd,
+                    &self.qddd,
+                    self.since,
+                    max_ramp,
+                    dt,
+                    self.substeps,
+                );
+            }
+            // An ideal servo: the reference is the motion (it moves on at its rate if late).
+            Follow::Position { q, qd } => {
+                self.state.q = q + qd * (self.since + dt - self.period).max(0.0);
+                self.state.qd = qd;
+            }
+            Follow::Velocity(qd) => {
+                self.state.q += qd * dt;
+                self.state.qd = qd;
+            }
+        }
+        self.since += dt;
     }
 
     fn base_rate(&self, x: &ArmState<N>) -> f64 {
-        match &self.model {
-            ArmModel::Fixed(_) => 0.0,
-            ArmModel::Floating(a) => a.base_rate(&x.q, &x.qd),
+        match &self.physics {
+            Physics::Kinematic(ArmModel::Floating(a)) => a.base_rate(&x.q, &x.qd),
+            _ => 0.0,
         }
     }
+
+    /// Hands a command to the rigid-body device.
+    fn drive(&mut self, mode: CommandMode, fill: impl FnOnce(&mut DeviceCommand<N>), since: f64) {
+        if let Physics::RigidBody(d) = &mut self.physics {
+            let zero = VecN::<N>::zeros();
+            let mut c = DeviceCommand {
+                mode,
+                q: zero,
+                qd: zero,
+                qdd: zero,
+                qddd: zero,
+                tau: zero,
+            };
+            fill(&mut c);
+            d.command(&c, self.period, since);
+        }
+    }
+}
+
+/// Whether every slice has the arm's length and `since` is a time.
+fn fits<const N: usize>(slices: &[&[f64]], since: f64) -> bool {
+    slices.iter().all(|s| s.len() == N) && since.is_finite()
 }
 
 impl<const N: usize> Plant for SimPlant<N> {
@@ -121,8 +243,10 @@ impl<const N: usize> Plant for SimPlant<N> {
 
     fn flags(&self) -> u32 {
         let mut f = flags::SIMULATED;
-        if self.model.is_floating() {
-            f |= flags::FLOATING_BASE;
+        if let Physics::Kinematic(m) = &self.physics {
+            if m.is_floating() {
+                f |= flags::FLOATING_BASE;
+            }
         }
         if self.braking {
             f |= flags::BRAKING;
@@ -135,17 +259,49 @@ impl<const N: usize> Plant for SimPlant<N> {
     }
 
     fn write(&mut self, actuation: Actuation<'_>) -> Result<(), PlantError> {
+        let v = VecN::<N>::from_column_slice;
+        self.braking = false;
         match actuation {
             Actuation::Accelerate {
                 qdd, qddd, since, ..
-            } if qdd.len() == N && qddd.len() == N && since.is_finite() => {
-                self.qdd = VecN::<N>::from_column_slice(qdd);
-                self.qddd = VecN::<N>::from_column_slice(qddd);
+            } if fits::<N>(&[qdd, qddd], since) => {
+                self.qdd = v(qdd);
+                self.qddd = v(qddd);
+                self.follow = Follow::Ramp;
                 self.since = since.max(0.0);
-                self.braking = false;
+                let (a, r) = (self.qdd, self.qddd);
+                self.drive(
+                    CommandMode::Acceleration,
+                    |c| (c.qdd, c.qddd) = (a, r),
+                    since,
+                );
             }
-            // Hold and Brake both come to rest here: a simulated arm has no brakes to engage.
-            _ => self.braking = true,
+            Actuation::Position { q, qd, since, .. } if fits::<N>(&[q, qd], since) => {
+                let (q, qd) = (v(q), v(qd));
+                self.follow = Follow::Position { q, qd };
+                self.since = since.max(0.0);
+                self.drive(CommandMode::Position, |c| (c.q, c.qd) = (q, qd), since);
+            }
+            Actuation::Velocity { qd, since, .. } if fits::<N>(&[qd], since) => {
+                let qd = v(qd);
+                self.follow = Follow::Velocity(qd);
+                self.since = since.max(0.0);
+                self.drive(CommandMode::Velocity, |c| c.qd = qd, since);
+            }
+            Actuation::Torque { tau, since, .. }
+                if fits::<N>(&[tau], since) && matches!(self.physics, Physics::RigidBody(_)) =>
+            {
+                let tau = v(tau);
+                self.drive(CommandMode::Torque, |c| c.tau = tau, since);
+            }
+            // Hold, Brake, and anything malformed come to rest: a simulated arm has no brakes
+            // to engage (the rigid-body arm holds with its servo).
+            _ => {
+                self.braking = true;
+                if let Physics::RigidBody(d) = &mut self.physics {
+                    d.hold();
+                }
+            }
         }
         Ok(())
     }
@@ -173,6 +329,7 @@ impl<const N: usize> Plant for SimPlant<N> {
         out.phi = self.state.phi;
         out.q[..N].copy_from_slice(self.state.q.as_slice());
         out.qd[..N].copy_from_slice(self.state.qd.as_slice());
+        out.tau[..N].copy_from_slice(self.tau.as_slice());
         Ok(())
     }
 
@@ -182,6 +339,17 @@ impl<const N: usize> Plant for SimPlant<N> {
 
     fn stamp(&self, nominal_ns: u64, _now_ns: u64) -> u64 {
         nominal_ns
+    }
+}
+
+/// The limits a device of this set-up enforces (the description's, undated).
+pub fn device_limits<const N: usize>(system: &System) -> Result<JointLimits<N>, ConfigError> {
+    match system {
+        System::Planar(_) => Ok(JointLimits::NONE),
+        System::Spatial(s) => s
+            .config
+            .command
+            .limits::<N>(&s.chain, &s.config.robot.description),
     }
 }
 

@@ -83,6 +83,7 @@ fn the_udp_bridge_and_the_wire_format_allocate_nothing() {
         wait: rt::WaitStrategy::Hybrid,
         spin: Duration::from_micros(50),
         loop_core: None,
+        interface: protocol::interface::ACCELERATION,
     };
     let mut bridge = UdpBridge::new(3, cfg);
     bridge.activate().unwrap();
@@ -94,6 +95,7 @@ fn the_udp_bridge_and_the_wire_format_allocate_nothing() {
             n: 3,
             seq: k,
             session: 77,
+            flags: plant::udp::wire::takes(&[protocol::interface::ACCELERATION]),
             ..DeviceState::default()
         };
         // The device's side of the exchange is counted too: encode, send, receive, decode.
@@ -126,6 +128,7 @@ fn the_udp_bridge_and_the_wire_format_allocate_nothing() {
             n: 3,
             seq: 0,
             session: 78,
+            flags: plant::udp::wire::takes(&[protocol::interface::ACCELERATION]),
             ..DeviceState::default()
         };
         restarted.encode(&mut sbuf);

@@ -188,7 +188,7 @@ impl ControlResponse {
 
 /// One telemetry sample, published by the daemon at `daemon.telemetry_hz`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::TelemetrySample.v3")]
+#[type_name("chaosd::TelemetrySample.v4")]
 #[repr(C)]
 pub struct TelemetrySample {
     pub seq: u64,
@@ -242,6 +242,13 @@ pub struct TelemetrySample {
     pub lateness_us: [f64; 4],
     pub compute_us: [f64; 4],
     pub state_age_us: [f64; 4],
+    /// The command interface sent (`crate::interface`), and the device's status on the newest
+    /// state (`crate::DeviceStatus` code; 0 while it runs).
+    pub interface: u32,
+    pub device: u32,
+    /// Joint-ticks the limiter clamped since start, per kind: position, velocity,
+    /// acceleration, jerk, torque, torque rate.
+    pub saturations: [u64; 6],
 }
 
 /// Control service settings: one daemon serves; several clients may ask at once, one request
@@ -357,17 +364,19 @@ mod tests {
     fn telemetry_layout_is_pinned() {
         use core::mem::{align_of, offset_of, size_of};
         assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<TelemetrySample>(), 432);
+        assert_eq!(size_of::<TelemetrySample>(), 488);
         assert_eq!(align_of::<TelemetrySample>(), 8);
         assert_eq!(offset_of!(TelemetrySample, phi), 168);
         assert_eq!(offset_of!(TelemetrySample, q), 176);
         assert_eq!(offset_of!(TelemetrySample, qd), 232);
         assert_eq!(offset_of!(TelemetrySample, faults), 288);
         assert_eq!(offset_of!(TelemetrySample, state_age_us), 400);
+        assert_eq!(offset_of!(TelemetrySample, interface), 432);
+        assert_eq!(offset_of!(TelemetrySample, saturations), 440);
         // SAFETY: type_name only returns the string set by #[type_name].
         assert_eq!(
             unsafe { <TelemetrySample as ZeroCopySend>::type_name() },
-            "chaosd::TelemetrySample.v3"
+            "chaosd::TelemetrySample.v4"
         );
     }
 }

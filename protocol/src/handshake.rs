@@ -56,7 +56,8 @@ pub struct ArmInfo {
     pub instance_id: u64,
     /// Number of links (joints).
     pub n: u32,
-    pub reserved: u32,
+    /// The command interface ([`crate::interface`]) the daemon sends, or the plant takes.
+    pub interface: u32,
     /// Link lengths (m); entries `n..` are zero.
     pub links: [f64; MAX_JOINTS],
     /// Floating base only (zero otherwise): link masses (kg) and inertias (kg·m²).
@@ -97,7 +98,7 @@ impl ArmInfo {
             kind: KIND_FIXED,
             instance_id,
             n: links.len().min(MAX_JOINTS) as u32,
-            reserved: 0,
+            interface: crate::interface::ACCELERATION,
             links: [0.0; MAX_JOINTS],
             link_masses: [0.0; MAX_JOINTS],
             link_inertias: [0.0; MAX_JOINTS],
@@ -224,8 +225,16 @@ impl fmt::Display for ArmInfo {
 /// `plant "lab" is a 4-link fixed arm (links 1,1,1,1), daemon expects a 3-link fixed arm (links
 /// 1,1,1); refusing`.
 pub fn mismatch(namespace: &str, plant: &ArmInfo, daemon: &ArmInfo) -> Option<String> {
-    if plant.same_arm(daemon) {
+    if plant.same_arm(daemon) && plant.interface == daemon.interface {
         return None;
+    }
+    if plant.interface != daemon.interface {
+        let name = |c| crate::interface::name(c).unwrap_or("unknown");
+        return Some(format!(
+            "plant {namespace:?} takes {} commands, daemon sends {}; refusing (set [command] mode to the same interface for both)",
+            name(plant.interface),
+            name(daemon.interface)
+        ));
     }
     if plant.wire_version != daemon.wire_version {
         return Some(format!(

@@ -55,6 +55,7 @@
 
 pub mod board;
 pub mod control;
+pub mod device;
 pub mod handshake;
 pub mod names;
 pub mod node;
@@ -64,6 +65,7 @@ pub mod sample;
 pub use control::{
     ControlRequest, ControlResponse, ControlService, Op, Status, TelemetrySample, TelemetryService,
 };
+pub use device::{interface, DeviceStatus};
 pub use handshake::{mismatch, ArmInfo, FloatingBase};
 pub use names::{
     validate_namespace, NamespaceError, ServiceNames, DEFAULT_NAMESPACE, MAX_NAMESPACE_LEN,
@@ -85,7 +87,7 @@ pub const MIN_JOINTS: usize = 2;
 
 /// Wire-format version, embedded in the iceoryx2 type names of the samples. Bump it whenever a
 /// sample's layout or the meaning of a field changes.
-pub const WIRE_VERSION: u32 = 6;
+pub const WIRE_VERSION: u32 = 7;
 
 /// Nanoseconds of `CLOCK_MONOTONIC`, the clock every `*_ns` stamp on the wire uses.
 ///

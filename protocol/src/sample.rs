@@ -10,6 +10,7 @@ use core::fmt;
 
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::device::{interface, DeviceStatus};
 use crate::{MAX_JOINTS, MIN_JOINTS};
 
 /// Bits of [`StateSample::flags`]. Bits not listed here are reserved and must be zero.
@@ -31,7 +32,7 @@ pub mod flags {
 
 /// The plant's measured state, published once per plant tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::StateSample.v6")]
+#[type_name("chaosd::StateSample.v7")]
 #[repr(C)]
 pub struct StateSample {
     /// Per-plant sequence number, +1 per published sample, starting at 0 after each plant start.
@@ -50,6 +51,12 @@ pub struct StateSample {
     pub q: [f64; MAX_JOINTS],
     /// Joint rates, rad/s. Entries `n..` are unused and ignored.
     pub qd: [f64; MAX_JOINTS],
+    /// Measured joint torques, N·m (zeros from a plant that does not measure them).
+    pub tau: [f64; MAX_JOINTS],
+    /// A [`DeviceStatus`] as `u32`: why the device stopped, 0 while it runs.
+    pub device: u32,
+    /// The joint the status is about (1-based; 0: none or all).
+    pub device_joint: u32,
 }
 
 /// Which sample an error is about.
@@ -76,6 +83,7 @@ pub enum Field {
     Qd(usize),
     Qdd(usize),
     Qddd(usize),
+    Tau(usize),
 }
 
 impl fmt::Display for Field {
@@ -86,6 +94,7 @@ impl fmt::Display for Field {
             Field::Qd(i) => write!(f, "qd[{i}]"),
             Field::Qdd(i) => write!(f, "qdd[{i}]"),
             Field::Qddd(i) => write!(f, "qddd[{i}]"),
+            Field::Tau(i) => write!(f, "tau[{i}]"),
         }
     }
 }
@@ -108,6 +117,10 @@ pub enum SampleError {
     UnknownFlags { bits: u32 },
     #[error("command sample has {0}")]
     Mode(#[from] UnknownMode),
+    #[error("command sample has unknown interface {0} (expected 0 = acceleration, 1 = velocity, 2 = position, 3 = torque)")]
+    Interface(u32),
+    #[error("state sample has unknown device status {0}")]
+    DeviceStatus(u32),
 }
 
 fn check_n(kind: SampleKind, n: u32, expected_n: usize) -> Result<usize, SampleError> {
@@ -163,8 +176,17 @@ impl StateSample {
                 field: Field::Phi,
             });
         }
+        if DeviceStatus::from_code(self.device).is_none() {
+            return Err(SampleError::DeviceStatus(self.device));
+        }
         check_finite(KIND, &self.q[..n], Field::Q)?;
-        check_finite(KIND, &self.qd[..n], Field::Qd)
+        check_finite(KIND, &self.qd[..n], Field::Qd)?;
+        check_finite(KIND, &self.tau[..n], Field::Tau)
+    }
+
+    /// The device's status (unknown codes, which validation refuses, read as `None`).
+    pub fn device_status(&self) -> Option<DeviceStatus> {
+        DeviceStatus::from_code(self.device)
     }
 
     /// Whether every bit of `flag` (one or more of [`flags`]) is set.
@@ -227,7 +249,7 @@ impl From<Mode> for u32 {
 
 /// The daemon's command, published once per control tick in answer to a [`StateSample`].
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::CommandSample.v6")]
+#[type_name("chaosd::CommandSample.v7")]
 #[repr(C)]
 pub struct CommandSample {
     /// Per-daemon sequence number, +1 per published command, starting at 0 after each start.
@@ -250,6 +272,16 @@ pub struct CommandSample {
     /// `qdd + qddd·s`, s the time since the answered state (a first-order hold; zeros give a
     /// zero-order hold). Entries `n..` are unused and ignored.
     pub qddd: [f64; MAX_JOINTS],
+    /// Which field the device follows ([`interface`]): `qdd` (acceleration), `qd` (velocity),
+    /// `q` (position) or `tau` (torque). The others are sent too, for logs and feed-forward.
+    pub interface: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// The reference position (rad) and velocity (rad/s) at the end of the period.
+    pub q: [f64; MAX_JOINTS],
+    pub qd: [f64; MAX_JOINTS],
+    /// Joint torques (N·m); zeros outside torque mode.
+    pub tau: [f64; MAX_JOINTS],
 }
 
 impl Default for CommandSample {
@@ -265,6 +297,11 @@ impl Default for CommandSample {
             n: 0,
             qdd: [0.0; MAX_JOINTS],
             qddd: [0.0; MAX_JOINTS],
+            interface: interface::ACCELERATION,
+            reserved: 0,
+            q: [0.0; MAX_JOINTS],
+            qd: [0.0; MAX_JOINTS],
+            tau: [0.0; MAX_JOINTS],
         }
     }
 }
@@ -277,8 +314,14 @@ impl CommandSample {
         const KIND: SampleKind = SampleKind::Command;
         let n = check_n(KIND, self.n, expected_n)?;
         self.mode()?;
+        if interface::name(self.interface).is_none() {
+            return Err(SampleError::Interface(self.interface));
+        }
         check_finite(KIND, &self.qdd[..n], Field::Qdd)?;
-        check_finite(KIND, &self.qddd[..n], Field::Qddd)
+        check_finite(KIND, &self.qddd[..n], Field::Qddd)?;
+        check_finite(KIND, &self.q[..n], Field::Q)?;
+        check_finite(KIND, &self.qd[..n], Field::Qd)?;
+        check_finite(KIND, &self.tau[..n], Field::Tau)
     }
 
     /// The decoded `mode`.
@@ -526,7 +569,7 @@ mod tests {
     #[test]
     fn state_layout_is_pinned() {
         assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<StateSample>(), 152);
+        assert_eq!(size_of::<StateSample>(), 216);
         assert_eq!(align_of::<StateSample>(), 8);
         assert_eq!(offset_of!(StateSample, seq), 0);
         assert_eq!(offset_of!(StateSample, stamp_ns), 8);
@@ -536,12 +579,15 @@ mod tests {
         assert_eq!(offset_of!(StateSample, phi), 32);
         assert_eq!(offset_of!(StateSample, q), 40);
         assert_eq!(offset_of!(StateSample, qd), 96);
+        assert_eq!(offset_of!(StateSample, tau), 152);
+        assert_eq!(offset_of!(StateSample, device), 208);
+        assert_eq!(offset_of!(StateSample, device_joint), 212);
     }
 
     #[test]
     fn command_layout_is_pinned() {
         assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<CommandSample>(), 160);
+        assert_eq!(size_of::<CommandSample>(), 336);
         assert_eq!(align_of::<CommandSample>(), 8);
         assert_eq!(offset_of!(CommandSample, seq), 0);
         assert_eq!(offset_of!(CommandSample, state_seq), 8);
@@ -552,6 +598,32 @@ mod tests {
         assert_eq!(offset_of!(CommandSample, n), 44);
         assert_eq!(offset_of!(CommandSample, qdd), 48);
         assert_eq!(offset_of!(CommandSample, qddd), 104);
+        assert_eq!(offset_of!(CommandSample, interface), 160);
+        assert_eq!(offset_of!(CommandSample, reserved), 164);
+        assert_eq!(offset_of!(CommandSample, q), 168);
+        assert_eq!(offset_of!(CommandSample, qd), 224);
+        assert_eq!(offset_of!(CommandSample, tau), 280);
+    }
+
+    #[test]
+    fn interface_device_status_and_torques_are_checked() {
+        let mut c = good_command(3);
+        c.interface = 4;
+        assert_eq!(c.validate(3), Err(SampleError::Interface(4)));
+        c.interface = crate::interface::TORQUE;
+        c.tau[2] = f64::NAN;
+        assert_eq!(
+            c.validate(3).unwrap_err().to_string(),
+            "command sample has non-finite tau[2]"
+        );
+        let mut s = good_state(3);
+        s.device = 99;
+        assert_eq!(s.validate(3), Err(SampleError::DeviceStatus(99)));
+        s.device = DeviceStatus::JerkLimit as u32;
+        assert_eq!(s.validate(3), Ok(()));
+        assert_eq!(s.device_status(), Some(DeviceStatus::JerkLimit));
+        s.tau[0] = f64::INFINITY;
+        assert!(s.validate(3).is_err());
     }
 
     #[test]

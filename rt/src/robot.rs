@@ -92,3 +92,33 @@ pub fn parse(text: &str) -> Result<System, ConfigError> {
 pub fn resolve(spec: &str, base: Option<&str>, tip: Option<&str>) -> Result<Chain, String> {
     load(spec, base, tip).map_err(|e| e.to_string())
 }
+
+/// The arm `system` describes, as the handshake sends it, for the process with `instance_id`
+/// (0 for a plant, whose id the loop fills in): the planar arm's links (and a floating base's
+/// masses), or a chain's name and fingerprint, and the command interface it uses. The daemon
+/// and the plant describe themselves with this one function, so they agree whenever their
+/// set-ups do.
+pub fn arm_info(system: &System, instance_id: u64) -> protocol::ArmInfo {
+    let mut info = match system {
+        System::Spatial(s) => {
+            let id = s.identity();
+            protocol::ArmInfo::chain(instance_id, s.chain.dof(), &id.name, id.fingerprint)
+        }
+        System::Planar(c) => {
+            let masses = c.link_masses();
+            let inertias = c.link_inertias();
+            let floating = (c.arm.model == control::config::ModelKind::Floating).then(|| {
+                protocol::FloatingBase {
+                    link_masses: &masses,
+                    link_inertias: &inertias,
+                    base_mass: c.arm.base_mass,
+                    base_inertia: c.arm.base_inertia,
+                    base_offset: c.arm.base_offset,
+                }
+            });
+            protocol::ArmInfo::new(instance_id, &c.arm.links, floating)
+        }
+    };
+    info.interface = system.command_mode().code();
+    info
+}

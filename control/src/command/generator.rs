@@ -158,6 +158,38 @@ impl<const N: usize> MotionGenerator<N> {
         }
     }
 
+    /// [`Self::next`] for a command that comes `periods` periods after the last one (states
+    /// went missing in between): the reference moves on over the whole time, the law's ramp
+    /// continuing, as the device's own reference did. Changes nothing.
+    pub fn next_over(
+        &self,
+        q: &VecN<N>,
+        qd: &VecN<N>,
+        qdd: &VecN<N>,
+        qddd: &VecN<N>,
+        periods: u32,
+    ) -> Command<N> {
+        if periods <= 1 || self.mode == CommandMode::Acceleration {
+            return self.next(q, qd, qdd, qddd);
+        }
+        let mut g = self.clone();
+        let mut hits = [0u8; N];
+        let mut c = g.next(q, qd, qdd, qddd);
+        for _ in 1..periods {
+            hits.iter_mut().zip(&c.hits).for_each(|(h, x)| *h |= x);
+            g.reference = MotionState {
+                q: c.q,
+                qd: c.qd,
+                qdd: c.qdd + c.qddd * self.limiter_dt(),
+            };
+            let a = c.qdd + c.qddd * self.limiter_dt();
+            c = g.next(q, qd, &a, &c.qddd);
+        }
+        hits.iter_mut().zip(&c.hits).for_each(|(h, x)| *h |= x);
+        c.hits = hits;
+        c
+    }
+
     /// Makes `c` (computed by [`Self::next`] this tick) the stream's last command.
     pub fn commit(&mut self, c: &Command<N>) {
         self.reference = MotionState {

@@ -196,6 +196,7 @@ impl<const N: usize> Limiter<N> {
         let (l, h) = (&self.l, self.dt);
         let (v, a_last) = (last.qd[i], last.qdd[i]);
         let mut a = s.qdd[i];
+        let mut r = s.qddd[i];
         let mut clamp = |a: &mut f64, lo: f64, hi: f64, kind: LimitKind| {
             if *a > hi || *a < lo {
                 *a = a.clamp(lo, hi.max(lo));
@@ -204,6 +205,8 @@ impl<const N: usize> Limiter<N> {
         };
         let dj = l.jerk[i] * h;
         clamp(&mut a, a_last - dj, a_last + dj, LimitKind::Jerk);
+        // The ramp over the period is a jerk too.
+        clamp(&mut r, -l.jerk[i], l.jerk[i], LimitKind::Jerk);
         let (v_lo, v_hi) = self.velocity_bounds(i, last.q[i]);
         let (a_lo, a_hi) = self.acceleration_bounds(i, v, v_lo, v_hi);
         clamp(&mut a, a_lo, a_hi, LimitKind::Acceleration);
@@ -216,6 +219,8 @@ impl<const N: usize> Limiter<N> {
         if a != s.qdd[i] {
             s.qdd[i] = a;
             s.qddd[i] = 0.0;
+        } else {
+            s.qddd[i] = r;
         }
     }
 

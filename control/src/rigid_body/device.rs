@@ -49,12 +49,14 @@ impl<const N: usize> Device<N> {
         }
     }
 
-    /// Takes the command for the next period of `dt` seconds.
-    pub fn command(&mut self, c: &DeviceCommand<N>, dt: f64) {
+    /// Takes the command for the next period of `dt` seconds, which answers a state measured
+    /// `since` seconds ago (0 when it arrives at the period's start).
+    pub fn command(&mut self, c: &DeviceCommand<N>, dt: f64, since: f64) {
         if c.mode != CommandMode::Velocity {
             self.set_point = None;
         }
-        self.offset = 0.0;
+        let since = since.max(0.0);
+        self.offset = since;
         self.drive = match c.mode {
             CommandMode::Torque => Drive::Torque(c.tau),
             CommandMode::Acceleration => Drive::Ramp {
@@ -62,8 +64,9 @@ impl<const N: usize> Device<N> {
                 qddd: c.qddd,
             },
             CommandMode::Position => {
-                // Reached at the period's end: the reference runs from dt before it.
-                self.offset = -dt;
+                // Reached one period after the answered state: the reference runs from dt
+                // before that.
+                self.offset = since - dt;
                 Drive::Track {
                     q: c.q,
                     qd: c.qd,

@@ -119,7 +119,7 @@ pub fn run<const N: usize>(
             qddd: c.qddd,
             tau: c.tau,
         };
-        device.command(&cmd, dt);
+        device.command(&cmd, dt, 0.0);
         device.advance(dt, substeps);
         // The arm's own error (the law's is its reference's in position and velocity modes).
         let e = (arm_model.tool_position(&m.q) - o.p_desired).norm();

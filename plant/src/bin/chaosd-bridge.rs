@@ -59,6 +59,7 @@ fn main() -> ExitCode {
             wait: l.plant.wait,
             spin: Duration::from_secs_f64(l.plant.spin_us * 1e-6),
             loop_core: l.plant.core,
+            interface: l.system.command_mode().code(),
         };
         let mut bridge = UdpBridge::new(l.system.n(), cfg);
         let summary = plant::run::run(&mut bridge, &l.plant, &l.arm(), l.duration);

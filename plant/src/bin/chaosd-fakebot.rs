@@ -70,6 +70,35 @@ struct Args {
     /// own) or block (in ppoll) [default: block with a --priority above 0, else poll].
     #[arg(long = "answer-wait")]
     answer_wait: Option<AnswerWait>,
+    /// The command interfaces the device takes, comma-separated (acceleration, velocity,
+    /// position, torque; torque needs [plant] dynamics = "rigid-body") [default: all it can].
+    #[arg(long, value_delimiter = ',')]
+    interfaces: Vec<String>,
+    /// Follow every command as sent, without the arm's rules (no reflex stops): to see what a
+    /// limiter-less stream would do to an arm that did not protect itself.
+    #[arg(long = "no-reflexes")]
+    no_reflexes: bool,
+}
+
+/// The `wire::takes` flags of `--interfaces`; the default is every interface this arm can
+/// follow (torque only with rigid-body dynamics).
+fn interfaces(a: &Args, p: &PlantConfig) -> Result<u32> {
+    let rigid = p.dynamics == plant::config::Dynamics::RigidBody;
+    if a.interfaces.is_empty() {
+        let all: &[u32] = if rigid { &[0, 1, 2, 3] } else { &[0, 1, 2] };
+        return Ok(plant::udp::wire::takes(all));
+    }
+    let mut codes = Vec::new();
+    for name in &a.interfaces {
+        let mode = control::command::CommandMode::parse(name)
+            .map_err(|e| anyhow::anyhow!("--interfaces: {e}"))?;
+        ensure!(
+            rigid || mode != control::command::CommandMode::Torque,
+            "--interfaces torque: a kinematic arm has no masses to apply torques to; set [plant] dynamics = \"rigid-body\""
+        );
+        codes.push(mode.code());
+    }
+    Ok(plant::udp::wire::takes(&codes))
 }
 
 fn validate(a: &Args) -> Result<()> {
@@ -172,10 +201,23 @@ fn run(a: &Args) -> Result<FakebotSummary> {
         spin_us: p.spin_us,
         answer_wait,
         placement,
+        takes: interfaces(a, p)?,
+        enforce: !a.no_reflexes,
     };
-    let period = p.period_ns() as f64 * 1e-9;
     let s = &l.system;
-    let c = with_dof!(s.n(), N => fakebot::run::<N>(&cfg, || SimPlant::<N>::for_system(s, period, p.substeps, p.brake_gain), l.duration))?;
+    let c = with_dof!(s.n(), N => {
+        // Built once here so a bad [plant] is one error at start-up, then again on each restart.
+        SimPlant::<N>::from_config(s, p)?;
+        let limits = plant::sim::device_limits::<N>(s)?;
+        // A robot powers up at rest; chaosd's own acceleration-level emulator keeps the
+        // set-up's q̇0, as every planar result was measured with it.
+        let rest = s.command_mode() != control::command::CommandMode::Acceleration;
+        let make = || {
+            let sim = SimPlant::<N>::from_config(s, p).expect("checked at start-up");
+            if rest { sim.at_rest() } else { sim }
+        };
+        fakebot::run::<N>(&cfg, make, limits, l.duration)
+    })?;
     if let Some(path) = &a.summary {
         rt::files::write(path, serde_json::to_string_pretty(&c)?)
             .with_context(|| format!("cannot write {}", path.display()))?;
@@ -193,8 +235,9 @@ fn main() -> ExitCode {
                 s.round_trip.one_line()
             );
             eprintln!(
-                "chaosd-fakebot: {} cycles, {} answered in time, {} missed, {} late answers, {} malformed, {} stale; lost {} states and {} commands; {} brakes, {} spikes, {} restarts",
-                c.cycles, c.answered_in_time, c.missed, c.late_answers, c.malformed, c.stale_session, c.states_lost, c.commands_lost, c.brakes, c.spikes, c.restarts
+                "chaosd-fakebot: {} cycles, {} answered in time, {} missed, {} late answers, {} malformed, {} stale; lost {} states and {} commands; {} brakes, {} spikes, {} restarts; {} reflex stops{}",
+                c.cycles, c.answered_in_time, c.missed, c.late_answers, c.malformed, c.stale_session, c.states_lost, c.commands_lost, c.brakes, c.spikes, c.restarts,
+                c.reflex_stops, s.first_reflex.as_ref().map_or(String::new(), |f| format!(", the first {f}"))
             );
             ExitCode::SUCCESS
         }

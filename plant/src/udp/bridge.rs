@@ -19,6 +19,12 @@ use std::os::fd::AsRawFd;
 use std::time::Duration;
 
 /// Where the bridge listens and where the device is.
+/// A command's values and the wire array they go to.
+type Field<'a> = (&'a [f64], &'a mut [f64; MAX_JOINTS]);
+
+/// How many periods the receipts may run behind the device's grid before it is laid again.
+const GRID_SLIP: u64 = 20;
+
 #[derive(Clone, Copy, Debug)]
 pub struct BridgeConfig {
     pub bind: SocketAddr,
@@ -35,6 +41,21 @@ pub struct BridgeConfig {
     pub spin: Duration,
     /// The plant loop's core: the thread that logs the bridge's news stays off it.
     pub loop_core: Option<usize>,
+    /// The command interface the daemon sends (`protocol::interface`); the device must take it.
+    pub interface: u32,
+}
+
+/// The interfaces a device says it takes, for an error message (start-up only).
+fn taken(s: &DeviceState) -> String {
+    let names: Vec<&str> = (0..4)
+        .filter(|&c| s.takes(c))
+        .filter_map(protocol::interface::name)
+        .collect();
+    if names.is_empty() {
+        "no command interface".into()
+    } else {
+        names.join(", ")
+    }
 }
 
 /// What the bridge counted.
@@ -96,6 +117,8 @@ pub struct UdpBridge {
     lost: bool,
     origins: [Origin; 64],
     pub counters: BridgeCounters,
+    /// The device's clock grid: (session, seq, stamp) of the newest state on it.
+    grid: std::cell::Cell<Option<(u64, u64, u64)>>,
     /// Running between `activate` and `deactivate`.
     courier: Option<Courier<DeviceNote>>,
     news: Option<Poster<DeviceNote>>,
@@ -122,8 +145,30 @@ impl UdpBridge {
                 ..Origin::default()
             }; 64],
             counters: BridgeCounters::default(),
+            grid: std::cell::Cell::new(None),
             courier: None,
             news: None,
+        }
+    }
+
+    /// Where state `s`, received at `rx_ns`, sits on the device's grid (see `stamp`): whole
+    /// periods by the device's cycle counter from the grid's origin, so that two states
+    /// `k` cycles apart are stamped exactly `k` periods apart. A receipt earlier than the grid
+    /// moves the grid earlier (its phase is the earliest seen); a grid more than
+    /// [`GRID_SLIP`] periods behind the receipts (a device clock slower than ours), or a new
+    /// session, lays it again.
+    fn on_grid(&self, s: &DeviceState, rx_ns: u64) -> (u64, u64, u64) {
+        let period = self.cfg.period.as_nanos() as u64;
+        match self.grid.get() {
+            Some((session, seq, at)) if session == s.session && s.seq > seq => {
+                let grid = at + (s.seq - seq) * period;
+                if grid <= rx_ns && rx_ns - grid <= GRID_SLIP * period {
+                    (s.session, s.seq, grid)
+                } else {
+                    (s.session, s.seq, rx_ns)
+                }
+            }
+            _ => (s.session, s.seq, rx_ns),
         }
     }
 
@@ -273,6 +318,7 @@ impl Plant for UdpBridge {
 
     fn flags(&self) -> u32 {
         match self.last {
+            Some(s) if s.status != 0 => flags::FAULT | flags::BRAKING,
             Some(s) if s.flags & DEVICE_BRAKING != 0 => flags::BRAKING,
             _ => 0,
         }
@@ -301,30 +347,41 @@ impl Plant for UdpBridge {
         let Some(last) = self.last else {
             return Ok(()); // no device state yet: nothing to answer
         };
-        let mut cmd = DeviceCommand {
-            n: self.n as u16,
-            seq: last.seq,
-            session: last.session,
-            mode: DeviceMode::Brake,
-            qdd: [0.0; MAX_JOINTS],
-            qddd: [0.0; MAX_JOINTS],
-        };
-        match a {
+        let mut cmd =
+            DeviceCommand::still(self.n as u16, last.seq, last.session, DeviceMode::Brake);
+        cmd.interface = self.cfg.interface;
+        let (answers, fields): (u64, [Field<'_>; 2]) = match a {
             Actuation::Accelerate {
                 qdd, qddd, answers, ..
-            } => {
-                let o = self.origins[(answers % 64) as usize];
-                if o.loop_seq != answers || qdd.len() != self.n || qddd.len() != self.n {
-                    self.counters.unknown_answers += 1;
-                    return Ok(());
-                }
-                (cmd.seq, cmd.session, cmd.mode) = (o.seq, o.session, DeviceMode::Run);
-                cmd.qdd[..self.n].copy_from_slice(qdd);
-                cmd.qddd[..self.n].copy_from_slice(qddd);
+            } => (answers, [(qdd, &mut cmd.qdd), (qddd, &mut cmd.qddd)]),
+            Actuation::Position { q, qd, answers, .. } => {
+                (answers, [(q, &mut cmd.q), (qd, &mut cmd.qd)])
             }
-            Actuation::Hold => cmd.mode = DeviceMode::Hold,
-            Actuation::Brake => {}
+            Actuation::Velocity { qd, answers, .. } => {
+                (answers, [(qd, &mut cmd.qd), (&[], &mut cmd.q)])
+            }
+            Actuation::Torque { tau, answers, .. } => {
+                (answers, [(tau, &mut cmd.tau), (&[], &mut cmd.q)])
+            }
+            Actuation::Hold => {
+                cmd.mode = DeviceMode::Hold;
+                return self.send(&cmd);
+            }
+            Actuation::Brake => return self.send(&cmd),
+        };
+        let o = self.origins[(answers % 64) as usize];
+        if o.loop_seq != answers
+            || fields
+                .iter()
+                .any(|(v, _)| !v.is_empty() && v.len() != self.n)
+        {
+            self.counters.unknown_answers += 1;
+            return Ok(());
         }
+        for (v, out) in fields {
+            out[..v.len()].copy_from_slice(v);
+        }
+        (cmd.seq, cmd.session, cmd.mode) = (o.seq, o.session, DeviceMode::Run);
         self.send(&cmd)
     }
 
@@ -336,15 +393,34 @@ impl Plant for UdpBridge {
             self.say(DeviceNote::Back);
         }
         self.counters.states += 1;
+        self.grid.set(Some(self.on_grid(&s, self.last_rx_ns)));
         self.origins[(out.seq % 64) as usize] = Origin {
             loop_seq: out.seq,
             seq: s.seq,
             session: s.session,
         };
+        if !s.takes(self.cfg.interface) {
+            return Err(PlantError::Fault {
+                what: "the device does not take the configured command interface",
+                source: Some(
+                    format!(
+                        "command.mode = {:?}: the device at {} takes {}",
+                        protocol::interface::name(self.cfg.interface).unwrap_or("?"),
+                        self.cfg.device,
+                        taken(&s)
+                    )
+                    .into(),
+                ),
+            });
+        }
         out.n = self.n as u32;
         out.phi = 0.0;
         out.q = s.q;
         out.qd = s.qd;
+        out.tau = s.tau;
+        // A reflex stop is forwarded as it is: the daemon names the joint and the reason.
+        out.device = u32::from(s.status);
+        out.device_joint = u32::from(s.joint);
         Ok(())
     }
 
@@ -356,5 +432,14 @@ impl Plant for UdpBridge {
 
     fn device_clocked(&self) -> bool {
         true
+    }
+
+    /// The device's cycle on its own grid: the earliest arrival phase seen, plus whole periods
+    /// by the device's cycle counter. Receipt times jitter by hundreds of µs on a shared
+    /// machine; the grid does not, so a controller that integrates a reference over the time
+    /// between states (position and velocity modes) sees exactly the device's periods. The
+    /// grid is laid again at a new session, or when it drifts a period from the receipts.
+    fn stamp(&self, _nominal_ns: u64, now_ns: u64) -> u64 {
+        self.grid.get().map_or(now_ns, |(_, _, at)| at)
     }
 }

@@ -19,15 +19,18 @@
 //! its own core, without waking an idle vCPU. README, "The device beside the bridge", has the
 //! numbers.
 
+use super::rules::Rules;
 use super::wait::{poll_datagram, Window};
 use super::wire::{
-    DeviceCommand, DeviceMode, DeviceState, COMMAND_LEN, DEVICE_BRAKING, DEVICE_HOLDING, STATE_LEN,
+    DeviceCommand, DeviceMode, DeviceState, COMMAND_LEN, DEVICE_BRAKING, DEVICE_HOLDING,
+    DEVICE_STOPPED, STATE_LEN,
 };
 use crate::seam::{Actuation, Plant};
 use crate::sim::SimPlant;
 use anyhow::{Context, Result};
+use control::command::JointLimits;
 use hdrhistogram::Histogram;
-use protocol::{monotonic_ns, StateSample, MAX_JOINTS};
+use protocol::{interface, monotonic_ns, DeviceStatus, StateSample, MAX_JOINTS};
 use rt::clock::Schedule;
 use rt::WaitStrategy;
 use serde::Serialize;
@@ -57,6 +60,11 @@ pub struct FakebotConfig {
     pub spin_us: f64,
     pub answer_wait: AnswerWait,
     pub placement: Placement,
+    /// The command interfaces it takes (`wire::takes` flag bits).
+    pub takes: u32,
+    /// Check every command against the arm's limits, as a robot does ([`super::rules`]); off,
+    /// it follows whatever it is sent.
+    pub enforce: bool,
 }
 
 /// How the device waits for the answer to the state it just sent (`--answer-wait poll|block`).
@@ -122,6 +130,9 @@ pub struct FakebotCounters {
     pub brakes: u64,
     pub spikes: u64,
     pub restarts: u64,
+    /// Reflex stops: a command broke one of the arm's rules (or used an interface it does not
+    /// take), and the device stopped until told to hold.
+    pub reflex_stops: u64,
 }
 
 /// What the device measured: its counters, and state sent → answer received (the round trip
@@ -130,6 +141,8 @@ pub struct FakebotCounters {
 pub struct FakebotSummary {
     pub counters: FakebotCounters,
     pub round_trip: rt::hist::Percentiles,
+    /// The first reflex stop: device time (s), joint (1-based, 0: none) and reason.
+    pub first_reflex: Option<String>,
 }
 
 /// xorshift64*: the loss injector's random numbers (deterministic per seed, no allocation).
@@ -159,6 +172,8 @@ struct Session {
     braking: bool,
     holding: bool,
     started_ns: u64,
+    /// A reflex stop in force: the status and the joint (1-based).
+    stopped: Option<(DeviceStatus, u16)>,
 }
 
 impl Session {
@@ -172,6 +187,7 @@ impl Session {
             braking: false,
             holding: false,
             started_ns: monotonic_ns(),
+            stopped: None,
         }
     }
 }
@@ -180,6 +196,7 @@ impl Session {
 pub fn run<const N: usize>(
     cfg: &FakebotConfig,
     make: impl Fn() -> SimPlant<N>,
+    limits: JointLimits<N>,
     duration: Option<f64>,
 ) -> Result<FakebotSummary> {
     let socket = UdpSocket::bind(cfg.listen)
@@ -201,6 +218,8 @@ pub fn run<const N: usize>(
         sent_at: 0,
         rtt: rt::hist::new_ns(),
         spike_until: 0,
+        rules: Rules::new(limits, 1.0 / cfg.rate_hz),
+        first_reflex: None,
     };
     dev.sim.activate()?;
     let period = (1e9 / cfg.rate_hz).round() as u64;
@@ -239,6 +258,7 @@ pub fn run<const N: usize>(
     Ok(FakebotSummary {
         counters: dev.c,
         round_trip: rt::hist::Percentiles::of(&dev.rtt),
+        first_reflex: dev.first_reflex,
     })
 }
 
@@ -272,6 +292,9 @@ struct Device<'a, const N: usize> {
     rtt: Histogram<u64>,
     /// A delay spike: until then, answers sit in the socket (delayed in transit).
     spike_until: u64,
+    /// The arm's rules, and the stream it is judging.
+    rules: Rules<N>,
+    first_reflex: Option<String>,
 }
 
 impl<const N: usize> Device<'_, N> {
@@ -280,6 +303,7 @@ impl<const N: usize> Device<'_, N> {
         rt::clock::sleep_until(monotonic_ns() + (self.cfg.restart_pause_ms * 1e6) as u64);
         self.sim = make();
         self.s = Session::new();
+        self.rules.restart();
         self.pending = None;
         // Whatever arrived while "rebooting" answers the old session; take it and count it.
         let _ = self.answer();
@@ -366,22 +390,65 @@ impl<const N: usize> Device<'_, N> {
     }
 
     fn apply(&mut self, cmd: &DeviceCommand) {
+        // The periods this answer covers: one, plus the misses before it.
+        let cycles = self.s.missed_run.saturating_add(1);
         self.c.answered_in_time += 1;
         self.s.started = true;
         self.s.missed_run = 0;
         self.s.braking = false;
         self.s.holding = cmd.mode == DeviceMode::Hold;
         let a = match cmd.mode {
-            DeviceMode::Run => Actuation::Accelerate {
-                qdd: &cmd.qdd[..N],
-                qddd: &cmd.qddd[..N],
-                since: 0.0,
-                answers: cmd.seq,
+            DeviceMode::Run if self.s.stopped.is_some() => Actuation::Brake,
+            DeviceMode::Run => match self.judge(cmd, cycles) {
+                Ok(()) => actuation::<N>(cmd),
+                Err((status, joint)) => {
+                    self.stop(status, joint);
+                    Actuation::Brake
+                }
             },
-            DeviceMode::Hold => Actuation::Hold,
-            DeviceMode::Brake => Actuation::Brake,
+            // A hold is the operator's recovery: it clears a reflex stop, and the next run is a
+            // new stream that must continue the arm's measured motion.
+            DeviceMode::Hold => {
+                self.s.stopped = None;
+                self.rules.restart();
+                Actuation::Hold
+            }
+            DeviceMode::Brake => {
+                self.rules.restart();
+                Actuation::Brake
+            }
         };
         let _ = self.sim.write(a);
+    }
+
+    /// A RUN command against the interfaces the device takes and the arm's rules.
+    fn judge(&mut self, cmd: &DeviceCommand, cycles: u32) -> Result<(), (DeviceStatus, usize)> {
+        if self.cfg.takes >> (super::wire::TAKES_SHIFT + cmd.interface.min(31)) & 1 == 0 {
+            return Err((DeviceStatus::InterfaceUnsupported, usize::MAX));
+        }
+        if !self.cfg.enforce {
+            return Ok(());
+        }
+        let x = &self.sample;
+        self.rules
+            .check(cmd, &x.q[..N], &x.qd[..N], &x.tau[..N], cycles)
+    }
+
+    /// A reflex stop: brake and say why until told to hold.
+    fn stop(&mut self, status: DeviceStatus, joint: usize) {
+        let joint = if joint == usize::MAX {
+            0
+        } else {
+            joint as u16 + 1
+        };
+        self.s.stopped = Some((status, joint));
+        self.c.reflex_stops += 1;
+        self.rules.restart();
+        let t = monotonic_ns().saturating_sub(self.s.started_ns) as f64 * 1e-9;
+        self.first_reflex.get_or_insert_with(|| match joint {
+            0 => format!("at {t:.3} s: {status}"),
+            j => format!("at {t:.3} s: joint {j} {status}"),
+        });
     }
 
     /// No answer in time: the previous command stays (the simulator ramps it on).
@@ -395,25 +462,38 @@ impl<const N: usize> Device<'_, N> {
         if self.s.missed_run >= self.cfg.max_missed && !self.s.braking {
             self.s.braking = true;
             self.c.brakes += 1;
+            // The stream is broken: when answers come again they start a new one.
+            self.rules.restart();
             let _ = self.sim.write(Actuation::Brake);
         }
     }
 
     fn send_state(&mut self) {
+        let (status, joint) = self.s.stopped.map_or((0, 0), |(s, j)| (s as u16, j));
         let mut st = DeviceState {
             n: N as u16,
             seq: self.s.seq,
             session: self.s.id,
             time_ns: monotonic_ns().saturating_sub(self.s.started_ns),
-            flags: if self.s.braking { DEVICE_BRAKING } else { 0 }
-                | if self.s.holding { DEVICE_HOLDING } else { 0 },
+            // Before its first answer the arm stands on its brakes, as a robot does.
+            flags: if self.s.braking || !self.s.started {
+                DEVICE_BRAKING
+            } else {
+                0
+            } | if self.s.holding { DEVICE_HOLDING } else { 0 }
+                | if status != 0 { DEVICE_STOPPED } else { 0 }
+                | self.cfg.takes,
             missed_run: self.s.missed_run,
             missed_total: self.s.missed_total,
+            status,
+            joint,
             q: [0.0; MAX_JOINTS],
             qd: [0.0; MAX_JOINTS],
+            tau: [0.0; MAX_JOINTS],
         };
         st.q[..N].copy_from_slice(&self.sample.q[..N]);
         st.qd[..N].copy_from_slice(&self.sample.qd[..N]);
+        st.tau[..N].copy_from_slice(&self.sample.tau[..N]);
         if self.rng.chance(self.cfg.loss) {
             self.c.states_lost += 1;
             return;
@@ -425,6 +505,35 @@ impl<const N: usize> Device<'_, N> {
             Ok(_) => self.c.states_sent += 1,
             Err(_) => self.c.send_errors += 1,
         }
+    }
+}
+
+/// What a RUN command asks the arm to do, in its interface.
+fn actuation<const N: usize>(c: &DeviceCommand) -> Actuation<'_> {
+    let answers = c.seq;
+    match c.interface {
+        interface::POSITION => Actuation::Position {
+            q: &c.q[..N],
+            qd: &c.qd[..N],
+            since: 0.0,
+            answers,
+        },
+        interface::VELOCITY => Actuation::Velocity {
+            qd: &c.qd[..N],
+            since: 0.0,
+            answers,
+        },
+        interface::TORQUE => Actuation::Torque {
+            tau: &c.tau[..N],
+            since: 0.0,
+            answers,
+        },
+        _ => Actuation::Accelerate {
+            qdd: &c.qdd[..N],
+            qddd: &c.qddd[..N],
+            since: 0.0,
+            answers,
+        },
     }
 }
 

@@ -67,5 +67,6 @@
 
 pub mod bridge;
 pub mod fakebot;
+pub mod rules;
 pub mod wait;
 pub mod wire;

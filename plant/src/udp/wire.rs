@@ -4,29 +4,45 @@
 
 use protocol::MAX_JOINTS;
 
-/// Protocol version carried in every packet. 2: arrays of 7 entries (version 1 had 6).
-pub const VERSION: u16 = 2;
+/// Protocol version carried in every packet. 3: command interfaces (position, velocity,
+/// torque), the device's status and measured torques; 2 had q̈ commands only.
+pub const VERSION: u16 = 3;
 /// `b"CDST"`: a state packet (device → bridge).
 pub const STATE_MAGIC: [u8; 4] = *b"CDST";
 /// `b"CDCM"`: a command packet (bridge → device).
 pub const COMMAND_MAGIC: [u8; 4] = *b"CDCM";
 /// Bytes of one per-joint array: `MAX_JOINTS` f64s.
 const ARRAY_BYTES: usize = 8 * MAX_JOINTS;
-/// Offset of the state's `q` (after its fixed 48-byte header), then of its `qd`.
+/// Offsets of the state's arrays (after its fixed 48-byte header): `q`, `qd`, `tau`.
 const STATE_Q: usize = 48;
 const STATE_QD: usize = STATE_Q + ARRAY_BYTES;
-/// Size of a state packet (bytes): 160 for 7 joints.
-pub const STATE_LEN: usize = STATE_QD + ARRAY_BYTES;
-/// Offset of the command's `qdd` (after its fixed 32-byte header), then of its `qddd`.
+const STATE_TAU: usize = STATE_QD + ARRAY_BYTES;
+/// Size of a state packet (bytes): 216 for 7 joints.
+pub const STATE_LEN: usize = STATE_TAU + ARRAY_BYTES;
+/// Offsets of the command's arrays (after its fixed 32-byte header): `qdd`, `qddd`, `q`, `qd`,
+/// `tau`.
 const COMMAND_QDD: usize = 32;
 const COMMAND_QDDD: usize = COMMAND_QDD + ARRAY_BYTES;
-/// Size of a command packet (bytes): 144 for 7 joints.
-pub const COMMAND_LEN: usize = COMMAND_QDDD + ARRAY_BYTES;
+const COMMAND_Q: usize = COMMAND_QDDD + ARRAY_BYTES;
+const COMMAND_QD: usize = COMMAND_Q + ARRAY_BYTES;
+const COMMAND_TAU: usize = COMMAND_QD + ARRAY_BYTES;
+/// Size of a command packet (bytes): 312 for 7 joints.
+pub const COMMAND_LEN: usize = COMMAND_TAU + ARRAY_BYTES;
 
 /// Device state flag: the device is braking (too many missed answers, or told to).
 pub const DEVICE_BRAKING: u32 = 1 << 0;
 /// Device state flag: the device is holding (told to).
 pub const DEVICE_HOLDING: u32 = 1 << 1;
+/// Device state flag: the device stopped with a reflex error (`status` says which).
+pub const DEVICE_STOPPED: u32 = 1 << 2;
+/// Device state flags: bit `TAKES_SHIFT + i` set when the device takes command interface `i`
+/// (`protocol::interface`).
+pub const TAKES_SHIFT: u32 = 8;
+
+/// The flag bits of a device that takes the interfaces `codes`.
+pub fn takes(codes: &[u32]) -> u32 {
+    codes.iter().fold(0, |f, c| f | 1 << (TAKES_SHIFT + c))
+}
 
 /// The device's state for one cycle.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -43,8 +59,21 @@ pub struct DeviceState {
     pub missed_run: u32,
     /// Missed and late answers since the device started (saturating).
     pub missed_total: u32,
+    /// Why the device stopped (`protocol::DeviceStatus` code, 0: it did not) and the joint
+    /// (1-based; 0: none).
+    pub status: u16,
+    pub joint: u16,
     pub q: [f64; MAX_JOINTS],
     pub qd: [f64; MAX_JOINTS],
+    /// Measured joint torques (N·m).
+    pub tau: [f64; MAX_JOINTS],
+}
+
+impl DeviceState {
+    /// Whether the device takes command interface `code`.
+    pub fn takes(&self, code: u32) -> bool {
+        code < 4 && self.flags >> (TAKES_SHIFT + code) & 1 == 1
+    }
 }
 
 /// What the device should do.
@@ -65,9 +94,34 @@ pub struct DeviceCommand {
     /// The `session` of that state.
     pub session: u64,
     pub mode: DeviceMode,
+    /// Which field the device follows (`protocol::interface`).
+    pub interface: u32,
     /// q̈ + q⃛·s, s from the answered state's measurement (rad/s², rad/s³).
     pub qdd: [f64; MAX_JOINTS],
     pub qddd: [f64; MAX_JOINTS],
+    /// The reference position and velocity, reached one cycle after the answered state.
+    pub q: [f64; MAX_JOINTS],
+    pub qd: [f64; MAX_JOINTS],
+    /// Joint torques (N·m).
+    pub tau: [f64; MAX_JOINTS],
+}
+
+impl DeviceCommand {
+    /// A command answering state `seq` of `session` that moves nothing.
+    pub fn still(n: u16, seq: u64, session: u64, mode: DeviceMode) -> Self {
+        Self {
+            n,
+            seq,
+            session,
+            mode,
+            interface: 0,
+            qdd: [0.0; MAX_JOINTS],
+            qddd: [0.0; MAX_JOINTS],
+            q: [0.0; MAX_JOINTS],
+            qd: [0.0; MAX_JOINTS],
+            tau: [0.0; MAX_JOINTS],
+        }
+    }
 }
 
 /// Why a packet was dropped.
@@ -85,6 +139,8 @@ pub enum WireError {
     NonFinite(usize),
     #[error("unknown mode {0}")]
     Mode(u32),
+    #[error("unknown command interface {0}")]
+    Interface(u32),
 }
 
 fn u16_at(b: &[u8], at: usize) -> u16 {
@@ -152,8 +208,11 @@ impl DeviceState {
         b[32..36].copy_from_slice(&self.flags.to_le_bytes());
         b[36..40].copy_from_slice(&self.missed_run.to_le_bytes());
         b[40..44].copy_from_slice(&self.missed_total.to_le_bytes());
+        b[44..46].copy_from_slice(&self.status.to_le_bytes());
+        b[46..48].copy_from_slice(&self.joint.to_le_bytes());
         put_f64s(b, STATE_Q, &self.q);
         put_f64s(b, STATE_QD, &self.qd);
+        put_f64s(b, STATE_TAU, &self.tau);
     }
 
     pub fn decode(b: &[u8]) -> Result<Self, WireError> {
@@ -166,10 +225,13 @@ impl DeviceState {
             flags: u32_at(b, 32),
             missed_run: u32_at(b, 36),
             missed_total: u32_at(b, 40),
+            status: u16_at(b, 44),
+            joint: u16_at(b, 46),
             ..Self::default()
         };
         f64s_at(b, STATE_Q, n, &mut s.q)?;
         f64s_at(b, STATE_QD, n, &mut s.qd)?;
+        f64s_at(b, STATE_TAU, n, &mut s.tau)?;
         Ok(s)
     }
 }
@@ -183,8 +245,12 @@ impl DeviceCommand {
         b[8..16].copy_from_slice(&self.seq.to_le_bytes());
         b[16..24].copy_from_slice(&self.session.to_le_bytes());
         b[24..28].copy_from_slice(&(self.mode as u32).to_le_bytes());
+        b[28..32].copy_from_slice(&self.interface.to_le_bytes());
         put_f64s(b, COMMAND_QDD, &self.qdd);
         put_f64s(b, COMMAND_QDDD, &self.qddd);
+        put_f64s(b, COMMAND_Q, &self.q);
+        put_f64s(b, COMMAND_QD, &self.qd);
+        put_f64s(b, COMMAND_TAU, &self.tau);
     }
 
     pub fn decode(b: &[u8]) -> Result<Self, WireError> {
@@ -195,16 +261,17 @@ impl DeviceCommand {
             2 => DeviceMode::Brake,
             m => return Err(WireError::Mode(m)),
         };
-        let mut c = Self {
-            n: n as u16,
-            seq: u64_at(b, 8),
-            session: u64_at(b, 16),
-            mode,
-            qdd: [0.0; MAX_JOINTS],
-            qddd: [0.0; MAX_JOINTS],
-        };
+        let interface = u32_at(b, 28);
+        if protocol::interface::name(interface).is_none() {
+            return Err(WireError::Interface(interface));
+        }
+        let mut c = Self::still(n as u16, u64_at(b, 8), u64_at(b, 16), mode);
+        c.interface = interface;
         f64s_at(b, COMMAND_QDD, n, &mut c.qdd)?;
         f64s_at(b, COMMAND_QDDD, n, &mut c.qddd)?;
+        f64s_at(b, COMMAND_Q, n, &mut c.q)?;
+        f64s_at(b, COMMAND_QD, n, &mut c.qd)?;
+        f64s_at(b, COMMAND_TAU, n, &mut c.tau)?;
         Ok(c)
     }
 }
@@ -222,8 +289,11 @@ mod tests {
             flags: DEVICE_BRAKING,
             missed_run: 2,
             missed_total: 9,
+            status: 3,
+            joint: 2,
             q: [0.1, 0.2, 0.3, 0.0, 0.0, 0.0, 0.0],
             qd: [-1.0, 2.0, -3.0, 0.0, 0.0, 0.0, 0.0],
+            tau: [5.0, -6.0, 7.0, 0.0, 0.0, 0.0, 0.0],
         }
     }
 
@@ -232,9 +302,13 @@ mod tests {
     #[test]
     fn the_layout_is_pinned() {
         assert_eq!(MAX_JOINTS, 7);
-        assert_eq!((STATE_Q, STATE_QD, STATE_LEN), (48, 104, 160));
-        assert_eq!((COMMAND_QDD, COMMAND_QDDD, COMMAND_LEN), (32, 88, 144));
-        assert_eq!(VERSION, 2);
+        assert_eq!(
+            (STATE_Q, STATE_QD, STATE_TAU, STATE_LEN),
+            (48, 104, 160, 216)
+        );
+        assert_eq!((COMMAND_QDD, COMMAND_QDDD, COMMAND_Q), (32, 88, 144));
+        assert_eq!((COMMAND_QD, COMMAND_TAU, COMMAND_LEN), (200, 256, 312));
+        assert_eq!(VERSION, 3);
     }
 
     #[test]
@@ -251,12 +325,11 @@ mod tests {
         assert_eq!(f64::from_le_bytes(b[152..160].try_into().unwrap()), -0.7);
         assert_eq!(DeviceState::decode(&b), Ok(s));
         let c = DeviceCommand {
-            n: 7,
-            seq: 1,
-            session: 2,
-            mode: DeviceMode::Run,
+            interface: protocol::interface::TORQUE,
             qdd: [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0],
             qddd: [-1.0, -2.0, -3.0, -4.0, -5.0, -6.0, -7.0],
+            tau: [9.0; MAX_JOINTS],
+            ..DeviceCommand::still(7, 1, 2, DeviceMode::Run)
         };
         let mut b = [0u8; COMMAND_LEN];
         c.encode(&mut b);
@@ -277,12 +350,11 @@ mod tests {
         assert_eq!(f64::from_le_bytes(b[104..112].try_into().unwrap()), -1.0);
         assert_eq!(DeviceState::decode(&b), Ok(state()));
         let c = DeviceCommand {
-            n: 3,
-            seq: 42,
-            session: 5,
-            mode: DeviceMode::Hold,
+            interface: protocol::interface::POSITION,
             qdd: [1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 0.0],
             qddd: [4.0, 5.0, 6.0, 0.0, 0.0, 0.0, 0.0],
+            q: [0.5, 0.25, 0.125, 0.0, 0.0, 0.0, 0.0],
+            ..DeviceCommand::still(3, 42, 5, DeviceMode::Hold)
         };
         let mut b = [0u8; COMMAND_LEN];
         c.encode(&mut b);
@@ -327,10 +399,13 @@ mod tests {
         c[6..8].copy_from_slice(&3u16.to_le_bytes());
         c[24..28].copy_from_slice(&7u32.to_le_bytes());
         assert_eq!(DeviceCommand::decode(&c), Err(WireError::Mode(7)));
+        c[24..28].copy_from_slice(&0u32.to_le_bytes());
+        c[28..32].copy_from_slice(&9u32.to_le_bytes());
+        assert_eq!(DeviceCommand::decode(&c), Err(WireError::Interface(9)));
         // Random garbage of every length never panics.
         let mut x = 0x1234_5678_u64;
-        for len in 0..300 {
-            let mut g = [0u8; 300];
+        for len in 0..400 {
+            let mut g = [0u8; 400];
             for v in g.iter_mut().take(len) {
                 x ^= x << 13;
                 x ^= x >> 7;
