@@ -17,6 +17,7 @@
 //!   and a non-zero exit if anything was lost, not recovered or left behind (`soak`).
 
 mod child;
+mod commands;
 mod compute;
 mod cyclictest;
 mod e2e;
