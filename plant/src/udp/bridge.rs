@@ -22,9 +22,6 @@ use std::time::Duration;
 /// A command's values and the wire array they go to.
 type Field<'a> = (&'a [f64], &'a mut [f64; MAX_JOINTS]);
 
-/// How many periods the receipts may run behind the device's grid before it is laid again.
-const GRID_SLIP: u64 = 20;
-
 #[derive(Clone, Copy, Debug)]
 pub struct BridgeConfig {
     pub bind: SocketAddr,
@@ -117,8 +114,6 @@ pub struct UdpBridge {
     lost: bool,
     origins: [Origin; 64],
     pub counters: BridgeCounters,
-    /// The device's clock grid: (session, seq, stamp) of the newest state on it.
-    grid: std::cell::Cell<Option<(u64, u64, u64)>>,
     /// Running between `activate` and `deactivate`.
     courier: Option<Courier<DeviceNote>>,
     news: Option<Poster<DeviceNote>>,
@@ -145,30 +140,8 @@ impl UdpBridge {
                 ..Origin::default()
             }; 64],
             counters: BridgeCounters::default(),
-            grid: std::cell::Cell::new(None),
             courier: None,
             news: None,
-        }
-    }
-
-    /// Where state `s`, received at `rx_ns`, sits on the device's grid (see `stamp`): whole
-    /// periods by the device's cycle counter from the grid's origin, so that two states
-    /// `k` cycles apart are stamped exactly `k` periods apart. A receipt earlier than the grid
-    /// moves the grid earlier (its phase is the earliest seen); a grid more than
-    /// [`GRID_SLIP`] periods behind the receipts (a device clock slower than ours), or a new
-    /// session, lays it again.
-    fn on_grid(&self, s: &DeviceState, rx_ns: u64) -> (u64, u64, u64) {
-        let period = self.cfg.period.as_nanos() as u64;
-        match self.grid.get() {
-            Some((session, seq, at)) if session == s.session && s.seq > seq => {
-                let grid = at + (s.seq - seq) * period;
-                if grid <= rx_ns && rx_ns - grid <= GRID_SLIP * period {
-                    (s.session, s.seq, grid)
-                } else {
-                    (s.session, s.seq, rx_ns)
-                }
-            }
-            _ => (s.session, s.seq, rx_ns),
         }
     }
 
@@ -393,7 +366,6 @@ impl Plant for UdpBridge {
             self.say(DeviceNote::Back);
         }
         self.counters.states += 1;
-        self.grid.set(Some(self.on_grid(&s, self.last_rx_ns)));
         self.origins[(out.seq % 64) as usize] = Origin {
             loop_seq: out.seq,
             seq: s.seq,
@@ -432,14 +404,5 @@ impl Plant for UdpBridge {
 
     fn device_clocked(&self) -> bool {
         true
-    }
-
-    /// The device's cycle on its own grid: the earliest arrival phase seen, plus whole periods
-    /// by the device's cycle counter. Receipt times jitter by hundreds of µs on a shared
-    /// machine; the grid does not, so a controller that integrates a reference over the time
-    /// between states (position and velocity modes) sees exactly the device's periods. The
-    /// grid is laid again at a new session, or when it drifts a period from the receipts.
-    fn stamp(&self, _nominal_ns: u64, now_ns: u64) -> u64 {
-        self.grid.get().map_or(now_ns, |(_, _, at)| at)
     }
 }
