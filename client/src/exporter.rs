@@ -354,6 +354,44 @@ const DISTRIBUTIONS: &[(&str, &str, Dist)] = &[
     ),
 ];
 
+/// The command interface, the limiter's clamps per kind of limit, and the device's status.
+fn command_series(o: &mut String, live: &[(String, &TelemetrySample)]) {
+    let _ = writeln!(
+        o,
+        "# HELP chaosd_limiter_saturations_total Joint-ticks the command limiter clamped, per kind of limit.\n# TYPE chaosd_limiter_saturations_total counter"
+    );
+    for (l, t) in live {
+        for (kind, n) in control::command::LimitKind::ALL.iter().zip(t.saturations) {
+            let _ = writeln!(
+                o,
+                "chaosd_limiter_saturations_total{{namespace=\"{l}\",kind=\"{}\"}} {n}",
+                kind.name()
+            );
+        }
+    }
+    let _ = writeln!(
+        o,
+        "# HELP chaosd_command_interface 1 for the interface the daemon sends.\n# TYPE chaosd_command_interface gauge"
+    );
+    for (l, t) in live {
+        for code in 0..4u32 {
+            let name = protocol::interface::name(code).unwrap_or("?");
+            let _ = writeln!(
+                o,
+                "chaosd_command_interface{{namespace=\"{l}\",interface=\"{name}\"}} {}",
+                u8::from(t.interface == code)
+            );
+        }
+    }
+    let _ = writeln!(
+        o,
+        "# HELP chaosd_device_status Status code the device reports (0: running; else a reflex stop, protocol::DeviceStatus).\n# TYPE chaosd_device_status gauge"
+    );
+    for (l, t) in live {
+        let _ = writeln!(o, "chaosd_device_status{{namespace=\"{l}\"}} {}", t.device);
+    }
+}
+
 /// The exposition text for every namespace.
 pub fn render(
     labels: &[String],
@@ -421,6 +459,7 @@ pub fn render(
             );
         }
     }
+    command_series(&mut o, &live);
     for (name, help, get) in DISTRIBUTIONS {
         let _ = writeln!(o, "# HELP {name} {help} Quantiles over the daemon's last complete metrics window (1 = the maximum).\n# TYPE {name} gauge");
         for (l, t) in &live {
@@ -460,6 +499,9 @@ mod tests {
             clearance: f64::INFINITY,
             tracking_error: f64::NAN,
             lateness_us: [1.0, 2.0, 3.0, 4.0],
+            interface: protocol::interface::TORQUE,
+            device: protocol::DeviceStatus::JerkLimit as u32,
+            saturations: [0, 0, 0, 7, 0, 2],
             ..Default::default()
         };
         let labels = vec!["a".to_string(), "b".to_string()];
@@ -474,6 +516,11 @@ mod tests {
         assert!(text.contains("chaosd_mode{namespace=\"a\",mode=\"fault\"} 1\n"));
         assert!(text.contains("chaosd_mode{namespace=\"a\",mode=\"run\"} 0\n"));
         assert!(text.contains("chaosd_clearance_meters{namespace=\"a\"} +Inf\n"));
+        assert!(
+            text.contains("chaosd_limiter_saturations_total{namespace=\"a\",kind=\"jerk\"} 7\n")
+        );
+        assert!(text.contains("chaosd_command_interface{namespace=\"a\",interface=\"torque\"} 1\n"));
+        assert!(text.contains("chaosd_device_status{namespace=\"a\"} 3\n"));
         assert!(text.contains("chaosd_tracking_error_meters{namespace=\"a\"} NaN\n"));
         assert!(
             text.contains(
