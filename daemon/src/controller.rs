@@ -584,16 +584,7 @@ impl<const N: usize> Controller<N> {
 
     /// A command that moves nothing (HOLD, BRAKE, FAULT), in the configured interface.
     fn still(&self) -> Command<N> {
-        let zero = VecN::<N>::zeros();
-        Command {
-            mode: self.generator.mode(),
-            q: zero,
-            qd: zero,
-            qdd: zero,
-            qddd: zero,
-            tau: zero,
-            hits: [0; N],
-        }
+        Command::still(self.generator.mode())
     }
 
     fn count_flags(&mut self, f: u32) {

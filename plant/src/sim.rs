@@ -13,9 +13,10 @@
 
 use crate::config::{Dynamics, PlantConfig};
 use crate::seam::{Actuation, Plant, PlantError};
+use control::command::Command;
 use control::command::{CommandMode, JointLimits};
 use control::hold;
-use control::rigid_body::{Device, DeviceCommand};
+use control::rigid_body::Device;
 use control::sim::{plant_derivative, rk4_step};
 use control::{ArmModel, ArmState, ConfigError, FixedArm, System, VecN};
 use protocol::{flags, StateSample};
@@ -214,17 +215,9 @@ impl<const N: usize> SimPlant<N> {
     }
 
     /// Hands a command to the rigid-body device.
-    fn drive(&mut self, mode: CommandMode, fill: impl FnOnce(&mut DeviceCommand<N>), since: f64) {
+    fn drive(&mut self, mode: CommandMode, fill: impl FnOnce(&mut Command<N>), since: f64) {
         if let Physics::RigidBody(d) = &mut self.physics {
-            let zero = VecN::<N>::zeros();
-            let mut c = DeviceCommand {
-                mode,
-                q: zero,
-                qd: zero,
-                qdd: zero,
-                qddd: zero,
-                tau: zero,
-            };
+            let mut c = Command::still(mode);
             fill(&mut c);
             d.command(&c, self.period, since);
         }

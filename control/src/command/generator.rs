@@ -41,6 +41,22 @@ pub struct Command<const N: usize> {
     pub hits: [u8; N],
 }
 
+impl<const N: usize> Command<N> {
+    /// A command in interface `mode` that moves nothing (a HOLD's, a BRAKE's).
+    pub fn still(mode: CommandMode) -> Self {
+        let zero = VecN::<N>::zeros();
+        Self {
+            mode,
+            q: zero,
+            qd: zero,
+            qdd: zero,
+            qddd: zero,
+            tau: zero,
+            hits: [0; N],
+        }
+    }
+}
+
 /// The generator's state and settings.
 #[derive(Debug, Clone)]
 pub struct MotionGenerator<const N: usize> {

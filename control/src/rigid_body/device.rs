@@ -8,22 +8,12 @@
 //!   follows that, so the daemon's reference position never reaches it;
 //! * acceleration: the arm's own inverse dynamics turns q̈ (ramped) into torque.
 //!
-//! Shared by the plant process and the offline loop, so both run the same device.
+//! Shared by the plant process and the offline loop, so both run the same device. It takes the
+//! daemon's own [`Command`] (the fields its mode does not use are ignored).
 
 use super::{Drive, Measured, RigidBody, Sensor};
 use crate::arm::VecN;
-use crate::command::CommandMode;
-
-/// One command as the device receives it (the fields its mode does not use are ignored).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DeviceCommand<const N: usize> {
-    pub mode: CommandMode,
-    pub q: VecN<N>,
-    pub qd: VecN<N>,
-    pub qdd: VecN<N>,
-    pub qddd: VecN<N>,
-    pub tau: VecN<N>,
-}
+use crate::command::{Command, CommandMode};
 
 /// The simulated robot: its physics, its sensors and its command handling.
 #[derive(Debug, Clone)]
@@ -51,7 +41,7 @@ impl<const N: usize> Device<N> {
 
     /// Takes the command for the next period of `dt` seconds, which answers a state measured
     /// `since` seconds ago (0 when it arrives at the period's start).
-    pub fn command(&mut self, c: &DeviceCommand<N>, dt: f64, since: f64) {
+    pub fn command(&mut self, c: &Command<N>, dt: f64, since: f64) {
         if c.mode != CommandMode::Velocity {
             self.set_point = None;
         }

@@ -18,7 +18,7 @@ mod device;
 mod sensor;
 
 pub use config::{inertias, Inertia, RigidBodyConfig, ServoGains, POSTURES};
-pub use device::{Device, DeviceCommand};
+pub use device::Device;
 pub use sensor::{Measured, Sensor};
 
 use crate::arm::VecN;

@@ -12,7 +12,7 @@ use crate::command::{CommandMode, LimitKind, LIMIT_KINDS};
 use crate::config::ConfigError;
 use crate::delay::DelayLine;
 use crate::hold;
-use crate::rigid_body::{Device, DeviceCommand, RigidBodyConfig};
+use crate::rigid_body::{Device, RigidBodyConfig};
 use crate::sim::ArmState;
 use crate::system::System;
 use crate::tick_law::LawScratch;
@@ -111,15 +111,7 @@ pub fn run<const N: usize>(
         out.reference_lag = out.reference_lag.max((gen.reference().q - m.q).amax());
         let c = gen.next(&m.q, &m.qd, &held.qdd, &held.qddd);
         gen.commit(&c);
-        let cmd = DeviceCommand {
-            mode: c.mode,
-            q: c.q,
-            qd: c.qd,
-            qdd: c.qdd,
-            qddd: c.qddd,
-            tau: c.tau,
-        };
-        device.command(&cmd, dt, 0.0);
+        device.command(&c, dt, 0.0);
         device.advance(dt, substeps);
         // The arm's own error (the law's is its reference's in position and velocity modes).
         let e = (arm_model.tool_position(&m.q) - o.p_desired).norm();
