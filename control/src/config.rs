@@ -57,7 +57,8 @@ pub fn excerpt(s: &str) -> String {
     format!("{}… ({} bytes in all)", &s[..end], s.len())
 }
 
-fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
+/// The error for a field whose value is not what it should be (the value cut to an excerpt).
+pub(crate) fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
     ConfigError::Invalid {
         field: field.to_string(),
         value: excerpt(&format!("{value:?}")),

@@ -4,7 +4,7 @@ use super::{
     CommandGains, CommandMode, JointLimits, LimitOverrides, Limiter, MakerTable, MotionGenerator,
 };
 use crate::arm::VecN;
-use crate::config::ConfigError;
+use crate::config::{invalid, ConfigError};
 use crate::model::Chain;
 use crate::rigid_body::ServoGains;
 use serde::{Deserialize, Serialize};
@@ -50,14 +50,6 @@ impl Default for CommandSection {
             kd: None,
             limits: LimitOverrides::default(),
         }
-    }
-}
-
-fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
-    ConfigError::Invalid {
-        field: field.into(),
-        value: format!("{value:?}"),
-        expected: expected.into(),
     }
 }
 

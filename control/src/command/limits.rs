@@ -6,7 +6,7 @@
 //! specification is built in). The set-up may only tighten a described limit: a typo must never
 //! let the daemon send what the arm's maker forbids.
 
-use crate::config::ConfigError;
+use crate::config::{invalid, ConfigError};
 use crate::model::Chain;
 use serde::{Deserialize, Serialize};
 
@@ -180,14 +180,6 @@ impl<const N: usize> JointLimits<N> {
             }
         }
         Ok(self)
-    }
-}
-
-fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
-    ConfigError::Invalid {
-        field: field.into(),
-        value: format!("{value:?}"),
-        expected: expected.into(),
     }
 }
 

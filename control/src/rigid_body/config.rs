@@ -2,7 +2,7 @@
 
 use super::{mismatched, RigidBody, Sensor};
 use crate::arm::VecN;
-use crate::config::ConfigError;
+use crate::config::{invalid, ConfigError};
 use crate::model::{Chain, Model};
 use serde::{Deserialize, Serialize};
 
@@ -147,14 +147,6 @@ impl Default for RigidBodyConfig {
             servo_kp: None,
             servo_kd: None,
         }
-    }
-}
-
-fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
-    ConfigError::Invalid {
-        field: field.into(),
-        value: format!("{value:?}"),
-        expected: expected.into(),
     }
 }
 
