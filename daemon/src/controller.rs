@@ -13,6 +13,9 @@ use control::{ArmState, ControlOutput, DelayLine, LawParams, VecN};
 use protocol::{CommandSample, Mode, StateSample};
 use serde::Serialize;
 
+/// The longest gap between two commands the reference catches up over, in periods.
+const MAX_GAP_PERIODS: f64 = 64.0;
+
 /// Counters of everything the loop saw. Small and `Copy`, so a snapshot rides along with
 /// every telemetry record.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -176,6 +179,8 @@ pub struct Controller<const N: usize> {
     device_fault_latched: bool,
     /// Controller time of the last RUN command (the generator advances by the time since).
     last_run_t: Option<f64>,
+    /// The device time of that state (`StateSample::device_time_ns`).
+    last_run_device_ns: Option<u64>,
     pub counters: Counters,
 }
 
@@ -207,6 +212,7 @@ impl<const N: usize> Controller<N> {
             generator: MotionGenerator::passthrough(dt),
             device_fault_latched: false,
             last_run_t: None,
+            last_run_device_ns: None,
             counters: Counters::default(),
         }
     }
@@ -556,11 +562,9 @@ impl<const N: usize> Controller<N> {
             out.command = Some(self.fault_command(s, now_ns));
             return;
         }
-        // A state that went missing is time the device moved on by: the reference does too.
-        let periods = self.last_run_t.map_or(1, |last| {
-            ((t - last) / self.dt).round().clamp(1.0, 16.0) as u32
-        });
+        let periods = self.periods_since_last_run(s, t);
         self.last_run_t = Some(t);
+        self.last_run_device_ns = Some(s.device_time_ns);
         let c = self
             .generator
             .next_over(&m.q, &m.qd, &held.qdd, &held.qddd, periods);
@@ -573,6 +577,27 @@ impl<const N: usize> Controller<N> {
     fn restart_generator(&mut self, x: &ArmState<N>) {
         self.generator.restart(&x.q, &x.qd);
         self.last_run_t = None;
+        self.last_run_device_ns = None;
+    }
+
+    /// The periods the device moved on by since the last command (1 unless states went
+    /// missing): the reference moves on by as much, so the stream the device judges stays
+    /// continuous. By the device's own clock when it has one (a bridge's receipt stamps jitter
+    /// by up to a period, and a wrong count is a velocity step the device stops for); else by
+    /// the stamps.
+    ///
+    /// Capped at [`MAX_GAP_PERIODS`] (a device that went that long without answers has braked
+    /// and says so, and the stream restarts; the cap bounds the catch-up's cost).
+    fn periods_since_last_run(&self, s: &StateSample, t: f64) -> u32 {
+        let by_device = self
+            .last_run_device_ns
+            .filter(|&last| s.device_time_ns > last)
+            .map(|last| (s.device_time_ns - last) as f64 * 1e-9);
+        by_device
+            .or_else(|| self.last_run_t.map(|last| t - last))
+            .map_or(1, |e| {
+                (e / self.dt).round().clamp(1.0, MAX_GAP_PERIODS) as u32
+            })
     }
 
     /// The state the law runs on: the measured one, or the generator's reference in position
@@ -714,6 +739,30 @@ mod tests {
         s.q[1] = 1.57;
         s.q[2] = 1.57;
         s
+    }
+
+    #[test]
+    fn the_reference_moves_on_by_the_device_clock_when_there_is_one() {
+        let mut c = controller();
+        let mut s = state(1, 0);
+        // No device clock: the controller's time (from the stamps) says how long it was.
+        c.last_run_t = Some(1.0);
+        assert_eq!(c.periods_since_last_run(&s, 1.0031), 3);
+        // A device clock overrules jittery stamps: 1 ms on it is one period.
+        c.last_run_device_ns = Some(5_000_000);
+        s.device_time_ns = 6_000_000;
+        assert_eq!(c.periods_since_last_run(&s, 1.0031), 1);
+        s.device_time_ns = 9_000_000;
+        assert_eq!(c.periods_since_last_run(&s, 1.0016), 4);
+        // A clock behind the last one (a restarted device) falls back on the stamps.
+        s.device_time_ns = 1_000_000;
+        assert_eq!(c.periods_since_last_run(&s, 1.0031), 3);
+        // The first command of a stream covers one period; a long gap is capped.
+        c.last_run_t = None;
+        c.last_run_device_ns = None;
+        assert_eq!(c.periods_since_last_run(&s, 5.0), 1);
+        c.last_run_t = Some(1.0);
+        assert_eq!(c.periods_since_last_run(&s, 5.0), MAX_GAP_PERIODS as u32);
     }
 
     #[test]

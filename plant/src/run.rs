@@ -389,6 +389,10 @@ impl Loop<'_> {
         } else {
             plant.stamp(deadline, now)
         };
+        if !plant.device_clocked() {
+            // This loop is the device: its clock is the time it has integrated.
+            s.device_time_ns = (self.plant_time * 1e9).round() as u64;
+        }
         let seq = s.seq;
         // Published = the moment the state goes out; the round trip is measured from here.
         // The pub-sub copy waits for the answer only while the daemon answers on the lane (so it

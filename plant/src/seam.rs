@@ -171,7 +171,9 @@ pub trait Plant {
     /// it: one period, more after a stall, and 0 until the first command arrives (a simulator
     /// then holds its initial state, so a run starts when the controller does). A simulator
     /// integrates it (and bounds a long catch-up itself); a bridge reads its sensors, and if
-    /// [`Plant::device_clocked`], first waits for the device's next state.
+    /// [`Plant::device_clocked`], first waits for the device's next state, and sets
+    /// `out.device_time_ns` to the device's own cycle clock when it has one (the daemon then
+    /// advances its command stream by exactly the device's time; 0 falls back on the stamps).
     fn read(&mut self, elapsed: f64, out: &mut StateSample) -> Result<(), PlantError>;
     /// Called once when the loop stops (brake, disable drives, ...).
     fn deactivate(&mut self);

@@ -87,7 +87,7 @@ pub const MIN_JOINTS: usize = 2;
 
 /// Wire-format version, embedded in the iceoryx2 type names of the samples. Bump it whenever a
 /// sample's layout or the meaning of a field changes.
-pub const WIRE_VERSION: u32 = 7;
+pub const WIRE_VERSION: u32 = 8;
 
 /// Nanoseconds of `CLOCK_MONOTONIC`, the clock every `*_ns` stamp on the wire uses.
 ///

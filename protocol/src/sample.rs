@@ -32,7 +32,7 @@ pub mod flags {
 
 /// The plant's measured state, published once per plant tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::StateSample.v7")]
+#[type_name("chaosd::StateSample.v8")]
 #[repr(C)]
 pub struct StateSample {
     /// Per-plant sequence number, +1 per published sample, starting at 0 after each plant start.
@@ -57,6 +57,12 @@ pub struct StateSample {
     pub device: u32,
     /// The joint the status is about (1-based; 0: none or all).
     pub device_joint: u32,
+    /// The device's own clock when it measured this state, ns since it started, on its cycle
+    /// grid (libfranka's `time`): the cycles it has run times its period. The daemon advances
+    /// its reference by the difference between two states, so the stream it sends moves on by
+    /// exactly the time the device did, whatever the receipt jitter. 0: the plant has no such
+    /// clock (the daemon then uses `stamp_ns`).
+    pub device_time_ns: u64,
 }
 
 /// Which sample an error is about.
@@ -249,7 +255,7 @@ impl From<Mode> for u32 {
 
 /// The daemon's command, published once per control tick in answer to a [`StateSample`].
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::CommandSample.v7")]
+#[type_name("chaosd::CommandSample.v8")]
 #[repr(C)]
 pub struct CommandSample {
     /// Per-daemon sequence number, +1 per published command, starting at 0 after each start.
@@ -569,7 +575,7 @@ mod tests {
     #[test]
     fn state_layout_is_pinned() {
         assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<StateSample>(), 216);
+        assert_eq!(size_of::<StateSample>(), 224);
         assert_eq!(align_of::<StateSample>(), 8);
         assert_eq!(offset_of!(StateSample, seq), 0);
         assert_eq!(offset_of!(StateSample, stamp_ns), 8);
@@ -582,6 +588,7 @@ mod tests {
         assert_eq!(offset_of!(StateSample, tau), 152);
         assert_eq!(offset_of!(StateSample, device), 208);
         assert_eq!(offset_of!(StateSample, device_joint), 212);
+        assert_eq!(offset_of!(StateSample, device_time_ns), 216);
     }
 
     #[test]

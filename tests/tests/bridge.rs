@@ -12,6 +12,7 @@ const HOLD: u32 = Mode::Hold as u32;
 const STATE: &str = "trigger = \"state\"";
 
 struct Udp {
+    ns: String,
     dir: TempDir,
     cfg: PathBuf,
     device: String,
@@ -32,6 +33,7 @@ fn setup(test: &str) -> Udp {
         device: format!("127.0.0.1:{}", free_port()),
         bind: format!("127.0.0.1:{}", free_port()),
         m: Monitor::new(&ns),
+        ns,
         dir,
         cfg,
     }
@@ -226,6 +228,70 @@ fn a_device_that_restarts_itself_is_followed() {
         "{}",
         bridge.log()
     );
+}
+
+/// Waits up to `limit` for the daemon's `status --json` to satisfy `ok`; returns the last one.
+fn await_status(
+    ns: &str,
+    limit: Duration,
+    ok: impl Fn(&serde_json::Value) -> bool,
+) -> serde_json::Value {
+    let until = std::time::Instant::now() + limit;
+    loop {
+        let (code, out, _) = live::ctl(ns, &["status", "--json"]);
+        let s = serde_json::from_str(&out).unwrap_or(serde_json::Value::Null);
+        if (code == 0 && ok(&s)) || std::time::Instant::now() > until {
+            return s;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn a_strict_device_stops_on_lost_answers_and_recover_brings_the_arm_back() {
+    let _g = serial();
+    let mut u = setup("udp-recover");
+    // Answers held back for 60 ms at 3 s: the device stops after 20 missed in a row, as FCI
+    // does, with the reason in its state, until told to hold.
+    let strict = [
+        "--spike-every",
+        "3",
+        "--spike-ms",
+        "60",
+        "--stop-after-missed",
+        "20",
+    ];
+    let mut device = u.fakebot("fakebot", &strict);
+    let mut bridge = u.bridge("bridge");
+    let mut daemon = u.daemon();
+    u.m.wait_for("the daemon to run", Duration::from_secs(15), |m| {
+        runs(m) > 200
+    });
+    let s = await_status(&u.ns, Duration::from_secs(6), |s| s["mode"] == "Fault");
+    assert_eq!(s["mode"], "Fault", "{s}\n{}", daemon.log());
+    let fault = s["fault"].as_str().unwrap_or_default();
+    assert!(fault.contains("communication_constraints_violation"), "{s}");
+    // Braking in FAULT, the daemon sends no RUN until told.
+    u.m.clear();
+    std::thread::sleep(Duration::from_millis(300));
+    u.m.poll();
+    assert_eq!(runs(&u.m), 0, "RUN while in FAULT");
+    let (code, out, err) = live::ctl(&u.ns, &["recover"]);
+    assert_eq!(code, 0, "{out}{err}");
+    // HOLD clears the device's stop; the daemon runs again through the same bridge.
+    u.m.wait_for("RUN after recover", Duration::from_secs(2), |m| {
+        runs(m) > 200
+    });
+    let s = await_status(&u.ns, Duration::from_secs(1), |s| s["mode"] == "Run");
+    assert_eq!(s["mode"], "Run", "{s}");
+    assert_eq!(s["device"], "no error (ok)", "{s}");
+    assert!(daemon.terminate(Duration::from_secs(10)).success());
+    assert!(bridge.terminate(Duration::from_secs(10)).success());
+    assert!(device.terminate(Duration::from_secs(10)).success());
+    let f = json(&u.summary());
+    assert!(f["counters"]["reflex_stops"].as_u64().unwrap() >= 1, "{f}");
+    let first = f["first_reflex"].as_str().unwrap_or_default();
+    assert!(first.contains("communication_constraints_violation"), "{f}");
 }
 
 #[test]

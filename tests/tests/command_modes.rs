@@ -1,7 +1,9 @@
 //! The Panda commanded as real arms are, through the real processes: torque mode against the
-//! rigid-body plant, a device that stops with a named reflex error when the limiter is off (and
-//! the daemon's FAULT that names it), and the start-up refusals of a set-up that cannot run.
+//! rigid-body plant; a law that asks more than the arm can do, through the UDP bridge, which the
+//! limiter carries and which, with the limiter off, stops the device with a named reflex error
+//! (the daemon's FAULT names it); and the start-up refusals of a set-up that cannot run.
 
+use serde_json::Value;
 use std::path::Path;
 use std::process::{Command, Output};
 use tests::*;
@@ -57,35 +59,111 @@ fn torque_mode_tracks_on_the_rigid_body_plant_and_the_feedback_still_works() {
     assert!(cfg.contains("rigid-body"), "{cfg}");
 }
 
+/// The Panda's set-up with stiff task gains and the safety filter off: the law's q̈ at the
+/// start is several times the Panda's acceleration limits. The filter is the law's own bound
+/// on q̈; off, only the limiter stands between the law and the device.
+fn unbounded_panda(dir: &Path) -> std::path::PathBuf {
+    let path = dir.join("unbounded.toml");
+    let cfg = control::spatial::config::PANDA
+        .replace("kp = 40.0", "kp = 900.0")
+        .replace("kv = 15.0", "kv = 60.0")
+        .replace("[safety]\nenabled = true", "[safety]\nenabled = false");
+    assert!(
+        cfg.contains("kp = 900.0") && cfg.contains("enabled = false"),
+        "{cfg}"
+    );
+    std::fs::write(&path, cfg).unwrap();
+    path
+}
+
+/// Position mode through the UDP bridge and chaosd-fakebot on that set-up, for 4 s; the
+/// daemon's and the device's summaries.
+fn unbounded_udp_run(test: &str, limiter: bool) -> (String, Value, Value) {
+    let dir = TempDir::new(&unique_namespace(test));
+    let out = dir.path().join("out");
+    let cfg = unbounded_panda(dir.path());
+    let mut args = vec![
+        "demo",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--mode",
+        "position",
+        "--bridge",
+        "udp",
+        "--duration",
+        "4",
+        "--output",
+        out.to_str().unwrap(),
+    ];
+    if !limiter {
+        args.push("--no-limiter");
+    }
+    let o = Command::new(bin("chaosd")).args(&args).output().unwrap();
+    let all = text(&o);
+    assert!(o.status.success(), "{all}");
+    (
+        all,
+        read_json(&out.join("daemon-summary.json")),
+        read_json(&out.join("fakebot-summary.json")),
+    )
+}
+
 #[test]
 fn without_the_limiter_the_device_stops_and_the_daemon_names_the_joint_and_the_rule() {
     let _g = serial();
-    let dir = TempDir::new(&unique_namespace("reflex-demo"));
-    let out = dir.path().join("out");
-    let o = demo(
-        &out,
-        &[
-            "--mode",
-            "position",
-            "--bridge",
-            "udp",
-            "--no-limiter",
-            "--duration",
-            "4",
-        ],
-    );
-    let all = text(&o);
+    let (all, s, f) = unbounded_udp_run("reflex-demo", false);
     assert!(all.contains("limiter OFF"), "{all}");
-    let s = read_json(&out.join("daemon-summary.json"));
     assert!(s["device_stops"].as_u64().unwrap() >= 1, "{s}");
     let first = s["first_device_stop"].as_str().unwrap();
     assert!(first.contains("the device stopped: joint "), "{first}");
-    assert!(
-        first.contains("limit") || first.contains("discontinuity"),
-        "{first}"
-    );
-    let f = read_json(&out.join("fakebot-summary.json"));
+    assert!(first.contains("limit"), "{first}");
     assert!(f["counters"]["reflex_stops"].as_u64().unwrap() >= 1, "{f}");
+}
+
+#[test]
+fn with_the_limiter_the_same_run_keeps_the_device_running_and_tracks() {
+    let _g = serial();
+    let (all, s, f) = unbounded_udp_run("limited-demo", true);
+    assert!(!all.contains("limiter OFF"), "{all}");
+    assert_eq!(s["device_stops"], 0, "{s}");
+    assert_eq!(f["counters"]["reflex_stops"], 0, "{f}");
+    assert_eq!(s["counters"]["faults"], 0, "{s}");
+    // The limiter did the work: it clamped joints where the law asked too much.
+    let clamped: u64 = s["command"]["counts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|joint| joint.as_array().unwrap())
+        .map(|n| n.as_u64().unwrap())
+        .sum();
+    assert!(clamped > 0, "{s}");
+    assert!(s["tracking_rms_m"].as_f64().unwrap() < 2e-3, "{s}");
+}
+
+/// Issue 24's target: position mode through the UDP bridge and chaosd-fakebot, with the
+/// limiter on, runs a minute without one reflex error; the delayed feedback still makes the
+/// self-motion periodic. The VM's stalls make the device miss answers and brake now and then:
+/// the stream must stay continuous across them.
+#[test]
+fn position_mode_through_udp_runs_a_minute_without_a_reflex() {
+    let _g = serial();
+    let dir = TempDir::new(&unique_namespace("position-minute"));
+    let out = dir.path().join("out");
+    let o = demo(
+        &out,
+        &["--mode", "position", "--bridge", "udp", "--duration", "60"],
+    );
+    let all = text(&o);
+    assert!(o.status.success(), "{all}");
+    let s = read_json(&out.join("daemon-summary.json"));
+    let f = read_json(&out.join("fakebot-summary.json"));
+    assert_eq!(f["counters"]["reflex_stops"], 0, "{f}");
+    assert_eq!(s["device_stops"], 0, "{s}");
+    assert_eq!(s["counters"]["faults"], 0, "{s}");
+    assert!(s["tracking_rms_m"].as_f64().unwrap() < 2e-3, "{s}");
+    let before = s["period_residual_before"].as_f64().unwrap();
+    let after = s["period_residual_after"].as_f64().unwrap();
+    assert!(after * 10.0 <= before, "{before} → {after}");
 }
 
 #[test]

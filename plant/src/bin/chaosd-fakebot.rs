@@ -32,6 +32,11 @@ struct Args {
     /// Missed answers in a row before the device brakes.
     #[arg(long = "max-missed", default_value_t = 20)]
     max_missed: u32,
+    /// Missed answers in a row after which the device stops with a reflex error, as FCI does
+    /// (`communication_constraints_violation`; cleared by a HOLD, `chaosctl recover`), instead
+    /// of braking and resuming by itself. Off by default: this VM stalls now and then.
+    #[arg(long = "stop-after-missed")]
+    stop_after_missed: Option<u32>,
     /// Probability (0..=0.5) of losing each packet, in either direction.
     #[arg(long, default_value_t = 0.0)]
     loss: f64,
@@ -107,6 +112,12 @@ fn validate(a: &Args) -> Result<()> {
         "--max-missed {}: must be between 1 and 100000",
         a.max_missed
     );
+    if let Some(n) = a.stop_after_missed {
+        ensure!(
+            (1..=100_000).contains(&n),
+            "--stop-after-missed {n}: must be between 1 and 100000"
+        );
+    }
     ensure!(
         a.loss.is_finite() && (0.0..=0.5).contains(&a.loss),
         "--loss {}: must be between 0 and 0.5",
@@ -191,6 +202,7 @@ fn run(a: &Args) -> Result<FakebotSummary> {
         peer: a.peer,
         rate_hz: p.rate_hz,
         max_missed: a.max_missed,
+        stop_after_missed: a.stop_after_missed,
         loss: a.loss,
         spike_every_s: a.spike_every,
         spike_ms: a.spike_ms,

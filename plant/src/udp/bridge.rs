@@ -393,6 +393,7 @@ impl Plant for UdpBridge {
         // A reflex stop is forwarded as it is: the daemon names the joint and the reason.
         out.device = u32::from(s.status);
         out.device_joint = u32::from(s.joint);
+        out.device_time_ns = s.time_ns;
         Ok(())
     }
 

@@ -45,6 +45,9 @@ pub struct FakebotConfig {
     pub peer: SocketAddr,
     pub rate_hz: f64,
     pub max_missed: u32,
+    /// Missed answers in a row after which the device stops with a lost-packets reflex error
+    /// (latched until a HOLD) instead of braking until answers come again.
+    pub stop_after_missed: Option<u32>,
     /// Probability of dropping each packet, in either direction.
     pub loss: f64,
     /// Every `spike_every_s` seconds, delay the answers in transit by `spike_ms`: the device keeps
@@ -165,6 +168,11 @@ impl Rng {
 struct Session {
     id: u64,
     seq: u64,
+    /// The device's clock in cycles since the start, counting the cycles its own overruns
+    /// skipped (`seq` counts states sent); the state carries it as the device time.
+    cycle: u64,
+    /// The cycle of the last state sent: the one an answer now answers.
+    sent_cycle: u64,
     /// An answer has arrived since the start: from then on the arm moves and misses count.
     started: bool,
     missed_run: u32,
@@ -181,6 +189,8 @@ impl Session {
         Self {
             id: protocol::new_instance_id(),
             seq: 0,
+            cycle: 0,
+            sent_cycle: 0,
             started: false,
             missed_run: 0,
             missed_total: 0,
@@ -311,6 +321,7 @@ impl<const N: usize> Device<'_, N> {
 
     fn cycle(&mut self, period: u64, behind: u64) {
         self.c.cycles += 1;
+        self.s.cycle += behind;
         let delayed = monotonic_ns() < self.spike_until;
         if self.s.seq > 0 {
             let got = if delayed {
@@ -332,8 +343,9 @@ impl<const N: usize> Device<'_, N> {
         if self.sim.read(elapsed, &mut self.sample).is_err() {
             let _ = self.sim.write(Actuation::Brake);
         }
-        self.send_state();
+        self.send_state(period);
         self.s.seq += 1;
+        self.s.cycle += 1;
     }
 
     /// After sending a state: waits for its answer until `until_ns`, and times it.
@@ -390,8 +402,6 @@ impl<const N: usize> Device<'_, N> {
     }
 
     fn apply(&mut self, cmd: &DeviceCommand) {
-        // The periods this answer covers: one, plus the misses before it.
-        let cycles = self.s.missed_run.saturating_add(1);
         self.c.answered_in_time += 1;
         self.s.started = true;
         self.s.missed_run = 0;
@@ -399,7 +409,7 @@ impl<const N: usize> Device<'_, N> {
         self.s.holding = cmd.mode == DeviceMode::Hold;
         let a = match cmd.mode {
             DeviceMode::Run if self.s.stopped.is_some() => Actuation::Brake,
-            DeviceMode::Run => match self.judge(cmd, cycles) {
+            DeviceMode::Run => match self.judge(cmd) {
                 Ok(()) => actuation::<N>(cmd),
                 Err((status, joint)) => {
                     self.stop(status, joint);
@@ -422,7 +432,7 @@ impl<const N: usize> Device<'_, N> {
     }
 
     /// A RUN command against the interfaces the device takes and the arm's rules.
-    fn judge(&mut self, cmd: &DeviceCommand, cycles: u32) -> Result<(), (DeviceStatus, usize)> {
+    fn judge(&mut self, cmd: &DeviceCommand) -> Result<(), (DeviceStatus, usize)> {
         if self.cfg.takes >> (super::wire::TAKES_SHIFT + cmd.interface.min(31)) & 1 == 0 {
             return Err((DeviceStatus::InterfaceUnsupported, usize::MAX));
         }
@@ -431,7 +441,7 @@ impl<const N: usize> Device<'_, N> {
         }
         let x = &self.sample;
         self.rules
-            .check(cmd, &x.q[..N], &x.qd[..N], &x.tau[..N], cycles)
+            .check(cmd, &x.q[..N], &x.qd[..N], &x.tau[..N], self.s.sent_cycle)
     }
 
     /// A reflex stop: brake and say why until told to hold.
@@ -459,6 +469,15 @@ impl<const N: usize> Device<'_, N> {
         self.c.missed += 1;
         self.s.missed_total = self.s.missed_total.saturating_add(1);
         self.s.missed_run = self.s.missed_run.saturating_add(1);
+        if self
+            .cfg
+            .stop_after_missed
+            .is_some_and(|n| self.s.missed_run >= n)
+            && self.s.stopped.is_none()
+        {
+            self.stop(DeviceStatus::LostPackets, usize::MAX);
+            let _ = self.sim.write(Actuation::Brake);
+        }
         if self.s.missed_run >= self.cfg.max_missed && !self.s.braking {
             self.s.braking = true;
             self.c.brakes += 1;
@@ -468,13 +487,13 @@ impl<const N: usize> Device<'_, N> {
         }
     }
 
-    fn send_state(&mut self) {
+    fn send_state(&mut self, period: u64) {
         let (status, joint) = self.s.stopped.map_or((0, 0), |(s, j)| (s as u16, j));
         let mut st = DeviceState {
             n: N as u16,
             seq: self.s.seq,
             session: self.s.id,
-            time_ns: monotonic_ns().saturating_sub(self.s.started_ns),
+            time_ns: self.s.cycle * period,
             // Before its first answer the arm stands on its brakes, as a robot does.
             flags: if self.s.braking || !self.s.started {
                 DEVICE_BRAKING
@@ -494,6 +513,7 @@ impl<const N: usize> Device<'_, N> {
         st.q[..N].copy_from_slice(&self.sample.q[..N]);
         st.qd[..N].copy_from_slice(&self.sample.qd[..N]);
         st.tau[..N].copy_from_slice(&self.sample.tau[..N]);
+        self.s.sent_cycle = self.s.cycle;
         if self.rng.chance(self.cfg.loss) {
             self.c.states_lost += 1;
             return;

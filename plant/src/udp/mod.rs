@@ -31,7 +31,7 @@
 //! | 6 | u16 | `n`, joints in use |
 //! | 8 | u64 | `seq`: the device's cycle counter, +1 per cycle, 0 at each device start |
 //! | 16 | u64 | `session`: random per device start; a new value means the device restarted |
-//! | 24 | u64 | device time, ns since the device started (informative) |
+//! | 24 | u64 | device time: ns since the device started, on its cycle grid (cycles run × period, counting cycles its own overruns skipped; libfranka's `time`). The daemon advances its command stream by the difference between two states |
 //! | 32 | u32 | flags: bit 0 braking (also before the first answer: the arm stands on its brakes), bit 1 holding, bit 2 stopped by a reflex error; bits 8..=11: the device takes command interface 0..=3 |
 //! | 36 | u32 | missed answers in a row |
 //! | 40 | u32 | missed answers since start (saturating) |
@@ -72,7 +72,9 @@
 //! dropped. A command with another `session` answers a previous device start: counted and
 //! dropped. No answer in time: the device keeps the previous command (ramped on) and counts a
 //! miss; after `max_missed` misses in a row it brakes (state flag bit 0) until an answer comes
-//! in time again. Before the first answer after a start, the device holds its initial state.
+//! in time again. A strict device (`--stop-after-missed N`, as FCI is) instead stops after N
+//! misses in a row with a reflex error, lost packets (`communication_constraints_violation`),
+//! latched until a HOLD. Before the first answer after a start, the device holds its initial state.
 //!
 //! **The bridge's side.** It answers every state the daemon answers, echoing the number of the
 //! state the daemon's command answers. A device silent for longer than its `lost` timeout is

@@ -52,7 +52,7 @@ pub struct DeviceState {
     pub seq: u64,
     /// Random per device start: a new session is a restarted device.
     pub session: u64,
-    /// The device's own clock (ns since it started), informative.
+    /// The device's own clock: ns since it started, on its cycle grid (`cycles × period`).
     pub time_ns: u64,
     pub flags: u32,
     /// Missed answers in a row, as the device counts them.
