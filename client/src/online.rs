@@ -401,7 +401,36 @@ pub fn telemetry_json(t: &TelemetrySample) -> serde_json::Value {
         "ticks": t.ticks, "overruns": t.overruns, "telemetry_dropped": t.telemetry_dropped,
         "rejected": t.rejected, "holds": t.holds,
         "state_seq": t.state_seq, "phi": t.phi, "q": &t.q[..n], "qd": &t.qd[..n],
+        "interface": protocol::interface::name(t.interface),
+        "device": protocol::DeviceStatus::from_code(t.device)
+            .filter(|d| *d != protocol::DeviceStatus::Ok)
+            .map(|d| d.name()),
+        "saturations": saturations_json(&t.saturations),
     })
+}
+
+/// The limiter's clamps since start, by kind (`{"jerk": 4, ...}`).
+fn saturations_json(counts: &[u64; 6]) -> serde_json::Value {
+    control::command::LimitKind::ALL
+        .iter()
+        .zip(counts)
+        .map(|(k, n)| (k.name().to_string(), serde_json::json!(n)))
+        .collect::<serde_json::Map<_, _>>()
+        .into()
+}
+
+/// The watch line's command part: the interface, the limiter's clamps so far, and the
+/// device's stop when it has one (`position, clamped 6` / `torque, device: jerk limit…`).
+fn command_part(t: &TelemetrySample) -> String {
+    let mode = protocol::interface::name(t.interface).unwrap_or("?");
+    let clamped: u64 = t.saturations.iter().sum();
+    let mut s = format!("{mode}, clamped {clamped}");
+    if let Some(d) =
+        protocol::DeviceStatus::from_code(t.device).filter(|d| *d != protocol::DeviceStatus::Ok)
+    {
+        s.push_str(&format!(", device: {d}"));
+    }
+    s
 }
 
 fn watch(conn: &Conn, json: bool, count: Option<u64>) -> Result<(), Failure> {
@@ -430,8 +459,8 @@ fn watch(conn: &Conn, json: bool, count: Option<u64>) -> Result<(), Failure> {
                 } else {
                     let v = telemetry_json(&t);
                     format!(
-                        "chaosd {} | t {:8.2} s | {:<4} | feedback {} μ={:.2} τ={:.2} | track {:.2e} m | residual {:.3e} rad/s | clearance {} | contact {:.2} s | late p99 {:.1} µs max {:.1} µs | overruns {} | rejected {} | holds {} | drops {}",
-                        names.namespace(), t.t, v["mode"].as_str().unwrap_or("?"),
+                        "chaosd {} | t {:8.2} s | {:<4} | {} | feedback {} μ={:.2} τ={:.2} | track {:.2e} m | residual {:.3e} rad/s | clearance {} | contact {:.2} s | late p99 {:.1} µs max {:.1} µs | overruns {} | rejected {} | holds {} | drops {}",
+                        names.namespace(), t.t, v["mode"].as_str().unwrap_or("?"), command_part(&t),
                         if t.feedback_active == 1 { "ON " } else if t.feedback_on == 1 { "armed" } else { "off" },
                         t.mu, t.tau, t.tracking_error, t.period_residual,
                         if t.clearance.is_finite() { format!("{:+.3} m", t.clearance) } else { "n/a".into() },

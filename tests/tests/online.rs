@@ -146,6 +146,31 @@ fn bad_requests_are_refused_and_the_loop_keeps_running_unchanged() {
 }
 
 #[test]
+fn watch_shows_the_command_interface_and_the_limiter() {
+    let _g = serial();
+    let mut s = start("watch-line", "");
+    let (code, out, err) = ctl(&s.ns, &["watch", "--count", "3"]);
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 3, "{out}");
+    // The planar arm is commanded in accelerations; its pass-through limiter clamps nothing.
+    assert!(
+        lines
+            .iter()
+            .all(|l| l.contains("| Run  | acceleration, clamped 0 |")),
+        "{out}"
+    );
+    let (code, out, err) = ctl(&s.ns, &["watch", "--json", "--count", "1"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(v["interface"], "acceleration", "{v}");
+    assert!(v["device"].is_null(), "{v}");
+    assert_eq!(v["saturations"]["jerk"], 0, "{v}");
+    assert!(s.daemon.terminate(Duration::from_secs(10)).success());
+    s.plant.terminate(Duration::from_secs(10));
+}
+
+#[test]
 fn two_clients_at_once_both_get_answers() {
     let _g = serial();
     let mut s = start("clients", "");

@@ -85,12 +85,9 @@ impl Default for SafetyConfig {
     }
 }
 
+/// [`crate::config::invalid`] for a key of the `[safety]` table.
 fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
-    ConfigError::Invalid {
-        field: format!("safety.{field}"),
-        value: format!("{value:?}"),
-        expected: expected.to_string(),
-    }
+    crate::config::invalid(&format!("safety.{field}"), value, expected)
 }
 
 fn in_range(field: &str, v: f64, lo: f64, hi: f64, open_lo: bool) -> Result<(), ConfigError> {

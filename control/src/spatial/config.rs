@@ -11,7 +11,7 @@ use super::law::{SpatialParams, SpatialSecondary};
 use super::secondary::{Sphere, SphereSet, MAX_SPHERES};
 use super::task::{Path, Shape, SpatialTask, TaskKind, Vec3};
 use super::SpatialKinematics;
-use crate::config::{ConfigError, MAX_JOINTS};
+use crate::config::{invalid, ConfigError, MAX_JOINTS};
 use crate::law::Projection;
 use crate::model::Chain;
 use crate::safety::SafetyParams;
@@ -193,14 +193,6 @@ pub struct SimSection {
     pub q0: Vec<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub qd0: Option<Vec<f64>>,
-}
-
-fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
-    ConfigError::Invalid {
-        field: field.into(),
-        value: format!("{value:?}"),
-        expected: expected.into(),
-    }
 }
 
 fn positive(field: &str, v: f64) -> Result<(), ConfigError> {
