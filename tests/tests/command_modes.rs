@@ -172,6 +172,11 @@ fn a_set_up_that_cannot_run_is_refused_at_start_up_by_name() {
     let panda = control::spatial::config::PANDA;
     for (extra, says) in [
         ("[command]\nmode = \"effort\"\n", "effort"),
+        ("[command]\nmargin = 0.49\n", "joint 4 starts at -2.356 rad"),
+        (
+            "[command]\nmode = \"torque\"\npd_bandwidth_hz = 40.0\n",
+            "command.pd_bandwidth_hz = 40.0: at most 21.",
+        ),
         (
             "[command]\nmode = \"torque\"\nkp = [1e9, 1e9, 1e9, 1e9, 1e9, 1e9, 1e9]\n",
             "command.kp",

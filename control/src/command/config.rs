@@ -65,6 +65,30 @@ fn gains<const N: usize>(field: &str, v: &[f64]) -> Result<VecN<N>, ConfigError>
 }
 
 impl CommandSection {
+    /// The margin derates the position range too: a start posture outside what is left would
+    /// have the limiter hold the arm against a bound from the first tick, tracking nothing.
+    fn start_inside<const N: usize>(
+        &self,
+        limiter: &Limiter<N>,
+        q0: &VecN<N>,
+    ) -> Result<(), ConfigError> {
+        let l = limiter.limits();
+        match (0..N).find(|&i| q0[i] < l.q_min[i] || q0[i] > l.q_max[i]) {
+            None => Ok(()),
+            Some(i) => Err(invalid(
+                "command.margin",
+                self.margin,
+                &format!(
+                    "a margin that leaves the start posture inside the range it allows: joint {} starts at {:.3} rad, outside [{:.3}, {:.3}]",
+                    i + 1,
+                    q0[i],
+                    l.q_min[i],
+                    l.q_max[i]
+                ),
+            )),
+        }
+    }
+
     /// The limits the stream obeys: the description's (`robot` names a maker's table), tightened
     /// by `[command.limits]`.
     pub fn limits<const N: usize>(
@@ -127,9 +151,22 @@ impl CommandSection {
             } else {
                 "command.pd_bandwidth_hz"
             };
-            ServoGains { kp: g.kp, kd: g.kd }.check(&ms, dt, kp, kd)?;
+            if self.kp.is_none() && self.kd.is_none() {
+                ServoGains::check_bandwidth(
+                    &ms,
+                    self.pd_bandwidth_hz,
+                    self.pd_damping,
+                    dt,
+                    "command.pd_bandwidth_hz",
+                )?;
+            } else {
+                ServoGains { kp: g.kp, kd: g.kd }.check(&ms, dt, kp, kd)?;
+            }
         }
         let limiter = Limiter::new(&limits, dt, self.margin, self.limiter);
+        if self.limiter {
+            self.start_inside(&limiter, q0)?;
+        }
         MotionGenerator::new(self.mode, limiter, g, Some(model))
             .map_err(|e| invalid("command.mode", self.mode.name(), e))
     }

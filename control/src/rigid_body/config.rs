@@ -37,6 +37,44 @@ impl<const N: usize> ServoGains<N> {
         }
     }
 
+    /// [`Self::check`] for gains set by a bandwidth (`field`, Hz): the error names the highest
+    /// bandwidth the servo can hold at step `h`, not the gains it came to.
+    pub fn check_bandwidth(
+        ms: &[Inertia<N>],
+        hz: f64,
+        zeta: f64,
+        h: f64,
+        field: &str,
+    ) -> Result<(), ConfigError> {
+        let stable = |hz: f64| {
+            Self::from_bandwidth(ms, hz, zeta)
+                .check(ms, h, "", "")
+                .is_ok()
+        };
+        if stable(hz) {
+            return Ok(());
+        }
+        // Gains grow with the bandwidth: bisect for the stability bound (start-up only).
+        let (mut lo, mut hi) = (0.0, hz);
+        for _ in 0..30 {
+            let mid = 0.5 * (lo + hi);
+            if stable(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        Err(invalid(
+            field,
+            hz,
+            &format!(
+                "at most {lo:.1} Hz at this damping: above it the arm's fastest mode makes the \
+                 servo unstable at its {:.0} Hz rate",
+                1.0 / h
+            ),
+        ))
+    }
+
     /// Refuses gains a discrete servo at step `h` cannot run stably on an arm whose inertia, in
     /// the postures tried, is each of `ms`. Joint servos couple through M, so the test is on the
     /// arm's modes, the eigenvalues λ of M⁻¹K: with a factor of ~4 to spare,
@@ -233,7 +271,17 @@ impl RigidBodyConfig {
         } else {
             "servo_bandwidth_hz"
         };
-        servo.check(&ms, h, &f(gains_field), &f(damping_field))?;
+        if self.servo_kp.is_none() && self.servo_kd.is_none() {
+            ServoGains::check_bandwidth(
+                &ms,
+                self.servo_bandwidth_hz,
+                self.servo_damping,
+                h,
+                &f("servo_bandwidth_hz"),
+            )?;
+        } else {
+            servo.check(&ms, h, &f(gains_field), &f(damping_field))?;
+        }
         let arm = RigidBody::new(model, start.0, start.1, tau_max)
             .with_friction(
                 per_joint::<N>(&f("viscous"), &self.viscous, 0.0)?,
