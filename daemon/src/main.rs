@@ -388,6 +388,7 @@ fn demo(
     if let (Some(r), rt::Trigger::State) = (common.rate, s.daemon.trigger) {
         plant.insert("rate_hz".into(), r.into());
     }
+    servo_substeps(&mut plant);
     plant.insert("namespace".into(), s.daemon.namespace.clone().into());
     plant.insert(
         "output_dir".into(),
@@ -482,6 +483,26 @@ fn choose_command(
         plant.insert("dynamics".into(), "rigid-body".into());
     }
     Ok(())
+}
+
+/// The rigid-body arm's joint servo runs at the physics substep, like a robot's own joint
+/// controllers, which run far above the command rate: at a slower plant rate (a UR's 500 Hz)
+/// the demo takes more substeps, so the servo keeps at least 4 kHz, unless `[plant]` names them.
+fn servo_substeps(plant: &mut toml::Table) {
+    const SERVO_HZ: f64 = 4000.0;
+    if plant.get("dynamics").and_then(|d| d.as_str()) != Some("rigid-body")
+        || plant.contains_key("substeps")
+    {
+        return;
+    }
+    let rate = plant
+        .get("rate_hz")
+        .and_then(|r| r.as_float().or_else(|| r.as_integer().map(|i| i as f64)))
+        .unwrap_or(1000.0);
+    if rate.is_finite() && rate > 0.0 {
+        let n = (SERVO_HZ / rate).ceil().clamp(4.0, 100.0) as i64;
+        plant.insert("substeps".into(), n.into());
+    }
 }
 
 fn pct(v: &serde_json::Value, key: &str) -> String {
