@@ -146,7 +146,7 @@ impl Options {
 }
 
 /// `chaosd` or `chaosd-plant`, next to this executable.
-fn sibling(name: &str) -> Result<PathBuf> {
+pub(crate) fn sibling(name: &str) -> Result<PathBuf> {
     let me = std::env::current_exe().context("cannot locate the chaosd-bench executable")?;
     let p = me.with_file_name(name);
     if !p.is_file() {

@@ -20,6 +20,7 @@ mod child;
 mod commands;
 mod compute;
 mod cyclictest;
+mod device;
 mod e2e;
 mod jitter;
 mod late;
@@ -92,6 +93,10 @@ enum Cmd {
         #[arg(long, default_value = model_timing::DEFAULT_PINOCCHIO)]
         pinocchio: PathBuf,
     },
+    /// The Panda in position mode through chaosd-bridge and chaosd-fakebot, limiter on and off,
+    /// on the demo's set-up (a minute; 20 s with --quick) and on one whose law asks more than the
+    /// arm can do: the device's reflex stops, missed answers, tracking and residual.
+    Device,
     /// latency, jitter, e2e and compute in a row, with one summary file.
     All {
         /// SCHED_FIFO priority for latency and jitter, 1..=98 [default: the daemon's].
@@ -344,6 +349,7 @@ fn main() -> ExitCode {
         Cmd::Jitter(a) => jitter_opts(quick, a).and_then(|o| jitter::run(&o, out, &command)),
         Cmd::E2e(a) => e2e_opts(quick, a).and_then(|o| e2e::run(&o, out, &command)),
         Cmd::Compute { core, pinocchio } => compute::run(quick, *core, pinocchio, out, &command),
+        Cmd::Device => device::run(quick, out, &command),
         Cmd::All { priority } => all(quick, out, *priority, &command),
         Cmd::Soak(a) => soak::run(
             &soak::Options {
