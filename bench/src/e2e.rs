@@ -105,7 +105,7 @@ pub struct Options {
 /// 2-vCPU machine it must share a core, and unpinned at the normal scheduler it is kept off both
 /// by the two SCHED_FIFO loops polling for their inputs. So it runs beside the plant: on its
 /// core, above its priority, blocking for each answer (see `plant::udp::fakebot::Placement`;
-/// README, "The device beside the bridge", has the numbers).
+/// docs/performance.md, "The device beside the bridge", has the numbers).
 pub const DEVICE_ARGS: [&str; 1] = ["--beside-plant"];
 
 impl Options {

@@ -1,6 +1,6 @@
 //! Latency statistics shared by every subcommand: one HdrHistogram per series, percentiles in a
 //! fixed order, the percentile curves the plots draw, the side-by-side ratios and target checks,
-//! and the markdown table the README quotes.
+//! and the markdown table docs/performance.md quotes.
 //!
 //! Ratios matter more than absolute numbers here: on a shared VM every absolute time moves with
 //! the neighbours' load, but two series measured interleaved in the same run see the same load,

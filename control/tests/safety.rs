@@ -314,7 +314,7 @@ type Layout<'a> = &'a [(f64, f64, f64)];
 #[test]
 fn links_stay_clear_of_obstacles_in_closed_loop() {
     // Layouts of one to three obstacles that the circle keeps clear of. In the first four the
-    // null space alone keeps every link clear at μ = 0 *from these starts* (the README's obstacle
+    // null space alone keeps every link clear at μ = 0 *from these starts* (docs/analysis.md's obstacle
     // study finds basin-grid starts that get trapped between the three obstacles of layout 3), so
     // tracking must stay exact; in the last two it cannot (the free part of the self-motion
     // manifold closes as the end effector goes round), tracking gives way, and only safety is
@@ -355,7 +355,7 @@ fn links_stay_clear_of_obstacles_in_closed_loop() {
 fn a_start_inside_an_obstacle_is_pushed_out_slowly_enough_to_keep_clear_of_the_next() {
     // Three obstacles; from q1 = 0.875 link 3 starts 0.19 m deep inside the first. Pushed out at
     // the speed the depth asks for (~1 m/s), it reached the clearance after 0.57 s and then flew
-    // to 7.3 mm of its neighbour, faster than qdd_max could brake (the README's obstacle study).
+    // to 7.3 mm of its neighbour, faster than qdd_max could brake (docs/analysis.md's obstacle study).
     let cfg = obstacle_cfg(
         &[(0.5, 0.9, 0.2), (0.0, 1.6, 0.25), (-1.2, 0.3, 0.2)],
         0.0,

@@ -5,7 +5,7 @@
 //! state subscriber, keeping the newest → `Controller::tick` → loan, write, send the command →
 //! `try_send` the record to the reporter. Waiting for the deadline and advancing the schedule
 //! stay in `service.rs`. No locks, no waiting on other threads, no heap allocation beyond
-//! iceoryx2's own per-loan one (see the README's invariants).
+//! iceoryx2's own per-loan one (see ARCHITECTURE.md's invariants).
 
 use crate::controller::Controller;
 use crate::record::{tick_record, TickTimes};

@@ -9,7 +9,7 @@
 //!    on real iceoryx2 ports, makes exactly one allocation per published command: iceoryx2 0.10's
 //!    `loan_uninit` creates an `Rc` for each sample (`SampleMutUninit::new`). `receive`, `send`
 //!    and dropping samples make none. If a future iceoryx2 removes it, this test fails and the
-//!    README's note can go.
+//!    ARCHITECTURE.md's note can go.
 
 use control::Config;
 use daemon::controller::{Controller, ControllerSettings};

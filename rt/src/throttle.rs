@@ -4,7 +4,7 @@
 //! `kernel.sched_rt_period_us` (950 ms of each second) on a CPU, and then stops them for the
 //! rest. A loop that polls through its whole period at SCHED_FIFO (`wait = "spin"`, or a hybrid
 //! window as long as the period) is stopped for 50 ms every second: at 10 kHz that is 500 cycles
-//! in a row, every second (README, "RT throttling", has the measurement). The hybrid wait
+//! in a row, every second (docs/performance.md, "RT throttling", has the measurement). The hybrid wait
 //! sleeps part of each period, stays under the limit, and is not stopped.
 //!
 //! chaosd does not change this system-wide setting itself; it says so when a loop would be

@@ -404,7 +404,7 @@ fn class_counts(rows: &[&Row]) -> String {
         .join(", ")
 }
 
-/// The aggregated table, one line per μ × filter, as Markdown (pasted into the README as is).
+/// The aggregated table, one line per μ × filter, as Markdown (pasted into docs/analysis.md as is).
 fn print_table(plan: &Plan, rows: &[Row], clearance: f64) {
     println!(
         "| μ | filter | runs (start in contact) | contact (s) worst / median | contact after getting clear (s) worst | closer than {clearance} m (s) worst / median | min clearance after clear (m) worst / median | RMS tracking after {} s (m) worst / median | Poincaré class | left the null space (s) worst / median |",

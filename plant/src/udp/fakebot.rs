@@ -16,7 +16,7 @@
 //! bridge's core at a SCHED_FIFO priority above it, where the clock preempts the bridge on time,
 //! and sleeping until its cycle and blocking for the answer ([`AnswerWait::Block`]), so the
 //! bridge gets the core whenever the device is not working; the bridge's send then wakes it on
-//! its own core, without waking an idle vCPU. README, "The device beside the bridge", has the
+//! its own core, without waking an idle vCPU. docs/performance.md, "The device beside the bridge", has the
 //! numbers.
 
 use super::rules::Rules;
