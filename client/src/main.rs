@@ -5,6 +5,7 @@
 
 mod analysis;
 mod exporter;
+mod plan;
 mod plot;
 mod robot;
 mod setup;
@@ -54,6 +55,9 @@ enum Command {
     /// The arm itself at several instants of one period, filter off and on side by side, with
     /// the circle, the obstacles and their clearance rings (PNG + SVG).
     ArmFigure(analysis::arm_figure::ArmFigureCmd),
+    /// Whether a clean periodic posture cycle exists for a set-up (the planar 3-link arm): its
+    /// smallest clearance and the planning time, or why there is none (--json, --csv).
+    Plan(plan::PlanCmd),
     /// Put the shard files of one sharded sweep, basins or obstacles run back together: checks
     /// that every grid point is there exactly once (naming any missing one) and writes exactly
     /// the unsharded result.
@@ -175,6 +179,7 @@ fn main() -> ExitCode {
         Command::Obstacles(a) => analysis::obstacles::run(a),
         Command::ArmFigure(a) => analysis::arm_figure::run(a),
         Command::Merge(m) => merge(m),
+        Command::Plan(a) => plan::run(&a),
         Command::Exporter(a) => exporter::run(a),
         Command::Robot(a) => robot::run(a),
         Command::Config { preset } => {

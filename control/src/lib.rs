@@ -18,6 +18,7 @@ pub mod dual;
 pub mod hold;
 pub mod law;
 pub mod model;
+pub mod plan;
 pub mod resolve;
 pub mod rigid_body;
 pub mod safety;

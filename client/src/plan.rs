@@ -1,0 +1,133 @@
+//! `chaosctl plan`: whether a clean periodic posture cycle exists for a set-up, and what it is,
+//! before any arm moves: the same planner the daemon runs when obstacles change.
+
+use crate::setup::{parse_list, FloatList, SetupArgs};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use control::config::ObstacleConfig;
+use control::plan::planar::{plan, PlanarProblem};
+use control::plan::{PlanOutcome, PlanSettings};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct PlanCmd {
+    #[command(flatten)]
+    pub setup: SetupArgs,
+    /// One more obstacle, X,Y,RADIUS (m), besides the config's; repeat for more.
+    #[arg(long = "obstacle", value_parser = parse_list, allow_hyphen_values = true)]
+    pub obstacles: Vec<FloatList>,
+    /// Clearance the cycle keeps beyond the safety filter's (m).
+    #[arg(long, default_value_t = PlanSettings::default().margin)]
+    pub margin: f64,
+    /// The fastest any joint of the cycle may move (rad/s).
+    #[arg(long = "max-rate", default_value_t = PlanSettings::default().max_rate)]
+    pub max_rate: f64,
+    /// Print the result as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the cycle's postures as CSV (t, q1, q2, q3).
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+}
+
+pub fn run(a: &PlanCmd) -> Result<()> {
+    let mut cfg = a.setup.load_with_mu(None)?;
+    for (i, o) in a.obstacles.iter().enumerate() {
+        let [x, y, r] = o.0[..] else {
+            bail!("--obstacle {:?}: expected X,Y,RADIUS (three numbers)", o.0);
+        };
+        let entry = ObstacleConfig {
+            center: [x, y],
+            radius: r,
+            margin: 0.1,
+        };
+        control::config::validate_obstacle(&format!("--obstacle #{}", i + 1), &entry)?;
+        cfg.control.obstacles.push(entry);
+    }
+    cfg.validate()?;
+    let settings = PlanSettings {
+        margin: a.margin,
+        max_rate: a.max_rate,
+        ..PlanSettings::default()
+    };
+    if !(settings.margin.is_finite() && settings.margin >= 0.0) {
+        bail!("--margin {}: must be a distance ≥ 0 (m)", settings.margin);
+    }
+    if !(settings.max_rate.is_finite() && settings.max_rate > 0.0) {
+        bail!(
+            "--max-rate {}: must be a rate > 0 (rad/s)",
+            settings.max_rate
+        );
+    }
+    let q0 = cfg.initial_state::<3>().q;
+    let problem = PlanarProblem::from_config(&cfg, 0.0, Some([q0[0], q0[1], q0[2]]))
+        .map_err(|e| anyhow::anyhow!("chaosctl plan: {e}"))?;
+    let t = Instant::now();
+    let outcome = plan(&problem, &settings);
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    if let (Some(path), PlanOutcome::Found(c)) = (&a.csv, &outcome) {
+        let dt = c.period / c.q.len() as f64;
+        let mut text = String::from("t,q1,q2,q3\n");
+        for (k, q) in c.q.iter().enumerate() {
+            text.push_str(&format!(
+                "{},{},{},{}\n",
+                c.t0 + k as f64 * dt,
+                q[0],
+                q[1],
+                q[2]
+            ));
+        }
+        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if a.json {
+        println!("{}", json(&outcome, &settings, ms));
+    } else {
+        println!("{}", words(&outcome, &settings, ms));
+    }
+    Ok(())
+}
+
+fn json(o: &PlanOutcome, s: &PlanSettings, ms: f64) -> serde_json::Value {
+    let grid = serde_json::json!({ "phases": s.phases, "postures_per_phase": 2 * s.angles });
+    match o {
+        PlanOutcome::Found(c) => serde_json::json!({
+            "exists": true, "min_clearance_m": finite(c.min_clearance),
+            "max_rate_rad_s": c.max_rate, "planning_ms": ms, "grid": grid, "blocked": null,
+        }),
+        PlanOutcome::Blocked(b) => serde_json::json!({
+            "exists": false, "min_clearance_m": null, "max_rate_rad_s": null,
+            "planning_ms": ms, "grid": grid,
+            "blocked": {
+                "reason": b.reason, "best_clearance_m": finite(b.best_clearance),
+                "obstacle": b.obstacle.map(|i| i + 1), "link": b.link.map(|i| i + 1),
+                "task_time_s": b.task_time,
+            },
+        }),
+    }
+}
+
+/// JSON has no infinity: no obstacle, no clearance to report.
+fn finite(x: f64) -> Option<f64> {
+    x.is_finite().then_some(x)
+}
+
+fn words(o: &PlanOutcome, s: &PlanSettings, ms: f64) -> String {
+    let grid = format!("{} phases × {} postures", s.phases, 2 * s.angles);
+    match o {
+        PlanOutcome::Found(c) => format!(
+            "a clean cycle exists: smallest clearance {}, fastest joint {:.2} rad/s (planned in \
+             {ms:.1} ms on {grid})",
+            if c.min_clearance.is_finite() {
+                format!("{:.3} m", c.min_clearance)
+            } else {
+                "n/a (no obstacle)".into()
+            },
+            c.max_rate
+        ),
+        PlanOutcome::Blocked(b) => format!(
+            "no clean cycle: {} (planned in {ms:.1} ms on {grid})",
+            b.reason
+        ),
+    }
+}

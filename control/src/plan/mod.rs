@@ -1,0 +1,126 @@
+//! Planning a clean periodic posture cycle, so safety never traps the arm silently.
+//!
+//! The safety filter is local: it keeps every link clear now, but cannot know that the
+//! self-motion should have gone round an obstacle the other way, and it can hold the arm off
+//! its path for good. A redundant arm has room to go round while its hand keeps tracking; the
+//! planner looks for that room over the whole period at once: a posture cycle q*(t), t ∈ [0, T),
+//! that puts the hand on the path, keeps every clearance and joint limit with a margin and moves
+//! the joints at bounded rates. When there is none it says why, so the daemon can say `Blocked`
+//! instead of running on with the arm at rest off its path.
+//!
+//! The planner allocates and takes milliseconds: it runs off the loop, and hands its cycle over
+//! whole.
+
+pub mod planar;
+
+/// How finely the planner searches, and with what margins.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlanSettings {
+    /// Phases over one period.
+    pub phases: usize,
+    /// Values of the self-motion coordinate (per elbow branch, over a full turn).
+    pub angles: usize,
+    /// Clearance kept beyond the safety filter's (m).
+    pub margin: f64,
+    /// Distance kept from every joint limit (rad).
+    pub joint_margin: f64,
+    /// The fastest any joint of the cycle may move (rad/s), the task's own motion included.
+    pub max_rate: f64,
+    /// Closing starts tried for the cheapest cycle (the nearest the arm's posture first).
+    pub candidates: usize,
+}
+
+impl Default for PlanSettings {
+    fn default() -> Self {
+        Self {
+            phases: 64,
+            angles: 120,
+            margin: 0.02,
+            joint_margin: 0.05,
+            max_rate: 8.0,
+            candidates: 6,
+        }
+    }
+}
+
+/// A planned cycle: the posture at `phases` evenly spaced task times from `t0`, joint angles
+/// continuous along the cycle (it closes up to whole turns of no joint).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cycle {
+    /// The task time of the first posture (s).
+    pub t0: f64,
+    pub period: f64,
+    pub q: Vec<Vec<f64>>,
+    /// The smallest distance from any link to any obstacle's surface along the cycle (m).
+    pub min_clearance: f64,
+    /// The fastest joint rate along the cycle (rad/s).
+    pub max_rate: f64,
+}
+
+impl Cycle {
+    /// The planned posture and its rate at task time `t`, interpolated (periodic in t).
+    pub fn at(&self, t: f64, q: &mut [f64], qd: &mut [f64]) {
+        let n = self.q.len();
+        let dt = self.period / n as f64;
+        let x = (t - self.t0).rem_euclid(self.period) / dt;
+        let k = (x.floor() as usize).min(n - 1);
+        let f = x - k as f64;
+        let (a, b) = (&self.q[k], &self.q[(k + 1) % n]);
+        for i in 0..q.len().min(a.len()) {
+            // The closing step from the last posture to the first: the same angles, continued.
+            let d = crate::analysis::closed_loop::wrap_angle(b[i] - a[i]);
+            q[i] = a[i] + d * f;
+            qd[i] = d / dt;
+        }
+    }
+}
+
+/// Why no clean cycle exists, in words and numbers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Blocked {
+    pub reason: String,
+    /// The largest clearance any posture reaches at the hardest phase (m; negative: contact).
+    pub best_clearance: f64,
+    /// The obstacle and the link (0-based) that set it, if an obstacle did.
+    pub obstacle: Option<usize>,
+    pub link: Option<usize>,
+    /// The task time of the hardest phase (s).
+    pub task_time: f64,
+}
+
+/// What the planner found.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PlanOutcome {
+    Found(Cycle),
+    Blocked(Blocked),
+}
+
+impl planar::PlanarProblem {
+    /// The problem a planar config poses: its arm, circle, obstacles, the filter's clearance
+    /// and joint limits, starting at task time `t0` near posture `q_now`. Only the fixed-base
+    /// 3-link arm has its self-motion on a circle the planner grids; other arms are refused.
+    pub fn from_config(
+        cfg: &crate::Config,
+        t0: f64,
+        q_now: Option<[f64; 3]>,
+    ) -> Result<Self, String> {
+        if cfg.n() != 3 || cfg.arm.model != crate::config::ModelKind::Fixed {
+            return Err(format!(
+                "the planner handles the fixed-base 3-link arm (this one has {} links, {:?} base)",
+                cfg.n(),
+                cfg.arm.model
+            ));
+        }
+        let p = cfg.law_params();
+        Ok(Self {
+            links: [cfg.arm.links[0], cfg.arm.links[1], cfg.arm.links[2]],
+            task: p.task,
+            obstacles: p.obstacles,
+            clearance: p.safety.clearance,
+            q_min: [p.safety.q_min[0], p.safety.q_min[1], p.safety.q_min[2]],
+            q_max: [p.safety.q_max[0], p.safety.q_max[1], p.safety.q_max[2]],
+            t0,
+            q_now,
+        })
+    }
+}

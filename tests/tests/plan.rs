@@ -1,0 +1,61 @@
+//! `chaosctl plan` as a user runs it: a set-up with room for a clean cycle, one whose obstacle
+//! sits on the path (blocked, with the obstacle named), and bad input.
+
+use std::process::Command;
+use tests::*;
+
+fn plan(args: &[&str]) -> (i32, String, String) {
+    let o = Command::new(bin("chaosctl"))
+        .arg("plan")
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into(),
+        String::from_utf8_lossy(&o.stderr).into(),
+    )
+}
+
+#[test]
+fn plan_says_whether_a_clean_cycle_exists_and_why_not() {
+    // The demo's arm with the obstacle that trapped the safety filter: a clean cycle exists.
+    let (code, out, err) = plan(&["--preset", "demo", "--obstacle", "0.9,1.1,0.15", "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["exists"], true, "{v}");
+    assert!(v["min_clearance_m"].as_f64().unwrap() >= 0.07, "{v}");
+    assert!(v["planning_ms"].as_f64().unwrap() > 0.0, "{v}");
+    assert!(v["blocked"].is_null(), "{v}");
+    // An obstacle over the circle: the hand cannot pass, and the answer names the obstacle.
+    let (code, out, err) = plan(&["--preset", "demo", "--obstacle", "1.5,2.0,0.2", "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["exists"], false, "{v}");
+    assert_eq!(v["blocked"]["obstacle"], 1, "{v}");
+    assert!(
+        v["blocked"]["reason"]
+            .as_str()
+            .unwrap()
+            .contains("obstacle 1"),
+        "{v}"
+    );
+    // In words too.
+    let (code, out, _) = plan(&["--preset", "demo", "--obstacle", "1.5,2.0,0.2"]);
+    assert_eq!(code, 0);
+    assert!(out.starts_with("no clean cycle: at task time"), "{out}");
+}
+
+#[test]
+fn bad_plan_input_is_refused_in_one_line() {
+    for (args, says) in [
+        (vec!["--obstacle", "1,2"], "expected X,Y,RADIUS"),
+        (vec!["--obstacle", "1,2,-1"], "--obstacle #1"),
+        (vec!["--max-rate", "0"], "--max-rate 0"),
+        (vec!["--preset", "paper-floating"], "fixed-base 3-link arm"),
+    ] {
+        let (code, _, err) = plan(&args);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+}
