@@ -327,6 +327,7 @@ fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<S
     report.push(&crate::tick::table(quick)?);
     report.push(&crate::spatial_timing::section(quick)?);
     report.push(&crate::commands::section(quick)?);
+    report.push(&crate::cycle_plan::section(quick)?);
     report.push(&model);
     report.push(&format!(
         "\n300 s simulation (RK4, dt = 1 ms, fixed base, manipulability): {:.3} s wall, {:.0} simulated s per wall s \

@@ -19,6 +19,7 @@
 mod child;
 mod commands;
 mod compute;
+mod cycle_plan;
 mod cyclictest;
 mod device;
 mod e2e;
