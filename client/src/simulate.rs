@@ -45,6 +45,9 @@ pub struct Report {
     pub final_q: Vec<f64>,
     pub final_qd: Vec<f64>,
     pub final_phi: Option<f64>,
+    /// With `safety.plan`: the steering onto a planned clean cycle, or why there is none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub plan: Option<String>,
     #[serde(flatten)]
     pub summary: Summary,
 }
@@ -57,7 +60,15 @@ pub fn run_config(
 ) -> Result<Report> {
     let n = cfg.n();
     with_dof!(n, N => {
-        let params = cfg.law_params();
+        let (params, blocked) = cfg.law_params_planned();
+        let plan = match (&params.steer, blocked) {
+            (Some(_), _) => Some(format!(
+                "steering onto a planned clean cycle (pull at {} Hz)",
+                cfg.safety.plan_hz
+            )),
+            (None, Some(b)) => Some(format!("no clean cycle, running without steering: {}", b.reason)),
+            (None, None) => None,
+        };
         let x0: ArmState<N> = cfg.initial_state();
         let mut sim = Simulation::new(cfg.model::<N>(), params, cfg.sim.dt, x0, cfg.feedback.max_tau);
         let steps = (cfg.sim.duration / cfg.sim.dt).round() as u64;
@@ -87,6 +98,7 @@ pub fn run_config(
             final_q: x.q.as_slice().to_vec(),
             final_qd: x.qd.as_slice().to_vec(),
             final_phi: (cfg.arm.model == ModelKind::Floating).then_some(x.phi),
+            plan,
             summary: stats.summary(),
         })
     })
@@ -203,6 +215,9 @@ pub fn print_report(r: &Report) {
         "  simulated        {:.3} s ({} steps)",
         r.final_time, r.steps
     );
+    if let Some(p) = &r.plan {
+        println!("  plan             {p}");
+    }
     println!("  final q          [{}] rad", fmt_vec(&r.final_q));
     println!("  final q̇          [{}] rad/s", fmt_vec(&r.final_qd));
     if let Some(phi) = r.final_phi {

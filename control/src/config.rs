@@ -474,6 +474,13 @@ impl Config {
         }
         range("sim.phi0", s.phi0, -1e6, 1e6)?;
         self.safety.validate(n)?;
+        if self.safety.plan && (n != 3 || self.arm.model != ModelKind::Fixed) {
+            return Err(invalid(
+                "safety.plan",
+                true,
+                "the cycle planner handles the fixed-base 3-link arm only",
+            ));
+        }
         crate::stability::check(self, s.dt, &format!("sim.dt = {} s", s.dt))
     }
 
@@ -520,6 +527,36 @@ impl Config {
             },
             safety: self.safety.params(self.n()),
             track_loss: c.track_loss,
+            steer: None,
+        }
+    }
+
+    /// [`Self::law_params`] with the steering onto a planned clean cycle when `safety.plan` asks
+    /// for it (the filter on, the fixed-base 3-link arm), planned from the start posture; and
+    /// why there is none, when the planner found none (the law then runs without it).
+    pub fn law_params_planned(&self) -> (LawParams, Option<crate::plan::Blocked>) {
+        use crate::plan::{planar, CycleTable, PlanOutcome, PlanSettings, Steer};
+        let mut p = self.law_params();
+        if !(self.safety.enabled && self.safety.plan) {
+            return (p, None);
+        }
+        if self.n() != 3 {
+            return (p, None); // refused by `validate`
+        }
+        let q0 = self.initial_state::<3>().q;
+        let Ok(problem) =
+            planar::PlanarProblem::from_config(self, 0.0, Some([q0[0], q0[1], q0[2]]))
+        else {
+            return (p, None);
+        };
+        match planar::plan(&problem, &PlanSettings::default()) {
+            PlanOutcome::Found(c) => {
+                p.steer = CycleTable::new(&c)
+                    .ok()
+                    .map(|t| Steer::new(t, self.safety.plan_hz));
+                (p, None)
+            }
+            PlanOutcome::Blocked(b) => (p, Some(b)),
         }
     }
 

@@ -72,6 +72,9 @@ pub struct LawParams {
     pub safety: SafetyParams,
     /// Tracking error (m) above which tracking counts as lost.
     pub track_loss: f64,
+    /// A planned clean cycle to steer the self-motion onto ([`crate::plan`]); planar 3-link
+    /// arm only. None: the law as the paper has it.
+    pub steer: Option<crate::plan::Steer>,
 }
 
 /// Status bits of one evaluation.
@@ -166,6 +169,26 @@ pub fn damped_pinv<const N: usize>(
     (j.transpose() * minv, smin, lambda2.sqrt())
 }
 
+/// The pull towards the planned cycle at `t`, in the null space: (I − J⁺J)(K_p(q* − q) +
+/// K_d(q̇* − q̇)). Only the first three joints have a plan.
+#[inline]
+fn steering<const N: usize>(
+    s: &crate::plan::Steer,
+    t: f64,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+    j: &Jac<N>,
+    jpinv: &nalgebra::SMatrix<f64, N, 2>,
+) -> VecN<N> {
+    let (qs, qds) = s.cycle.at(t);
+    let mut v = VecN::<N>::zeros();
+    for i in 0..N.min(3) {
+        let e = crate::analysis::closed_loop::wrap_angle(qs[i] - q[i]);
+        v[i] = s.kp * e + s.kd * (qds[i] - qd[i]);
+    }
+    v - jpinv * (j * v)
+}
+
 /// Evaluates the law at time `t` for state (φ, q, q̇) with delayed velocity q̇(t − τ).
 ///
 /// `kin` is scratch; on return it holds the kinematics at the state.
@@ -206,6 +229,8 @@ pub fn evaluate<const N: usize>(
             Some(-g)
         }
     };
+    // Steering onto a planned cycle replaces the secondary task: both shape the self-motion.
+    let eta = if params.steer.is_some() { None } else { eta };
     let diff = qd - qd_delayed;
     let feedback = params.feedback_active(t);
     if feedback {
@@ -219,6 +244,9 @@ pub fn evaluate<const N: usize>(
         projection: params.projection,
     };
     let mut qdd = resolve(j, &jpinv, &task_acc, &terms);
+    if let Some(s) = &params.steer {
+        qdd += steering(s, t, q, qd, j, &jpinv);
+    }
     let demand = (0..N)
         .map(|i| qdd[i].abs() / params.safety.qdd_max[i])
         .fold(0.0, f64::max);

@@ -28,6 +28,11 @@ pub struct PlanSettings {
     pub max_rate: f64,
     /// Closing starts tried for the cheapest cycle (the nearest the arm's posture first).
     pub candidates: usize,
+    /// How fast the arm may close in on an obstacle, per metre of clearance left (1/s): the
+    /// safety filter's barrier (s² + k1·s + k0, a double root at −10/s by default) brakes a
+    /// faster approach, and a cycle that approaches faster is braked off its path. Judged on
+    /// each posture's nearest obstacle, between consecutive phases.
+    pub approach: f64,
 }
 
 impl Default for PlanSettings {
@@ -39,6 +44,7 @@ impl Default for PlanSettings {
             joint_margin: 0.05,
             max_rate: 8.0,
             candidates: 6,
+            approach: 10.0,
         }
     }
 }
@@ -57,20 +63,77 @@ pub struct Cycle {
     pub max_rate: f64,
 }
 
-impl Cycle {
-    /// The planned posture and its rate at task time `t`, interpolated (periodic in t).
-    pub fn at(&self, t: f64, q: &mut [f64], qd: &mut [f64]) {
-        let n = self.q.len();
-        let dt = self.period / n as f64;
+/// The most phases a cycle handed to the loop may have.
+pub const MAX_PHASES: usize = 64;
+
+/// A planar cycle in a fixed-size, `Copy` table: what the control law steers towards. Built
+/// off the loop from a [`Cycle`]; read on the loop without allocating.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CycleTable {
+    pub t0: f64,
+    pub period: f64,
+    n: usize,
+    q: [[f64; 3]; MAX_PHASES],
+}
+
+impl CycleTable {
+    /// The table of a 3-joint cycle of at most [`MAX_PHASES`] phases.
+    pub fn new(c: &Cycle) -> Result<Self, String> {
+        if c.q.is_empty() || c.q.len() > MAX_PHASES || c.q.iter().any(|q| q.len() != 3) {
+            return Err(format!(
+                "a cycle of 1 to {MAX_PHASES} phases of 3 joints (this one has {} phases)",
+                c.q.len()
+            ));
+        }
+        let mut q = [[0.0; 3]; MAX_PHASES];
+        for (k, p) in c.q.iter().enumerate() {
+            q[k] = [p[0], p[1], p[2]];
+        }
+        Ok(Self {
+            t0: c.t0,
+            period: c.period,
+            n: c.q.len(),
+            q,
+        })
+    }
+
+    /// The planned posture and rate at task time `t` (linear between phases, periodic).
+    #[inline]
+    pub fn at(&self, t: f64) -> ([f64; 3], [f64; 3]) {
+        let dt = self.period / self.n as f64;
         let x = (t - self.t0).rem_euclid(self.period) / dt;
-        let k = (x.floor() as usize).min(n - 1);
+        let k = (x.floor() as usize).min(self.n - 1);
         let f = x - k as f64;
-        let (a, b) = (&self.q[k], &self.q[(k + 1) % n]);
-        for i in 0..q.len().min(a.len()) {
-            // The closing step from the last posture to the first: the same angles, continued.
+        let (a, b) = (self.q[k], self.q[(k + 1) % self.n]);
+        let mut q = [0.0; 3];
+        let mut qd = [0.0; 3];
+        for i in 0..3 {
             let d = crate::analysis::closed_loop::wrap_angle(b[i] - a[i]);
             q[i] = a[i] + d * f;
             qd[i] = d / dt;
+        }
+        (q, qd)
+    }
+}
+
+/// Steering onto a planned cycle: a joint PD towards it, projected onto the self-motion, so
+/// tracking is untouched; the Pyragas term then holds the cycle (its period is τ).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Steer {
+    pub cycle: CycleTable,
+    /// Gains of the pull (1/s², 1/s).
+    pub kp: f64,
+    pub kd: f64,
+}
+
+impl Steer {
+    /// A pull with natural frequency `hz`, critically damped.
+    pub fn new(cycle: CycleTable, hz: f64) -> Self {
+        let w = std::f64::consts::TAU * hz;
+        Self {
+            cycle,
+            kp: w * w,
+            kd: 2.0 * w,
         }
     }
 }

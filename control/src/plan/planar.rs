@@ -106,6 +106,16 @@ fn step(a: &[f64; 3], b: &[f64; 3]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Whether moving from `a` to `b` in `dt` closes in on the nearest obstacle no faster than
+/// `approach` times the clearance left at `b` (always, without obstacles).
+fn approach_ok(p: &PlanarProblem, s: &PlanSettings, a: &Node, b: &Node, dt: f64) -> bool {
+    if !b.clearance.is_finite() {
+        return true;
+    }
+    let left = b.clearance - p.clearance;
+    (b.clearance - a.clearance) / dt + s.approach * left >= 0.0
+}
+
 /// The grid: `layers[k]` holds every posture at phase k (infeasible ones as `None`), and
 /// `edges[k][i]` the postures of phase k + 1 (cyclically) that posture i may move to.
 struct Grid {
@@ -145,7 +155,11 @@ fn build(p: &PlanarProblem, s: &PlanSettings) -> Grid {
                     Some(a) => next
                         .iter()
                         .enumerate()
-                        .filter(|(_, b)| b.is_some_and(|b| step(&a.q, &b.q) <= max_step))
+                        .filter(|(_, b)| {
+                            b.is_some_and(|b| {
+                                step(&a.q, &b.q) <= max_step && approach_ok(p, s, a, &b, dt)
+                            })
+                        })
                         .map(|(j, _)| j as u32)
                         .collect(),
                 })
@@ -466,16 +480,15 @@ mod tests {
         let PlanOutcome::Found(c) = plan(&p, &s) else {
             panic!()
         };
-        let (mut q, mut qd) = ([0.0; 3], [0.0; 3]);
+        let table = super::super::CycleTable::new(&c).unwrap();
         let dt = c.period / c.q.len() as f64;
-        c.at(c.t0 + 3.5 * dt, &mut q, &mut qd);
+        let (q, qd) = table.at(c.t0 + 3.5 * dt);
         for i in 0..3 {
             let mid = c.q[3][i] + 0.5 * wrap_angle(c.q[4][i] - c.q[3][i]);
             assert!((q[i] - mid).abs() < 1e-12);
         }
         // Periodic: a period later, the same posture.
-        let (mut q2, mut qd2) = ([0.0; 3], [0.0; 3]);
-        c.at(c.t0 + 3.5 * dt + c.period, &mut q2, &mut qd2);
+        let (q2, qd2) = table.at(c.t0 + 3.5 * dt + c.period);
         assert!((0..3).all(|i| (q[i] - q2[i]).abs() < 1e-9 && (qd[i] - qd2[i]).abs() < 1e-9));
     }
 }

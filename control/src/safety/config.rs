@@ -63,6 +63,12 @@ pub struct SafetyConfig {
     /// Daemon: how long (s) the tracking error must keep growing above `guard_tracking_error`.
     /// (A start far from the circle grows the error for ~0.1 s while the arm gets going.)
     pub guard_growth_time: f64,
+    /// Steer the self-motion onto a planned clean cycle (the fixed-base 3-link arm;
+    /// `chaosctl plan` shows it), so the filter cannot hold the arm off its path. Off by
+    /// default: the paper's dynamics, and every result measured without it, stay as they are.
+    pub plan: bool,
+    /// The pull's natural frequency (Hz), critically damped.
+    pub plan_hz: f64,
 }
 
 impl Default for SafetyConfig {
@@ -81,6 +87,8 @@ impl Default for SafetyConfig {
             guard_time: 0.02,
             guard_tracking_error: 1.0,
             guard_growth_time: 0.5,
+            plan: false,
+            plan_hz: 1.0,
         }
     }
 }
@@ -163,6 +171,7 @@ impl SafetyConfig {
                 &format!("must be below safety.q_max[{i}] = {}", hi[i]),
             ));
         }
+        in_range("plan_hz", self.plan_hz, 0.0, 20.0, true)?;
         in_range("k0", self.k0, 0.0, 1e6, true)?;
         in_range("k1", self.k1, 0.0, 1e4, true)?;
         if self.k1 * self.k1 < 4.0 * self.k0 {

@@ -1,0 +1,89 @@
+//! Steering onto a planned clean cycle (`[safety] plan = true`), through the real law and the
+//! real simulation: it leaves a run untouched when off, tracks exactly and periodically on an
+//! open layout, and gets the arm out of the trap the local filter alone holds it in.
+
+use control::{Config, RunStats, Simulation, Summary};
+
+/// The demo's arm, with `obstacles` (x, y, r) and the planner on or off, run for `duration` s.
+fn run(obstacles: &[(f64, f64, f64)], plan: bool, duration: f64) -> (Summary, bool) {
+    let mut cfg = Config::preset("demo").unwrap();
+    cfg.control.obstacles = obstacles
+        .iter()
+        .map(|&(x, y, r)| control::config::ObstacleConfig {
+            center: [x, y],
+            radius: r,
+            margin: 0.1,
+        })
+        .collect();
+    cfg.safety.plan = plan;
+    cfg.sim.duration = duration;
+    cfg.sim.transient = duration / 2.0;
+    cfg.validate().unwrap();
+    let (params, blocked) = cfg.law_params_planned();
+    assert!(blocked.is_none(), "{blocked:?}");
+    let x0 = cfg.initial_state::<3>();
+    let mut sim = Simulation::new(
+        cfg.model::<3>(),
+        params,
+        cfg.sim.dt,
+        x0,
+        cfg.feedback.max_tau,
+    );
+    let mut stats = RunStats::new(&params, cfg.sim.dt, duration, cfg.sim.transient, &x0);
+    let steps = (duration / cfg.sim.dt).round() as u64;
+    for k in 0..steps {
+        let x = *sim.state();
+        let out = sim.step();
+        stats.record(k, &x, &out);
+    }
+    (stats.summary(), params.steer.is_some())
+}
+
+#[test]
+fn off_it_changes_nothing() {
+    let mut cfg = Config::preset("demo").unwrap();
+    cfg.safety.plan = false;
+    let (p, b) = cfg.law_params_planned();
+    assert_eq!(p, cfg.law_params());
+    assert!(b.is_none() && p.steer.is_none());
+}
+
+#[test]
+fn on_an_open_layout_the_arm_tracks_exactly_on_a_periodic_cycle() {
+    let (s, steered) = run(&[], true, 40.0);
+    assert!(steered);
+    assert!(s.rms_tracking_error < 1e-6, "{s:?}");
+    assert!(s.period_residual_final.unwrap() < 1e-6, "{s:?}");
+}
+
+#[test]
+fn round_the_trap_the_arm_gets_back_towards_its_path_without_contact() {
+    // The layout where the filter alone settles 0.35 m off the circle, tracking lost all the time.
+    let trap = [(0.9, 1.1, 0.15)];
+    let (alone, _) = run(&trap, false, 40.0);
+    let (steered, on) = run(&trap, true, 40.0);
+    assert!(on);
+    assert!(alone.rms_tracking_error > 0.2, "{alone:?}");
+    assert_eq!(steered.time_in_contact, Some(0.0), "{steered:?}");
+    // Distance still to go (issue 25): the filter's barrier still brakes the planned cycle
+    // where it sweeps past the obstacle, so tracking is 3 cm, not 1e-4 m.
+    assert!(
+        steered.rms_tracking_error < 0.1 * alone.rms_tracking_error,
+        "{} vs {}",
+        steered.rms_tracking_error,
+        alone.rms_tracking_error
+    );
+}
+
+#[test]
+fn plan_is_refused_where_the_planner_cannot_go() {
+    let mut cfg = Config::preset("paper-floating").unwrap();
+    cfg.safety.enabled = true;
+    cfg.safety.plan = true;
+    let e = cfg.validate().unwrap_err().to_string();
+    assert!(e.contains("safety.plan"), "{e}");
+    let mut cfg = Config::preset("demo").unwrap();
+    cfg.safety.plan_hz = 0.0;
+    let e = cfg.validate().unwrap_err().to_string();
+    assert!(e.contains("safety.plan_hz"), "{e}");
+}
