@@ -21,11 +21,7 @@ fn problem(obstacles: &[(f64, f64, f64)]) -> Result<PlanarProblem> {
     let mut cfg = control::Config::preset("demo")?;
     cfg.control.obstacles = obstacles
         .iter()
-        .map(|&(x, y, r)| control::config::ObstacleConfig {
-            center: [x, y],
-            radius: r,
-            margin: 0.1,
-        })
+        .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
         .collect();
     let q0 = cfg.initial_state::<3>().q;
     PlanarProblem::from_config(&cfg, 0.0, Some([q0[0], q0[1], q0[2]]))

@@ -37,11 +37,7 @@ pub fn run(a: &PlanCmd) -> Result<()> {
         let [x, y, r] = o.0[..] else {
             bail!("--obstacle {:?}: expected X,Y,RADIUS (three numbers)", o.0);
         };
-        let entry = ObstacleConfig {
-            center: [x, y],
-            radius: r,
-            margin: 0.1,
-        };
+        let entry = ObstacleConfig::disc(x, y, r);
         control::config::validate_obstacle(&format!("--obstacle #{}", i + 1), &entry)?;
         cfg.control.obstacles.push(entry);
     }

@@ -143,6 +143,17 @@ pub struct ObstacleConfig {
     pub margin: f64,
 }
 
+impl ObstacleConfig {
+    /// A disc at (x, y) of radius r (m), with the potential's default margin.
+    pub fn disc(x: f64, y: f64, r: f64) -> Self {
+        Self {
+            center: [x, y],
+            radius: r,
+            margin: default_margin(),
+        }
+    }
+}
+
 fn default_margin() -> f64 {
     0.1
 }

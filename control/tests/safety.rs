@@ -293,11 +293,7 @@ fn obstacle_cfg(list: &[(f64, f64, f64)], mu: f64, q1: f64) -> Config {
     let mut cfg = Config::preset("paper-obstacle").unwrap();
     cfg.control.obstacles = list
         .iter()
-        .map(|&(x, y, r)| control::config::ObstacleConfig {
-            center: [x, y],
-            radius: r,
-            margin: 0.1,
-        })
+        .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
         .collect();
     cfg.safety.enabled = true;
     cfg.feedback.mu = mu;

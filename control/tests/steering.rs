@@ -9,11 +9,7 @@ fn run(obstacles: &[(f64, f64, f64)], plan: bool, duration: f64) -> (Summary, bo
     let mut cfg = Config::preset("demo").unwrap();
     cfg.control.obstacles = obstacles
         .iter()
-        .map(|&(x, y, r)| control::config::ObstacleConfig {
-            center: [x, y],
-            radius: r,
-            margin: 0.1,
-        })
+        .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
         .collect();
     cfg.safety.plan = plan;
     cfg.sim.duration = duration;
