@@ -216,7 +216,13 @@ pub fn evaluate<const N: usize>(
     let err = target.p - kin.p;
     let task_acc = target.a + (target.v - j * qd) * params.kv + err * params.kp - kin.jdot_qd;
     let mut secondary_value = 0.0;
-    let eta = match params.secondary {
+    // Steering onto a planned cycle replaces the secondary task: both shape the self-motion.
+    let secondary = if params.steer.is_some() {
+        Secondary::None
+    } else {
+        params.secondary
+    };
+    let eta = match secondary {
         Secondary::None => None,
         Secondary::Manipulability => {
             let (w, g) = model.manipulability(q, kin);
@@ -229,8 +235,6 @@ pub fn evaluate<const N: usize>(
             Some(-g)
         }
     };
-    // Steering onto a planned cycle replaces the secondary task: both shape the self-motion.
-    let eta = if params.steer.is_some() { None } else { eta };
     let diff = qd - qd_delayed;
     let feedback = params.feedback_active(t);
     if feedback {
