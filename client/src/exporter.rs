@@ -286,6 +286,18 @@ const SERIES: &[(&str, &str, &str, Get)] = &[
         "Mode: 0 run, 1 hold, 2 brake, 3 fault.",
         |t| t.mode as f64,
     ),
+    (
+        "chaosd_blocked",
+        "gauge",
+        "Blocked (no clean cycle, or a trap steering did not end): 0 no, 1 holding, 2 best-effort.",
+        |t| t.blocked as f64,
+    ),
+    (
+        "chaosd_steering",
+        "gauge",
+        "1 while the self-motion is steered onto a planned clean cycle.",
+        |t| t.steering as f64,
+    ),
     ("chaosd_mu", "gauge", "Pyragas feedback gain mu.", |t| t.mu),
     ("chaosd_tau_seconds", "gauge", "Feedback delay tau.", |t| {
         t.tau

@@ -366,7 +366,24 @@ pub fn human_status(body: &str) -> String {
         v["recording"].as_str().unwrap_or("off"),
         core_gone(&v),
         v["handshake"].as_str().map_or(String::new(), |why| format!("\nhandshake {why}")),
-    )
+    ) + &blocked_part(&v)
+}
+
+/// `BLOCKED` and why, when the daemon is; and whether it steers onto a planned cycle.
+fn blocked_part(v: &serde_json::Value) -> String {
+    let mut s = String::new();
+    let b = &v["blocked"];
+    if let Some(reason) = b["reason"].as_str() {
+        s.push_str(&format!(
+            "\nBLOCKED   since t = {:.1} s ({}): {reason}",
+            b["since"].as_f64().unwrap_or(f64::NAN),
+            b["action"].as_str().unwrap_or("?")
+        ));
+    }
+    if v["plan"]["steering"].as_bool() == Some(true) {
+        s.push_str("\nplan      steering onto a planned clean cycle");
+    }
+    s
 }
 
 /// State trigger: how often the loop's core was gone while it ran (`rt::gaps`), so that late
@@ -406,6 +423,8 @@ pub fn telemetry_json(t: &TelemetrySample) -> serde_json::Value {
             .filter(|d| *d != protocol::DeviceStatus::Ok)
             .map(|d| d.name()),
         "saturations": saturations_json(&t.saturations),
+        "blocked": match t.blocked { 0 => None, 1 => Some("hold"), _ => Some("best-effort") },
+        "steering": t.steering == 1,
     })
 }
 
@@ -429,6 +448,19 @@ fn command_part(t: &TelemetrySample) -> String {
         protocol::DeviceStatus::from_code(t.device).filter(|d| *d != protocol::DeviceStatus::Ok)
     {
         s.push_str(&format!(", device: {d}"));
+    }
+    s
+}
+
+/// The watch line's mode: `Run`, or `BLOCKED (hold)` while blocked, with `steering` when the
+/// self-motion is steered onto a planned cycle.
+fn mode_part(t: &TelemetrySample, v: &serde_json::Value) -> String {
+    let mut s = match v["blocked"].as_str() {
+        Some(action) => format!("BLOCKED ({action})"),
+        None => v["mode"].as_str().unwrap_or("?").to_string(),
+    };
+    if t.steering == 1 {
+        s.push_str(", steering");
     }
     s
 }
@@ -460,7 +492,7 @@ fn watch(conn: &Conn, json: bool, count: Option<u64>) -> Result<(), Failure> {
                     let v = telemetry_json(&t);
                     format!(
                         "chaosd {} | t {:8.2} s | {:<4} | {} | feedback {} μ={:.2} τ={:.2} | track {:.2e} m | residual {:.3e} rad/s | clearance {} | contact {:.2} s | late p99 {:.1} µs max {:.1} µs | overruns {} | rejected {} | holds {} | drops {}",
-                        names.namespace(), t.t, v["mode"].as_str().unwrap_or("?"), command_part(&t),
+                        names.namespace(), t.t, mode_part(&t, &v), command_part(&t),
                         if t.feedback_active == 1 { "ON " } else if t.feedback_on == 1 { "armed" } else { "off" },
                         t.mu, t.tau, t.tracking_error, t.period_residual,
                         if t.clearance.is_finite() { format!("{:+.3} m", t.clearance) } else { "n/a".into() },

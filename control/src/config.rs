@@ -539,6 +539,7 @@ impl Config {
             safety: self.safety.params(self.n()),
             track_loss: c.track_loss,
             steer: None,
+            pause: false,
         }
     }
 
@@ -546,21 +547,16 @@ impl Config {
     /// for it (the filter on, the fixed-base 3-link arm), planned from the start posture; and
     /// why there is none, when the planner found none (the law then runs without it).
     pub fn law_params_planned(&self) -> (LawParams, Option<crate::plan::Blocked>) {
-        use crate::plan::{planar, CycleTable, PlanOutcome, PlanSettings, Steer};
+        use crate::plan::{CycleTable, PlanOutcome, Steer};
         let mut p = self.law_params();
-        if !(self.safety.enabled && self.safety.plan) {
-            return (p, None);
-        }
-        if self.n() != 3 {
-            return (p, None); // refused by `validate`
+        if !(self.safety.enabled && self.safety.plan) || self.n() != 3 {
+            return (p, None); // a plan on another arm is refused by `validate`
         }
         let q0 = self.initial_state::<3>().q;
-        let Ok(problem) =
-            planar::PlanarProblem::from_config(self, 0.0, Some([q0[0], q0[1], q0[2]]))
-        else {
+        let Ok(planned) = crate::plan::plan_config(self, 0.0, Some([q0[0], q0[1], q0[2]])) else {
             return (p, None);
         };
-        match planar::plan(&problem, &PlanSettings::default()) {
+        match planned.outcome {
             PlanOutcome::Found(c) => {
                 p.steer = CycleTable::new(&c)
                     .ok()

@@ -75,6 +75,9 @@ pub struct LawParams {
     /// A planned clean cycle to steer the self-motion onto ([`crate::plan`]); planar 3-link
     /// arm only. None: the law as the paper has it.
     pub steer: Option<crate::plan::Steer>,
+    /// Tracking paused (the daemon's blocked hold): the arm brakes to rest, the filter keeping
+    /// clearance as ever ([`crate::safety::pause_brake`]).
+    pub pause: bool,
 }
 
 /// Status bits of one evaluation.
@@ -250,6 +253,9 @@ pub fn evaluate<const N: usize>(
     let mut qdd = resolve(j, &jpinv, &task_acc, &terms);
     if let Some(s) = &params.steer {
         qdd += steering(s, t, q, qd, j, &jpinv);
+    }
+    if params.pause {
+        qdd = safety::pause_brake(qd);
     }
     let demand = (0..N)
         .map(|i| qdd[i].abs() / params.safety.qdd_max[i])

@@ -246,12 +246,16 @@ impl System {
                 clearance: c.safety.clearance,
                 track_loss: c.control.track_loss,
                 obstacles: c.control.obstacles.len(),
+                trap_time: c.safety.trap_time,
+                when_blocked: c.safety.when_blocked,
             },
             System::Spatial(s) => SafetySummary {
                 enabled: s.config.safety.enabled,
                 clearance: s.config.safety.clearance,
                 track_loss: s.config.law.track_loss,
                 obstacles: s.config.obstacles.len(),
+                trap_time: s.config.safety.trap_time,
+                when_blocked: s.config.safety.when_blocked,
             },
         }
     }
@@ -336,6 +340,9 @@ pub struct SafetySummary {
     /// Tracking error (m) above which tracking counts as lost.
     pub track_loss: f64,
     pub obstacles: usize,
+    /// How long a trap lasts before the daemon acts (s), and what it does when blocked.
+    pub trap_time: f64,
+    pub when_blocked: crate::plan::WhenBlocked,
 }
 
 /// The feedback settings of [`System::feedback`].

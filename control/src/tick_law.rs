@@ -131,6 +131,22 @@ impl<const N: usize> TickLaw<N> {
         true
     }
 
+    /// Steers the planar self-motion onto a planned cycle, or stops (a spatial law has no
+    /// steering: unchanged).
+    pub fn set_steer(&mut self, steer: Option<crate::plan::Steer>) {
+        if let TickLaw::Planar { params, .. } = self {
+            params.steer = steer;
+        }
+    }
+
+    /// Pauses tracking (the arm brakes to rest under the filter), or resumes it.
+    pub fn set_pause(&mut self, pause: bool) {
+        match self {
+            TickLaw::Planar { params, .. } => params.pause = pause,
+            TickLaw::Spatial { params, .. } => params.pause = pause,
+        }
+    }
+
     /// Where a spatial arm's tool point is at `q` (None for the planar arm, whose law always
     /// runs on the measured state).
     pub fn tool_position(&self, q: &VecN<N>) -> Option<crate::spatial::task::Vec3> {

@@ -222,6 +222,7 @@ fn panda_params(arm: &SpatialArm<7>, kind: TaskKind) -> (SpatialParams, V7) {
         projection: Projection::NullSpace,
         safety,
         track_loss: 0.05,
+        pause: false,
     };
     (p, q0)
 }

@@ -34,6 +34,9 @@ impl Reporter {
                 "the control loop has not taken the previous change yet; try again".to_string()
             })?;
         self.system = new;
+        let t = self.last.map_or(self.t_start, |r| r.t);
+        let q_now = self.last_state.map(|s| [s.q[0], s.q[1], s.q[2]]);
+        self.deadlock.edited(&self.system, t, q_now);
         self.limits.set_limits(*self.system.param_block().safety());
         if let (Some(log), System::Planar(c)) = (self.replay.as_mut(), &self.system) {
             log.committed(c);
@@ -168,6 +171,8 @@ impl Reporter {
             "answered_within_period": self.answered_share(),
             "command": self.saturations.to_json(),
             "device": protocol::DeviceStatus::from_code(self.device).map(|d| d.to_string()),
+            "blocked": self.deadlock.blocked.as_ref().map(|b| b.to_json()),
+            "plan": self.deadlock.plan_json(),
         });
         for k in [
             "kp",

@@ -13,6 +13,9 @@ use control::{ArmState, ControlOutput, DelayLine, LawParams, VecN};
 use protocol::{CommandSample, Mode, StateSample};
 use serde::Serialize;
 
+/// A paused arm counts as at rest below this joint rate (rad/s).
+const REST_RATE: f64 = 0.01;
+
 /// The longest gap between two commands the reference catches up over, in periods.
 const MAX_GAP_PERIODS: f64 = 64.0;
 
@@ -50,6 +53,9 @@ pub struct Counters {
     pub telemetry_dropped: u64,
     pub ipc_errors: u64,
     pub params_applied: u64,
+    /// Fresh states answered with HOLD because the arm was blocked (no clean cycle; the
+    /// `hold` action of `safety.when_blocked`).
+    pub blocked_holds: u64,
     /// States from a plant the handshake has not agreed to (not yet, or refused): ignored
     /// unread. Not a rejection: every plant's first states arrive before its handshake.
     pub not_agreed: u64,
@@ -105,6 +111,10 @@ pub enum Applied {
     Resume,
     /// The handshake's verdict on one plant start ([`Controller::set_plant_verdict`]).
     Plant { plant_id: u64, agreed: bool },
+    /// A planned cycle to steer onto, or none ([`Controller::set_steer`]).
+    Steer,
+    /// Blocked with the hold action, or no longer ([`Controller::set_blocked_hold`]).
+    BlockedHold(bool),
 }
 
 /// What one tick decided.
@@ -181,6 +191,15 @@ pub struct Controller<const N: usize> {
     last_run_t: Option<f64>,
     /// The device time of that state (`StateSample::device_time_ns`).
     last_run_device_ns: Option<u64>,
+    /// The planned cycle the self-motion is steered onto (planar arm), kept across parameter
+    /// blocks: the control service's blocks carry none, the planner's handover sets it.
+    steer: Option<control::plan::Steer>,
+    /// Blocked, holding: fresh states are answered with HOLD (tracking paused) until cleared.
+    blocked_hold: bool,
+    /// The arm kept the filter's clearance and was at rest on the newest law run: a blocked
+    /// hold hands the arm to the plant's HOLD only then (the filter brakes it and pushes it out
+    /// first).
+    clear: bool,
     pub counters: Counters,
 }
 
@@ -213,6 +232,9 @@ impl<const N: usize> Controller<N> {
             device_fault_latched: false,
             last_run_t: None,
             last_run_device_ns: None,
+            steer: None,
+            blocked_hold: false,
+            clear: true,
             counters: Counters::default(),
         }
     }
@@ -246,9 +268,33 @@ impl<const N: usize> Controller<N> {
         if !self.law.set(p) {
             return false;
         }
+        self.law.set_steer(self.steer);
+        self.law.set_pause(self.blocked_hold);
         self.applied = Some(Applied::Params);
         self.counters.params_applied += 1;
         true
+    }
+
+    /// Steers the self-motion onto a planned cycle, or stops steering (between ticks; no
+    /// allocation: the cycle is a `Copy` table). The steering outlives parameter changes until
+    /// the next handover. A spatial law has no steering and ignores it.
+    pub fn set_steer(&mut self, steer: Option<control::plan::Steer>) {
+        self.steer = steer;
+        self.law.set_steer(steer);
+        self.applied = Some(Applied::Steer);
+    }
+
+    /// Blocked with the hold action (`true`): tracking pauses, and the law brakes the arm to
+    /// rest through the safety filter (an arm swinging past an obstacle must not coast into
+    /// it); once at rest and clear, fresh states are answered with HOLD, so the plant keeps it
+    /// there. Or run again (`false`), starting over from the arm's state with a fresh history.
+    pub fn set_blocked_hold(&mut self, hold: bool) {
+        if self.blocked_hold && !hold {
+            self.last_qd = None; // the braking's rates are no history for the Pyragas term
+        }
+        self.blocked_hold = hold;
+        self.law.set_pause(hold);
+        self.applied = Some(Applied::BlockedHold(hold));
     }
 
     pub fn mode(&self) -> Mode {
@@ -452,6 +498,7 @@ impl<const N: usize> Controller<N> {
                 self.missed = 0;
                 out.command = Some(self.fault_command(s, now_ns));
             }
+            Some(s) if self.blocked_hold && self.clear => self.hold_blocked(s, now_ns, &mut out),
             Some(s) => self.run_law(s, now_ns, &mut out),
             None => self.missed_state(now_ns, &mut out),
         }
@@ -546,6 +593,7 @@ impl<const N: usize> Controller<N> {
         self.last_qd = Some(x.qd);
         let held = self.hold_command(t, &x);
         let mut o = held.output;
+        self.clear = o.clearance >= self.law.safety().clearance && x.qd.amax() <= REST_RATE;
         if x.q != m.q {
             // The law ran on the reference: the tracking error reported is the arm's own.
             if let Some(p) = self.law.tool_position(&m.q) {
@@ -571,6 +619,15 @@ impl<const N: usize> Controller<N> {
         self.generator.commit(&c);
         out.limiter_hits[..N].copy_from_slice(&c.hits);
         out.command = Some(self.command(Mode::Run, &c, s, now_ns));
+    }
+
+    /// Blocked, holding: the plant brings the arm to rest and keeps it there; the next RUN
+    /// starts a fresh history (as after any HOLD).
+    fn hold_blocked(&mut self, s: &StateSample, now_ns: u64, out: &mut TickOutcome<N>) {
+        self.missed = 0;
+        self.mode = Mode::Hold;
+        self.counters.blocked_holds += 1;
+        out.command = Some(self.command(Mode::Hold, &self.still(), s, now_ns));
     }
 
     /// The command stream starts again from the arm's measured state `x`.
@@ -739,6 +796,67 @@ mod tests {
         s.q[1] = 1.57;
         s.q[2] = 1.57;
         s
+    }
+
+    #[test]
+    fn a_blocked_hold_brakes_through_the_filter_and_holds_clear_of_the_obstacle() {
+        // The daemon's set-up (filter on) tracking the circle; at 4.47 s a disc appears on the
+        // hand's path ahead of it, and 40 ms later (the planner's answer) the hold begins: the
+        // arm must brake to rest under the filter, never inside the clearance, and then be
+        // handed to the plant's HOLD. The plant's blind hold at once coasted 0.1 m into the disc.
+        let cfg = Config::default();
+        let mut c = Controller::<3>::new(cfg.tick_law::<3>(), 2.0, controller().settings);
+        let model = cfg.model::<3>();
+        let mut x = cfg.initial_state::<3>();
+        let clearance = cfg.safety.clearance;
+        let (mut min, mut first_hold) = (f64::INFINITY, None);
+        let t0 = 1_000_000_000u64;
+        for k in 0..6000u64 {
+            if k == 4470 {
+                let mut p = *c.params().unwrap();
+                let mut o = control::secondary::ObstacleSet::new();
+                o.push(control::config::ObstacleConfig::disc(1.5, 2.0, 0.2).to_obstacle())
+                    .unwrap();
+                p.obstacles = o;
+                assert!(c.set_params(ParamBlock::Planar(p)));
+            }
+            if k == 4510 {
+                c.set_blocked_hold(true);
+            }
+            let mut s = state(k, t0 + k * 1_000_000);
+            s.q[..3].copy_from_slice(x.q.as_slice());
+            s.qd[..3].copy_from_slice(x.qd.as_slice());
+            let o = c.tick(Some(&s), s.stamp_ns);
+            if let Some(out) = o.output.filter(|_| k >= 4470) {
+                min = min.min(out.clearance);
+            }
+            let cmd = o.command.unwrap();
+            // The simulated plant's HOLD: brake blind, q̈ = −20·q̇ (its default brake gain).
+            let (qdd, qddd) = if cmd.mode() == Ok(Mode::Hold) {
+                first_hold.get_or_insert(k);
+                (-x.qd * 20.0, VecN::<3>::zeros())
+            } else {
+                (
+                    VecN::<3>::from_column_slice(&cmd.qdd[..3]),
+                    VecN::<3>::from_column_slice(&cmd.qddd[..3]),
+                )
+            };
+            x = control::hold::integrate(&model, &x, &qdd, &qddd, 0.0, 1e-3, 1e-3, 4);
+        }
+        assert!(min >= clearance - 1e-3, "clearance {min} < {clearance}");
+        let mut plant_clearance = f64::INFINITY;
+        let mut kin = control::Kinematics::<3>::default();
+        model.kinematics(0.0, &x.q, &x.qd, &mut kin);
+        let obstacles = c.params().unwrap().obstacles;
+        plant_clearance = plant_clearance.min(control::secondary::clearance(&kin, &obstacles).0);
+        assert!(
+            plant_clearance >= clearance - 1e-3,
+            "at rest {plant_clearance}"
+        );
+        let held = first_hold.expect("the plant's HOLD once at rest");
+        assert!((4520..5600).contains(&held), "held from tick {held}");
+        assert_eq!(c.mode(), Mode::Hold);
+        assert!(c.counters.blocked_holds > 0);
     }
 
     #[test]

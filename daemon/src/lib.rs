@@ -10,13 +10,16 @@
 pub mod config;
 pub mod control_service;
 pub mod controller;
+pub mod deadlock;
 pub mod guard;
 pub mod handshake;
 pub mod limits;
 pub mod persist;
+pub mod planner;
 pub mod record;
 pub mod recording;
 pub mod replay;
+mod replay_steer;
 pub mod reporter;
 pub mod requests;
 pub mod residual;

@@ -21,6 +21,10 @@
 //! P <tick> <k>                a parameter block taking effect before <tick>: its config, k lines
 //! R <tick>                    an operator's resume taking effect before <tick>
 //! H <tick> <plant_id> <0|1>   the handshake's verdict on a plant start, before <tick>
+//! S <tick> 0                  steering stops, before <tick>
+//! S <tick> 1 <t0> <period> <kp> <kd> <k> <q…>   steering onto a planned cycle of k postures
+//!                             (3 joints each), before <tick> (`crate::replay_steer`)
+//! B <tick> <0|1>              blocked with the hold action begins (1) or ends (0), before <tick>
 //! T <tick> <now_ns> <state> <command>
 //! G <tick> <missing>          <missing> records never reached the reporter: the recording ends
 //! ```
@@ -55,13 +59,22 @@ pub fn system_toml(cfg: &Config) -> String {
     c.to_toml_string()
 }
 
+/// What the loop is sent with data a replay needs, in the order sent.
+enum Announced {
+    /// A configuration, as [`system_toml`] writes it.
+    Config(String),
+    /// A steering handover, as [`crate::replay_steer::line`] writes it.
+    Steer(String),
+}
+
 /// An open replay recording, written by the reporter thread.
 pub struct ReplayLog {
     pub path: PathBuf,
     file: std::io::BufWriter<std::fs::File>,
     next_tick: u64,
-    /// Configs committed to the loop and not yet seen applied, oldest first.
-    pending: VecDeque<String>,
+    /// Configs and steering handed to the loop and not yet seen applied, oldest first (the
+    /// loop takes requests in the order they were sent).
+    pending: VecDeque<Announced>,
     /// Why the recording stopped, once it has.
     pub stopped: Option<String>,
     /// Bytes written so far, and the most it may grow to (`daemon.record_max_bytes`).
@@ -121,7 +134,13 @@ impl ReplayLog {
 
     /// A configuration the control service has just sent to the loop.
     pub fn committed(&mut self, cfg: &Config) {
-        self.pending.push_back(system_toml(cfg));
+        self.pending.push_back(Announced::Config(system_toml(cfg)));
+    }
+
+    /// A steering handover the planner has just sent to the loop.
+    pub fn steered(&mut self, steer: Option<&control::plan::Steer>) {
+        self.pending
+            .push_back(Announced::Steer(crate::replay_steer::line(steer)));
     }
 
     /// Appends one tick. After a gap or a write error the recording stops (and says why).
@@ -155,10 +174,23 @@ impl ReplayLog {
         let mut out = String::with_capacity(700);
         match r.applied {
             Some(Applied::Params) => {
-                let cfg = self.pending.pop_front().ok_or_else(|| {
-                    std::io::Error::other("a parameter change reached the loop unannounced")
-                })?;
+                let Some(Announced::Config(cfg)) = self.pending.pop_front() else {
+                    return Err(std::io::Error::other(
+                        "a parameter change reached the loop unannounced",
+                    ));
+                };
                 let _ = write!(out, "P {tick} {}\n{cfg}", cfg.lines().count());
+            }
+            Some(Applied::Steer) => {
+                let Some(Announced::Steer(line)) = self.pending.pop_front() else {
+                    return Err(std::io::Error::other(
+                        "a steering handover reached the loop unannounced",
+                    ));
+                };
+                let _ = writeln!(out, "S {tick} {line}");
+            }
+            Some(Applied::BlockedHold(hold)) => {
+                let _ = writeln!(out, "B {tick} {}", u8::from(hold));
             }
             Some(Applied::Resume) => {
                 let _ = writeln!(out, "R {tick}");
@@ -630,6 +662,15 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
                 ctl.resume();
                 rep.resumes += 1;
             }
+            "S" => {
+                let rest: Vec<&str> = parts.collect();
+                ctl.set_steer(crate::replay_steer::parse(&rest).map_err(at)?);
+            }
+            "B" => match (parts.next(), parts.next()) {
+                (Some("0"), None) => ctl.set_blocked_hold(false),
+                (Some("1"), None) => ctl.set_blocked_hold(true),
+                _ => bail!("line {no}: a blocked hold is 0 or 1"),
+            },
             "H" => {
                 let (Some(id), Some(agreed), None) = (parts.next(), parts.next(), parts.next())
                 else {

@@ -92,6 +92,8 @@ pub struct Reporter {
     /// Reflex stops the device reported, and the first one (controller time, reason).
     pub(crate) device_stops: u64,
     pub(crate) first_device_stop: Option<String>,
+    /// Planning, trap detection and the `Blocked` state (see `deadlock`).
+    pub(crate) deadlock: crate::deadlock::Deadlock,
 }
 
 impl Reporter {
@@ -109,7 +111,9 @@ impl Reporter {
             system.limiter_on(),
             system.n(),
         );
+        let deadlock = crate::deadlock::Deadlock::new(&system, daemon.core);
         Ok(Self {
+            deadlock,
             limits,
             saturations,
             device: 0,
@@ -229,6 +233,7 @@ impl Reporter {
             self.fault = None;
             self.saved_at = None;
         }
+        self.deadlock.observe(r, &self.system);
         self.lateness.saturating_record(r.lateness_ns.max(1));
         self.window_lateness.saturating_record(r.lateness_ns.max(1));
         self.tel_lateness.saturating_record(r.lateness_ns.max(1));
@@ -356,6 +361,8 @@ impl Reporter {
             ..TelemetrySample::default()
         };
         self.metrics.fill(&mut t, c);
+        t.blocked = self.deadlock.code();
+        t.steering = u32::from(self.deadlock.steering());
         t.interface = self.saturations.mode.code();
         t.device = self.device;
         for kind in control::command::LimitKind::ALL {
@@ -443,6 +450,9 @@ impl Reporter {
                 let resp = self.handle(&req);
                 let _ = active.send_copy(resp);
             }
+            let t = self.last.map_or(self.t_start, |r| r.t);
+            self.deadlock
+                .poll(&self.system, t, &self.params_tx, self.replay.as_mut());
             let now = Instant::now();
             if now >= next_tel {
                 if let Some(t) = self.telemetry() {
@@ -499,11 +509,12 @@ impl Reporter {
         self.window_lateness.reset();
         self.window_track = (0.0, 0);
         self.window_resid = (0.0, 0);
-        let mode = match r.mode {
-            Mode::Run => "RUN ",
-            Mode::Hold => "HOLD",
-            Mode::Brake => "BRAKE",
-            Mode::Fault => "FAULT",
+        let mode = match (r.mode, &self.deadlock.blocked) {
+            (_, Some(_)) => "BLOCKED",
+            (Mode::Run, None) => "RUN ",
+            (Mode::Hold, None) => "HOLD",
+            (Mode::Brake, None) => "BRAKE",
+            (Mode::Fault, None) => "FAULT",
         };
         Some(format!(
             "[{:7.1} s] {mode} μ={:.2} feedback {}  track {:.1e} m  residual {:.2e} rad/s  late p99 {:.1} µs max {:.1} µs  overruns {}  rejected {}  holds {}  drops {}",
@@ -575,6 +586,8 @@ impl Reporter {
             command: self.saturations,
             device_stops: self.device_stops,
             first_device_stop: self.first_device_stop.clone(),
+            blocked_entered: self.deadlock.entered,
+            first_blocked: self.deadlock.first.clone(),
             time_in_safety_zone_s: self.safety_ticks as f64 / self.daemon.rate_hz,
             files: Vec::new(),
         };

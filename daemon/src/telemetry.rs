@@ -26,6 +26,10 @@ pub enum LoopRequest {
     Stall(u64),
     /// The handshake's verdict on one plant start (`crate::handshake`).
     Plant { plant_id: u64, agreed: bool },
+    /// The planner's handover: a cycle to steer onto, or none (`crate::deadlock`).
+    Steer(Option<control::plan::Steer>),
+    /// Blocked with the hold action, or no longer (`crate::deadlock`).
+    BlockedHold(bool),
 }
 
 /// One tick, as the loop saw it.
@@ -95,6 +99,10 @@ pub struct DaemonSummary {
     /// first.
     pub device_stops: u64,
     pub first_device_stop: Option<String>,
+    /// Times the daemon said `Blocked` (no clean cycle, or a trap it could not steer out of),
+    /// and the first reason.
+    pub blocked_entered: u64,
+    pub first_blocked: Option<String>,
     pub time_in_safety_zone_s: f64,
     pub files: Vec<PathBuf>,
 }

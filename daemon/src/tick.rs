@@ -79,6 +79,8 @@ pub fn take_request<const N: usize>(ctl: &mut Controller<N>, rx: &Receiver<LoopR
         // Only on an operator's explicit `debug-stall`: a stuck tick, to check the watchdog.
         Ok(LoopRequest::Stall(ms)) => std::thread::sleep(std::time::Duration::from_millis(ms)),
         Ok(LoopRequest::Plant { plant_id, agreed }) => ctl.set_plant_verdict(plant_id, agreed),
+        Ok(LoopRequest::Steer(s)) => ctl.set_steer(s),
+        Ok(LoopRequest::BlockedHold(h)) => ctl.set_blocked_hold(h),
         Err(_) => {}
     }
 }

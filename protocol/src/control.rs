@@ -188,7 +188,7 @@ impl ControlResponse {
 
 /// One telemetry sample, published by the daemon at `daemon.telemetry_hz`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::TelemetrySample.v4")]
+#[type_name("chaosd::TelemetrySample.v5")]
 #[repr(C)]
 pub struct TelemetrySample {
     pub seq: u64,
@@ -249,6 +249,10 @@ pub struct TelemetrySample {
     /// Joint-ticks the limiter clamped since start, per kind: position, velocity,
     /// acceleration, jerk, torque, torque rate.
     pub saturations: [u64; 6],
+    /// 0: not blocked; blocked (no clean cycle, or a trap) and 1: holding, 2: best-effort.
+    pub blocked: u32,
+    /// 1 while the self-motion is steered onto a planned clean cycle.
+    pub steering: u32,
 }
 
 /// Control service settings: one daemon serves; several clients may ask at once, one request
@@ -376,7 +380,7 @@ mod tests {
         // SAFETY: type_name only returns the string set by #[type_name].
         assert_eq!(
             unsafe { <TelemetrySample as ZeroCopySend>::type_name() },
-            "chaosd::TelemetrySample.v4"
+            "chaosd::TelemetrySample.v5"
         );
     }
 }

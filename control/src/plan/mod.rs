@@ -12,6 +12,9 @@
 //! whole.
 
 pub mod planar;
+mod policy;
+
+pub use policy::{check_trap_time, WhenBlocked, DEFAULT_TRAP_TIME};
 
 /// How finely the planner searches, and with what margins.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -33,6 +36,21 @@ pub struct PlanSettings {
     /// faster approach, and a cycle that approaches faster is braked off its path. Judged on
     /// each posture's nearest obstacle, between consecutive phases.
     pub approach: f64,
+}
+
+impl PlanSettings {
+    /// The physical limits alone: the filter's clearance and joint limits without extra
+    /// margin, the safety rate limit, no approach bound. When no cycle exists under these,
+    /// none exists at all (on the grid): the arm is blocked, whatever the steering's settings.
+    pub fn limits_only(max_rate: f64) -> Self {
+        Self {
+            margin: 0.0,
+            joint_margin: 0.0,
+            max_rate,
+            approach: f64::INFINITY,
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for PlanSettings {
@@ -85,16 +103,31 @@ impl CycleTable {
                 c.q.len()
             ));
         }
-        let mut q = [[0.0; 3]; MAX_PHASES];
-        for (k, p) in c.q.iter().enumerate() {
-            q[k] = [p[0], p[1], p[2]];
+        let rows: Vec<[f64; 3]> = c.q.iter().map(|p| [p[0], p[1], p[2]]).collect();
+        Self::from_rows(c.t0, c.period, &rows)
+    }
+
+    /// The table of `rows` postures (as [`Self::rows`] gives them back: a recording's copy).
+    pub fn from_rows(t0: f64, period: f64, rows: &[[f64; 3]]) -> Result<Self, String> {
+        if rows.is_empty() || rows.len() > MAX_PHASES {
+            return Err(format!(
+                "a cycle of 1 to {MAX_PHASES} phases (this one has {})",
+                rows.len()
+            ));
         }
+        let mut q = [[0.0; 3]; MAX_PHASES];
+        q[..rows.len()].copy_from_slice(rows);
         Ok(Self {
-            t0: c.t0,
-            period: c.period,
-            n: c.q.len(),
+            t0,
+            period,
+            n: rows.len(),
             q,
         })
+    }
+
+    /// The postures, one per phase.
+    pub fn rows(&self) -> &[[f64; 3]] {
+        &self.q[..self.n]
     }
 
     /// The planned posture and rate at task time `t` (linear between phases, periodic).
@@ -158,6 +191,44 @@ pub enum PlanOutcome {
     Blocked(Blocked),
 }
 
+/// A config's plan: the cycle to steer onto, or why there is none, and the planning time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Planned {
+    pub outcome: PlanOutcome,
+    /// Whether only the physical limits admit the cycle ([`PlanSettings::limits_only`]): the
+    /// default settings' margins and approach bound found none.
+    pub limits_only: bool,
+    pub took: std::time::Duration,
+}
+
+/// Plans for a planar config from task time `t0` near posture `q_now`: with the default
+/// settings first, then with the physical limits alone, so that `Blocked` means what it says
+/// (no clean cycle within the filter's own limits) and not that a margin was too greedy.
+pub fn plan_config(
+    cfg: &crate::Config,
+    t0: f64,
+    q_now: Option<[f64; 3]>,
+) -> Result<Planned, String> {
+    let started = std::time::Instant::now();
+    let problem = planar::PlanarProblem::from_config(cfg, t0, q_now)?;
+    let strict = planar::plan(&problem, &PlanSettings::default());
+    let (outcome, limits_only) = match strict {
+        PlanOutcome::Found(c) => (PlanOutcome::Found(c), false),
+        PlanOutcome::Blocked(_) => {
+            let rate = problem.qd_max.into_iter().fold(f64::INFINITY, f64::min);
+            (
+                planar::plan(&problem, &PlanSettings::limits_only(rate)),
+                true,
+            )
+        }
+    };
+    Ok(Planned {
+        outcome,
+        limits_only,
+        took: started.elapsed(),
+    })
+}
+
 impl planar::PlanarProblem {
     /// The problem a planar config poses: its arm, circle, obstacles, the filter's clearance
     /// and joint limits, starting at task time `t0` near posture `q_now`. Only the fixed-base
@@ -182,6 +253,7 @@ impl planar::PlanarProblem {
             clearance: p.safety.clearance,
             q_min: [p.safety.q_min[0], p.safety.q_min[1], p.safety.q_min[2]],
             q_max: [p.safety.q_max[0], p.safety.q_max[1], p.safety.q_max[2]],
+            qd_max: [p.safety.qd_max[0], p.safety.qd_max[1], p.safety.qd_max[2]],
             t0,
             q_now,
         })

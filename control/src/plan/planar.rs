@@ -33,6 +33,9 @@ pub struct PlanarProblem {
     pub clearance: f64,
     pub q_min: [f64; 3],
     pub q_max: [f64; 3],
+    /// The filter's joint rate limits (rad/s): [`super::PlanSettings::limits_only`] plans
+    /// within them.
+    pub qd_max: [f64; 3],
     /// The task time of the cycle's first phase (s): the arm's phase now.
     pub t0: f64,
     /// The arm's posture now, if known: the cycle is chosen near it.
@@ -109,7 +112,7 @@ fn step(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 /// Whether moving from `a` to `b` in `dt` closes in on the nearest obstacle no faster than
 /// `approach` times the clearance left at `b` (always, without obstacles).
 fn approach_ok(p: &PlanarProblem, s: &PlanSettings, a: &Node, b: &Node, dt: f64) -> bool {
-    if !b.clearance.is_finite() {
+    if !b.clearance.is_finite() || s.approach == f64::INFINITY {
         return true;
     }
     let left = b.clearance - p.clearance;
@@ -208,6 +211,30 @@ impl Grid {
             .collect()
     }
 
+    /// The layer-0 nodes reachable from layer-0 node `from` after one to `periods` whole
+    /// periods: where the arm can go while its hand tracks the path and it keeps clean.
+    fn reachable(&self, from: usize, periods: usize) -> Vec<bool> {
+        let width = self.layers[0].len();
+        let mut at = vec![false; width];
+        at[from] = true;
+        let mut seen = vec![false; width];
+        for _ in 0..periods {
+            for k in 0..self.layers.len() {
+                let mut next = vec![false; width];
+                for i in (0..width).filter(|&i| at[i]) {
+                    for j in self.successors(k, i) {
+                        next[j] = true;
+                    }
+                }
+                at = next;
+            }
+            for (s, a) in seen.iter_mut().zip(&at) {
+                *s |= *a;
+            }
+        }
+        seen
+    }
+
     /// The cheapest closed walk from layer-0 node `start`: joint motion squared per unit time,
     /// plus a penalty on clearance below `roomy`. Returns the node indices per layer and cost.
     fn cheapest_cycle(&self, start: usize, roomy: f64) -> Option<(Vec<usize>, f64)> {
@@ -249,12 +276,39 @@ impl Grid {
     }
 }
 
+/// Whole periods the arm may take to reach a cycle from its posture.
+const REACH_PERIODS: usize = 4;
+
+/// The clean layer-0 node the arm's posture `q` is at: the nearest, if it is within one
+/// phase's motion (an arm off its path, or inside a margin, is at none).
+fn arm_node(q: &[f64; 3], s: &PlanSettings, grid: &Grid) -> Option<usize> {
+    let q = q.map(wrap_angle);
+    grid.layers[0]
+        .iter()
+        .enumerate()
+        .filter_map(|(i, n)| n.map(|n| (i, step(&q, &n.q))))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .filter(|(_, d)| *d <= s.max_rate.min(1e3) * grid.dt)
+        .map(|(i, _)| i)
+}
+
 /// Plans a clean periodic cycle for the planar 3-link arm, or says why there is none.
+///
+/// When the arm's posture is on the grid, only cycles it can reach while tracking count: a
+/// cycle on the other side of an obstacle is no way out for an arm that must keep its hand on
+/// the path.
 pub fn plan(p: &PlanarProblem, s: &PlanSettings) -> PlanOutcome {
     let grid = build(p, s);
-    let starts = grid.closing_starts();
+    let mut starts = grid.closing_starts();
     if starts.is_empty() {
         return PlanOutcome::Blocked(blocked(p, s, &grid));
+    }
+    if let Some(a) = p.q_now.as_ref().and_then(|q| arm_node(q, s, &grid)) {
+        let reach = grid.reachable(a, REACH_PERIODS);
+        starts.retain(|&i| reach[i]);
+        if starts.is_empty() {
+            return PlanOutcome::Blocked(unreachable(p, s, &grid, a));
+        }
     }
     let start_q = |i: usize| grid.layers[0][i].expect("a start is feasible").q;
     let mut ranked = starts.clone();
@@ -301,6 +355,30 @@ fn cycle(p: &PlanarProblem, grid: &Grid, path: &[usize]) -> Cycle {
         q: q.into_iter().map(|a| a.to_vec()).collect(),
         min_clearance,
         max_rate,
+    }
+}
+
+/// Why the arm at layer-0 node `a` reaches no clean cycle: the obstacle nearest to it.
+fn unreachable(p: &PlanarProblem, s: &PlanSettings, grid: &Grid, a: usize) -> Blocked {
+    let q = grid.layers[0][a].expect("the arm's node is clean").q;
+    let (c, at) = p.clearance(&q);
+    let near = at.map_or(String::new(), |(o, l)| {
+        format!(
+            " (nearest: link {} {c:.3} m from obstacle {})",
+            l + 1,
+            o + 1
+        )
+    });
+    Blocked {
+        reason: format!(
+            "clean cycles exist, but none the arm can reach from its posture with its hand on \
+             the path and joint rates within {:.1} rad/s: an obstacle stands between{near}",
+            s.max_rate
+        ),
+        best_clearance: c,
+        obstacle: at.map(|w| w.0),
+        link: at.map(|w| w.1),
+        task_time: p.t0,
     }
 }
 
@@ -375,6 +453,7 @@ mod tests {
             clearance: 0.05,
             q_min: [f64::NEG_INFINITY; 3],
             q_max: [f64::INFINITY; 3],
+            qd_max: [20.0; 3],
             t0: 0.0,
             q_now: Some([
                 0.0,

@@ -69,6 +69,11 @@ pub struct SafetyConfig {
     pub plan: bool,
     /// The pull's natural frequency (Hz), critically damped.
     pub plan_hz: f64,
+    /// Daemon: tracking lost, or the filter acting outside the null space, for this long (s)
+    /// → the arm is trapped: the daemon steers onto a planned cycle, or says `Blocked`.
+    pub trap_time: f64,
+    /// Daemon: what to do while blocked (no clean cycle): `hold` or `best-effort`.
+    pub when_blocked: crate::plan::WhenBlocked,
 }
 
 impl Default for SafetyConfig {
@@ -89,6 +94,8 @@ impl Default for SafetyConfig {
             guard_growth_time: 0.5,
             plan: false,
             plan_hz: 1.0,
+            trap_time: crate::plan::DEFAULT_TRAP_TIME,
+            when_blocked: crate::plan::WhenBlocked::Hold,
         }
     }
 }
@@ -172,6 +179,7 @@ impl SafetyConfig {
             ));
         }
         in_range("plan_hz", self.plan_hz, 0.0, 20.0, true)?;
+        crate::plan::check_trap_time(self.trap_time)?;
         in_range("k0", self.k0, 0.0, 1e6, true)?;
         in_range("k1", self.k1, 0.0, 1e4, true)?;
         if self.k1 * self.k1 < 4.0 * self.k0 {

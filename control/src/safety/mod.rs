@@ -97,6 +97,18 @@ impl SafetyParams {
     }
 }
 
+/// How fast a paused arm brakes (1/s): q̈ = −rate · q̇, so q̇ halves every 70 ms; the filter
+/// then keeps every clearance, limit and rate as it does for the law's own command.
+pub const PAUSE_BRAKE_RATE: f64 = 10.0;
+
+/// The command of a paused arm (the daemon's blocked hold) before the filter: brake to rest.
+/// A plant's own HOLD brakes blind, and an arm swinging past an obstacle could coast into it;
+/// braking through the filter cannot.
+#[inline]
+pub fn pause_brake<const N: usize>(qd: &VecN<N>) -> VecN<N> {
+    -qd * PAUSE_BRAKE_RATE
+}
+
 /// What the filter did to one command.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Filtered<const N: usize> {

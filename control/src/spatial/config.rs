@@ -157,6 +157,11 @@ pub struct LimitsSection {
     /// Per-joint acceleration limits; default: the robot's published ones (Panda) or 10.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub qdd_max: Option<Vec<f64>>,
+    /// Daemon: tracking lost, or the filter acting outside the null space, for this long (s)
+    /// → the arm is trapped, and the daemon says `Blocked` (no planner for a URDF chain yet).
+    pub trap_time: f64,
+    /// Daemon: what to do while blocked: `hold` or `best-effort`.
+    pub when_blocked: crate::plan::WhenBlocked,
 }
 
 impl Default for LimitsSection {
@@ -166,6 +171,8 @@ impl Default for LimitsSection {
             clearance: 0.02,
             velocity_scale: 1.0,
             qdd_max: None,
+            trap_time: crate::plan::DEFAULT_TRAP_TIME,
+            when_blocked: crate::plan::WhenBlocked::Hold,
         }
     }
 }
@@ -323,6 +330,7 @@ impl SpatialConfig {
             self.sim.dt,
             &step,
         )?;
+        crate::plan::check_trap_time(self.safety.trap_time)?;
         let s = self.safety.velocity_scale;
         if !(s > 0.0 && s <= 1.0) {
             return Err(invalid("safety.velocity_scale", s, "a number in (0, 1]"));
@@ -532,6 +540,7 @@ impl SpatialConfig {
             projection: self.projection()?,
             safety,
             track_loss: self.law.track_loss,
+            pause: false,
         };
         Ok(SpatialSetup {
             arm,

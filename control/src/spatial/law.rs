@@ -52,6 +52,9 @@ pub struct SpatialParams {
     pub safety: SafetyParams,
     /// Position error (m) above which tracking counts as lost.
     pub track_loss: f64,
+    /// Tracking paused (the daemon's blocked hold): the arm brakes to rest, the filter keeping
+    /// clearance as ever ([`crate::safety::pause_brake`]).
+    pub pause: bool,
 }
 
 impl SpatialParams {
@@ -137,6 +140,9 @@ pub fn evaluate<const N: usize, const M: usize>(
     let mut qdd = resolve(&j, &jpinv, &task_acc, &terms);
     if params.null_damping != 0.0 {
         qdd -= (qd - jpinv * (j * qd)) * params.null_damping;
+    }
+    if params.pause {
+        qdd = crate::safety::pause_brake(qd);
     }
     let demand = (0..N)
         .map(|i| qdd[i].abs() / params.safety.qdd_max[i])

@@ -1,0 +1,483 @@
+//! Safety without deadlock: the daemon never runs on silently with the arm trapped.
+//!
+//! The safety filter is local. It keeps clearance now, but it can hold the arm off its path
+//! for good, and the loop alone cannot tell a trap from a transient. This module, on the
+//! reporter thread, does three things:
+//!
+//! - **Plans.** At start and on every committed edit it asks the planner thread
+//!   ([`crate::planner`]) whether a clean cycle exists (planar fixed-base arm, filter on).
+//! - **Watches for traps.** Tracking lost while the filter acts, or the filter acting outside
+//!   the null space, for `safety.trap_time` makes a trap (a start far from the path loses
+//!   tracking too, but the filter plays no part in it). The first trap of an edit is answered by steering onto a
+//!   cycle planned from where the arm is. A second one, or one on an arm without a planner,
+//!   means the arm cannot get round.
+//! - **Says `Blocked`.** When there is no clean cycle, or steering did not help, the daemon
+//!   enters `Blocked` with the reason in words, and holds the posture (tracking paused) or runs
+//!   on best-effort, as `safety.when_blocked` says. The next edit ends it once a clean cycle
+//!   exists again.
+//!
+//! What reaches the loop is a `Copy` request through the same bounded channel as every other
+//! change: a steering table ([`crate::telemetry::LoopRequest::Steer`]) or the hold switch. No
+//! lock, no allocation on the loop.
+
+use crate::planner::{Done, Job, Planner, Why};
+use crate::replay::ReplayLog;
+use crate::telemetry::{LoopRequest, TickRecord};
+use control::law::flags;
+use control::plan::{CycleTable, PlanOutcome, Steer, WhenBlocked};
+use control::System;
+use crossbeam::channel::Sender;
+
+/// Why the arm is blocked, since when, and what the daemon does about it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlockedState {
+    pub reason: String,
+    /// Controller time (s) it began.
+    pub since: f64,
+    pub action: WhenBlocked,
+    /// The planner's best clearance (m), and the obstacle and link that set it (1-based).
+    pub best_clearance: Option<f64>,
+    pub obstacle: Option<usize>,
+    pub link: Option<usize>,
+}
+
+impl BlockedState {
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "reason": self.reason,
+            "since": self.since,
+            "action": self.action.name(),
+            "best_clearance": self.best_clearance,
+            "obstacle": self.obstacle,
+            "link": self.link,
+        })
+    }
+}
+
+/// The newest plan the planner returned.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlanInfo {
+    pub generation: u64,
+    pub why: Why,
+    pub found: bool,
+    pub took_ms: f64,
+    pub min_clearance: Option<f64>,
+    /// Only the physical limits admitted the cycle (the default margins found none).
+    pub limits_only: bool,
+}
+
+/// How much of the recent past was trapped: a level that rises towards 1 on trapped ticks and
+/// falls towards 0 on good ones, halving every `trap_time`. It crosses ½ after `trap_time` of
+/// a steady trap, and also when the arm keeps slipping in and out of one (tracking regained
+/// for a moment once round the circle is still a trap).
+#[derive(Clone, Copy, Debug, Default)]
+struct TrapWatch {
+    level: f64,
+    last_t: Option<f64>,
+    fired: bool,
+}
+
+/// Lost tracking is the filter's doing if the filter changed a command this recently (s).
+const FILTER_RECENT_S: f64 = 1.0;
+
+/// The level below which a trap that fired counts as over.
+const TRAP_OVER: f64 = 0.1;
+
+impl TrapWatch {
+    /// One tick on which the law ran: true once per trap, when the level first reaches ½.
+    fn observe(&mut self, t: f64, bad: bool, trap_time: f64) -> bool {
+        let dt = self.last_t.map_or(0.0, |l| (t - l).max(0.0));
+        self.last_t = Some(t);
+        let keep = (-dt * std::f64::consts::LN_2 / trap_time).exp();
+        self.level = keep * self.level + (1.0 - keep) * f64::from(u8::from(bad));
+        if self.fired {
+            self.fired = self.level >= TRAP_OVER;
+            return false;
+        }
+        if self.level >= 0.5 {
+            self.fired = true;
+            return true;
+        }
+        false
+    }
+
+    fn trapped(&self) -> bool {
+        self.level > TRAP_OVER
+    }
+}
+
+/// The reporter's side of safety without deadlock.
+pub struct Deadlock {
+    planner: Option<Planner>,
+    generation: u64,
+    trap: TrapWatch,
+    /// Traps seen since the last edit.
+    traps: u32,
+    /// The worst tracking error and whether the filter left the null space, during the trap.
+    trap_error: f64,
+    trap_left_null_space: bool,
+    /// Controller time the filter last changed a command.
+    filter_acted: Option<f64>,
+    steering_wanted: bool,
+    pub blocked: Option<BlockedState>,
+    pub plan: Option<PlanInfo>,
+    planner_error: Option<String>,
+    /// Requests not yet taken by the loop's channel (retried on the next poll).
+    send_steer: Option<Option<Steer>>,
+    send_hold: Option<bool>,
+    /// What the loop was last sent.
+    steering: bool,
+    holding: bool,
+    /// Times the daemon became blocked, and the first reason.
+    pub entered: u64,
+    pub first: Option<String>,
+}
+
+impl Deadlock {
+    /// Starts the planner for a planar fixed-base arm (others have none) and plans the start.
+    pub fn new(system: &System, loop_core: Option<usize>) -> Self {
+        let planner = match system.planar() {
+            Some(c) if c.n() == 3 && c.arm.model == control::config::ModelKind::Fixed => {
+                Planner::spawn(loop_core)
+                    .map_err(|e| tracing::warn!("cannot start the cycle planner: {e}"))
+                    .ok()
+            }
+            _ => None,
+        };
+        let steering_wanted = system.planar().is_some_and(|c| c.safety.plan);
+        let mut d = Self {
+            planner,
+            generation: 0,
+            trap: TrapWatch::default(),
+            traps: 0,
+            trap_error: 0.0,
+            trap_left_null_space: false,
+            filter_acted: None,
+            steering_wanted,
+            blocked: None,
+            plan: None,
+            planner_error: None,
+            send_steer: None,
+            send_hold: None,
+            steering: false,
+            holding: false,
+            entered: 0,
+            first: None,
+        };
+        if let Some(c) = system.planar() {
+            let q0 = c.q0();
+            d.submit(system, Why::Start, 0.0, Some([q0[0], q0[1], q0[2]]));
+        }
+        d
+    }
+
+    fn submit(&mut self, system: &System, why: Why, t0: f64, q_now: Option<[f64; 3]>) {
+        let (Some(p), Some(c)) = (&self.planner, system.planar()) else {
+            return;
+        };
+        if c.safety.enabled {
+            p.submit(Job {
+                generation: self.generation,
+                why,
+                config: c.clone(),
+                t0,
+                q_now,
+            });
+        }
+    }
+
+    /// A committed change: plan it; an arm without a planner is unblocked (a trap that
+    /// remains is seen again after `trap_time`).
+    pub fn edited(&mut self, system: &System, t: f64, q_now: Option<[f64; 3]>) {
+        self.generation += 1;
+        self.trap = TrapWatch::default();
+        self.traps = 0;
+        let plans = self.planner.is_some() && system.planar().is_some_and(|c| c.safety.enabled);
+        if plans {
+            self.submit(system, Why::Edit, t, q_now);
+        } else {
+            if self.steering {
+                self.send_steer = Some(None);
+            }
+            self.unblock(t, "the edit");
+        }
+    }
+
+    /// One tick record: watches for a trap while the law runs.
+    pub fn observe(&mut self, r: &TickRecord, system: &System) {
+        if !r.ran_law || r.mode != protocol::Mode::Run {
+            return;
+        }
+        let s = system.safety();
+        if !s.enabled || self.blocked.is_some() {
+            return;
+        }
+        // The filter's trap, not a start's transient: tracking lost while the filter acts (it
+        // need not change every command to hold the arm off its path).
+        if r.law_flags & flags::SAFETY_ACTIVE != 0 {
+            self.filter_acted = Some(r.t);
+        }
+        let filter_near = self
+            .filter_acted
+            .is_some_and(|a| r.t - a <= FILTER_RECENT_S);
+        let left = r.law_flags & flags::SAFETY_LEFT_NULL_SPACE != 0;
+        let lost = r.tracking_error > s.track_loss && filter_near;
+        if lost || left {
+            self.trap_error = self.trap_error.max(r.tracking_error);
+            self.trap_left_null_space |= left;
+        }
+        if !self.trap.observe(r.t, lost || left, s.trap_time) {
+            if !self.trap.trapped() {
+                self.trap_error = 0.0;
+                self.trap_left_null_space = false;
+            }
+            return;
+        }
+        self.traps += 1;
+        let q_now = r.state.map(|st| [st.q[0], st.q[1], st.q[2]]);
+        let plans = self.planner.is_some() && self.planner_error.is_none();
+        if plans && self.traps == 1 {
+            tracing::warn!(
+                "trapped at t = {:.3} s ({}): planning a clean cycle from the arm's posture",
+                r.t,
+                self.trap_words(s.trap_time)
+            );
+            self.steering_wanted = true;
+            self.submit(system, Why::Trap, r.t, q_now);
+            self.trap = TrapWatch::default(); // the steering gets `trap_time` of its own
+            return;
+        }
+        let reason = if plans {
+            format!(
+                "trapped: steering onto the planned clean cycle did not get the arm round ({}); \
+                 edit the obstacles or the task",
+                self.trap_words(s.trap_time)
+            )
+        } else {
+            format!(
+                "trapped: {}, and this arm has no cycle planner to find a way round; edit the \
+                 obstacles or the task",
+                self.trap_words(s.trap_time)
+            )
+        };
+        self.block(
+            r.t,
+            BlockedState {
+                reason,
+                since: r.t,
+                action: s.when_blocked,
+                best_clearance: r.clearance.is_finite().then_some(r.clearance),
+                obstacle: None,
+                link: None,
+            },
+        );
+    }
+
+    fn trap_words(&self, trap_time: f64) -> String {
+        let filter = if self.trap_left_null_space {
+            "the safety filter acting outside the null space"
+        } else {
+            "the safety filter holding the arm"
+        };
+        format!(
+            "tracking error up to {:.3} m for {trap_time} s, {filter}",
+            self.trap_error
+        )
+    }
+
+    /// Takes what the planner finished and sends the loop what changed (never blocks).
+    pub fn poll(
+        &mut self,
+        system: &System,
+        t: f64,
+        tx: &Sender<LoopRequest>,
+        replay: Option<&mut ReplayLog>,
+    ) {
+        while let Some(done) = self.planner.as_ref().and_then(Planner::try_done) {
+            self.take(done, system, t);
+        }
+        self.flush(tx, replay);
+    }
+
+    fn take(&mut self, done: Done, system: &System, t: f64) {
+        if done.generation != self.generation {
+            return; // an edit came after it: its own plan is on the way
+        }
+        let planned = match done.result {
+            Ok(p) => p,
+            Err(e) => {
+                if self.planner_error.is_none() {
+                    tracing::warn!("the cycle planner cannot plan for this set-up: {e}");
+                }
+                self.planner_error = Some(e);
+                return;
+            }
+        };
+        let took_ms = planned.took.as_secs_f64() * 1e3;
+        match planned.outcome {
+            PlanOutcome::Found(c) => {
+                self.plan = Some(PlanInfo {
+                    generation: done.generation,
+                    why: done.why,
+                    found: true,
+                    took_ms,
+                    min_clearance: c.min_clearance.is_finite().then_some(c.min_clearance),
+                    limits_only: planned.limits_only,
+                });
+                self.unblock(t, "a clean cycle exists");
+                let hz = system.planar().map_or(1.0, |c| c.safety.plan_hz);
+                match CycleTable::new(&c) {
+                    Ok(table) if self.steering_wanted => {
+                        self.send_steer = Some(Some(Steer::new(table, hz)));
+                    }
+                    Ok(_) => {
+                        if self.steering {
+                            self.send_steer = Some(None);
+                        }
+                    }
+                    Err(e) => tracing::warn!("cannot hand the planned cycle to the loop: {e}"),
+                }
+            }
+            PlanOutcome::Blocked(b) => {
+                self.plan = Some(PlanInfo {
+                    generation: done.generation,
+                    why: done.why,
+                    found: false,
+                    took_ms,
+                    min_clearance: None,
+                    limits_only: planned.limits_only,
+                });
+                if self.steering {
+                    self.send_steer = Some(None);
+                }
+                let action = system.safety().when_blocked;
+                self.block(
+                    t,
+                    BlockedState {
+                        reason: format!("no clean cycle the arm can follow: {}", b.reason),
+                        since: t,
+                        action,
+                        best_clearance: b.best_clearance.is_finite().then_some(b.best_clearance),
+                        obstacle: b.obstacle.map(|o| o + 1),
+                        link: b.link.map(|l| l + 1),
+                    },
+                );
+            }
+        }
+    }
+
+    fn block(&mut self, t: f64, state: BlockedState) {
+        let what = match state.action {
+            WhenBlocked::Hold => "holding the posture, tracking paused",
+            WhenBlocked::BestEffort => "running on best-effort",
+        };
+        tracing::warn!("BLOCKED at t = {t:.3} s: {} ({what})", state.reason);
+        self.entered += 1;
+        self.first
+            .get_or_insert_with(|| format!("at t = {t:.3} s: {}", state.reason));
+        if state.action == WhenBlocked::Hold {
+            self.send_hold = Some(true);
+        }
+        self.blocked = Some(state);
+    }
+
+    fn unblock(&mut self, t: f64, why: &str) {
+        if let Some(b) = self.blocked.take() {
+            tracing::info!(
+                "no longer blocked at t = {t:.3} s ({why}; blocked for {:.1} s)",
+                t - b.since
+            );
+            self.trap = TrapWatch::default();
+        }
+        if self.holding || self.send_hold == Some(true) {
+            self.send_hold = Some(false);
+        }
+    }
+
+    /// Sends what the loop has not been sent yet; a full channel is retried on the next poll.
+    fn flush(&mut self, tx: &Sender<LoopRequest>, replay: Option<&mut ReplayLog>) {
+        if let Some(s) = self.send_steer {
+            if tx.try_send(LoopRequest::Steer(s)).is_ok() {
+                if let Some(log) = replay {
+                    log.steered(s.as_ref());
+                }
+                self.steering = s.is_some();
+                self.send_steer = None;
+            }
+        }
+        if let Some(h) = self.send_hold {
+            if h == self.holding {
+                self.send_hold = None;
+            } else if tx.try_send(LoopRequest::BlockedHold(h)).is_ok() {
+                self.holding = h;
+                self.send_hold = None;
+            }
+        }
+    }
+
+    /// The loop is steering onto a planned cycle.
+    pub fn steering(&self) -> bool {
+        self.steering
+    }
+
+    /// `status`'s `plan` field.
+    pub fn plan_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "planner": self.planner.is_some(),
+            "error": self.planner_error,
+            "steering": self.steering,
+            "newest": self.plan.as_ref().map(|p| serde_json::json!({
+                "generation": p.generation,
+                "why": format!("{:?}", p.why).to_lowercase(),
+                "found": p.found,
+                "took_ms": p.took_ms,
+                "min_clearance": p.min_clearance,
+                "limits_only": p.limits_only,
+            })),
+        })
+    }
+
+    /// The wire code of the blocked state (`TelemetrySample::blocked`).
+    pub fn code(&self) -> u32 {
+        self.blocked.as_ref().map_or(0, |b| b.action.code())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_trap_fires_once_after_trap_time_and_good_tracking_ends_it() {
+        let dt = 0.001;
+        let mut w = TrapWatch::default();
+        let fired: Vec<usize> = (0..=4000)
+            .filter(|&k| w.observe(k as f64 * dt, true, 2.0))
+            .collect();
+        assert_eq!(fired, vec![2000], "once, after 2 s of a steady trap");
+        let (t, level) = (4.0, w.level);
+        assert!((level - 0.75).abs() < 1e-3, "{level}");
+        let over = (1..=20_000)
+            .find(|&k| {
+                w.observe(t + k as f64 * dt, false, 2.0);
+                !w.fired
+            })
+            .unwrap();
+        // From ¾ down to 0.1: log2(7.5) trap times.
+        assert!(
+            (over as f64 * dt - 2.0 * 7.5f64.log2()).abs() < 0.01,
+            "{over}"
+        );
+    }
+
+    #[test]
+    fn slipping_in_and_out_of_a_trap_is_a_trap() {
+        // Tracking regained for 1 s in every 6 s (the arm swinging past its path once round).
+        let mut w = TrapWatch::default();
+        let first = (0..30_000).find(|&k| {
+            let t = k as f64 * 0.001;
+            w.observe(t, t % 6.0 < 5.0, 2.0)
+        });
+        assert!(first.is_some_and(|k| k < 6000), "{first:?}");
+    }
+}
