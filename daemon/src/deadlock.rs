@@ -119,6 +119,8 @@ pub struct Deadlock {
     /// Controller time the filter last changed a command.
     filter_acted: Option<f64>,
     steering_wanted: bool,
+    /// A trap asked for steering: it outlives later edits.
+    trap_steered: bool,
     pub blocked: Option<BlockedState>,
     pub plan: Option<PlanInfo>,
     planner_error: Option<String>,
@@ -154,6 +156,7 @@ impl Deadlock {
             trap_left_null_space: false,
             filter_acted: None,
             steering_wanted,
+            trap_steered: false,
             blocked: None,
             plan: None,
             planner_error: None,
@@ -190,6 +193,9 @@ impl Deadlock {
     /// remains is seen again after `trap_time`).
     pub fn edited(&mut self, system: &System, t: f64, q_now: Option<[f64; 3]>) {
         self.generation += 1;
+        // `set safety.plan on|off` steers, or stops; a trap's steering stays.
+        let plan = system.planar().is_some_and(|c| c.safety.plan);
+        self.steering_wanted = plan || self.trap_steered;
         self.trap = TrapWatch::default();
         self.traps = 0;
         let plans = self.planner.is_some() && system.planar().is_some_and(|c| c.safety.enabled);
@@ -243,6 +249,7 @@ impl Deadlock {
                 self.trap_words(s.trap_time)
             );
             self.steering_wanted = true;
+            self.trap_steered = true;
             self.submit(system, Why::Trap, r.t, q_now);
             self.trap = TrapWatch::default(); // the steering gets `trap_time` of its own
             return;

@@ -15,7 +15,8 @@ pub const KEYS: &str = "mu, tau, t_on, feedback (on|off), projection (full|null-
                         task.center X Y, task.radius, task.period, safety (on|off), safety.clearance, \
                         safety.qd_max, safety.qdd_max (one value for all joints, or one per joint), \
                         safety.q_min, safety.q_max (one per joint; inf = unlimited), safety.k0, safety.k1, \
-                        safety.push_out_speed, safety.k_rate, safety.guard_time, safety.guard_tracking_error, safety.guard_growth_time";
+                        safety.push_out_speed, safety.k_rate, safety.guard_time, safety.guard_tracking_error, safety.guard_growth_time, \
+                        safety.plan (on|off), safety.plan_hz, safety.trap_time, safety.when_blocked (hold|best-effort)";
 
 pub(crate) fn on_off(key: &str, v: Option<&str>) -> Result<bool, String> {
     match v {
@@ -112,6 +113,12 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             "safety.guard_time" => c.safety.guard_time = num(key, it.next())?,
             "safety.guard_tracking_error" => c.safety.guard_tracking_error = num(key, it.next())?,
             "safety.guard_growth_time" => c.safety.guard_growth_time = num(key, it.next())?,
+            "safety.plan" => c.safety.plan = on_off(key, it.next())?,
+            "safety.plan_hz" => c.safety.plan_hz = num(key, it.next())?,
+            "safety.trap_time" => c.safety.trap_time = num(key, it.next())?,
+            "safety.when_blocked" => {
+                c.safety.when_blocked = control::plan::WhenBlocked::parse(key, it.next())?
+            }
             "kp" => c.control.kp = num(key, it.next())?,
             "kv" => c.control.kv = num(key, it.next())?,
             "alpha" => c.control.alpha = num(key, it.next())?,
@@ -303,6 +310,26 @@ pub fn parse_stall(args: &str) -> Result<u64, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_deadlock_settings_are_set_live_and_checked() {
+        let c = Config::preset("demo").unwrap();
+        let n = apply_set(
+            &c,
+            "safety.trap_time 3.5 safety.when_blocked best-effort",
+            1e-3,
+        )
+        .unwrap();
+        assert_eq!(n.safety.trap_time, 3.5);
+        assert_eq!(
+            n.safety.when_blocked,
+            control::plan::WhenBlocked::BestEffort
+        );
+        let e = apply_set(&c, "safety.when_blocked later", 1e-3).unwrap_err();
+        assert!(e.contains("hold or best-effort"), "{e}");
+        let e = apply_set(&c, "safety.trap_time 0", 1e-3).unwrap_err();
+        assert!(e.contains("safety.trap_time"), "{e}");
+    }
 
     #[test]
     fn stalls_are_bounded() {
