@@ -6,6 +6,7 @@
 mod analysis;
 mod exporter;
 mod plan;
+mod plan_map;
 mod plot;
 mod robot;
 mod setup;

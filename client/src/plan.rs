@@ -29,6 +29,23 @@ pub struct PlanCmd {
     /// Write the cycle's postures as CSV (t, q1, q2, q3).
     #[arg(long)]
     pub csv: Option<PathBuf>,
+    /// Map where one more obstacle leaves a clean cycle, over a grid of centres round the
+    /// task, one panel per radius: writes PREFIX.csv, .png and .svg.
+    #[arg(long, value_name = "PREFIX")]
+    pub map: Option<PathBuf>,
+    /// The radii the map tries (m).
+    #[arg(long = "map-radii", value_parser = parse_list, default_value = "0.1,0.2,0.3")]
+    pub map_radii: FloatList,
+    /// Centres per side of the map's grid.
+    #[arg(long = "map-cells", default_value_t = 25)]
+    pub map_cells: usize,
+    /// The moment the map's obstacle is added (s): the arm is where the config's run (without
+    /// it) has brought it by then.
+    #[arg(long = "map-at", default_value_t = 0.0)]
+    pub map_at: f64,
+    /// Threads for the map (default: every core).
+    #[arg(long)]
+    pub jobs: Option<usize>,
 }
 
 pub fn run(a: &PlanCmd) -> Result<()> {
@@ -55,6 +72,17 @@ pub fn run(a: &PlanCmd) -> Result<()> {
             "--max-rate {}: must be a rate > 0 (rad/s)",
             settings.max_rate
         );
+    }
+    if let Some(prefix) = &a.map {
+        let spec = crate::plan_map::MapSpec {
+            radii: &a.map_radii.0,
+            cells: a.map_cells,
+            at: a.map_at,
+            threads: a.jobs,
+        };
+        let line = crate::plan_map::run(&cfg, &settings, &spec, prefix)?;
+        println!("{line}");
+        return Ok(());
     }
     let q0 = cfg.initial_state::<3>().q;
     let problem = PlanarProblem::from_config(&cfg, 0.0, Some([q0[0], q0[1], q0[2]]))

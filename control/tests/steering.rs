@@ -120,3 +120,75 @@ fn a_new_obstacle_on_the_wrong_side_of_the_arm_is_said_at_once() {
         PlanOutcome::Found(_)
     ));
 }
+
+/// One run of the daemon's set-up (filter on, steering on) from `q0` at `mu` with `obstacles`:
+/// (steered, RMS tracking error over 20–40 s, smallest clearance to any obstacle's surface once
+/// the arm first kept the filter's clearance: a start may begin inside it).
+fn steered_run(obstacles: &[(f64, f64, f64)], q0: [f64; 3], mu: f64) -> (bool, f64, f64) {
+    let mut cfg = Config::default();
+    cfg.control.obstacles = obstacles
+        .iter()
+        .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
+        .collect();
+    cfg.safety.plan = true;
+    cfg.feedback.mu = mu;
+    cfg.feedback.enabled = mu > 0.0;
+    cfg.sim.q0 = Some(q0.to_vec());
+    cfg.sim.qd0 = Some(vec![0.0; 3]);
+    cfg.sim.duration = 40.0;
+    cfg.sim.transient = 20.0;
+    cfg.validate().unwrap();
+    let (params, _) = cfg.law_params_planned();
+    let x0 = cfg.initial_state::<3>();
+    let mut sim = Simulation::new(
+        cfg.model::<3>(),
+        params,
+        cfg.sim.dt,
+        x0,
+        cfg.feedback.max_tau,
+    );
+    let mut stats = RunStats::new(&params, cfg.sim.dt, 40.0, 20.0, &x0);
+    for k in 0..(40.0 / cfg.sim.dt).round() as u64 {
+        let x = *sim.state();
+        let out = sim.step();
+        stats.record(k, &x, &out);
+    }
+    let s = stats.summary();
+    (
+        params.steer.is_some(),
+        s.rms_tracking_error,
+        s.min_clearance_after_clear.unwrap_or(f64::INFINITY),
+    )
+}
+
+#[test]
+fn steered_starts_keep_clear_and_track_exactly_where_the_way_is_open() {
+    // Issue 25's targets over starts × μ (0, 0.2, 1.8): five starts, the open layout and two
+    // with an obstacle. Every run keeps the filter's clearance; on the open layout every start
+    // tracks to 1e-4 m after 20 s. The obstacle layouts' numbers are printed (the distance
+    // still to go is in docs/analysis.md).
+    let starts = [
+        [1.5501, -0.4884, -0.9343],
+        [0.3, 1.2, 1.0],
+        [1.2, -1.2, 1.5],
+        [0.8, 0.4, 0.9],
+        [2.0, -1.6, -0.2],
+    ];
+    let layouts: [&[(f64, f64, f64)]; 3] = [&[], &[(0.9, 1.1, 0.15)], &[(1.0, 1.1, 0.1)]];
+    let clearance = Config::default().safety.clearance;
+    for (l, layout) in layouts.iter().enumerate() {
+        for q0 in starts {
+            for mu in [0.0, 0.2, 1.8] {
+                let (steered, rms, min) = steered_run(layout, q0, mu);
+                eprintln!("layout {l} start {q0:?} mu {mu}: steered {steered} rms {rms:.2e} clearance {min:.3}");
+                assert!(
+                    min >= clearance - 2e-3,
+                    "layout {l} {q0:?} μ {mu}: clearance {min}"
+                );
+                if layout.is_empty() {
+                    assert!(steered && rms < 1e-4, "{q0:?} μ {mu}: {rms}");
+                }
+            }
+        }
+    }
+}

@@ -368,7 +368,7 @@ mod tests {
     fn telemetry_layout_is_pinned() {
         use core::mem::{align_of, offset_of, size_of};
         assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<TelemetrySample>(), 488);
+        assert_eq!(size_of::<TelemetrySample>(), 496);
         assert_eq!(align_of::<TelemetrySample>(), 8);
         assert_eq!(offset_of!(TelemetrySample, phi), 168);
         assert_eq!(offset_of!(TelemetrySample, q), 176);
@@ -377,6 +377,8 @@ mod tests {
         assert_eq!(offset_of!(TelemetrySample, state_age_us), 400);
         assert_eq!(offset_of!(TelemetrySample, interface), 432);
         assert_eq!(offset_of!(TelemetrySample, saturations), 440);
+        assert_eq!(offset_of!(TelemetrySample, blocked), 488);
+        assert_eq!(offset_of!(TelemetrySample, steering), 492);
         // SAFETY: type_name only returns the string set by #[type_name].
         assert_eq!(
             unsafe { <TelemetrySample as ZeroCopySend>::type_name() },

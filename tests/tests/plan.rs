@@ -59,3 +59,45 @@ fn bad_plan_input_is_refused_in_one_line() {
         assert!(err.contains(says), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn plan_maps_where_one_more_obstacle_leaves_a_clean_cycle() {
+    let dir = TempDir::new("plan-map");
+    let prefix = dir.path().join("map");
+    let p = prefix.to_str().unwrap();
+    let (code, out, err) = plan(&[
+        "--preset",
+        "demo",
+        "--map",
+        p,
+        "--map-cells",
+        "5",
+        "--map-radii",
+        "0.2",
+        "--jobs",
+        "2",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("25 obstacle positions"), "{out}");
+    let csv = std::fs::read_to_string(dir.path().join("map.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 25, "{csv}");
+    // Far corners leave the arm alone; the grid's centre column crosses the circle.
+    assert!(
+        rows.iter().any(|r| r.ends_with("reachable clean cycle")),
+        "{csv}"
+    );
+    assert!(
+        rows.iter().any(|r| r.ends_with("no clean cycle (Blocked)")),
+        "{csv}"
+    );
+    for ext in ["png", "svg"] {
+        assert!(dir.path().join(format!("map.{ext}")).exists(), "no {ext}");
+    }
+    let (code, _, err) = plan(&["--preset", "demo", "--map", p, "--map-cells", "1"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--map-cells 1") && err.lines().count() == 1,
+        "{err}"
+    );
+}

@@ -127,8 +127,11 @@ fn obstacle_on_the_path(sys: &System, mon: &mut Monitor) -> (Vec<f64>, [f64; 2])
 fn an_obstacle_added_on_the_arms_path_is_never_touched() {
     let _g = serial();
     // The filter on (the service default): no contact, and once clear, never closer than the
-    // configured clearance (less 1 mm).
-    let sys = start("obstacle-path", TOP);
+    // configured clearance (less 1 mm). Best-effort when blocked, so that the filter drives
+    // the arm for the whole recording (the default hold brakes it to rest under the same
+    // filter: `blocked_live.rs`).
+    let top = format!("{TOP}[safety]\nwhen_blocked = \"best-effort\"\n");
+    let sys = start("obstacle-path", &top);
     let mut mon = Monitor::new(&sys.ns);
     std::thread::sleep(Duration::from_millis(1500));
     let (seen, center) = obstacle_on_the_path(&sys, &mut mon);

@@ -1,0 +1,210 @@
+//! `chaosctl plan --map PREFIX`: where one more obstacle leaves the arm a clean cycle, over a
+//! grid of centres, one panel per radius: the book's picture of when chaosd tracks round an
+//! obstacle, when it says `Blocked` because the arm is on the wrong side, and when no way exists.
+
+use crate::analysis::parallel::{jobs, run_all};
+use crate::plot::{Figure, Grid, Panel, PALETTE};
+use anyhow::{bail, Context, Result};
+use control::config::ObstacleConfig;
+use control::plan::planar::{plan, PlanarProblem};
+use control::plan::{PlanOutcome, PlanSettings};
+use control::Config;
+use std::path::Path;
+use std::time::Instant;
+
+/// What one obstacle position leaves the arm.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// A clean cycle the arm reaches from its posture with its hand on the path.
+    Reachable = 0,
+    /// Clean cycles exist, but not one the arm reaches from its posture: `Blocked`.
+    Elsewhere = 1,
+    /// No clean cycle at all: `Blocked`.
+    None = 2,
+}
+
+const NAMES: [&str; 3] = [
+    "reachable clean cycle",
+    "unreachable ones only (Blocked)",
+    "no clean cycle (Blocked)",
+];
+
+/// Where the arm is at task time `at` (s), without the new obstacle: simulated from the
+/// config's start, as the daemon would have run it until the obstacle is added.
+pub fn posture_at(cfg: &Config, at: f64) -> [f64; 3] {
+    let x0 = cfg.initial_state::<3>();
+    let mut sim = control::Simulation::new(
+        cfg.model::<3>(),
+        cfg.law_params(),
+        cfg.sim.dt,
+        x0,
+        cfg.feedback.max_tau,
+    );
+    while sim.time() < at {
+        sim.step();
+    }
+    let q = sim.state().q;
+    [q[0], q[1], q[2]]
+}
+
+/// The verdict for `cfg` with one more disc at (x, y) of radius r, added at task time `at`
+/// with the arm at `q`.
+pub fn verdict(
+    cfg: &Config,
+    s: &PlanSettings,
+    (at, q): (f64, [f64; 3]),
+    (x, y, r): (f64, f64, f64),
+) -> Result<Verdict> {
+    let mut c = cfg.clone();
+    c.control.obstacles.push(ObstacleConfig::disc(x, y, r));
+    let mut p = PlanarProblem::from_config(&c, at, Some(q))
+        .map_err(|e| anyhow::anyhow!("chaosctl plan --map: {e}"))?;
+    if matches!(plan(&p, s), PlanOutcome::Found(_)) {
+        return Ok(Verdict::Reachable);
+    }
+    p.q_now = None;
+    Ok(match plan(&p, s) {
+        PlanOutcome::Found(_) => Verdict::Elsewhere,
+        PlanOutcome::Blocked(_) => Verdict::None,
+    })
+}
+
+/// The grid of centres round the task and the arm's base: `n` × `n`.
+fn centres(cfg: &Config, n: usize) -> (Vec<f64>, Vec<f64>) {
+    let (c, r) = (cfg.task.center, cfg.task.radius);
+    let span = |lo: f64, hi: f64| -> Vec<f64> {
+        (0..n)
+            .map(|k| lo + (hi - lo) * k as f64 / (n - 1) as f64)
+            .collect()
+    };
+    (
+        span(c[0].min(0.0) - r - 0.5, c[0].max(0.0) + r + 0.5),
+        span(c[1].min(0.0) - r - 0.5, c[1].max(0.0) + r + 0.5),
+    )
+}
+
+/// Maps every centre for every radius, writes `PREFIX.csv`, `.png` and `.svg`, and returns a
+/// one-line summary.
+/// What to map: the radii, centres per side, the moment the obstacle is added (s) and the
+/// threads.
+pub struct MapSpec<'a> {
+    pub radii: &'a [f64],
+    pub cells: usize,
+    pub at: f64,
+    pub threads: Option<usize>,
+}
+
+pub fn run(cfg: &Config, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> Result<String> {
+    let (radii, n) = (spec.radii, spec.cells);
+    if !(spec.at.is_finite() && (0.0..=600.0).contains(&spec.at)) {
+        bail!("--map-at {}: must be a time in [0, 600] s", spec.at);
+    }
+    if !(3..=200).contains(&n) {
+        bail!("--map-cells {n}: must be between 3 and 200");
+    }
+    if radii.is_empty()
+        || radii
+            .iter()
+            .any(|r| !(r.is_finite() && *r > 0.0 && *r <= 2.0))
+    {
+        bail!("--map-radii {radii:?}: one or more radii in (0, 2] m");
+    }
+    let (xs, ys) = centres(cfg, n);
+    let mut cells = Vec::with_capacity(radii.len() * n * n);
+    for &r in radii {
+        for &y in &ys {
+            cells.extend(xs.iter().map(|&x| (x, y, r)));
+        }
+    }
+    let started = Instant::now();
+    let arm = (spec.at, posture_at(cfg, spec.at));
+    let verdicts = run_all(&cells, jobs(spec.threads), "plan map", |&cell| {
+        verdict(cfg, s, arm, cell)
+    })?
+    .into_iter()
+    .collect::<Result<Vec<_>>>()?;
+    let took = started.elapsed().as_secs_f64();
+    let mut csv = String::from("x,y,radius,verdict\n");
+    for (&(x, y, r), v) in cells.iter().zip(&verdicts) {
+        csv.push_str(&format!("{x},{y},{r},{}\n", NAMES[*v as usize]));
+    }
+    let path = crate::plot::with_ext(prefix, "csv");
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    std::fs::write(&path, csv).with_context(|| format!("cannot write {}", path.display()))?;
+    let categories: Vec<_> = NAMES
+        .iter()
+        .zip([PALETTE[2], PALETTE[3], PALETTE[1]])
+        .map(|(n, c)| (n.to_string(), c))
+        .collect();
+    let per = xs.len() * ys.len();
+    let panels = radii
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            Panel::Grid(Grid {
+                title: format!(
+                    "one more obstacle, radius {r} m, centre (x, y), added at t = {} s",
+                    spec.at
+                ),
+                x_label: "x (m)".into(),
+                y_label: "y (m)".into(),
+                xs: xs.clone(),
+                ys: ys.clone(),
+                cells: verdicts[k * per..(k + 1) * per]
+                    .iter()
+                    .map(|v| *v as usize)
+                    .collect(),
+                categories: categories.clone(),
+            })
+        })
+        .collect();
+    let files = Figure {
+        title: Some("Where does the arm keep a clean periodic cycle?".into()),
+        panels,
+        cols: radii.len().min(3),
+        panel_size: (820, 560),
+    }
+    .save(prefix)?;
+    let share = |v: Verdict| {
+        100.0 * verdicts.iter().filter(|x| **x == v).count() as f64 / verdicts.len() as f64
+    };
+    Ok(format!(
+        "{} obstacle positions in {took:.1} s: reachable clean cycle {:.0} %, clean cycles only \
+         from elsewhere {:.0} %, none {:.0} %; wrote {}, {}",
+        verdicts.len(),
+        share(Verdict::Reachable),
+        share(Verdict::Elsewhere),
+        share(Verdict::None),
+        path.display(),
+        files
+            .iter()
+            .map(|f| f.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_three_verdicts_are_told_apart() {
+        let cfg = Config::default();
+        let s = PlanSettings::default();
+        let start = (0.0, posture_at(&cfg, 0.0));
+        // Far from the arm: nothing changes.
+        let far = (-2.5, -2.5, 0.2);
+        assert_eq!(verdict(&cfg, &s, start, far).unwrap(), Verdict::Reachable);
+        // On the hand's path: no way round.
+        let on_path = (1.5, 2.0, 0.2);
+        assert_eq!(verdict(&cfg, &s, start, on_path).unwrap(), Verdict::None);
+        // The user's trap: added at 5 s the arm is on its wrong side; at 3 s it is not.
+        let trap = (0.9, 1.1, 0.15);
+        let at = |t: f64| verdict(&cfg, &s, (t, posture_at(&cfg, t)), trap).unwrap();
+        assert_eq!(at(5.0), Verdict::Elsewhere);
+        assert_eq!(at(3.0), Verdict::Reachable);
+    }
+}
