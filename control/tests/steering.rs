@@ -14,9 +14,18 @@ fn run(obstacles: &[(f64, f64, f64)], plan: bool, duration: f64) -> (Summary, bo
     cfg.safety.plan = plan;
     cfg.sim.duration = duration;
     cfg.sim.transient = duration / 2.0;
+    let (s, steered, blocked) = simulate(&cfg);
+    assert!(blocked.is_none(), "{blocked:?}");
+    (s, steered)
+}
+
+/// Runs `cfg` (validated here) with its planned steering, if any, over `sim.duration`: the
+/// summary after `sim.transient`, whether it steered, and why not when the planner found no
+/// cycle.
+fn simulate(cfg: &Config) -> (Summary, bool, Option<control::plan::Blocked>) {
     cfg.validate().unwrap();
     let (params, blocked) = cfg.law_params_planned();
-    assert!(blocked.is_none(), "{blocked:?}");
+    let (duration, transient) = (cfg.sim.duration, cfg.sim.transient);
     let x0 = cfg.initial_state::<3>();
     let mut sim = Simulation::new(
         cfg.model::<3>(),
@@ -25,14 +34,13 @@ fn run(obstacles: &[(f64, f64, f64)], plan: bool, duration: f64) -> (Summary, bo
         x0,
         cfg.feedback.max_tau,
     );
-    let mut stats = RunStats::new(&params, cfg.sim.dt, duration, cfg.sim.transient, &x0);
-    let steps = (duration / cfg.sim.dt).round() as u64;
-    for k in 0..steps {
+    let mut stats = RunStats::new(&params, cfg.sim.dt, duration, transient, &x0);
+    for k in 0..(duration / cfg.sim.dt).round() as u64 {
         let x = *sim.state();
         let out = sim.step();
         stats.record(k, &x, &out);
     }
-    (stats.summary(), params.steer.is_some())
+    (stats.summary(), params.steer.is_some(), blocked)
 }
 
 #[test]
@@ -137,25 +145,9 @@ fn steered_run(obstacles: &[(f64, f64, f64)], q0: [f64; 3], mu: f64) -> (bool, f
     cfg.sim.qd0 = Some(vec![0.0; 3]);
     cfg.sim.duration = 40.0;
     cfg.sim.transient = 20.0;
-    cfg.validate().unwrap();
-    let (params, _) = cfg.law_params_planned();
-    let x0 = cfg.initial_state::<3>();
-    let mut sim = Simulation::new(
-        cfg.model::<3>(),
-        params,
-        cfg.sim.dt,
-        x0,
-        cfg.feedback.max_tau,
-    );
-    let mut stats = RunStats::new(&params, cfg.sim.dt, 40.0, 20.0, &x0);
-    for k in 0..(40.0 / cfg.sim.dt).round() as u64 {
-        let x = *sim.state();
-        let out = sim.step();
-        stats.record(k, &x, &out);
-    }
-    let s = stats.summary();
+    let (s, steered, _) = simulate(&cfg);
     (
-        params.steer.is_some(),
+        steered,
         s.rms_tracking_error,
         s.min_clearance_after_clear.unwrap_or(f64::INFINITY),
     )

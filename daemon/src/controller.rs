@@ -602,7 +602,13 @@ impl<const N: usize> Controller<N> {
         }
         self.count_flags(o.flags);
         out.output = Some(o);
-        if let Some(reason) = self.guard.check(t, self.law.safety(), &x.qd, &o) {
+        // Paused (blocked, braking to rest), the target moves on without the arm: a growing
+        // tracking error is the pause, not a runaway. Rates and demand are judged as ever.
+        let mut judged = o;
+        if self.blocked_hold {
+            judged.tracking_error = 0.0;
+        }
+        if let Some(reason) = self.guard.check(t, self.law.safety(), &x.qd, &judged) {
             self.mode = Mode::Fault;
             self.fault = Some(reason);
             self.counters.faults += 1;
@@ -818,6 +824,9 @@ mod tests {
                 o.push(control::config::ObstacleConfig::disc(1.5, 2.0, 0.2).to_obstacle())
                     .unwrap();
                 p.obstacles = o;
+                // A tight growth guard: the pause's growing tracking error must not trip it.
+                p.safety.guard_tracking_error = 0.2;
+                p.safety.guard_growth_time = 0.1;
                 assert!(c.set_params(ParamBlock::Planar(p)));
             }
             if k == 4510 {
@@ -855,7 +864,7 @@ mod tests {
         );
         let held = first_hold.expect("the plant's HOLD once at rest");
         assert!((4520..5600).contains(&held), "held from tick {held}");
-        assert_eq!(c.mode(), Mode::Hold);
+        assert_eq!(c.mode(), Mode::Hold, "{:?}", c.fault());
         assert!(c.counters.blocked_holds > 0);
     }
 
