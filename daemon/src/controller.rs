@@ -196,9 +196,9 @@ pub struct Controller<const N: usize> {
     steer: Option<control::plan::Steer>,
     /// Blocked, holding: fresh states are answered with HOLD (tracking paused) until cleared.
     blocked_hold: bool,
-    /// The arm kept the filter's clearance and was at rest on the newest law run: a blocked
-    /// hold hands the arm to the plant's HOLD only then (the filter brakes it and pushes it out
-    /// first).
+    /// While blocked: the arm kept the filter's clearance and was at rest on the newest law
+    /// run. A blocked hold hands the arm to the plant's HOLD only then (the filter brakes it
+    /// and pushes it out first); nothing is judged on the tick otherwise.
     clear: bool,
     pub counters: Counters,
 }
@@ -234,7 +234,7 @@ impl<const N: usize> Controller<N> {
             last_run_device_ns: None,
             steer: None,
             blocked_hold: false,
-            clear: true,
+            clear: false,
             counters: Counters::default(),
         }
     }
@@ -293,6 +293,7 @@ impl<const N: usize> Controller<N> {
             self.last_qd = None; // the braking's rates are no history for the Pyragas term
         }
         self.blocked_hold = hold;
+        self.clear = false; // judged afresh by the next law run, braking
         self.law.set_pause(hold);
         self.applied = Some(Applied::BlockedHold(hold));
     }
@@ -593,7 +594,6 @@ impl<const N: usize> Controller<N> {
         self.last_qd = Some(x.qd);
         let held = self.hold_command(t, &x);
         let mut o = held.output;
-        self.clear = o.clearance >= self.law.safety().clearance && x.qd.amax() <= REST_RATE;
         if x.q != m.q {
             // The law ran on the reference: the tracking error reported is the arm's own.
             if let Some(p) = self.law.tool_position(&m.q) {
@@ -607,6 +607,7 @@ impl<const N: usize> Controller<N> {
         let mut judged = o;
         if self.blocked_hold {
             judged.tracking_error = 0.0;
+            self.clear = o.clearance >= self.law.safety().clearance && x.qd.amax() <= REST_RATE;
         }
         if let Some(reason) = self.guard.check(t, self.law.safety(), &x.qd, &judged) {
             self.mode = Mode::Fault;

@@ -327,8 +327,10 @@ mod tests {
         );
         let e = apply_set(&c, "safety.when_blocked later", 1e-3).unwrap_err();
         assert!(e.contains("hold or best-effort"), "{e}");
-        let e = apply_set(&c, "safety.trap_time 0", 1e-3).unwrap_err();
-        assert!(e.contains("safety.trap_time"), "{e}");
+        for bad in ["0", "0.05", "61", "nan"] {
+            let e = apply_set(&c, &format!("safety.trap_time {bad}"), 1e-3).unwrap_err();
+            assert!(e.contains("safety.trap_time"), "{bad}: {e}");
+        }
     }
 
     #[test]

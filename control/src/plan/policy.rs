@@ -49,16 +49,16 @@ impl WhenBlocked {
     }
 }
 
-/// `safety.trap_time` must leave the arm time to get round (a transient) and still say it
-/// within a minute.
+/// `safety.trap_time` must leave the arm time to get round (a transient: a trap shorter than
+/// a tenth of a second is a filter doing its job) and still say it within a minute.
 pub fn check_trap_time(v: f64) -> Result<(), ConfigError> {
-    if v.is_finite() && v > 0.0 && v <= 60.0 {
+    if v.is_finite() && (0.1..=60.0).contains(&v) {
         Ok(())
     } else {
         Err(invalid(
             "safety.trap_time",
             v,
-            "must be a number of seconds > 0 and ≤ 60",
+            "must be a number of seconds between 0.1 and 60",
         ))
     }
 }
