@@ -27,7 +27,7 @@ fn panda(mode: CommandMode, pd_hz: f64) -> Result<System> {
     };
     sp.config.command.mode = mode;
     sp.config.command.pd_bandwidth_hz = pd_hz;
-    s.schedule_feedback(1.0, 20.0);
+    s.schedule_feedback(control::adapt::MuSetting::Fixed(1.0), 20.0);
     Ok(s)
 }
 

@@ -299,6 +299,30 @@ const SERIES: &[(&str, &str, &str, Get)] = &[
         |t| t.steering as f64,
     ),
     ("chaosd_mu", "gauge", "Pyragas feedback gain mu.", |t| t.mu),
+    (
+        "chaosd_mu_auto",
+        "gauge",
+        "1 if mu adapts (feedback.mu = \"auto\").",
+        |t| t.mu_auto as f64,
+    ),
+    (
+        "chaosd_chaos_verdict",
+        "gauge",
+        "The chaos monitor's verdict: 0 unknown, 1 chaotic, 2 converging, 3 periodic (tau), 4 regular (another period or quasi-periodic).",
+        |t| t.chaos as f64,
+    ),
+    (
+        "chaosd_chaos_lyapunov_per_second",
+        "gauge",
+        "The monitor's finite-time largest Lyapunov estimate (NaN until it has one).",
+        |t| t.lyapunov,
+    ),
+    (
+        "chaosd_chaos_k01",
+        "gauge",
+        "The monitor's 0-1 test K (about 1 chaotic, about 0 regular; NaN until it has one).",
+        |t| t.k01,
+    ),
     ("chaosd_tau_seconds", "gauge", "Feedback delay tau.", |t| {
         t.tau
     }),

@@ -48,6 +48,9 @@ enum Command {
     Orbits(analysis::orbits::OrbitsCmd),
     /// Which starts end on a stabilised orbit and which stay chaotic, over starts × μ.
     Basins(analysis::basins::BasinsCmd),
+    /// The daemon's chaos monitor against the offline λ_max over starts × μ (a confusion table
+    /// and its detection delay), and mu = "auto" against fixed μ and after edits (JSON, CSV, plot).
+    Monitor(analysis::monitor::MonitorCmd),
     /// Time courses, phase portraits, Poincaré sections of one run as PNG + SVG (Figs. 2-4, 7-9).
     Figures(analysis::figures::FiguresCmd),
     /// Obstacle avoidance over starts × μ: the paper's potential vs the safety filter (contact,
@@ -176,6 +179,7 @@ fn main() -> ExitCode {
         Command::Poincare(a) => analysis::poincare::run(a),
         Command::Orbits(a) => analysis::orbits::run(a),
         Command::Basins(a) => analysis::basins::run(a),
+        Command::Monitor(a) => analysis::monitor::run(a),
         Command::Figures(a) => analysis::figures::run(a),
         Command::Obstacles(a) => analysis::obstacles::run(a),
         Command::ArmFigure(a) => analysis::arm_figure::run(a),

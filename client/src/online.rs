@@ -366,7 +366,28 @@ pub fn human_status(body: &str) -> String {
         v["recording"].as_str().unwrap_or("off"),
         core_gone(&v),
         v["handshake"].as_str().map_or(String::new(), |why| format!("\nhandshake {why}")),
-    ) + &blocked_part(&v)
+    ) + &chaos_status(&v)
+        + &blocked_part(&v)
+}
+
+/// The chaos monitor's line: the verdict, since when, and its evidence.
+fn chaos_status(v: &serde_json::Value) -> String {
+    let c = &v["chaos"];
+    let Some(verdict) = c["verdict"].as_str() else {
+        return String::new(); // an older daemon
+    };
+    let num = |k: &str, f: &dyn Fn(f64) -> String| c[k].as_f64().map_or("n/a".into(), f);
+    format!(
+        "
+chaos     {verdict} since t = {:.1} s: λ = {}, K = {}, residual {} rad/s ({} a period) over {} periods{}",
+        c["since"].as_f64().unwrap_or(f64::NAN),
+        num("lyapunov", &|l| format!("{l:+.3}/s")),
+        num("k", &|k| format!("{k:.2}")),
+        num("residual", &|r| format!("{r:.1e}")),
+        num("residual_trend", &|r| format!("×{r:.3}")),
+        c["periods"],
+        if c["mu_auto"].as_bool() == Some(true) { "; μ adapts (auto)" } else { "" },
+    )
 }
 
 /// `BLOCKED` and why, when the daemon is; and whether it steers onto a planned cycle.
@@ -425,6 +446,10 @@ pub fn telemetry_json(t: &TelemetrySample) -> serde_json::Value {
         "saturations": saturations_json(&t.saturations),
         "blocked": match t.blocked { 0 => None, 1 => Some("hold"), _ => Some("best-effort") },
         "steering": t.steering == 1,
+        "chaos": control::monitor::Verdict::from_code(t.chaos).name(),
+        "lyapunov": t.lyapunov.is_finite().then_some(t.lyapunov),
+        "k01": t.k01.is_finite().then_some(t.k01),
+        "mu_auto": t.mu_auto == 1,
     })
 }
 
@@ -448,6 +473,20 @@ fn command_part(t: &TelemetrySample) -> String {
         protocol::DeviceStatus::from_code(t.device).filter(|d| *d != protocol::DeviceStatus::Ok)
     {
         s.push_str(&format!(", device: {d}"));
+    }
+    s
+}
+
+/// The watch line's chaos monitor part: `chaotic λ +0.31/s K 0.98`.
+fn chaos_part(t: &TelemetrySample) -> String {
+    let mut s = control::monitor::Verdict::from_code(t.chaos)
+        .name()
+        .to_string();
+    if t.lyapunov.is_finite() {
+        s.push_str(&format!(" λ {:+.2}/s", t.lyapunov));
+    }
+    if t.k01.is_finite() {
+        s.push_str(&format!(" K {:.2}", t.k01));
     }
     s
 }
@@ -491,10 +530,10 @@ fn watch(conn: &Conn, json: bool, count: Option<u64>) -> Result<(), Failure> {
                 } else {
                     let v = telemetry_json(&t);
                     format!(
-                        "chaosd {} | t {:8.2} s | {:<4} | {} | feedback {} μ={:.2} τ={:.2} | track {:.2e} m | residual {:.3e} rad/s | clearance {} | contact {:.2} s | late p99 {:.1} µs max {:.1} µs | overruns {} | rejected {} | holds {} | drops {}",
+                        "chaosd {} | t {:8.2} s | {:<4} | {} | feedback {} μ={:.3}{} τ={:.2} | {} | track {:.2e} m | residual {:.3e} rad/s | clearance {} | contact {:.2} s | late p99 {:.1} µs max {:.1} µs | overruns {} | rejected {} | holds {} | drops {}",
                         names.namespace(), t.t, mode_part(&t, &v), command_part(&t),
                         if t.feedback_active == 1 { "ON " } else if t.feedback_on == 1 { "armed" } else { "off" },
-                        t.mu, t.tau, t.tracking_error, t.period_residual,
+                        t.mu, if t.mu_auto == 1 { " (auto)" } else { "" }, t.tau, chaos_part(&t), t.tracking_error, t.period_residual,
                         if t.clearance.is_finite() { format!("{:+.3} m", t.clearance) } else { "n/a".into() },
                         t.time_in_contact, t.lateness_p99_us, t.lateness_max_us, t.overruns, t.rejected, t.holds, t.telemetry_dropped
                     )

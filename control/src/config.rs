@@ -7,6 +7,7 @@
 //!
 //! Every default is SCIENCE.md's; the `paper*` presets reproduce the paper's set-ups.
 
+use crate::adapt::{AutoMu, MuSetting};
 use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
 use crate::law::{LawParams, Projection, Secondary};
 use crate::safety::SafetyConfig;
@@ -197,10 +198,13 @@ impl Default for ControlConfig {
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(try_from = "FeedbackToml", into = "FeedbackToml")]
 pub struct FeedbackConfig {
-    /// Pyragas gain μ (≥ 0; chaosd uses the stabilising sign −μ[q̇(t) − q̇(t−τ)]).
+    /// Pyragas gain μ (≥ 0; chaosd uses the stabilising sign −μ[q̇(t) − q̇(t−τ)]); with `auto`,
+    /// the gain the adaptation starts from (0).
     pub mu: f64,
+    /// `mu = "auto"`: the speed-gradient law adapts μ ([`crate::adapt`]).
+    pub auto: Option<AutoMu>,
     /// Delay τ (s).
     pub tau: f64,
     /// Switch-on time t_on (s).
@@ -212,6 +216,62 @@ pub struct FeedbackConfig {
     /// Where the delayed term acts: "full" (every joint, the paper's form) or "null-space"
     /// (projected by I − J⁺J onto the self-motion, so tracking is never disturbed).
     pub projection: ProjectionKind,
+}
+
+/// `[feedback]` as written: `mu` is a number or `"auto"`, and `gamma`/`max_mu` tune "auto".
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct FeedbackToml {
+    mu: MuSetting,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    gamma: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    max_mu: Option<f64>,
+    tau: f64,
+    t_on: f64,
+    enabled: bool,
+    max_tau: f64,
+    projection: ProjectionKind,
+}
+
+impl Default for FeedbackToml {
+    fn default() -> Self {
+        FeedbackConfig::default().into()
+    }
+}
+
+impl TryFrom<FeedbackToml> for FeedbackConfig {
+    type Error = String;
+    fn try_from(f: FeedbackToml) -> Result<Self, String> {
+        Ok(Self {
+            mu: f.mu.start(),
+            auto: crate::adapt::auto_from_toml(f.mu, f.gamma, f.max_mu)?,
+            tau: f.tau,
+            t_on: f.t_on,
+            enabled: f.enabled,
+            max_tau: f.max_tau,
+            projection: f.projection,
+        })
+    }
+}
+
+impl From<FeedbackConfig> for FeedbackToml {
+    fn from(f: FeedbackConfig) -> Self {
+        Self {
+            mu: if f.auto.is_some() {
+                MuSetting::Auto
+            } else {
+                MuSetting::Fixed(f.mu)
+            },
+            gamma: f.auto.map(|a| a.gamma),
+            max_mu: f.auto.map(|a| a.max_mu),
+            tau: f.tau,
+            t_on: f.t_on,
+            enabled: f.enabled,
+            max_tau: f.max_tau,
+            projection: f.projection,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -226,6 +286,7 @@ impl Default for FeedbackConfig {
     fn default() -> Self {
         Self {
             mu: 0.0,
+            auto: None,
             tau: 1.0,
             t_on: 5.0,
             enabled: true,
@@ -465,6 +526,9 @@ impl Config {
         positive("sim.duration", s.duration, 1e7)?;
         range("sim.transient", s.transient, 0.0, s.duration)?;
         range("feedback.mu", f.mu, 0.0, 100.0)?;
+        if let Some(a) = &f.auto {
+            a.check(f.tau)?;
+        }
         range("feedback.max_tau", f.max_tau, s.dt, 60.0)?;
         if !(f.tau.is_finite() && f.tau >= s.dt && f.tau <= f.max_tau) {
             return Err(invalid(
@@ -540,6 +604,7 @@ impl Config {
             track_loss: c.track_loss,
             steer: None,
             pause: false,
+            auto_mu: self.feedback.auto,
         }
     }
 

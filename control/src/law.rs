@@ -78,6 +78,8 @@ pub struct LawParams {
     /// Tracking paused (the daemon's blocked hold): the arm brakes to rest, the filter keeping
     /// clearance as ever ([`crate::safety::pause_brake`]).
     pub pause: bool,
+    /// `feedback.mu = "auto"`: the caller adapts `mu` after each step ([`crate::adapt`]).
+    pub auto_mu: Option<crate::adapt::AutoMu>,
 }
 
 /// Status bits of one evaluation.
@@ -122,6 +124,8 @@ pub struct ControlOutput<const N: usize> {
     pub secondary_value: f64,
     /// |q̇(t) − q̇(t − τ)|: the Pyragas residual, whether or not the feedback is on.
     pub period_residual: f64,
+    /// |(I − J⁺J)(q̇(t) − q̇(t − τ))|: the residual's self-motion part.
+    pub null_residual: f64,
     /// Obstacle clearance (m, negative: penetration); +∞ without obstacles.
     pub clearance: f64,
     /// Distance (rad) to the nearest joint position limit; +∞ without limits, negative beyond.
@@ -138,7 +142,7 @@ impl LawParams {
     /// Whether the delayed term applies at time t.
     #[inline]
     pub fn feedback_active(&self, t: f64) -> bool {
-        self.feedback && self.mu != 0.0 && t >= self.t_on
+        self.feedback && (self.mu != 0.0 || self.auto_mu.is_some()) && t >= self.t_on
     }
 }
 
@@ -306,6 +310,7 @@ pub fn evaluate<const N: usize>(
         damping: lambda,
         secondary_value,
         period_residual: diff.norm(),
+        null_residual: (diff - jpinv * (j * diff)).norm(),
         clearance,
         joint_margin: params.safety.joint_margin(q),
         demand,

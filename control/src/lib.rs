@@ -9,6 +9,7 @@
 // Index loops mirror the subscripts of the equations (q_j, l_j, column k of J) and are kept.
 #![allow(clippy::needless_range_loop)]
 
+pub mod adapt;
 pub mod analysis;
 pub mod arm;
 pub mod command;
@@ -18,6 +19,7 @@ pub mod dual;
 pub mod hold;
 pub mod law;
 pub mod model;
+pub mod monitor;
 pub mod plan;
 pub mod resolve;
 pub mod rigid_body;

@@ -142,7 +142,10 @@ impl<const N: usize> Simulation<N> {
             plant_derivative(x, &out.qdd, out.base_rate)
         });
         self.step_index += 1;
-        first.expect("rk4 evaluates stage 1")
+        let out = first.expect("rk4 evaluates stage 1");
+        let p = &mut self.params;
+        p.mu = crate::adapt::next_mu(&mut p.auto_mu, p.mu, p.projection, &out, dt);
+        out
     }
 }
 
@@ -437,6 +440,7 @@ mod tests {
             damping: 0.0,
             secondary_value: 0.0,
             period_residual: 0.0,
+            null_residual: 0.0,
             clearance,
             joint_margin,
             demand: 0.0,

@@ -168,6 +168,7 @@ impl System {
         match self {
             System::Planar(c) => Feedback {
                 mu: c.feedback.mu,
+                auto: c.feedback.auto,
                 tau: c.feedback.tau,
                 t_on: c.feedback.t_on,
                 max_tau: c.feedback.max_tau,
@@ -176,6 +177,7 @@ impl System {
                 let f = &s.config.feedback;
                 Feedback {
                     mu: f.mu,
+                    auto: f.auto,
                     tau: f.tau.unwrap_or(s.config.task.period),
                     t_on: f.t_on,
                     max_tau: crate::spatial::config::MAX_TAU,
@@ -184,23 +186,29 @@ impl System {
         }
     }
 
-    /// Sets μ and t_on and switches the feedback on (the demo's schedule).
-    pub fn schedule_feedback(&mut self, mu: f64, t_on: f64) {
-        match self {
+    /// Sets μ (a gain, or "auto" with its default tuning unless already adapting) and t_on,
+    /// and switches the feedback on (the demo's schedule).
+    pub fn schedule_feedback(&mut self, mu: crate::adapt::MuSetting, t_on: f64) {
+        let (gain, auto, enabled, on) = match self {
             System::Planar(c) => {
-                c.feedback.mu = mu;
-                c.feedback.t_on = t_on;
-                c.feedback.enabled = true;
+                let f = &mut c.feedback;
+                (&mut f.mu, &mut f.auto, &mut f.enabled, &mut f.t_on)
             }
             System::Spatial(s) => {
-                s.config.feedback.mu = mu;
-                s.config.feedback.t_on = t_on;
-                s.config.feedback.enabled = true;
+                let f = &mut s.config.feedback;
+                (&mut f.mu, &mut f.auto, &mut f.enabled, &mut f.t_on)
             }
+        };
+        *gain = mu.start();
+        if mu.is_auto() {
+            auto.get_or_insert_with(Default::default);
+        } else {
+            *auto = None;
         }
+        *on = t_on;
+        *enabled = true;
     }
 
-    /// The command interface this set-up sends (the planar arm: acceleration, always).
     pub fn command_mode(&self) -> crate::command::CommandMode {
         match self {
             System::Planar(_) => crate::command::CommandMode::Acceleration,
@@ -349,6 +357,8 @@ pub struct SafetySummary {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Feedback {
     pub mu: f64,
+    /// `mu = "auto"`: the adaptation's settings.
+    pub auto: Option<crate::adapt::AutoMu>,
     pub tau: f64,
     pub t_on: f64,
     pub max_tau: f64,

@@ -117,6 +117,31 @@ impl<const N: usize> TickLaw<N> {
         }
     }
 
+    /// Adapts μ after a law run whose output was `out`, `dt` after the last one (`feedback.mu =
+    /// "auto"`; a fixed gain is left as it is). One multiply-add: it runs on the tick.
+    #[inline]
+    pub fn adapt(&mut self, out: &ControlOutput<N>, dt: f64) {
+        use crate::adapt::next_mu;
+        match self {
+            TickLaw::Planar { params: p, .. } => {
+                p.mu = next_mu(&mut p.auto_mu, p.mu, p.projection, out, dt);
+            }
+            TickLaw::Spatial { params: p, .. } => {
+                p.mu = next_mu(&mut p.auto_mu, p.mu, p.projection, out, dt);
+            }
+        }
+    }
+
+    /// After a new parameter block: an adapting gain goes on from `mu` (the gain before the
+    /// change) rather than from the block's start, so an edit does not throw the adaptation away.
+    pub fn carry_adapted_mu(&mut self, mu: f64) {
+        match self {
+            TickLaw::Planar { params: p, .. } if p.auto_mu.is_some() => p.mu = mu,
+            TickLaw::Spatial { params: p, .. } if p.auto_mu.is_some() => p.mu = mu,
+            _ => {}
+        }
+    }
+
     pub fn tau(&self) -> f64 {
         self.feedback().1
     }

@@ -17,7 +17,7 @@ fn panda(mode: CommandMode) -> System {
         sp.config.command.mode = mode;
     }
     // The demo's schedule: μ = 1 from t = 20 s.
-    s.schedule_feedback(1.0, 20.0);
+    s.schedule_feedback(control::adapt::MuSetting::Fixed(1.0), 20.0);
     s
 }
 

@@ -223,6 +223,7 @@ fn panda_params(arm: &SpatialArm<7>, kind: TaskKind) -> (SpatialParams, V7) {
         safety,
         track_loss: 0.05,
         pause: false,
+        auto_mu: None,
     };
     (p, q0)
 }

@@ -63,6 +63,12 @@ pub struct DaemonConfig {
     /// How many full recording files to keep besides the one being written, 0 to 1000
     /// (default 4); older ones are deleted.
     pub record_keep: usize,
+    /// The chaos monitor's window: once-per-period returns kept for the 0–1 test, 32 to 4096
+    /// (default 256).
+    pub monitor_window: usize,
+    /// Mean period residual (rad/s) below which the monitor calls the motion periodic, in
+    /// (0, 1] (default 2e-2: a live orbit's residual stops at a few 1e-3, chaos gives 1–10).
+    pub monitor_periodic_residual: f64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -96,6 +102,8 @@ impl Default for DaemonConfig {
             phase_offset_us: None,
             record_max_bytes: 1 << 30,
             record_keep: 4,
+            monitor_window: 256,
+            monitor_periodic_residual: control::monitor::PERIODIC_RESIDUAL,
         }
     }
 }
@@ -208,7 +216,24 @@ impl DaemonConfig {
                 "must be between 0 and 1000 files",
             ));
         }
+        if !(32..=4096).contains(&self.monitor_window) {
+            let e = "must be between 32 and 4096 periods";
+            return Err(invalid("monitor_window", self.monitor_window, e));
+        }
+        let r = self.monitor_periodic_residual;
+        if !(r > 0.0 && r <= 1.0) {
+            let e = "must be a number in (0, 1] rad/s";
+            return Err(invalid("monitor_periodic_residual", r, e));
+        }
         Ok(())
+    }
+
+    /// The chaos monitor's settings.
+    pub fn monitor(&self) -> control::monitor::MonitorSettings {
+        control::monitor::MonitorSettings {
+            window: self.monitor_window,
+            periodic_residual: self.monitor_periodic_residual,
+        }
     }
 
     /// How a recording rotates (`rotate`).

@@ -173,6 +173,7 @@ impl Reporter {
             "device": protocol::DeviceStatus::from_code(self.device).map(|d| d.to_string()),
             "blocked": self.deadlock.blocked.as_ref().map(|b| b.to_json()),
             "plan": self.deadlock.plan_json(),
+            "chaos": self.chaos.to_json(self.mu_auto()),
         });
         for k in [
             "kp",

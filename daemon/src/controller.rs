@@ -265,9 +265,11 @@ impl<const N: usize> Controller<N> {
     /// another kind of arm is refused (false) and changes nothing: the control service builds
     /// blocks from the same set-up the loop runs, so it never sends one.
     pub fn set_params(&mut self, p: ParamBlock) -> bool {
+        let mu = self.law.feedback().0;
         if !self.law.set(p) {
             return false;
         }
+        self.law.carry_adapted_mu(mu);
         self.law.set_steer(self.steer);
         self.law.set_pause(self.blocked_hold);
         self.applied = Some(Applied::Params);
@@ -594,6 +596,7 @@ impl<const N: usize> Controller<N> {
         self.last_qd = Some(x.qd);
         let held = self.hold_command(t, &x);
         let mut o = held.output;
+        self.law.adapt(&o, self.dt);
         if x.q != m.q {
             // The law ran on the reference: the tracking error reported is the arm's own.
             if let Some(p) = self.law.tool_position(&m.q) {

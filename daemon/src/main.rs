@@ -57,9 +57,10 @@ enum Cmd {
         /// Seconds to run (default 25 for the planar arm, 60 for the Panda).
         #[arg(long)]
         duration: Option<f64>,
-        /// Pyragas gain switched on part-way (default: the config's, or 0.2 if that is 0).
+        /// Pyragas gain switched on part-way, or `auto` (it adapts; give the run a few minutes)
+        /// (default: the config's, or 0.2 if that is 0).
         #[arg(long)]
-        mu: Option<f64>,
+        mu: Option<control::adapt::MuSetting>,
         /// When the feedback switches on (default: the config's t_on if it falls inside the run,
         /// else a third of the way in).
         #[arg(long = "t-on")]
@@ -331,7 +332,7 @@ type CommandChoice = (Option<control::command::CommandMode>, bool);
 fn demo(
     common: &Common,
     duration: Option<f64>,
-    (mu, t_on): (Option<f64>, Option<f64>),
+    (mu, t_on): (Option<control::adapt::MuSetting>, Option<f64>),
     trigger: Option<rt::Trigger>,
     bridge: Option<BridgeKind>,
     (mode, limiter): CommandChoice,
@@ -370,7 +371,12 @@ fn demo(
         s.daemon.output_dir = PathBuf::from("out/demo");
     }
     let fb = s.system.feedback();
-    let mu = mu.unwrap_or(if fb.mu > 0.0 { fb.mu } else { 0.2 });
+    use control::adapt::MuSetting;
+    let mu = mu.unwrap_or(match (fb.auto, fb.mu) {
+        (Some(_), _) => MuSetting::Auto,
+        (None, m) if m > 0.0 => MuSetting::Fixed(m),
+        _ => MuSetting::Fixed(0.2),
+    });
     let t_on = t_on.unwrap_or(if fb.t_on > 0.0 && fb.t_on < duration {
         fb.t_on
     } else {
@@ -410,12 +416,13 @@ fn demo(
     let (mut guard, mut device) = spawn_plant_side(bridge, &cfg_path, &out, duration)?;
     let fb = s.system.feedback();
     say!(
-        "chaosd demo: {}, {} Hz, plant pid {}, namespace {:?}; μ = {} from t = {:.1} s; {duration} s",
+        "chaosd demo: {}, {} Hz, plant pid {}, namespace {:?}; μ = {}{} from t = {:.1} s; {duration} s",
         s.system.describe_arm(),
         s.daemon.rate_hz,
         guard.0.as_ref().map_or(0, |c| c.id()),
         s.daemon.namespace,
         fb.mu,
+        if fb.auto.is_some() { " (auto)" } else { "" },
         fb.t_on
     );
     if let Some(d) = &device.0 {
@@ -554,6 +561,26 @@ fn print_core_gone(s: &DaemonSetup, c: &daemon::controller::Counters) {
     );
 }
 
+/// The chaos monitor's verdict at the end and how it got there (`chaotic at 13 s → …`).
+fn print_chaos(d: &DaemonSummary) {
+    let c = &d.chaos;
+    let path: Vec<String> = c
+        .history
+        .iter()
+        .map(|e| format!("{} at {:.0} s", e.to.name(), e.t))
+        .collect();
+    say!(
+        "chaos monitor         {} ({}){}",
+        c.evidence.verdict.name(),
+        daemon::chaos::describe(&c.evidence),
+        if path.is_empty() {
+            String::new()
+        } else {
+            format!("; {}", path.join(" → "))
+        }
+    );
+}
+
 fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::Value>, out: &Path) {
     let c = &d.counters;
     say!("\n== chaosd demo report ==");
@@ -563,8 +590,9 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
     }
     match (d.period_residual_before, d.period_residual_after) {
         (Some(b), Some(a)) => say!(
-            "period residual       mean |q̇(t) − q̇(t−τ)|: {b:.3} rad/s before feedback → {a:.3} rad/s over the last 5 s with μ = {} ({})",
-            s.system.feedback().mu,
+            "period residual       mean |q̇(t) − q̇(t−τ)|: {b:.3} rad/s before feedback → {a:.3} rad/s over the last 5 s with μ = {}{} ({})",
+            d.chaos.mu,
+            if s.system.feedback().auto.is_some() { " (auto)" } else { "" },
             if a == 0.0 { "periodic to rounding".to_string() } else if a <= b { format!("{:.1}× smaller", b / a) } else { format!("{:.1}× LARGER: not settled on a period-T orbit", a / b) }
         ),
         (b, a) => {
@@ -576,6 +604,7 @@ fn print_report(s: &DaemonSetup, d: &DaemonSummary, plant: Option<&serde_json::V
             )
         }
     }
+    print_chaos(d);
     say!("wake-up lateness      {}", d.lateness.one_line());
     say!(
         "overruns              {} skipped periods in {} ticks",

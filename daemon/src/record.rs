@@ -36,6 +36,7 @@ pub fn tick_record<const N: usize>(
         law_flags: law.map_or(0, |l| l.flags),
         tracking_error: law.map_or(f64::NAN, |l| l.tracking_error),
         period_residual: law.map_or(f64::NAN, |l| l.period_residual),
+        null_residual: law.map_or(f64::NAN, |l| l.null_residual),
         clearance: law.map_or(f64::INFINITY, |l| l.clearance),
         mu,
         tau,

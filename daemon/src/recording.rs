@@ -65,7 +65,7 @@ impl Recording {
         for i in 1..=n {
             h.push_str(&format!(",qdd{i}"));
         }
-        h.push_str(",tracking_error,period_residual\n");
+        h.push_str(",tracking_error,period_residual,null_residual,mu,chaos\n");
         let file = crate::rotate::RotatingWriter::create(&path, h.as_bytes(), limit)
             .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
         Ok(Self {
@@ -77,7 +77,13 @@ impl Recording {
     }
 
     /// Writes one row: the state the law used and the command that answered it.
-    pub fn write_row(&mut self, r: &TickRecord, s: &StateSample) -> std::io::Result<()> {
+    /// `chaos` is the monitor's verdict at this row.
+    pub fn write_row(
+        &mut self,
+        r: &TickRecord,
+        s: &StateSample,
+        chaos: control::monitor::Verdict,
+    ) -> std::io::Result<()> {
         let n = self.n;
         let f = &mut self.file;
         write!(f, "{:.6},{},{},{:.12e}", r.t, s.seq, s.stamp_ns, s.phi)?;
@@ -98,7 +104,15 @@ impl Recording {
                 }
             }
         }
-        writeln!(f, ",{:.9e},{:.9e}", r.tracking_error, r.period_residual)?;
+        writeln!(
+            f,
+            ",{:.9e},{:.9e},{:.9e},{:.9e},{}",
+            r.tracking_error,
+            r.period_residual,
+            r.null_residual,
+            r.mu,
+            chaos.name()
+        )?;
         self.rows += 1;
         Ok(())
     }

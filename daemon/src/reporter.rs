@@ -94,6 +94,8 @@ pub struct Reporter {
     pub(crate) first_device_stop: Option<String>,
     /// Planning, trap detection and the `Blocked` state (see `deadlock`).
     pub(crate) deadlock: crate::deadlock::Deadlock,
+    /// Whether the self-motion is chaotic, converging or periodic (see `chaos`).
+    pub(crate) chaos: crate::chaos::ChaosWatch,
 }
 
 impl Reporter {
@@ -112,8 +114,11 @@ impl Reporter {
             system.n(),
         );
         let deadlock = crate::deadlock::Deadlock::new(&system, daemon.core);
+        let chaos =
+            crate::chaos::ChaosWatch::new(daemon.monitor(), system.feedback().tau, system.n());
         Ok(Self {
             deadlock,
+            chaos,
             limits,
             saturations,
             device: 0,
@@ -234,6 +239,7 @@ impl Reporter {
             self.saved_at = None;
         }
         self.deadlock.observe(r, &self.system);
+        self.chaos.observe(r, self.mu_auto());
         self.lateness.saturating_record(r.lateness_ns.max(1));
         self.window_lateness.saturating_record(r.lateness_ns.max(1));
         self.tel_lateness.saturating_record(r.lateness_ns.max(1));
@@ -286,7 +292,7 @@ impl Reporter {
         }
         if let (Some(rec), Some(st), true) = (self.recording.as_mut(), r.state.as_ref(), r.ran_law)
         {
-            if let Err(e) = rec.write_row(r, st) {
+            if let Err(e) = rec.write_row(r, st, self.chaos.evidence().verdict) {
                 // Do not go on pretending: close it and say so in `status` and `record stop`.
                 self.recording_error = Some(format!(
                     "recording to {} stopped after {} rows: {e}",
@@ -313,6 +319,11 @@ impl Reporter {
             self.last_feedback_active = r.feedback_active;
         }
         self.last = Some(*r);
+    }
+
+    /// Whether μ adapts (`feedback.mu = "auto"`) in the running configuration.
+    pub(crate) fn mu_auto(&self) -> bool {
+        self.system.feedback().auto.is_some()
     }
 
     fn telemetry(&mut self) -> Option<TelemetrySample> {
@@ -363,6 +374,7 @@ impl Reporter {
         self.metrics.fill(&mut t, c);
         t.blocked = self.deadlock.code();
         t.steering = u32::from(self.deadlock.steering());
+        self.chaos.fill(&mut t, self.mu_auto());
         t.interface = self.saturations.mode.code();
         t.device = self.device;
         for kind in control::command::LimitKind::ALL {
@@ -588,6 +600,7 @@ impl Reporter {
             first_device_stop: self.first_device_stop.clone(),
             blocked_entered: self.deadlock.entered,
             first_blocked: self.deadlock.first.clone(),
+            chaos: self.chaos.summary(),
             time_in_safety_zone_s: self.safety_ticks as f64 / self.daemon.rate_hz,
             files: Vec::new(),
         };

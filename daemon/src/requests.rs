@@ -10,7 +10,7 @@ use control::Config;
 use std::path::{Component, Path, PathBuf};
 
 /// Keys `set` accepts (short and dotted forms), for the error message.
-pub const KEYS: &str = "mu, tau, t_on, feedback (on|off), projection (full|null-space), kp, kv, alpha, \
+pub const KEYS: &str = "mu (a number, or auto), gamma, max_mu (auto's tuning), tau, t_on, feedback (on|off), projection (full|null-space), kp, kv, alpha, \
                         secondary (none|manipulability|obstacles), w1, w2, damping_threshold, damping_max, track_loss, \
                         task.center X Y, task.radius, task.period, safety (on|off), safety.clearance, \
                         safety.qd_max, safety.qdd_max (one value for all joints, or one per joint), \
@@ -89,7 +89,10 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             .trim_start_matches("feedback.")
             .trim_start_matches("control.");
         match k {
-            "mu" => c.feedback.mu = num(key, it.next())?,
+            "mu" | "gamma" | "max_mu" => {
+                let f = &mut c.feedback;
+                control::adapt::set_live(k, it.next(), &mut f.mu, &mut f.auto)?
+            }
             "tau" => c.feedback.tau = num(key, it.next())?,
             "t_on" => c.feedback.t_on = num(key, it.next())?,
             "feedback" | "enabled" | "dfc" => c.feedback.enabled = on_off(key, it.next())?,
@@ -182,8 +185,10 @@ pub fn apply_dfc(cfg: &Config, on: bool, now: f64) -> Result<Config, String> {
     c.feedback.enabled = on;
     if on {
         c.feedback.t_on = now.max(0.0);
-        if c.feedback.mu == 0.0 {
-            return Err("feedback.mu is 0: set a gain first (chaosctl set mu 0.2)".into());
+        if c.feedback.mu == 0.0 && c.feedback.auto.is_none() {
+            return Err(
+                "feedback.mu is 0: set a gain first (chaosctl set mu 0.2, or mu auto)".into(),
+            );
         }
     }
     c.validate().map_err(|e| e.to_string())?;

@@ -13,7 +13,7 @@ use control::system::SpatialSystem;
 use control::System;
 
 /// Keys `set` accepts on a spatial robot, for the error message.
-pub const KEYS: &str = "mu, tau, t_on, feedback (on|off), projection (full|null-space), kp, kv, alpha, \
+pub const KEYS: &str = "mu (a number, or auto), gamma, max_mu (auto's tuning), tau, t_on, feedback (on|off), projection (full|null-space), kp, kv, alpha, \
                         secondary (none|manipulability|centring|obstacles), obstacle_weight, null_damping, \
                         damping_threshold, damping_max, track_loss, task.center X Y Z, task.radius, task.period, \
                         safety (on|off), safety.clearance, safety.velocity_scale, safety.trap_time, \
@@ -36,7 +36,10 @@ pub fn apply_set(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialS
             };
         }
         match k {
-            "mu" => c.feedback.mu = f!()?,
+            "mu" | "gamma" | "max_mu" => {
+                let f = &mut c.feedback;
+                control::adapt::set_live(k, it.next(), &mut f.mu, &mut f.auto)?
+            }
             "tau" => c.feedback.tau = Some(f!()?),
             "t_on" => c.feedback.t_on = f!()?,
             "feedback" | "enabled" | "dfc" => c.feedback.enabled = on_off(key, it.next())?,
@@ -94,7 +97,7 @@ pub fn apply_dfc(
     n.config.feedback.enabled = on;
     if on {
         n.config.feedback.t_on = now.max(0.0);
-        if n.config.feedback.mu == 0.0 {
+        if n.config.feedback.mu == 0.0 && n.config.feedback.auto.is_none() {
             return Err("feedback.mu is 0: set a gain first (chaosctl set mu 1)".into());
         }
     }

@@ -48,6 +48,8 @@ pub struct TickRecord {
     pub law_flags: u32,
     pub tracking_error: f64,
     pub period_residual: f64,
+    /// Its self-motion part |(I − J⁺J)(q̇(t) − q̇(t − τ))| (the chaos monitor's evidence).
+    pub null_residual: f64,
     pub clearance: f64,
     pub mu: f64,
     pub tau: f64,
@@ -65,6 +67,38 @@ pub struct TickRecord {
     pub command: Option<CommandSample>,
     /// Which limits the limiter applied to each joint (bits of `control::command::LimitKind`).
     pub limiter_hits: [u8; protocol::MAX_JOINTS],
+}
+
+#[cfg(test)]
+impl TickRecord {
+    /// A RUN tick at t = 0 with nothing in it, for tests to fill in.
+    pub fn blank() -> Self {
+        Self {
+            t: 0.0,
+            lateness_ns: 0,
+            compute_ns: 0,
+            state_age_ns: None,
+            mode: protocol::Mode::Run,
+            fault: None,
+            ran_law: false,
+            law_flags: 0,
+            tracking_error: 0.0,
+            period_residual: 0.0,
+            null_residual: 0.0,
+            clearance: f64::INFINITY,
+            mu: 0.0,
+            tau: 0.0,
+            t_on: 0.0,
+            feedback_on: false,
+            feedback_active: false,
+            counters: Counters::default(),
+            state: None,
+            command: None,
+            limiter_hits: [0; protocol::MAX_JOINTS],
+            now_ns: 0,
+            applied: None,
+        }
+    }
 }
 
 /// What the reporter learnt over the run.
@@ -105,6 +139,8 @@ pub struct DaemonSummary {
     pub first_blocked: Option<String>,
     pub time_in_safety_zone_s: f64,
     pub files: Vec<PathBuf>,
+    /// The chaos monitor at exit, and its first verdict changes.
+    pub chaos: crate::chaos::ChaosSummary,
 }
 
 /// Name of the JSON summary in the output directory.

@@ -102,28 +102,9 @@ mod tests {
 
     fn rec(late_us: u64) -> TickRecord {
         TickRecord {
-            t: 0.0,
             lateness_ns: late_us * 1000,
             compute_ns: 10_000,
-            state_age_ns: None,
-            mode: protocol::Mode::Run,
-            fault: None,
-            ran_law: false,
-            law_flags: 0,
-            tracking_error: 0.0,
-            period_residual: 0.0,
-            clearance: f64::INFINITY,
-            mu: 0.0,
-            tau: 0.0,
-            t_on: 0.0,
-            feedback_on: false,
-            feedback_active: false,
-            counters: Counters::default(),
-            state: None,
-            command: None,
-            limiter_hits: [0; protocol::MAX_JOINTS],
-            now_ns: 0,
-            applied: None,
+            ..TickRecord::blank()
         }
     }
 

@@ -94,6 +94,30 @@ fn controller_tick_allocates_nothing() {
     }
 }
 
+#[test]
+fn adapting_the_gain_on_the_tick_allocates_nothing() {
+    let mut cfg = Config::preset("paper").unwrap();
+    cfg.feedback.auto = Some(control::adapt::AutoMu::default());
+    cfg.feedback.t_on = 0.5;
+    let mut c = Controller::new(cfg.tick_law::<3>(), 2.0, settings());
+    let t0 = 1_000_000_000u64;
+    c.tick(Some(&state(0, t0, 5)), t0);
+    let n = allocations(|| {
+        for k in 1..3000u64 {
+            let now = t0 + k * 1_000_000;
+            let mut s = state(k, now, 5);
+            s.qd[0] = (k as f64 * 0.01).sin(); // never τ-periodic: μ must grow
+            std::hint::black_box(c.tick(Some(&s), now));
+        }
+    });
+    assert_eq!(n, 0, "the adapting tick allocated {n} times");
+    let mu = c.law().feedback().0;
+    assert!(
+        mu > 0.0 && mu <= cfg.feedback.auto.unwrap().max_mu,
+        "μ = {mu}"
+    );
+}
+
 /// The Panda's controller: the `panda` preset's spatial law behind the same `Controller`.
 fn panda_controller() -> (Controller<7>, [f64; 7]) {
     use control::model::{builtin, Chain};

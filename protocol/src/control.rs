@@ -188,7 +188,7 @@ impl ControlResponse {
 
 /// One telemetry sample, published by the daemon at `daemon.telemetry_hz`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::TelemetrySample.v5")]
+#[type_name("chaosd::TelemetrySample.v6")]
 #[repr(C)]
 pub struct TelemetrySample {
     pub seq: u64,
@@ -253,6 +253,13 @@ pub struct TelemetrySample {
     pub blocked: u32,
     /// 1 while the self-motion is steered onto a planned clean cycle.
     pub steering: u32,
+    /// The chaos monitor's verdict (`control::monitor::Verdict::code`: 0 unknown, 1 chaotic,
+    /// 2 converging, 3 periodic, 4 regular), and 1 if μ adapts (`feedback.mu = "auto"`).
+    pub chaos: u32,
+    pub mu_auto: u32,
+    /// Its evidence: the finite-time Lyapunov estimate (1/s) and the 0–1 test's K (NaN: none yet).
+    pub lyapunov: f64,
+    pub k01: f64,
 }
 
 /// Control service settings: one daemon serves; several clients may ask at once, one request
@@ -368,7 +375,7 @@ mod tests {
     fn telemetry_layout_is_pinned() {
         use core::mem::{align_of, offset_of, size_of};
         assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<TelemetrySample>(), 496);
+        assert_eq!(size_of::<TelemetrySample>(), 520);
         assert_eq!(align_of::<TelemetrySample>(), 8);
         assert_eq!(offset_of!(TelemetrySample, phi), 168);
         assert_eq!(offset_of!(TelemetrySample, q), 176);
@@ -378,11 +385,13 @@ mod tests {
         assert_eq!(offset_of!(TelemetrySample, interface), 432);
         assert_eq!(offset_of!(TelemetrySample, saturations), 440);
         assert_eq!(offset_of!(TelemetrySample, blocked), 488);
+        assert_eq!(offset_of!(TelemetrySample, chaos), 496);
+        assert_eq!(offset_of!(TelemetrySample, lyapunov), 504);
         assert_eq!(offset_of!(TelemetrySample, steering), 492);
         // SAFETY: type_name only returns the string set by #[type_name].
         assert_eq!(
             unsafe { <TelemetrySample as ZeroCopySend>::type_name() },
-            "chaosd::TelemetrySample.v5"
+            "chaosd::TelemetrySample.v6"
         );
     }
 }

@@ -27,6 +27,28 @@ pub fn status(ns: &str) -> serde_json::Value {
     serde_json::from_str(&out).unwrap()
 }
 
+/// Polls `status --json` until `done` holds or `within` passes; the last status either way
+/// (null while the daemon does not answer yet), and how long it took.
+pub fn poll_status(
+    ns: &str,
+    within: Duration,
+    done: impl Fn(&serde_json::Value) -> bool,
+) -> (serde_json::Value, Duration) {
+    let start = Instant::now();
+    loop {
+        let (code, out, _) = ctl(ns, &["status", "--json"]);
+        let v = if code == 0 {
+            serde_json::from_str(&out).unwrap()
+        } else {
+            serde_json::Value::Null
+        };
+        if done(&v) || start.elapsed() > within {
+            return (v, start.elapsed());
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
 /// A point near the paper's period-1 orbit (the one μ = 0.1 converges to), nudged off it: without
 /// feedback the motion stays off the orbit; with it, it returns.
 pub const NEAR_ORBIT: &str = "[sim]\nq0 = [1.550079628, -0.488376467, -0.934331288]\nqd0 = [-4.311482957, 9.229261970, -4.051303515]\n\

@@ -10,24 +10,6 @@ use std::time::{Duration, Instant};
 use tests::live::*;
 use tests::*;
 
-/// Polls `status --json` until `done` holds or `within` passes; the last status either way
-/// (null while the daemon does not answer yet).
-fn poll(ns: &str, within: Duration, done: impl Fn(&Value) -> bool) -> (Value, Duration) {
-    let start = Instant::now();
-    loop {
-        let (code, out, _) = ctl(ns, &["status", "--json"]);
-        let v = if code == 0 {
-            serde_json::from_str(&out).unwrap()
-        } else {
-            Value::Null
-        };
-        if done(&v) || start.elapsed() > within {
-            return (v, start.elapsed());
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
 fn blocked(v: &Value) -> bool {
     !v["blocked"].is_null()
 }
@@ -66,7 +48,7 @@ fn an_obstacle_with_no_way_round_blocks_at_once_and_removing_it_resumes_tracking
         dir.path(),
     );
     let mut plant = Proc::spawn("plant", &bin("chaosd-plant"), &["--config", c], dir.path());
-    let (v, _) = poll(&ns, Duration::from_secs(15), |v| {
+    let (v, _) = poll_status(&ns, Duration::from_secs(15), |v| {
         v["mode"] == "Run" && v["plan"]["steering"] == true
     });
     assert!(
@@ -74,7 +56,7 @@ fn an_obstacle_with_no_way_round_blocks_at_once_and_removing_it_resumes_tracking
         "{v}\n{}",
         daemon.log()
     );
-    let (v, _) = poll(&ns, Duration::from_secs(5), |v| tracking(v, 1e-4));
+    let (v, _) = poll_status(&ns, Duration::from_secs(5), |v| tracking(v, 1e-4));
     assert!(tracking(&v, 1e-4), "steered on an open layout: {v}");
 
     // A disc over the circle's right-hand point: the hand must pass through it. (It may land
@@ -82,14 +64,14 @@ fn an_obstacle_with_no_way_round_blocks_at_once_and_removing_it_resumes_tracking
     // under the filter and never coasts into it is `controller`'s unit test, to the tick.)
     let (code, _, err) = ctl(&ns, &["obstacle", "add", "1.5", "2.0", "0.2"]);
     assert_eq!(code, 0, "{err}");
-    let (v, took) = poll(&ns, Duration::from_secs(3), blocked);
+    let (v, took) = poll_status(&ns, Duration::from_secs(3), blocked);
     assert!(took < Duration::from_secs(1), "Blocked after {took:?}: {v}");
     let b = &v["blocked"];
     assert_eq!(b["action"], "hold", "{v}");
     assert_eq!(b["obstacle"], 1, "{v}");
     let reason = b["reason"].as_str().unwrap();
     assert!(reason.contains("obstacle 1"), "{reason}");
-    let (v, _) = poll(&ns, Duration::from_secs(2), |v| v["mode"] == "Hold");
+    let (v, _) = poll_status(&ns, Duration::from_secs(2), |v| v["mode"] == "Hold");
     assert_eq!(v["mode"], "Hold", "tracking paused while blocked: {v}");
     assert_eq!(v["plan"]["steering"], false, "{v}");
     // Said by status (human), watch and the log.
@@ -107,12 +89,12 @@ fn an_obstacle_with_no_way_round_blocks_at_once_and_removing_it_resumes_tracking
     // Removing it ends the block, and the arm tracks again.
     let (code, _, err) = ctl(&ns, &["obstacle", "rm", "0"]);
     assert_eq!(code, 0, "{err}");
-    let (v, took) = poll(&ns, Duration::from_secs(3), |v| !blocked(v));
+    let (v, took) = poll_status(&ns, Duration::from_secs(3), |v| !blocked(v));
     assert!(
         took < Duration::from_secs(1),
         "still blocked after {took:?}: {v}"
     );
-    let (v, took) = poll(&ns, Duration::from_secs(8), |v| tracking(v, 1e-3));
+    let (v, took) = poll_status(&ns, Duration::from_secs(8), |v| tracking(v, 1e-3));
     assert!(
         tracking(&v, 1e-3),
         "not tracking {took:?} after the removal: {v}"
@@ -150,7 +132,7 @@ fn best_effort_runs_on_with_the_flag_raised_from_the_start() {
                [[control.obstacles]]\ncenter = [1.5, 2.0]\nradius = 0.2\n";
     let cfg = write_config(dir.path(), &ns, "", top);
     let (_plant, daemon) = spawn_pair(dir.path(), &cfg);
-    let (v, _) = poll(&ns, Duration::from_secs(15), |v| {
+    let (v, _) = poll_status(&ns, Duration::from_secs(15), |v| {
         v["mode"] == "Run" && blocked(v)
     });
     assert!(
@@ -181,7 +163,7 @@ fn whatever_obstacle_is_added_the_daemon_tracks_or_says_blocked() {
     // removal brings tracking back. Layouts drawn round the arm's reach, seed fixed.
     let _g = serial();
     let sys = start("property", "");
-    let (v, _) = poll(&sys.ns, Duration::from_secs(10), |v| tracking(v, 1e-3));
+    let (v, _) = poll_status(&sys.ns, Duration::from_secs(10), |v| tracking(v, 1e-3));
     assert!(tracking(&v, 1e-3), "no tracking before the first edit: {v}");
     let trap_time = 2.0;
     let mut rng = Lcg(25);
@@ -217,7 +199,7 @@ fn whatever_obstacle_is_added_the_daemon_tracks_or_says_blocked() {
         }
         let (code, _, err) = ctl(&sys.ns, &["obstacle", "rm", "0"]);
         assert_eq!(code, 0, "{err}");
-        let (v, _) = poll(&sys.ns, Duration::from_secs(8), |v| tracking(v, 1e-3));
+        let (v, _) = poll_status(&sys.ns, Duration::from_secs(8), |v| tracking(v, 1e-3));
         assert!(
             tracking(&v, 1e-3),
             "layout {k} {layout}: no tracking after the removal: {v}"

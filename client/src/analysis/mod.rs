@@ -11,6 +11,8 @@ pub mod basins;
 pub mod basins_spatial;
 pub mod figures;
 pub mod lyapunov;
+pub mod monitor;
+pub mod monitor_report;
 pub mod obstacles;
 pub mod orbits;
 pub mod parallel;

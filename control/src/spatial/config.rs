@@ -11,6 +11,7 @@ use super::law::{SpatialParams, SpatialSecondary};
 use super::secondary::{Sphere, SphereSet, MAX_SPHERES};
 use super::task::{Path, Shape, SpatialTask, TaskKind, Vec3};
 use super::SpatialKinematics;
+use crate::adapt::{AutoMu, MuSetting};
 use crate::config::{invalid, ConfigError, MAX_JOINTS};
 use crate::law::Projection;
 use crate::model::Chain;
@@ -121,17 +122,72 @@ impl Default for LawSection {
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(try_from = "FeedbackToml", into = "FeedbackToml")]
 pub struct FeedbackSection {
     /// The switch (`chaosctl dfc on|off`); μ = 0 also leaves the law as the paper's.
     pub enabled: bool,
+    /// The gain; with `auto`, the one the adaptation starts from (0).
     pub mu: f64,
+    /// `mu = "auto"`: the speed-gradient law adapts μ ([`crate::adapt`]).
+    pub auto: Option<AutoMu>,
     /// Default: the task's period.
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub tau: Option<f64>,
     pub t_on: f64,
     /// "full" or "null-space".
     pub projection: String,
+}
+
+/// `[feedback]` as written: `mu` is a number or `"auto"`, and `gamma`/`max_mu` tune "auto".
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct FeedbackToml {
+    enabled: bool,
+    mu: MuSetting,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    gamma: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    max_mu: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    tau: Option<f64>,
+    t_on: f64,
+    projection: String,
+}
+
+impl Default for FeedbackToml {
+    fn default() -> Self {
+        FeedbackSection::default().into()
+    }
+}
+
+impl TryFrom<FeedbackToml> for FeedbackSection {
+    type Error = String;
+    fn try_from(f: FeedbackToml) -> Result<Self, String> {
+        Ok(Self {
+            enabled: f.enabled,
+            mu: f.mu.start(),
+            auto: crate::adapt::auto_from_toml(f.mu, f.gamma, f.max_mu)?,
+            tau: f.tau,
+            t_on: f.t_on,
+            projection: f.projection,
+        })
+    }
+}
+
+impl From<FeedbackSection> for FeedbackToml {
+    fn from(f: FeedbackSection) -> Self {
+        Self {
+            enabled: f.enabled,
+            mu: match f.auto {
+                Some(_) => MuSetting::Auto,
+                None => MuSetting::Fixed(f.mu),
+            },
+            gamma: f.auto.map(|a| a.gamma),
+            max_mu: f.auto.map(|a| a.max_mu),
+            tau: f.tau,
+            t_on: f.t_on,
+            projection: f.projection,
+        }
+    }
 }
 
 impl Default for FeedbackSection {
@@ -139,6 +195,7 @@ impl Default for FeedbackSection {
         Self {
             enabled: true,
             mu: 0.0,
+            auto: None,
             tau: None,
             t_on: 0.0,
             projection: "full".into(),
@@ -305,6 +362,9 @@ impl SpatialConfig {
         }
         // The planar bound: the same gain may not mean a runaway on one arm and not the other.
         crate::config::range("feedback.mu", self.feedback.mu, 0.0, 100.0)?;
+        if let Some(a) = &self.feedback.auto {
+            a.check(self.feedback.tau.unwrap_or(self.task.period))?;
+        }
         positive("law.damping_threshold", self.law.damping_threshold)?;
         positive("law.track_loss", self.law.track_loss)?;
         let tau = self.feedback.tau.unwrap_or(self.task.period);
@@ -537,6 +597,7 @@ impl SpatialConfig {
             tau: self.feedback.tau.unwrap_or(self.task.period),
             t_on: self.feedback.t_on,
             feedback: self.feedback.enabled,
+            auto_mu: self.feedback.auto,
             projection: self.projection()?,
             safety,
             track_loss: self.law.track_loss,

@@ -55,11 +55,13 @@ pub struct SpatialParams {
     /// Tracking paused (the daemon's blocked hold): the arm brakes to rest, the filter keeping
     /// clearance as ever ([`crate::safety::pause_brake`]).
     pub pause: bool,
+    /// `feedback.mu = "auto"`: the caller adapts `mu` after each step ([`crate::adapt`]).
+    pub auto_mu: Option<crate::adapt::AutoMu>,
 }
 
 impl SpatialParams {
     pub fn feedback_active(&self, t: f64) -> bool {
-        self.feedback && self.mu != 0.0 && t >= self.t_on
+        self.feedback && (self.mu != 0.0 || self.auto_mu.is_some()) && t >= self.t_on
     }
 }
 
@@ -188,6 +190,7 @@ pub fn evaluate<const N: usize, const M: usize>(
         damping: lambda,
         secondary_value,
         period_residual: diff.norm(),
+        null_residual: (diff - jpinv * (j * diff)).norm(),
         clearance,
         joint_margin: params.safety.joint_margin(q),
         demand,

@@ -87,7 +87,10 @@ impl<const N: usize, const M: usize> SpatialSimulation<N, M> {
             plant_derivative(x, &out.qdd, 0.0)
         });
         self.step_index += 1;
-        first.expect("rk4 evaluates stage 1")
+        let out = first.expect("rk4 evaluates stage 1");
+        let p = &mut self.params;
+        p.mu = crate::adapt::next_mu(&mut p.auto_mu, p.mu, p.projection, &out, dt);
+        out
     }
 }
 

@@ -1,0 +1,266 @@
+//! `chaosctl monitor`: does the daemon's chaos monitor agree with the offline analysis, and does
+//! `mu = "auto"` find a working gain on its own?
+//!
+//! Every (start, μ) of a sweep runs twice: once with a Benettin pair for the offline λ_max (the
+//! reference the book trusts), once in the plain simulation with the daemon's own monitor
+//! ([`control::monitor`]) watching, fed what the daemon's reporter feeds it. Then each start runs
+//! with `mu = "auto"`, and again with a task edit and an obstacle edit half-way, as a live
+//! `chaosctl set` would make them. The report is a confusion table (offline verdict × monitor
+//! verdict) with the monitor's detection delay, and auto-μ against the smallest fixed μ that
+//! stabilises the same start (time to periodic, final μ, control effort ∫|Pyragas term|²).
+
+use super::parallel::{jobs, run_all};
+use super::{analyse_config, ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
+use anyhow::Result;
+use clap::Args;
+use control::adapt::AutoMu;
+use control::law::LawParams;
+use control::monitor::run::{watch, Edit, Watched};
+use control::monitor::{MonitorSettings, Verdict};
+use control::Config;
+use serde::Serialize;
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct MonitorCmd {
+    #[command(flatten)]
+    pub model: ScanModelArgs,
+    #[command(flatten)]
+    pub starts: StartArgs,
+    #[command(flatten)]
+    pub lyapunov: LyapunovArgs,
+    #[command(flatten)]
+    pub classify: ClassifyArgs,
+    /// γ of the auto runs (default: the config's, else chaosd's default).
+    #[arg(long)]
+    pub gamma: Option<f64>,
+    /// max_mu of the auto runs (default: the config's, else chaosd's default).
+    #[arg(long = "max-mu")]
+    pub max_mu: Option<f64>,
+    /// The monitor's periodic threshold (rad/s; default: the daemon's).
+    #[arg(long = "periodic-residual")]
+    pub periodic_residual: Option<f64>,
+    /// Worker threads (default: every core).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// Output prefix: writes PREFIX.json, PREFIX-cells.csv, PREFIX.png and PREFIX.svg.
+    #[arg(long, default_value = "monitor")]
+    pub output: PathBuf,
+    /// Print the report as JSON instead of tables.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What the offline analysis says of a run: λ_max beyond two standard errors either way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Offline {
+    Chaotic,
+    Stable,
+    Marginal,
+    Failed,
+}
+
+/// One fixed-μ run of one start.
+#[derive(Clone, Debug, Serialize)]
+pub struct FixedCell {
+    pub start: usize,
+    pub mu: f64,
+    pub lambda_max: Option<f64>,
+    pub stderr: Option<f64>,
+    pub offline: Offline,
+    pub verdict: Verdict,
+    /// Periods from the start until the monitor's first verdict (its detection delay).
+    pub first_verdict_periods: Option<f64>,
+    /// The first verdict it gave.
+    pub first_verdict: Verdict,
+    /// Periods from the start until the monitor's verdict settled on its final value (for an
+    /// arm captured by the orbit, this includes the chaotic transient before capture).
+    pub settled_periods: Option<f64>,
+    pub effort: f64,
+}
+
+/// Which edit a robustness run makes half-way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum EditKind {
+    None,
+    /// The task circle's radius × 1.1.
+    Radius,
+    /// The first obstacle moved 5 cm along x (a config with obstacles), else none is made.
+    Obstacle,
+}
+
+/// One `mu = "auto"` run of one start.
+#[derive(Clone, Debug, Serialize)]
+pub struct AutoCell {
+    pub start: usize,
+    pub edit: EditKind,
+    pub edit_at: Option<f64>,
+    pub verdict: Verdict,
+    /// When the verdict last became periodic (s), if it ended so.
+    pub periodic_at: Option<f64>,
+    pub mu_final: f64,
+    /// μ just before the edit.
+    pub mu_at_edit: Option<f64>,
+    pub effort: f64,
+    #[serde(skip)]
+    pub trace: Vec<control::monitor::run::PeriodPoint>,
+}
+
+enum Job {
+    Fixed(usize, Config),
+    Auto(usize, Config, EditKind),
+}
+
+enum Done {
+    Fixed(FixedCell),
+    Auto(AutoCell),
+}
+
+pub fn run(args: MonitorCmd) -> Result<()> {
+    let (base, mus) = args.model.load("0:0.5:0.05")?;
+    let starts = args.starts.configs(&base, args.model.setup.q0.is_some())?;
+    let spec = args.lyapunov.spec(&base, args.classify.config()?)?;
+    let settings = settings(&args)?;
+    let auto = auto_settings(&args, &base)?;
+    let mut work = Vec::new();
+    for (i, s) in starts.iter().enumerate() {
+        for &mu in &mus {
+            let mut c = s.clone();
+            c.feedback.mu = mu;
+            c.feedback.auto = None;
+            work.push(Job::Fixed(i, c));
+        }
+        let mut c = s.clone();
+        c.feedback.auto = Some(auto);
+        c.validate()?;
+        for edit in [EditKind::None, EditKind::Radius, EditKind::Obstacle] {
+            if edit != EditKind::Obstacle || !c.control.obstacles.is_empty() {
+                work.push(Job::Auto(i, c.clone(), edit));
+            }
+        }
+    }
+    let duration = spec.duration;
+    let t0 = std::time::Instant::now();
+    let done = run_all(&work, jobs(args.jobs), "monitor", |j| match j {
+        Job::Fixed(i, c) => Done::Fixed(fixed(*i, c, &spec, settings)),
+        Job::Auto(i, c, e) => Done::Auto(auto_run(*i, c, *e, 2.0 * duration, settings)),
+    })?;
+    let (mut fixed_cells, mut auto_cells) = (Vec::new(), Vec::new());
+    for d in done {
+        match d {
+            Done::Fixed(f) => fixed_cells.push(f),
+            Done::Auto(a) => auto_cells.push(a),
+        }
+    }
+    let report = super::monitor_report::Report::new(
+        &base,
+        &starts,
+        fixed_cells,
+        auto_cells,
+        auto,
+        settings,
+        duration,
+        t0.elapsed().as_secs_f64(),
+    );
+    report.write(&args.output, args.json)
+}
+
+fn settings(args: &MonitorCmd) -> Result<MonitorSettings> {
+    let mut s = MonitorSettings::default();
+    if let Some(r) = args.periodic_residual {
+        if !(r > 0.0 && r <= 1.0) {
+            anyhow::bail!("--periodic-residual {r}: must be a number in (0, 1] rad/s");
+        }
+        s.periodic_residual = r;
+    }
+    Ok(s)
+}
+
+fn auto_settings(args: &MonitorCmd, base: &Config) -> Result<AutoMu> {
+    let mut a = base.feedback.auto.unwrap_or_default();
+    a.gamma = args.gamma.unwrap_or(a.gamma);
+    a.max_mu = args.max_mu.unwrap_or(a.max_mu);
+    a.check(base.feedback.tau)?;
+    Ok(a)
+}
+
+fn fixed(
+    start: usize,
+    c: &Config,
+    spec: &control::analysis::RunSpec,
+    s: MonitorSettings,
+) -> FixedCell {
+    let (lambda_max, stderr) = match analyse_config(c, spec).ok().and_then(|a| a.lyapunov) {
+        Some(l) => (Some(l.lambda_max), Some(l.stderr)),
+        None => (None, None),
+    };
+    let offline = match (lambda_max, stderr) {
+        (Some(l), Some(e)) if l - 2.0 * e > 0.0 => Offline::Chaotic,
+        (Some(l), Some(e)) if l + 2.0 * e < 0.0 => Offline::Stable,
+        (Some(_), Some(_)) => Offline::Marginal,
+        _ => Offline::Failed,
+    };
+    let w = watch(c, spec.duration, s, &[]);
+    FixedCell {
+        start,
+        mu: c.feedback.mu,
+        lambda_max,
+        stderr,
+        offline,
+        verdict: w.last.verdict,
+        first_verdict_periods: w.edges.first().map(|e| e.t / c.feedback.tau),
+        first_verdict: w.edges.first().map_or(Verdict::Unknown, |e| e.to),
+        settled_periods: settled(&w, c.feedback.tau),
+        effort: w.effort,
+    }
+}
+
+/// Periods from the start until the final verdict was reached (None if it never was one).
+fn settled(w: &Watched, tau: f64) -> Option<f64> {
+    (w.last.verdict != Verdict::Unknown).then(|| w.last.since / tau)
+}
+
+fn auto_run(
+    start: usize,
+    c: &Config,
+    edit: EditKind,
+    duration: f64,
+    s: MonitorSettings,
+) -> AutoCell {
+    let at = duration / 2.0;
+    let radius = |p: &mut LawParams| p.task.radius *= 1.1;
+    let obstacle = |p: &mut LawParams| {
+        if let Some(mut o) = p.obstacles.remove(0) {
+            o.center.x += 0.05;
+            let _ = p.obstacles.push(o);
+        }
+    };
+    let edits: Vec<Edit> = match edit {
+        EditKind::None => vec![],
+        EditKind::Radius => vec![Edit {
+            t: at,
+            apply: &radius,
+        }],
+        EditKind::Obstacle => vec![Edit {
+            t: at,
+            apply: &obstacle,
+        }],
+    };
+    let w = watch(c, duration, s, &edits);
+    let mu_at_edit = (edit != EditKind::None)
+        .then(|| w.trace.iter().take_while(|p| p.t < at).last().map(|p| p.mu))
+        .flatten();
+    AutoCell {
+        start,
+        edit,
+        edit_at: (edit != EditKind::None).then_some(at),
+        verdict: w.last.verdict,
+        periodic_at: w.settled_at,
+        mu_final: w.mu_final,
+        mu_at_edit,
+        effort: w.effort,
+        trace: w.trace,
+    }
+}

@@ -1,0 +1,114 @@
+//! A simulated run watched by the monitor: what the offline study and the tests measure.
+//!
+//! The daemon feeds its monitor from the reporter thread with the states the law ran on and the
+//! law's residuals; here the simulation feeds the same numbers, every step, into the same
+//! [`ChaosMonitor`]. Edits at given times change the law's parameters mid-run, as `chaosctl set`
+//! does, and restart the monitor's window, as the daemon does.
+
+use super::{ChaosMonitor, Edge, Evidence, MonitorSettings, Verdict};
+use crate::law::{LawParams, Projection};
+use crate::sim::Simulation;
+use crate::{with_dof, Config};
+use serde::Serialize;
+
+/// A change to the law at a time, as a live `chaosctl set` would make it.
+pub struct Edit<'a> {
+    pub t: f64,
+    pub apply: &'a dyn Fn(&mut LawParams),
+}
+
+/// One period of a watched run.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PeriodPoint {
+    pub t: f64,
+    pub mu: f64,
+    pub residual: f64,
+    pub verdict: Verdict,
+}
+
+/// What a watched run saw.
+#[derive(Clone, Debug, Serialize)]
+pub struct Watched {
+    pub edges: Vec<Edge>,
+    pub last: Evidence,
+    pub mu_final: f64,
+    pub trace: Vec<PeriodPoint>,
+    /// ∫ |Pyragas term|² dt over the run: μ² times the squared residual it acts on.
+    pub effort: f64,
+    /// When the verdict last became what it ended as (s), if it ended periodic.
+    pub settled_at: Option<f64>,
+    /// The run stopped early: the state was no longer finite.
+    pub diverged: bool,
+}
+
+/// Runs `cfg` (planar) for `duration` s with the monitor watching; `edits` sorted by time.
+pub fn watch(cfg: &Config, duration: f64, settings: MonitorSettings, edits: &[Edit]) -> Watched {
+    with_dof!(cfg.n(), N => watch_n::<N>(cfg, duration, settings, edits))
+}
+
+fn watch_n<const N: usize>(
+    cfg: &Config,
+    duration: f64,
+    settings: MonitorSettings,
+    edits: &[Edit],
+) -> Watched {
+    let params = cfg.law_params();
+    let max_tau = cfg.feedback.max_tau;
+    let mut sim = Simulation::new(
+        cfg.model::<N>(),
+        params,
+        cfg.sim.dt,
+        cfg.initial_state::<N>(),
+        max_tau,
+    );
+    let mut monitor = ChaosMonitor::new(settings, params.tau);
+    let (mut edges, mut trace, mut effort, mut diverged) = (Vec::new(), Vec::new(), 0.0, false);
+    let mut pending = edits.iter().peekable();
+    let steps = (duration / cfg.sim.dt).round() as u64;
+    for _ in 0..steps {
+        let t = sim.time();
+        while let Some(e) = pending.next_if(|e| e.t <= t) {
+            // As in the daemon: a new block adapts with the config's γ from the current μ.
+            sim.params.auto_mu = params.auto_mu;
+            (e.apply)(&mut sim.params);
+            monitor.restart(t, sim.params.tau);
+        }
+        let (mu, projection) = (sim.params.mu, sim.params.projection);
+        let x = *sim.state();
+        let out = sim.step();
+        if !sim.state().is_finite() {
+            diverged = true;
+            break;
+        }
+        if out.flags & crate::law::flags::FEEDBACK_ACTIVE != 0 {
+            let r = match projection {
+                Projection::Full => out.period_residual,
+                Projection::NullSpace => out.null_residual,
+            };
+            effort += mu * mu * r * r * cfg.sim.dt;
+        }
+        let periods = monitor.evidence().periods;
+        let (q, qd) = (x.q.as_slice(), x.qd.as_slice());
+        edges.extend(monitor.push(t, q, qd, out.period_residual, out.null_residual));
+        let e = monitor.evidence();
+        if e.periods != periods {
+            trace.push(PeriodPoint {
+                t,
+                mu,
+                residual: e.residual,
+                verdict: e.verdict,
+            });
+        }
+    }
+    let last = *monitor.evidence();
+    let settled_at = (last.verdict == Verdict::Periodic).then_some(last.since);
+    Watched {
+        edges,
+        last,
+        mu_final: sim.params.mu,
+        trace,
+        effort,
+        settled_at,
+        diverged,
+    }
+}

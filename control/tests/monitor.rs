@@ -1,0 +1,140 @@
+//! The chaos monitor and `mu = "auto"` on the simulated planar arm: the real law, the real
+//! simulation, the monitor the daemon runs (what `chaosctl monitor` measures at scale).
+
+use control::adapt::AutoMu;
+use control::monitor::run::{watch, Edit};
+use control::monitor::{MonitorSettings, Verdict};
+use control::Config;
+
+fn paper(q0: [f64; 3], mu: f64) -> Config {
+    let mut cfg = Config::preset("paper").unwrap();
+    cfg.sim.q0 = Some(q0.to_vec());
+    cfg.feedback.mu = mu;
+    cfg.validate().unwrap();
+    cfg
+}
+
+#[test]
+fn free_self_motion_is_called_chaotic_within_twenty_periods() {
+    for q0 in [[0.3, 1.2, 1.9], [-0.5, 2.0, 1.0], [0.6, 1.0, 2.2]] {
+        let w = watch(&paper(q0, 0.0), 60.0, MonitorSettings::default(), &[]);
+        let first = w.edges.first().expect("a verdict");
+        assert_eq!(first.to, Verdict::Chaotic, "{q0:?}: {:?}", w.edges);
+        assert!(first.t <= 20.0, "{q0:?}: chaotic only at {} s", first.t);
+        assert_eq!(w.last.verdict, Verdict::Chaotic, "{q0:?}: {:?}", w.last);
+        assert!(
+            w.last.lambda.unwrap() > 0.0 && w.last.k.unwrap() > 0.5,
+            "{:?}",
+            w.last
+        );
+    }
+}
+
+#[test]
+fn a_stabilising_gain_is_called_periodic_and_a_torus_regular() {
+    // μ = 0.1 from this start: captured by the period-1 orbit after a chaotic transient.
+    let w = watch(
+        &paper([0.3, 1.2, 1.9], 0.1),
+        150.0,
+        MonitorSettings::default(),
+        &[],
+    );
+    let seen: Vec<Verdict> = w.edges.iter().map(|e| e.to).collect();
+    assert_eq!(w.last.verdict, Verdict::Periodic, "{seen:?}");
+    assert_eq!(seen[0], Verdict::Chaotic, "{seen:?}");
+    // μ = 0.45: quasi-periodic (the offline section says so); Rosenstein's λ alone would call it
+    // chaotic, the 0–1 test does not.
+    let w = watch(
+        &paper([0.3, 1.2, 1.9], 0.45),
+        300.0,
+        MonitorSettings::default(),
+        &[],
+    );
+    assert_eq!(w.last.verdict, Verdict::Regular, "{:?}", w.last);
+    assert!(w.last.k.unwrap() < 0.2, "{:?}", w.last);
+}
+
+#[test]
+fn auto_mu_finds_a_stabilising_gain_from_every_start_and_after_an_edit() {
+    for q0 in [[0.6, 1.0, 2.2], [-0.5, 2.0, 1.0], [-0.8, 2.3, 1.2]] {
+        let mut cfg = paper(q0, 0.0);
+        cfg.feedback.auto = Some(AutoMu::default());
+        cfg.validate().unwrap();
+        let radius = |p: &mut control::LawParams| p.task.radius *= 1.1;
+        let edit = [Edit {
+            t: 300.0,
+            apply: &radius,
+        }];
+        let w = watch(&cfg, 600.0, MonitorSettings::default(), &edit);
+        let max = AutoMu::default().max_mu;
+        assert!(
+            w.trace.iter().all(|p| p.mu <= max),
+            "{q0:?}: μ passed max_mu"
+        );
+        let before: Vec<_> = w.trace.iter().filter(|p| p.t < 300.0).collect();
+        assert_eq!(
+            before.last().unwrap().verdict,
+            Verdict::Periodic,
+            "{q0:?} before the edit"
+        );
+        assert_eq!(
+            w.last.verdict,
+            Verdict::Periodic,
+            "{q0:?} after the edit: {:?}",
+            w.last
+        );
+        assert!(w.mu_final > 0.0 && w.effort.is_finite());
+    }
+}
+
+#[test]
+fn without_adaptation_the_gain_never_moves() {
+    let w = watch(
+        &paper([0.3, 1.2, 1.9], 0.2),
+        20.0,
+        MonitorSettings::default(),
+        &[],
+    );
+    assert!(w.trace.iter().all(|p| p.mu == 0.2));
+}
+
+#[test]
+fn auto_in_a_config_file_parses_round_trips_and_refuses_bad_gains() {
+    let text = "[feedback]\nmu = \"auto\"\ngamma = 1e-4\nmax_mu = 0.3\n";
+    let c = Config::parse(text).unwrap();
+    assert_eq!(
+        c.feedback.auto,
+        Some(AutoMu {
+            gamma: 1e-4,
+            max_mu: 0.3
+        })
+    );
+    assert_eq!(c.feedback.mu, 0.0);
+    assert!(c.law_params().feedback_active(c.feedback.t_on + 1.0));
+    let again = Config::parse(&c.to_toml_string()).unwrap();
+    assert_eq!(again.feedback, c.feedback);
+    let plain = Config::parse("[feedback]\nmu = 0.2\n").unwrap();
+    assert_eq!((plain.feedback.mu, plain.feedback.auto), (0.2, None));
+    for (bad, says) in [
+        ("mu = \"fast\"", "\"auto\""),
+        ("mu = 0.2\ngamma = 1e-4", "gamma"),
+        ("mu = \"auto\"\ngamma = 0.5", "feedback.gamma"),
+        ("mu = \"auto\"\ngamma = -1", "feedback.gamma"),
+        ("mu = \"auto\"\nmax_mu = 0", "feedback.max_mu"),
+        ("mu = \"auto\"\nmax_mu = nan", "feedback.max_mu"),
+    ] {
+        let e = Config::parse(&format!("[feedback]\n{bad}\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(says), "{bad}: {e}");
+        assert!(e.len() < 400, "{e}");
+    }
+}
+
+#[test]
+fn the_spatial_feedback_section_takes_auto_too() {
+    let text = control::spatial::config::PANDA.replace("mu = 1.0", "mu = \"auto\"\nmax_mu = 2.0");
+    let c: control::spatial::config::SpatialConfig = toml::from_str(&text).unwrap();
+    assert_eq!(c.feedback.auto.map(|a| a.max_mu), Some(2.0));
+    assert_eq!(c.feedback.mu, 0.0);
+}

@@ -1,0 +1,97 @@
+//! The chaos monitor and `mu = "auto"` on a live daemon and plant (issue 27): the daemon says,
+//! with its evidence, that the self-motion is periodic under the feedback and chaotic without
+//! it, in status, watch, the metrics' telemetry, the log and the exit summary; `set mu auto`
+//! adapts the gain live, carried on from the gain it had.
+
+use serde_json::Value;
+use std::time::Duration;
+use tests::live::*;
+use tests::*;
+
+fn verdict(v: &Value) -> &str {
+    v["chaos"]["verdict"].as_str().unwrap_or("")
+}
+
+#[test]
+fn the_daemon_says_periodic_with_feedback_and_chaotic_without_and_adapts_mu_live() {
+    let _g = serial();
+    // On the period-1 orbit's neighbourhood with μ = 0.2 from the start: it settles in seconds.
+    let near = NEAR_ORBIT
+        .replace("mu = 0.0", "mu = 0.2\nt_on = 0.0")
+        .replace("enabled = false", "enabled = true");
+    let sys = start("chaos", &near);
+    let ns = sys.ns.as_str();
+    let (v, took) = poll_status(ns, Duration::from_secs(40), |v| verdict(v) == "periodic");
+    assert_eq!(verdict(&v), "periodic", "{v}\n{}", sys.daemon.log());
+    let c = &v["chaos"];
+    assert!(
+        c["residual"].as_f64().unwrap() < 2e-2 && c["periods"].as_u64().unwrap() >= 3,
+        "{c}"
+    );
+    assert_eq!(c["mu_auto"], false);
+    eprintln!("periodic after {took:?}: {c}");
+
+    // The human status, watch (telemetry) and the log say it too.
+    let (code, out, err) = ctl(ns, &["status"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("\nchaos     periodic since t = "), "{out}");
+    let (code, out, err) = ctl(ns, &["watch", "--json", "--count", "2"]);
+    assert_eq!(code, 0, "{err}");
+    let last: Value = serde_json::from_str(out.lines().last().unwrap()).unwrap();
+    assert_eq!(last["chaos"], "periodic", "{last}");
+    assert_eq!(last["mu_auto"], false);
+    let (code, out, _) = ctl(ns, &["watch", "--count", "1"]);
+    assert!(code == 0 && out.contains("| periodic"), "{out}");
+    assert!(
+        sys.daemon.log().contains("→ periodic at t = "),
+        "{}",
+        sys.daemon.log()
+    );
+
+    // mu auto: adapts from the gain it had, and the window starts again for the new system.
+    let (code, _, err) = ctl(ns, &["set", "mu", "auto"]);
+    assert_eq!(code, 0, "{err}");
+    let (v, _) = poll_status(ns, Duration::from_secs(5), |v| {
+        v["chaos"]["mu_auto"] == true
+    });
+    assert_eq!(v["chaos"]["mu_auto"], true, "{v}");
+    let (v, _) = poll_status(ns, Duration::from_secs(20), |v| {
+        verdict(v) == "periodic" && v["chaos"]["periods"].as_u64() < Some(20)
+    });
+    assert_eq!(verdict(&v), "periodic", "{v}");
+    let mu = v["mu"].as_f64().unwrap();
+    assert!(
+        (0.2..0.21).contains(&mu),
+        "μ = {mu}: on the orbit it should barely move from 0.2"
+    );
+    let (code, _, err) = ctl(ns, &["set", "gamma", "1"]);
+    assert!(code != 0 && err.contains("feedback.gamma"), "{err}");
+
+    // Feedback off: the orbit is unstable, and the monitor says chaotic, with λ > 0.
+    let (code, _, err) = ctl(ns, &["set", "dfc", "off"]);
+    assert_eq!(code, 0, "{err}");
+    let (v, took) = poll_status(ns, Duration::from_secs(90), |v| verdict(v) == "chaotic");
+    assert_eq!(verdict(&v), "chaotic", "{v}");
+    eprintln!(
+        "chaotic {took:?} after the feedback went off: {}",
+        v["chaos"]
+    );
+    assert!(v["chaos"]["lyapunov"].as_f64().unwrap() > 0.0, "{v}");
+
+    let (code, _, err) = ctl(ns, &["shutdown"]);
+    assert_eq!(code, 0, "{err}");
+    let mut daemon = sys.daemon;
+    assert!(daemon.wait_exit(Duration::from_secs(15)).success());
+    let summary = read_json(&sys.dir.path().join("out/daemon-summary.json"));
+    let seen: Vec<&str> = summary["chaos"]["history"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["to"].as_str().unwrap())
+        .collect();
+    assert!(
+        seen.contains(&"periodic") && seen.last() == Some(&"chaotic"),
+        "{seen:?}"
+    );
+    assert_eq!(summary["chaos"]["evidence"]["verdict"], "chaotic");
+}
