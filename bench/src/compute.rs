@@ -322,9 +322,15 @@ fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<S
         "\nThe daemon's whole tick (validation, delay line, law with the safety filter, first-order \
          hold, guard, command), timed alone per tick: warm, after its caches were evicted, and \
          evicted but rehearsed on the previous state, as the loop does after each sleep \
-         (`Controller::rehearse`).\n\n",
+         (`Controller::rehearse`); and warm with `mu = \"auto\"`, the speed-gradient step on the \
+         tick (issue 27).\n\n",
     );
     report.push(&crate::tick::table(quick)?);
+    report.push(
+        "\nThe chaos monitor's own work, on the reporter thread (the loop never runs it; its cost to \
+         the loop's compute, monitor on vs off, is in the e2e report).\n\n",
+    );
+    report.push(&crate::monitor_cost::table(quick)?);
     report.push(&crate::spatial_timing::section(quick)?);
     report.push(&crate::commands::section(quick)?);
     report.push(&crate::cycle_plan::section(quick)?);

@@ -27,6 +27,7 @@ mod jitter;
 mod late;
 mod latency;
 mod model_timing;
+mod monitor_cost;
 mod naive;
 mod naive_model;
 mod plan;

@@ -112,13 +112,27 @@ pub fn table(quick: bool) -> Result<String> {
         } else {
             summary(&ticks(&cfg, n, before, &mut evict))
         };
-        t.row(vec![
-            name.into(),
-            fmt_ns(s[0] as f64),
-            fmt_ns(s[2] as f64),
-            fmt_ns(s[4] as f64),
-            format!("{:.1}×", s[0] as f64 / warm[0].max(1) as f64),
-        ]);
+        row(&mut t, name, s, warm);
     }
+    // The loop's share of issue 27: the speed-gradient step on every tick, next to a fixed μ.
+    let mut auto = cfg.clone();
+    auto.feedback.auto = Some(control::adapt::AutoMu::default());
+    let s = summary(&ticks(&auto, n, Before::Nothing, &mut evict));
+    row(
+        &mut t,
+        "warm, mu = \"auto\" (the gain adapts on the tick)",
+        s,
+        warm,
+    );
     Ok(t.render())
+}
+
+fn row(t: &mut Table, name: &str, s: [u64; 5], warm: [u64; 5]) {
+    t.row(vec![
+        name.into(),
+        fmt_ns(s[0] as f64),
+        fmt_ns(s[2] as f64),
+        fmt_ns(s[4] as f64),
+        format!("{:.2}×", s[0] as f64 / warm[0].max(1) as f64),
+    ]);
 }

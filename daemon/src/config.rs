@@ -63,6 +63,9 @@ pub struct DaemonConfig {
     /// How many full recording files to keep besides the one being written, 0 to 1000
     /// (default 4); older ones are deleted.
     pub record_keep: usize,
+    /// Run the chaos monitor on the reporter thread (default true; off, status says `unknown`
+    /// and the loop is unchanged: the monitor never runs on it).
+    pub monitor: bool,
     /// The chaos monitor's window: once-per-period returns kept for the 0–1 test, 32 to 4096
     /// (default 256).
     pub monitor_window: usize,
@@ -102,6 +105,7 @@ impl Default for DaemonConfig {
             phase_offset_us: None,
             record_max_bytes: 1 << 30,
             record_keep: 4,
+            monitor: true,
             monitor_window: 256,
             monitor_periodic_residual: control::monitor::PERIODIC_RESIDUAL,
         }
@@ -483,6 +487,29 @@ mod tests {
                 keep: 0
             }
         );
+    }
+
+    #[test]
+    fn monitor_settings_are_checked() {
+        let setup = |t: &str| DaemonSetup::from_config(Config::parse(t).unwrap());
+        for (t, key) in [
+            ("monitor_window = 31", "daemon.monitor_window"),
+            ("monitor_window = 5000", "daemon.monitor_window"),
+            (
+                "monitor_periodic_residual = 0",
+                "daemon.monitor_periodic_residual",
+            ),
+            (
+                "monitor_periodic_residual = nan",
+                "daemon.monitor_periodic_residual",
+            ),
+        ] {
+            let e = setup(&format!("[daemon]\n{t}\n")).unwrap_err().to_string();
+            assert!(e.contains(key), "{t}: {e}");
+        }
+        let s = setup("[daemon]\nmonitor = false\nmonitor_window = 64\n").unwrap();
+        assert!(!s.daemon.monitor);
+        assert_eq!(s.daemon.monitor().window, 64);
     }
 
     #[test]

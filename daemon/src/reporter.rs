@@ -239,7 +239,9 @@ impl Reporter {
             self.saved_at = None;
         }
         self.deadlock.observe(r, &self.system);
-        self.chaos.observe(r, self.mu_auto());
+        if self.daemon.monitor {
+            self.chaos.observe(r, self.mu_auto());
+        }
         self.lateness.saturating_record(r.lateness_ns.max(1));
         self.window_lateness.saturating_record(r.lateness_ns.max(1));
         self.tel_lateness.saturating_record(r.lateness_ns.max(1));
