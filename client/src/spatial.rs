@@ -290,6 +290,19 @@ pub struct SpatialLyapunov {
     pub verdict: &'static str,
 }
 
+/// A run of `duration` s with the daemon's chaos monitor watching (`chaosctl monitor`).
+pub fn watch(
+    cfg: &SpatialConfig,
+    duration: f64,
+    settings: control::monitor::MonitorSettings,
+) -> Result<control::monitor::run::Watched> {
+    Ok(with_setup!(cfg, |s, N, M| {
+        let mut sim =
+            SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        control::monitor::run::watch_sim(&mut sim, duration, settings, s.params.tau, |_, _| None)
+    }))
+}
+
 /// `chaosctl lyapunov` on a spatial robot.
 pub fn lyapunov(
     cfg: &SpatialConfig,

@@ -335,3 +335,46 @@ fn the_trajectory_csv_ends_with_the_final_state() {
         assert_eq!(sorted.len(), times.len(), "stride {stride}: a row repeated");
     }
 }
+
+#[test]
+fn monitor_validates_the_chaos_monitor_end_to_end_and_refuses_bad_settings() {
+    refused(
+        &["monitor", "--preset", "paper", "--gamma", "1"],
+        &["feedback.gamma", "at most"],
+    );
+    refused(
+        &["monitor", "--preset", "paper", "--periodic-residual", "0"],
+        &["--periodic-residual"],
+    );
+    let dir = scratch("monitor");
+    let prefix = dir.join("m");
+    let out = chaosctl(&[
+        "monitor",
+        "--preset",
+        "paper",
+        "--mu",
+        "0:0.1:0.1",
+        "--start",
+        "0.3,1.2,1.9",
+        "--duration",
+        "150",
+        "--output",
+        prefix.to_str().unwrap(),
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // μ = 0: chaotic by both; μ = 0.1 from this start: captured by the period-1 orbit.
+    let cells = r["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 2, "{r}");
+    assert_eq!(cells[0]["verdict"], "chaotic");
+    assert_eq!(cells[0]["offline"], "chaotic");
+    assert_eq!(cells[1]["verdict"], "periodic");
+    assert_eq!(r["comparisons"][0]["smallest_fixed_mu"], 0.1);
+    assert!(r["delay_median_periods"].as_f64().unwrap() <= 20.0, "{r}");
+    for f in ["m.json", "m-cells.csv", "m.png", "m.svg"] {
+        assert!(dir.join(f).is_file(), "{f} missing");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

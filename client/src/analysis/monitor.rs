@@ -119,6 +119,9 @@ enum Done {
 }
 
 pub fn run(args: MonitorCmd) -> Result<()> {
+    if let Some(cfg) = crate::spatial::load(&args.model.setup, None)? {
+        return spatial(&args, &cfg);
+    }
     let (base, mus) = args.model.load("0:0.5:0.05")?;
     let starts = args.starts.configs(&base, args.model.setup.q0.is_some())?;
     let spec = args.lyapunov.spec(&base, args.classify.config()?)?;
@@ -155,13 +158,69 @@ pub fn run(args: MonitorCmd) -> Result<()> {
         }
     }
     let report = super::monitor_report::Report::new(
-        &base,
-        &starts,
+        base.feedback.tau,
+        starts.iter().map(Config::q0).collect(),
         fixed_cells,
         auto_cells,
         auto,
         settings,
         duration,
+        t0.elapsed().as_secs_f64(),
+    );
+    report.write(&args.output, args.json)
+}
+
+/// A spatial robot: its config's start, the μ sweep, and one auto run (no edits).
+fn spatial(args: &MonitorCmd, cfg: &control::spatial::config::SpatialConfig) -> Result<()> {
+    if !args.starts.starts.is_empty() {
+        anyhow::bail!(
+            "--start applies to the planar arm; a spatial study runs its config's start (sim.q0)"
+        );
+    }
+    let mus = match &args.model.mu {
+        Some(r) => r.0.clone(),
+        None => super::parse_range("0:3:0.5").map_err(anyhow::Error::msg)?,
+    };
+    let settings = settings(args)?;
+    let tau = cfg.feedback.tau.unwrap_or(cfg.task.period);
+    let mut auto = cfg.feedback.auto.unwrap_or_default();
+    auto.gamma = args.gamma.unwrap_or(auto.gamma);
+    auto.max_mu = args.max_mu.unwrap_or(auto.max_mu);
+    auto.check(tau)?;
+    let l = &args.lyapunov;
+    let mut work: Vec<Option<f64>> = mus.iter().copied().map(Some).collect();
+    work.push(None); // the auto run
+    let t0 = std::time::Instant::now();
+    let done = run_all(&work, jobs(args.jobs), "monitor", |mu| -> Result<Done> {
+        let mut c = cfg.clone();
+        c.feedback.auto = mu.is_none().then_some(auto);
+        c.feedback.mu = mu.unwrap_or(0.0); // checked when the run sets the robot up
+        let Some(mu) = *mu else {
+            let w = crate::spatial::watch(&c, 2.0 * l.duration, settings)?;
+            return Ok(Done::Auto(auto_cell(0, EditKind::None, None, w)));
+        };
+        let (rep, _) =
+            crate::spatial::lyapunov(&c, l.duration, l.window, l.d0, l.renorm, l.blocks)?;
+        let w = crate::spatial::watch(&c, l.duration, settings)?;
+        let offline = Some((rep.lambda_max, rep.stderr));
+        Ok(Done::Fixed(fixed_cell(0, mu, tau, offline, &w)))
+    })?;
+    let (mut fixed_cells, mut auto_cells) = (Vec::new(), Vec::new());
+    for d in done {
+        match d? {
+            Done::Fixed(f) => fixed_cells.push(f),
+            Done::Auto(a) => auto_cells.push(a),
+        }
+    }
+    let q0 = cfg.sim.q0.clone();
+    let report = super::monitor_report::Report::new(
+        tau,
+        vec![q0],
+        fixed_cells,
+        auto_cells,
+        auto,
+        settings,
+        l.duration,
         t0.elapsed().as_secs_f64(),
     );
     report.write(&args.output, args.json)
@@ -192,27 +251,38 @@ fn fixed(
     spec: &control::analysis::RunSpec,
     s: MonitorSettings,
 ) -> FixedCell {
-    let (lambda_max, stderr) = match analyse_config(c, spec).ok().and_then(|a| a.lyapunov) {
-        Some(l) => (Some(l.lambda_max), Some(l.stderr)),
-        None => (None, None),
-    };
-    let offline = match (lambda_max, stderr) {
-        (Some(l), Some(e)) if l - 2.0 * e > 0.0 => Offline::Chaotic,
-        (Some(l), Some(e)) if l + 2.0 * e < 0.0 => Offline::Stable,
-        (Some(_), Some(_)) => Offline::Marginal,
-        _ => Offline::Failed,
-    };
+    let offline = analyse_config(c, spec)
+        .ok()
+        .and_then(|a| a.lyapunov)
+        .map(|l| (l.lambda_max, l.stderr));
     let w = watch(c, spec.duration, s, &[]);
+    fixed_cell(start, c.feedback.mu, c.feedback.tau, offline, &w)
+}
+
+/// A fixed-μ cell from the offline (λ_max, standard error) and the watched run.
+fn fixed_cell(
+    start: usize,
+    mu: f64,
+    tau: f64,
+    offline: Option<(f64, f64)>,
+    w: &Watched,
+) -> FixedCell {
+    let label = match offline {
+        Some((l, e)) if l - 2.0 * e > 0.0 => Offline::Chaotic,
+        Some((l, e)) if l + 2.0 * e < 0.0 => Offline::Stable,
+        Some(_) => Offline::Marginal,
+        None => Offline::Failed,
+    };
     FixedCell {
         start,
-        mu: c.feedback.mu,
-        lambda_max,
-        stderr,
-        offline,
+        mu,
+        lambda_max: offline.map(|o| o.0),
+        stderr: offline.map(|o| o.1),
+        offline: label,
         verdict: w.last.verdict,
-        first_verdict_periods: w.edges.first().map(|e| e.t / c.feedback.tau),
+        first_verdict_periods: w.edges.first().map(|e| e.t / tau),
         first_verdict: w.edges.first().map_or(Verdict::Unknown, |e| e.to),
-        settled_periods: settled(&w, c.feedback.tau),
+        settled_periods: settled(w, tau),
         effort: w.effort,
     }
 }
@@ -249,13 +319,17 @@ fn auto_run(
         }],
     };
     let w = watch(c, duration, s, &edits);
-    let mu_at_edit = (edit != EditKind::None)
-        .then(|| w.trace.iter().take_while(|p| p.t < at).last().map(|p| p.mu))
-        .flatten();
+    auto_cell(start, edit, (edit != EditKind::None).then_some(at), w)
+}
+
+fn auto_cell(start: usize, edit: EditKind, edit_at: Option<f64>, w: Watched) -> AutoCell {
+    let mu_at_edit = edit_at
+        .and_then(|at| w.trace.iter().take_while(|p| p.t < at).last())
+        .map(|p| p.mu);
     AutoCell {
         start,
         edit,
-        edit_at: (edit != EditKind::None).then_some(at),
+        edit_at,
         verdict: w.last.verdict,
         periodic_at: w.settled_at,
         mu_final: w.mu_final,

@@ -7,7 +7,6 @@ use crate::plot::{Chart, Figure, Panel, Series, Style, DARK, PALETTE};
 use anyhow::{Context, Result};
 use control::adapt::AutoMu;
 use control::monitor::{MonitorSettings, Verdict};
-use control::Config;
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
@@ -98,8 +97,8 @@ fn agrees(o: Offline, v: Verdict) -> bool {
 impl Report {
     #[allow(clippy::too_many_arguments)]
     pub fn new(
-        base: &Config,
-        starts: &[Config],
+        tau: f64,
+        starts: Vec<Vec<f64>>,
         cells: Vec<FixedCell>,
         auto_runs: Vec<AutoCell>,
         auto: AutoMu,
@@ -128,11 +127,10 @@ impl Report {
         };
         let delays = sorted(&|c| c.first_verdict_periods);
         let settled = sorted(&|c| c.settled_periods);
-        let starts: Vec<Vec<f64>> = starts.iter().map(Config::q0).collect();
         Self {
             duration_s,
             wall_s,
-            tau: base.feedback.tau,
+            tau,
             auto,
             monitor,
             offline_labels: OFFLINE.to_vec(),
@@ -146,7 +144,7 @@ impl Report {
             delay_max_periods: delays.last().copied(),
             settled_median_periods: settled.get(settled.len() / 2).copied(),
             settled_max_periods: settled.last().copied(),
-            comparisons: comparisons(&cells, &auto_runs, &starts, base.feedback.tau),
+            comparisons: comparisons(&cells, &auto_runs, &starts, tau),
             edits: edit_runs(&auto_runs),
             confusion,
             cells,

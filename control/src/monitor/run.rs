@@ -6,8 +6,9 @@
 //! does, and restart the monitor's window, as the daemon does.
 
 use super::{ChaosMonitor, Edge, Evidence, MonitorSettings, Verdict};
-use crate::law::{LawParams, Projection};
-use crate::sim::Simulation;
+use crate::law::{ControlOutput, LawParams, Projection};
+use crate::sim::{ArmState, Simulation};
+use crate::spatial::sim::SpatialSimulation;
 use crate::{with_dof, Config};
 use serde::Serialize;
 
@@ -41,6 +42,47 @@ pub struct Watched {
     pub diverged: bool,
 }
 
+/// A closed-loop simulation the monitor can watch: the planar [`Simulation`] or the spatial
+/// [`crate::spatial::sim::SpatialSimulation`].
+pub trait Stepped<const N: usize> {
+    fn time(&self) -> f64;
+    fn state(&self) -> ArmState<N>;
+    /// One step of dt; the law's output at its start.
+    fn step(&mut self) -> ControlOutput<N>;
+    /// (μ now, where the feedback acts, dt).
+    fn feedback(&self) -> (f64, Projection, f64);
+}
+
+impl<const N: usize> Stepped<N> for Simulation<N> {
+    fn time(&self) -> f64 {
+        Simulation::time(self)
+    }
+    fn state(&self) -> ArmState<N> {
+        *Simulation::state(self)
+    }
+    fn step(&mut self) -> ControlOutput<N> {
+        Simulation::step(self)
+    }
+    fn feedback(&self) -> (f64, Projection, f64) {
+        (self.params.mu, self.params.projection, self.dt())
+    }
+}
+
+impl<const N: usize, const M: usize> Stepped<N> for SpatialSimulation<N, M> {
+    fn time(&self) -> f64 {
+        SpatialSimulation::time(self)
+    }
+    fn state(&self) -> ArmState<N> {
+        *SpatialSimulation::state(self)
+    }
+    fn step(&mut self) -> ControlOutput<N> {
+        SpatialSimulation::step(self)
+    }
+    fn feedback(&self) -> (f64, Projection, f64) {
+        (self.params.mu, self.params.projection, self.dt())
+    }
+}
+
 /// Runs `cfg` (planar) for `duration` s with the monitor watching; `edits` sorted by time.
 pub fn watch(cfg: &Config, duration: f64, settings: MonitorSettings, edits: &[Edit]) -> Watched {
     with_dof!(cfg.n(), N => watch_n::<N>(cfg, duration, settings, edits))
@@ -61,31 +103,48 @@ fn watch_n<const N: usize>(
         cfg.initial_state::<N>(),
         max_tau,
     );
-    let mut monitor = ChaosMonitor::new(settings, params.tau);
-    let (mut edges, mut trace, mut effort, mut diverged) = (Vec::new(), Vec::new(), 0.0, false);
     let mut pending = edits.iter().peekable();
-    let steps = (duration / cfg.sim.dt).round() as u64;
-    for _ in 0..steps {
-        let t = sim.time();
+    watch_sim(&mut sim, duration, settings, params.tau, |t, sim| {
+        let mut edited = false;
         while let Some(e) = pending.next_if(|e| e.t <= t) {
             // As in the daemon: a new block adapts with the config's γ from the current μ.
             sim.params.auto_mu = params.auto_mu;
             (e.apply)(&mut sim.params);
-            monitor.restart(t, sim.params.tau);
+            edited = true;
         }
-        let (mu, projection) = (sim.params.mu, sim.params.projection);
-        let x = *sim.state();
+        edited.then_some(sim.params.tau)
+    })
+}
+
+/// Runs `sim` for `duration` s with a monitor for period `tau` watching. Before each step,
+/// `edit(t, sim)` may change the simulation; it returns the new τ when it did (the monitor's
+/// window then restarts, as the daemon's does after an edit).
+pub fn watch_sim<const N: usize, S: Stepped<N>>(
+    sim: &mut S,
+    duration: f64,
+    settings: MonitorSettings,
+    tau: f64,
+    mut edit: impl FnMut(f64, &mut S) -> Option<f64>,
+) -> Watched {
+    let mut monitor = ChaosMonitor::new(settings, tau);
+    let (mut edges, mut trace, mut effort, mut diverged) = (Vec::new(), Vec::new(), 0.0, false);
+    let steps = (duration / sim.feedback().2).round() as u64;
+    for _ in 0..steps {
+        let t = sim.time();
+        if let Some(tau) = edit(t, sim) {
+            monitor.restart(t, tau);
+        }
+        let (mu, projection, dt) = sim.feedback();
+        let x = sim.state();
         let out = sim.step();
         if !sim.state().is_finite() {
             diverged = true;
             break;
         }
         if out.flags & crate::law::flags::FEEDBACK_ACTIVE != 0 {
-            let r = match projection {
-                Projection::Full => out.period_residual,
-                Projection::NullSpace => out.null_residual,
-            };
-            effort += mu * mu * r * r * cfg.sim.dt;
+            let r =
+                crate::adapt::AutoMu::residual(projection, out.period_residual, out.null_residual);
+            effort += mu * mu * r * r * dt;
         }
         let periods = monitor.evidence().periods;
         let (q, qd) = (x.q.as_slice(), x.qd.as_slice());
@@ -105,7 +164,7 @@ fn watch_n<const N: usize>(
     Watched {
         edges,
         last,
-        mu_final: sim.params.mu,
+        mu_final: sim.feedback().0,
         trace,
         effort,
         settled_at,
