@@ -172,15 +172,7 @@ pub fn set_live(
     auto: &mut Option<AutoMu>,
 ) -> Result<(), String> {
     let v = value.ok_or_else(|| format!("{key}: missing value"))?;
-    let number = || -> Result<f64, String> {
-        let x: f64 = v
-            .parse()
-            .map_err(|_| format!("{key}: {v:?} is not a number"))?;
-        if !x.is_finite() {
-            return Err(format!("{key}: {v} is not a finite number"));
-        }
-        Ok(x)
-    };
+    let number = || crate::config::live_number(key, Some(v));
     match (key.trim_start_matches("feedback."), auto.as_mut()) {
         ("mu", _) if v == "auto" => {
             auto.get_or_insert_with(AutoMu::default);

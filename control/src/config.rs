@@ -58,6 +58,18 @@ pub fn excerpt(s: &str) -> String {
     format!("{}… ({} bytes in all)", &s[..end], s.len())
 }
 
+/// A number given on a live `set` (`KEY VALUE`): the value, or a one-line error naming the key.
+pub fn live_number(key: &str, v: Option<&str>) -> Result<f64, String> {
+    let v = v.ok_or_else(|| format!("{key}: missing value"))?;
+    let x: f64 = v
+        .parse()
+        .map_err(|_| format!("{key}: {v:?} is not a number"))?;
+    if !x.is_finite() {
+        return Err(format!("{key}: {v} is not a finite number"));
+    }
+    Ok(x)
+}
+
 /// The error for a field whose value is not what it should be (the value cut to an excerpt).
 pub(crate) fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
     ConfigError::Invalid {

@@ -65,14 +65,7 @@ fn limit<'a>(
 }
 
 pub(crate) fn num(key: &str, v: Option<&str>) -> Result<f64, String> {
-    let v = v.ok_or_else(|| format!("{key}: missing value"))?;
-    let x: f64 = v
-        .parse()
-        .map_err(|_| format!("{key}: {v:?} is not a number"))?;
-    if !x.is_finite() {
-        return Err(format!("{key}: {v} is not a finite number"));
-    }
-    Ok(x)
+    control::config::live_number(key, v)
 }
 
 /// Applies `KEY VALUE… [KEY VALUE…]` to a copy of `cfg` and validates the result.
