@@ -87,6 +87,8 @@ pub enum EditKind {
     None,
     /// The task circle's radius × 1.1.
     Radius,
+    /// The task's period × 1.1, and τ with it (`set task.period … tau …`).
+    Period,
     /// The first obstacle moved 5 cm along x (a config with obstacles), else none is made.
     Obstacle,
 }
@@ -138,7 +140,12 @@ pub fn run(args: MonitorCmd) -> Result<()> {
         let mut c = s.clone();
         c.feedback.auto = Some(auto);
         c.validate()?;
-        for edit in [EditKind::None, EditKind::Radius, EditKind::Obstacle] {
+        for edit in [
+            EditKind::None,
+            EditKind::Radius,
+            EditKind::Period,
+            EditKind::Obstacle,
+        ] {
             if edit != EditKind::Obstacle || !c.control.obstacles.is_empty() {
                 work.push(Job::Auto(i, c.clone(), edit));
             }
@@ -301,23 +308,26 @@ fn auto_run(
 ) -> AutoCell {
     let at = duration / 2.0;
     let radius = |p: &mut LawParams| p.task.radius *= 1.1;
+    let period = |p: &mut LawParams| {
+        p.task.period *= 1.1;
+        p.tau = p.task.period;
+    };
     let obstacle = |p: &mut LawParams| {
         if let Some(mut o) = p.obstacles.remove(0) {
             o.center.x += 0.05;
             let _ = p.obstacles.push(o);
         }
     };
-    let edits: Vec<Edit> = match edit {
-        EditKind::None => vec![],
-        EditKind::Radius => vec![Edit {
-            t: at,
-            apply: &radius,
-        }],
-        EditKind::Obstacle => vec![Edit {
-            t: at,
-            apply: &obstacle,
-        }],
+    let apply: Option<&dyn Fn(&mut LawParams)> = match edit {
+        EditKind::None => None,
+        EditKind::Radius => Some(&radius),
+        EditKind::Period => Some(&period),
+        EditKind::Obstacle => Some(&obstacle),
     };
+    let edits: Vec<Edit> = apply
+        .map(|apply| Edit { t: at, apply })
+        .into_iter()
+        .collect();
     let w = watch(c, duration, s, &edits);
     auto_cell(start, edit, (edit != EditKind::None).then_some(at), w)
 }
