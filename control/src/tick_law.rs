@@ -118,17 +118,19 @@ impl<const N: usize> TickLaw<N> {
     }
 
     /// Adapts μ after a law run whose output was `out`, `dt` after the last one (`feedback.mu =
-    /// "auto"`; a fixed gain is left as it is). One multiply-add: it runs on the tick.
+    /// "auto"`; a fixed gain is left as it is). One multiply-add: it runs on the tick. Not while
+    /// tracking is paused: the braking arm's residual says nothing about the gain.
     #[inline]
     pub fn adapt(&mut self, out: &ControlOutput<N>, dt: f64) {
         use crate::adapt::next_mu;
         match self {
-            TickLaw::Planar { params: p, .. } => {
+            TickLaw::Planar { params: p, .. } if !p.pause => {
                 p.mu = next_mu(&mut p.auto_mu, p.mu, p.projection, out, dt);
             }
-            TickLaw::Spatial { params: p, .. } => {
+            TickLaw::Spatial { params: p, .. } if !p.pause => {
                 p.mu = next_mu(&mut p.auto_mu, p.mu, p.projection, out, dt);
             }
+            _ => {}
         }
     }
 

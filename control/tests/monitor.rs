@@ -138,3 +138,25 @@ fn the_spatial_feedback_section_takes_auto_too() {
     assert_eq!(c.feedback.auto.map(|a| a.max_mu), Some(2.0));
     assert_eq!(c.feedback.mu, 0.0);
 }
+
+#[test]
+fn the_tick_adapts_mu_only_while_tracking() {
+    let mut cfg = paper([0.3, 1.2, 1.9], 0.0);
+    cfg.feedback.auto = Some(AutoMu::default());
+    cfg.feedback.t_on = 0.0;
+    let mut law = cfg.tick_law::<3>();
+    let x = cfg.initial_state::<3>();
+    let delayed = control::VecN::<3>::new(1.0, -1.0, 0.5);
+    let out = law.evaluate(1.0, &x, &delayed, &mut Default::default());
+    assert!(out.period_residual > 0.5);
+    law.set_pause(true);
+    law.adapt(&out, 1e-3);
+    assert_eq!(
+        law.feedback().0,
+        0.0,
+        "a paused (blocked) arm's braking must not raise μ"
+    );
+    law.set_pause(false);
+    law.adapt(&out, 1e-3);
+    assert!(law.feedback().0 > 0.0);
+}
