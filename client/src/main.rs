@@ -4,6 +4,7 @@
 //! all of its input before doing any work.
 
 mod analysis;
+mod export;
 mod exporter;
 mod plan;
 mod plan_map;
@@ -76,6 +77,8 @@ enum Command {
         /// The recording file.
         recording: std::path::PathBuf,
     },
+    /// What an MCAP recording holds; with --csv, its per-tick rows as CSV.
+    Export(export::ExportArgs),
     /// Robot models from URDF: `robot show ROBOT`, `robot eval ROBOT --q …`.
     Robot(robot::RobotCmd),
     /// Print a preset as a TOML config file to start from.
@@ -187,6 +190,7 @@ fn main() -> ExitCode {
         Command::Plan(a) => plan::run(&a),
         Command::Exporter(a) => exporter::run(a),
         Command::Robot(a) => robot::run(a),
+        Command::Export(a) => export::run(a),
         Command::Config { preset } => {
             match control::spatial::config::SpatialConfig::preset(&preset) {
                 Some(c) => {

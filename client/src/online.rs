@@ -128,7 +128,8 @@ pub enum ObstacleAction {
 
 #[derive(Subcommand, Debug)]
 pub enum RecordAction {
-    /// Start recording to NAME (a relative path inside the output directory).
+    /// Start recording to NAME (a relative path inside the output directory): MCAP (open it in
+    /// Foxglove; `chaosctl export NAME --csv` for a table), or CSV when NAME ends in `.csv`.
     Start { name: Option<String> },
     /// Stop and close the file.
     Stop,

@@ -160,7 +160,7 @@ impl Reporter {
             "tracking_error_recent": if tr.1 > 0 { Some((tr.0 / tr.1 as f64).sqrt()) } else { None },
             "counters": r.map(|r| r.counters),
             "histograms": self.percentiles(),
-            "recording": self.recording.as_ref().map(|r| r.path.display().to_string()),
+            "recording": self.recording.as_ref().map(|r| r.path().display().to_string()),
             "recording_error": self.recording_error,
             "replay_recording": self.replay.as_ref().map(|r| r.path.display().to_string()),
             "replay_error": self.replay.as_ref().and_then(|r| r.stopped.clone()),
@@ -257,23 +257,58 @@ impl Reporter {
                 Ok(format!("stalling the control loop for {ms} ms"))
             }),
         };
+        if result.is_ok() {
+            self.note_change(op, args);
+        }
         match result {
             Ok(body) => ControlResponse::new(req.id, Status::Ok, &body),
             Err(why) => ControlResponse::new(req.id, Status::Refused, &why),
         }
     }
 
+    /// Puts an operator's accepted change into the recording: an event in the operator's words,
+    /// and the new scene when the configuration changed.
+    fn note_change(&mut self, op: Op, args: &str) {
+        let words = match op {
+            Op::Set => "set",
+            Op::ObstacleAdd => "obstacle add",
+            Op::ObstacleRemove => "obstacle remove",
+            Op::DfcOn => "dfc on",
+            Op::DfcOff => "dfc off",
+            Op::Resume => "resume",
+            Op::Shutdown => "shutdown",
+            _ => return,
+        };
+        let Some(rec) = self.recording.as_mut() else {
+            return;
+        };
+        let text = format!("chaosctl {words} {args}");
+        let mut done = rec.event(crate::view::Level::Info, text.trim_end());
+        if !matches!(op, Op::Resume | Op::Shutdown) {
+            done = done.and_then(|()| rec.set_system(&self.system));
+        }
+        if let Err(e) = done {
+            self.recording_error = Some(format!(
+                "recording to {} stopped after {} rows: {e}",
+                rec.path().display(),
+                rec.rows()
+            ));
+            self.recording = None;
+        }
+    }
+
     fn start_recording(&mut self, args: &str) -> Result<String, String> {
         if let Some(r) = &self.recording {
-            return Err(format!("already recording to {}", r.path.display()));
+            return Err(format!("already recording to {}", r.path().display()));
         }
         let r = Recording::start(
             &self.daemon.output_dir,
             args,
-            self.system.n(),
+            &self.system,
+            self.daemon.rate_hz,
             self.daemon.record_limit(),
         )?;
-        let answer = serde_json::json!({"path": r.path}).to_string();
+        let answer = serde_json::json!({"path": r.path()}).to_string();
         self.recording = Some(r);
         Ok(answer)
     }

@@ -15,6 +15,8 @@ pub mod deadlock;
 pub mod guard;
 pub mod handshake;
 pub mod limits;
+pub mod mcap_read;
+pub mod mcap_recording;
 pub mod persist;
 pub mod planner;
 pub mod record;
@@ -32,6 +34,7 @@ pub mod spatial_requests;
 pub mod telemetry;
 pub mod tick;
 pub mod trigger;
+pub mod view;
 pub mod watchdog;
 pub mod window;
 

@@ -1,5 +1,7 @@
 //! Recordings (`chaosctl record start|stop`): the states the law used and the commands it sent,
-//! one CSV row per answered state, written by the reporter thread, never by the loop.
+//! written by the reporter thread, never by the loop. MCAP by default
+//! ([`crate::mcap_recording`]); a name ending in `.csv` gets one CSV row per answered state
+//! ([`CsvRecording`], the same columns `chaosctl export --csv` writes from an MCAP file).
 //!
 //! A recording stays in the output directory ([`crate::requests::recording_path`] refuses
 //! absolute paths, `..` and symbolic links) and is owner-only ([`rt::files`]). Every recording
@@ -11,8 +13,99 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
-/// An open recording.
-pub struct Recording {
+/// An open recording of either format.
+pub enum Recording {
+    Csv(CsvRecording),
+    Mcap(Box<crate::mcap_recording::McapRecording>),
+}
+
+impl Recording {
+    /// Starts a recording named `name` (empty: `recording-<unix seconds>.mcap`): CSV when the
+    /// name ends in `.csv`, else MCAP.
+    pub fn start(
+        out_dir: &Path,
+        name: &str,
+        system: &control::System,
+        rate_hz: f64,
+        limit: crate::rotate::Limit,
+    ) -> Result<Self, String> {
+        if name.trim().ends_with(".csv") {
+            return CsvRecording::start(out_dir, name, system.n(), limit).map(Recording::Csv);
+        }
+        crate::mcap_recording::McapRecording::start(out_dir, name, system, rate_hz, limit)
+            .map(|r| Recording::Mcap(Box::new(r)))
+    }
+
+    pub fn path(&self) -> &Path {
+        match self {
+            Recording::Csv(r) => &r.path,
+            Recording::Mcap(r) => &r.path,
+        }
+    }
+
+    /// Rows (answered states) written so far.
+    pub fn rows(&self) -> u64 {
+        match self {
+            Recording::Csv(r) => r.rows,
+            Recording::Mcap(r) => r.rows(),
+        }
+    }
+
+    /// One tick whose law ran on `st`.
+    pub fn tick(
+        &mut self,
+        r: &TickRecord,
+        st: &StateSample,
+        ctx: crate::view::TickContext,
+    ) -> Result<(), String> {
+        match self {
+            Recording::Csv(rec) => rec.write_row(r, st, ctx.chaos).map_err(|e| e.to_string()),
+            Recording::Mcap(rec) => rec.tick(r, st, ctx),
+        }
+    }
+
+    /// An operator's change or another event (MCAP only: a CSV has no place for it).
+    pub fn event(&mut self, level: crate::view::Level, text: &str) -> Result<(), String> {
+        match self {
+            Recording::Csv(_) => Ok(()),
+            Recording::Mcap(r) => r.event(level, text),
+        }
+    }
+
+    /// The running configuration changed.
+    pub fn set_system(&mut self, system: &control::System) -> Result<(), String> {
+        match self {
+            Recording::Csv(_) => Ok(()),
+            Recording::Mcap(r) => r.set_system(system),
+        }
+    }
+
+    /// Closes the file; the JSON answer to `record stop`.
+    pub fn finish(self) -> Result<String, String> {
+        match self {
+            Recording::Csv(r) => r.finish(),
+            Recording::Mcap(r) => r.finish(),
+        }
+    }
+}
+
+/// The CSV columns of an `n`-joint arm (no line end).
+pub fn csv_header(n: usize) -> String {
+    let mut h = String::from("t,state_seq,state_stamp_ns,phi");
+    for p in ["q", "qd"] {
+        for i in 1..=n {
+            h.push_str(&format!(",{p}{i}"));
+        }
+    }
+    h.push_str(",command_seq,mode");
+    for i in 1..=n {
+        h.push_str(&format!(",qdd{i}"));
+    }
+    h + ",tracking_error,period_residual,null_residual,mu,chaos"
+}
+
+/// An open CSV recording.
+pub struct CsvRecording {
     pub path: PathBuf,
     file: crate::rotate::RotatingWriter,
     pub rows: u64,
@@ -25,7 +118,7 @@ pub fn open(path: &Path) -> std::io::Result<std::io::BufWriter<std::fs::File>> {
     Ok(std::io::BufWriter::new(rt::files::create_new(path)?))
 }
 
-/// Resolves a recording name (empty: `recording-<unix seconds>.csv`) inside `out_dir` and creates
+/// Resolves a recording name (empty: `recording-<unix seconds>.<default_ext>`) inside `out_dir` and creates
 /// its directories.
 pub fn resolve(out_dir: &Path, name: &str, default_ext: &str) -> Result<PathBuf, String> {
     let name = if name.trim().is_empty() {
@@ -45,7 +138,7 @@ pub fn resolve(out_dir: &Path, name: &str, default_ext: &str) -> Result<PathBuf,
     Ok(path)
 }
 
-impl Recording {
+impl CsvRecording {
     /// Starts a CSV recording for an `n`-joint arm named `name` inside `out_dir`, rotating at
     /// `limit` (`[daemon] record_max_bytes`, keeping `record_keep` old files; see `rotate`).
     pub fn start(
@@ -55,17 +148,7 @@ impl Recording {
         limit: crate::rotate::Limit,
     ) -> Result<Self, String> {
         let path = resolve(out_dir, name, "csv")?;
-        let mut h = String::from("t,state_seq,state_stamp_ns,phi");
-        for p in ["q", "qd"] {
-            for i in 1..=n {
-                h.push_str(&format!(",{p}{i}"));
-            }
-        }
-        h.push_str(",command_seq,mode");
-        for i in 1..=n {
-            h.push_str(&format!(",qdd{i}"));
-        }
-        h.push_str(",tracking_error,period_residual,null_residual,mu,chaos\n");
+        let h = csv_header(n) + "\n";
         let file = crate::rotate::RotatingWriter::create(&path, h.as_bytes(), limit)
             .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
         Ok(Self {
@@ -124,6 +207,7 @@ impl Recording {
             .map(|_| {
                 serde_json::json!({
                     "path": self.path,
+                    "format": "csv",
                     "rows": self.rows,
                     "rotations": self.file.rotations(),
                     "last_file": self.file.current_path(),

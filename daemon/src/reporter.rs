@@ -294,12 +294,16 @@ impl Reporter {
         }
         if let (Some(rec), Some(st), true) = (self.recording.as_mut(), r.state.as_ref(), r.ran_law)
         {
-            if let Err(e) = rec.write_row(r, st, self.chaos.evidence().verdict) {
+            let ctx = crate::view::TickContext {
+                chaos: self.chaos.evidence().verdict,
+                blocked: self.deadlock.blocked.as_ref().map(|b| b.reason.as_str()),
+            };
+            if let Err(e) = rec.tick(r, st, ctx) {
                 // Do not go on pretending: close it and say so in `status` and `record stop`.
                 self.recording_error = Some(format!(
                     "recording to {} stopped after {} rows: {e}",
-                    rec.path.display(),
-                    rec.rows
+                    rec.path().display(),
+                    rec.rows()
                 ));
                 self.recording = None;
             }

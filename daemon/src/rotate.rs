@@ -38,6 +38,24 @@ pub fn segment_path(path: &Path, k: u64) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// With segment `current` just started, deletes the one that is now `keep + 1` segments old
+/// (old files are segments 0..current; the newest `keep` of them stay).
+pub fn remove_old(path: &Path, current: u64, keep: usize) -> io::Result<()> {
+    if let Some(old) = current.checked_sub(keep as u64 + 1) {
+        let gone = segment_path(path, old);
+        match std::fs::remove_file(&gone) {
+            Err(e) if e.kind() != io::ErrorKind::NotFound => {
+                return Err(io::Error::new(
+                    e.kind(),
+                    format!("cannot remove {}: {e}", gone.display()),
+                ))
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 /// A line-oriented writer that rotates at [`Limit::max_bytes`]. See the module docs.
 pub struct RotatingWriter {
     path: PathBuf,
@@ -88,20 +106,7 @@ impl RotatingWriter {
         self.segment += 1;
         self.file.write_all(&self.header)?;
         self.written = self.header.len() as u64;
-        // Old files are segments 0..segment; keep the newest `keep` of them.
-        if let Some(old) = self.segment.checked_sub(self.limit.keep as u64 + 1) {
-            let gone = segment_path(&self.path, old);
-            match std::fs::remove_file(&gone) {
-                Err(e) if e.kind() != io::ErrorKind::NotFound => {
-                    return Err(io::Error::new(
-                        e.kind(),
-                        format!("cannot remove {}: {e}", gone.display()),
-                    ))
-                }
-                _ => {}
-            }
-        }
-        Ok(())
+        remove_old(&self.path, self.segment, self.limit.keep)
     }
 
     fn commit_line(&mut self) -> io::Result<()> {

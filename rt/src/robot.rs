@@ -47,6 +47,23 @@ pub fn load(spec: &str, base: Option<&str>, tip: Option<&str>) -> Result<Chain, 
     Chain::from_urdf(&text, base, tip).map_err(|error| RobotError::Model { origin, error })
 }
 
+/// The URDF text of a built-in robot (by name) or of a file, as [`load`] reads it: for a
+/// recording's `/robot_description`, so a viewer draws the same robot.
+///
+/// ```
+/// assert!(rt::robot::text("panda").unwrap().contains("panda_link0"));
+/// ```
+pub fn text(spec: &str) -> Result<String, RobotError> {
+    match builtin(spec) {
+        Ok(text) => Ok(text.to_string()),
+        Err(error) if looks_like_a_name(spec) => Err(RobotError::Model {
+            origin: format!("robot {spec:?}"),
+            error,
+        }),
+        Err(_) => read(Path::new(spec)),
+    }
+}
+
 /// A bare word that is not a file here: the user meant a built-in robot.
 fn looks_like_a_name(spec: &str) -> bool {
     !spec.contains('/') && !spec.ends_with(".urdf") && !Path::new(spec).exists()
