@@ -71,8 +71,9 @@ enum Command {
     Online(online::Online),
     /// Serve the daemons' telemetry as Prometheus metrics on http://LISTEN/metrics.
     Exporter(exporter::ExporterArgs),
-    /// Replay a recording (`chaosd run --record NAME`) through the daemon's controller and
-    /// compare every command bit for bit. Exit 0: all identical; 1: a mismatch; 2: a bad file.
+    /// Replay a recording (`chaosd run --record NAME`, MCAP or `.replay` text) through the
+    /// daemon's controller and compare every command bit for bit. Exit 0: all identical; 1: a
+    /// mismatch; 2: a bad file.
     Replay {
         /// The recording file.
         recording: std::path::PathBuf,

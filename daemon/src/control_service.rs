@@ -266,7 +266,7 @@ impl Reporter {
         }
     }
 
-    /// Puts an operator's accepted change into the recording: an event in the operator's words,
+    /// Puts an operator's accepted change into the recordings: an event in the operator's words,
     /// and the new scene when the configuration changed.
     fn note_change(&mut self, op: Op, args: &str) {
         let words = match op {
@@ -279,21 +279,23 @@ impl Reporter {
             Op::Shutdown => "shutdown",
             _ => return,
         };
-        let Some(rec) = self.recording.as_mut() else {
-            return;
-        };
         let text = format!("chaosctl {words} {args}");
-        let mut done = rec.event(crate::view::Level::Info, text.trim_end());
-        if !matches!(op, Op::Resume | Op::Shutdown) {
-            done = done.and_then(|()| rec.set_system(&self.system));
+        let text = text.trim_end();
+        let system = (!matches!(op, Op::Resume | Op::Shutdown)).then_some(&self.system);
+        if let Some(rec) = self.recording.as_mut() {
+            if let Err(e) = rec.note(text, system) {
+                self.recording_error = Some(format!(
+                    "recording to {} stopped after {} rows: {e}",
+                    rec.path().display(),
+                    rec.rows()
+                ));
+                self.recording = None;
+            }
         }
-        if let Err(e) = done {
-            self.recording_error = Some(format!(
-                "recording to {} stopped after {} rows: {e}",
-                rec.path().display(),
-                rec.rows()
-            ));
-            self.recording = None;
+        if let Some(rec) = self.replay.as_mut().and_then(|l| l.mcap()) {
+            if let Err(e) = rec.note(text, system) {
+                tracing::warn!("replay recording {}: {e}", rec.path.display());
+            }
         }
     }
 

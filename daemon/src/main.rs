@@ -45,7 +45,8 @@ enum Cmd {
         #[arg(long)]
         fresh: bool,
         /// Write a replay recording of every tick to NAME in the output directory (for
-        /// `chaosctl replay`; about 2 GB an hour at 1 kHz).
+        /// `chaosctl replay`): MCAP, with every channel of `chaosctl record` beside the replay's
+        /// (it opens in Foxglove), or the text format alone when NAME ends in `.replay`.
         #[arg(long, value_name = "NAME")]
         record: Option<String>,
     },

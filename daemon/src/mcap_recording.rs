@@ -85,10 +85,12 @@ impl Output {
         }
         let path = segment_path(&self.path, self.segment);
         let w = self.writer.as_mut().ok_or("the recording is closed")?;
-        let (name, encoding, text) = topic.schema();
-        let schema = w
-            .add_schema(name, encoding, text.as_bytes())
-            .map_err(err(&path))?;
+        let schema = match topic.schema() {
+            Some((name, encoding, text)) => w
+                .add_schema(name, encoding, text.as_bytes())
+                .map_err(err(&path))?,
+            None => 0,
+        };
         let id = w
             .add_channel(schema, topic.name(), topic.encoding(), &BTreeMap::new())
             .map_err(err(&path))?;
@@ -214,6 +216,11 @@ impl McapRecording {
         (monotonic_ns as i128 + self.offset_ns).max(0) as u64
     }
 
+    /// Message bytes written so far (the file is smaller: its chunks are compressed).
+    pub fn bytes(&self) -> u64 {
+        self.out.written
+    }
+
     /// Answered states recorded so far.
     pub fn rows(&self) -> u64 {
         self.encoder.rows
@@ -244,10 +251,27 @@ impl McapRecording {
             .unwrap_or_else(|| self.unix_ns(protocol::monotonic_ns()))
     }
 
+    /// A tick's replay text (see [`crate::replay`]) on `/chaosd/replay`, at the tick's time.
+    pub fn replay_text(&mut self, monotonic_ns: u64, text: &str) -> Result<(), String> {
+        let ns = self.unix_ns(monotonic_ns);
+        self.out
+            .put(Topic::Replay, self.encoder.rows, ns, text.as_bytes())
+    }
+
     /// A line on `/chaosd/events`, stamped with the newest tick's time.
     pub fn event(&mut self, level: Level, text: &str) -> Result<(), String> {
         let ns = self.now();
         self.encoder.event(ns, level, text, &mut self.out)
+    }
+
+    /// An operator's change: an event in `text`, and the new configuration's scene when it
+    /// changed.
+    pub fn note(&mut self, text: &str, system: Option<&System>) -> Result<(), String> {
+        self.event(Level::Info, text)?;
+        match system {
+            Some(s) => self.set_system(s),
+            None => Ok(()),
+        }
     }
 
     /// The configuration changed: the new path and obstacles.

@@ -64,19 +64,12 @@ impl Recording {
         }
     }
 
-    /// An operator's change or another event (MCAP only: a CSV has no place for it).
-    pub fn event(&mut self, level: crate::view::Level, text: &str) -> Result<(), String> {
+    /// An operator's change (MCAP only: a CSV has no place for it): an event in `text`, and
+    /// the new configuration's scene when it changed.
+    pub fn note(&mut self, text: &str, system: Option<&control::System>) -> Result<(), String> {
         match self {
             Recording::Csv(_) => Ok(()),
-            Recording::Mcap(r) => r.event(level, text),
-        }
-    }
-
-    /// The running configuration changed.
-    pub fn set_system(&mut self, system: &control::System) -> Result<(), String> {
-        match self {
-            Recording::Csv(_) => Ok(()),
-            Recording::Mcap(r) => r.set_system(system),
+            Recording::Mcap(r) => r.note(text, system),
         }
     }
 

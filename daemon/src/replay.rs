@@ -11,6 +11,11 @@
 //! record it already sends. The file is owner-only and stays in the output directory
 //! ([`crate::recording::resolve`]).
 //!
+//! A recording is MCAP (`--record run.mcap`, or any name not ending in `.replay`): the text
+//! below, one message a tick on its `/chaosd/replay` channel, beside every channel of
+//! [`crate::view`], so the run that replays bit for bit also opens in Foxglove. A name ending in
+//! `.replay` writes the text alone; [`replay`] reads both.
+//!
 //! # Format (text, version 2; every `f64` as the 16 hex digits of its bits)
 //!
 //! ```text
@@ -67,10 +72,23 @@ enum Announced {
     Steer(String),
 }
 
+/// Where a replay recording goes.
+enum Out {
+    /// The text format itself (a name ending in `.replay`).
+    Text(std::io::BufWriter<std::fs::File>),
+    /// An MCAP recording whose `/chaosd/replay` channel holds the same text, one message a tick,
+    /// beside every channel `chaosctl record` writes (any other name). The header waits for the
+    /// first tick, so that every channel's times run forwards.
+    Mcap {
+        rec: Box<crate::mcap_recording::McapRecording>,
+        header: Option<String>,
+    },
+}
+
 /// An open replay recording, written by the reporter thread.
 pub struct ReplayLog {
     pub path: PathBuf,
-    file: std::io::BufWriter<std::fs::File>,
+    file: Out,
     next_tick: u64,
     /// Configs and steering handed to the loop and not yet seen applied, oldest first (the
     /// loop takes requests in the order they were sent).
@@ -92,9 +110,7 @@ impl ReplayLog {
         start_in_fault: bool,
         handshake: bool,
     ) -> Result<Self, String> {
-        let path = crate::recording::resolve(out_dir, name, "replay")?;
-        let cannot = |e: std::io::Error| format!("cannot write {}: {e}", path.display());
-        let mut file = crate::recording::open(&path).map_err(cannot)?;
+        let path = crate::recording::resolve(out_dir, name, "mcap")?;
         let s = settings;
         let config = system_toml(cfg);
         let header = format!(
@@ -111,8 +127,30 @@ impl ReplayLog {
             u8::from(handshake),
             config.lines().count(),
         );
-        file.write_all(header.as_bytes()).map_err(cannot)?;
         let written = header.len() as u64;
+        let file = if path.extension().is_some_and(|e| e == "replay") {
+            let cannot = |e: std::io::Error| format!("cannot write {}: {e}", path.display());
+            let mut file = crate::recording::open(&path).map_err(cannot)?;
+            file.write_all(header.as_bytes()).map_err(cannot)?;
+            Out::Text(file)
+        } else {
+            let name = path
+                .strip_prefix(out_dir)
+                .unwrap_or(&path)
+                .to_string_lossy();
+            let system = control::System::Planar(cfg.clone());
+            let no_limit = crate::rotate::Limit {
+                max_bytes: None,
+                keep: 0,
+            };
+            let rec = crate::mcap_recording::McapRecording::start(
+                out_dir, &name, &system, s.rate_hz, no_limit,
+            )?;
+            Out::Mcap {
+                rec: Box::new(rec),
+                header: Some(header),
+            }
+        };
         Ok(Self {
             path,
             file,
@@ -143,30 +181,59 @@ impl ReplayLog {
             .push_back(Announced::Steer(crate::replay_steer::line(steer)));
     }
 
-    /// Appends one tick. After a gap or a write error the recording stops (and says why).
-    pub fn tick(&mut self, r: &TickRecord) {
+    /// The MCAP recording this writes into, if it is one (for events and scene changes).
+    pub fn mcap(&mut self) -> Option<&mut crate::mcap_recording::McapRecording> {
+        match &mut self.file {
+            Out::Mcap { rec, .. } => Some(rec),
+            Out::Text(_) => None,
+        }
+    }
+
+    /// Appends one tick (`ctx`: what an MCAP recording's other channels show with it). After a
+    /// gap or a write error the recording stops (and says why).
+    pub fn tick(&mut self, r: &TickRecord, ctx: crate::view::TickContext) {
         if self.stopped.is_some() {
             return;
         }
-        if let Err(e) = self.write_tick(r) {
+        if let Err(e) = self.write_tick(r, ctx) {
             self.stopped = Some(format!(
                 "replay recording {} stopped at tick {}: {e}",
                 self.path.display(),
                 self.next_tick
             ));
-            let _ = self.file.flush();
+            if let Out::Text(f) = &mut self.file {
+                let _ = f.flush();
+            }
         }
     }
 
-    fn write_tick(&mut self, r: &TickRecord) -> std::io::Result<()> {
+    /// Writes one tick's text (and, into MCAP, its other channels).
+    fn emit(
+        &mut self,
+        r: &TickRecord,
+        ctx: crate::view::TickContext,
+        text: &str,
+    ) -> std::io::Result<()> {
+        match &mut self.file {
+            Out::Text(f) => f.write_all(text.as_bytes()),
+            Out::Mcap { rec, header } => {
+                let mut done = match header.take() {
+                    Some(h) => rec.replay_text(r.now_ns, &(h + text)),
+                    None => rec.replay_text(r.now_ns, text),
+                };
+                if let (Ok(()), Some(st), true) = (&done, &r.state, r.ran_law) {
+                    done = rec.tick(r, st, ctx);
+                }
+                done.map_err(std::io::Error::other)
+            }
+        }
+    }
+
+    fn write_tick(&mut self, r: &TickRecord, ctx: crate::view::TickContext) -> std::io::Result<()> {
         let tick = r.counters.ticks.saturating_sub(1);
         if tick != self.next_tick {
-            writeln!(
-                self.file,
-                "G {} {}",
-                self.next_tick,
-                tick.abs_diff(self.next_tick)
-            )?;
+            let gap = format!("G {} {}\n", self.next_tick, tick.abs_diff(self.next_tick));
+            self.emit(r, ctx, &gap)?;
             return Err(std::io::Error::other(
                 "tick records were lost (the telemetry queue was full)",
             ));
@@ -211,24 +278,32 @@ impl ReplayLog {
             None => out.push('-'),
         }
         out.push('\n');
-        if self.written.saturating_add(out.len() as u64) > self.max_bytes {
+        let written = match &self.file {
+            Out::Mcap { rec, .. } => rec.bytes(),
+            Out::Text(_) => self.written,
+        };
+        if written.saturating_add(out.len() as u64) > self.max_bytes {
             return Err(std::io::Error::other(format!(
                 "it reached daemon.record_max_bytes = {} bytes (a replay recording is one file \
                  from the first tick: it stops rather than rotates); it replays up to here",
                 self.max_bytes
             )));
         }
-        self.file.write_all(out.as_bytes())?;
+        self.emit(r, ctx, &out)?;
         self.written += out.len() as u64;
         self.next_tick += 1;
         Ok(())
     }
 
-    /// Flushes the file.
-    pub fn finish(mut self) -> Result<PathBuf, String> {
-        self.file
-            .flush()
-            .map_err(|e| format!("cannot finish {}: {e}", self.path.display()))?;
+    /// Flushes and closes the file.
+    pub fn finish(self) -> Result<PathBuf, String> {
+        let cannot = |e: String| format!("cannot finish {}: {e}", self.path.display());
+        match self.file {
+            Out::Text(mut f) => f.flush().map_err(|e| cannot(e.to_string()))?,
+            Out::Mcap { rec, .. } => {
+                rec.finish().map_err(cannot)?;
+            }
+        }
         match self.stopped {
             Some(why) => Err(why),
             None => Ok(self.path),
@@ -589,9 +664,24 @@ fn header<R: BufRead>(lines: &mut Lines<R>) -> Result<Header> {
 /// Replays the recording at `path`: every recorded tick through a fresh [`Controller`], every
 /// command compared bit for bit. An unreadable or damaged recording is an error naming the line.
 pub fn replay(path: &Path) -> Result<ReplayReport> {
-    let f =
-        std::fs::File::open(path).map_err(|e| anyhow!("cannot open {}: {e}", path.display()))?;
-    replay_from(std::io::BufReader::new(f)).map_err(|e| anyhow!("{}: {e}", path.display()))
+    let bytes = std::fs::read(path).map_err(|e| anyhow!("cannot open {}: {e}", path.display()))?;
+    let text = if crate::mcap_read::is_mcap(&bytes) {
+        let file =
+            crate::mcap_read::parse(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        let lines = file.messages(crate::view::Topic::Replay);
+        if lines.is_empty() {
+            bail!(
+                "{}: an MCAP recording without a /chaosd/replay channel (`chaosctl record` \
+                 records from the middle of a run; `chaosd run --record NAME` makes a \
+                 recording that replays)",
+                path.display()
+            );
+        }
+        lines.iter().flat_map(|m| m.data.iter().copied()).collect()
+    } else {
+        bytes
+    };
+    replay_from(std::io::Cursor::new(text)).map_err(|e| anyhow!("{}: {e}", path.display()))
 }
 
 /// [`replay`] from any reader.
@@ -718,9 +808,14 @@ mod tests {
 
     /// [`record`] into a file capped at `max_bytes`: what `finish` says.
     fn record_capped(dir: &Path, max_bytes: u64) -> Result<PathBuf, String> {
+        record_as(dir, "a.replay", max_bytes)
+    }
+
+    /// [`record_capped`] into `name` (MCAP unless it ends in `.replay`).
+    fn record_as(dir: &Path, name: &str, max_bytes: u64) -> Result<PathBuf, String> {
         let mut cfg = Config::preset("paper").unwrap();
         cfg.feedback.t_on = 0.3;
-        let mut log = ReplayLog::create(dir, "a.replay", &cfg, &settings(), false, true)
+        let mut log = ReplayLog::create(dir, name, &cfg, &settings(), false, true)
             .unwrap()
             .with_max_bytes(max_bytes);
         let mut ctl = Controller::<3>::new(cfg.tick_law::<3>(), cfg.feedback.max_tau, settings());
@@ -754,7 +849,11 @@ mod tests {
                 woke: now,
                 done: now + 1,
             };
-            log.tick(&tick_record(&ctl, &o, newest, times));
+            let ctx = crate::view::TickContext {
+                chaos: control::monitor::Verdict::Unknown,
+                blocked: None,
+            };
+            log.tick(&tick_record(&ctl, &o, newest, times), ctx);
         }
         log.finish()
     }
@@ -790,6 +889,38 @@ mod tests {
         let m = r.first_mismatch.unwrap();
         assert_eq!((m.tick, m.field.as_str()), (200, "command.qdd[1]"));
         assert!(m.recorded.contains(&format!("0x{v:016x}")), "{m}");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn an_mcap_recording_replays_bit_for_bit_and_holds_the_same_text_and_the_view_channels() {
+        let d = dir("mcap");
+        let p = record_as(&d, "a.mcap", u64::MAX).unwrap();
+        let r = replay(&p).unwrap();
+        assert!(r.all_matched(), "{r}");
+        assert_eq!((r.ticks, r.param_changes), (400, 1));
+        let text_path = record(&d);
+        let file = crate::mcap_read::read(&p).unwrap();
+        let lines: Vec<u8> = file
+            .messages(crate::view::Topic::Replay)
+            .iter()
+            .flat_map(|m| m.data.clone())
+            .collect();
+        // The settings line names the daemon and its clock, so it is the same in both files.
+        assert_eq!(lines, std::fs::read(&text_path).unwrap());
+        assert_eq!(file.messages(crate::view::Topic::Replay).len(), 400);
+        let states = file.messages(crate::view::Topic::JointStates).len();
+        assert!(states > 200 && states < 400, "{states}"); // the ticks whose law ran
+                                                           // A recording made with `chaosctl record` has no replay channel: said in words.
+        let sys = control::System::Planar(Config::preset("paper").unwrap());
+        let limit = crate::rotate::Limit {
+            max_bytes: None,
+            keep: 0,
+        };
+        let rec = crate::mcap_recording::McapRecording::start(&d, "b.mcap", &sys, 1e3, limit);
+        rec.unwrap().finish().unwrap();
+        let e = replay(&d.join("b.mcap")).unwrap_err().to_string();
+        assert!(e.contains("without a /chaosd/replay channel"), "{e}");
         std::fs::remove_dir_all(&d).unwrap();
     }
 

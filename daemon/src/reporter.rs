@@ -310,7 +310,11 @@ impl Reporter {
         }
         if let Some(log) = self.replay.as_mut() {
             let was_running = log.stopped.is_none();
-            log.tick(r);
+            let ctx = crate::view::TickContext {
+                chaos: self.chaos.evidence().verdict,
+                blocked: self.deadlock.blocked.as_ref().map(|b| b.reason.as_str()),
+            };
+            log.tick(r, ctx);
             if let (true, Some(why)) = (was_running, &log.stopped) {
                 tracing::warn!("{why}");
             }

@@ -29,10 +29,12 @@ pub enum Topic {
     Residual,
     Command,
     Events,
+    /// A replay recording's text, one message a tick (`crate::replay`); no schema.
+    Replay,
 }
 
 impl Topic {
-    pub const ALL: [Topic; 10] = [
+    pub const ALL: [Topic; 11] = [
         Topic::JointStates,
         Topic::RobotDescription,
         Topic::Transforms,
@@ -43,6 +45,7 @@ impl Topic {
         Topic::Residual,
         Topic::Command,
         Topic::Events,
+        Topic::Replay,
     ];
 
     pub fn name(self) -> &'static str {
@@ -57,6 +60,7 @@ impl Topic {
             Topic::Residual => "/chaosd/residual",
             Topic::Command => "/chaosd/command",
             Topic::Events => "/chaosd/events",
+            Topic::Replay => "/chaosd/replay",
         }
     }
 
@@ -64,14 +68,15 @@ impl Topic {
     pub fn encoding(self) -> &'static str {
         match self {
             Topic::JointStates | Topic::RobotDescription => "cdr",
+            Topic::Replay => "chaosd-replay-2",
             _ => "json",
         }
     }
 
-    /// The schema's name, encoding and text.
-    pub fn schema(self) -> (&'static str, &'static str, String) {
+    /// The schema's name, encoding and text (none for the replay text).
+    pub fn schema(self) -> Option<(&'static str, &'static str, String)> {
         use super::schemas as s;
-        match self {
+        Some(match self {
             Topic::JointStates => (
                 "sensor_msgs/msg/JointState",
                 "ros2msg",
@@ -91,7 +96,8 @@ impl Topic {
             Topic::Residual => ("chaosd.Residual", "jsonschema", s::residual()),
             Topic::Command => ("chaosd.Command", "jsonschema", s::command()),
             Topic::Events => ("foxglove.Log", "jsonschema", s::log()),
-        }
+            Topic::Replay => return None,
+        })
     }
 }
 
