@@ -1,0 +1,112 @@
+//! The configuration reference (docs/config.md) lists every key the code accepts, and only those.
+//!
+//! The code's side comes from the parsers themselves: every section is a `deny_unknown_fields`
+//! struct, and serde's refusal of an unknown key names every field it expects. The book's side is
+//! the first column of each section's table. A key added to the code without a line in the book,
+//! or a line for a key that is gone, fails here with both names.
+
+use serde::de::DeserializeOwned;
+use std::collections::{BTreeMap, BTreeSet};
+
+/// The keys a section's struct accepts, from serde's "expected one of" list.
+fn accepted<T: DeserializeOwned + std::fmt::Debug>() -> BTreeSet<String> {
+    let e = toml::from_str::<T>("no_such_key_here = 1")
+        .unwrap_err()
+        .to_string();
+    let list = e
+        .split("expected one of ")
+        .nth(1)
+        .or_else(|| e.split("expected ").nth(1))
+        .unwrap_or_else(|| panic!("no field list in {e:?}"));
+    list.split(',')
+        .filter_map(|w| w.split('`').nth(1))
+        .map(str::to_string)
+        .collect()
+}
+
+/// The book's sections: heading text between backticks (`[arm]`, `[plant.rigid_body]`) → the
+/// keys in the first column of its table.
+fn documented() -> BTreeMap<String, BTreeSet<String>> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = std::fs::read_to_string(root.join("docs/config.md")).unwrap();
+    let mut out: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    let mut section = None;
+    for line in text.lines() {
+        if let Some(h) = line.strip_prefix("## ") {
+            section = h.split('`').nth(1).map(str::to_string);
+            continue;
+        }
+        let (Some(s), Some(row)) = (&section, line.strip_prefix("| `")) else {
+            continue;
+        };
+        let key = row.split('`').next().unwrap().to_string();
+        let keys = out.entry(s.clone()).or_default();
+        assert!(keys.insert(key.clone()), "{s} lists {key} twice");
+    }
+    out
+}
+
+#[test]
+fn the_reference_lists_every_key_of_every_section_and_no_other() {
+    use control::spatial::config as sp;
+    let code: Vec<(&str, BTreeSet<String>)> = vec![
+        ("[arm]", accepted::<control::config::ArmConfig>()),
+        ("[task]", accepted::<control::config::TaskConfig>()),
+        ("[control]", accepted::<control::config::ControlConfig>()),
+        (
+            "[[control.obstacles]]",
+            accepted::<control::config::ObstacleConfig>(),
+        ),
+        ("[feedback]", accepted::<control::config::FeedbackConfig>()),
+        ("[sim]", accepted::<control::config::SimConfig>()),
+        ("[safety]", accepted::<control::safety::SafetyConfig>()),
+        ("[robot]", accepted::<sp::RobotSection>()),
+        ("[task] (spatial)", accepted::<sp::TaskSection>()),
+        ("[law]", accepted::<sp::LawSection>()),
+        ("[feedback] (spatial)", accepted::<sp::FeedbackSection>()),
+        ("[safety] (spatial)", accepted::<sp::LimitsSection>()),
+        ("[[obstacles]]", accepted::<sp::SphereEntry>()),
+        ("[command]", accepted::<control::command::CommandSection>()),
+        (
+            "[command.limits]",
+            accepted::<control::command::LimitOverrides>(),
+        ),
+        ("[sim] (spatial)", accepted::<sp::SimSection>()),
+        ("[daemon]", accepted::<daemon::config::DaemonConfig>()),
+        ("[plant]", accepted::<plant::config::PlantConfig>()),
+        (
+            "[plant.rigid_body]",
+            accepted::<control::rigid_body::RigidBodyConfig>(),
+        ),
+    ];
+    let book = documented();
+    let mut problems = Vec::new();
+    for (section, keys) in &code {
+        // A spatial section shares its heading's name: "[task] (spatial)" is `[task]` under
+        // the spatial part of the book.
+        let Some(listed) = book.get(*section) else {
+            problems.push(format!("the book has no section `{section}`"));
+            continue;
+        };
+        for k in keys.difference(listed) {
+            problems.push(format!(
+                "{section} {k}: accepted by the code, not in docs/config.md"
+            ));
+        }
+        for k in listed.difference(keys) {
+            problems.push(format!(
+                "{section} {k}: in docs/config.md, not accepted by the code"
+            ));
+        }
+    }
+    for s in book.keys() {
+        if !code.iter().any(|(c, _)| c == s) {
+            problems.push(format!(
+                "docs/config.md documents `{s}`, which no parser reads"
+            ));
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+    let total: usize = code.iter().map(|(_, k)| k.len()).sum();
+    assert!(total > 150, "{total} keys");
+}
