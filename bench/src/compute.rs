@@ -331,6 +331,8 @@ fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<S
          the loop's compute, monitor on vs off, is in the e2e report).\n\n",
     );
     report.push(&crate::monitor_cost::table(quick)?);
+    report.push("\nAn MCAP recording's work, on the reporter thread too.\n\n");
+    report.push(&crate::record_cost::table(quick)?);
     report.push(&crate::spatial_timing::section(quick)?);
     report.push(&crate::commands::section(quick)?);
     report.push(&crate::cycle_plan::section(quick)?);

@@ -32,6 +32,7 @@ mod naive;
 mod naive_model;
 mod plan;
 mod plot;
+mod record_cost;
 mod report;
 mod soak;
 mod spatial_timing;

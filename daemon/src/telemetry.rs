@@ -69,9 +69,8 @@ pub struct TickRecord {
     pub limiter_hits: [u8; protocol::MAX_JOINTS],
 }
 
-#[cfg(test)]
 impl TickRecord {
-    /// A RUN tick at t = 0 with nothing in it, for tests to fill in.
+    /// A RUN tick at t = 0 with nothing in it, for tests and benchmarks to fill in.
     pub fn blank() -> Self {
         Self {
             t: 0.0,

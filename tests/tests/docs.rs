@@ -22,6 +22,7 @@ fn documents() -> Vec<PathBuf> {
         .map(|p| r.join(p))
         .collect();
     v.push(r.join("plant/examples/README.md"));
+    v.push(r.join("examples/README.md"));
     let mut book: Vec<PathBuf> = std::fs::read_dir(r.join("docs"))
         .unwrap()
         .map(|e| e.unwrap().path())

@@ -131,6 +131,21 @@ fn python_reads(path: &Path, stop: &serde_json::Value) {
     assert!(o.status.success(), "{out}\n{err}");
     assert!(out.contains("bit for bit"), "{out}");
     eprintln!("{out}");
+    // The example a user starts from: examples/python/plot_residual.py draws the residual.
+    let png = path.with_extension("png");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/python/plot_residual.py");
+    let o = std::process::Command::new(std::env::var("CHAOSD_PYTHON").unwrap())
+        .arg(script)
+        .args([path, &png])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        std::fs::metadata(&png).unwrap().len() > 10_000,
+        "{}",
+        png.display()
+    );
 }
 
 #[test]

@@ -40,17 +40,17 @@ fn wait_for_run(ns: &str, daemon: &Proc, plant: &Proc) {
     }
 }
 
-#[test]
-fn a_live_run_replays_bit_for_bit_and_a_tampered_recording_is_caught() {
-    let _g = serial();
-    let ns = unique_namespace("replay");
+/// Runs daemon and plant with `--record NAME` for about 2 s, with `set mu 0.3 feedback on t_on 0`
+/// part-way, and shuts them down; returns the directory (kept alive) and the recording's path.
+fn record_live_run(test: &str, name: &str) -> (TempDir, std::path::PathBuf) {
+    let ns = unique_namespace(test);
     let dir = TempDir::new(&ns);
     let cfg = write_config(dir.path(), &ns, "", NEAR_ORBIT);
     let c = cfg.to_str().unwrap();
     let mut daemon = Proc::spawn(
         "daemon",
         &bin("chaosd"),
-        &["run", "--config", c, "--record", "rec/run.replay"],
+        &["run", "--config", c, "--record", name],
         dir.path(),
     );
     let mut plant = Proc::spawn("plant", &bin("chaosd-plant"), &["--config", c], dir.path());
@@ -64,11 +64,15 @@ fn a_live_run_replays_bit_for_bit_and_a_tampered_recording_is_caught() {
     assert_eq!(code, 0, "{err}");
     assert!(daemon.wait_exit(Duration::from_secs(15)).success());
     plant.terminate(Duration::from_secs(10));
-
-    let rec = dir.path().join("out/rec/run.replay");
+    let rec = dir.path().join("out").join(name);
     let mode = std::fs::metadata(&rec).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode, 0o600, "the recording is owner-only");
-    let (code, out, err) = replay(&rec);
+    (dir, rec)
+}
+
+/// Replays `rec`: all ticks bit-identical, more than 1500 of them, the one change among them.
+fn replays_whole(rec: &Path) -> u64 {
+    let (code, out, err) = replay(rec);
     assert_eq!(code, 0, "replay failed: {out}{err}");
     // "K of K ticks replayed bit-identically (C commands, 1 parameter changes, 0 resumes)"
     let words: Vec<&str> = out.split_whitespace().collect();
@@ -76,6 +80,14 @@ fn a_live_run_replays_bit_for_bit_and_a_tampered_recording_is_caught() {
     assert_eq!(matched, ticks, "{out}");
     assert!(ticks > 1500, "too short a run to mean much: {out}");
     assert!(out.contains(" 1 parameter changes"), "{out}");
+    ticks
+}
+
+#[test]
+fn a_live_run_replays_bit_for_bit_and_a_tampered_recording_is_caught() {
+    let _g = serial();
+    let (dir, rec) = record_live_run("replay", "rec/run.replay");
+    replays_whole(&rec);
 
     // One bit of one command's q̈ changed, late in the run (after the change): caught.
     let text = std::fs::read_to_string(&rec).unwrap();
@@ -115,37 +127,8 @@ fn a_live_run_replays_bit_for_bit_and_a_tampered_recording_is_caught() {
 #[test]
 fn a_live_mcap_recording_replays_bit_for_bit_and_shows_the_run() {
     let _g = serial();
-    let ns = unique_namespace("replay-mcap");
-    let dir = TempDir::new(&ns);
-    let cfg = write_config(dir.path(), &ns, "", NEAR_ORBIT);
-    let c = cfg.to_str().unwrap();
-    let mut daemon = Proc::spawn(
-        "daemon",
-        &bin("chaosd"),
-        &["run", "--config", c, "--record", "rec/run.mcap"],
-        dir.path(),
-    );
-    let mut plant = Proc::spawn("plant", &bin("chaosd-plant"), &["--config", c], dir.path());
-    wait_for_run(&ns, &daemon, &plant);
-    std::thread::sleep(Duration::from_millis(700));
-    let (code, _, err) = ctl(&ns, &["set", "mu", "0.3", "feedback", "on", "t_on", "0"]);
-    assert_eq!(code, 0, "{err}");
-    std::thread::sleep(Duration::from_millis(1200));
-    let (code, _, err) = ctl(&ns, &["shutdown"]);
-    assert_eq!(code, 0, "{err}");
-    assert!(daemon.wait_exit(Duration::from_secs(15)).success());
-    plant.terminate(Duration::from_secs(10));
-
-    let rec = dir.path().join("out/rec/run.mcap");
-    let mode = std::fs::metadata(&rec).unwrap().permissions().mode() & 0o777;
-    assert_eq!(mode, 0o600, "the recording is owner-only");
-    let (code, out, err) = replay(&rec);
-    assert_eq!(code, 0, "replay failed: {out}{err}");
-    let words: Vec<&str> = out.split_whitespace().collect();
-    let (matched, ticks): (u64, u64) = (words[0].parse().unwrap(), words[2].parse().unwrap());
-    assert_eq!(matched, ticks, "{out}");
-    assert!(ticks > 1500, "too short a run to mean much: {out}");
-    assert!(out.contains(" 1 parameter changes"), "{out}");
+    let (_dir, rec) = record_live_run("replay-mcap", "rec/run.mcap");
+    let ticks = replays_whole(&rec);
     // The same file is a recording a viewer opens: joint states, and the edit as an event.
     let file = daemon::mcap_read::read(&rec).unwrap();
     let states = file.messages(daemon::view::Topic::JointStates).len() as u64;

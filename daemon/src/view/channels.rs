@@ -260,11 +260,19 @@ impl Encoder {
         });
         self.put_json(Topic::Residual, unix_ns, &residual, sink)?;
         if let Some(c) = &r.command {
-            let mode = control::command::CommandMode::from_code(c.interface);
-            let command = json!({
+            use control::command::CommandMode as M;
+            let mode = M::from_code(c.interface);
+            let mut command = json!({
                 "seq": c.seq, "mode": c.mode, "interface": mode.map_or("unknown", |m| m.name()),
-                "qdd": &c.qdd[..n], "q": &c.q[..n], "qd": &c.qd[..n], "tau": &c.tau[..n],
+                "qdd": &c.qdd[..n],
             });
+            // The reference the interface sends, beside q̈ (the others are unused zeros).
+            match mode {
+                Some(M::Position) => command["q"] = json!(&c.q[..n]),
+                Some(M::Velocity) => command["qd"] = json!(&c.qd[..n]),
+                Some(M::Torque) => command["tau"] = json!(&c.tau[..n]),
+                _ => {}
+            }
             self.put_json(Topic::Command, unix_ns, &command, sink)?;
         }
         if self.rows.is_multiple_of(self.view_every) {

@@ -187,7 +187,8 @@ pub fn residual() -> String {
     )
 }
 
-/// `chaosd.Command`: what the daemon sent.
+/// `chaosd.Command`: what the daemon sent: q̈, and the reference its interface sends (`q` for
+/// position, `qd` for velocity, `tau` for torque).
 pub fn command() -> String {
     object(
         "chaosd.Command",
