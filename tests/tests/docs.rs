@@ -23,6 +23,7 @@ fn documents() -> Vec<PathBuf> {
         .collect();
     v.push(r.join("plant/examples/README.md"));
     v.push(r.join("examples/README.md"));
+    v.push(r.join("examples/own-urdf/README.md"));
     let mut book: Vec<PathBuf> = std::fs::read_dir(r.join("docs"))
         .unwrap()
         .map(|e| e.unwrap().path())
