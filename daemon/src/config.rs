@@ -72,6 +72,10 @@ pub struct DaemonConfig {
     /// Mean period residual (rad/s) below which the monitor calls the motion periodic, in
     /// (0, 1] (default 2e-2: a live orbit's residual stops at a few 1e-3, chaos gives 1–10).
     pub monitor_periodic_residual: f64,
+    /// Serve the live view (the Foxglove WebSocket protocol) on this address, e.g.
+    /// "127.0.0.1:8765". None (the default): no server.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub foxglove: Option<String>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -108,6 +112,7 @@ impl Default for DaemonConfig {
             monitor: true,
             monitor_window: 256,
             monitor_periodic_residual: control::monitor::PERIODIC_RESIDUAL,
+            foxglove: None,
         }
     }
 }
@@ -124,6 +129,15 @@ impl DaemonConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         protocol::validate_namespace(&self.namespace)
             .map_err(|e| invalid("namespace", &self.namespace, &e.to_string()))?;
+        if let Some(a) = &self.foxglove {
+            a.parse::<std::net::SocketAddr>().map_err(|_| {
+                invalid(
+                    "foxglove",
+                    a,
+                    "an address and port such as \"127.0.0.1:8765\"",
+                )
+            })?;
+        }
         rt::setup::check_loop(
             self.rate_hz,
             (100.0, 10_000.0),

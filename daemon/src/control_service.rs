@@ -292,6 +292,9 @@ impl Reporter {
                 self.recording = None;
             }
         }
+        if let Some(live) = self.live.as_mut() {
+            live.note(text, system);
+        }
         if let Some(rec) = self.replay.as_mut().and_then(|l| l.mcap()) {
             if let Err(e) = rec.note(text, system) {
                 tracing::warn!("replay recording {}: {e}", rec.path.display());

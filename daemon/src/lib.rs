@@ -12,6 +12,7 @@ pub mod config;
 pub mod control_service;
 pub mod controller;
 pub mod deadlock;
+pub mod foxglove;
 pub mod guard;
 pub mod handshake;
 pub mod limits;

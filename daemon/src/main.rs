@@ -126,6 +126,10 @@ struct Common {
     /// Overrides daemon.wait (sleep, hybrid, spin).
     #[arg(long)]
     wait: Option<WaitStrategy>,
+    /// Serve the live view for Foxglove on ADDR, e.g. 127.0.0.1:8765 (overrides
+    /// daemon.foxglove; in Foxglove: Open connection → Foxglove WebSocket → ws://ADDR).
+    #[arg(long, value_name = "ADDR")]
+    foxglove: Option<String>,
 }
 
 impl Common {
@@ -162,6 +166,9 @@ impl Common {
         }
         if let Some(w) = self.wait {
             s.daemon.wait = w;
+        }
+        if let Some(a) = &self.foxglove {
+            s.daemon.foxglove = Some(a.clone());
         }
         s.validate()?;
         Ok(s)

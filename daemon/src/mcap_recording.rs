@@ -163,7 +163,7 @@ impl Drop for Output {
 }
 
 /// Unix time minus CLOCK_MONOTONIC, now (ns).
-fn clock_offset() -> i128 {
+pub fn clock_offset() -> i128 {
     let unix = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos() as i128);

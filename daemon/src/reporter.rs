@@ -96,6 +96,8 @@ pub struct Reporter {
     pub(crate) deadlock: crate::deadlock::Deadlock,
     /// Whether the self-motion is chaotic, converging or periodic (see `chaos`).
     pub(crate) chaos: crate::chaos::ChaosWatch,
+    /// The Foxglove live view (`[daemon] foxglove`), if served.
+    pub(crate) live: Option<crate::foxglove::Live>,
 }
 
 impl Reporter {
@@ -116,7 +118,9 @@ impl Reporter {
         let deadlock = crate::deadlock::Deadlock::new(&system, daemon.core);
         let chaos =
             crate::chaos::ChaosWatch::new(daemon.monitor(), system.feedback().tau, system.n());
+        let live = crate::foxglove::Live::start(&system, &daemon)?;
         Ok(Self {
+            live,
             deadlock,
             chaos,
             limits,
@@ -307,6 +311,13 @@ impl Reporter {
                 ));
                 self.recording = None;
             }
+        }
+        if let (Some(live), Some(st), true) = (self.live.as_mut(), r.state.as_ref(), r.ran_law) {
+            let ctx = crate::view::TickContext {
+                chaos: self.chaos.evidence().verdict,
+                blocked: self.deadlock.blocked.as_ref().map(|b| b.reason.as_str()),
+            };
+            live.tick(r, st, ctx);
         }
         if let Some(log) = self.replay.as_mut() {
             let was_running = log.stopped.is_none();

@@ -62,9 +62,14 @@ pub struct System {
 }
 
 pub fn start(test: &str, top: &str) -> System {
+    start_with_daemon(test, top, "")
+}
+
+/// [`start`] with extra `[daemon]` lines.
+pub fn start_with_daemon(test: &str, top: &str, daemon_lines: &str) -> System {
     let ns = unique_namespace(test);
     let dir = TempDir::new(&ns);
-    let cfg = write_config(dir.path(), &ns, "", top);
+    let cfg = write_config(dir.path(), &ns, daemon_lines, top);
     let c = cfg.to_str().unwrap().to_string();
     let daemon = Proc::spawn(
         "daemon",
