@@ -210,6 +210,8 @@ pub struct RateResult {
     pub requests: Option<u64>,
     /// Scrape latencies (ns, sorted), when a Prometheus scraper polled `chaosctl exporter`.
     pub scrapes: Option<Vec<u64>>,
+    /// Live-view messages a Foxglove viewer received, when one was attached.
+    pub viewed: Option<u64>,
     pub daemon: Value,
     pub plant: Value,
     pub cpu_daemon: f64,
@@ -346,6 +348,39 @@ pub enum Load {
     Scraped,
     /// The chaos monitor off (`[daemon] monitor = false`): its cost, side by side.
     NoMonitor,
+    /// A Foxglove viewer attached to the live view, subscribed to every channel.
+    Viewed,
+}
+
+/// A free TCP port on loopback.
+fn free_port() -> Result<u16> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port())
+}
+
+/// A Foxglove viewer subscribed to every channel until `stop`: the messages it received.
+fn view(addr: String, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<Result<u64>> {
+    std::thread::spawn(move || {
+        let (mut s, topics) =
+            daemon::foxglove::client::subscribe_all(&addr, Duration::from_secs(10))
+                .with_context(|| format!("cannot view the daemon at {addr}"))?;
+        if topics.len() < 10 {
+            bail!("the daemon advertised {topics:?}");
+        }
+        // The daemon sends all the time; it closes the connection when its run ends.
+        s.set_read_timeout(Some(Duration::from_secs(5)))?;
+        let mut n = 0;
+        while !stop.load(Ordering::Relaxed) {
+            match daemon::foxglove::client::read_frame(&mut s) {
+                Ok((2, _)) => n += 1,
+                Ok(_) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => break,
+                Err(e) => return Err(anyhow::anyhow!("the viewer's connection failed: {e}")),
+            }
+        }
+        Ok(n)
+    })
 }
 
 /// How often the scraped run scrapes `/metrics` (a fast Prometheus set-up).
@@ -400,6 +435,7 @@ fn one_rate(
         Load::Hammered => format!("{rate_hz:.0}hz-hammered"),
         Load::Scraped => format!("{rate_hz:.0}hz-scraped"),
         Load::NoMonitor => format!("{rate_hz:.0}hz-no-monitor"),
+        Load::Viewed => format!("{rate_hz:.0}hz-viewed"),
         Load::Idle => format!("{rate_hz:.0}hz{}", mode.slug()),
     });
     std::fs::create_dir_all(&dir)?;
@@ -411,6 +447,11 @@ fn one_rate(
     let mut text = config_text(&ns, &dir, rate_hz, mode, opts.spin_us);
     if load == Load::NoMonitor {
         text = text.replacen("[daemon]\n", "[daemon]\nmonitor = false\n", 1);
+    }
+    let view_addr = format!("127.0.0.1:{}", free_port()?);
+    if load == Load::Viewed {
+        let line = format!("[daemon]\nfoxglove = \"{view_addr}\"\n");
+        text = text.replacen("[daemon]\n", &line, 1);
     }
     std::fs::write(&cfg, text)?;
 
@@ -436,6 +477,7 @@ fn one_rate(
     let (pid_d, pid_p) = (daemon.pid().unwrap_or(0), plant.pid().unwrap_or(0));
     let stop = Arc::new(AtomicBool::new(false));
     let client = (load == Load::Hammered).then(|| hammer(ns.clone(), stop.clone()));
+    let viewer = (load == Load::Viewed).then(|| view(view_addr.clone(), stop.clone()));
     let mut exporter = None;
     let scraper = if load == Load::Scraped {
         let mut cmd = Command::new(sibling("chaosctl")?);
@@ -501,6 +543,11 @@ fn one_rate(
     let steal_after = steal_ticks().ok();
     stop.store(true, Ordering::Relaxed);
     let requests = client.map(|h| h.join().unwrap_or(0));
+    let viewed = match viewer.map(|h| h.join()) {
+        Some(Ok(r)) => Some(r?),
+        Some(Err(_)) => bail!("the viewer thread panicked"),
+        None => None,
+    };
     let scrapes = match scraper {
         Some(h) => Some(
             h.join()
@@ -536,6 +583,7 @@ fn one_rate(
         device,
         requests,
         scrapes,
+        viewed,
         daemon: read_json(&dir.join("daemon-summary.json"))?,
         plant: read_json(&dir.join("plant-summary.json"))?,
         cpu_daemon: (b.1 - a.1) as f64 / hz / secs,
@@ -772,6 +820,44 @@ pub fn monitor_table(on: &RateResult, off: &RateResult) -> String {
     t.render()
 }
 
+/// The loop with a Foxglove viewer subscribed to every channel, next to the same run without.
+pub fn viewer_table(idle: &RateResult, viewed: &RateResult) -> String {
+    let mut t = Table::new(&[
+        "run",
+        "compute p50 / p99 / max",
+        "wake-up p99 / max",
+        "reporter + view CPU (daemon)",
+        "view messages",
+        "compute p99, viewed / not",
+    ]);
+    let p99 = |r: &RateResult| r.daemon["compute"]["p99_us"].as_f64().unwrap_or(f64::NAN);
+    for (name, r) in [("no viewer", idle), ("a viewer on every channel", viewed)] {
+        let d = &r.daemon;
+        t.row(vec![
+            name.into(),
+            format!(
+                "{} / {} / {}",
+                us(d, "compute", "p50_us"),
+                us(d, "compute", "p99_us"),
+                us(d, "compute", "max_us")
+            ),
+            format!(
+                "{} / {}",
+                us(d, "lateness", "p99_us"),
+                us(d, "lateness", "max_us")
+            ),
+            format!("{:.1} %", r.cpu_daemon * 100.0),
+            r.viewed.map_or("—".into(), |n| n.to_string()),
+            if std::ptr::eq(r, viewed) {
+                format!("{:.3}", p99(viewed) / p99(idle))
+            } else {
+                String::new()
+            },
+        ]);
+    }
+    t.render()
+}
+
 pub fn hammer_table(idle: &RateResult, hammered: &RateResult, scraped: &RateResult) -> String {
     let mut t = Table::new(&[
         "run",
@@ -855,7 +941,9 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
                 .with_context(|| "e2e with the exporter scraped every 100 ms")?;
             let quiet = one_rate(opts, idle.rate_hz, Mode::Clock, &report, Load::NoMonitor)
                 .with_context(|| "e2e with the chaos monitor off")?;
-            Some((idle.clone(), hammered, scraped, quiet))
+            let viewed = one_rate(opts, idle.rate_hz, Mode::Clock, &report, Load::Viewed)
+                .with_context(|| "e2e with a Foxglove viewer attached")?;
+            Some((idle.clone(), hammered, scraped, quiet, viewed))
         }
         None => None,
     };
@@ -912,7 +1000,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
         );
         report.push(&crate::late::late_table(&all));
     }
-    if let Some((idle, hammered, scraped, quiet)) = &load_runs {
+    if let Some((idle, hammered, scraped, quiet, viewed)) = &load_runs {
         report.push(&format!(
             "\n**Control requests vs the loop** at {} kHz: the same run idle and with a client sending `status` requests \
              back to back (each answered before the next is sent) for the whole run, and with `chaosctl exporter` \
@@ -928,6 +1016,14 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
             quiet.rate_hz / 1000.0
         ));
         report.push(&monitor_table(idle, quiet));
+        report.push(&format!(
+            "\n**A Foxglove viewer's cost** at {} kHz: the idle run next to the same run with a viewer \
+             attached to the live view (`[daemon] foxglove`) and subscribed to every channel. The \
+             reporter encodes, a thread of its own sends, both off the loop's core; target: the loop's \
+             compute p99 within 10 % of the idle run's.\n\n",
+            viewed.rate_hz / 1000.0
+        ));
+        report.push(&viewer_table(idle, viewed));
     }
     let mut panels = vec![
         Panel {
@@ -1053,6 +1149,7 @@ mod tests {
             mode,
             device,
             requests: None,
+            viewed: None,
             scrapes: None,
             daemon,
             plant,
@@ -1113,6 +1210,7 @@ mod tests {
             mode: Mode::Clock,
             device: None,
             requests: None,
+            viewed: None,
             scrapes: None,
             daemon,
             plant,

@@ -97,6 +97,7 @@ mod tests {
             mode: Mode::State,
             device: None,
             requests: None,
+            viewed: None,
             scrapes: None,
             daemon: json!({"counters": {"wait_gaps": gaps, "late_wakes": {"max_ns": 1_200_000,
                            "by_length": [900, 30, 6, 2, 1, 0, 1, 0]}},

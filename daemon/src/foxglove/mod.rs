@@ -8,6 +8,7 @@
 //! `unsubscribe`, and sends each message to the viewers subscribed to its channel. The robot's
 //! description is kept and sent to every new subscriber of `/robot_description`.
 
+pub mod client;
 pub mod ws;
 
 use crate::view::{Sink, Topic};
