@@ -48,9 +48,15 @@ fn end_effector_converges_onto_the_circle_and_commands_answer_states() {
                 "command {} answers state {} with a wrong stamp",
                 c.seq, c.state_seq
             );
+            // A command is stamped with its tick's time, taken when the tick woke; a state the
+            // plant published between that wake-up and the read is still used (the daemon
+            // accepts stamps up to its future slack, one period, 1 ms here, ahead of the tick).
+            // The stricter check (command stamp ≥ state stamp) failed once in a full test run.
             assert!(
-                c.stamp_ns >= s.stamp_ns,
-                "a command cannot precede the state it answers"
+                c.stamp_ns + 1_000_000 >= s.stamp_ns,
+                "a command precedes the state it answers by more than the future slack: {} < {}",
+                c.stamp_ns,
+                s.stamp_ns
             );
             matched += 1;
         }
