@@ -66,7 +66,8 @@ pub enum Online {
         #[arg(long)]
         reset: bool,
     },
-    /// Record the state and command streams to a CSV file in the daemon's output directory.
+    /// Record what the daemon does to a file in its output directory: MCAP (every channel; open it
+    /// in Foxglove, `chaosctl export` it), or CSV rows for a name ending in `.csv`.
     Record {
         #[command(flatten)]
         conn: Conn,
