@@ -786,55 +786,47 @@ pub fn targets(results: &[RateResult]) -> Vec<Target> {
 /// The idle, the hammered and the scraped run side by side.
 /// The daemon's compute and lateness with the chaos monitor on and off, and the p50 ratio.
 pub fn monitor_table(on: &RateResult, off: &RateResult) -> String {
-    let mut t = Table::new(&[
-        "run",
-        "compute p50 / p99 / max",
-        "wake-up p99 / max",
-        "daemon CPU",
-        "compute p50, on / off",
-    ]);
     let p50 = |r: &RateResult| r.daemon["compute"]["p50_us"].as_f64().unwrap_or(f64::NAN);
-    for (name, r) in [("monitor on", on), ("monitor off", off)] {
-        let d = &r.daemon;
-        t.row(vec![
-            name.into(),
-            format!(
-                "{} / {} / {}",
-                us(d, "compute", "p50_us"),
-                us(d, "compute", "p99_us"),
-                us(d, "compute", "max_us")
-            ),
-            format!(
-                "{} / {}",
-                us(d, "lateness", "p99_us"),
-                us(d, "lateness", "max_us")
-            ),
-            format!("{:.1} %", r.cpu_daemon * 100.0),
-            if std::ptr::eq(r, on) {
-                format!("{:.3}", p50(on) / p50(off))
-            } else {
-                String::new()
-            },
-        ]);
-    }
-    t.render()
+    side_by_side(
+        [("monitor on", on), ("monitor off", off)],
+        None,
+        ("compute p50, on / off", p50(on) / p50(off), 0),
+    )
 }
 
 /// The loop with a Foxglove viewer subscribed to every channel, next to the same run without.
 pub fn viewer_table(idle: &RateResult, viewed: &RateResult) -> String {
-    let mut t = Table::new(&[
+    let p99 = |r: &RateResult| r.daemon["compute"]["p99_us"].as_f64().unwrap_or(f64::NAN);
+    side_by_side(
+        [("no viewer", idle), ("a viewer on every channel", viewed)],
+        Some(("view messages", |r: &RateResult| r.viewed)),
+        ("compute p99, viewed / not", p99(viewed) / p99(idle), 1),
+    )
+}
+
+/// An extra column of counts: its header and how to read it off a run.
+type Count<'a> = (&'a str, fn(&RateResult) -> Option<u64>);
+
+/// Two runs of the loop side by side: compute, wake-up, daemon CPU, an optional count, and a
+/// ratio (header, value, the row it describes).
+fn side_by_side(
+    runs: [(&str, &RateResult); 2],
+    count: Option<Count>,
+    ratio: (&str, f64, usize),
+) -> String {
+    let mut head = vec![
         "run",
         "compute p50 / p99 / max",
         "wake-up p99 / max",
-        "reporter + view CPU (daemon)",
-        "view messages",
-        "compute p99, viewed / not",
-    ]);
-    let p99 = |r: &RateResult| r.daemon["compute"]["p99_us"].as_f64().unwrap_or(f64::NAN);
-    for (name, r) in [("no viewer", idle), ("a viewer on every channel", viewed)] {
+        "daemon CPU",
+    ];
+    head.extend(count.map(|c| c.0));
+    head.push(ratio.0);
+    let mut t = Table::new(&head);
+    for (k, (name, r)) in runs.iter().enumerate() {
         let d = &r.daemon;
-        t.row(vec![
-            name.into(),
+        let mut row = vec![
+            name.to_string(),
             format!(
                 "{} / {} / {}",
                 us(d, "compute", "p50_us"),
@@ -847,13 +839,16 @@ pub fn viewer_table(idle: &RateResult, viewed: &RateResult) -> String {
                 us(d, "lateness", "max_us")
             ),
             format!("{:.1} %", r.cpu_daemon * 100.0),
-            r.viewed.map_or("—".into(), |n| n.to_string()),
-            if std::ptr::eq(r, viewed) {
-                format!("{:.3}", p99(viewed) / p99(idle))
-            } else {
-                String::new()
-            },
-        ]);
+        ];
+        if let Some((_, f)) = count {
+            row.push(f(r).map_or("—".into(), |n| n.to_string()));
+        }
+        row.push(if k == ratio.2 {
+            format!("{:.3}", ratio.1)
+        } else {
+            String::new()
+        });
+        t.row(row);
     }
     t.render()
 }
