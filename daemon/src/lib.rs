@@ -8,10 +8,12 @@
 //! ([`telemetry`] the shared types, [`reporter`], [`control_service`], [`recording`]).
 
 pub mod chaos;
+pub mod cli;
 pub mod config;
 pub mod control_service;
 pub mod controller;
 pub mod deadlock;
+pub mod demo_report;
 pub mod foxglove;
 pub mod guard;
 pub mod handshake;

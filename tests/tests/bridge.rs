@@ -414,6 +414,7 @@ fn the_udp_demo_runs_end_to_end_and_leaves_nothing_running() {
     let o = out.to_str().unwrap();
     let args = [
         "demo",
+        "--details",
         "--bridge",
         "udp",
         "--duration",

@@ -10,7 +10,7 @@ use tests::*;
 
 fn demo(out: &Path, args: &[&str]) -> Output {
     Command::new(bin("chaosd"))
-        .args(["demo", "--robot", "panda"])
+        .args(["demo", "--robot", "panda", "--details"])
         .args(args)
         .args(["--output", out.to_str().unwrap()])
         .output()
@@ -84,6 +84,7 @@ fn unbounded_udp_run(test: &str, limiter: bool) -> (String, Value, Value) {
     let cfg = unbounded_panda(dir.path());
     let mut args = vec![
         "demo",
+        "--details",
         "--config",
         cfg.to_str().unwrap(),
         "--mode",

@@ -45,7 +45,14 @@ fn a_demo_whose_plant_was_killed_fails_and_lists_only_real_files() {
     let mut demo = Proc::spawn(
         "demo",
         &bin("chaosd"),
-        &["demo", "--duration", "5", "--output", out.to_str().unwrap()],
+        &[
+            "demo",
+            "--details",
+            "--duration",
+            "5",
+            "--output",
+            out.to_str().unwrap(),
+        ],
         dir.path(),
     );
     let until = Instant::now() + Duration::from_secs(10);

@@ -508,16 +508,44 @@ fn the_demo_runs_end_to_end_and_leaves_nothing_running() {
     let st = demo.wait_exit(Duration::from_secs(60));
     let log = demo.log();
     assert!(st.success(), "{log}");
+    // The defaults a newcomer gets: the Panda, each state answered in the same cycle.
+    assert!(log.contains("7 joints"), "{log}");
+    assert!(log.contains("state trigger"), "{log}");
     for want in [
         "== chaosd demo report ==",
         "tracking error",
         "period residual",
-        "wake-up lateness",
+        "chaos monitor",
         "command round trip    p50",
-        "real-time set-up",
+        "compute per tick",
+        "wake-up lateness",
+        "problems",
+        "safety",
+        "details",
     ] {
         assert!(log.contains(want), "report lacks {want:?}:\n{log}");
     }
+    // One screen: the short report is a dozen lines at most; the rest is in report.txt.
+    let report: Vec<&str> = log
+        .lines()
+        .skip_while(|l| !l.starts_with("== chaosd demo report =="))
+        .filter(|l| !l.contains(" INFO ") && !l.contains(" WARN "))
+        .collect();
+    assert!((6..=13).contains(&report.len()), "{report:#?}");
+    let full = std::fs::read_to_string(out.join("report.txt")).unwrap();
+    for want in [
+        "state age at tick",
+        "answered in time",
+        "real-time set-up",
+        "faults",
+    ] {
+        assert!(full.contains(want), "report.txt lacks {want:?}:\n{full}");
+        assert!(
+            !report.iter().any(|l| l.starts_with(want)),
+            "the short report shows {want:?}:\n{log}"
+        );
+    }
+    assert!(full.lines().count() > report.len(), "{full}");
     assert!(
         !log.contains("LARGER"),
         "the feedback should reduce the residual:\n{log}"

@@ -18,6 +18,7 @@ fn the_panda_demo_runs_daemon_and_plant_inside_the_limits_and_the_feedback_shows
             "demo",
             "--robot",
             "panda",
+            "--details",
             "--duration",
             "14",
             "--t-on",

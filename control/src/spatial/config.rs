@@ -437,13 +437,10 @@ impl SpatialConfig {
             "manipulability" => SpatialSecondary::Manipulability,
             "centring" => SpatialSecondary::Centring,
             "obstacles" => SpatialSecondary::Obstacles,
-            s => {
-                return Err(invalid(
-                    "law.secondary",
-                    s,
-                    "\"none\", \"manipulability\", \"centring\" or \"obstacles\"",
-                ))
-            }
+            s => match super::custom::lookup(s) {
+                Some(i) => SpatialSecondary::Custom(i),
+                None => return Err(invalid("law.secondary", s, &secondary_names())),
+            },
         })
     }
 
@@ -677,3 +674,17 @@ transient = 5.0
 q0 = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]
 qd0 = [0.1, 0.0, -0.1, 0.0, 0.0, 0.0, 0.0]
 "#;
+
+/// The names `law.secondary` takes in this program: the built-ins and the registered tasks.
+fn secondary_names() -> String {
+    let custom = super::custom::names();
+    let built_in = "\"none\", \"manipulability\", \"centring\" or \"obstacles\"";
+    if custom.is_empty() {
+        format!("{built_in} (a task of your own runs in a program that registers it: examples/custom-task)")
+    } else {
+        format!(
+            "{built_in}, or a task this program registered: {}",
+            custom.join(", ")
+        )
+    }
+}

@@ -27,6 +27,8 @@ pub enum SpatialSecondary {
     Centring,
     /// η = −∇h, the sphere-capsule potential.
     Obstacles,
+    /// A task the program registered ([`super::custom`]), by its index there.
+    Custom(u8),
 }
 
 /// Every tunable of the spatial law: a `Copy` block, like the planar [`crate::LawParams`].
@@ -63,6 +65,29 @@ impl SpatialParams {
     pub fn feedback_active(&self, t: f64) -> bool {
         self.feedback && (self.mu != 0.0 || self.auto_mu.is_some()) && t >= self.t_on
     }
+}
+
+/// A registered task's value and η, on the kinematics the law already computed.
+fn custom_eta<const N: usize>(
+    index: u8,
+    params: &SpatialParams,
+    kin: &SpatialKinematics<N>,
+    t: f64,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+) -> (f64, Option<VecN<N>>) {
+    let input = super::custom::NullTaskInput {
+        t,
+        q: q.as_slice(),
+        qd: qd.as_slice(),
+        tip: [kin.p.x, kin.p.y, kin.p.z],
+        jacobian: kin.jac.as_slice(),
+        q_min: &params.safety.q_min[..N],
+        q_max: &params.safety.q_max[..N],
+    };
+    let mut eta = VecN::<N>::zeros();
+    let value = super::custom::call(index, &input, eta.as_mut_slice());
+    (value, Some(eta))
 }
 
 /// Evaluates the law at time t for state (q, q̇) with delayed velocity q̇(t − τ); `M` must be
@@ -126,6 +151,7 @@ pub fn evaluate<const N: usize, const M: usize>(
             (h, Some(-g))
         }
         SpatialSecondary::Obstacles => (0.0, Some(VecN::<N>::zeros())),
+        SpatialSecondary::Custom(index) => custom_eta(index, params, kin, t, q, qd),
     };
     let diff = qd - qd_delayed;
     let feedback = params.feedback_active(t);

@@ -8,6 +8,7 @@
 pub mod arm;
 pub mod commanded;
 pub mod config;
+pub mod custom;
 pub mod law;
 pub mod safety;
 pub mod secondary;
