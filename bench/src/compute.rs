@@ -8,9 +8,10 @@
 //! The robot model's table (Panda: FK + Jacobian + J̇q̇, RNEA, CRBA, ABA against a naive
 //! implementation, `k` and pinocchio) is `model_timing`'s.
 
+use crate::book::names;
 use crate::naive;
 use crate::plot::Panel;
-use crate::report::{header, Report};
+use crate::report::{header, Output, Report};
 use crate::stats::{fmt_ns, histogram, summary, Dist, Table};
 use anyhow::{anyhow, Result};
 use control::analysis::run::LyapunovSpec;
@@ -69,7 +70,7 @@ pub fn run(
     pinocchio: &Path,
     out: &Path,
     command: &str,
-) -> Result<String> {
+) -> Result<Output> {
     let (out, command) = (out.to_path_buf(), command.to_string());
     let pinocchio = pinocchio.to_path_buf();
     std::thread::Builder::new()
@@ -168,7 +169,7 @@ fn filter_cost(
     }))
 }
 
-fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<String> {
+fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<Output> {
     let mut report = Report::new(out, "compute")?;
     // First, in a process that has done nothing else yet (as pinocchio's harness runs); its
     // text goes after the tick table.
@@ -317,7 +318,7 @@ fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<S
     ]);
 
     report.push(&header("Compute", command));
-    report.push(&table.render());
+    report.table(names::COMPUTE, &table.render())?;
     report.push(
         "\nThe daemon's whole tick (validation, delay line, law with the safety filter, first-order \
          hold, guard, command), timed alone per tick: warm, after its caches were evicted, and \
@@ -325,18 +326,24 @@ fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<S
          (`Controller::rehearse`); and warm with `mu = \"auto\"`, the speed-gradient step on the \
          tick (issue 27).\n\n",
     );
-    report.push(&crate::tick::table(quick)?);
+    report.table(names::COMPUTE_TICK, &crate::tick::table(quick)?)?;
     report.push(
         "\nThe chaos monitor's own work, on the reporter thread (the loop never runs it; its cost to \
          the loop's compute, monitor on vs off, is in the e2e report).\n\n",
     );
-    report.push(&crate::monitor_cost::table(quick)?);
+    report.table(names::COMPUTE_MONITOR, &crate::monitor_cost::table(quick)?)?;
     report.push("\nAn MCAP recording's work, on the reporter thread too.\n\n");
-    report.push(&crate::record_cost::table(quick)?);
-    report.push(&crate::spatial_timing::section(quick)?);
-    report.push(&crate::commands::section(quick)?);
-    report.push(&crate::cycle_plan::section(quick)?);
-    report.push(&model);
+    report.table(names::COMPUTE_RECORD, &crate::record_cost::table(quick)?)?;
+    report.push_tables(
+        &crate::spatial_timing::section(quick)?,
+        &[names::COMPUTE_PANDA],
+    )?;
+    report.push_tables(
+        &crate::commands::section(quick)?,
+        &[names::COMPUTE_COMMANDS, names::COMPUTE_COMMANDS_COST],
+    )?;
+    report.push_tables(&crate::cycle_plan::section(quick)?, &[names::COMPUTE_PLAN])?;
+    report.push_tables(&model, &[names::COMPUTE_MODEL])?;
     report.push(&format!(
         "\n300 s simulation (RK4, dt = 1 ms, fixed base, manipulability): {:.3} s wall, {:.0} simulated s per wall s \
          (target < 0.3 s; the plain numpy reference takes about 139 s, numba about 2.6 s: {:.0}× and {:.0}× slower)\n",

@@ -46,7 +46,7 @@ fn unbounded_panda(dir: &Path) -> Result<PathBuf> {
     Ok(path)
 }
 
-pub fn run(quick: bool, out: &Path, command: &str) -> Result<String> {
+pub fn run(quick: bool, out: &Path, command: &str) -> Result<crate::report::Output> {
     let mut report = Report::new(out, "device")?;
     let minute = if quick { 20.0 } else { 60.0 };
     let unbounded = unbounded_panda(&report.dir)?;
@@ -89,16 +89,19 @@ pub fn run(quick: bool, out: &Path, command: &str) -> Result<String> {
             o.clamps
         ));
     }
-    report.push(&format!(
-        "## Commanding a real arm, through the device\n\n{}, {}. `{command}`\n\n\
+    report.push_tables(
+        &format!(
+            "## Commanding a real arm, through the device\n\n{}, {}. `{command}`\n\n\
          The Panda in position mode at 1 kHz through chaosd-bridge and chaosd-fakebot over UDP on \
          the loopback (the state trigger), one `chaosd demo` per row. The target: 0 reflex stops \
          with the limiter on; off, the count and the first reason show what it prevents. Missed \
          answers and brakes are this VM's stalls; tracking is the RMS after the first 2 s (n/a \
          when the device stopped at once).\n\n{table}",
-        report::now_utc(),
-        report::machine()
-    ));
+            report::now_utc(),
+            report::machine()
+        ),
+        &[crate::book::names::DEVICE],
+    )?;
     report.finish()
 }
 

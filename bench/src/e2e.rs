@@ -19,10 +19,11 @@
 //! measures about itself. CPU use is sampled from `/proc/<pid>/stat` (utime + stime, all
 //! threads) over a window inside the daemon's run, start-up and shutdown excluded.
 
+use crate::book::names;
 use crate::child::{clock_ticks_per_s, cpu_ticks, steal_ticks, Child, Stdout};
 use crate::latency::unique_namespace;
 use crate::plot::Panel;
-use crate::report::{header, Report};
+use crate::report::{header, Output, Report};
 use crate::stats::{fmt_ns, Bound, Dist, Table, Target};
 use anyhow::{anyhow, bail, Context, Result};
 use serde_json::Value;
@@ -902,7 +903,7 @@ pub fn hammer_table(idle: &RateResult, hammered: &RateResult, scraped: &RateResu
     t.render()
 }
 
-pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
+pub fn run(opts: &Options, out: &Path, command: &str) -> Result<Output> {
     opts.validate()?;
     let mut report = Report::new(out, "e2e")?;
     if report.dir.display().to_string().contains(['\'', '\n']) {
@@ -960,8 +961,9 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
         opts.seconds,
         rt::throttle::RtLimit::read().map_or("unknown".into(), |l| l.describe())
     ));
+    report.run_detail(format!("{} s per run", opts.seconds));
     if !results.is_empty() {
-        report.push(&table(&results));
+        report.table(names::E2E, &table(&results))?;
     }
     report.push(
         "\n**Triggers side by side.** Free-running, the plant applies a command at its next tick, so a \
@@ -974,7 +976,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
     if opts.modes.iter().any(|m| m.is_udp()) {
         report.push(&device_placement(&all));
     }
-    report.push(&modes_table(&all));
+    report.table(names::E2E_MODES, &modes_table(&all))?;
     let targets = targets(&all);
     if !targets.is_empty() {
         report.push("\nTargets of the same-cycle work (issue 10), as measured in this run:\n\n");
@@ -993,7 +995,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
              (`/proc/stat`), counted in 10 ms steps over the whole run with its start-up, so each figure is good \
              to about ±10 ms.\n\n",
         );
-        report.push(&crate::late::late_table(&all));
+        report.table(names::E2E_LATE, &crate::late::late_table(&all))?;
     }
     if let Some((idle, hammered, scraped, quiet, viewed)) = &load_runs {
         report.push(&format!(
@@ -1002,7 +1004,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
              scraped every 100 ms over HTTP (scrape time: connect → last byte; target ≤ 5 ms).\n\n",
             hammered.rate_hz / 1000.0
         ));
-        report.push(&hammer_table(idle, hammered, scraped));
+        report.table(names::E2E_REQUESTS, &hammer_table(idle, hammered, scraped))?;
         report.push(&format!(
             "\n**The chaos monitor's cost** at {} kHz: the idle run (monitor on, the default) next to the \
              same run with `[daemon] monitor = false`. The monitor runs on the reporter thread, off the \
@@ -1010,7 +1012,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
              Target: compute p50 within 5 % of the run without it.\n\n",
             quiet.rate_hz / 1000.0
         ));
-        report.push(&monitor_table(idle, quiet));
+        report.table(names::E2E_MONITOR, &monitor_table(idle, quiet))?;
         report.push(&format!(
             "\n**A Foxglove viewer's cost** at {} kHz: the idle run next to the same run with a viewer \
              attached to the live view (`[daemon] foxglove`) and subscribed to every channel. The \
@@ -1018,7 +1020,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
              compute p99 within 10 % of the idle run's.\n\n",
             viewed.rate_hz / 1000.0
         ));
-        report.push(&viewer_table(idle, viewed));
+        report.table(names::E2E_VIEWER, &viewer_table(idle, viewed))?;
     }
     let mut panels = vec![
         Panel {

@@ -23,7 +23,7 @@ use crate::child::{with_fine_slack, Child, Stdout};
 use crate::cyclictest;
 use crate::plan::interleave;
 use crate::plot::Panel;
-use crate::report::{header, slug, Report};
+use crate::report::{header, slug, Output, Report};
 use crate::stats::{fmt_ns, histogram, ratio, summary, Bound, Dist, Table, Target};
 use anyhow::{anyhow, bail, Result};
 use hdrhistogram::Histogram;
@@ -213,7 +213,7 @@ struct Series {
     overruns: u64,
 }
 
-pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
+pub fn run(opts: &Options, out: &Path, command: &str) -> Result<Output> {
     opts.validate()?;
     let mut report = Report::new(out, "jitter")?;
     let ct = cyclictest::find();
@@ -319,7 +319,12 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
         ));
     }
     let (text, targets) = table(opts, &methods, &results);
-    report.push(&text);
+    report.run_detail(format!(
+        "{} rounds × {} ms blocks per configuration",
+        opts.rounds,
+        opts.block.as_millis()
+    ));
+    report.table(crate::book::names::JITTER, &text)?;
     report.push("\n");
     for t in &targets {
         report.push(&t.line());

@@ -15,7 +15,10 @@
 //! * `all`:     the four in a row, and one summary.
 //! * `soak`:    the real daemon and plant for N seconds under injected faults; a verdict table,
 //!   and a non-zero exit if anything was lost, not recovered or left behind (`soak`).
+//!
+//! `--book PATH` writes the tables of the run into a book page, between its markers (`book`).
 
+mod book;
 mod child;
 mod commands;
 mod compute;
@@ -54,6 +57,7 @@ fn iox_test_lock() -> std::sync::MutexGuard<'static, ()> {
 
 use anyhow::{bail, Result};
 use clap::{Args, Parser, Subcommand};
+use report::Output;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -71,6 +75,12 @@ struct Cli {
     /// Where the reports, .hgrm files and plots go (one directory per subcommand).
     #[arg(long, global = true, default_value = "out/bench")]
     out: PathBuf,
+    /// After the run, write its tables into this book page, each into the block between
+    /// `<!-- bench:NAME -->` and `<!-- /bench:NAME -->` of its name, under a line saying when
+    /// and how it ran; the rest of the page stays as it is. Checked before the run; not written
+    /// if a marker is wrong. The performance chapter: `all --book docs/performance.md`.
+    #[arg(long, global = true, value_name = "PATH")]
+    book: Option<PathBuf>,
     #[command(subcommand)]
     command: Cmd,
 }
@@ -283,7 +293,13 @@ fn e2e_opts(quick: bool, a: &E2eArgs) -> Result<e2e::Options> {
     Ok(o)
 }
 
-fn all(quick: bool, out: &Path, priority: Option<u8>, command: &str) -> Result<String> {
+fn all(
+    quick: bool,
+    out: &Path,
+    priority: Option<u8>,
+    command: &str,
+    book: Option<&book::Book>,
+) -> Result<Output> {
     let mut lat = latency::Options::new(quick);
     let mut jit = jitter::Options::new(quick);
     if let Some(p) = priority {
@@ -307,10 +323,14 @@ fn all(quick: bool, out: &Path, priority: Option<u8>, command: &str) -> Result<S
         ),
     ];
     let mut text = String::new();
+    let mut tables = Vec::new();
     let mut failed = Vec::new();
     for (name, r) in parts {
         match r {
-            Ok(t) => text.push_str(&t),
+            Ok(o) => {
+                text.push_str(&o.text);
+                tables.extend(o.tables);
+            }
             Err(e) => {
                 text.push_str(&format!("## {name}\n\n**failed**: {e:#}\n"));
                 failed.push(name);
@@ -322,13 +342,19 @@ fn all(quick: bool, out: &Path, priority: Option<u8>, command: &str) -> Result<S
     std::fs::write(out.join("summary.md"), &text)?;
     if !failed.is_empty() {
         print!("{text}");
+        // The parts that ran still go into the book; the failed ones leave their blocks.
+        match book.map(|b| b.write(&tables)) {
+            Some(Ok(said)) => eprintln!("chaosd-bench: book: {said}"),
+            Some(Err(e)) => eprintln!("chaosd-bench: error: {e:#}"),
+            None => {}
+        }
         bail!(
             "{} failed (see above and {}/summary.md)",
             failed.join(", "),
             out.display()
         );
     }
-    Ok(text)
+    Ok(Output { text, tables })
 }
 
 fn main() -> ExitCode {
@@ -345,6 +371,26 @@ fn main() -> ExitCode {
     // Ctrl-C stops between blocks, so children are stopped and iceoryx2 resources released.
     rt::signal::install();
     let command = command_line();
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let book = cli.book.clone().map(|path| book::Book {
+        path,
+        command: book::command(&args),
+    });
+    // The page first: a wrong marker should cost a second, not the run.
+    if let Some(page) = &book {
+        match page.check() {
+            Err(e) => {
+                eprintln!("chaosd-bench: error: {e:#}");
+                return ExitCode::FAILURE;
+            }
+            Ok(missing) if !missing.is_empty() => eprintln!(
+                "chaosd-bench: warning: {} has no block for {}, which it should carry",
+                page.path.display(),
+                missing.join(", ")
+            ),
+            Ok(_) => {}
+        }
+    }
     let t0 = Instant::now();
     let (quick, out) = (cli.quick, cli.out.as_path());
     let result = match &cli.command {
@@ -353,7 +399,7 @@ fn main() -> ExitCode {
         Cmd::E2e(a) => e2e_opts(quick, a).and_then(|o| e2e::run(&o, out, &command)),
         Cmd::Compute { core, pinocchio } => compute::run(quick, *core, pinocchio, out, &command),
         Cmd::Device => device::run(quick, out, &command),
-        Cmd::All { priority } => all(quick, out, *priority, &command),
+        Cmd::All { priority } => all(quick, out, *priority, &command, book.as_ref()),
         Cmd::Soak(a) => soak::run(
             &soak::Options {
                 seconds: a.seconds,
@@ -365,11 +411,17 @@ fn main() -> ExitCode {
         ),
         Cmd::LatencyPeer(_) => unreachable!("handled above"),
     };
+    let result = result.and_then(|o| {
+        print!("{}", o.text);
+        match &book {
+            Some(b) => b.write(&o.tables).map(|said| format!("; book: {said}")),
+            None => Ok(String::new()),
+        }
+    });
     match result {
-        Ok(text) => {
-            print!("{text}");
+        Ok(said) => {
             eprintln!(
-                "chaosd-bench: done in {:.1} s; files under {}",
+                "chaosd-bench: done in {:.1} s; files under {}{said}",
                 t0.elapsed().as_secs_f64(),
                 out.display()
             );

@@ -1,8 +1,9 @@
 //! What every subcommand leaves behind: a markdown report, `.hgrm` files and plots, in one
 //! directory per subcommand, headed by the date and a description of the machine (a number
-//! without its machine is meaningless).
+//! without its machine is meaningless); and its tables by name, for `--book` (`crate::book`).
 
-use anyhow::{Context, Result};
+use crate::book;
+use anyhow::{bail, Context, Result};
 use hdrhistogram::Histogram;
 use std::path::{Path, PathBuf};
 
@@ -12,6 +13,14 @@ pub struct Report {
     name: String,
     text: String,
     pub files: Vec<PathBuf>,
+    tables: Vec<book::Table>,
+    detail: Option<String>,
+}
+
+/// What a finished subcommand returns: its report text, and its tables for the book.
+pub struct Output {
+    pub text: String,
+    pub tables: Vec<book::Table>,
 }
 
 impl Report {
@@ -25,6 +34,8 @@ impl Report {
             name: name.into(),
             text: String::new(),
             files: Vec::new(),
+            tables: Vec::new(),
+            detail: None,
         })
     }
 
@@ -34,6 +45,42 @@ impl Report {
         if !markdown.ends_with('\n') {
             self.text.push('\n');
         }
+    }
+
+    /// What the book's run line says about how much was measured ("40 rounds × 5000 round
+    /// trips per transport"), for the tables named after this.
+    pub fn run_detail(&mut self, detail: String) {
+        self.detail = Some(detail);
+    }
+
+    /// Appends a markdown table, and keeps it under `name` for the book.
+    pub fn table(&mut self, name: &'static str, markdown: &str) -> Result<()> {
+        self.push_tables(markdown, &[name])
+    }
+
+    /// Appends markdown holding one table per name, in order, and keeps each for the book
+    /// under its name. Fewer or more tables than names is a bug of the part.
+    pub fn push_tables(&mut self, markdown: &str, names: &[&'static str]) -> Result<()> {
+        let found = book::tables_in(markdown);
+        if found.len() != names.len() {
+            bail!(
+                "{}: {} table(s) where the book expects {} ({}): a bug in chaosd-bench",
+                self.name,
+                found.len(),
+                names.len(),
+                names.join(", ")
+            );
+        }
+        self.push(markdown);
+        for (name, markdown) in names.iter().zip(found) {
+            self.tables.push(book::Table {
+                name,
+                date: now_utc(),
+                detail: self.detail.clone(),
+                markdown,
+            });
+        }
+        Ok(())
     }
 
     /// A path inside the directory.
@@ -56,8 +103,9 @@ impl Report {
         Ok(())
     }
 
-    /// Writes `<name>.md` and returns the report text, with the list of files at the end.
-    pub fn finish(mut self) -> Result<String> {
+    /// Writes `<name>.md` and returns the report text, with the list of files at the end, and
+    /// the tables.
+    pub fn finish(mut self) -> Result<Output> {
         let md = self.path(&format!("{}.md", self.name));
         self.files.push(md.clone());
         let mut files: Vec<String> = self.files.iter().map(|f| f.display().to_string()).collect();
@@ -66,7 +114,10 @@ impl Report {
             .push_str(&format!("\nFiles: {}\n", files.join(", ")));
         std::fs::write(&md, &self.text)
             .with_context(|| format!("cannot write {}", md.display()))?;
-        Ok(self.text)
+        Ok(Output {
+            text: self.text,
+            tables: self.tables,
+        })
     }
 }
 

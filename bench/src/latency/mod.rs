@@ -17,10 +17,11 @@
 
 pub mod link;
 
+use crate::book::names;
 use crate::child::{Child, Stdout};
 use crate::plan::interleave;
 use crate::plot::Panel;
-use crate::report::{header, Report};
+use crate::report::{header, Output, Report};
 use crate::stats::{fmt_ns, fmt_ratio, histogram, ratio, summary, Bound, Dist, Table, Target};
 use anyhow::{anyhow, bail, Context, Result};
 use hdrhistogram::Histogram;
@@ -156,7 +157,7 @@ fn apply_rt(core: usize, priority: u8, who: &str) -> rt::setup::RtReport {
 }
 
 /// Runs the benchmark and returns its report (also written to `<out>/latency/`).
-pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
+pub fn run(opts: &Options, out: &Path, command: &str) -> Result<Output> {
     let opts = opts.clone();
     let out = out.to_path_buf();
     let command = command.to_string();
@@ -169,7 +170,7 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
         .map_err(|_| anyhow!("the latency thread panicked"))?
 }
 
-fn measure(opts: &Options, out: &Path, command: &str) -> Result<String> {
+fn measure(opts: &Options, out: &Path, command: &str) -> Result<Output> {
     let mut report = Report::new(out, "latency")?;
     let (core_a, core_b) = opts.cores;
     let (timeout, pace) = (opts.timeout, opts.pace);
@@ -323,7 +324,20 @@ fn measure(opts: &Options, out: &Path, command: &str) -> Result<String> {
     ));
     report.push(&pace_line(pace));
     let (text, targets) = table(&hists);
-    report.push(&text);
+    report.run_detail(format!(
+        "{} rounds × {} round trips per transport{}",
+        opts.rounds,
+        opts.round_trips,
+        pace.map_or(String::new(), |p| format!(
+            ", paced at {} µs",
+            p.period_ns / 1000
+        ))
+    ));
+    let name = match pace {
+        None => names::LATENCY,
+        Some(_) => names::LATENCY_PACED,
+    };
+    report.table(name, &text)?;
     report.push("\n");
     // The targets compare transports back to back; paced, the table is a floor, not a contest.
     if pace.is_none() {

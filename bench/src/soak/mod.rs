@@ -53,6 +53,7 @@ pub mod system;
 pub mod verdict;
 pub mod windows;
 
+use crate::book::names;
 use anyhow::{anyhow, bail, Context, Result};
 use iceoryx2::prelude::ipc;
 use protocol::{flags, Op, ServiceNames, StateSample};
@@ -693,7 +694,7 @@ fn read_json(p: &Path) -> Result<serde_json::Value> {
 
 /// Runs the soak; the report (with the verdict) is returned, or printed and an error returned
 /// when the verdict is a failure.
-pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
+pub fn run(opts: &Options, out: &Path, command: &str) -> Result<crate::report::Output> {
     opts.validate()?;
     let report = crate::report::Report::new(out, "soak")?;
     let dir = report.dir.clone();
@@ -786,12 +787,16 @@ pub fn run(opts: &Options, out: &Path, command: &str) -> Result<String> {
     let text = v.render(command);
     let mut report = report;
     report.files.push(report.path("resources.csv"));
-    report.push(&text);
-    let text = report.finish()?;
+    report.run_detail(format!("seed {}, {:.0} s", opts.seed, opts.seconds));
+    report.push_tables(
+        &text,
+        &[names::SOAK_FAULTS, names::SOAK_PROCESSES, names::SOAK_DATA],
+    )?;
+    let output = report.finish()?;
     if v.passed() {
-        Ok(text)
+        Ok(output)
     } else {
-        print!("{text}");
+        print!("{}", output.text);
         bail!("soak verdict: FAIL ({})", v.failures.join("; "))
     }
 }
