@@ -6,6 +6,7 @@
 //! killed takes them along. Waits are bounded and fail with what was seen, never hang. Tests that
 //! spawn processes take [`serial`] so two 2-process systems never compete for the 2 cores.
 
+pub mod foxglove_check;
 pub mod live;
 
 use iceoryx2::port::subscriber::Subscriber;

@@ -1,11 +1,14 @@
 //! The live view through the real daemon and plant: a WebSocket client, written out here as
 //! Foxglove speaks it, connects to `[daemon] foxglove`, reads the advertised channels,
-//! subscribes, and decodes live joint states, the robot's description and the scene.
+//! subscribes, and decodes live joint states, the robot's description and the scene; and, when
+//! `CHAOSD_FOXGLOVE_CHECK` names scripts/foxglove-check, Foxglove's own client and decoders do.
 
 use daemon::view::cdr::decode_joint_state;
+use daemon::view::Topic;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
+use tests::foxglove_check::{self, bits, ns};
 use tests::live::*;
 use tests::*;
 
@@ -154,6 +157,63 @@ fn a_viewer_gets_the_channels_and_decodes_live_joint_states_and_the_urdf() {
     send_text(&mut s, r#"{"op":"unsubscribe","subscriptionIds":[7,8,9]}"#);
     drop(s);
     std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(status(&sys.ns)["mode"], "Run");
+}
+
+/// Foxglove's own WebSocket client (@foxglove/ws-protocol) subscribes to every channel for a
+/// few seconds; every message decodes with the decoder the app picks and is valid against its
+/// schemas, official foxglove.* ones included (scripts/foxglove-check).
+#[test]
+fn foxglove_s_own_client_decodes_and_validates_every_live_channel() {
+    if foxglove_check::configured().is_none() {
+        return;
+    }
+    let _g = serial();
+    let port = free_port();
+    let sys = start_with_daemon(
+        "foxglove-check",
+        "",
+        &format!("foxglove = \"127.0.0.1:{port}\""),
+    );
+    let url = format!("ws://127.0.0.1:{port}");
+    let limit = Duration::from_secs(60);
+    let seen = foxglove_check::run(&["live", &url, "3"], sys.dir.path(), limit).unwrap();
+    assert_eq!(seen["subprotocol"], "foxglove.websocket.v1", "{seen}");
+    assert_eq!(seen["server"]["name"], "chaosd", "{seen}");
+    // Every channel chaosd serves is advertised with its schema and encodings, and streams
+    // (the events only on change).
+    let topics = seen["topics"].as_object().unwrap();
+    let offered: Vec<Topic> = Topic::ALL
+        .into_iter()
+        .filter(|t| *t != Topic::Replay)
+        .collect();
+    assert_eq!(topics.len(), offered.len(), "{seen}");
+    for t in offered {
+        let got = &topics[t.name()];
+        let (schema, encoding, _) = t.schema().unwrap();
+        assert_eq!(got["schema"], schema, "{}: {got}", t.name());
+        assert_eq!(got["schema_encoding"], encoding, "{}: {got}", t.name());
+        assert_eq!(got["message_encoding"], t.encoding(), "{}: {got}", t.name());
+        if t != Topic::Events {
+            assert!(got["count"].as_u64() > Some(0), "{}: {got}", t.name());
+        }
+    }
+    let states = &topics["/joint_states"];
+    assert!(states["count"].as_u64() >= Some(200), "{states}");
+    let last = &seen["last_joint_state"];
+    assert_eq!(
+        last["name"],
+        serde_json::json!(["joint1", "joint2", "joint3"])
+    );
+    let q = bits(&last["position"]);
+    let finite = q.iter().all(|b| f64::from_bits(*b).is_finite());
+    assert!(q.len() == 3 && finite, "{last}");
+    assert_eq!(
+        ns(&last["stamp_ns"]),
+        ns(&states["last_log_time_ns"]),
+        "{seen}"
+    );
+    // The viewer unsubscribed and left; the daemon runs on.
     assert_eq!(status(&sys.ns)["mode"], "Run");
 }
 

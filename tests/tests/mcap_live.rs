@@ -1,13 +1,15 @@
 //! MCAP recordings through the real daemon and plant: `chaosctl record start` writes MCAP by
 //! default, every channel holds what the daemon says it wrote, the events name the operator's
 //! edits, `chaosctl export --csv` gives the rows back, and, when `CHAOSD_PYTHON` names a Python
-//! with `mcap` and `mcap-ros2-support` (CI sets one up), Python's reader agrees bit for bit.
+//! with `mcap` and `mcap-ros2-support` (CI sets one up), Python's reader agrees bit for bit; so
+//! do Foxglove's own readers when `CHAOSD_FOXGLOVE_CHECK` names scripts/foxglove-check.
 
 use daemon::mcap_read;
-use daemon::view::cdr::decode_joint_state;
+use daemon::view::cdr::{decode_joint_state, JointState};
 use daemon::view::Topic;
 use std::path::Path;
 use std::time::Duration;
+use tests::foxglove_check::{self, bits, ns};
 use tests::live::*;
 use tests::*;
 
@@ -103,6 +105,46 @@ fn check_file(path: &Path, stop: &serde_json::Value, joints: &[&str], link: &str
         file.metadata
     );
     python_reads(path, stop);
+    foxglove_reads(path, stop, &js);
+}
+
+/// Foxglove's own readers (scripts/foxglove-check): every message decoded with the decoder the
+/// app picks and valid against its schemas, the official foxglove.* ones included; the counts
+/// and the time span are the daemon's, and the last joint state is the daemon's and chaosd's
+/// own decoder's, bit for bit. Skipped, saying so, without `CHAOSD_FOXGLOVE_CHECK`.
+fn foxglove_reads(path: &Path, stop: &serde_json::Value, js: &JointState) {
+    let file = path.to_str().unwrap();
+    let limit = Duration::from_secs(120);
+    let Some(seen) = foxglove_check::run(&["file", file], path.parent().unwrap(), limit) else {
+        return;
+    };
+    assert_eq!(seen["compression"], serde_json::json!(["lz4"]), "{seen}");
+    let counted = stop["messages"].as_object().unwrap();
+    for (topic, n) in counted {
+        let got = seen["topics"][topic]["count"].as_u64().unwrap_or(0);
+        assert_eq!(Some(got), n.as_u64(), "{topic}: {seen}");
+    }
+    let topics = seen["topics"].as_object().unwrap();
+    assert!(topics.keys().all(|t| counted.contains_key(t)), "{seen}");
+    for t in ["first_log_time_ns", "last_log_time_ns"] {
+        assert_eq!(Some(ns(&seen[t])), stop[t].as_u64(), "{t}: {seen}");
+    }
+    let last = &seen["last_joint_state"];
+    assert_eq!(last["name"], serde_json::json!(js.name), "{last}");
+    assert_eq!(last["frame_id"], js.frame_id.as_str());
+    assert_eq!(ns(&last["stamp_ns"]), js.stamp_ns);
+    let own = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&last["position"]), own(&js.position));
+    assert_eq!(bits(&last["velocity"]), own(&js.velocity));
+    assert_eq!(bits(&last["effort"]), own(&js.effort));
+    let daemon = &stop["last_joint_state"];
+    assert_eq!(bits(&last["position"]), bits(&daemon["position"]));
+    assert_eq!(bits(&last["velocity"]), bits(&daemon["velocity"]));
+    let total: u64 = topics.values().map(|t| t["count"].as_u64().unwrap()).sum();
+    eprintln!(
+        "Foxglove's readers: {total} messages on {} channels decoded and valid, as the daemon wrote; last joint state bit for bit",
+        topics.len()
+    );
 }
 
 /// Python's `mcap` reader with `mcap-ros2-support` checks the file (scripts/mcap_readback.py).

@@ -253,11 +253,15 @@ impl Encoder {
             "lateness_ns": r.lateness_ns, "compute_ns": r.compute_ns, "state_age_ns": r.state_age_ns,
         });
         self.put_json(Topic::Timing, unix_ns, &timing, sink)?;
-        let residual = json!({
+        let mut residual = json!({
             "t": r.t, "tracking_error": r.tracking_error, "period_residual": r.period_residual,
-            "null_residual": r.null_residual, "clearance": r.clearance, "mu": r.mu,
-            "chaos": ctx.chaos.name(),
+            "null_residual": r.null_residual, "mu": r.mu, "chaos": ctx.chaos.name(),
         });
+        // With no obstacle the clearance is infinite, which JSON cannot say (serde writes null,
+        // which the schema's "number" refuses): the field is left out then.
+        if r.clearance.is_finite() {
+            residual["clearance"] = json!(r.clearance);
+        }
         self.put_json(Topic::Residual, unix_ns, &residual, sink)?;
         if let Some(c) = &r.command {
             use control::command::CommandMode as M;
@@ -353,31 +357,44 @@ impl Encoder {
         let target = self.scene.target(t);
         let target = json!({"timestamp": stamp(unix_ns), "frame_id": WORLD, "pose": pose(&target, &IDENTITY)});
         self.put_json(Topic::Target, unix_ns, &target, sink)?;
-        let arm = json!({
-            "timestamp": stamp(unix_ns), "frame_id": WORLD, "id": "arm", "lifetime": stamp(0),
-            "frame_locked": false,
-            "lines": [line(&posed.points, 0.03, [0.2, 0.5, 0.9, 1.0])],
-            "spheres": posed.points.iter().map(|p| sphere(p, 0.06, [0.1, 0.1, 0.1, 1.0])).collect::<Vec<_>>(),
-        });
+        let joints = posed.points.iter();
+        let joints = joints.map(|p| sphere(p, 0.06, [0.1, 0.1, 0.1, 1.0]));
+        let arm_line = line(&posed.points, 0.03, [0.2, 0.5, 0.9, 1.0]);
+        let arm = entity(unix_ns, "arm", vec![arm_line], joints.collect());
         let update = json!({"deletions": [], "entities": [arm]});
         self.put_json(Topic::Scene, unix_ns, &update, sink)
     }
 
     fn write_scene(&mut self, unix_ns: u64, sink: &mut dyn Sink) -> Result<(), String> {
         let s = &self.scene;
-        let path = json!({
-            "timestamp": stamp(unix_ns), "frame_id": WORLD, "id": "path", "lifetime": stamp(0),
-            "frame_locked": false, "lines": [line(&s.path, 0.01, [0.1, 0.7, 0.2, 1.0])], "spheres": [],
-        });
-        let obstacles = json!({
-            "timestamp": stamp(unix_ns), "frame_id": WORLD, "id": "obstacles", "lifetime": stamp(0),
-            "frame_locked": false, "lines": [],
-            "spheres": s.obstacles.iter().map(|(c, r)| sphere(c, 2.0 * r, [0.9, 0.2, 0.1, 0.5])).collect::<Vec<_>>(),
-        });
+        let path = entity(
+            unix_ns,
+            "path",
+            vec![line(&s.path, 0.01, [0.1, 0.7, 0.2, 1.0])],
+            Vec::new(),
+        );
+        let obstacles = s.obstacles.iter();
+        let obstacles = obstacles.map(|(c, r)| sphere(c, 2.0 * r, [0.9, 0.2, 0.1, 0.5]));
+        let obstacles = entity(unix_ns, "obstacles", Vec::new(), obstacles.collect());
         let update = json!({"deletions": [], "entities": [path, obstacles]});
         self.scene_at = Some(unix_ns / 1_000_000_000);
         self.put_json(Topic::Scene, unix_ns, &update, sink)
     }
+}
+
+/// A `foxglove.SceneEntity` in `world` that stays until replaced, drawn with `lines` and
+/// `spheres`. Every primitive list is there, empty or not: the official schema requires them all.
+fn entity(
+    unix_ns: u64,
+    id: &str,
+    lines: Vec<serde_json::Value>,
+    spheres: Vec<serde_json::Value>,
+) -> serde_json::Value {
+    json!({
+        "timestamp": stamp(unix_ns), "frame_id": WORLD, "id": id, "lifetime": stamp(0),
+        "frame_locked": false, "metadata": [], "arrows": [], "cubes": [], "spheres": spheres,
+        "cylinders": [], "lines": lines, "triangles": [], "texts": [], "models": [],
+    })
 }
 
 fn line(points: &[[f64; 3]], thickness: f64, color: [f64; 4]) -> serde_json::Value {
@@ -394,4 +411,60 @@ fn sphere(center: &[f64; 3], diameter: f64, color: [f64; 4]) -> serde_json::Valu
         "pose": pose(center, &IDENTITY), "size": vec3(&[diameter; 3]),
         "color": {"r": color[0], "g": color[1], "b": color[2], "a": color[3]},
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Collects what an encoder writes.
+    struct Collect(Vec<(Topic, Vec<u8>)>);
+
+    impl Sink for Collect {
+        fn put(&mut self, topic: Topic, _row: u64, _ns: u64, data: &[u8]) -> Result<(), String> {
+            self.0.push((topic, data.to_vec()));
+            Ok(())
+        }
+    }
+
+    fn has_null(v: &serde_json::Value) -> bool {
+        match v {
+            serde_json::Value::Null => true,
+            serde_json::Value::Array(a) => a.iter().any(has_null),
+            serde_json::Value::Object(o) => o.values().any(has_null),
+            _ => false,
+        }
+    }
+
+    #[test]
+    fn no_json_message_carries_a_null_not_even_without_obstacles() {
+        let sys = rt::robot::preset("paper").unwrap();
+        let mut enc = Encoder::new(Scene::of(&sys), 1000.0);
+        let mut out = Collect(Vec::new());
+        enc.start(1_000_000_000, &mut out).unwrap();
+        // An answered state (its age known), and no obstacle: the clearance is infinite.
+        let r = TickRecord {
+            state_age_ns: Some(1000),
+            ran_law: true,
+            ..TickRecord::blank()
+        };
+        assert_eq!(r.clearance, f64::INFINITY);
+        let st = StateSample {
+            n: 3,
+            ..StateSample::default()
+        };
+        let ctx = TickContext {
+            chaos: Verdict::Unknown,
+            blocked: None,
+        };
+        enc.tick(&r, &st, ctx, 1_000_000_000, &mut out).unwrap();
+        let json = out.0.iter().filter(|(t, _)| t.encoding() == "json");
+        let mut topics = Vec::new();
+        for (t, data) in json {
+            let v: serde_json::Value = serde_json::from_slice(data).unwrap();
+            assert!(!has_null(&v), "{}: {v}", t.name());
+            topics.push(*t);
+        }
+        assert!(topics.contains(&Topic::Residual) && topics.contains(&Topic::Scene));
+    }
 }

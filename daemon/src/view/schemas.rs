@@ -131,12 +131,19 @@ pub fn scene_update() -> String {
             ("lines", array(line)),
         ],
     );
+    // Every object lists its properties: Foxglove's JSON Schema reader fails on one that does
+    // not, and drops the channel.
+    let deletion = object(
+        "foxglove.SceneEntityDeletion",
+        &[
+            ("timestamp", TIME.into()),
+            ("type", integer()),
+            ("id", string()),
+        ],
+    );
     object(
         "foxglove.SceneUpdate",
-        &[
-            ("deletions", array(r#"{"type":"object"}"#.into())),
-            ("entities", array(entity)),
-        ],
+        &[("deletions", array(deletion)), ("entities", array(entity))],
     )
 }
 
@@ -219,6 +226,21 @@ mod tests {
         ] {
             let v: serde_json::Value = serde_json::from_str(&s).unwrap();
             assert_eq!(v["type"], "object", "{s}");
+            every_object_lists_its_properties(&v, &s);
+        }
+    }
+
+    /// Foxglove's JSON Schema reader fails on an object schema without `properties` (and drops
+    /// the channel); scripts/foxglove-check restates its other rules.
+    fn every_object_lists_its_properties(v: &serde_json::Value, whole: &str) {
+        if v["type"] == "object" {
+            assert!(v["properties"].is_object(), "{v} in {whole}");
+        }
+        for (_, p) in v["properties"].as_object().into_iter().flatten() {
+            every_object_lists_its_properties(p, whole);
+        }
+        if v["type"] == "array" {
+            every_object_lists_its_properties(&v["items"], whole);
         }
     }
 }
