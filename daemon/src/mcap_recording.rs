@@ -47,6 +47,8 @@ struct Output {
     segment: u64,
     /// Message bytes in the current segment.
     written: u64,
+    /// Ticks (joint states) in the current segment.
+    segment_ticks: u64,
     metadata: BTreeMap<String, String>,
     /// The robot description, repeated at the start of every segment.
     description: Option<Vec<u8>>,
@@ -105,6 +107,7 @@ impl Output {
         self.writer = Some(Self::open(&next, &self.metadata)?);
         self.channels = [None; Topic::ALL.len()];
         self.written = 0;
+        self.segment_ticks = 0;
         remove_old(&self.path, self.segment, self.limit.keep).map_err(|e| e.to_string())?;
         if let Some(d) = self.description.clone() {
             self.write(Topic::RobotDescription, 0, self.last_ns, &d)?;
@@ -124,7 +127,12 @@ impl Output {
         let w = self.writer.as_mut().ok_or("the recording is closed")?;
         w.write_to_known_channel(&header, data)
             .map_err(err(&path))?;
-        self.written += data.len() as u64;
+        if topic != Topic::RobotDescription {
+            self.written += data.len() as u64;
+        }
+        if topic == Topic::JointStates {
+            self.segment_ticks += 1;
+        }
         self.counts[topic as usize] += 1;
         self.first_ns = Some(self.first_ns.map_or(unix_ns, |f| f.min(unix_ns)));
         self.last_ns = self.last_ns.max(unix_ns);
@@ -149,7 +157,10 @@ impl Sink for Output {
             .limit
             .max_bytes
             .is_some_and(|m| self.written + data.len() as u64 > m);
-        if full && self.written > 0 {
+        // The robot description heads every segment and does not count against the limit (the
+        // Panda's URDF is 10 KB, the floor 4 KB), and a segment holds at least one tick, so a
+        // small limit never leaves one message a file.
+        if full && self.segment_ticks > 0 {
             self.rotate()?;
         }
         self.write(topic, row, unix_ns, data)
@@ -196,6 +207,7 @@ impl McapRecording {
             limit,
             segment: 0,
             written: 0,
+            segment_ticks: 0,
             metadata,
             description: None,
             first_ns: None,
@@ -333,6 +345,11 @@ mod tests {
 
     /// `rows` ticks of the paper arm, one a millisecond.
     fn ticks(rec: &mut McapRecording, rows: u64) {
+        ticks_n(rec, rows, 3)
+    }
+
+    /// `rows` ticks of an `n`-joint arm, one a millisecond.
+    fn ticks_n(rec: &mut McapRecording, rows: u64, n: u32) {
         let ctx = TickContext {
             chaos: control::monitor::Verdict::Unknown,
             blocked: None,
@@ -343,7 +360,7 @@ mod tests {
             r.t = k as f64 * 1e-3;
             let st = StateSample {
                 seq: k,
-                n: 3,
+                n,
                 ..StateSample::default()
             };
             rec.tick(&r, &st, ctx).unwrap();
@@ -378,6 +395,37 @@ mod tests {
             rows += f.messages(Topic::JointStates).len();
         }
         assert!(rows > 0 && rows < 3000, "{rows}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_urdf_larger_than_the_limit_heads_every_segment_without_leaving_one_message_a_file() {
+        let dir = scratch("rotate-urdf");
+        let sys = rt::robot::preset("panda").unwrap();
+        let limit = Limit {
+            max_bytes: Some(4096),
+            keep: 1000,
+        };
+        let mut rec = McapRecording::start(&dir, "p.mcap", &sys, 1000.0, limit).unwrap();
+        ticks_n(&mut rec, 400, 7);
+        let answer: serde_json::Value = serde_json::from_str(&rec.finish().unwrap()).unwrap();
+        let rotations = answer["rotations"].as_u64().unwrap();
+        assert!(rotations >= 2, "{answer}");
+        let mut rows = 0;
+        for k in 0..=rotations {
+            let f = crate::mcap_read::read(&segment_path(&dir.join("p.mcap"), k)).unwrap();
+            assert_eq!(f.messages(Topic::RobotDescription).len(), 1, "segment {k}");
+            let states = f.messages(Topic::JointStates).len();
+            let topics: Vec<(&str, usize)> = Topic::ALL
+                .iter()
+                .map(|t| (t.name(), f.messages(*t).len()))
+                .collect();
+            assert!(states >= 1 || k == rotations, "segment {k}: {topics:?}");
+            rows += states;
+        }
+        assert_eq!(rows, 400);
+        // Each segment holds several ticks (about 4 KB of them), not one message.
+        assert!(rotations < 400 / 3, "{rotations} segments for 400 ticks");
         let _ = std::fs::remove_dir_all(&dir);
     }
 
