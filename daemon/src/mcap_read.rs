@@ -23,7 +23,12 @@ pub struct McapFile {
     pub metadata: BTreeMap<String, String>,
     /// Messages per topic name, in file order.
     pub topics: BTreeMap<String, Vec<Message>>,
+    /// Each topic's message encoding.
+    pub encodings: BTreeMap<String, String>,
 }
+
+/// The replay channel's encoding before it was JSON (the text as it is): still read.
+const OLD_REPLAY_ENCODING: &str = "chaosd-replay-2";
 
 /// Whether `bytes` start like an MCAP file.
 pub fn is_mcap(bytes: &[u8]) -> bool {
@@ -51,6 +56,9 @@ pub fn parse(bytes: &[u8]) -> Result<McapFile, String> {
     }
     for m in mcap::MessageStream::new(bytes).map_err(|e| e.to_string())? {
         let m = m.map_err(|e| e.to_string())?;
+        file.encodings
+            .entry(m.channel.topic.clone())
+            .or_insert_with(|| m.channel.message_encoding.clone());
         file.topics
             .entry(m.channel.topic.clone())
             .or_default()
@@ -64,6 +72,27 @@ pub fn parse(bytes: &[u8]) -> Result<McapFile, String> {
 }
 
 impl McapFile {
+    /// The replay text of a `chaosd run --record` recording, tick after tick (empty when the
+    /// file has no `/chaosd/replay` channel).
+    pub fn replay_text(&self) -> Result<Vec<u8>, String> {
+        let topic = Topic::Replay.name();
+        let old = self.encodings.get(topic).map(String::as_str) == Some(OLD_REPLAY_ENCODING);
+        let mut text = Vec::new();
+        for m in self.messages(Topic::Replay) {
+            if old {
+                text.extend_from_slice(&m.data);
+                continue;
+            }
+            let v: serde_json::Value = serde_json::from_slice(&m.data)
+                .map_err(|e| format!("{topic}, row {}: {e}", m.row))?;
+            let line = v["text"]
+                .as_str()
+                .ok_or_else(|| format!("{topic}, row {}: no \"text\" string", m.row))?;
+            text.extend_from_slice(line.as_bytes());
+        }
+        Ok(text)
+    }
+
     pub fn messages(&self, topic: Topic) -> &[Message] {
         self.topics.get(topic.name()).map_or(&[], Vec::as_slice)
     }

@@ -87,12 +87,10 @@ impl Output {
         }
         let path = segment_path(&self.path, self.segment);
         let w = self.writer.as_mut().ok_or("the recording is closed")?;
-        let schema = match topic.schema() {
-            Some((name, encoding, text)) => w
-                .add_schema(name, encoding, text.as_bytes())
-                .map_err(err(&path))?,
-            None => 0,
-        };
+        let (name, encoding, text) = topic.schema();
+        let schema = w
+            .add_schema(name, encoding, text.as_bytes())
+            .map_err(err(&path))?;
         let id = w
             .add_channel(schema, topic.name(), topic.encoding(), &BTreeMap::new())
             .map_err(err(&path))?;
@@ -266,8 +264,9 @@ impl McapRecording {
     /// A tick's replay text (see [`crate::replay`]) on `/chaosd/replay`, at the tick's time.
     pub fn replay_text(&mut self, monotonic_ns: u64, text: &str) -> Result<(), String> {
         let ns = self.unix_ns(monotonic_ns);
-        self.out
-            .put(Topic::Replay, self.encoder.rows, ns, text.as_bytes())
+        let line =
+            serde_json::to_vec(&serde_json::json!({ "text": text })).map_err(|e| e.to_string())?;
+        self.out.put(Topic::Replay, self.encoder.rows, ns, &line)
     }
 
     /// A line on `/chaosd/events`, stamped with the newest tick's time.

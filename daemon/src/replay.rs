@@ -668,8 +668,7 @@ pub fn replay(path: &Path) -> Result<ReplayReport> {
     let text = if crate::mcap_read::is_mcap(&bytes) {
         let file =
             crate::mcap_read::parse(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-        let lines = file.messages(crate::view::Topic::Replay);
-        if lines.is_empty() {
+        if file.messages(crate::view::Topic::Replay).is_empty() {
             bail!(
                 "{}: an MCAP recording without a /chaosd/replay channel (`chaosctl record` \
                  records from the middle of a run; `chaosd run --record NAME` makes a \
@@ -677,7 +676,8 @@ pub fn replay(path: &Path) -> Result<ReplayReport> {
                 path.display()
             );
         }
-        lines.iter().flat_map(|m| m.data.iter().copied()).collect()
+        file.replay_text()
+            .map_err(|e| anyhow!("{}: {e}", path.display()))?
     } else {
         bytes
     };
@@ -901,11 +901,7 @@ mod tests {
         assert_eq!((r.ticks, r.param_changes), (400, 1));
         let text_path = record(&d);
         let file = crate::mcap_read::read(&p).unwrap();
-        let lines: Vec<u8> = file
-            .messages(crate::view::Topic::Replay)
-            .iter()
-            .flat_map(|m| m.data.clone())
-            .collect();
+        let lines = file.replay_text().unwrap();
         // The settings line names the daemon and its clock, so it is the same in both files.
         assert_eq!(lines, std::fs::read(&text_path).unwrap());
         assert_eq!(file.messages(crate::view::Topic::Replay).len(), 400);

@@ -144,4 +144,13 @@ fn a_live_mcap_recording_replays_bit_for_bit_and_shows_the_run() {
         "{} events",
         events.len()
     );
+    // Foxglove's own readers decode every channel of it, the replay channel included.
+    let scratch = rec.parent().unwrap();
+    let limit = std::time::Duration::from_secs(120);
+    let file_arg = rec.to_str().unwrap();
+    if let Some(v) = tests::foxglove_check::run(&["file", file_arg], scratch, limit) {
+        let replay = &v["topics"]["/chaosd/replay"];
+        assert_eq!(replay["count"].as_u64(), Some(ticks), "{v}");
+        assert_eq!(replay["schema"], "chaosd.ReplayLine", "{v}");
+    }
 }

@@ -77,7 +77,7 @@ fn offered() -> impl Iterator<Item = Topic> {
 pub fn advertise() -> String {
     let channels: Vec<serde_json::Value> = offered()
         .map(|t| {
-            let (name, encoding, schema) = t.schema().unwrap_or(("", "", String::new()));
+            let (name, encoding, schema) = t.schema();
             serde_json::json!({
                 "id": channel_id(t), "topic": t.name(), "encoding": t.encoding(),
                 "schemaName": name, "schema": schema, "schemaEncoding": encoding,

@@ -29,7 +29,8 @@ pub enum Topic {
     Residual,
     Command,
     Events,
-    /// A replay recording's text, one message a tick (`crate::replay`); no schema.
+    /// A replay recording's text, one message a tick (`crate::replay`), as `{"text": …}`: JSON
+    /// with a schema, so that every channel of a replay recording decodes in Foxglove.
     Replay,
 }
 
@@ -68,15 +69,14 @@ impl Topic {
     pub fn encoding(self) -> &'static str {
         match self {
             Topic::JointStates | Topic::RobotDescription => "cdr",
-            Topic::Replay => "chaosd-replay-2",
             _ => "json",
         }
     }
 
-    /// The schema's name, encoding and text (none for the replay text).
-    pub fn schema(self) -> Option<(&'static str, &'static str, String)> {
+    /// The schema's name, encoding and text.
+    pub fn schema(self) -> (&'static str, &'static str, String) {
         use super::schemas as s;
-        Some(match self {
+        match self {
             Topic::JointStates => (
                 "sensor_msgs/msg/JointState",
                 "ros2msg",
@@ -96,8 +96,8 @@ impl Topic {
             Topic::Residual => ("chaosd.Residual", "jsonschema", s::residual()),
             Topic::Command => ("chaosd.Command", "jsonschema", s::command()),
             Topic::Events => ("foxglove.Log", "jsonschema", s::log()),
-            Topic::Replay => return None,
-        })
+            Topic::Replay => ("chaosd.ReplayLine", "jsonschema", s::replay_line()),
+        }
     }
 }
 

@@ -148,6 +148,11 @@ pub fn scene_update() -> String {
 }
 
 /// `foxglove.Log`.
+/// `/chaosd/replay`: one tick of the replay format's text (docs/live-control.md).
+pub fn replay_line() -> String {
+    object("chaosd.ReplayLine", &[("text", string())])
+}
+
 pub fn log() -> String {
     object(
         "foxglove.Log",
