@@ -23,9 +23,14 @@ fn free_port() -> u16 {
 
 /// The client's side of the WebSocket: a masked text frame.
 fn send_text(s: &mut TcpStream, text: &str) {
+    send_frame(s, 0x1, text.as_bytes());
+}
+
+/// A masked frame of `opcode`.
+fn send_frame(s: &mut TcpStream, opcode: u8, payload: &[u8]) {
     let mask = [0x11u8, 0x22, 0x33, 0x44];
-    let mut f = vec![0x81];
-    match text.len() {
+    let mut f = vec![0x80 | opcode];
+    match payload.len() {
         n @ 0..=125 => f.push(0x80 | n as u8),
         n => {
             f.push(0x80 | 126);
@@ -33,7 +38,7 @@ fn send_text(s: &mut TcpStream, text: &str) {
         }
     }
     f.extend_from_slice(&mask);
-    f.extend(text.bytes().enumerate().map(|(i, b)| b ^ mask[i % 4]));
+    f.extend(payload.iter().enumerate().map(|(i, b)| b ^ mask[i % 4]));
     s.write_all(&f).unwrap();
 }
 
@@ -155,6 +160,20 @@ fn a_viewer_gets_the_channels_and_decodes_live_joint_states_and_the_urdf() {
     );
     // Unsubscribed, nothing more comes for it; the daemon runs on.
     send_text(&mut s, r#"{"op":"unsubscribe","subscriptionIds":[7,8,9]}"#);
+    // A Close is answered with a Close carrying the same status (RFC 6455 §5.5.1), not a reset.
+    send_frame(&mut s, 0x8, &1000u16.to_be_bytes());
+    let until = Instant::now() + Duration::from_secs(5);
+    let close = loop {
+        assert!(
+            Instant::now() < until,
+            "no Close answered the viewer's Close"
+        );
+        let (op, p) = read_frame(&mut s);
+        if op == 0x8 {
+            break p;
+        }
+    };
+    assert_eq!(close, 1000u16.to_be_bytes(), "{close:?}");
     drop(s);
     std::thread::sleep(Duration::from_millis(300));
     assert_eq!(status(&sys.ns)["mode"], "Run");

@@ -211,7 +211,14 @@ fn read(v: &mut Viewer, description: Option<&Out>, frame: &mut Vec<u8>) -> std::
                 ws::frame(frame, ws::PONG, &[&payload]);
                 write_blocking(&mut v.s, frame)?;
             }
-            ws::CLOSE => return Err(std::io::Error::other("closed by the viewer")),
+            ws::CLOSE => {
+                // RFC 6455 §5.5.1: a Close is answered with a Close (its status code echoed),
+                // then the connection ends; best effort, the viewer is leaving anyway.
+                frame.clear();
+                ws::frame(frame, ws::CLOSE, &[payload.get(..2).unwrap_or_default()]);
+                let _ = write_blocking(&mut v.s, frame);
+                return Err(std::io::Error::other("closed by the viewer"));
+            }
             _ => {}
         }
     }
