@@ -179,6 +179,36 @@ fn a_viewer_gets_the_channels_and_decodes_live_joint_states_and_the_urdf() {
     assert_eq!(status(&sys.ns)["mode"], "Run");
 }
 
+/// Clients that connect and say nothing (each handshake waits up to 2 s for its request) do not
+/// hold up a viewer that connects after them: with the handshakes done one after another, the
+/// three silent ones would keep it waiting 6 s.
+#[test]
+fn silent_connections_do_not_keep_a_viewer_waiting() {
+    let _g = serial();
+    let port = free_port();
+    let sys = start_with_daemon(
+        "foxglove-silent",
+        "",
+        &format!("foxglove = \"127.0.0.1:{port}\""),
+    );
+    let addr = format!("127.0.0.1:{port}");
+    let silent: Vec<TcpStream> = (0..3).map(|_| TcpStream::connect(&addr).unwrap()).collect();
+    std::thread::sleep(Duration::from_millis(100));
+    let started = Instant::now();
+    let (mut s, topics) = daemon::foxglove::client::subscribe_all(&addr, Duration::from_secs(2))
+        .expect("the viewer's handshake");
+    let (op, _) = read_frame(&mut s);
+    let waited = started.elapsed();
+    assert!(topics.iter().any(|t| t == "/joint_states"), "{topics:?}");
+    assert_eq!(op, 2, "a binary messageData frame");
+    assert!(
+        waited < Duration::from_secs(3),
+        "the viewer waited {waited:?} behind silent connections"
+    );
+    drop(silent);
+    assert_eq!(status(&sys.ns)["mode"], "Run");
+}
+
 /// Foxglove's own WebSocket client (@foxglove/ws-protocol) subscribes to every channel for a
 /// few seconds; every message decodes with the decoder the app picks and is valid against its
 /// schemas, official foxglove.* ones included (scripts/foxglove-check).

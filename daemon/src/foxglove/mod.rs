@@ -15,8 +15,8 @@ use crate::view::{Sink, Topic};
 use crossbeam::channel::{Receiver, Sender, TrySendError};
 use std::collections::HashMap;
 use std::io::{ErrorKind, Read, Write};
-use std::net::{TcpListener, TcpStream};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -123,14 +123,17 @@ fn serve(listener: TcpListener, rx: Receiver<Out>, watched: Arc<AtomicBool>) {
     let mut viewers: Vec<Viewer> = Vec::new();
     let mut description: Option<Out> = None;
     let mut frame = Vec::with_capacity(64 * 1024);
+    let (greeted, welcome) = crossbeam::channel::unbounded::<Viewer>();
+    let greeting = Arc::new(AtomicUsize::new(0));
     loop {
         let mut busy = false;
         while let Ok((s, peer)) = listener.accept() {
             busy = true;
-            match greet(s) {
-                Ok(v) => viewers.push(v),
-                Err(e) => tracing::debug!("Foxglove viewer {peer}: {e}"),
-            }
+            greet_aside(s, peer, &greeted, &greeting);
+        }
+        while let Ok(v) = welcome.try_recv() {
+            busy = true;
+            viewers.push(v);
         }
         for v in &mut viewers {
             if let Err(e) = read(v, description.as_ref(), &mut frame) {
@@ -159,6 +162,36 @@ fn serve(listener: TcpListener, rx: Receiver<Out>, watched: Arc<AtomicBool>) {
         if !busy {
             std::thread::sleep(Duration::from_millis(1));
         }
+    }
+}
+
+/// The most handshakes in flight at once; a connection beyond them is closed.
+const MAX_GREETING: usize = 8;
+
+/// Runs [`greet`] on a thread of its own, which inherits this thread's cores (off the loop's):
+/// a client that connects and says nothing holds its handshake for up to 2 s, and must not hold
+/// up the stream to the viewers already watching.
+fn greet_aside(s: TcpStream, peer: SocketAddr, done: &Sender<Viewer>, greeting: &Arc<AtomicUsize>) {
+    if greeting.fetch_add(1, Ordering::AcqRel) >= MAX_GREETING {
+        greeting.fetch_sub(1, Ordering::AcqRel);
+        tracing::debug!("Foxglove viewer {peer}: {MAX_GREETING} handshakes under way; closed");
+        return;
+    }
+    let (done, count) = (done.clone(), greeting.clone());
+    let spawned = std::thread::Builder::new()
+        .name("chaosd-view-hs".into())
+        .spawn(move || {
+            match greet(s) {
+                Ok(v) => {
+                    let _ = done.send(v);
+                }
+                Err(e) => tracing::debug!("Foxglove viewer {peer}: {e}"),
+            }
+            count.fetch_sub(1, Ordering::AcqRel);
+        });
+    if let Err(e) = spawned {
+        greeting.fetch_sub(1, Ordering::AcqRel);
+        tracing::debug!("Foxglove viewer {peer}: no thread for its handshake: {e}");
     }
 }
 
