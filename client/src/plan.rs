@@ -117,17 +117,32 @@ fn json(o: &PlanOutcome, s: &PlanSettings, ms: f64) -> serde_json::Value {
     match o {
         PlanOutcome::Found(c) => serde_json::json!({
             "exists": true, "min_clearance_m": finite(c.min_clearance),
-            "max_rate_rad_s": c.max_rate, "planning_ms": ms, "grid": grid, "blocked": null,
+            "max_rate_rad_s": c.max_rate, "filter_margin": finite(c.filter_margin),
+            "filter_acts": c.filter_margin < 0.0, "planning_ms": ms, "grid": grid,
+            "blocked": null,
         }),
         PlanOutcome::Blocked(b) => serde_json::json!({
             "exists": false, "min_clearance_m": null, "max_rate_rad_s": null,
-            "planning_ms": ms, "grid": grid,
+            "filter_margin": null, "filter_acts": null, "planning_ms": ms, "grid": grid,
             "blocked": {
                 "reason": b.reason, "best_clearance_m": finite(b.best_clearance),
                 "obstacle": b.obstacle.map(|i| i + 1), "link": b.link.map(|i| i + 1),
                 "task_time_s": b.task_time,
             },
         }),
+    }
+}
+
+/// What the safety filter will do on the cycle, from its rows' smallest margin.
+fn filter_words(margin: f64) -> String {
+    if margin >= 0.0 {
+        format!("the filter never acts on it (rows {margin:.1} above their bounds)")
+    } else {
+        format!(
+            "but the filter will brake it where its rows fall {:.1} below their bounds (the \
+             arm leaves its path there for a moment)",
+            -margin
+        )
     }
 }
 
@@ -140,14 +155,15 @@ fn words(o: &PlanOutcome, s: &PlanSettings, ms: f64) -> String {
     let grid = format!("{} phases × {} postures", s.phases, 2 * s.angles);
     match o {
         PlanOutcome::Found(c) => format!(
-            "a clean cycle exists: smallest clearance {}, fastest joint {:.2} rad/s (planned in \
-             {ms:.1} ms on {grid})",
+            "a clean cycle exists: smallest clearance {}, fastest joint {:.2} rad/s, {} (planned \
+             in {ms:.1} ms on {grid})",
             if c.min_clearance.is_finite() {
                 format!("{:.3} m", c.min_clearance)
             } else {
                 "n/a (no obstacle)".into()
             },
-            c.max_rate
+            c.max_rate,
+            filter_words(c.filter_margin)
         ),
         PlanOutcome::Blocked(b) => format!(
             "no clean cycle: {} (planned in {ms:.1} ms on {grid})",

@@ -176,8 +176,9 @@ pub fn damped_pinv<const N: usize>(
     (j.transpose() * minv, smin, lambda2.sqrt())
 }
 
-/// The pull towards the planned cycle at `t`, in the null space: (I − J⁺J)(K_p(q* − q) +
-/// K_d(q̇* − q̇)). Only the first three joints have a plan.
+/// The pull towards the planned cycle at `t`, in the null space: (I − J⁺J)(q̈* + K_p(q* − q) +
+/// K_d(q̇* − q̇)). The cycle's own acceleration is fed forward, so an arm on the cycle stays on
+/// it instead of lagging behind. Only the first three joints have a plan.
 #[inline]
 fn steering<const N: usize>(
     s: &crate::plan::Steer,
@@ -187,11 +188,11 @@ fn steering<const N: usize>(
     j: &Jac<N>,
     jpinv: &nalgebra::SMatrix<f64, N, 2>,
 ) -> VecN<N> {
-    let (qs, qds) = s.cycle.at(t);
+    let r = s.cycle.sample(t);
     let mut v = VecN::<N>::zeros();
     for i in 0..N.min(3) {
-        let e = crate::analysis::closed_loop::wrap_angle(qs[i] - q[i]);
-        v[i] = s.kp * e + s.kd * (qds[i] - qd[i]);
+        let e = crate::analysis::closed_loop::wrap_angle(r.q[i] - q[i]);
+        v[i] = r.qdd[i] + s.kp * e + s.kd * (r.qd[i] - qd[i]);
     }
     v - jpinv * (j * v)
 }

@@ -61,22 +61,18 @@ fn on_an_open_layout_the_arm_tracks_exactly_on_a_periodic_cycle() {
 }
 
 #[test]
-fn round_the_trap_the_arm_gets_back_towards_its_path_without_contact() {
-    // The layout where the filter alone settles 0.35 m off the circle, tracking lost all the time.
+fn round_the_trap_the_arm_tracks_exactly_without_contact() {
+    // The layout where the filter alone holds the arm centimetres off the circle: steered onto
+    // the planned cycle (refined until the filter has nothing to do on it, fed forward), the
+    // arm tracks to the law's own precision and the filter never acts.
     let trap = [(0.9, 1.1, 0.15)];
     let (alone, _) = run(&trap, false, 40.0);
     let (steered, on) = run(&trap, true, 40.0);
     assert!(on);
-    assert!(alone.rms_tracking_error > 0.2, "{alone:?}");
+    assert!(alone.rms_tracking_error > 1e-2, "{alone:?}");
     assert_eq!(steered.time_in_contact, Some(0.0), "{steered:?}");
-    // Distance still to go (issue 25): the filter's barrier still brakes the planned cycle
-    // where it sweeps past the obstacle, so tracking is 3 cm, not 1e-4 m.
-    assert!(
-        steered.rms_tracking_error < 0.1 * alone.rms_tracking_error,
-        "{} vs {}",
-        steered.rms_tracking_error,
-        alone.rms_tracking_error
-    );
+    assert!(steered.rms_tracking_error < 1e-6, "{steered:?}");
+    assert_eq!(steered.safety_active_time, 0.0, "{steered:?}");
 }
 
 #[test]
@@ -156,9 +152,8 @@ fn steered_run(obstacles: &[(f64, f64, f64)], q0: [f64; 3], mu: f64) -> (bool, f
 #[test]
 fn steered_starts_keep_clear_and_track_exactly_where_the_way_is_open() {
     // Issue 25's targets over starts × μ (0, 0.2, 1.8): five starts, the open layout and two
-    // with an obstacle. Every run keeps the filter's clearance; on the open layout every start
-    // tracks to 1e-4 m after 20 s. The obstacle layouts' numbers are printed (the distance
-    // still to go is in docs/analysis.md).
+    // with an obstacle. Every run keeps the filter's clearance and tracks to 1e-4 m after 20 s,
+    // but for the two starts below (the distance still to go is in docs/analysis.md).
     let starts = [
         [1.5501, -0.4884, -0.9343],
         [0.3, 1.2, 1.0],
@@ -166,10 +161,15 @@ fn steered_starts_keep_clear_and_track_exactly_where_the_way_is_open() {
         [0.8, 0.4, 0.9],
         [2.0, -1.6, -0.2],
     ];
+    // Starts 1 and 2 begin with the hand 0.28 and 0.39 m off the circle: planned from there,
+    // the arm reaches its path on the far side of the obstacle, where no clean cycle can be
+    // reached with the hand on the path (the daemon then says `Blocked`). Their numbers are
+    // printed; every other start must track.
+    let off_path = [false, true, true, false, false];
     let layouts: [&[(f64, f64, f64)]; 3] = [&[], &[(0.9, 1.1, 0.15)], &[(1.0, 1.1, 0.1)]];
     let clearance = Config::default().safety.clearance;
     for (l, layout) in layouts.iter().enumerate() {
-        for q0 in starts {
+        for (s, q0) in starts.into_iter().enumerate() {
             for mu in [0.0, 0.2, 1.8] {
                 let (steered, rms, min) = steered_run(layout, q0, mu);
                 eprintln!("layout {l} start {q0:?} mu {mu}: steered {steered} rms {rms:.2e} clearance {min:.3}");
@@ -177,8 +177,8 @@ fn steered_starts_keep_clear_and_track_exactly_where_the_way_is_open() {
                     min >= clearance - 2e-3,
                     "layout {l} {q0:?} μ {mu}: clearance {min}"
                 );
-                if layout.is_empty() {
-                    assert!(steered && rms < 1e-4, "{q0:?} μ {mu}: {rms}");
+                if layout.is_empty() || !off_path[s] {
+                    assert!(steered && rms < 1e-4, "layout {l} {q0:?} μ {mu}: {rms}");
                 }
             }
         }

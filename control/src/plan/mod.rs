@@ -13,8 +13,11 @@
 
 pub mod planar;
 mod policy;
+pub mod refine;
+mod table;
 
 pub use policy::{check_trap_time, WhenBlocked, DEFAULT_TRAP_TIME};
+pub use table::{CycleTable, Sample, MAX_PHASES};
 
 /// How finely the planner searches, and with what margins.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,74 +82,10 @@ pub struct Cycle {
     pub min_clearance: f64,
     /// The fastest joint rate along the cycle (rad/s).
     pub max_rate: f64,
-}
-
-/// The most phases a cycle handed to the loop may have.
-pub const MAX_PHASES: usize = 64;
-
-/// A planar cycle in a fixed-size, `Copy` table: what the control law steers towards. Built
-/// off the loop from a [`Cycle`]; read on the loop without allocating.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CycleTable {
-    pub t0: f64,
-    pub period: f64,
-    n: usize,
-    q: [[f64; 3]; MAX_PHASES],
-}
-
-impl CycleTable {
-    /// The table of a 3-joint cycle of at most [`MAX_PHASES`] phases.
-    pub fn new(c: &Cycle) -> Result<Self, String> {
-        if c.q.is_empty() || c.q.len() > MAX_PHASES || c.q.iter().any(|q| q.len() != 3) {
-            return Err(format!(
-                "a cycle of 1 to {MAX_PHASES} phases of 3 joints (this one has {} phases)",
-                c.q.len()
-            ));
-        }
-        let rows: Vec<[f64; 3]> = c.q.iter().map(|p| [p[0], p[1], p[2]]).collect();
-        Self::from_rows(c.t0, c.period, &rows)
-    }
-
-    /// The table of `rows` postures (as [`Self::rows`] gives them back: a recording's copy).
-    pub fn from_rows(t0: f64, period: f64, rows: &[[f64; 3]]) -> Result<Self, String> {
-        if rows.is_empty() || rows.len() > MAX_PHASES {
-            return Err(format!(
-                "a cycle of 1 to {MAX_PHASES} phases (this one has {})",
-                rows.len()
-            ));
-        }
-        let mut q = [[0.0; 3]; MAX_PHASES];
-        q[..rows.len()].copy_from_slice(rows);
-        Ok(Self {
-            t0,
-            period,
-            n: rows.len(),
-            q,
-        })
-    }
-
-    /// The postures, one per phase.
-    pub fn rows(&self) -> &[[f64; 3]] {
-        &self.q[..self.n]
-    }
-
-    /// The planned posture and rate at task time `t` (linear between phases, periodic).
-    #[inline]
-    pub fn at(&self, t: f64) -> ([f64; 3], [f64; 3]) {
-        let dt = self.period / self.n as f64;
-        let x = (t - self.t0).rem_euclid(self.period) / dt;
-        let k = (x.floor() as usize).min(self.n - 1);
-        let f = x - k as f64;
-        let (a, b) = (self.q[k], self.q[(k + 1) % self.n]);
-        let mut q = [0.0; 3];
-        let mut qd = [0.0; 3];
-        for i in 0..3 {
-            let d = crate::analysis::closed_loop::wrap_angle(b[i] - a[i]);
-            q[i] = a[i] + d * f;
-            qd[i] = d / dt;
-        }
-        (q, qd)
-    }
+    /// How far the safety filter's rows stay above their bounds along the cycle, as the loop's
+    /// spline runs it ([`refine`]; m/s² for an obstacle): negative, the filter will brake the
+    /// cycle there and the arm leaves its path for a moment. +∞ until refined.
+    pub filter_margin: f64,
 }
 
 /// Steering onto a planned cycle: a joint PD towards it, projected onto the self-motion, so
@@ -203,7 +142,10 @@ pub struct Planned {
 
 /// Plans for a planar config from task time `t0` near posture `q_now`: with the default
 /// settings first, then with the physical limits alone, so that `Blocked` means what it says
-/// (no clean cycle within the filter's own limits) and not that a margin was too greedy.
+/// (no clean cycle within the filter's own limits) and not that a margin was too greedy. A
+/// cycle counts only if, refined, the filter has nothing to do on it: one it would brake takes
+/// the arm off its path each time round, which is a trap, so it is `Blocked` with the row that
+/// brakes it.
 pub fn plan_config(
     cfg: &crate::Config,
     t0: f64,
@@ -211,15 +153,22 @@ pub fn plan_config(
 ) -> Result<Planned, String> {
     let started = std::time::Instant::now();
     let problem = planar::PlanarProblem::from_config(cfg, t0, q_now)?;
-    let strict = planar::plan(&problem, &PlanSettings::default());
+    let strict = refined(
+        &problem,
+        cfg,
+        planar::plan(&problem, &PlanSettings::default()),
+    );
     let (outcome, limits_only) = match strict {
-        PlanOutcome::Found(c) => (PlanOutcome::Found(c), false),
-        PlanOutcome::Blocked(_) => {
+        Ok(c) => (PlanOutcome::Found(c), false),
+        Err(why) => {
             let rate = problem.qd_max.into_iter().fold(f64::INFINITY, f64::min);
-            (
-                planar::plan(&problem, &PlanSettings::limits_only(rate)),
-                true,
-            )
+            let loose = planar::plan(&problem, &PlanSettings::limits_only(rate));
+            let outcome = match (refined(&problem, cfg, loose), why) {
+                (Ok(c), _) => PlanOutcome::Found(c),
+                // The strict plan's braking says more than the loose plan's.
+                (Err(_), b @ Braked(_)) | (Err(b), _) => PlanOutcome::Blocked(b.into_blocked()),
+            };
+            (outcome, true)
         }
     };
     Ok(Planned {
@@ -227,6 +176,75 @@ pub fn plan_config(
         limits_only,
         took: started.elapsed(),
     })
+}
+
+/// Why a plan gave no usable cycle: none on the grid, or one the filter would brake.
+enum Unusable {
+    NoCycle(Blocked),
+    Braked(Blocked),
+}
+use Unusable::Braked;
+
+impl Unusable {
+    fn into_blocked(self) -> Blocked {
+        match self {
+            Unusable::NoCycle(b) | Unusable::Braked(b) => b,
+        }
+    }
+}
+
+/// A found cycle refined against the config's own filter; usable only if the filter has
+/// nothing to do on it.
+fn refined(
+    problem: &planar::PlanarProblem,
+    cfg: &crate::Config,
+    o: PlanOutcome,
+) -> Result<Cycle, Unusable> {
+    match o {
+        PlanOutcome::Found(c) => {
+            let safety = cfg.law_params().safety;
+            let r = refine::refine(problem, &safety, &c, &refine::RefineSettings::default());
+            if r.worst.value >= 0.0 {
+                Ok(r.cycle)
+            } else {
+                Err(Braked(braked(problem, &r, &safety)))
+            }
+        }
+        PlanOutcome::Blocked(b) => Err(Unusable::NoCycle(b)),
+    }
+}
+
+/// Why a refined cycle is no way out: the filter's row that brakes it, in words.
+fn braked(
+    problem: &planar::PlanarProblem,
+    r: &refine::Refined,
+    safety: &crate::safety::SafetyParams,
+) -> Blocked {
+    let w = r.worst;
+    let at = w.obstacle_link(problem.obstacles.len());
+    let what = match at {
+        Some((o, l)) => format!(
+            "link {} closes in on obstacle {} faster than the filter's barrier (k0 = {}, k1 = \
+             {}) lets it",
+            l + 1,
+            o + 1,
+            safety.k0,
+            safety.k1
+        ),
+        None => "a joint's rate or acceleration limit binds".into(),
+    };
+    Blocked {
+        reason: format!(
+            "a cycle round the obstacles exists, but the safety filter would brake it off the \
+             path: at task time {:.3} s {what} (short by {:.1}); a faster barrier (safety.k0, \
+             safety.k1), a slower task or another obstacle layout would let it through",
+            w.t, -w.value
+        ),
+        best_clearance: r.cycle.min_clearance,
+        obstacle: at.map(|a| a.0),
+        link: at.map(|a| a.1),
+        task_time: w.t,
+    }
 }
 
 impl planar::PlanarProblem {

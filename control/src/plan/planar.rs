@@ -78,7 +78,7 @@ impl PlanarProblem {
     }
 
     /// The smallest clearance of posture `q`, and where it is.
-    fn clearance(&self, q: &[f64; 3]) -> (f64, Option<(usize, usize)>) {
+    pub(super) fn clearance_of(&self, q: &[f64; 3]) -> (f64, Option<(usize, usize)>) {
         let mut pts = [Vec2::zeros(); 4];
         let mut theta = 0.0;
         for j in 0..3 {
@@ -140,7 +140,7 @@ fn build(p: &PlanarProblem, s: &PlanSettings) -> Grid {
                     if !p.within_limits(&q, s.joint_margin) {
                         return None;
                     }
-                    let (clearance, _) = p.clearance(&q);
+                    let (clearance, _) = p.clearance_of(&q);
                     (clearance >= p.clearance + s.margin).then_some(Node { q, clearance })
                 })
                 .collect()
@@ -355,13 +355,14 @@ fn cycle(p: &PlanarProblem, grid: &Grid, path: &[usize]) -> Cycle {
         q: q.into_iter().map(|a| a.to_vec()).collect(),
         min_clearance,
         max_rate,
+        filter_margin: f64::INFINITY,
     }
 }
 
 /// Why the arm at layer-0 node `a` reaches no clean cycle: the obstacle nearest to it.
 fn unreachable(p: &PlanarProblem, s: &PlanSettings, grid: &Grid, a: usize) -> Blocked {
     let q = grid.layers[0][a].expect("the arm's node is clean").q;
-    let (c, at) = p.clearance(&q);
+    let (c, at) = p.clearance_of(&q);
     let near = at.map_or(String::new(), |(o, l)| {
         format!(
             " (nearest: link {} {c:.3} m from obstacle {})",
@@ -397,7 +398,8 @@ fn blocked(p: &PlanarProblem, s: &PlanSettings, grid: &Grid) -> Blocked {
             let psi = TAU * (n % s.angles) as f64 / s.angles as f64;
             let branch = if n < s.angles { 1.0 } else { -1.0 };
             let q = p.posture(hand, psi, branch)?;
-            p.within_limits(&q, s.joint_margin).then(|| p.clearance(&q))
+            p.within_limits(&q, s.joint_margin)
+                .then(|| p.clearance_of(&q))
         })
         .max_by(|a, b| a.0.total_cmp(&b.0));
     let required = p.clearance + s.margin;
@@ -480,7 +482,7 @@ mod tests {
             let want = p.task.at(c.t0 + k as f64 * dt).p;
             assert!((hand(&p.links, q) - want).norm() < 1e-9, "phase {k}");
             let qa: [f64; 3] = [q[0], q[1], q[2]];
-            assert!(p.clearance(&qa).0 >= p.clearance + s.margin, "phase {k}");
+            assert!(p.clearance_of(&qa).0 >= p.clearance + s.margin, "phase {k}");
             let next = &c.q[(k + 1) % n];
             let stepped = (0..3)
                 .map(|i| wrap_angle(next[i] - q[i]).abs())
@@ -554,20 +556,44 @@ mod tests {
     }
 
     #[test]
-    fn the_cycle_interpolates_between_its_phases() {
+    fn the_cycle_passes_through_its_phases_smoothly_and_periodically() {
         let (p, s) = (paper(&[]), PlanSettings::default());
         let PlanOutcome::Found(c) = plan(&p, &s) else {
             panic!()
         };
         let table = super::super::CycleTable::new(&c).unwrap();
         let dt = c.period / c.q.len() as f64;
-        let (q, qd) = table.at(c.t0 + 3.5 * dt);
-        for i in 0..3 {
-            let mid = c.q[3][i] + 0.5 * wrap_angle(c.q[4][i] - c.q[3][i]);
-            assert!((q[i] - mid).abs() < 1e-12);
+        for k in [0, 3, 17, 63] {
+            let q = table.sample(c.t0 + k as f64 * dt).q;
+            assert!(
+                (0..3).all(|i| wrap_angle(q[i] - c.q[k][i]).abs() < 1e-12),
+                "{k}"
+            );
         }
-        // Periodic: a period later, the same posture.
-        let (q2, qd2) = table.at(c.t0 + 3.5 * dt + c.period);
-        assert!((0..3).all(|i| (q[i] - q2[i]).abs() < 1e-9 && (qd[i] - qd2[i]).abs() < 1e-9));
+        // C²: rate and acceleration agree either side of a phase.
+        let (a, b) = (
+            table.sample(c.t0 + 5.0 * dt - 1e-9),
+            table.sample(c.t0 + 5.0 * dt + 1e-9),
+        );
+        assert!(
+            (0..3).all(|i| (a.qd[i] - b.qd[i]).abs() < 1e-5 && (a.qdd[i] - b.qdd[i]).abs() < 1e-3)
+        );
+        // The rate is the posture's derivative.
+        let h = 1e-6;
+        let (m, l, r) = (
+            table.sample(c.t0 + 3.3 * dt),
+            table.sample(c.t0 + 3.3 * dt - h),
+            table.sample(c.t0 + 3.3 * dt + h),
+        );
+        assert!((0..3).all(|i| (wrap_angle(r.q[i] - l.q[i]) / (2.0 * h) - m.qd[i]).abs() < 1e-5));
+        assert!((0..3).all(|i| ((r.qd[i] - l.qd[i]) / (2.0 * h) - m.qdd[i]).abs() < 1e-3));
+        // Periodic: a period later, the same posture, rate and acceleration.
+        let (x, y) = (
+            table.sample(c.t0 + 3.5 * dt),
+            table.sample(c.t0 + 3.5 * dt + c.period),
+        );
+        assert!((0..3).all(|i| wrap_angle(x.q[i] - y.q[i]).abs() < 1e-9
+            && (x.qd[i] - y.qd[i]).abs() < 1e-9
+            && (x.qdd[i] - y.qdd[i]).abs() < 1e-6));
     }
 }

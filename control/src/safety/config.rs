@@ -48,7 +48,11 @@ pub struct SafetyConfig {
     pub qd_max: Limit,
     /// Joint acceleration limit (rad/s²): one number for all joints, or a list.
     pub qdd_max: Limit,
-    /// Position barriers ḧ + k1 ḣ + k0 h ≥ 0; k1² ≥ 4 k0 (real roots: no overshoot).
+    /// Position barriers ḧ + k1 ḣ + k0 h ≥ 0; k1² ≥ 4 k0 (real roots: no overshoot). The
+    /// default, a double root at −20/s, lets a link close in at up to 20 m/s per metre of
+    /// clearance left: the demo's hand runs its circle at π m/s, and a slower barrier (−10/s)
+    /// braked the hand itself off its path wherever the path passes within 0.3 m of an
+    /// obstacle, whatever the posture (docs/analysis.md).
     pub k0: f64,
     pub k1: f64,
     /// The fastest a link is pushed out of an obstacle's clearance (m/s): a link that starts
@@ -85,8 +89,8 @@ impl Default for SafetyConfig {
             q_max: None,
             qd_max: Limit::All(20.0),
             qdd_max: Limit::All(1000.0),
-            k0: 100.0,
-            k1: 20.0,
+            k0: 400.0,
+            k1: 40.0,
             push_out_speed: 0.1,
             k_rate: 50.0,
             guard_time: 0.02,

@@ -1,0 +1,171 @@
+//! The planned cycle as the loop reads it: a fixed-size, `Copy` table of postures, evaluated as
+//! a periodic cubic spline.
+//!
+//! Steering needs the cycle's acceleration, not only its posture: a pull that only chases a
+//! posture lags behind a cycle that sweeps at several rad/s, and a lagging arm rides the safety
+//! filter's barrier instead of the cycle the planner checked. Straight lines between the phases
+//! have no acceleration to feed forward (and an infinite one at each phase), so the table is a
+//! uniform cubic B-spline that passes through every planned posture: C² and periodic, with its
+//! rate and acceleration in closed form. The spline is fitted off the loop, once; evaluating it
+//! reads four control points.
+
+use crate::analysis::closed_loop::wrap_angle;
+
+/// The most phases a cycle handed to the loop may have.
+pub const MAX_PHASES: usize = 64;
+
+/// A planar cycle in a fixed-size, `Copy` table: what the control law steers towards. Built
+/// off the loop from a [`super::Cycle`]; read on the loop without allocating.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CycleTable {
+    pub t0: f64,
+    pub period: f64,
+    n: usize,
+    /// The planned postures, one per phase (a recording keeps these).
+    q: [[f64; 3]; MAX_PHASES],
+    /// The spline's control points, less the ramp `turns · k / n` (periodic).
+    c: [[f64; 3]; MAX_PHASES],
+    /// Whole turns each joint makes once round the cycle (rad: a multiple of 2π).
+    turns: [f64; 3],
+}
+
+/// The planned posture, rate and acceleration at one task time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    pub q: [f64; 3],
+    pub qd: [f64; 3],
+    pub qdd: [f64; 3],
+}
+
+impl CycleTable {
+    /// The table of a 3-joint cycle of at most [`MAX_PHASES`] phases.
+    pub fn new(c: &super::Cycle) -> Result<Self, String> {
+        if c.q.is_empty() || c.q.len() > MAX_PHASES || c.q.iter().any(|q| q.len() != 3) {
+            return Err(format!(
+                "a cycle of 1 to {MAX_PHASES} phases of 3 joints (this one has {} phases)",
+                c.q.len()
+            ));
+        }
+        let rows: Vec<[f64; 3]> = c.q.iter().map(|p| [p[0], p[1], p[2]]).collect();
+        Self::from_rows(c.t0, c.period, &rows)
+    }
+
+    /// The table of `rows` postures (as [`Self::rows`] gives them back: a recording's copy).
+    pub fn from_rows(t0: f64, period: f64, rows: &[[f64; 3]]) -> Result<Self, String> {
+        let n = rows.len();
+        if n == 0 || n > MAX_PHASES {
+            return Err(format!(
+                "a cycle of 1 to {MAX_PHASES} phases (this one has {n})"
+            ));
+        }
+        let mut q = [[0.0; 3]; MAX_PHASES];
+        // Unwrapped along the cycle, so the spline never jumps by a turn between phases.
+        q[0] = rows[0];
+        for k in 1..n {
+            for i in 0..3 {
+                q[k][i] = q[k - 1][i] + wrap_angle(rows[k][i] - q[k - 1][i]);
+            }
+        }
+        let mut turns = [0.0; 3];
+        for (i, t) in turns.iter_mut().enumerate() {
+            *t = q[n - 1][i] + wrap_angle(q[0][i] - q[n - 1][i]) - q[0][i];
+        }
+        let mut table = Self {
+            t0,
+            period,
+            n,
+            q: [[0.0; 3]; MAX_PHASES],
+            c: [[0.0; 3]; MAX_PHASES],
+            turns,
+        };
+        table.q[..n].copy_from_slice(rows);
+        table.fit(&q);
+        Ok(table)
+    }
+
+    /// Control points that interpolate the unwrapped postures `q`: (c₋₁ + 4c₀ + c₊₁)/6 = q, a
+    /// cyclic, diagonally dominant system, solved by Gauss–Seidel sweeps (each halves the error
+    /// at least: 60 reach the last bit). The ramp is taken out first, as a B-spline reproduces
+    /// straight lines, so the system is periodic.
+    fn fit(&mut self, q: &[[f64; 3]; MAX_PHASES]) {
+        let n = self.n;
+        let ramp = |i: usize, k: usize| self.turns[i] * k as f64 / n as f64;
+        let mut target = [[0.0; 3]; MAX_PHASES];
+        for k in 0..n {
+            for i in 0..3 {
+                target[k][i] = q[k][i] - ramp(i, k);
+            }
+        }
+        let mut c = target;
+        for _ in 0..60 {
+            for k in 0..n {
+                let (a, b) = ((k + n - 1) % n, (k + 1) % n);
+                for i in 0..3 {
+                    c[k][i] = (6.0 * target[k][i] - c[a][i] - c[b][i]) / 4.0;
+                }
+            }
+        }
+        self.c = c;
+    }
+
+    /// The postures, one per phase.
+    pub fn rows(&self) -> &[[f64; 3]] {
+        &self.q[..self.n]
+    }
+
+    /// Control point `k` (any integer: periodic, plus the turns made on the way).
+    #[inline]
+    fn control(&self, k: i64) -> [f64; 3] {
+        let n = self.n as i64;
+        let base = &self.c[k.rem_euclid(n) as usize];
+        let mut out = [0.0; 3];
+        for i in 0..3 {
+            out[i] = base[i] + self.turns[i] * k as f64 / n as f64;
+        }
+        out
+    }
+
+    /// The planned posture, rate and acceleration at task time `t` (periodic).
+    #[inline]
+    pub fn sample(&self, t: f64) -> Sample {
+        let dt = self.period / self.n as f64;
+        let x = (t - self.t0).rem_euclid(self.period) / dt;
+        let k = (x.floor() as i64).min(self.n as i64 - 1);
+        let u = x - k as f64;
+        let (u2, u3, v) = (u * u, u * u * u, 1.0 - u);
+        let b = [
+            v * v * v / 6.0,
+            (3.0 * u3 - 6.0 * u2 + 4.0) / 6.0,
+            (-3.0 * u3 + 3.0 * u2 + 3.0 * u + 1.0) / 6.0,
+            u3 / 6.0,
+        ];
+        let db = [
+            -v * v / 2.0,
+            (3.0 * u2 - 4.0 * u) / 2.0,
+            (-3.0 * u2 + 2.0 * u + 1.0) / 2.0,
+            u2 / 2.0,
+        ];
+        let ddb = [v, 3.0 * u - 2.0, -3.0 * u + 1.0, u];
+        let mut s = Sample {
+            q: [0.0; 3],
+            qd: [0.0; 3],
+            qdd: [0.0; 3],
+        };
+        for j in 0..4 {
+            let c = self.control(k - 1 + j as i64);
+            for i in 0..3 {
+                s.q[i] += b[j] * c[i];
+                s.qd[i] += db[j] * c[i] / dt;
+                s.qdd[i] += ddb[j] * c[i] / (dt * dt);
+            }
+        }
+        s
+    }
+
+    /// The planned posture and rate at task time `t`.
+    #[inline]
+    pub fn at(&self, t: f64) -> ([f64; 3], [f64; 3]) {
+        let s = self.sample(t);
+        (s.q, s.qd)
+    }
+}
