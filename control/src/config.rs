@@ -624,7 +624,7 @@ impl Config {
     /// for it (the filter on, the fixed-base 3-link arm), planned from the start posture; and
     /// why there is none, when the planner found none (the law then runs without it).
     pub fn law_params_planned(&self) -> (LawParams, Option<crate::plan::Blocked>) {
-        use crate::plan::{CycleTable, PlanOutcome, Steer};
+        use crate::plan::{PlanOutcome, Steer};
         let mut p = self.law_params();
         if !(self.safety.enabled && self.safety.plan) || self.n() != 3 {
             return (p, None); // a plan on another arm is refused by `validate`
@@ -635,9 +635,7 @@ impl Config {
         };
         match planned.outcome {
             PlanOutcome::Found(c) => {
-                p.steer = CycleTable::new(&c)
-                    .ok()
-                    .map(|t| Steer::new(t, self.safety.plan_hz));
+                p.steer = Steer::of(&c, self.safety.plan_hz).ok();
                 (p, None)
             }
             PlanOutcome::Blocked(b) => (p, Some(b)),

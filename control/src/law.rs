@@ -104,6 +104,8 @@ pub mod flags {
     /// No acceleration within the limits meets every barrier condition; the closest one found
     /// was used (and the acceleration limits were applied).
     pub const SAFETY_INFEASIBLE: u32 = 1 << 8;
+    /// A joint-space detour onto a planned cycle runs: tracking is paused by design.
+    pub const DETOUR: u32 = 1 << 9;
 }
 
 /// The command and what the controller learnt while computing it.
@@ -197,6 +199,27 @@ fn steering<const N: usize>(
     v - jpinv * (j * v)
 }
 
+/// The joint-space pull along a running detour: q̈_ref + K_p(q_ref − q) + K_d(q̇_ref − q̇), in
+/// the full joint space (the hand leaves its path on purpose), for the first three joints.
+#[inline]
+fn detour_pull<const N: usize>(
+    s: &crate::plan::Steer,
+    d: &crate::plan::detour::DetourTable,
+    t: f64,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+) -> VecN<N> {
+    let w = std::f64::consts::TAU * crate::plan::DETOUR_HZ;
+    let (kp, kd) = (w * w, 2.0 * w);
+    let r = d.sample(t, &s.cycle);
+    let mut v = VecN::<N>::zeros();
+    for i in 0..N.min(3) {
+        let e = crate::analysis::closed_loop::wrap_angle(r.q[i] - q[i]);
+        v[i] = r.qdd[i] + kp * e + kd * (r.qd[i] - qd[i]);
+    }
+    v
+}
+
 /// Evaluates the law at time `t` for state (φ, q, q̇) with delayed velocity q̇(t − τ).
 ///
 /// `kin` is scratch; on return it holds the kinematics at the state.
@@ -244,7 +267,10 @@ pub fn evaluate<const N: usize>(
         }
     };
     let diff = qd - qd_delayed;
-    let feedback = params.feedback_active(t);
+    // A detour's motion is not the cycle's: the delayed feedback waits a delay past it.
+    let detour = params.steer.as_ref().and_then(|s| s.detour.map(|d| (s, d)));
+    let after_detour = detour.is_some_and(|(_, d)| t < d.t_arrive + params.tau);
+    let feedback = params.feedback_active(t) && !after_detour;
     if feedback {
         flag |= flags::FEEDBACK_ACTIVE;
     }
@@ -255,10 +281,19 @@ pub fn evaluate<const N: usize>(
         mu: feedback.then_some(params.mu),
         projection: params.projection,
     };
-    let mut qdd = resolve(j, &jpinv, &task_acc, &terms);
-    if let Some(s) = &params.steer {
-        qdd += steering(s, t, q, qd, j, &jpinv);
-    }
+    let mut qdd = match detour.filter(|(_, d)| d.running(t)) {
+        Some((s, d)) => {
+            flag |= flags::DETOUR;
+            detour_pull(s, &d, t, q, qd)
+        }
+        None => {
+            let mut qdd = resolve(j, &jpinv, &task_acc, &terms);
+            if let Some(s) = &params.steer {
+                qdd += steering(s, t, q, qd, j, &jpinv);
+            }
+            qdd
+        }
+    };
     if params.pause {
         qdd = safety::pause_brake(qd);
     }

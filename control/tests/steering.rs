@@ -102,27 +102,38 @@ fn posture_at(t: f64) -> [f64; 3] {
 }
 
 #[test]
-fn a_new_obstacle_on_the_wrong_side_of_the_arm_is_said_at_once() {
+fn a_new_obstacle_on_the_wrong_side_of_the_arm_gets_a_detour() {
     // `chaosctl obstacle add 0.9 1.1 0.15` at t = 5 s trapped the arm 0.2 m off its path: clean
     // cycles exist round this obstacle, but from the arm's posture at 5 s none can be reached
-    // with the hand on the path. At 3 s one can. The planner tells them apart.
+    // with the hand on the path. At 3 s one can. The planner tells them apart, and gives the
+    // arm at 5 s a joint-space detour onto the cycle instead.
     use control::plan::{plan_config, PlanOutcome};
     let mut cfg = Config::default();
     cfg.control.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
-    let at = |t: f64| plan_config(&cfg, t, Some(posture_at(t))).unwrap().outcome;
-    match at(5.0) {
-        PlanOutcome::Blocked(b) => {
-            assert!(b.reason.contains("none the arm can reach"), "{}", b.reason);
-            assert_eq!(b.obstacle, Some(0), "{b:?}");
-        }
-        PlanOutcome::Found(c) => panic!("a cycle reachable from the trap: {c:?}"),
+    let at = |t: f64| match plan_config(&cfg, t, Some(posture_at(t))).unwrap().outcome {
+        PlanOutcome::Found(c) => c,
+        PlanOutcome::Blocked(b) => panic!("blocked at {t} s: {}", b.reason),
+    };
+    let c = at(5.0);
+    let why = c.unreachable.as_ref().expect("unreachable tracking");
+    assert!(
+        why.reason.contains("none the arm can reach"),
+        "{}",
+        why.reason
+    );
+    assert_eq!(why.obstacle, Some(0), "{why:?}");
+    let d = c.detour.expect("a detour");
+    assert!(
+        d.t_start == 5.0 && d.t_arrive > d.t_start + d.duration,
+        "{d:?}"
+    );
+    let c = at(3.0);
+    assert!(c.unreachable.is_none() && c.detour.is_none(), "{c:?}");
+    // Without the arm's posture, a cycle exists and no detour is asked for.
+    match plan_config(&cfg, 5.0, None).unwrap().outcome {
+        PlanOutcome::Found(c) => assert!(c.detour.is_none()),
+        PlanOutcome::Blocked(b) => panic!("{}", b.reason),
     }
-    assert!(matches!(at(3.0), PlanOutcome::Found(_)));
-    // Without the arm's posture, a cycle exists: existence alone is not enough.
-    assert!(matches!(
-        plan_config(&cfg, 5.0, None).unwrap().outcome,
-        PlanOutcome::Found(_)
-    ));
 }
 
 /// One run of the daemon's set-up (filter on, steering on) from `q0` at `mu` with `obstacles`:
@@ -152,8 +163,7 @@ fn steered_run(obstacles: &[(f64, f64, f64)], q0: [f64; 3], mu: f64) -> (bool, f
 #[test]
 fn steered_starts_keep_clear_and_track_exactly_where_the_way_is_open() {
     // Issue 25's targets over starts × μ (0, 0.2, 1.8): five starts, the open layout and two
-    // with an obstacle. Every run keeps the filter's clearance and tracks to 1e-4 m after 20 s,
-    // but for the two starts below (the distance still to go is in docs/analysis.md).
+    // with an obstacle. Every run keeps the filter's clearance and tracks to 1e-4 m after 20 s.
     let starts = [
         [1.5501, -0.4884, -0.9343],
         [0.3, 1.2, 1.0],
@@ -161,15 +171,12 @@ fn steered_starts_keep_clear_and_track_exactly_where_the_way_is_open() {
         [0.8, 0.4, 0.9],
         [2.0, -1.6, -0.2],
     ];
-    // Starts 1 and 2 begin with the hand 0.28 and 0.39 m off the circle: planned from there,
-    // the arm reaches its path on the far side of the obstacle, where no clean cycle can be
-    // reached with the hand on the path (the daemon then says `Blocked`). Their numbers are
-    // printed; every other start must track.
-    let off_path = [false, true, true, false, false];
+    // Starts 1 and 2 begin with the hand 0.28 and 0.39 m off the circle (start 1 with a link
+    // inside the third layout's obstacle): they reach the cycle by a joint-space detour.
     let layouts: [&[(f64, f64, f64)]; 3] = [&[], &[(0.9, 1.1, 0.15)], &[(1.0, 1.1, 0.1)]];
     let clearance = Config::default().safety.clearance;
     for (l, layout) in layouts.iter().enumerate() {
-        for (s, q0) in starts.into_iter().enumerate() {
+        for q0 in starts {
             for mu in [0.0, 0.2, 1.8] {
                 let (steered, rms, min) = steered_run(layout, q0, mu);
                 eprintln!("layout {l} start {q0:?} mu {mu}: steered {steered} rms {rms:.2e} clearance {min:.3}");
@@ -177,9 +184,7 @@ fn steered_starts_keep_clear_and_track_exactly_where_the_way_is_open() {
                     min >= clearance - 2e-3,
                     "layout {l} {q0:?} μ {mu}: clearance {min}"
                 );
-                if layout.is_empty() || !off_path[s] {
-                    assert!(steered && rms < 1e-4, "layout {l} {q0:?} μ {mu}: {rms}");
-                }
+                assert!(steered && rms < 1e-4, "layout {l} {q0:?} μ {mu}: {rms}");
             }
         }
     }

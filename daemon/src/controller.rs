@@ -608,6 +608,10 @@ impl<const N: usize> Controller<N> {
         // Paused (blocked, braking to rest), the target moves on without the arm: a growing
         // tracking error is the pause, not a runaway. Rates and demand are judged as ever.
         let mut judged = o;
+        // A detour leaves the path on purpose: the same holds for it.
+        if o.flags & control::law::flags::DETOUR != 0 {
+            judged.tracking_error = 0.0;
+        }
         if self.blocked_hold {
             judged.tracking_error = 0.0;
             self.clear = o.clearance >= self.law.safety().clearance && x.qd.amax() <= REST_RATE;

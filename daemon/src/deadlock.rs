@@ -24,7 +24,7 @@ use crate::planner::{Done, Job, Planner, Why};
 use crate::replay::ReplayLog;
 use crate::telemetry::{LoopRequest, TickRecord};
 use control::law::flags;
-use control::plan::{CycleTable, PlanOutcome, Steer, WhenBlocked};
+use control::plan::{PlanOutcome, Steer, WhenBlocked};
 use control::System;
 use crossbeam::channel::Sender;
 
@@ -129,6 +129,7 @@ pub struct Deadlock {
     send_hold: Option<bool>,
     /// What the loop was last sent.
     steering: bool,
+    detour: Option<(f64, f64)>,
     holding: bool,
     /// Times the daemon became blocked, and the first reason.
     pub entered: u64,
@@ -163,6 +164,7 @@ impl Deadlock {
             send_steer: None,
             send_hold: None,
             steering: false,
+            detour: None,
             holding: false,
             entered: 0,
             first: None,
@@ -216,6 +218,12 @@ impl Deadlock {
         }
         let s = system.safety();
         if !s.enabled || self.blocked.is_some() {
+            return;
+        }
+        // A detour pauses tracking by design; the watch starts afresh when it hands over.
+        if r.law_flags & flags::DETOUR != 0 {
+            self.trap = TrapWatch::default();
+            self.filter_acted = None;
             return;
         }
         // The filter's trap, not a start's transient: tracking lost while the filter acts (it
@@ -333,9 +341,20 @@ impl Deadlock {
                 });
                 self.unblock(t, "a clean cycle exists");
                 let hz = system.planar().map_or(1.0, |c| c.safety.plan_hz);
-                match CycleTable::new(&c) {
-                    Ok(table) if self.steering_wanted => {
-                        self.send_steer = Some(Some(Steer::new(table, hz)));
+                // A detour is the only way out for an arm that cannot reach the cycle
+                // tracking: it is taken whether or not steering was asked for.
+                let wanted = self.steering_wanted || c.detour.is_some();
+                match Steer::of(&c, hz) {
+                    Ok(steer) if wanted => {
+                        if let Some(d) = &c.detour {
+                            tracing::warn!(
+                                "taking a joint-space detour onto the planned cycle: tracking \
+                                 paused for {:.2} s ({})",
+                                d.t_arrive - d.t_start,
+                                c.unreachable.as_ref().map_or("", |b| b.reason.as_str())
+                            );
+                        }
+                        self.send_steer = Some(Some(steer));
                     }
                     Ok(_) => {
                         if self.steering {
@@ -409,6 +428,7 @@ impl Deadlock {
                     log.steered(s.as_ref());
                 }
                 self.steering = s.is_some();
+                self.detour = s.and_then(|s| s.detour).map(|d| (d.t_start, d.t_arrive));
                 self.send_steer = None;
             }
         }
@@ -433,6 +453,11 @@ impl Deadlock {
             "planner": self.planner.is_some(),
             "error": self.planner_error,
             "steering": self.steering,
+            // The joint-space detour the loop was last sent, tracking paused from start to
+            // arrive (controller time, s).
+            "detour": self.detour.map(|(start, arrive)| serde_json::json!({
+                "start": start, "arrive": arrive,
+            })),
             "newest": self.plan.as_ref().map(|p| serde_json::json!({
                 "generation": p.generation,
                 "why": format!("{:?}", p.why).to_lowercase(),

@@ -1,6 +1,7 @@
 //! A steering handover as one line of a replay recording, and back, bit for bit.
 
 use anyhow::{anyhow, bail, Result};
+use control::plan::detour::{DetourTable, MAX_DETOUR};
 use control::plan::{CycleTable, Steer, MAX_PHASES};
 
 fn hex(v: f64) -> String {
@@ -35,7 +36,57 @@ pub fn line(steer: Option<&Steer>) -> String {
         out.push(' ');
         out.push_str(&hex(*q));
     }
+    if let Some(d) = &s.detour {
+        let pts = d.points();
+        out.push_str(&format!(
+            " D {} {} {} {}",
+            hex(d.t_start),
+            hex(d.duration),
+            hex(d.t_arrive),
+            pts.len()
+        ));
+        for q in pts.iter().flatten() {
+            out.push(' ');
+            out.push_str(&hex(*q));
+        }
+    }
     out
+}
+
+/// The `D ts duration t_arrive m p…` tail of a handover with a detour.
+fn detour(f: &[&str]) -> Result<Option<DetourTable>> {
+    if f.is_empty() {
+        return Ok(None);
+    }
+    if f[0] != "D" {
+        bail!("a steering record's tail starts with D (a detour)");
+    }
+    let (ts, dur, ta) = (
+        bits(f.get(1), "detour start")?,
+        bits(f.get(2), "detour duration")?,
+        bits(f.get(3), "detour arrival")?,
+    );
+    let m: usize = f
+        .get(4)
+        .and_then(|v| v.parse().ok())
+        .filter(|m| (2..=MAX_DETOUR).contains(m))
+        .ok_or_else(|| anyhow!("a detour needs 2 to {MAX_DETOUR} postures"))?;
+    if f.len() != 5 + 3 * m {
+        bail!(
+            "a detour of {m} postures has {} values, not {}",
+            f.len() - 5,
+            3 * m
+        );
+    }
+    let mut pts = vec![[0.0; 3]; m];
+    for (i, p) in pts.iter_mut().enumerate() {
+        for (j, v) in p.iter_mut().enumerate() {
+            *v = bits(f.get(5 + 3 * i + j), "detour posture")?;
+        }
+    }
+    DetourTable::new(ts, dur, ta, &pts)
+        .map(Some)
+        .map_err(|e| anyhow!(e))
 }
 
 /// The handover [`line`] wrote (its fields after the tick number).
@@ -53,7 +104,7 @@ pub fn parse(fields: &[&str]) -> Result<Option<Steer>> {
         .and_then(|v| v.parse().ok())
         .filter(|k| (1..=MAX_PHASES).contains(k))
         .ok_or_else(|| anyhow!("a steering record needs 1 to {MAX_PHASES} postures"))?;
-    if f.len() != 5 + 3 * k {
+    if f.len() < 5 + 3 * k {
         bail!(
             "a steering record of {k} postures has {} values, not {}",
             f.len() - 5,
@@ -67,7 +118,13 @@ pub fn parse(fields: &[&str]) -> Result<Option<Steer>> {
         }
     }
     let cycle = CycleTable::from_rows(t0, period, &rows).map_err(|e| anyhow!(e))?;
-    Ok(Some(Steer { cycle, kp, kd }))
+    let detour = detour(&f[5 + 3 * k..])?;
+    Ok(Some(Steer {
+        cycle,
+        detour,
+        kp,
+        kd,
+    }))
 }
 
 #[cfg(test)]
@@ -86,6 +143,21 @@ mod tests {
         assert!(parse(&["2"]).is_err());
         let mut bad = fields.clone();
         bad[3] = "zz";
+        assert!(parse(&bad).is_err());
+        // With a detour.
+        let pts = [[0.1, 0.2, 0.3], [0.4, -0.5, 1.0 / 7.0], [1.0, 2.0, 3.0]];
+        let d = DetourTable::new(0.5, 1.25, 2.0, &pts).unwrap();
+        let s = Steer {
+            detour: Some(d),
+            ..s
+        };
+        let text = line(Some(&s));
+        let fields: Vec<&str> = text.split(' ').collect();
+        assert_eq!(parse(&fields).unwrap(), Some(s));
+        assert!(parse(&fields[..fields.len() - 1]).is_err());
+        let mut bad = fields.clone();
+        let at = bad.iter().position(|f| *f == "D").unwrap();
+        bad[at] = "E";
         assert!(parse(&bad).is_err());
     }
 }

@@ -11,6 +11,7 @@
 //! The planner allocates and takes milliseconds: it runs off the loop, and hands its cycle over
 //! whole.
 
+pub mod detour;
 pub mod planar;
 mod policy;
 pub mod refine;
@@ -86,6 +87,12 @@ pub struct Cycle {
     /// spline runs it ([`refine`]; m/s² for an obstacle): negative, the filter will brake the
     /// cycle there and the arm leaves its path for a moment. +∞ until refined.
     pub filter_margin: f64,
+    /// Why the arm cannot reach this cycle with its hand on the path, if it cannot (None: it
+    /// can, or its posture was not given).
+    pub unreachable: Option<Blocked>,
+    /// The joint-space way onto the cycle for an arm that cannot reach it tracking
+    /// ([`detour`]; set by [`plan_config`]).
+    pub detour: Option<Box<detour::DetourTable>>,
 }
 
 /// Steering onto a planned cycle: a joint PD towards it, projected onto the self-motion, so
@@ -93,10 +100,15 @@ pub struct Cycle {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Steer {
     pub cycle: CycleTable,
+    /// A joint-space detour onto the cycle first, tracking paused while it runs.
+    pub detour: Option<detour::DetourTable>,
     /// Gains of the pull (1/s², 1/s).
     pub kp: f64,
     pub kd: f64,
 }
+
+/// The natural frequency (Hz) of the joint-space pull along a detour, critically damped.
+pub const DETOUR_HZ: f64 = 4.0;
 
 impl Steer {
     /// A pull with natural frequency `hz`, critically damped.
@@ -104,9 +116,18 @@ impl Steer {
         let w = std::f64::consts::TAU * hz;
         Self {
             cycle,
+            detour: None,
             kp: w * w,
             kd: 2.0 * w,
         }
+    }
+
+    /// The steering onto planned cycle `c`, with its detour if it has one.
+    pub fn of(c: &Cycle, hz: f64) -> Result<Self, String> {
+        Ok(Self {
+            detour: c.detour.as_deref().copied(),
+            ..Self::new(CycleTable::new(c)?, hz)
+        })
     }
 }
 
@@ -153,11 +174,21 @@ pub fn plan_config(
 ) -> Result<Planned, String> {
     let started = std::time::Instant::now();
     let problem = planar::PlanarProblem::from_config(cfg, t0, q_now)?;
-    let strict = refined(
+    let mut strict = refined(
         &problem,
         cfg,
         planar::plan(&problem, &PlanSettings::default()),
     );
+    // A cycle the refinement could not clear of the filter: a finer grid gives another.
+    if let Err(Braked(_)) = strict {
+        let finer = PlanSettings {
+            angles: 180,
+            ..PlanSettings::default()
+        };
+        if let Ok(c) = refined(&problem, cfg, planar::plan(&problem, &finer)) {
+            strict = Ok(c);
+        }
+    }
     let (outcome, limits_only) = match strict {
         Ok(c) => (PlanOutcome::Found(c), false),
         Err(why) => {
@@ -171,11 +202,34 @@ pub fn plan_config(
             (outcome, true)
         }
     };
+    let outcome = match outcome {
+        PlanOutcome::Found(c) => with_detour(&problem, c),
+        b => b,
+    };
     Ok(Planned {
         outcome,
         limits_only,
         took: started.elapsed(),
     })
+}
+
+/// A cycle the arm cannot reach with its hand on the path gets a joint-space detour, or, when
+/// there is none, becomes `Blocked` with both reasons.
+fn with_detour(problem: &planar::PlanarProblem, mut c: Cycle) -> PlanOutcome {
+    let (Some(why), Some(q_now)) = (c.unreachable.clone(), problem.q_now) else {
+        return PlanOutcome::Found(c);
+    };
+    let way = CycleTable::new(&c).and_then(|t| detour::plan(problem, &t, q_now, problem.t0));
+    match way {
+        Ok(d) => {
+            c.detour = Some(Box::new(d));
+            PlanOutcome::Found(c)
+        }
+        Err(e) => PlanOutcome::Blocked(Blocked {
+            reason: format!("{}, and {e}", why.reason),
+            ..why
+        }),
+    }
 }
 
 /// Why a plan gave no usable cycle: none on the grid, or one the filter would brake.

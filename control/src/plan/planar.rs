@@ -97,7 +97,7 @@ impl PlanarProblem {
         best
     }
 
-    fn within_limits(&self, q: &[f64; 3], margin: f64) -> bool {
+    pub(super) fn within_limits(&self, q: &[f64; 3], margin: f64) -> bool {
         (0..3).all(|i| q[i] >= self.q_min[i] + margin && q[i] <= self.q_max[i] - margin)
     }
 }
@@ -303,11 +303,21 @@ pub fn plan(p: &PlanarProblem, s: &PlanSettings) -> PlanOutcome {
     if starts.is_empty() {
         return PlanOutcome::Blocked(blocked(p, s, &grid));
     }
-    if let Some(a) = p.q_now.as_ref().and_then(|q| arm_node(q, s, &grid)) {
-        let reach = grid.reachable(a, REACH_PERIODS);
-        starts.retain(|&i| reach[i]);
-        if starts.is_empty() {
-            return PlanOutcome::Blocked(unreachable(p, s, &grid, a));
+    // Cycles the arm cannot reach with its hand on the path are kept (a detour in joint space
+    // may reach them: `super::detour`), marked with why.
+    let mut unreached = None;
+    if let Some(q) = p.q_now {
+        match arm_node(&q, s, &grid) {
+            Some(a) => {
+                let reach = grid.reachable(a, REACH_PERIODS);
+                let kept: Vec<usize> = starts.iter().copied().filter(|&i| reach[i]).collect();
+                if kept.is_empty() {
+                    unreached = Some(unreachable(p, s, &grid, a));
+                } else {
+                    starts = kept;
+                }
+            }
+            None => unreached = Some(off_path(p, &q)),
         }
     }
     let start_q = |i: usize| grid.layers[0][i].expect("a start is feasible").q;
@@ -323,7 +333,10 @@ pub fn plan(p: &PlanarProblem, s: &PlanSettings) -> PlanOutcome {
         .filter_map(|&i| grid.cheapest_cycle(i, roomy))
         .min_by(|a, b| a.1.total_cmp(&b.1));
     match best {
-        Some((path, _)) => PlanOutcome::Found(cycle(p, &grid, &path)),
+        Some((path, _)) => PlanOutcome::Found(Cycle {
+            unreachable: unreached,
+            ..cycle(p, &grid, &path)
+        }),
         None => PlanOutcome::Blocked(blocked(p, s, &grid)),
     }
 }
@@ -356,6 +369,23 @@ fn cycle(p: &PlanarProblem, grid: &Grid, path: &[usize]) -> Cycle {
         min_clearance,
         max_rate,
         filter_margin: f64::INFINITY,
+        unreachable: None,
+        detour: None,
+    }
+}
+
+/// Why an arm at posture `q` reaches no cycle with its hand on the path: it is not on the grid
+/// (its hand off the path, or a link inside a margin).
+fn off_path(p: &PlanarProblem, q: &[f64; 3]) -> Blocked {
+    let (c, at) = p.clearance_of(q);
+    Blocked {
+        reason: "the arm is off its path or inside a clearance margin, so no cycle can be \
+                 reached with its hand on the path"
+            .into(),
+        best_clearance: c,
+        obstacle: at.map(|w| w.0),
+        link: at.map(|w| w.1),
+        task_time: p.t0,
     }
 }
 
