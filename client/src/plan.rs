@@ -5,10 +5,8 @@ use crate::setup::{parse_list, FloatList, SetupArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::config::ObstacleConfig;
-use control::plan::planar::{plan, PlanarProblem};
-use control::plan::{PlanOutcome, PlanSettings};
+use control::plan::{plan_config_with, PlanOutcome, PlanSettings};
 use std::path::PathBuf;
-use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct PlanCmd {
@@ -85,11 +83,11 @@ pub fn run(a: &PlanCmd) -> Result<()> {
         return Ok(());
     }
     let q0 = cfg.initial_state::<3>().q;
-    let problem = PlanarProblem::from_config(&cfg, 0.0, Some([q0[0], q0[1], q0[2]]))
+    // What the daemon does: the grid search, the refinement against the filter, a detour when
+    // the arm cannot reach the cycle tracking.
+    let planned = plan_config_with(&cfg, 0.0, Some([q0[0], q0[1], q0[2]]), &settings)
         .map_err(|e| anyhow::anyhow!("chaosctl plan: {e}"))?;
-    let t = Instant::now();
-    let outcome = plan(&problem, &settings);
-    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let (outcome, ms) = (planned.outcome, planned.took.as_secs_f64() * 1e3);
     if let (Some(path), PlanOutcome::Found(c)) = (&a.csv, &outcome) {
         let dt = c.period / c.q.len() as f64;
         let mut text = String::from("t,q1,q2,q3\n");
@@ -119,11 +117,15 @@ fn json(o: &PlanOutcome, s: &PlanSettings, ms: f64) -> serde_json::Value {
             "exists": true, "min_clearance_m": finite(c.min_clearance),
             "max_rate_rad_s": c.max_rate, "filter_margin": finite(c.filter_margin),
             "filter_acts": c.filter_margin < 0.0, "planning_ms": ms, "grid": grid,
+            "detour": c.detour.as_ref().map(|d| serde_json::json!({
+                "seconds": d.t_arrive - d.t_start, "why": c.unreachable.as_ref().map(|b| &b.reason),
+            })),
             "blocked": null,
         }),
         PlanOutcome::Blocked(b) => serde_json::json!({
             "exists": false, "min_clearance_m": null, "max_rate_rad_s": null,
             "filter_margin": null, "filter_acts": null, "planning_ms": ms, "grid": grid,
+            "detour": null,
             "blocked": {
                 "reason": b.reason, "best_clearance_m": finite(b.best_clearance),
                 "obstacle": b.obstacle.map(|i| i + 1), "link": b.link.map(|i| i + 1),
@@ -154,7 +156,8 @@ fn finite(x: f64) -> Option<f64> {
 fn words(o: &PlanOutcome, s: &PlanSettings, ms: f64) -> String {
     let grid = format!("{} phases × {} postures", s.phases, 2 * s.angles);
     match o {
-        PlanOutcome::Found(c) => format!(
+        PlanOutcome::Found(c) => {
+            format!(
             "a clean cycle exists: smallest clearance {}, fastest joint {:.2} rad/s, {} (planned \
              in {ms:.1} ms on {grid})",
             if c.min_clearance.is_finite() {
@@ -164,7 +167,13 @@ fn words(o: &PlanOutcome, s: &PlanSettings, ms: f64) -> String {
             },
             c.max_rate,
             filter_words(c.filter_margin)
-        ),
+        ) + &c.detour.as_ref().map_or(String::new(), |d| {
+                format!(
+                    "; the arm reaches it by a joint-space detour of {:.2} s, tracking paused",
+                    d.t_arrive - d.t_start
+                )
+            })
+        }
         PlanOutcome::Blocked(b) => format!(
             "no clean cycle: {} (planned in {ms:.1} ms on {grid})",
             b.reason

@@ -1,13 +1,14 @@
 //! `chaosctl plan --map PREFIX`: where one more obstacle leaves the arm a clean cycle, over a
 //! grid of centres, one panel per radius: the book's picture of when chaosd tracks round an
-//! obstacle, when it says `Blocked` because the arm is on the wrong side, and when no way exists.
+//! obstacle, when the arm must first take a joint-space detour because it is on the obstacle's
+//! wrong side, and when it says `Blocked`.
 
 use crate::analysis::parallel::{jobs, run_all};
 use crate::plot::{Figure, Grid, Panel, PALETTE};
 use anyhow::{bail, Context, Result};
 use control::config::ObstacleConfig;
 use control::plan::planar::{plan, PlanarProblem};
-use control::plan::{PlanOutcome, PlanSettings};
+use control::plan::{detour, CycleTable, PlanOutcome, PlanSettings};
 use control::Config;
 use std::path::Path;
 use std::time::Instant;
@@ -17,14 +18,17 @@ use std::time::Instant;
 pub enum Verdict {
     /// A clean cycle the arm reaches from its posture with its hand on the path.
     Reachable = 0,
-    /// Clean cycles exist, but not one the arm reaches from its posture: `Blocked`.
-    Elsewhere = 1,
+    /// Clean cycles exist, but the arm reaches them only by a joint-space detour.
+    Detour = 1,
+    /// Clean cycles exist, but the arm reaches none, by a detour either: `Blocked`.
+    Elsewhere = 2,
     /// No clean cycle at all: `Blocked`.
-    None = 2,
+    None = 3,
 }
 
-const NAMES: [&str; 3] = [
-    "reachable clean cycle",
+const NAMES: [&str; 4] = [
+    "reached tracking",
+    "reached by a detour",
     "unreachable ones only (Blocked)",
     "no clean cycle (Blocked)",
 ];
@@ -57,15 +61,17 @@ pub fn verdict(
 ) -> Result<Verdict> {
     let mut c = cfg.clone();
     c.control.obstacles.push(ObstacleConfig::disc(x, y, r));
-    let mut p = PlanarProblem::from_config(&c, at, Some(q))
+    let p = PlanarProblem::from_config(&c, at, Some(q))
         .map_err(|e| anyhow::anyhow!("chaosctl plan --map: {e}"))?;
-    if matches!(plan(&p, s), PlanOutcome::Found(_)) {
-        return Ok(Verdict::Reachable);
-    }
-    p.q_now = None;
-    Ok(match plan(&p, s) {
-        PlanOutcome::Found(_) => Verdict::Elsewhere,
-        PlanOutcome::Blocked(_) => Verdict::None,
+    let cycle = match plan(&p, s) {
+        PlanOutcome::Found(c) if c.unreachable.is_none() => return Ok(Verdict::Reachable),
+        PlanOutcome::Found(c) => c,
+        PlanOutcome::Blocked(_) => return Ok(Verdict::None),
+    };
+    let table = CycleTable::new(&cycle).map_err(|e| anyhow::anyhow!(e))?;
+    Ok(match detour::plan(&p, &table, q, at) {
+        Ok(_) => Verdict::Detour,
+        Err(_) => Verdict::Elsewhere,
     })
 }
 
@@ -135,7 +141,7 @@ pub fn run(cfg: &Config, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> Res
     std::fs::write(&path, csv).with_context(|| format!("cannot write {}", path.display()))?;
     let categories: Vec<_> = NAMES
         .iter()
-        .zip([PALETTE[2], PALETTE[3], PALETTE[1]])
+        .zip([PALETTE[2], PALETTE[0], PALETTE[3], PALETTE[1]])
         .map(|(n, c)| (n.to_string(), c))
         .collect();
     let per = xs.len() * ys.len();
@@ -171,10 +177,11 @@ pub fn run(cfg: &Config, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> Res
         100.0 * verdicts.iter().filter(|x| **x == v).count() as f64 / verdicts.len() as f64
     };
     Ok(format!(
-        "{} obstacle positions in {took:.1} s: reachable clean cycle {:.0} %, clean cycles only \
-         from elsewhere {:.0} %, none {:.0} %; wrote {}, {}",
+        "{} obstacle positions in {took:.1} s: reached tracking {:.0} %, by a detour {:.0} %, \
+         clean cycles out of reach {:.0} %, none {:.0} %; wrote {}, {}",
         verdicts.len(),
         share(Verdict::Reachable),
+        share(Verdict::Detour),
         share(Verdict::Elsewhere),
         share(Verdict::None),
         path.display(),
@@ -191,20 +198,21 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_three_verdicts_are_told_apart() {
+    fn the_verdicts_are_told_apart() {
         let cfg = Config::default();
         let s = PlanSettings::default();
-        let start = (0.0, posture_at(&cfg, 0.0));
+        let start = (3.0, posture_at(&cfg, 3.0));
         // Far from the arm: nothing changes.
         let far = (-2.5, -2.5, 0.2);
         assert_eq!(verdict(&cfg, &s, start, far).unwrap(), Verdict::Reachable);
         // On the hand's path: no way round.
         let on_path = (1.5, 2.0, 0.2);
         assert_eq!(verdict(&cfg, &s, start, on_path).unwrap(), Verdict::None);
-        // The user's trap: added at 5 s the arm is on its wrong side; at 3 s it is not.
+        // The user's trap: added at 5 s the arm is on its wrong side and takes a detour; at
+        // 3 s it is not.
         let trap = (0.9, 1.1, 0.15);
         let at = |t: f64| verdict(&cfg, &s, (t, posture_at(&cfg, t)), trap).unwrap();
-        assert_eq!(at(5.0), Verdict::Elsewhere);
+        assert_eq!(at(5.0), Verdict::Detour);
         assert_eq!(at(3.0), Verdict::Reachable);
     }
 }

@@ -158,3 +158,37 @@ fn the_panda_step_allocates_nothing_in_position_and_pose_with_obstacles() {
         });
     }
 }
+
+#[test]
+fn steering_along_a_detour_and_onto_the_cycle_allocates_nothing() {
+    // The planner allocates (off the loop); the law that runs its detour, the blend and the
+    // cycle must not. An arm off its path by the trap: a detour, then the cycle.
+    let mut cfg = Config::default();
+    cfg.control.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
+    cfg.safety.plan = true;
+    cfg.sim.q0 = Some(vec![0.3, 1.2, 1.0]);
+    cfg.sim.qd0 = Some(vec![0.0; 3]);
+    let (params, blocked) = cfg.law_params_planned();
+    assert!(blocked.is_none(), "{blocked:?}");
+    let d = params.steer.and_then(|s| s.detour).expect("a detour");
+    let mut sim = Simulation::new(
+        cfg.model::<3>(),
+        params,
+        cfg.sim.dt,
+        cfg.initial_state(),
+        cfg.feedback.max_tau,
+    );
+    let steps = ((d.t_arrive + 2.0) / cfg.sim.dt) as usize;
+    let mut detoured = 0;
+    let n = allocations(|| {
+        for _ in 0..steps {
+            let out = std::hint::black_box(sim.step());
+            detoured += usize::from(out.flags & control::law::flags::DETOUR != 0);
+        }
+    });
+    assert_eq!(n, 0, "the steered step allocated {n} times");
+    assert!(
+        detoured > 100 && detoured < steps,
+        "{detoured} of {steps} steps on the detour"
+    );
+}

@@ -341,9 +341,11 @@ impl Deadlock {
                 });
                 self.unblock(t, "a clean cycle exists");
                 let hz = system.planar().map_or(1.0, |c| c.safety.plan_hz);
-                // A detour is the only way out for an arm that cannot reach the cycle
-                // tracking: it is taken whether or not steering was asked for.
-                let wanted = self.steering_wanted || c.detour.is_some();
+                // A detour is the only way out for an arm on its path that an obstacle keeps
+                // from every clean cycle: it is taken whether or not steering was asked for.
+                // (An arm off its path, as at a start, is left to its transient; a trap after
+                // it plans again.)
+                let wanted = self.steering_wanted || (c.detour.is_some() && !c.arm_off_path);
                 match Steer::of(&c, hz) {
                     Ok(steer) if wanted => {
                         if let Some(d) = &c.detour {

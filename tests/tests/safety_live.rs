@@ -241,11 +241,17 @@ fn a_runaway_ends_in_a_braked_fault_that_only_resume_leaves() {
         fastest <= 2.0 + 1e-3,
         "|q̇| reached {fastest} rad/s with qd_max = 2"
     );
+    // With qd_max = 2 rad/s the joints cannot follow the circle at all (the task needs several
+    // rad/s): the planner says so, and the daemon may hold the arm `Blocked` by a joint's rate
+    // limit rather than run it off its path. Either way, no second fault.
     let st = status(&sys.ns);
-    assert_eq!(
-        (st["mode"].as_str(), st["counters"]["faults"].as_u64()),
-        (Some("Run"), Some(1)),
+    let blocked_by_rate = st["blocked"]["reason"]
+        .as_str()
+        .is_some_and(|r| r.contains("rate or acceleration limit"));
+    assert!(
+        st["mode"] == "Run" || (st["mode"] == "Hold" && blocked_by_rate),
         "{st}"
     );
+    assert_eq!(st["counters"]["faults"], 1, "{st}");
     assert_eq!(st["counters"]["resumes"], 1);
 }

@@ -36,7 +36,7 @@ pub struct PlanSettings {
     /// Closing starts tried for the cheapest cycle (the nearest the arm's posture first).
     pub candidates: usize,
     /// How fast the arm may close in on an obstacle, per metre of clearance left (1/s): the
-    /// safety filter's barrier (s² + k1·s + k0, a double root at −10/s by default) brakes a
+    /// safety filter's barrier (s² + k1·s + k0, a double root at −20/s by default) brakes a
     /// faster approach, and a cycle that approaches faster is braked off its path. Judged on
     /// each posture's nearest obstacle, between consecutive phases.
     pub approach: f64,
@@ -90,6 +90,9 @@ pub struct Cycle {
     /// Why the arm cannot reach this cycle with its hand on the path, if it cannot (None: it
     /// can, or its posture was not given).
     pub unreachable: Option<Blocked>,
+    /// The arm's posture was off the planner's grid (its hand off the path, or a link inside a
+    /// margin): a start's transient, not an obstacle in the way.
+    pub arm_off_path: bool,
     /// The joint-space way onto the cycle for an arm that cannot reach it tracking
     /// ([`detour`]; set by [`plan_config`]).
     pub detour: Option<Box<detour::DetourTable>>,
@@ -172,18 +175,24 @@ pub fn plan_config(
     t0: f64,
     q_now: Option<[f64; 3]>,
 ) -> Result<Planned, String> {
+    plan_config_with(cfg, t0, q_now, &PlanSettings::default())
+}
+
+/// [`plan_config`] with settings of one's own for the first try (`chaosctl plan --margin`).
+pub fn plan_config_with(
+    cfg: &crate::Config,
+    t0: f64,
+    q_now: Option<[f64; 3]>,
+    settings: &PlanSettings,
+) -> Result<Planned, String> {
     let started = std::time::Instant::now();
     let problem = planar::PlanarProblem::from_config(cfg, t0, q_now)?;
-    let mut strict = refined(
-        &problem,
-        cfg,
-        planar::plan(&problem, &PlanSettings::default()),
-    );
+    let mut strict = refined(&problem, cfg, planar::plan(&problem, settings));
     // A cycle the refinement could not clear of the filter: a finer grid gives another.
     if let Err(Braked(_)) = strict {
         let finer = PlanSettings {
             angles: 180,
-            ..PlanSettings::default()
+            ..*settings
         };
         if let Ok(c) = refined(&problem, cfg, planar::plan(&problem, &finer)) {
             strict = Ok(c);

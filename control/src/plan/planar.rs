@@ -305,7 +305,7 @@ pub fn plan(p: &PlanarProblem, s: &PlanSettings) -> PlanOutcome {
     }
     // Cycles the arm cannot reach with its hand on the path are kept (a detour in joint space
     // may reach them: `super::detour`), marked with why.
-    let mut unreached = None;
+    let (mut unreached, mut off) = (None, false);
     if let Some(q) = p.q_now {
         match arm_node(&q, s, &grid) {
             Some(a) => {
@@ -317,7 +317,7 @@ pub fn plan(p: &PlanarProblem, s: &PlanSettings) -> PlanOutcome {
                     starts = kept;
                 }
             }
-            None => unreached = Some(off_path(p, &q)),
+            None => (unreached, off) = (Some(off_path(p, &q)), true),
         }
     }
     let start_q = |i: usize| grid.layers[0][i].expect("a start is feasible").q;
@@ -335,6 +335,7 @@ pub fn plan(p: &PlanarProblem, s: &PlanSettings) -> PlanOutcome {
     match best {
         Some((path, _)) => PlanOutcome::Found(Cycle {
             unreachable: unreached,
+            arm_off_path: off,
             ..cycle(p, &grid, &path)
         }),
         None => PlanOutcome::Blocked(blocked(p, s, &grid)),
@@ -370,6 +371,7 @@ fn cycle(p: &PlanarProblem, grid: &Grid, path: &[usize]) -> Cycle {
         max_rate,
         filter_margin: f64::INFINITY,
         unreachable: None,
+        arm_off_path: false,
         detour: None,
     }
 }
