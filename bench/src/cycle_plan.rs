@@ -33,23 +33,12 @@ const LAYOUTS: [(&str, Discs, f64); 5] = [
 /// A layout's config, task time and the arm's posture then.
 fn setup(obstacles: &[(f64, f64, f64)], at: f64) -> (Config, f64, [f64; 3]) {
     let mut cfg = Config::default();
-    let x0 = cfg.initial_state::<3>();
-    let mut sim = control::Simulation::new(
-        cfg.model::<3>(),
-        cfg.law_params(),
-        cfg.sim.dt,
-        x0,
-        cfg.feedback.max_tau,
-    );
-    while sim.time() < at {
-        sim.step();
-    }
+    let (t, q) = control::plan::posture_at(&cfg, at);
     cfg.control.obstacles = obstacles
         .iter()
         .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
         .collect();
-    let q = sim.state().q;
-    (cfg, sim.time(), [q[0], q[1], q[2]])
+    (cfg, t, q)
 }
 
 fn median_max(t: &[f64]) -> (f64, f64) {

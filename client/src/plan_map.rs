@@ -36,19 +36,7 @@ const NAMES: [&str; 4] = [
 /// Where the arm is at task time `at` (s), without the new obstacle: simulated from the
 /// config's start, as the daemon would have run it until the obstacle is added.
 pub fn posture_at(cfg: &Config, at: f64) -> [f64; 3] {
-    let x0 = cfg.initial_state::<3>();
-    let mut sim = control::Simulation::new(
-        cfg.model::<3>(),
-        cfg.law_params(),
-        cfg.sim.dt,
-        x0,
-        cfg.feedback.max_tau,
-    );
-    while sim.time() < at {
-        sim.step();
-    }
-    let q = sim.state().q;
-    [q[0], q[1], q[2]]
+    control::plan::posture_at(cfg, at).1
 }
 
 /// The verdict for `cfg` with one more disc at (x, y) of radius r, added at task time `at`

@@ -90,15 +90,7 @@ fn plan_is_refused_where_the_planner_cannot_go() {
 
 /// The arm of the default set-up (the daemon's, no obstacles) at `t` s, simulated.
 fn posture_at(t: f64) -> [f64; 3] {
-    let cfg = Config::default();
-    let x0 = cfg.initial_state::<3>();
-    let p = cfg.law_params();
-    let mut sim = Simulation::new(cfg.model::<3>(), p, cfg.sim.dt, x0, cfg.feedback.max_tau);
-    while sim.time() < t {
-        sim.step();
-    }
-    let q = sim.state().q;
-    [q[0], q[1], q[2]]
+    control::plan::posture_at(&Config::default(), t).1
 }
 
 #[test]

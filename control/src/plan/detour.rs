@@ -106,21 +106,7 @@ impl DetourTable {
         );
         let u = -1.0 + span * s;
         let k = (u.floor() as i64).clamp(-1, self.n as i64 - 1);
-        let v = u - k as f64;
-        let (v2, v3, w) = (v * v, v * v * v, 1.0 - v);
-        let b = [
-            w * w * w / 6.0,
-            (3.0 * v3 - 6.0 * v2 + 4.0) / 6.0,
-            (-3.0 * v3 + 3.0 * v2 + 3.0 * v + 1.0) / 6.0,
-            v3 / 6.0,
-        ];
-        let db = [
-            -w * w / 2.0,
-            (3.0 * v2 - 4.0 * v) / 2.0,
-            (-3.0 * v2 + 2.0 * v + 1.0) / 2.0,
-            v2 / 2.0,
-        ];
-        let ddb = [w, 3.0 * v - 2.0, -3.0 * v + 1.0, v];
+        let (b, db, ddb) = super::table::basis(u - k as f64);
         let mut out = Sample {
             q: [0.0; 3],
             qd: [0.0; 3],

@@ -256,6 +256,24 @@ impl Unusable {
     }
 }
 
+/// Where the config's arm is at task time `at` (s), simulated from its start without steering:
+/// the posture a planner asked at that moment starts from. Returns the step's time and the
+/// posture.
+pub fn posture_at(cfg: &crate::Config, at: f64) -> (f64, [f64; 3]) {
+    let mut sim = crate::Simulation::new(
+        cfg.model::<3>(),
+        cfg.law_params(),
+        cfg.sim.dt,
+        cfg.initial_state::<3>(),
+        cfg.feedback.max_tau,
+    );
+    while sim.time() < at {
+        sim.step();
+    }
+    let q = sim.state().q;
+    (sim.time(), [q[0], q[1], q[2]])
+}
+
 /// A found cycle refined against the config's own filter; usable only if the filter has
 /// nothing to do on it.
 fn refined(

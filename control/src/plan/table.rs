@@ -29,6 +29,28 @@ pub struct CycleTable {
     turns: [f64; 3],
 }
 
+/// The uniform cubic B-spline's four weights at `u` ∈ [0, 1) of a span, and their first and
+/// second derivatives in `u`.
+#[inline]
+pub(super) fn basis(u: f64) -> ([f64; 4], [f64; 4], [f64; 4]) {
+    let (u2, u3, v) = (u * u, u * u * u, 1.0 - u);
+    (
+        [
+            v * v * v / 6.0,
+            (3.0 * u3 - 6.0 * u2 + 4.0) / 6.0,
+            (-3.0 * u3 + 3.0 * u2 + 3.0 * u + 1.0) / 6.0,
+            u3 / 6.0,
+        ],
+        [
+            -v * v / 2.0,
+            (3.0 * u2 - 4.0 * u) / 2.0,
+            (-3.0 * u2 + 2.0 * u + 1.0) / 2.0,
+            u2 / 2.0,
+        ],
+        [v, 3.0 * u - 2.0, -3.0 * u + 1.0, u],
+    )
+}
+
 /// The planned posture, rate and acceleration at one task time.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sample {
@@ -131,21 +153,7 @@ impl CycleTable {
         let dt = self.period / self.n as f64;
         let x = (t - self.t0).rem_euclid(self.period) / dt;
         let k = (x.floor() as i64).min(self.n as i64 - 1);
-        let u = x - k as f64;
-        let (u2, u3, v) = (u * u, u * u * u, 1.0 - u);
-        let b = [
-            v * v * v / 6.0,
-            (3.0 * u3 - 6.0 * u2 + 4.0) / 6.0,
-            (-3.0 * u3 + 3.0 * u2 + 3.0 * u + 1.0) / 6.0,
-            u3 / 6.0,
-        ];
-        let db = [
-            -v * v / 2.0,
-            (3.0 * u2 - 4.0 * u) / 2.0,
-            (-3.0 * u2 + 2.0 * u + 1.0) / 2.0,
-            u2 / 2.0,
-        ];
-        let ddb = [v, 3.0 * u - 2.0, -3.0 * u + 1.0, u];
+        let (b, db, ddb) = basis(x - k as f64);
         let mut s = Sample {
             q: [0.0; 3],
             qd: [0.0; 3],
