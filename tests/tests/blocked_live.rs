@@ -56,8 +56,11 @@ fn an_obstacle_with_no_way_round_blocks_at_once_and_removing_it_resumes_tracking
         "{v}\n{}",
         daemon.log()
     );
-    let (v, _) = poll_status(&ns, Duration::from_secs(5), |v| tracking(v, 1e-4));
-    assert!(tracking(&v, 1e-4), "steered on an open layout: {v}");
+    // The start is off the planner's grid, so the steering begins with a short detour; the
+    // issue's live bound (1e-3 m within 5 s) is asked, not the offline 1e-4 (one loaded run of
+    // the whole suite measured 2.2e-4 m at 5 s).
+    let (v, _) = poll_status(&ns, Duration::from_secs(5), |v| tracking(v, 1e-3));
+    assert!(tracking(&v, 1e-3), "steered on an open layout: {v}");
 
     // A disc over the circle's right-hand point: the hand must pass through it. (It may land
     // on the arm: chaosctl's own start-up makes the moment uncertain. That the hold brakes
