@@ -268,7 +268,11 @@ pub fn evaluate<const N: usize>(
     };
     let diff = qd - qd_delayed;
     // A detour's motion is not the cycle's: the delayed feedback waits a delay past it.
-    let detour = params.steer.as_ref().and_then(|s| s.detour.map(|d| (s, d)));
+    // By reference: the table is kilobytes, and this runs every tick.
+    let detour = params
+        .steer
+        .as_ref()
+        .and_then(|s| s.detour.as_ref().map(|d| (s, d)));
     let after_detour = detour.is_some_and(|(_, d)| t < d.t_arrive + params.tau);
     let feedback = params.feedback_active(t) && !after_detour;
     if feedback {
@@ -284,7 +288,7 @@ pub fn evaluate<const N: usize>(
     let mut qdd = match detour.filter(|(_, d)| d.running(t)) {
         Some((s, d)) => {
             flag |= flags::DETOUR;
-            detour_pull(s, &d, t, q, qd)
+            detour_pull(s, d, t, q, qd)
         }
         None => {
             let mut qdd = resolve(j, &jpinv, &task_acc, &terms);
