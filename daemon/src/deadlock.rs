@@ -106,6 +106,22 @@ impl TrapWatch {
     }
 }
 
+/// What a plan is made round: an edit that changes neither forces no detour.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct Layout {
+    obstacles: Vec<control::config::ObstacleConfig>,
+    task: Option<control::config::TaskConfig>,
+}
+
+impl Layout {
+    fn of(system: &System) -> Self {
+        system.planar().map_or_else(Self::default, |c| Self {
+            obstacles: c.control.obstacles.clone(),
+            task: Some(c.task.clone()),
+        })
+    }
+}
+
 /// The reporter's side of safety without deadlock.
 pub struct Deadlock {
     planner: Option<Planner>,
@@ -121,6 +137,9 @@ pub struct Deadlock {
     steering_wanted: bool,
     /// A trap asked for steering: it outlives later edits.
     trap_steered: bool,
+    /// The obstacles and task planned round, and whether the newest edit changed them.
+    layout: Layout,
+    layout_edited: bool,
     pub blocked: Option<BlockedState>,
     pub plan: Option<PlanInfo>,
     planner_error: Option<String>,
@@ -158,6 +177,8 @@ impl Deadlock {
             filter_acted: None,
             steering_wanted,
             trap_steered: false,
+            layout: Layout::of(system),
+            layout_edited: false,
             blocked: None,
             plan: None,
             planner_error: None,
@@ -195,6 +216,9 @@ impl Deadlock {
     /// remains is seen again after `trap_time`).
     pub fn edited(&mut self, system: &System, t: f64, q_now: Option<[f64; 3]>) {
         self.generation += 1;
+        let layout = Layout::of(system);
+        self.layout_edited = layout != self.layout;
+        self.layout = layout;
         // `set safety.plan on|off` steers, or stops; a trap's steering stays.
         let plan = system.planar().is_some_and(|c| c.safety.plan);
         self.steering_wanted = plan || self.trap_steered;
@@ -341,11 +365,7 @@ impl Deadlock {
                 });
                 self.unblock(t, "a clean cycle exists");
                 let hz = system.planar().map_or(1.0, |c| c.safety.plan_hz);
-                // A detour is the only way out for an arm on its path that an obstacle keeps
-                // from every clean cycle: it is taken whether or not steering was asked for.
-                // (An arm off its path, as at a start, is left to its transient; a trap after
-                // it plans again.)
-                let wanted = self.steering_wanted || (c.detour.is_some() && !c.arm_off_path);
+                let wanted = self.steering_wanted || self.detour_forced(&c, done.why);
                 match Steer::of(&c, hz) {
                     Ok(steer) if wanted => {
                         if let Some(d) = &c.detour {
@@ -422,6 +442,19 @@ impl Deadlock {
         }
     }
 
+    /// A detour is the only way out for an arm on its path that an obstacle keeps from every
+    /// clean cycle: it is taken whether or not steering was asked for, at start, after a trap,
+    /// or when an edit moved the obstacles or the task. Not for an arm off its path (a start's
+    /// transient: a trap after it plans again), nor without obstacles, nor after an edit of the
+    /// law alone: near a fold of its self-motion the grid can miss a way the arm has within the
+    /// rate bound, and an arm no obstacle was put in the way of is not trapped.
+    fn detour_forced(&self, c: &control::plan::Cycle, why: Why) -> bool {
+        c.detour.is_some()
+            && !c.arm_off_path
+            && !self.layout.obstacles.is_empty()
+            && (why != Why::Edit || self.layout_edited)
+    }
+
     /// Sends what the loop has not been sent yet; a full channel is retried on the next poll.
     fn flush(&mut self, tx: &Sender<LoopRequest>, replay: Option<&mut ReplayLog>) {
         if let Some(s) = self.send_steer {
@@ -480,6 +513,69 @@ impl Deadlock {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Edits `d` to `system` at task time `t` with the arm at `q`, and takes the plan; returns
+    /// whether the loop was sent a steering table.
+    fn steered_after_edit(d: &mut Deadlock, system: &System, t: f64, q: [f64; 3]) -> bool {
+        let (tx, rx) = crossbeam::channel::bounded(16);
+        d.edited(system, t, Some(q));
+        for _ in 0..2000 {
+            d.poll(system, t, &tx, None);
+            if d.plan
+                .as_ref()
+                .is_some_and(|p| p.generation == d.generation)
+            {
+                return rx
+                    .try_iter()
+                    .any(|r| matches!(r, LoopRequest::Steer(Some(_))));
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        panic!("the planner did not answer in 10 s");
+    }
+
+    #[test]
+    fn only_an_edit_of_the_obstacles_or_the_task_forces_a_detour() {
+        // A posture of the default arm's chaotic self-motion (at t = 4.5 s) from which the grid
+        // links no cycle within its rate bound: the planner offers a detour, though no
+        // obstacle is in the way.
+        let (t, q) = (
+            4.5,
+            [0.6390814869980641, 0.37407687103733667, 1.5400306742489358],
+        );
+        let mut cfg = control::Config::default();
+        let offered = |cfg: &control::Config| {
+            let planned = control::plan::plan_config(cfg, t, Some(q)).unwrap();
+            let PlanOutcome::Found(c) = planned.outcome else {
+                panic!("no cycle");
+            };
+            c.detour.is_some() && !c.arm_off_path
+        };
+        assert!(offered(&cfg), "the case is gone");
+        let mut d = Deadlock::new(&System::Planar(cfg.clone()), None);
+        cfg.feedback.mu = 0.3;
+        assert!(!steered_after_edit(
+            &mut d,
+            &System::Planar(cfg.clone()),
+            t,
+            q
+        ));
+        // An obstacle added (out of the arm's way: the grid's answer is the same): the edit
+        // moved the layout, so the daemon cannot tell the arm is free, and takes the detour.
+        cfg.control
+            .obstacles
+            .push(control::config::ObstacleConfig::disc(-1.5, -1.5, 0.1));
+        assert!(offered(&cfg), "the case is gone");
+        assert!(steered_after_edit(
+            &mut d,
+            &System::Planar(cfg.clone()),
+            t,
+            q
+        ));
+        // A law edit with the obstacle in place: not forced again.
+        cfg.feedback.mu = 0.1;
+        assert!(!steered_after_edit(&mut d, &System::Planar(cfg), t, q));
+    }
 
     #[test]
     fn a_trap_fires_once_after_trap_time_and_good_tracking_ends_it() {

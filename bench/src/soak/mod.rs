@@ -175,9 +175,18 @@ impl Soak {
     fn wait_run(&mut self, mut extra: impl FnMut(&Status) -> bool) -> Result<Option<Instant>> {
         let until = Instant::now() + RECOVERY_LIMIT;
         let mut prev: Option<Status> = None;
+        let mut seen = String::from("no status answered");
         while Instant::now() < until {
             let o = self.observe(Some(ANSWER_LIMIT))?;
             if let Some(s) = o.status {
+                seen = format!(
+                    "mode {}, {} params applied, μ {:?}, plant flags {:?}, fresh states {}",
+                    s.mode,
+                    s.params_applied,
+                    s.mu,
+                    o.last_state.map(|st| st.flags),
+                    s.fresh
+                );
                 let plant_ok = o
                     .last_state
                     .is_some_and(|st| st.flags & (flags::COMMAND_TIMEOUT | flags::BRAKING) == 0)
@@ -195,6 +204,8 @@ impl Soak {
             }
             std::thread::sleep(POLL);
         }
+        // What kept it from RUN, for whoever reads a failed soak's output.
+        eprintln!("chaosd-bench: soak: no recovery within {RECOVERY_LIMIT:?}; last seen: {seen}");
         Ok(None)
     }
 

@@ -391,13 +391,15 @@ fn off_path(p: &PlanarProblem, q: &[f64; 3]) -> Blocked {
     }
 }
 
-/// Why the arm at layer-0 node `a` reaches no clean cycle: the obstacle nearest to it.
+/// Why the arm at layer-0 node `a` reaches no clean cycle: the obstacle nearest to it. (With
+/// no obstacle, only the rate bound and the grid's resolution stand between: near a fold of
+/// the self-motion the grid can miss a way the arm has.)
 fn unreachable(p: &PlanarProblem, s: &PlanSettings, grid: &Grid, a: usize) -> Blocked {
     let q = grid.layers[0][a].expect("the arm's node is clean").q;
     let (c, at) = p.clearance_of(&q);
-    let near = at.map_or(String::new(), |(o, l)| {
+    let between = at.map_or(String::new(), |(o, l)| {
         format!(
-            " (nearest: link {} {c:.3} m from obstacle {})",
+            ": an obstacle stands between (nearest: link {} {c:.3} m from obstacle {})",
             l + 1,
             o + 1
         )
@@ -405,7 +407,7 @@ fn unreachable(p: &PlanarProblem, s: &PlanSettings, grid: &Grid, a: usize) -> Bl
     Blocked {
         reason: format!(
             "clean cycles exist, but none the arm can reach from its posture with its hand on \
-             the path and joint rates within {:.1} rad/s: an obstacle stands between{near}",
+             the path and joint rates within {:.1} rad/s{between}",
             s.max_rate
         ),
         best_clearance: c,
