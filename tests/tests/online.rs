@@ -37,14 +37,17 @@ impl Telemetry {
     }
 }
 
-fn mean_residual(v: &[TelemetrySample]) -> f64 {
-    let x: Vec<f64> = v
+/// The median: one host stall kicks the self-motion for a second or so (seen: 0.28 rad/s at
+/// the end of a window that had settled to 0.01), and the mean follows it.
+fn median_residual(v: &[TelemetrySample]) -> f64 {
+    let mut x: Vec<f64> = v
         .iter()
         .map(|t| t.period_residual)
         .filter(|r| r.is_finite())
         .collect();
     assert!(!x.is_empty(), "no telemetry");
-    x.iter().sum::<f64>() / x.len() as f64
+    x.sort_by(f64::total_cmp);
+    x[x.len() / 2]
 }
 
 #[test]
@@ -55,19 +58,21 @@ fn set_mu_and_dfc_on_change_the_loop_and_the_period_residual_falls() {
     tel.collect(1.5);
     let before = tel.collect(3.0);
     assert!(before.iter().all(|t| t.feedback_active == 0 && t.mu == 0.0));
-    let r_before = mean_residual(&before);
+    let r_before = median_residual(&before);
 
     let (code, out, err) = ctl(&s.ns, &["set", "mu", "0.5"]);
     assert_eq!(code, 0, "{out}{err}");
     let (code, _, err) = ctl(&s.ns, &["dfc", "on"]);
     assert_eq!(code, 0, "{err}");
-    tel.collect(9.0);
+    // Offline the feedback needs ~10 s; live, late ticks kick the self-motion (100–300
+    // overruns in this test's 20 s on this VM), and 9 s once left 0.20 rad/s against 0.10.
+    tel.collect(15.0);
     let after = tel.collect(3.0);
     assert!(
         after.iter().all(|t| t.mu == 0.5 && t.feedback_active == 1),
         "telemetry must show the new μ with the feedback applied"
     );
-    let r_after = mean_residual(&after);
+    let r_after = median_residual(&after);
     let last = after.last().unwrap();
     let series: Vec<String> = after
         .iter()
@@ -81,7 +86,8 @@ fn set_mu_and_dfc_on_change_the_loop_and_the_period_residual_falls() {
     // Offline the same start falls ~8× in 15 s; the live loop shares the machine with the test.
     assert!(
         r_after < r_before / 2.0,
-        "period residual {r_before} rad/s before, {r_after} rad/s after feedback"
+        "period residual {r_before} rad/s before, {r_after} rad/s after feedback\n{}",
+        s.daemon.log()
     );
     assert_eq!(status(&s.ns)["counters"]["params_applied"], 2);
 
