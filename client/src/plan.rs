@@ -88,6 +88,7 @@ pub fn run(a: &PlanCmd) -> Result<()> {
     let planned = plan_config_with(&cfg, 0.0, Some([q0[0], q0[1], q0[2]]), &settings)
         .map_err(|e| anyhow::anyhow!("chaosctl plan: {e}"))?;
     let (outcome, ms) = (planned.outcome, planned.took.as_secs_f64() * 1e3);
+    let loose = planned.limits_only;
     if let (Some(path), PlanOutcome::Found(c)) = (&a.csv, &outcome) {
         let dt = c.period / c.q.len() as f64;
         let mut text = String::from("t,q1,q2,q3\n");
@@ -103,16 +104,18 @@ pub fn run(a: &PlanCmd) -> Result<()> {
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
     }
     if a.json {
-        println!("{}", json(&outcome, &settings, ms));
+        println!("{}", json(&outcome, &settings, ms, loose));
     } else {
-        println!("{}", words(&outcome, &settings, ms));
+        println!("{}", words(&outcome, &settings, ms, loose));
     }
     Ok(())
 }
 
-fn json(o: &PlanOutcome, s: &PlanSettings, ms: f64) -> serde_json::Value {
+/// `limits_only`: no cycle met the settings (`--margin`, `--max-rate`), and the outcome is the
+/// plan within the filter's physical limits alone, as the daemon falls back to.
+fn json(o: &PlanOutcome, s: &PlanSettings, ms: f64, limits_only: bool) -> serde_json::Value {
     let grid = serde_json::json!({ "phases": s.phases, "postures_per_phase": 2 * s.angles });
-    match o {
+    let mut v = match o {
         PlanOutcome::Found(c) => serde_json::json!({
             "exists": true, "min_clearance_m": finite(c.min_clearance),
             "max_rate_rad_s": c.max_rate, "filter_margin": finite(c.filter_margin),
@@ -132,7 +135,9 @@ fn json(o: &PlanOutcome, s: &PlanSettings, ms: f64) -> serde_json::Value {
                 "task_time_s": b.task_time,
             },
         }),
-    }
+    };
+    v["limits_only"] = limits_only.into();
+    v
 }
 
 /// What the safety filter will do on the cycle, from its rows' smallest margin.
@@ -153,21 +158,30 @@ fn finite(x: f64) -> Option<f64> {
     x.is_finite().then_some(x)
 }
 
-fn words(o: &PlanOutcome, s: &PlanSettings, ms: f64) -> String {
+fn words(o: &PlanOutcome, s: &PlanSettings, ms: f64, limits_only: bool) -> String {
     let grid = format!("{} phases × {} postures", s.phases, 2 * s.angles);
     match o {
         PlanOutcome::Found(c) => {
-            format!(
-            "a clean cycle exists: smallest clearance {}, fastest joint {:.2} rad/s, {} (planned \
-             in {ms:.1} ms on {grid})",
-            if c.min_clearance.is_finite() {
-                format!("{:.3} m", c.min_clearance)
+            let exists = if limits_only {
+                format!(
+                    "no cycle keeps a margin of {} m at joint rates within {} rad/s; within the \
+                     filter's physical limits alone a clean cycle exists",
+                    s.margin, s.max_rate
+                )
             } else {
-                "n/a (no obstacle)".into()
-            },
-            c.max_rate,
-            filter_words(c.filter_margin)
-        ) + &c.detour.as_ref().map_or(String::new(), |d| {
+                "a clean cycle exists".into()
+            };
+            format!(
+                "{exists}: smallest clearance {}, fastest joint {:.2} rad/s, {} (planned \
+             in {ms:.1} ms on {grid})",
+                if c.min_clearance.is_finite() {
+                    format!("{:.3} m", c.min_clearance)
+                } else {
+                    "n/a (no obstacle)".into()
+                },
+                c.max_rate,
+                filter_words(c.filter_margin)
+            ) + &c.detour.as_ref().map_or(String::new(), |d| {
                 format!(
                     "; the arm reaches it by a joint-space detour of {:.2} s, tracking paused",
                     d.t_arrive - d.t_start

@@ -47,6 +47,46 @@ fn plan_says_whether_a_clean_cycle_exists_and_why_not() {
 }
 
 #[test]
+fn plan_says_when_the_users_own_bounds_are_what_fails() {
+    // No cycle of the trap's layout runs at 0.5 rad/s; the daemon falls back to the filter's
+    // physical limits, and says so instead of quietly breaking the bound.
+    let args = [
+        "--preset",
+        "demo",
+        "--obstacle",
+        "0.9,1.1,0.15",
+        "--max-rate",
+        "0.5",
+    ];
+    let (code, out, err) = plan(&args);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.starts_with("no cycle keeps a margin of 0.02 m at joint rates within 0.5 rad/s; within the filter's physical limits alone a clean cycle exists"),
+        "{out}"
+    );
+    let (_, out, _) = plan(&[&args[..], &["--json"]].concat());
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert!(v["exists"] == true && v["limits_only"] == true, "{v}");
+    let (_, out, _) = plan(&args[..4]);
+    assert!(out.starts_with("a clean cycle exists"), "{out}");
+    // A bigger disc: the rate bound fails first, then the filter would brake the cycle the
+    // physical limits allow. The reason says both, the user's bound first.
+    let (code, out, err) = plan(&[
+        "--preset",
+        "demo",
+        "--obstacle",
+        "0.9,1.1,0.3",
+        "--max-rate",
+        "1",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.starts_with("no clean cycle: clean postures exist at every phase, but none links round the period with joint rates within 1.0 rad/s; within the physical limits alone: a cycle round the obstacles exists, but the safety filter would brake it"),
+        "{out}"
+    );
+}
+
+#[test]
 fn bad_plan_input_is_refused_in_one_line() {
     for (args, says) in [
         (vec!["--obstacle", "1,2"], "expected X,Y,RADIUS"),

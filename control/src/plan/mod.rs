@@ -206,7 +206,13 @@ pub fn plan_config_with(
             let outcome = match (refined(&problem, cfg, loose), why) {
                 (Ok(c), _) => PlanOutcome::Found(c),
                 // The strict plan's braking says more than the loose plan's.
-                (Err(_), b @ Braked(_)) | (Err(b), _) => PlanOutcome::Blocked(b.into_blocked()),
+                (Err(_), b @ Braked(_)) => PlanOutcome::Blocked(b.into_blocked()),
+                // No cycle even within the physical limits says it all.
+                (Err(Unusable::NoCycle(b)), _) => PlanOutcome::Blocked(b),
+                // The settings' own bound failed first, then the filter's braking.
+                (Err(Braked(loose)), Unusable::NoCycle(strict)) => {
+                    PlanOutcome::Blocked(both(strict, loose))
+                }
             };
             (outcome, true)
         }
@@ -238,6 +244,19 @@ fn with_detour(problem: &planar::PlanarProblem, mut c: Cycle) -> PlanOutcome {
             reason: format!("{}, and {e}", why.reason),
             ..why
         }),
+    }
+}
+
+/// Why neither plan gave a usable cycle: the first try's settings (the user's own bounds, which
+/// failed first), and then the filter, which would brake the cycle the physical limits alone
+/// allow. The obstacle, link and clearance are the braking's.
+fn both(strict: Blocked, loose: Blocked) -> Blocked {
+    Blocked {
+        reason: format!(
+            "{}; within the physical limits alone: {}",
+            strict.reason, loose.reason
+        ),
+        ..loose
     }
 }
 
