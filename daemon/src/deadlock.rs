@@ -137,7 +137,8 @@ pub struct Deadlock {
     steering_wanted: bool,
     /// A trap asked for steering: it outlives later edits.
     trap_steered: bool,
-    /// The obstacles and task planned round, and whether the newest edit changed them.
+    /// The obstacles and task planned round, and whether an edit changed them since the last
+    /// plan came back.
     layout: Layout,
     layout_edited: bool,
     pub blocked: Option<BlockedState>,
@@ -217,7 +218,9 @@ impl Deadlock {
     pub fn edited(&mut self, system: &System, t: f64, q_now: Option<[f64; 3]>) {
         self.generation += 1;
         let layout = Layout::of(system);
-        self.layout_edited = layout != self.layout;
+        // Until a plan for it comes back: a μ edit right after an obstacle edit drops the
+        // obstacle's plan (stale), and its own plan is then the one for the new layout.
+        self.layout_edited |= layout != self.layout;
         self.layout = layout;
         // `set safety.plan on|off` steers, or stops; a trap's steering stays.
         let plan = system.planar().is_some_and(|c| c.safety.plan);
@@ -342,6 +345,7 @@ impl Deadlock {
         if done.generation != self.generation {
             return; // an edit came after it: its own plan is on the way
         }
+        let layout_edited = std::mem::take(&mut self.layout_edited);
         let planned = match done.result {
             Ok(p) => p,
             Err(e) => {
@@ -365,7 +369,8 @@ impl Deadlock {
                 });
                 self.unblock(t, "a clean cycle exists");
                 let hz = system.planar().map_or(1.0, |c| c.safety.plan_hz);
-                let wanted = self.steering_wanted || self.detour_forced(&c, done.why);
+                let wanted =
+                    self.steering_wanted || self.detour_forced(&c, done.why, layout_edited);
                 match Steer::of(&c, hz) {
                     Ok(steer) if wanted => {
                         if let Some(d) = &c.detour {
@@ -448,11 +453,11 @@ impl Deadlock {
     /// transient: a trap after it plans again), nor without obstacles, nor after an edit of the
     /// law alone: near a fold of its self-motion the grid can miss a way the arm has within the
     /// rate bound, and an arm no obstacle was put in the way of is not trapped.
-    fn detour_forced(&self, c: &control::plan::Cycle, why: Why) -> bool {
+    fn detour_forced(&self, c: &control::plan::Cycle, why: Why, layout_edited: bool) -> bool {
         c.detour.is_some()
             && !c.arm_off_path
             && !self.layout.obstacles.is_empty()
-            && (why != Why::Edit || self.layout_edited)
+            && (why != Why::Edit || layout_edited)
     }
 
     /// Sends what the loop has not been sent yet; a full channel is retried on the next poll.
@@ -514,11 +519,14 @@ impl Deadlock {
 mod tests {
     use super::*;
 
-    /// Edits `d` to `system` at task time `t` with the arm at `q`, and takes the plan; returns
-    /// whether the loop was sent a steering table.
-    fn steered_after_edit(d: &mut Deadlock, system: &System, t: f64, q: [f64; 3]) -> bool {
+    /// Edits `d` to each of `systems` in turn, at once, at task time `t` with the arm at `q`,
+    /// and takes the plan; returns whether the loop was sent a steering table.
+    fn steered_after_edits(d: &mut Deadlock, systems: &[System], t: f64, q: [f64; 3]) -> bool {
         let (tx, rx) = crossbeam::channel::bounded(16);
-        d.edited(system, t, Some(q));
+        for system in systems {
+            d.edited(system, t, Some(q));
+        }
+        let system = systems.last().expect("an edit");
         for _ in 0..2000 {
             d.poll(system, t, &tx, None);
             if d.plan
@@ -553,28 +561,36 @@ mod tests {
         };
         assert!(offered(&cfg), "the case is gone");
         let mut d = Deadlock::new(&System::Planar(cfg.clone()), None);
+        let open = System::Planar(cfg.clone());
         cfg.feedback.mu = 0.3;
-        assert!(!steered_after_edit(
-            &mut d,
-            &System::Planar(cfg.clone()),
-            t,
-            q
-        ));
+        let mu = System::Planar(cfg.clone());
+        assert!(!steered_after_edits(&mut d, &[mu], t, q));
         // An obstacle added (out of the arm's way: the grid's answer is the same): the edit
         // moved the layout, so the daemon cannot tell the arm is free, and takes the detour.
         cfg.control
             .obstacles
             .push(control::config::ObstacleConfig::disc(-1.5, -1.5, 0.1));
         assert!(offered(&cfg), "the case is gone");
-        assert!(steered_after_edit(
+        let with_obstacle = System::Planar(cfg.clone());
+        assert!(steered_after_edits(
             &mut d,
-            &System::Planar(cfg.clone()),
+            std::slice::from_ref(&with_obstacle),
             t,
             q
         ));
         // A law edit with the obstacle in place: not forced again.
         cfg.feedback.mu = 0.1;
-        assert!(!steered_after_edit(&mut d, &System::Planar(cfg), t, q));
+        let mu_again = System::Planar(cfg.clone());
+        assert!(!steered_after_edits(
+            &mut d,
+            std::slice::from_ref(&mu_again),
+            t,
+            q
+        ));
+        // An obstacle edit at once followed by a law edit: the first plan is dropped as stale,
+        // and the second one is still made for a new layout.
+        let d = &mut Deadlock::new(&open, None);
+        assert!(steered_after_edits(d, &[with_obstacle, mu_again], t, q));
     }
 
     #[test]
