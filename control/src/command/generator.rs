@@ -256,9 +256,16 @@ mod tests {
             assert_eq!(c.hits, [0; 7]);
             g.commit(&c);
         }
-        // 0.1 s at 0.5 rad/s²: q̇ = 0.05, q moved by 0.0025.
+        // From rest the first period ramps the acceleration up to 0.5 rad/s² (a robot sees a
+        // step in it as a jerk); 0.1 s: q̇ = 0.5 (T − h/2), q = 0.5 (T²/2 − hT/2 + h²/6).
+        let (t, h) = (0.1, 1e-3);
         let r = g.reference();
-        assert!((r.qd[0] - 0.05).abs() < 1e-12 && (r.q[0] - q[0] - 0.0025).abs() < 1e-12);
+        let (qd, dq) = (
+            0.5 * (t - h / 2.0),
+            0.5 * (t * t / 2.0 - h * t / 2.0 + h * h / 6.0),
+        );
+        assert!((r.qd[0] - qd).abs() < 1e-12, "{}", r.qd[0]);
+        assert!((r.q[0] - q[0] - dq).abs() < 1e-12, "{}", r.q[0] - q[0]);
     }
 
     #[test]
@@ -267,15 +274,17 @@ mod tests {
         let q = VecN::<7>::from_column_slice(&crate::spatial::config::PANDA_READY);
         let qd = VecN::<7>::repeat(0.1);
         g.restart(&q, &qd);
-        // On the reference, with a small q̈: RNEA alone, within the rate limit of the start.
+        // On the reference, with a small q̈: RNEA alone, within the rate limit of the start, at
+        // the stream's acceleration (which ramps from the restart's 0 to the law's q̈).
         let a = VecN::<7>::repeat(0.01);
         let c = g.next(&q, &qd, &a, &VecN::zeros());
-        let expect = model.rnea(&q, &qd, &a);
+        assert!(c.qdd.norm() == 0.0 && (c.qddd * 1e-3 - a).norm() < 1e-12);
+        let expect = model.rnea(&q, &qd, &c.qdd);
         assert!((c.tau - expect).norm() < 1e-9, "{} vs {}", c.tau, expect);
         // A reference error adds the PD.
         let off = q + VecN::<7>::repeat(1e-3);
         let c = g.next(&off, &qd, &a, &VecN::zeros());
-        let expect = model.rnea(&off, &qd, &a) - VecN::<7>::repeat(0.1);
+        let expect = model.rnea(&off, &qd, &c.qdd) - VecN::<7>::repeat(0.1);
         assert!((c.tau - expect).norm() < 1e-9);
         assert!(MotionGenerator::new(CommandMode::Torque, *g.limiter(), g.gains, None).is_err());
     }

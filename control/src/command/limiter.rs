@@ -9,8 +9,11 @@
 //! the position. Every limit is derated by a margin, and the velocity further by what three lost
 //! packets at full acceleration would add (libfranka's assumption).
 //!
-//! A value inside every limit passes bit for bit unchanged, so a run that never saturates is the
-//! run without a limiter (the planar results, with no limits at all, are untouched).
+//! With a jerk limit the commanded acceleration is continuous (see [`Limiter::step`]'s shaping):
+//! each interval ramps from the last acceleration to the law's, because a robot sees a step in
+//! acceleration as a jerk. A demand that continues the stream and stays inside every limit
+//! passes bit for bit; without any limit (the planar arm) every demand passes unchanged, so the
+//! planar results are untouched.
 
 use super::limits::JointLimits;
 use crate::arm::VecN;
@@ -191,46 +194,68 @@ impl<const N: usize> Limiter<N> {
         s
     }
 
-    /// Jerk, then acceleration, then velocity, for joint `i` (the interval's start values).
+    /// Jerk, then acceleration, then velocity, for joint `i`.
+    ///
+    /// With a jerk limit the acceleration is continuous: the interval starts at the last one and
+    /// ramps to where the law wants it at the interval's end (`qdd + qddd·h`). A robot judges
+    /// positions by finite differences, and to them a step in acceleration is a jerk as much
+    /// as a ramp is: a stream that let the step and the ramp each take the whole jerk limit
+    /// was stopped for twice it. On a continuous acceleration the finite differences are
+    /// averages of the stream's own jerk, acceleration and velocity, so bounding those bounds
+    /// what the robot sees. Without a jerk limit (the planar arm) the law's acceleration is
+    /// taken as it is.
     fn shape(&self, i: usize, last: &MotionState<N>, s: &mut Step<N>) {
         let (l, h) = (&self.l, self.dt);
-        let (v, a_last) = (last.qd[i], last.qdd[i]);
-        let mut a = s.qdd[i];
-        let mut r = s.qddd[i];
+        let (v, a0) = (last.qd[i], last.qdd[i]);
         let mut clamp = |a: &mut f64, lo: f64, hi: f64, kind: LimitKind| {
             if *a > hi || *a < lo {
                 *a = a.clamp(lo, hi.max(lo));
                 s.hits[i] |= kind.bit();
             }
         };
-        let dj = l.jerk[i] * h;
-        clamp(&mut a, a_last - dj, a_last + dj, LimitKind::Jerk);
-        // The ramp over the period is a jerk too.
-        clamp(&mut r, -l.jerk[i], l.jerk[i], LimitKind::Jerk);
         let (v_lo, v_hi) = self.velocity_bounds(i, last.q[i]);
         let (a_lo, a_hi) = self.acceleration_bounds(i, v, v_lo, v_hi);
-        clamp(&mut a, a_lo, a_hi, LimitKind::Acceleration);
-        // The hard speed limit at the end of the interval with a constant `a`.
-        let v_end = v + a * h;
+        if !l.jerk[i].is_finite() {
+            let mut a = s.qdd[i];
+            clamp(&mut a, a_lo, a_hi, LimitKind::Acceleration);
+            // The hard speed limit at the end of the interval with a constant `a`.
+            let v_end = v + a * h;
+            if v_end.abs() > l.qd[i] {
+                a = (v_end.clamp(-l.qd[i], l.qd[i]) - v) / h;
+                s.hits[i] |= LimitKind::Velocity.bit();
+            }
+            if a != s.qdd[i] {
+                s.qdd[i] = a;
+                s.qddd[i] = 0.0;
+            }
+            return;
+        }
+        let wanted = s.qdd[i] + s.qddd[i] * h;
+        let mut e = wanted;
+        let dj = l.jerk[i] * h;
+        clamp(&mut e, a0 - dj, a0 + dj, LimitKind::Jerk);
+        clamp(&mut e, a_lo, a_hi, LimitKind::Acceleration);
+        // The hard speed limit at the end of the interval, the acceleration ramping a0 → e.
+        let v_end = v + 0.5 * (a0 + e) * h;
         if v_end.abs() > l.qd[i] {
-            a = (v_end.clamp(-l.qd[i], l.qd[i]) - v) / h;
+            e = 2.0 * (v_end.clamp(-l.qd[i], l.qd[i]) - v) / h - a0;
             s.hits[i] |= LimitKind::Velocity.bit();
         }
-        if a != s.qdd[i] {
-            s.qdd[i] = a;
-            s.qddd[i] = 0.0;
-        } else {
-            s.qddd[i] = r;
+        // A demand that continues the stream and is inside every limit passes bit for bit.
+        if !(s.qdd[i] == a0 && e == wanted) {
+            s.qdd[i] = a0;
+            s.qddd[i] = (e - a0) / h;
         }
     }
 
     /// The velocity range at position `q`: the speed limit, and no faster towards a position
     /// limit than the joint can still stop from at half its acceleration limit, allowing for
-    /// the lag of the acceleration bound that follows it (`qdd / jerk` seconds at full speed).
+    /// the lag of the acceleration bound that follows it (`qdd / slope` seconds at full speed,
+    /// see [`Self::slope`]).
     fn velocity_bounds(&self, i: usize, q: f64) -> (f64, f64) {
         let l = &self.l;
         let lag = if l.jerk[i].is_finite() && l.qd[i].is_finite() {
-            l.qd[i] * l.qdd[i] / l.jerk[i]
+            l.qd[i] / self.slope(i)
         } else {
             0.0
         };
@@ -240,14 +265,23 @@ impl<const N: usize> Limiter<N> {
         (lo, hi)
     }
 
-    /// libfranka's acceleration range at velocity `v`: the bound falls linearly to 0 as `v`
-    /// nears its limit, at the slope the jerk limit allows.
+    /// How fast the acceleration bound falls with the velocity's room (1/s): two thirds of
+    /// `jerk / qdd`. The bound moves as the velocity does (up to `qdd` per second) and as the
+    /// velocity bound does near a position limit (up to `qdd / 2`, the stopping curve's
+    /// deceleration): at `jerk / qdd`, libfranka's slope, it could fall by 1.5 jerk limits and
+    /// the stream, whose jerk is limited, could not follow it.
+    fn slope(&self, i: usize) -> f64 {
+        self.l.jerk[i] / (1.5 * self.l.qdd[i])
+    }
+
+    /// The acceleration range at velocity `v`: the bound falls linearly to 0 as `v` nears its
+    /// limit, at a slope the jerk limit can follow ([`Self::slope`]).
     fn acceleration_bounds(&self, i: usize, v: f64, v_lo: f64, v_hi: f64) -> (f64, f64) {
         let (a, j) = (self.l.qdd[i], self.l.jerk[i]);
         if !(a.is_finite() && j.is_finite()) {
             return (-a, a);
         }
-        let slope = j / a;
+        let slope = self.slope(i);
         (
             (-a).max(slope * (v_lo - v)).min(a),
             a.min(slope * (v_hi - v)).max(-a),
@@ -321,14 +355,45 @@ mod tests {
         let lim = Limiter::new(&panda_limits(), 1e-3, 0.02, true);
         let a = VecN::<7>::repeat(0.5);
         let r = VecN::<7>::repeat(2.0);
-        let s = lim.step(&ready(), &a, &r);
+        // A demand that continues the stream's acceleration.
+        let moving = MotionState { qdd: a, ..ready() };
+        let s = lim.step(&moving, &a, &r);
         assert_eq!((s.qdd, s.qddd, s.hits), (a, r, [0; 7]));
         let off = Limiter::new(&panda_limits(), 1e-3, 0.02, false);
-        assert_eq!(off.step(&ready(), &a, &r).end, s.end);
+        assert_eq!(off.step(&moving, &a, &r).end, s.end);
+        // From rest, the same demand is a ramp to where the law wants the acceleration at the
+        // period's end: nothing is clamped, and the stream ends there.
+        let s = lim.step(&ready(), &a, &r);
+        assert_eq!((s.qdd, s.hits), (VecN::<7>::zeros(), [0; 7]));
+        assert!((s.end.qdd - (a + r * 1e-3)).norm() < 1e-12, "{}", s.end.qdd);
         // Without any limit (the planar arm) nothing is ever clamped.
         let none = Limiter::new(&JointLimits::<7>::NONE, 1e-3, 0.02, true);
         let huge = VecN::<7>::repeat(1e6);
         assert_eq!(none.step(&ready(), &huge, &huge).hits, [0; 7]);
+    }
+
+    /// The limits a robot finds broken on a stream of commanded positions (finite differences,
+    /// as it judges them), per joint: `Err` names the first.
+    fn judge(l: &JointLimits<7>, dt: f64, qs: &[VecN<7>]) -> Result<(), String> {
+        let max = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for i in 0..7 {
+            let v: Vec<f64> = qs.windows(2).map(|w| (w[1][i] - w[0][i]) / dt).collect();
+            let a: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
+            let j: Vec<f64> = a.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
+            if !qs.iter().all(|q| q[i] >= l.q_min[i] && q[i] <= l.q_max[i]) {
+                return Err(format!("joint {i}: position"));
+            }
+            for (what, got, limit) in [
+                ("velocity", max(&v), l.qd[i]),
+                ("acceleration", max(&a), l.qdd[i] * 1.0001),
+                ("jerk", max(&j), l.jerk[i] * 1.0001),
+            ] {
+                if got > limit {
+                    return Err(format!("joint {i}: {what} {got:.1} > {limit:.1}"));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Drives each joint hard into every limit for 3 s and checks, on the stream itself as a
@@ -350,17 +415,54 @@ mod tests {
             m = s.end;
             qs.push(m.q);
         }
-        for i in 0..7 {
-            let v: Vec<f64> = qs.windows(2).map(|w| (w[1][i] - w[0][i]) / dt).collect();
-            let a: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
-            let j: Vec<f64> = a.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
-            let max = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            assert!(qs.iter().all(|q| q[i] >= l.q_min[i] && q[i] <= l.q_max[i]));
-            assert!(max(&v) <= l.qd[i], "joint {i}: v {}", max(&v));
-            assert!(max(&a) <= l.qdd[i] * 1.0001, "joint {i}: a {}", max(&a));
-            assert!(max(&j) <= l.jerk[i] * 1.0001, "joint {i}: j {}", max(&j));
-        }
+        judge(&l, dt, &qs).unwrap();
         assert!(sat.total(LimitKind::Jerk) > 0 && sat.total(LimitKind::Acceleration) > 0);
+    }
+
+    /// A law that asks for an acceleration within reach of the last one and a steep ramp on top
+    /// (as after a hold, when the law catches the path again): the step to the acceleration and
+    /// the ramp over the period are one jerk to the robot, and together they must stay inside
+    /// its limit (a stream that let each take the whole limit was stopped for twice the jerk).
+    #[test]
+    fn a_step_and_a_ramp_together_stay_inside_the_jerk_limit() {
+        let l = panda_limits();
+        let dt = 1e-3;
+        let lim = Limiter::new(&l, dt, 0.02, true);
+        let mut m = ready();
+        let mut qs = vec![m.q];
+        let mut sat = Saturations::<7>::default();
+        let mut seed = 7u64;
+        let mut uniform = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for _ in 0..20_000 {
+            let mut qdd = VecN::<7>::zeros();
+            let mut qddd = VecN::<7>::zeros();
+            for i in 0..7 {
+                // Within one jerk-limited step of the last acceleration, and a ramp of up to
+                // twice the jerk limit, either way.
+                qdd[i] = m.qdd[i] + uniform() * l.jerk[i] * dt;
+                qddd[i] = uniform() * 2.0 * l.jerk[i];
+            }
+            let s = lim.step(&m, &qdd, &qddd);
+            sat.add(&s.hits);
+            m = s.end;
+            qs.push(m.q);
+        }
+        judge(&l, dt, &qs).unwrap();
+        // The walk pressed on the jerk and the acceleration bounds, and came near a position
+        // limit (where the acceleration bound moves fastest, and the jerk must still follow it).
+        for kind in [LimitKind::Acceleration, LimitKind::Jerk] {
+            assert!(sat.total(kind) > 0, "{kind:?}: {sat:?}");
+        }
+        let near = |i: usize| {
+            qs.iter()
+                .any(|q| q[i] - l.q_min[i] < 0.2 || l.q_max[i] - q[i] < 0.2)
+        };
+        assert!((0..7).filter(|&i| near(i)).count() >= 3);
     }
 
     #[test]
