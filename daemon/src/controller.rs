@@ -454,14 +454,18 @@ impl<const N: usize> Controller<N> {
                         // was braking, not following the last rates) the old q̇ would feed the
                         // Pyragas term lies, and catching the circle again is a re-entry.
                         self.last_qd = None;
-                        let x = arm_state::<N>(s);
-                        self.restart_generator(&x);
-                        self.restart_history(g, x.qd);
+                        self.restart_history(g, arm_state::<N>(s).qd);
                         self.guard.reenter(t);
-                    } else if s.has_flags(protocol::flags::BRAKING) {
-                        // The device is braking on its own (its answers went missing): it is
-                        // not following the stream, so the stream follows it, and starts
-                        // again from where the arm is when the device resumes.
+                    }
+                    if restarted || self.last_stamp == 0 || s.has_flags(protocol::flags::BRAKING) {
+                        // The command stream starts again exactly when the arm's does: a new
+                        // plant, or an arm braking or holding (by the device on its own, by a
+                        // brake or a hold that reached it), which follows no stream; the first
+                        // answer that reaches it starts a new one from the state it answers.
+                        // Nothing else restarts it: a COMMAND_TIMEOUT or this loop's HOLD says
+                        // what was meant, not what reached the arm (a brake sent for a state the
+                        // device has left is dropped), and a stream restarted under an arm that
+                        // went on following the old one is a jump or a jerk it stops for.
                         let x = arm_state::<N>(s);
                         self.restart_generator(&x);
                     }

@@ -210,3 +210,73 @@ fn a_set_up_that_cannot_run_is_refused_at_start_up_by_name() {
         "{all}"
     );
 }
+
+/// The VM stops a process now and then for tens of milliseconds (a CI run once lost its
+/// minute to one). Stopped, the daemon misses answers and the plant brakes the device; the
+/// bridge misses states, the device brakes on its own and the daemon holds. Each time the arm
+/// follows no stream, and the next must start exactly where the arm is: a stream restarted
+/// under an arm that went on following the old one, or carried on over an arm that was
+/// braking, is a jump or a jerk the device stops for. Here both processes are stopped, 40 ms
+/// at a time (past the device's 20 missed answers and the daemon's 20 ms hold), and the device
+/// never stops.
+#[test]
+fn position_mode_through_udp_rides_out_stalls_of_the_daemon_and_the_bridge() {
+    let _g = serial();
+    let dir = TempDir::new(&unique_namespace("position-stalls"));
+    let out = dir.path().join("out");
+    let out_s = out.to_str().unwrap();
+    let args = [
+        "demo",
+        "--robot",
+        "panda",
+        "--mode",
+        "position",
+        "--bridge",
+        "udp",
+        "--duration",
+        "20",
+        "--output",
+        out_s,
+    ];
+    let mut demo = Proc::spawn("demo", &bin("chaosd"), &args, dir.path());
+    let bridge = plant_pid(&demo);
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    for k in 0..20 {
+        let pid = if k % 2 == 0 { demo.pid() } else { bridge };
+        stall(pid, std::time::Duration::from_millis(40));
+        std::thread::sleep(std::time::Duration::from_millis(500));
+    }
+    let st = demo.wait_exit(std::time::Duration::from_secs(60));
+    assert!(st.success(), "{}", demo.log());
+    let s = read_json(&out.join("daemon-summary.json"));
+    let f = read_json(&out.join("fakebot-summary.json"));
+    assert_eq!(f["counters"]["reflex_stops"], 0, "{f}\n{}", demo.log());
+    assert_eq!(s["device_stops"], 0, "{s}");
+    assert_eq!(s["counters"]["faults"], 0, "{s}");
+    // The stalls did what they are for: the device braked, and the daemon held.
+    assert!(f["counters"]["brakes"].as_u64().unwrap() >= 1, "{f}");
+    assert!(s["counters"]["holds_entered"].as_u64().unwrap() >= 1, "{s}");
+}
+
+/// The bridge's pid, from the demo's first line.
+fn plant_pid(demo: &Proc) -> u32 {
+    let until = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    loop {
+        let log = demo.log();
+        if let Some(rest) = log.split("plant pid ").nth(1) {
+            let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
+            return digits.parse().unwrap();
+        }
+        assert!(std::time::Instant::now() < until, "no plant pid: {log}");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}
+
+/// Stops a process for `d`, as a host that takes its vCPU away does.
+fn stall(pid: u32, d: std::time::Duration) {
+    // SAFETY: kill(2) on a process this test started (or its child); SIGCONT always follows.
+    unsafe { libc::kill(pid as i32, libc::SIGSTOP) };
+    std::thread::sleep(d);
+    // SAFETY: as above.
+    unsafe { libc::kill(pid as i32, libc::SIGCONT) };
+}

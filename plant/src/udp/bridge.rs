@@ -8,7 +8,9 @@
 //! and followed. Malformed, foreign and out-of-order datagrams are counted and dropped.
 
 use super::wait::{poll_datagram, Window};
-use super::wire::{DeviceCommand, DeviceMode, DeviceState, COMMAND_LEN, DEVICE_BRAKING, STATE_LEN};
+use super::wire::{
+    DeviceCommand, DeviceMode, DeviceState, COMMAND_LEN, DEVICE_BRAKING, DEVICE_HOLDING, STATE_LEN,
+};
 use crate::seam::{Actuation, Plant, PlantError};
 use protocol::{flags, monotonic_ns, StateSample, MAX_JOINTS};
 use rt::news::{Courier, Note, Poster};
@@ -292,7 +294,9 @@ impl Plant for UdpBridge {
     fn flags(&self) -> u32 {
         match self.last {
             Some(s) if s.status != 0 => flags::FAULT | flags::BRAKING,
-            Some(s) if s.flags & DEVICE_BRAKING != 0 => flags::BRAKING,
+            // Holding or braking, the device follows no stream (as the simulator, it says
+            // BRAKING): the daemon's next answer must start one from where the arm is.
+            Some(s) if s.flags & (DEVICE_BRAKING | DEVICE_HOLDING) != 0 => flags::BRAKING,
             _ => 0,
         }
     }

@@ -405,7 +405,8 @@ impl<const N: usize> Device<'_, N> {
         self.c.answered_in_time += 1;
         self.s.started = true;
         self.s.missed_run = 0;
-        self.s.braking = false;
+        // Told to brake, the arm is braking until a new stream starts (the state says so).
+        self.s.braking = cmd.mode == DeviceMode::Brake;
         self.s.holding = cmd.mode == DeviceMode::Hold;
         let a = match cmd.mode {
             DeviceMode::Run if self.s.stopped.is_some() => Actuation::Brake,
