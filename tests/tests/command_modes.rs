@@ -128,7 +128,7 @@ fn with_the_limiter_the_same_run_keeps_the_device_running_and_tracks() {
     assert!(!all.contains("limiter OFF"), "{all}");
     assert_eq!(s["device_stops"], 0, "{s}");
     assert_eq!(f["counters"]["reflex_stops"], 0, "{f}");
-    assert_eq!(s["counters"]["faults"], 0, "{s}");
+    assert_eq!(s["counters"]["faults"], 0, "{all}");
     // The limiter did the work: it clamped joints where the law asked too much.
     let clamped: u64 = s["command"]["counts"]
         .as_array()

@@ -175,8 +175,12 @@ impl<const N: usize> MotionGenerator<N> {
     }
 
     /// [`Self::next`] for a command that comes `periods` periods after the last one (states
-    /// went missing in between): the reference moves on over the whole time, the law's ramp
-    /// continuing, as the device's own reference did. Changes nothing.
+    /// went missing in between): the reference moves on over the whole time, as the device's
+    /// own did. Over the first period it follows the law's ramp, limited; after it, the
+    /// stream's acceleration at that period's end is held. The ramp is a one-period prediction:
+    /// carried on over a gap of tens of periods at the jerk limit (a stiff law's ramp is
+    /// steep), it took the reference off the path, and the law then asked for more than the
+    /// arm can do. Changes nothing.
     pub fn next_over(
         &self,
         q: &VecN<N>,
@@ -191,6 +195,7 @@ impl<const N: usize> MotionGenerator<N> {
         let mut g = self.clone();
         let mut hits = [0u8; N];
         let mut c = g.next(q, qd, qdd, qddd);
+        let held = c.qdd + c.qddd * self.limiter_dt();
         for _ in 1..periods {
             hits.iter_mut().zip(&c.hits).for_each(|(h, x)| *h |= x);
             g.reference = MotionState {
@@ -198,8 +203,7 @@ impl<const N: usize> MotionGenerator<N> {
                 qd: c.qd,
                 qdd: c.qdd + c.qddd * self.limiter_dt(),
             };
-            let a = c.qdd + c.qddd * self.limiter_dt();
-            c = g.next(q, qd, &a, &c.qddd);
+            c = g.next(q, qd, &held, &VecN::<N>::zeros());
         }
         hits.iter_mut().zip(&c.hits).for_each(|(h, x)| *h |= x);
         c.hits = hits;
@@ -266,6 +270,21 @@ mod tests {
         );
         assert!((r.qd[0] - qd).abs() < 1e-12, "{}", r.qd[0]);
         assert!((r.q[0] - q[0] - dq).abs() < 1e-12, "{}", r.q[0] - q[0]);
+    }
+
+    #[test]
+    fn over_a_gap_the_reference_holds_the_acceleration_the_first_period_reached() {
+        let (mut g, _) = panda(CommandMode::Position);
+        let q = VecN::<7>::from_column_slice(&crate::spatial::config::PANDA_READY);
+        g.restart(&q, &VecN::zeros());
+        // A steep ramp (2000 rad/s³, inside every joint's jerk limit), answered 20 periods late:
+        // the first period ramps to 2 rad/s², and the rest of the gap holds it; carried on, the
+        // ramp would have reached the acceleration limits.
+        let ramp = VecN::<7>::repeat(2000.0);
+        let c = g.next_over(&q, &VecN::zeros(), &VecN::zeros(), &ramp, 20);
+        let end = c.qdd + c.qddd * 1e-3;
+        assert!((end - VecN::<7>::repeat(2.0)).amax() < 1e-9, "{end}");
+        assert_eq!(c.hits, [0; 7]);
     }
 
     #[test]
