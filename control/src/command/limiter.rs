@@ -398,24 +398,34 @@ mod tests {
 
     /// Drives each joint hard into every limit for 3 s and checks, on the stream itself as a
     /// robot would (finite differences of the commanded positions), that no limit is ever broken.
-    #[test]
-    fn a_violent_demand_gives_a_stream_inside_every_limit() {
-        let l = panda_limits();
-        let dt = 1e-3;
-        let lim = Limiter::new(&l, dt, 0.02, true);
+    /// The commanded positions and the clamps of `steps` periods from the ready posture at
+    /// rest, each asked `demand(k, last)` = (q̈, q⃛), through the Panda's limiter (margin 0.02).
+    fn drive(
+        steps: usize,
+        mut demand: impl FnMut(usize, &MotionState<7>) -> (VecN<7>, VecN<7>),
+    ) -> (Vec<VecN<7>>, Saturations<7>) {
+        let lim = Limiter::new(&panda_limits(), 1e-3, 0.02, true);
         let mut m = ready();
         let mut qs = vec![m.q];
         let mut sat = Saturations::<7>::default();
-        for k in 0..3000 {
-            // Full speed towards the upper limits, then a sudden reversal.
-            let sign = if k < 1500 { 1.0 } else { -1.0 };
-            let demand = VecN::<7>::repeat(sign * 1e4);
-            let s = lim.step(&m, &demand, &VecN::<7>::zeros());
+        for k in 0..steps {
+            let (qdd, qddd) = demand(k, &m);
+            let s = lim.step(&m, &qdd, &qddd);
             sat.add(&s.hits);
             m = s.end;
             qs.push(m.q);
         }
-        judge(&l, dt, &qs).unwrap();
+        (qs, sat)
+    }
+
+    #[test]
+    fn a_violent_demand_gives_a_stream_inside_every_limit() {
+        let (qs, sat) = drive(3000, |k, _| {
+            // Full speed towards the upper limits, then a sudden reversal.
+            let sign = if k < 1500 { 1.0 } else { -1.0 };
+            (VecN::<7>::repeat(sign * 1e4), VecN::<7>::zeros())
+        });
+        judge(&panda_limits(), 1e-3, &qs).unwrap();
         assert!(sat.total(LimitKind::Jerk) > 0 && sat.total(LimitKind::Acceleration) > 0);
     }
 
@@ -425,20 +435,15 @@ mod tests {
     /// its limit (a stream that let each take the whole limit was stopped for twice the jerk).
     #[test]
     fn a_step_and_a_ramp_together_stay_inside_the_jerk_limit() {
-        let l = panda_limits();
-        let dt = 1e-3;
-        let lim = Limiter::new(&l, dt, 0.02, true);
-        let mut m = ready();
-        let mut qs = vec![m.q];
-        let mut sat = Saturations::<7>::default();
+        let (l, dt) = (panda_limits(), 1e-3);
         let mut seed = 7u64;
-        let mut uniform = || {
+        let mut uniform = move || {
             seed = seed
                 .wrapping_mul(6364136223846793005)
                 .wrapping_add(1442695040888963407);
             (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
         };
-        for _ in 0..20_000 {
+        let (qs, sat) = drive(20_000, |_, m| {
             let mut qdd = VecN::<7>::zeros();
             let mut qddd = VecN::<7>::zeros();
             for i in 0..7 {
@@ -447,11 +452,8 @@ mod tests {
                 qdd[i] = m.qdd[i] + uniform() * l.jerk[i] * dt;
                 qddd[i] = uniform() * 2.0 * l.jerk[i];
             }
-            let s = lim.step(&m, &qdd, &qddd);
-            sat.add(&s.hits);
-            m = s.end;
-            qs.push(m.q);
-        }
+            (qdd, qddd)
+        });
         judge(&l, dt, &qs).unwrap();
         // The walk pressed on the jerk and the acceleration bounds, and came near a position
         // limit (where the acceleration bound moves fastest, and the jerk must still follow it).
