@@ -224,6 +224,7 @@ fn panda_params(arm: &SpatialArm<7>, kind: TaskKind) -> (SpatialParams, V7) {
         track_loss: 0.05,
         pause: false,
         auto_mu: None,
+        steer: None,
     };
     (p, q0)
 }

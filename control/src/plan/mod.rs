@@ -15,6 +15,7 @@ pub mod detour;
 pub mod planar;
 mod policy;
 pub mod refine;
+pub mod spatial;
 mod table;
 
 pub use policy::{check_trap_time, WhenBlocked, DEFAULT_TRAP_TIME};
@@ -40,6 +41,9 @@ pub struct PlanSettings {
     /// faster approach, and a cycle that approaches faster is braked off its path. Judged on
     /// each posture's nearest obstacle, between consecutive phases.
     pub approach: f64,
+    /// The share of each joint's rate limit a spatial cycle may use (the planar grid has its
+    /// own bound, `max_rate`): the rest is the filter's room to act without braking the cycle.
+    pub rate_share: f64,
 }
 
 impl PlanSettings {
@@ -52,6 +56,7 @@ impl PlanSettings {
             joint_margin: 0.0,
             max_rate,
             approach: f64::INFINITY,
+            rate_share: 1.0,
             ..Self::default()
         }
     }
@@ -67,6 +72,7 @@ impl Default for PlanSettings {
             max_rate: 8.0,
             candidates: 6,
             approach: 10.0,
+            rate_share: 0.6,
         }
     }
 }

@@ -595,7 +595,7 @@ mod tests {
         let PlanOutcome::Found(c) = plan(&p, &s) else {
             panic!()
         };
-        let table = super::super::CycleTable::new(&c).unwrap();
+        let table = super::super::CycleTable::<3>::new(&c).unwrap();
         let dt = c.period / c.q.len() as f64;
         for k in [0, 3, 17, 63] {
             let q = table.sample(c.t0 + k as f64 * dt).q;

@@ -14,19 +14,21 @@ use crate::analysis::closed_loop::wrap_angle;
 /// The most phases a cycle handed to the loop may have.
 pub const MAX_PHASES: usize = 64;
 
-/// A planar cycle in a fixed-size, `Copy` table: what the control law steers towards. Built
-/// off the loop from a [`super::Cycle`]; read on the loop without allocating.
+/// A cycle of `N` joints in a fixed-size, `Copy` table: what the control law steers towards
+/// (`N` = 3 on the planar arm, [`crate::config::MAX_JOINTS`] on a spatial one, whose unused
+/// joints stay zero). Built off the loop from a [`super::Cycle`]; read on the loop without
+/// allocating.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CycleTable {
+pub struct CycleTable<const N: usize = 3> {
     pub t0: f64,
     pub period: f64,
     n: usize,
     /// The planned postures, one per phase (a recording keeps these).
-    q: [[f64; 3]; MAX_PHASES],
+    q: [[f64; N]; MAX_PHASES],
     /// The spline's control points, less the ramp `turns · k / n` (periodic).
-    c: [[f64; 3]; MAX_PHASES],
+    c: [[f64; N]; MAX_PHASES],
     /// Whole turns each joint makes once round the cycle (rad: a multiple of 2π).
-    turns: [f64; 3],
+    turns: [f64; N],
 }
 
 /// The uniform cubic B-spline's four weights at `u` ∈ [0, 1) of a span, and their first and
@@ -53,42 +55,49 @@ pub(super) fn basis(u: f64) -> ([f64; 4], [f64; 4], [f64; 4]) {
 
 /// The planned posture, rate and acceleration at one task time.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Sample {
-    pub q: [f64; 3],
-    pub qd: [f64; 3],
-    pub qdd: [f64; 3],
+pub struct Sample<const N: usize = 3> {
+    pub q: [f64; N],
+    pub qd: [f64; N],
+    pub qdd: [f64; N],
 }
 
-impl CycleTable {
-    /// The table of a 3-joint cycle of at most [`MAX_PHASES`] phases.
+impl<const N: usize> CycleTable<N> {
+    /// The table of a cycle of at most [`MAX_PHASES`] phases and at most `N` joints (the
+    /// joints past the cycle's stay zero).
     pub fn new(c: &super::Cycle) -> Result<Self, String> {
-        if c.q.is_empty() || c.q.len() > MAX_PHASES || c.q.iter().any(|q| q.len() != 3) {
+        let joints = c.q.first().map_or(0, Vec::len);
+        let bad = c.q.iter().any(|q| q.len() != joints) || joints == 0 || joints > N;
+        if c.q.is_empty() || c.q.len() > MAX_PHASES || bad {
             return Err(format!(
-                "a cycle of 1 to {MAX_PHASES} phases of 3 joints (this one has {} phases)",
+                "a cycle of 1 to {MAX_PHASES} phases of 1 to {N} joints (this one has {} \
+                 phases of {joints})",
                 c.q.len()
             ));
         }
-        let rows: Vec<[f64; 3]> = c.q.iter().map(|p| [p[0], p[1], p[2]]).collect();
+        let rows: Vec<[f64; N]> =
+            c.q.iter()
+                .map(|p| std::array::from_fn(|i| p.get(i).copied().unwrap_or(0.0)))
+                .collect();
         Self::from_rows(c.t0, c.period, &rows)
     }
 
     /// The table of `rows` postures (as [`Self::rows`] gives them back: a recording's copy).
-    pub fn from_rows(t0: f64, period: f64, rows: &[[f64; 3]]) -> Result<Self, String> {
+    pub fn from_rows(t0: f64, period: f64, rows: &[[f64; N]]) -> Result<Self, String> {
         let n = rows.len();
         if n == 0 || n > MAX_PHASES {
             return Err(format!(
                 "a cycle of 1 to {MAX_PHASES} phases (this one has {n})"
             ));
         }
-        let mut q = [[0.0; 3]; MAX_PHASES];
+        let mut q = [[0.0; N]; MAX_PHASES];
         // Unwrapped along the cycle, so the spline never jumps by a turn between phases.
         q[0] = rows[0];
         for k in 1..n {
-            for i in 0..3 {
+            for i in 0..N {
                 q[k][i] = q[k - 1][i] + wrap_angle(rows[k][i] - q[k - 1][i]);
             }
         }
-        let mut turns = [0.0; 3];
+        let mut turns = [0.0; N];
         for (i, t) in turns.iter_mut().enumerate() {
             *t = q[n - 1][i] + wrap_angle(q[0][i] - q[n - 1][i]) - q[0][i];
         }
@@ -96,8 +105,8 @@ impl CycleTable {
             t0,
             period,
             n,
-            q: [[0.0; 3]; MAX_PHASES],
-            c: [[0.0; 3]; MAX_PHASES],
+            q: [[0.0; N]; MAX_PHASES],
+            c: [[0.0; N]; MAX_PHASES],
             turns,
         };
         table.q[..n].copy_from_slice(rows);
@@ -109,12 +118,12 @@ impl CycleTable {
     /// cyclic, diagonally dominant system, solved by Gauss–Seidel sweeps (each halves the error
     /// at least: 60 reach the last bit). The ramp is taken out first, as a B-spline reproduces
     /// straight lines, so the system is periodic.
-    fn fit(&mut self, q: &[[f64; 3]; MAX_PHASES]) {
+    fn fit(&mut self, q: &[[f64; N]; MAX_PHASES]) {
         let n = self.n;
         let ramp = |i: usize, k: usize| self.turns[i] * k as f64 / n as f64;
-        let mut target = [[0.0; 3]; MAX_PHASES];
+        let mut target = [[0.0; N]; MAX_PHASES];
         for k in 0..n {
-            for i in 0..3 {
+            for i in 0..N {
                 target[k][i] = q[k][i] - ramp(i, k);
             }
         }
@@ -122,7 +131,7 @@ impl CycleTable {
         for _ in 0..60 {
             for k in 0..n {
                 let (a, b) = ((k + n - 1) % n, (k + 1) % n);
-                for i in 0..3 {
+                for i in 0..N {
                     c[k][i] = (6.0 * target[k][i] - c[a][i] - c[b][i]) / 4.0;
                 }
             }
@@ -131,17 +140,17 @@ impl CycleTable {
     }
 
     /// The postures, one per phase.
-    pub fn rows(&self) -> &[[f64; 3]] {
+    pub fn rows(&self) -> &[[f64; N]] {
         &self.q[..self.n]
     }
 
     /// Control point `k` (any integer: periodic, plus the turns made on the way).
     #[inline]
-    fn control(&self, k: i64) -> [f64; 3] {
+    fn control(&self, k: i64) -> [f64; N] {
         let n = self.n as i64;
         let base = &self.c[k.rem_euclid(n) as usize];
-        let mut out = [0.0; 3];
-        for i in 0..3 {
+        let mut out = [0.0; N];
+        for i in 0..N {
             out[i] = base[i] + self.turns[i] * k as f64 / n as f64;
         }
         out
@@ -149,19 +158,19 @@ impl CycleTable {
 
     /// The planned posture, rate and acceleration at task time `t` (periodic).
     #[inline]
-    pub fn sample(&self, t: f64) -> Sample {
+    pub fn sample(&self, t: f64) -> Sample<N> {
         let dt = self.period / self.n as f64;
         let x = (t - self.t0).rem_euclid(self.period) / dt;
         let k = (x.floor() as i64).min(self.n as i64 - 1);
         let (b, db, ddb) = basis(x - k as f64);
         let mut s = Sample {
-            q: [0.0; 3],
-            qd: [0.0; 3],
-            qdd: [0.0; 3],
+            q: [0.0; N],
+            qd: [0.0; N],
+            qdd: [0.0; N],
         };
         for j in 0..4 {
             let c = self.control(k - 1 + j as i64);
-            for i in 0..3 {
+            for i in 0..N {
                 s.q[i] += b[j] * c[i];
                 s.qd[i] += db[j] * c[i] / dt;
                 s.qdd[i] += ddb[j] * c[i] / (dt * dt);
@@ -172,7 +181,7 @@ impl CycleTable {
 
     /// The planned posture and rate at task time `t`.
     #[inline]
-    pub fn at(&self, t: f64) -> ([f64; 3], [f64; 3]) {
+    pub fn at(&self, t: f64) -> ([f64; N], [f64; N]) {
         let s = self.sample(t);
         (s.q, s.qd)
     }

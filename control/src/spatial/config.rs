@@ -214,8 +214,15 @@ pub struct LimitsSection {
     /// Per-joint acceleration limits; default: the robot's published ones (Panda) or 10.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub qdd_max: Option<Vec<f64>>,
+    /// Steer the self-motion onto a planned clean cycle ([`crate::plan::spatial`]), so the
+    /// filter cannot hold the arm off its path. Off by default, as on the planar arm: every
+    /// result measured without it stays as it is; the daemon steers after a trap either way.
+    pub plan: bool,
+    /// The pull's natural frequency (Hz), critically damped.
+    pub plan_hz: f64,
     /// Daemon: tracking lost, or the filter acting outside the null space, for this long (s)
-    /// → the arm is trapped, and the daemon says `Blocked` (no planner for a URDF chain yet).
+    /// → the arm is trapped: the daemon steers onto a cycle planned from where the arm is, or
+    /// says `Blocked`.
     pub trap_time: f64,
     /// Daemon: what to do while blocked: `hold` or `best-effort`.
     pub when_blocked: crate::plan::WhenBlocked,
@@ -228,6 +235,8 @@ impl Default for LimitsSection {
             clearance: 0.02,
             velocity_scale: 1.0,
             qdd_max: None,
+            plan: false,
+            plan_hz: 1.0,
             trap_time: crate::plan::DEFAULT_TRAP_TIME,
             when_blocked: crate::plan::WhenBlocked::Hold,
         }
@@ -391,6 +400,10 @@ impl SpatialConfig {
             &step,
         )?;
         crate::plan::check_trap_time(self.safety.trap_time)?;
+        let hz = self.safety.plan_hz;
+        if !(hz > 0.0 && hz <= 20.0) {
+            return Err(invalid("safety.plan_hz", hz, "a number in (0, 20]"));
+        }
         let s = self.safety.velocity_scale;
         if !(s > 0.0 && s <= 1.0) {
             return Err(invalid("safety.velocity_scale", s, "a number in (0, 1]"));
@@ -514,6 +527,28 @@ impl SpatialConfig {
     }
 
     /// Checks the file against `chain` and builds the run; `N` must be the chain's joint count.
+    /// [`Self::setup`] with the steering onto a planned clean cycle when `safety.plan` asks for
+    /// it (the filter on), planned from the start posture; and why there is none, when the
+    /// planner found none (the law then runs without it).
+    pub fn setup_planned<const N: usize>(
+        &self,
+        chain: &Chain,
+    ) -> Result<(SpatialSetup<N>, Option<crate::plan::Blocked>), ConfigError> {
+        use crate::plan::{spatial, PlanOutcome, PlanSettings};
+        let mut set = self.setup::<N>(chain)?;
+        if !(self.safety.enabled && self.safety.plan) {
+            return Ok((set, None));
+        }
+        let planned = spatial::plan_setup(&set, 0.0, Some(set.q0), &PlanSettings::default());
+        match planned.outcome {
+            PlanOutcome::Found(c) => {
+                set.params.steer = spatial::SpatialSteer::of(&c, self.safety.plan_hz).ok();
+                Ok((set, None))
+            }
+            PlanOutcome::Blocked(b) => Ok((set, Some(b))),
+        }
+    }
+
     pub fn setup<const N: usize>(&self, chain: &Chain) -> Result<SpatialSetup<N>, ConfigError> {
         self.check()?;
         let model = chain
@@ -599,6 +634,7 @@ impl SpatialConfig {
             safety,
             track_loss: self.law.track_loss,
             pause: false,
+            steer: None,
         };
         Ok(SpatialSetup {
             arm,

@@ -59,6 +59,9 @@ pub struct SpatialParams {
     pub pause: bool,
     /// `feedback.mu = "auto"`: the caller adapts `mu` after each step ([`crate::adapt`]).
     pub auto_mu: Option<crate::adapt::AutoMu>,
+    /// A planned clean cycle to steer the self-motion onto ([`crate::plan::spatial`]); it
+    /// replaces the secondary task, as on the planar arm.
+    pub steer: Option<crate::plan::spatial::SpatialSteer>,
 }
 
 impl SpatialParams {
@@ -134,7 +137,13 @@ pub fn evaluate<const N: usize, const M: usize>(
         - kin.jdot_qd;
     let task_acc: SVector<f64, M> = sec::rows::<M>(&desired);
 
-    let (secondary_value, eta) = match params.secondary {
+    // Steering onto a planned cycle replaces the secondary task: both shape the self-motion.
+    let secondary = if params.steer.is_some() {
+        SpatialSecondary::None
+    } else {
+        params.secondary
+    };
+    let (secondary_value, eta) = match secondary {
         SpatialSecondary::None => (0.0, None),
         SpatialSecondary::Manipulability => {
             let (w, g) = sec::manipulability(arm, kin, &j);
@@ -166,6 +175,9 @@ pub fn evaluate<const N: usize, const M: usize>(
         projection: params.projection,
     };
     let mut qdd = resolve(&j, &jpinv, &task_acc, &terms);
+    if let Some(s) = &params.steer {
+        qdd += s.pull(t, q, qd, &j, &jpinv);
+    }
     if params.null_damping != 0.0 {
         qdd -= (qd - jpinv * (j * qd)) * params.null_damping;
     }

@@ -1,0 +1,336 @@
+//! The planner for a spatial arm: a clean periodic posture cycle for a URDF chain with several
+//! redundant joints, found by optimisation in the null space.
+//!
+//! The planar arm's self-motion is one angle, so its planner can grid the whole (phase × angle)
+//! cylinder and prove that no cycle exists. A 7-joint arm on a position task has four redundant
+//! joints: no grid reaches that, so this planner samples and optimises. It rolls a cycle from a
+//! start posture once round the path (the smallest joint motion at each phase), then relaxes it
+//! ([`relax`]): each phase slides along its own self-motion, away from the spheres and the joint
+//! limits and towards its neighbours, so the cycle closes and keeps its rates low. Starts are
+//! the arm's own posture first, then postures spread over the joint box and put on the path.
+//! The first cycle that passes [`check`] (margins at the phases, the filter's limits and
+//! barrier rows on the loop's spline between them) is the plan.
+//!
+//! What this cannot do is prove that no cycle exists: `Blocked` here means that none of the
+//! starts relaxed into a clean cycle, with the shortfall of the best one, unless the path
+//! itself runs through a sphere, which it says as such. Like the planar planner it allocates
+//! and takes milliseconds, off the loop.
+
+mod check;
+mod cost;
+mod relax;
+mod steer;
+
+pub use check::{Fault, Shortfall, Verdict};
+pub use cost::Nearest;
+pub use steer::SpatialSteer;
+
+use super::{Blocked, Cycle, PlanOutcome, PlanSettings, Planned};
+use crate::spatial::arm::{SpatialArm, VecN};
+use crate::spatial::SpatialParams;
+
+/// Sweeps of the relaxation per start, at most, and how often the cycle is judged.
+const SWEEPS: usize = 400;
+const JUDGE_EVERY: usize = 20;
+/// Tool-path samples for the check that the path itself clears every sphere.
+const PATH_SAMPLES: usize = 256;
+
+/// What the spatial planner plans round: the arm and its law (the task, the spheres, the
+/// filter's limits), run at step `dt`, from task time `t0` near posture `q_now`.
+#[derive(Clone, Copy, Debug)]
+pub struct SpatialProblem<const N: usize> {
+    pub arm: SpatialArm<N>,
+    pub law: SpatialParams,
+    pub dt: f64,
+    pub t0: f64,
+    pub q_now: Option<VecN<N>>,
+}
+
+/// Starts after the arm's own posture: postures spread over the joint box (a fixed sequence,
+/// so a plan is the same every time).
+fn spread<const N: usize>(p: &SpatialProblem<N>, count: usize) -> Vec<VecN<N>> {
+    let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut uniform = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..count)
+        .map(|_| {
+            VecN::<N>::from_fn(|i, _| {
+                let (lo, hi) = (
+                    p.law.safety.q_min[i].max(-3.0),
+                    p.law.safety.q_max[i].min(3.0),
+                );
+                let mid = 0.5 * (lo + hi);
+                mid + (uniform() - 0.5) * 0.7 * (hi - lo)
+            })
+        })
+        .collect()
+}
+
+impl<const N: usize> SpatialProblem<N> {
+    /// How near the path itself comes to a sphere: the hand's link is on it wherever the arm
+    /// is, so no cycle keeps more clearance than this. Returns (clearance (m), sphere, task
+    /// time), None without spheres.
+    fn path_clearance(&self) -> Option<(f64, usize, f64)> {
+        let period = self.law.task.path.period;
+        let reach = self.arm.radii[N - 1];
+        let mut worst: Option<(f64, usize, f64)> = None;
+        for k in 0..PATH_SAMPLES {
+            let t = self.t0 + period * k as f64 / PATH_SAMPLES as f64;
+            let x = self.law.task.path.position(t);
+            for (i, s) in self.law.spheres.as_slice().iter().enumerate() {
+                let c = (x - s.center).norm() - s.radius - reach;
+                if worst.is_none_or(|w| c < w.0) {
+                    worst = Some((c, i, t));
+                }
+            }
+        }
+        worst
+    }
+
+    /// No cycle at all: the path runs within the filter's clearance of a sphere.
+    fn path_blocked(&self) -> Option<Blocked> {
+        let (c, i, t) = self.path_clearance()?;
+        let need = self.law.safety.clearance;
+        (c < need).then(|| Blocked {
+            reason: format!(
+                "the path runs through obstacle {}: at task time {t:.3} s the hand's link {} \
+                 would be {c:.3} m from it, and the filter keeps {need} m",
+                i + 1,
+                N,
+            ),
+            best_clearance: c,
+            obstacle: Some(i),
+            link: Some(N - 1),
+            task_time: t,
+        })
+    }
+
+    /// The settings' margin, less where the path itself leaves less (the hand cannot keep more
+    /// than the path does: only the rest of the arm keeps the whole margin).
+    fn margin_within_path(&self, s: &PlanSettings) -> PlanSettings {
+        let room = self
+            .path_clearance()
+            .map_or(f64::INFINITY, |(c, _, _)| c - self.law.safety.clearance);
+        PlanSettings {
+            margin: s.margin.min(0.9 * room).max(0.0),
+            ..*s
+        }
+    }
+
+    /// Relaxes a cycle rolled from `start`; returns the postures and their verdict.
+    fn relax_from<const M: usize>(
+        &self,
+        start: &VecN<N>,
+        s: &PlanSettings,
+    ) -> Option<(Vec<VecN<N>>, Verdict)> {
+        let mut q0 = *start;
+        if self.project::<M>(self.t0, &mut q0, 50, 1e-9) > 1e-6 {
+            return None; // this start does not reach the path
+        }
+        let mut cycle = self.roll_out::<M>(&q0, s.phases)?;
+        let mut verdict = self.check::<M>(&cycle, s);
+        for sweep in 1..=SWEEPS {
+            self.sweep::<M>(&mut cycle, s);
+            if sweep % JUDGE_EVERY == 0 || sweep == SWEEPS {
+                for (k, q) in cycle.iter_mut().enumerate() {
+                    self.project::<M>(self.phase_time(k, s.phases), q, 5, 1e-12);
+                }
+                verdict = self.check::<M>(&cycle, s);
+                if verdict.worst.is_none() {
+                    break;
+                }
+            }
+        }
+        Some((cycle, verdict))
+    }
+
+    /// Plans with settings `s`: the first clean cycle of the starts, or why there is none.
+    pub fn plan<const M: usize>(&self, s: &PlanSettings) -> PlanOutcome {
+        if let Some(b) = self.path_blocked() {
+            return PlanOutcome::Blocked(b);
+        }
+        let s = &self.margin_within_path(s);
+        let mut starts: Vec<VecN<N>> = self.q_now.into_iter().collect();
+        starts.extend(spread(self, s.candidates.max(1)));
+        let mut best: Option<Shortfall> = None;
+        let mut tried = 0;
+        for start in &starts {
+            let Some((cycle, verdict)) = self.relax_from::<M>(start, s) else {
+                continue;
+            };
+            tried += 1;
+            match verdict.worst {
+                None => {
+                    let q: Vec<Vec<f64>> = cycle.iter().map(|p| p.as_slice().to_vec()).collect();
+                    return PlanOutcome::Found(self.cycle_of(&q, &verdict));
+                }
+                Some(w) if best.is_none_or(|b| w.by < b.by) => best = Some(w),
+                Some(_) => {}
+            }
+        }
+        PlanOutcome::Blocked(self.no_cycle(best, tried, starts.len()))
+    }
+
+    /// The planned cycle of postures `q` (one per phase) with verdict `v`'s numbers.
+    fn cycle_of(&self, q: &[Vec<f64>], v: &Verdict) -> Cycle {
+        Cycle {
+            t0: self.t0,
+            period: self.law.task.path.period,
+            q: q.to_vec(),
+            min_clearance: v.min_clearance,
+            max_rate: v.max_rate,
+            filter_margin: v.filter_margin,
+            unreachable: None,
+            arm_off_path: false,
+            detour: None,
+        }
+    }
+
+    /// Why none of the starts gave a clean cycle, in words: the best one's shortfall.
+    fn no_cycle(&self, best: Option<Shortfall>, tried: usize, starts: usize) -> Blocked {
+        let Some(w) = best else {
+            return Blocked {
+                reason: format!("none of {starts} starts puts the hand on the path"),
+                best_clearance: f64::NAN,
+                obstacle: None,
+                link: None,
+                task_time: self.t0,
+            };
+        };
+        let (what, obstacle, link) = match w.fault {
+            Fault::Sphere { sphere, link } => (
+                format!(
+                    "link {} comes {:.3} m too near obstacle {}",
+                    link + 1,
+                    w.by,
+                    sphere + 1
+                ),
+                Some(sphere),
+                Some(link),
+            ),
+            Fault::Braked { sphere, link } => (
+                format!(
+                    "the safety filter brakes the hand off its path (by {:.1e} m), link {} \
+                     nearest obstacle {} (a slower task helps)",
+                    w.by,
+                    link + 1,
+                    sphere + 1,
+                ),
+                Some(sphere),
+                Some(link),
+            ),
+            Fault::Limit { joint } => (
+                format!(
+                    "joint {} comes {:.3} rad too near its limit",
+                    joint + 1,
+                    w.by
+                ),
+                None,
+                None,
+            ),
+            Fault::Rate { joint } => (
+                format!("joint {} moves {:.2} rad/s too fast", joint + 1, w.by),
+                None,
+                None,
+            ),
+            Fault::Path => ("the hand does not stay on the path".into(), None, None),
+        };
+        let mut kin = Default::default();
+        let clearance = self.q_now.map_or(f64::NAN, |q| {
+            self.kin(&q, &mut kin);
+            self.nearest(&kin).clearance
+        });
+        Blocked {
+            reason: format!(
+                "no clean cycle found from {tried} starts on the path: the best one's worst \
+                 point, at task time {:.3} s: {what}",
+                w.t
+            ),
+            best_clearance: clearance,
+            obstacle,
+            link,
+            task_time: w.t,
+        }
+    }
+}
+
+/// Plans for a spatial set-up from task time `t0` near posture `q_now` (joint values; more than
+/// the arm's are ignored): with the default settings, then with the physical limits alone, as
+/// the planar [`super::plan_config`] does.
+pub fn plan_system(
+    sys: &crate::system::SpatialSystem,
+    t0: f64,
+    q_now: Option<&[f64]>,
+) -> Result<Planned, String> {
+    plan_system_with(sys, t0, q_now, &PlanSettings::default())
+}
+
+/// [`plan_system`] with settings of one's own for the first try.
+pub fn plan_system_with(
+    sys: &crate::system::SpatialSystem,
+    t0: f64,
+    q_now: Option<&[f64]>,
+    settings: &PlanSettings,
+) -> Result<Planned, String> {
+    let dof = sys.chain.dof();
+    if !(2..=crate::config::MAX_JOINTS).contains(&dof) {
+        return Err(format!(
+            "the planner handles 2 to 7 joints (this arm has {dof})"
+        ));
+    }
+    Ok(crate::with_dof!(dof, N => {
+        let set = sys.config.setup::<N>(&sys.chain).map_err(|e| e.to_string())?;
+        let q = q_now.filter(|q| q.len() >= N).map(|q| VecN::<N>::from_fn(|i, _| q[i]));
+        plan_setup(&set, t0, q, settings)
+    }))
+}
+
+/// Plans for a built set-up (its arm, law and step) from task time `t0` near posture `q_now`.
+pub fn plan_setup<const N: usize>(
+    set: &crate::spatial::config::SpatialSetup<N>,
+    t0: f64,
+    q_now: Option<VecN<N>>,
+    settings: &PlanSettings,
+) -> Planned {
+    let started = std::time::Instant::now();
+    let problem = SpatialProblem::<N> {
+        arm: set.arm,
+        law: set.params,
+        dt: set.dt,
+        t0,
+        q_now,
+    };
+    let (outcome, limits_only) =
+        crate::with_task_rows!(problem.law.task.kind, |M| problem.plan_twice::<M>(settings));
+    Planned {
+        outcome,
+        limits_only,
+        took: started.elapsed(),
+    }
+}
+
+impl<const N: usize> SpatialProblem<N> {
+    /// The settings' plan, or failing that the plan within the physical limits alone (the
+    /// strict plan's reason when neither finds one).
+    fn plan_twice<const M: usize>(&self, s: &PlanSettings) -> (PlanOutcome, bool) {
+        let strict = self.plan::<M>(s);
+        if matches!(strict, PlanOutcome::Found(_)) {
+            return (strict, false);
+        }
+        let rate = (0..N)
+            .map(|i| self.law.safety.qd_max[i])
+            .fold(f64::INFINITY, f64::min);
+        let loose = PlanSettings {
+            candidates: s.candidates,
+            ..PlanSettings::limits_only(rate.max(s.max_rate))
+        };
+        match self.plan::<M>(&loose) {
+            found @ PlanOutcome::Found(_) => (found, true),
+            PlanOutcome::Blocked(_) => (strict, true),
+        }
+    }
+}

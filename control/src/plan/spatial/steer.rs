@@ -1,0 +1,59 @@
+//! Steering a spatial arm onto its planned cycle: the planar [`crate::plan::Steer`]'s pull on
+//! every joint, in a table as wide as the widest arm, so the law's parameter block stays one
+//! `Copy` type whatever the arm.
+
+use crate::config::MAX_JOINTS;
+use crate::plan::{Cycle, CycleTable};
+use crate::spatial::arm::VecN;
+use nalgebra::SMatrix;
+
+/// The planned cycle and the pull's gains (1/s², 1/s).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpatialSteer {
+    pub cycle: CycleTable<MAX_JOINTS>,
+    pub kp: f64,
+    pub kd: f64,
+}
+
+impl SpatialSteer {
+    /// The steering onto planned cycle `c` with a pull of natural frequency `hz`, critically
+    /// damped.
+    ///
+    /// ```
+    /// # use control::plan::{Cycle, spatial::SpatialSteer};
+    /// let c = Cycle {
+    ///     t0: 0.0, period: 2.0,
+    ///     q: (0..8).map(|k| vec![0.1 * k as f64; 7]).collect(),
+    ///     min_clearance: f64::INFINITY, max_rate: 0.0, filter_margin: f64::INFINITY,
+    ///     unreachable: None, arm_off_path: false, detour: None,
+    /// };
+    /// let s = SpatialSteer::of(&c, 1.0).unwrap();
+    /// assert!((s.cycle.sample(0.5).q[6] - 0.2).abs() < 1e-12); // the second phase's posture
+    /// ```
+    pub fn of(c: &Cycle, hz: f64) -> Result<Self, String> {
+        let w = std::f64::consts::TAU * hz;
+        Ok(Self {
+            cycle: CycleTable::new(c)?,
+            kp: w * w,
+            kd: 2.0 * w,
+        })
+    }
+
+    /// The pull at task time `t` in the null space of the task rows `j`:
+    /// (I − J⁺J)(q̈* + K_p(q* − q) + K_d(q̇* − q̇)), the cycle's acceleration fed forward.
+    #[inline]
+    pub fn pull<const N: usize, const M: usize>(
+        &self,
+        t: f64,
+        q: &VecN<N>,
+        qd: &VecN<N>,
+        j: &SMatrix<f64, M, N>,
+        jpinv: &SMatrix<f64, N, M>,
+    ) -> VecN<N> {
+        let r = self.cycle.sample(t);
+        let v = VecN::<N>::from_fn(|i, _| {
+            r.qdd[i] + self.kp * (r.q[i] - q[i]) + self.kd * (r.qd[i] - qd[i])
+        });
+        v - jpinv * (j * v)
+    }
+}
