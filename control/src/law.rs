@@ -299,7 +299,7 @@ pub fn evaluate<const N: usize>(
         }
     };
     if params.pause {
-        qdd = safety::pause_brake(qd);
+        qdd = safety::pause_brake(qd, &params.safety.qdd_max);
     }
     let demand = (0..N)
         .map(|i| qdd[i].abs() / params.safety.qdd_max[i])

@@ -158,11 +158,23 @@ impl<const N: usize> TickLaw<N> {
         true
     }
 
-    /// Steers the planar self-motion onto a planned cycle, or stops (a spatial law has no
-    /// steering: unchanged).
-    pub fn set_steer(&mut self, steer: Option<crate::plan::Steer>) {
-        if let TickLaw::Planar { params, .. } = self {
-            params.steer = steer;
+    /// Steers the self-motion onto a planned cycle, or stops. A cycle planned for the other
+    /// kind of arm stops the steering.
+    pub fn set_steer(&mut self, steer: Option<crate::plan::Steering>) {
+        use crate::plan::Steering;
+        match self {
+            TickLaw::Planar { params, .. } => {
+                params.steer = steer.and_then(|s| match s {
+                    Steering::Planar(p) => Some(p),
+                    Steering::Spatial(_) => None,
+                })
+            }
+            TickLaw::Spatial { params, .. } => {
+                params.steer = steer.and_then(|s| match s {
+                    Steering::Spatial(p) => Some(p),
+                    Steering::Planar(_) => None,
+                })
+            }
         }
     }
 

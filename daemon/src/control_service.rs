@@ -35,7 +35,7 @@ impl Reporter {
             })?;
         self.system = new;
         let t = self.last.map_or(self.t_start, |r| r.t);
-        let q_now = self.last_state.map(|s| [s.q[0], s.q[1], s.q[2]]);
+        let q_now = self.last_state.map(|s| s.q[..self.system.n()].to_vec());
         self.deadlock.edited(&self.system, t, q_now);
         self.limits.set_limits(*self.system.param_block().safety());
         if let (Some(log), System::Planar(c)) = (self.replay.as_mut(), &self.system) {

@@ -191,9 +191,9 @@ pub struct Controller<const N: usize> {
     last_run_t: Option<f64>,
     /// The device time of that state (`StateSample::device_time_ns`).
     last_run_device_ns: Option<u64>,
-    /// The planned cycle the self-motion is steered onto (planar arm), kept across parameter
+    /// The planned cycle the self-motion is steered onto, kept across parameter
     /// blocks: the control service's blocks carry none, the planner's handover sets it.
-    steer: Option<control::plan::Steer>,
+    steer: Option<control::plan::Steering>,
     /// Blocked, holding: fresh states are answered with HOLD (tracking paused) until cleared.
     blocked_hold: bool,
     /// While blocked: the arm kept the filter's clearance and was at rest on the newest law
@@ -279,8 +279,8 @@ impl<const N: usize> Controller<N> {
 
     /// Steers the self-motion onto a planned cycle, or stops steering (between ticks; no
     /// allocation: the cycle is a `Copy` table). The steering outlives parameter changes until
-    /// the next handover. A spatial law has no steering and ignores it.
-    pub fn set_steer(&mut self, steer: Option<control::plan::Steer>) {
+    /// the next handover.
+    pub fn set_steer(&mut self, steer: Option<control::plan::Steering>) {
         self.steer = steer;
         self.law.set_steer(steer);
         self.applied = Some(Applied::Steer);

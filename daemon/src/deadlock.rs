@@ -5,7 +5,8 @@
 //! reporter thread, does three things:
 //!
 //! - **Plans.** At start and on every committed edit it asks the planner thread
-//!   ([`crate::planner`]) whether a clean cycle exists (planar fixed-base arm, filter on).
+//!   ([`crate::planner`]) whether a clean cycle exists (filter on; the planar fixed-base arm
+//!   or any spatial one).
 //! - **Watches for traps.** Tracking lost while the filter acts, or the filter acting outside
 //!   the null space, for `safety.trap_time` makes a trap (a start far from the path loses
 //!   tracking too, but the filter plays no part in it). The first trap of an edit is answered by steering onto a
@@ -24,7 +25,7 @@ use crate::planner::{Done, Job, Planner, Why};
 use crate::replay::ReplayLog;
 use crate::telemetry::{LoopRequest, TickRecord};
 use control::law::flags;
-use control::plan::{PlanOutcome, Steer, WhenBlocked};
+use control::plan::{spatial::SpatialSteer, PlanOutcome, Steer, Steering, WhenBlocked};
 use control::System;
 use crossbeam::channel::Sender;
 
@@ -106,19 +107,58 @@ impl TrapWatch {
     }
 }
 
-/// What a plan is made round: an edit that changes neither forces no detour.
+/// What a plan is made round (the obstacles and the task, as their config sections read):
+/// an edit that changes neither forces no detour.
 #[derive(Clone, Debug, Default, PartialEq)]
 struct Layout {
-    obstacles: Vec<control::config::ObstacleConfig>,
-    task: Option<control::config::TaskConfig>,
+    obstacles: Option<String>,
+    task: String,
 }
 
 impl Layout {
     fn of(system: &System) -> Self {
-        system.planar().map_or_else(Self::default, |c| Self {
-            obstacles: c.control.obstacles.clone(),
-            task: Some(c.task.clone()),
-        })
+        let (obstacles, task, any) = match system {
+            System::Planar(c) => (
+                format!("{:?}", c.control.obstacles),
+                format!("{:?}", c.task),
+                !c.control.obstacles.is_empty(),
+            ),
+            System::Spatial(s) => (
+                format!("{:?}", s.config.obstacles),
+                format!("{:?}", s.config.task),
+                !s.config.obstacles.is_empty(),
+            ),
+        };
+        Self {
+            obstacles: any.then_some(obstacles),
+            task,
+        }
+    }
+}
+
+/// Whether the set-up asks for steering onto its planned cycle (`safety.plan`), and the pull's
+/// frequency.
+fn plan_asked(system: &System) -> (bool, f64) {
+    match system {
+        System::Planar(c) => (c.safety.plan, c.safety.plan_hz),
+        System::Spatial(s) => (s.config.safety.plan, s.config.safety.plan_hz),
+    }
+}
+
+/// Whether the arm has a cycle planner: the fixed-base 3-link planar arm, or a URDF chain.
+fn has_planner(system: &System) -> bool {
+    match system {
+        System::Planar(c) => c.n() == 3 && c.arm.model == control::config::ModelKind::Fixed,
+        System::Spatial(_) => true,
+    }
+}
+
+/// The steering onto planned cycle `c` for the arm `system` runs.
+fn steering_of(system: &System, c: &control::plan::Cycle) -> Result<Steering, String> {
+    let hz = plan_asked(system).1;
+    match system {
+        System::Planar(_) => Steer::of(c, hz).map(Steering::Planar),
+        System::Spatial(_) => SpatialSteer::of(c, hz).map(Steering::Spatial),
     }
 }
 
@@ -145,10 +185,11 @@ pub struct Deadlock {
     pub plan: Option<PlanInfo>,
     planner_error: Option<String>,
     /// Requests not yet taken by the loop's channel (retried on the next poll).
-    send_steer: Option<Option<Steer>>,
+    send_steer: Option<Option<Steering>>,
     send_hold: Option<bool>,
     /// What the loop was last sent.
     steering: bool,
+    following: Option<Steering>,
     detour: Option<(f64, f64)>,
     holding: bool,
     /// Times the daemon became blocked, and the first reason.
@@ -157,17 +198,17 @@ pub struct Deadlock {
 }
 
 impl Deadlock {
-    /// Starts the planner for a planar fixed-base arm (others have none) and plans the start.
+    /// Starts the planner for an arm that has one (not the planar floating base, nor other
+    /// planar link counts) and plans the start.
     pub fn new(system: &System, loop_core: Option<usize>) -> Self {
-        let planner = match system.planar() {
-            Some(c) if c.n() == 3 && c.arm.model == control::config::ModelKind::Fixed => {
+        let planner = has_planner(system)
+            .then(|| {
                 Planner::spawn(loop_core)
                     .map_err(|e| tracing::warn!("cannot start the cycle planner: {e}"))
                     .ok()
-            }
-            _ => None,
-        };
-        let steering_wanted = system.planar().is_some_and(|c| c.safety.plan);
+            })
+            .flatten();
+        let steering_wanted = plan_asked(system).0;
         let mut d = Self {
             planner,
             generation: 0,
@@ -186,36 +227,37 @@ impl Deadlock {
             send_steer: None,
             send_hold: None,
             steering: false,
+            following: None,
             detour: None,
             holding: false,
             entered: 0,
             first: None,
         };
-        if let Some(c) = system.planar() {
-            let q0 = c.q0();
-            d.submit(system, Why::Start, 0.0, Some([q0[0], q0[1], q0[2]]));
-        }
+        let q0 =
+            control::with_dof!(system.n(), N => system.initial_state::<N>().q.as_slice().to_vec());
+        d.submit(system, Why::Start, 0.0, Some(q0));
         d
     }
 
-    fn submit(&mut self, system: &System, why: Why, t0: f64, q_now: Option<[f64; 3]>) {
-        let (Some(p), Some(c)) = (&self.planner, system.planar()) else {
+    fn submit(&mut self, system: &System, why: Why, t0: f64, q_now: Option<Vec<f64>>) {
+        let Some(p) = &self.planner else {
             return;
         };
-        if c.safety.enabled {
+        if system.safety().enabled {
             p.submit(Job {
                 generation: self.generation,
                 why,
-                config: c.clone(),
+                system: system.clone(),
                 t0,
                 q_now,
+                following: self.following,
             });
         }
     }
 
     /// A committed change: plan it; an arm without a planner is unblocked (a trap that
     /// remains is seen again after `trap_time`).
-    pub fn edited(&mut self, system: &System, t: f64, q_now: Option<[f64; 3]>) {
+    pub fn edited(&mut self, system: &System, t: f64, q_now: Option<Vec<f64>>) {
         self.generation += 1;
         let layout = Layout::of(system);
         // Until a plan for it comes back: a μ edit right after an obstacle edit drops the
@@ -223,11 +265,10 @@ impl Deadlock {
         self.layout_edited |= layout != self.layout;
         self.layout = layout;
         // `set safety.plan on|off` steers, or stops; a trap's steering stays.
-        let plan = system.planar().is_some_and(|c| c.safety.plan);
-        self.steering_wanted = plan || self.trap_steered;
+        self.steering_wanted = plan_asked(system).0 || self.trap_steered;
         self.trap = TrapWatch::default();
         self.traps = 0;
-        let plans = self.planner.is_some() && system.planar().is_some_and(|c| c.safety.enabled);
+        let plans = self.planner.is_some() && system.safety().enabled;
         if plans {
             self.submit(system, Why::Edit, t, q_now);
         } else {
@@ -275,7 +316,7 @@ impl Deadlock {
             return;
         }
         self.traps += 1;
-        let q_now = r.state.map(|st| [st.q[0], st.q[1], st.q[2]]);
+        let q_now = r.state.map(|st| st.q[..system.n()].to_vec());
         let plans = self.planner.is_some() && self.planner_error.is_none();
         if plans && self.traps == 1 {
             tracing::warn!(
@@ -368,10 +409,9 @@ impl Deadlock {
                     limits_only: planned.limits_only,
                 });
                 self.unblock(t, "a clean cycle exists");
-                let hz = system.planar().map_or(1.0, |c| c.safety.plan_hz);
                 let wanted =
                     self.steering_wanted || self.detour_forced(&c, done.why, layout_edited);
-                match Steer::of(&c, hz) {
+                match steering_of(system, &c) {
                     Ok(steer) if wanted => {
                         if let Some(d) = &c.detour {
                             tracing::warn!(
@@ -456,7 +496,7 @@ impl Deadlock {
     fn detour_forced(&self, c: &control::plan::Cycle, why: Why, layout_edited: bool) -> bool {
         c.detour.is_some()
             && !c.arm_off_path
-            && !self.layout.obstacles.is_empty()
+            && self.layout.obstacles.is_some()
             && (why != Why::Edit || layout_edited)
     }
 
@@ -464,11 +504,19 @@ impl Deadlock {
     fn flush(&mut self, tx: &Sender<LoopRequest>, replay: Option<&mut ReplayLog>) {
         if let Some(s) = self.send_steer {
             if tx.try_send(LoopRequest::Steer(s)).is_ok() {
+                let planar = s.and_then(|s| match s {
+                    Steering::Planar(p) => Some(p),
+                    Steering::Spatial(_) => None,
+                });
+                // Replay recordings are of the planar arm only.
                 if let Some(log) = replay {
-                    log.steered(s.as_ref());
+                    log.steered(planar.as_ref());
                 }
                 self.steering = s.is_some();
-                self.detour = s.and_then(|s| s.detour).map(|d| (d.t_start, d.t_arrive));
+                self.following = s;
+                self.detour = planar
+                    .and_then(|s| s.detour)
+                    .map(|d| (d.t_start, d.t_arrive));
                 self.send_steer = None;
             }
         }
@@ -524,7 +572,7 @@ mod tests {
     fn steered_after_edits(d: &mut Deadlock, systems: &[System], t: f64, q: [f64; 3]) -> bool {
         let (tx, rx) = crossbeam::channel::bounded(16);
         for system in systems {
-            d.edited(system, t, Some(q));
+            d.edited(system, t, Some(q.to_vec()));
         }
         let system = systems.last().expect("an edit");
         for _ in 0..2000 {

@@ -17,6 +17,9 @@
 //! this daemon was stalled), the law asks for a burst of acceleration to catch the circle again.
 //! That burst is the filter's job to clamp, not a runaway, so for [`REENTRY_S`] after a re-entry
 //! the demand criterion alone is not applied; the rate, growth and non-finite criteria are.
+//! The same holds after the safety filter left the null space: it took the hand off its path on
+//! purpose (an obstacle in the way, a new one put on the arm), and the law's demand to get back
+//! is the filter's to clamp, as it does on every tick it acts.
 //! FAULT is sticky: only an operator's `chaosctl resume` leaves it.
 
 use control::law::flags;
@@ -135,6 +138,9 @@ impl Guard {
                 for_s,
             });
         }
+        if out.flags & flags::SAFETY_LEFT_NULL_SPACE != 0 {
+            self.reenter(t);
+        }
         let settling = self.reentry_until.is_some_and(|until| t < until);
         let over = out.demand > 1.0 && !settling;
         if let Some(for_s) = held(&mut self.demand_since, over, t, p.guard_time) {
@@ -233,6 +239,28 @@ mod tests {
             (0..50).find_map(|k| g.check(k as f64 * 1e-3, &p, &slow, &greedy).map(|r| (k, r)));
         assert!(
             matches!(tripped, Some((20, FaultReason::Demand { .. }))),
+            "{tripped:?}"
+        );
+    }
+
+    #[test]
+    fn the_filter_leaving_the_null_space_opens_the_same_window_as_a_reentry() {
+        let p = Config::preset("demo").unwrap().law_params().safety;
+        let slow = VecN::<3>::new(1.0, -2.0, 3.0);
+        let braked = output(0.0, 3.0, flags::SAFETY_LEFT_NULL_SPACE);
+        let catching_up = output(0.0, 3.0, 0);
+        let mut g = Guard::default();
+        for k in 0..100 {
+            assert_eq!(g.check(k as f64 * 1e-3, &p, &slow, &braked), None);
+        }
+        // Released at 0.1 s: the demand to get back waits REENTRY_S, then counts.
+        let ticks = (REENTRY_S * 1e3) as usize;
+        let tripped = (100..100 + ticks + 50).find_map(|k| {
+            g.check(k as f64 * 1e-3, &p, &slow, &catching_up)
+                .map(|r| (k, r))
+        });
+        assert!(
+            matches!(tripped, Some((k, FaultReason::Demand { .. })) if k >= 99 + ticks + 20),
             "{tripped:?}"
         );
     }

@@ -6,7 +6,8 @@
 //! plan under way for the one before), and hands back what it found. The reporter turns that
 //! into a `Copy` handover for the loop ([`crate::deadlock`]).
 
-use control::plan::{plan_config, Planned};
+use control::plan::{plan_config, spatial::plan_system_with, PlanSettings, Planned, Steering};
+use control::System;
 use crossbeam::channel::{unbounded, Receiver, RecvTimeoutError, Sender};
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -22,15 +23,38 @@ pub enum Why {
     Trap,
 }
 
-/// One planning job: the running configuration, from task time `t0` near posture `q_now`.
+/// One planning job: the running set-up (planar or spatial), from task time `t0` near posture
+/// `q_now` (joint values).
 #[derive(Clone, Debug)]
 pub struct Job {
     /// Which edit of the configuration this plan is for: a stale answer is dropped.
     pub generation: u64,
     pub why: Why,
-    pub config: control::Config,
+    pub system: System,
     pub t0: f64,
-    pub q_now: Option<[f64; 3]>,
+    pub q_now: Option<Vec<f64>>,
+    /// The cycle the loop steers along now, if any: a spatial plan starts from it.
+    pub following: Option<control::plan::Steering>,
+}
+
+impl Job {
+    /// The plan for this job, by the arm's own planner.
+    fn plan(&self) -> Result<Planned, String> {
+        let q = self.q_now.as_deref();
+        match &self.system {
+            System::Planar(c) => {
+                let q3 = q.filter(|q| q.len() >= 3).map(|q| [q[0], q[1], q[2]]);
+                plan_config(c, self.t0, q3)
+            }
+            System::Spatial(s) => {
+                let following = match &self.following {
+                    Some(Steering::Spatial(f)) => Some(&f.cycle),
+                    _ => None,
+                };
+                plan_system_with(s, self.t0, q, following, &PlanSettings::default())
+            }
+        }
+    }
 }
 
 /// A finished job.
@@ -99,7 +123,7 @@ fn serve(jobs: &Receiver<Job>, done: &Sender<Done>) {
         while let Ok(newer) = jobs.try_recv() {
             job = newer;
         }
-        let result = plan_config(&job.config, job.t0, job.q_now);
+        let result = job.plan();
         let answer = Done {
             generation: job.generation,
             why: job.why,
@@ -127,9 +151,10 @@ mod tests {
         Job {
             generation,
             why: Why::Edit,
-            config,
+            system: System::Planar(config),
             t0: 0.0,
             q_now: None,
+            following: None,
         }
     }
 

@@ -754,7 +754,8 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
             }
             "S" => {
                 let rest: Vec<&str> = parts.collect();
-                ctl.set_steer(crate::replay_steer::parse(&rest).map_err(at)?);
+                let steer = crate::replay_steer::parse(&rest).map_err(at)?;
+                ctl.set_steer(steer.map(control::plan::Steering::Planar));
             }
             "B" => match (parts.next(), parts.next()) {
                 (Some("0"), None) => ctl.set_blocked_hold(false),

@@ -116,6 +116,16 @@ pub struct Steer {
     pub kd: f64,
 }
 
+/// A planned cycle to steer onto, for the arm the law drives: what the planner thread hands
+/// the loop.
+// Not boxed: it crosses to the loop by value, and the loop frees nothing.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Steering {
+    Planar(Steer),
+    Spatial(spatial::SpatialSteer),
+}
+
 /// The natural frequency (Hz) of the joint-space pull along a detour, critically damped.
 pub const DETOUR_HZ: f64 = 4.0;
 

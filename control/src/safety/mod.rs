@@ -101,13 +101,22 @@ impl SafetyParams {
 /// then keeps every clearance, limit and rate as it does for the law's own command.
 pub const PAUSE_BRAKE_RATE: f64 = 10.0;
 
-/// The command of a paused arm (the daemon's blocked hold) before the filter: brake to rest.
-/// A plant's own HOLD brakes blind, and an arm swinging past an obstacle could coast into it;
-/// braking through the filter cannot.
+/// The command of a paused arm (the daemon's blocked hold) before the filter: brake to rest,
+/// within [`PAUSE_BRAKE_SHARE`] of every joint's acceleration limit `qdd_max` (scaled as a
+/// whole, so the joints stop together; a brake past the limits would be clamped by the filter
+/// anyway, and read by the runaway guard as a runaway). A plant's own HOLD brakes blind, and
+/// an arm swinging past an obstacle could coast into it; braking through the filter cannot.
 #[inline]
-pub fn pause_brake<const N: usize>(qd: &VecN<N>) -> VecN<N> {
-    -qd * PAUSE_BRAKE_RATE
+pub fn pause_brake<const N: usize>(qd: &VecN<N>, qdd_max: &[f64]) -> VecN<N> {
+    let brake = -qd * PAUSE_BRAKE_RATE;
+    let over = (0..N)
+        .map(|i| brake[i].abs() / (PAUSE_BRAKE_SHARE * qdd_max[i]))
+        .fold(1.0, f64::max);
+    brake / over
 }
+
+/// The share of a joint's acceleration limit a paused arm brakes with, at most.
+pub const PAUSE_BRAKE_SHARE: f64 = 0.9;
 
 /// What the filter did to one command.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -539,7 +539,7 @@ impl SpatialConfig {
         if !(self.safety.enabled && self.safety.plan) {
             return Ok((set, None));
         }
-        let planned = spatial::plan_setup(&set, 0.0, Some(set.q0), &PlanSettings::default());
+        let planned = spatial::plan_setup(&set, 0.0, Some(set.q0), None, &PlanSettings::default());
         match planned.outcome {
             PlanOutcome::Found(c) => {
                 set.params.steer = spatial::SpatialSteer::of(&c, self.safety.plan_hz).ok();

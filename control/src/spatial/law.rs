@@ -176,13 +176,13 @@ pub fn evaluate<const N: usize, const M: usize>(
     };
     let mut qdd = resolve(&j, &jpinv, &task_acc, &terms);
     if let Some(s) = &params.steer {
-        qdd += s.pull(t, q, qd, &j, &jpinv);
+        qdd += s.pull(t, q, qd, &j, &jpinv, &qdd, &params.safety);
     }
     if params.null_damping != 0.0 {
         qdd -= (qd - jpinv * (j * qd)) * params.null_damping;
     }
     if params.pause {
-        qdd = crate::safety::pause_brake(qd);
+        qdd = crate::safety::pause_brake(qd, &params.safety.qdd_max);
     }
     let demand = (0..N)
         .map(|i| qdd[i].abs() / params.safety.qdd_max[i])

@@ -25,7 +25,8 @@ pub use check::{Fault, Shortfall, Verdict};
 pub use cost::Nearest;
 pub use steer::SpatialSteer;
 
-use super::{Blocked, Cycle, PlanOutcome, PlanSettings, Planned};
+use super::{Blocked, Cycle, CycleTable, PlanOutcome, PlanSettings, Planned};
+use crate::config::MAX_JOINTS;
 use crate::spatial::arm::{SpatialArm, VecN};
 use crate::spatial::SpatialParams;
 
@@ -44,6 +45,19 @@ pub struct SpatialProblem<const N: usize> {
     pub dt: f64,
     pub t0: f64,
     pub q_now: Option<VecN<N>>,
+    /// The cycle the arm is steered along now, if it is: the first start, so that an edit's
+    /// cycle is the nearest deformation of it that clears the new layout, and the arm, on the
+    /// old cycle, is near the new one everywhere but where the layout changed.
+    pub following: Option<CycleTable<MAX_JOINTS>>,
+}
+
+/// Where a relaxation starts.
+#[derive(Clone, Debug)]
+enum Start<const N: usize> {
+    /// A cycle rolled once round the path from this posture.
+    Posture(VecN<N>),
+    /// The cycle the arm follows now.
+    Following(Box<CycleTable<MAX_JOINTS>>),
 }
 
 /// Starts after the arm's own posture: postures spread over the joint box (a fixed sequence,
@@ -121,17 +135,35 @@ impl<const N: usize> SpatialProblem<N> {
         }
     }
 
-    /// Relaxes a cycle rolled from `start`; returns the postures and their verdict.
+    /// The cycle a start gives before relaxing: rolled from a posture, or the cycle followed
+    /// now, at this plan's phases and put on the path; None when it does not reach the path.
+    fn initial<const M: usize>(&self, start: &Start<N>, phases: usize) -> Option<Vec<VecN<N>>> {
+        match start {
+            Start::Posture(q) => {
+                let mut q0 = *q;
+                if self.project::<M>(self.t0, &mut q0, 50, 1e-9) > 1e-6 {
+                    return None;
+                }
+                self.roll_out::<M>(&q0, phases)
+            }
+            Start::Following(table) => (0..phases)
+                .map(|k| {
+                    let t = self.phase_time(k, phases);
+                    let r = table.sample(t);
+                    let mut q = VecN::<N>::from_fn(|i, _| r.q[i]);
+                    (self.project::<M>(t, &mut q, 30, 1e-9) <= 1e-6).then_some(q)
+                })
+                .collect(),
+        }
+    }
+
+    /// Relaxes the cycle `start` gives; returns the postures and their verdict.
     fn relax_from<const M: usize>(
         &self,
-        start: &VecN<N>,
+        start: &Start<N>,
         s: &PlanSettings,
     ) -> Option<(Vec<VecN<N>>, Verdict)> {
-        let mut q0 = *start;
-        if self.project::<M>(self.t0, &mut q0, 50, 1e-9) > 1e-6 {
-            return None; // this start does not reach the path
-        }
-        let mut cycle = self.roll_out::<M>(&q0, s.phases)?;
+        let mut cycle = self.initial::<M>(start, s.phases)?;
         let mut verdict = self.check::<M>(&cycle, s);
         for sweep in 1..=SWEEPS {
             self.sweep::<M>(&mut cycle, s);
@@ -148,20 +180,38 @@ impl<const N: usize> SpatialProblem<N> {
         Some((cycle, verdict))
     }
 
-    /// Plans with settings `s`: the first clean cycle of the starts, or why there is none.
-    pub fn plan<const M: usize>(&self, s: &PlanSettings) -> PlanOutcome {
+    /// The starts near the arm (the cycle it follows, its posture), or the ones spread over
+    /// the joint box.
+    fn starts(&self, near: bool, s: &PlanSettings) -> Vec<Start<N>> {
+        if near {
+            let following = self.following.map(|c| Start::Following(Box::new(c)));
+            following
+                .into_iter()
+                .chain(self.q_now.map(Start::Posture))
+                .collect()
+        } else {
+            spread(self, s.candidates.max(1))
+                .into_iter()
+                .map(Start::Posture)
+                .collect()
+        }
+    }
+
+    /// Plans with settings `s` from the `near` starts or the others: the first clean cycle,
+    /// or why there is none.
+    pub fn plan<const M: usize>(&self, s: &PlanSettings, near: bool) -> PlanOutcome {
         if let Some(b) = self.path_blocked() {
             return PlanOutcome::Blocked(b);
         }
         let s = &self.margin_within_path(s);
-        let mut starts: Vec<VecN<N>> = self.q_now.into_iter().collect();
-        starts.extend(spread(self, s.candidates.max(1)));
+        let starts = self.starts(near, s);
         let mut best: Option<Shortfall> = None;
         let mut tried = 0;
         for start in &starts {
             let Some((cycle, verdict)) = self.relax_from::<M>(start, s) else {
                 continue;
             };
+
             tried += 1;
             match verdict.worst {
                 None => {
@@ -266,14 +316,16 @@ pub fn plan_system(
     t0: f64,
     q_now: Option<&[f64]>,
 ) -> Result<Planned, String> {
-    plan_system_with(sys, t0, q_now, &PlanSettings::default())
+    plan_system_with(sys, t0, q_now, None, &PlanSettings::default())
 }
 
-/// [`plan_system`] with settings of one's own for the first try.
+/// [`plan_system`] starting from the cycle the arm follows now, if it follows one
+/// ([`SpatialProblem::following`]), with settings of one's own for the first try.
 pub fn plan_system_with(
     sys: &crate::system::SpatialSystem,
     t0: f64,
     q_now: Option<&[f64]>,
+    following: Option<&CycleTable<MAX_JOINTS>>,
     settings: &PlanSettings,
 ) -> Result<Planned, String> {
     let dof = sys.chain.dof();
@@ -285,7 +337,7 @@ pub fn plan_system_with(
     Ok(crate::with_dof!(dof, N => {
         let set = sys.config.setup::<N>(&sys.chain).map_err(|e| e.to_string())?;
         let q = q_now.filter(|q| q.len() >= N).map(|q| VecN::<N>::from_fn(|i, _| q[i]));
-        plan_setup(&set, t0, q, settings)
+        plan_setup(&set, t0, q, following, settings)
     }))
 }
 
@@ -294,6 +346,7 @@ pub fn plan_setup<const N: usize>(
     set: &crate::spatial::config::SpatialSetup<N>,
     t0: f64,
     q_now: Option<VecN<N>>,
+    following: Option<&CycleTable<MAX_JOINTS>>,
     settings: &PlanSettings,
 ) -> Planned {
     let started = std::time::Instant::now();
@@ -303,6 +356,7 @@ pub fn plan_setup<const N: usize>(
         dt: set.dt,
         t0,
         q_now,
+        following: following.copied(),
     };
     let (outcome, limits_only) =
         crate::with_task_rows!(problem.law.task.kind, |M| problem.plan_twice::<M>(settings));
@@ -315,12 +369,10 @@ pub fn plan_setup<const N: usize>(
 
 impl<const N: usize> SpatialProblem<N> {
     /// The settings' plan, or failing that the plan within the physical limits alone (the
-    /// strict plan's reason when neither finds one).
+    /// strict plan's reason when neither finds one): from the starts near the arm first, then
+    /// from the others. A cycle near the arm with less margin beats a far one with more: the
+    /// arm gets to it without crossing the layout.
     fn plan_twice<const M: usize>(&self, s: &PlanSettings) -> (PlanOutcome, bool) {
-        let strict = self.plan::<M>(s);
-        if matches!(strict, PlanOutcome::Found(_)) {
-            return (strict, false);
-        }
         let rate = (0..N)
             .map(|i| self.law.safety.qd_max[i])
             .fold(f64::INFINITY, f64::min);
@@ -328,9 +380,20 @@ impl<const N: usize> SpatialProblem<N> {
             candidates: s.candidates,
             ..PlanSettings::limits_only(rate.max(s.max_rate))
         };
-        match self.plan::<M>(&loose) {
-            found @ PlanOutcome::Found(_) => (found, true),
-            PlanOutcome::Blocked(_) => (strict, true),
+        let mut first = None;
+        for near in [true, false] {
+            if near && self.following.is_none() && self.q_now.is_none() {
+                continue;
+            }
+            for (settings, limits_only) in [(s, false), (&loose, true)] {
+                match self.plan::<M>(settings, near) {
+                    found @ PlanOutcome::Found(_) => return (found, limits_only),
+                    blocked => {
+                        first.get_or_insert(blocked);
+                    }
+                }
+            }
         }
+        (first.expect("one plan at least"), true)
     }
 }

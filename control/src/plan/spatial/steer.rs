@@ -4,8 +4,14 @@
 
 use crate::config::MAX_JOINTS;
 use crate::plan::{Cycle, CycleTable};
+use crate::safety::SafetyParams;
 use crate::spatial::arm::VecN;
 use nalgebra::SMatrix;
+
+/// The share of a joint's acceleration limit the law with the pull may ask for.
+pub const PULL_SHARE: f64 = 0.8;
+/// The share of a joint's rate limit the pull closes in on the cycle at.
+pub const APPROACH_SHARE: f64 = 0.2;
 
 /// The planned cycle and the pull's gains (1/s², 1/s).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,7 +47,16 @@ impl SpatialSteer {
 
     /// The pull at task time `t` in the null space of the task rows `j`:
     /// (I − J⁺J)(q̈* + K_p(q* − q) + K_d(q̇* − q̇)), the cycle's acceleration fed forward.
+    ///
+    /// Two bounds make a cycle handed over far from the arm safe to reach, and leave the pull
+    /// near the cycle as it is. The position error's pull is a closing speed K_p/K_d·(q* − q),
+    /// capped at [`APPROACH_SHARE`] of each joint's rate limit: a fast self-motion drags the
+    /// hand's drift J̇q̇ up with it, and the law's demand past the arm's limits. And the pull as
+    /// a whole is scaled down (its direction kept) so that the law's `qdd` with it stays within
+    /// [`PULL_SHARE`] of every acceleration limit, which the runaway guard would otherwise read
+    /// as a runaway.
     #[inline]
+    #[allow(clippy::too_many_arguments)]
     pub fn pull<const N: usize, const M: usize>(
         &self,
         t: f64,
@@ -49,11 +64,22 @@ impl SpatialSteer {
         qd: &VecN<N>,
         j: &SMatrix<f64, M, N>,
         jpinv: &SMatrix<f64, N, M>,
+        qdd: &VecN<N>,
+        limits: &SafetyParams,
     ) -> VecN<N> {
         let r = self.cycle.sample(t);
         let v = VecN::<N>::from_fn(|i, _| {
-            r.qdd[i] + self.kp * (r.q[i] - q[i]) + self.kd * (r.qd[i] - qd[i])
+            let cap = APPROACH_SHARE * limits.qd_max[i];
+            let closing = (self.kp / self.kd * (r.q[i] - q[i])).clamp(-cap, cap);
+            r.qdd[i] + self.kd * (r.qd[i] + closing - qd[i])
         });
-        v - jpinv * (j * v)
+        let pull = v - jpinv * (j * v);
+        let scale = (0..N)
+            .map(|i| {
+                let room = (PULL_SHARE * limits.qdd_max[i] - qdd[i].abs()).max(0.0);
+                room / pull[i].abs()
+            })
+            .fold(1.0, f64::min);
+        pull * scale
     }
 }
