@@ -41,7 +41,7 @@ fn setup(obstacles: &[(f64, f64, f64)], at: f64) -> (Config, f64, [f64; 3]) {
     (cfg, t, q)
 }
 
-fn median_max(t: &[f64]) -> (f64, f64) {
+pub fn median_max(t: &[f64]) -> (f64, f64) {
     let mut t = t.to_vec();
     t.sort_by(f64::total_cmp);
     (t[t.len() / 2], t[t.len() - 1])

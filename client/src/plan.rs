@@ -5,14 +5,15 @@ use crate::setup::{parse_list, FloatList, SetupArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::config::ObstacleConfig;
-use control::plan::{plan_config_with, PlanOutcome, PlanSettings};
+use control::plan::{plan_config_with, PlanOutcome, PlanSettings, Planned};
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
 pub struct PlanCmd {
     #[command(flatten)]
     pub setup: SetupArgs,
-    /// One more obstacle, X,Y,RADIUS (m), besides the config's; repeat for more.
+    /// One more obstacle besides the config's, X,Y,RADIUS (m; a spatial robot's sphere:
+    /// X,Y,Z,RADIUS); repeat for more.
     #[arg(long = "obstacle", value_parser = parse_list, allow_hyphen_values = true)]
     pub obstacles: Vec<FloatList>,
     /// Clearance the cycle keeps beyond the safety filter's (m).
@@ -24,7 +25,7 @@ pub struct PlanCmd {
     /// Print the result as JSON.
     #[arg(long)]
     pub json: bool,
-    /// Write the cycle's postures as CSV (t, q1, q2, q3).
+    /// Write the cycle's postures as CSV (t, q1 … qn).
     #[arg(long)]
     pub csv: Option<PathBuf>,
     /// Map where one more obstacle leaves a clean cycle, over a grid of centres round the
@@ -47,6 +48,9 @@ pub struct PlanCmd {
 }
 
 pub fn run(a: &PlanCmd) -> Result<()> {
+    if let Some(cfg) = crate::spatial::load(&a.setup, None)? {
+        return spatial(a, cfg);
+    }
     let mut cfg = a.setup.load_with_mu(None)?;
     for (i, o) in a.obstacles.iter().enumerate() {
         let [x, y, r] = o.0[..] else {
@@ -57,20 +61,7 @@ pub fn run(a: &PlanCmd) -> Result<()> {
         cfg.control.obstacles.push(entry);
     }
     cfg.validate()?;
-    let settings = PlanSettings {
-        margin: a.margin,
-        max_rate: a.max_rate,
-        ..PlanSettings::default()
-    };
-    if !(settings.margin.is_finite() && settings.margin >= 0.0) {
-        bail!("--margin {}: must be a distance ≥ 0 (m)", settings.margin);
-    }
-    if !(settings.max_rate.is_finite() && settings.max_rate > 0.0) {
-        bail!(
-            "--max-rate {}: must be a rate > 0 (rad/s)",
-            settings.max_rate
-        );
-    }
+    let settings = settings(a)?;
     if let Some(prefix) = &a.map {
         let spec = crate::plan_map::MapSpec {
             radii: &a.map_radii.0,
@@ -87,34 +78,102 @@ pub fn run(a: &PlanCmd) -> Result<()> {
     // the arm cannot reach the cycle tracking.
     let planned = plan_config_with(&cfg, 0.0, Some([q0[0], q0[1], q0[2]]), &settings)
         .map_err(|e| anyhow::anyhow!("chaosctl plan: {e}"))?;
-    let (outcome, ms) = (planned.outcome, planned.took.as_secs_f64() * 1e3);
+    report(a, &settings, &planned, "grid")
+}
+
+/// The settings `--margin` and `--max-rate` ask for, checked.
+fn settings(a: &PlanCmd) -> Result<PlanSettings> {
+    let settings = PlanSettings {
+        margin: a.margin,
+        max_rate: a.max_rate,
+        ..PlanSettings::default()
+    };
+    if !(settings.margin.is_finite() && settings.margin >= 0.0) {
+        bail!("--margin {}: must be a distance ≥ 0 (m)", settings.margin);
+    }
+    if !(settings.max_rate.is_finite() && settings.max_rate > 0.0) {
+        bail!(
+            "--max-rate {}: must be a rate > 0 (rad/s)",
+            settings.max_rate
+        );
+    }
+    Ok(settings)
+}
+
+/// A spatial set-up's plan: the same planner the daemon runs, from the start posture, with
+/// `--obstacle X,Y,Z,RADIUS` spheres besides the config's.
+fn spatial(a: &PlanCmd, mut cfg: control::spatial::config::SpatialConfig) -> Result<()> {
+    if a.map.is_some() {
+        bail!("--map: the obstacle map is drawn for the planar arm only (a spatial robot's is a 3-D grid of spheres; plan one layout at a time)");
+    }
+    for o in &a.obstacles {
+        let [x, y, z, r] = o.0[..] else {
+            bail!(
+                "--obstacle {:?}: a spatial robot's is X,Y,Z,RADIUS (four numbers)",
+                o.0
+            );
+        };
+        cfg.obstacles.push(control::spatial::config::SphereEntry {
+            center: [x, y, z],
+            radius: r,
+            margin: 0.1,
+        });
+    }
+    let settings = settings(a)?;
+    let chain = rt::robot::load(
+        &cfg.robot.description,
+        cfg.robot.base.as_deref(),
+        cfg.robot.tip.as_deref(),
+    )?;
+    let q0 = cfg.sim.q0.clone();
+    let system = control::system::SpatialSystem { config: cfg, chain };
+    // Checks the file against the robot (the spheres too) before planning.
+    control::System::Spatial(Box::new(system.clone())).validate()?;
+    let planned =
+        control::plan::spatial::plan_system_with(&system, 0.0, Some(&q0), None, &settings)
+            .map_err(|e| anyhow::anyhow!("chaosctl plan: {e}"))?;
+    report(a, &settings, &planned, "starts")
+}
+
+/// Prints a plan (and writes `--csv`): words, or JSON with `--json`. `search` is how the
+/// planner looked: `grid` (planar) or `starts` (spatial).
+fn report(a: &PlanCmd, s: &PlanSettings, planned: &Planned, search: &str) -> Result<()> {
+    let (outcome, ms) = (&planned.outcome, planned.took.as_secs_f64() * 1e3);
     let loose = planned.limits_only;
-    if let (Some(path), PlanOutcome::Found(c)) = (&a.csv, &outcome) {
+    if let (Some(path), PlanOutcome::Found(c)) = (&a.csv, outcome) {
         let dt = c.period / c.q.len() as f64;
-        let mut text = String::from("t,q1,q2,q3\n");
+        let n = c.q.first().map_or(0, Vec::len);
+        let names: Vec<String> = (1..=n).map(|i| format!("q{i}")).collect();
+        let mut text = format!("t,{}\n", names.join(","));
         for (k, q) in c.q.iter().enumerate() {
-            text.push_str(&format!(
-                "{},{},{},{}\n",
-                c.t0 + k as f64 * dt,
-                q[0],
-                q[1],
-                q[2]
-            ));
+            let row: Vec<String> = q.iter().map(f64::to_string).collect();
+            text.push_str(&format!("{},{}\n", c.t0 + k as f64 * dt, row.join(",")));
         }
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
     }
+    let spatial = search == "starts";
     if a.json {
-        println!("{}", json(&outcome, &settings, ms, loose));
+        println!("{}", json(outcome, s, ms, loose, spatial));
     } else {
-        println!("{}", words(&outcome, &settings, ms, loose));
+        println!("{}", words(outcome, s, ms, loose, spatial));
     }
     Ok(())
 }
 
 /// `limits_only`: no cycle met the settings (`--margin`, `--max-rate`), and the outcome is the
 /// plan within the filter's physical limits alone, as the daemon falls back to.
-fn json(o: &PlanOutcome, s: &PlanSettings, ms: f64, limits_only: bool) -> serde_json::Value {
-    let grid = serde_json::json!({ "phases": s.phases, "postures_per_phase": 2 * s.angles });
+fn json(
+    o: &PlanOutcome,
+    s: &PlanSettings,
+    ms: f64,
+    limits_only: bool,
+    spatial: bool,
+) -> serde_json::Value {
+    let grid = if spatial {
+        serde_json::json!({ "phases": s.phases, "starts": s.candidates + 2 })
+    } else {
+        serde_json::json!({ "phases": s.phases, "postures_per_phase": 2 * s.angles })
+    };
     let mut v = match o {
         PlanOutcome::Found(c) => serde_json::json!({
             "exists": true, "min_clearance_m": finite(c.min_clearance),
@@ -140,10 +199,18 @@ fn json(o: &PlanOutcome, s: &PlanSettings, ms: f64, limits_only: bool) -> serde_
     v
 }
 
-/// What the safety filter will do on the cycle, from its rows' smallest margin.
-fn filter_words(margin: f64) -> String {
+/// What the safety filter will do on the cycle, from its rows' smallest margin. A spatial
+/// cycle whose rows the filter acts on was run through the steered law: the filter keeps it in
+/// the null space, so the hand stays on its path.
+fn filter_words(margin: f64, spatial: bool) -> String {
     if margin >= 0.0 {
         format!("the filter never acts on it (rows {margin:.1} above their bounds)")
+    } else if spatial {
+        format!(
+            "the filter acts on it (rows {:.1} below their bounds) within the null space, the \
+             hand on its path",
+            -margin
+        )
     } else {
         format!(
             "but the filter will brake it where its rows fall {:.1} below their bounds (the \
@@ -158,8 +225,12 @@ fn finite(x: f64) -> Option<f64> {
     x.is_finite().then_some(x)
 }
 
-fn words(o: &PlanOutcome, s: &PlanSettings, ms: f64, limits_only: bool) -> String {
-    let grid = format!("{} phases × {} postures", s.phases, 2 * s.angles);
+fn words(o: &PlanOutcome, s: &PlanSettings, ms: f64, limits_only: bool, spatial: bool) -> String {
+    let grid = if spatial {
+        format!("{} phases, optimised in the null space", s.phases)
+    } else {
+        format!("{} phases × {} postures", s.phases, 2 * s.angles)
+    };
     match o {
         PlanOutcome::Found(c) => {
             let exists = if limits_only {
@@ -180,7 +251,7 @@ fn words(o: &PlanOutcome, s: &PlanSettings, ms: f64, limits_only: bool) -> Strin
                     "n/a (no obstacle)".into()
                 },
                 c.max_rate,
-                filter_words(c.filter_margin)
+                filter_words(c.filter_margin, spatial)
             ) + &c.detour.as_ref().map_or(String::new(), |d| {
                 format!(
                     "; the arm reaches it by a joint-space detour of {:.2} s, tracking paused",

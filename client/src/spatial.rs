@@ -81,7 +81,11 @@ macro_rules! with_setup {
         )?;
         let kind = cfg.task_kind()?;
         with_dof!(chain.dof(), $n => {
-            let $setup: SpatialSetup<$n> = cfg.setup::<$n>(&chain)?;
+            // With `safety.plan`, steered onto the planned cycle, as the daemon would be.
+            let ($setup, blocked): (SpatialSetup<$n>, _) = cfg.setup_planned::<$n>(&chain)?;
+            if let Some(b) = blocked {
+                eprintln!("safety.plan: no clean cycle, running without steering: {}", b.reason);
+            }
             with_task_rows!(kind, |$m| $body)
         })
     }};

@@ -140,10 +140,16 @@ fn panda_controller() -> (Controller<7>, [f64; 7]) {
     };
     let q0 = std::array::from_fn(|i| s.q0[i]);
     let generator = cfg.generator::<7>(&chain, 1e-3).unwrap();
-    (
-        Controller::new(law, 2.0, settings()).with_generator(generator),
-        q0,
-    )
+    let mut c = Controller::new(law, 2.0, settings()).with_generator(generator);
+    // Steered onto a planned cycle: the spline and the pull run on every tick too.
+    let settings = control::plan::PlanSettings::default();
+    let planned = control::plan::spatial::plan_setup(&s, 0.0, Some(s.q0), None, &settings);
+    let control::plan::PlanOutcome::Found(cycle) = planned.outcome else {
+        panic!("no cycle for the Panda beside one sphere");
+    };
+    let steer = control::plan::spatial::SpatialSteer::of(&cycle, 1.0).unwrap();
+    c.set_steer(Some(control::plan::Steering::Spatial(steer)));
+    (c, q0)
 }
 
 #[test]

@@ -141,3 +141,42 @@ fn plan_maps_where_one_more_obstacle_leaves_a_clean_cycle() {
         "{err}"
     );
 }
+
+#[test]
+fn plan_on_the_panda_goes_round_a_sphere_and_names_one_on_the_path() {
+    let dir = TempDir::new(&unique_namespace("plan-panda"));
+    let csv = dir.path().join("cycle.csv");
+    let (code, out, err) = plan(&[
+        "--preset",
+        "panda",
+        "--obstacle",
+        "0.3,-0.3,0.45,0.08",
+        "--json",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["exists"], true, "{v}");
+    assert!(v["min_clearance_m"].as_f64().unwrap() >= 0.02, "{v}");
+    assert_eq!(v["grid"]["phases"], 64, "{v}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert!(text.starts_with("t,q1,q2,q3,q4,q5,q6,q7\n"), "{text}");
+    assert_eq!(text.lines().count(), 65);
+    // A sphere on the hand's start point: no cycle, said with the sphere and the hand's link.
+    let (code, out, err) = plan(&["--preset", "panda", "--obstacle", "0.307,0,0.487,0.05"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.starts_with("no clean cycle: the path runs through obstacle 1"),
+        "{out}"
+    );
+    for (args, says) in [
+        (&["--obstacle", "0.3,0.1,0.05"][..], "X,Y,Z,RADIUS"),
+        (&["--map", "m"][..], "planar arm only"),
+        (&["--obstacle", "0.3,0.1,0.4,-1"][..], "radius"),
+    ] {
+        let (code, out, err) = plan(&[&["--preset", "panda"][..], args].concat());
+        assert_eq!(code, 2, "{args:?} was accepted: {out}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+}

@@ -32,6 +32,7 @@ pub const COMPUTE_PANDA: &str = "compute-panda";
 pub const COMPUTE_COMMANDS: &str = "compute-commands";
 pub const COMPUTE_COMMANDS_COST: &str = "compute-commands-cost";
 pub const COMPUTE_PLAN: &str = "compute-plan";
+pub const COMPUTE_PLAN_PANDA: &str = "compute-plan-panda";
 pub const COMPUTE_MODEL: &str = "compute-model";
 pub const DEVICE: &str = "device";
 pub const SOAK_FAULTS: &str = "soak-faults";
@@ -61,6 +62,7 @@ pub const ALL: &[Entry] = &[
     e(COMPUTE_COMMANDS, None),
     e(COMPUTE_COMMANDS_COST, None),
     e(COMPUTE_PLAN, None),
+    e(COMPUTE_PLAN_PANDA, None),
     e(COMPUTE_MODEL, None),
     e(DEVICE, None),
     e(SOAK_FAULTS, None),

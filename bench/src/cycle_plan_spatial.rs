@@ -1,0 +1,133 @@
+//! The spatial planner's time on the Panda (issue 25's target: ≤ 1 s), each layout planned in
+//! turn, round after round, so a noisy moment hits them alike: the whole plan the daemon makes
+//! (the path's check, the relaxations from each start, the steered law's run for a period).
+
+use anyhow::Result;
+use control::model::{builtin, Chain};
+use control::plan::spatial::{plan_setup, SpatialSteer};
+use control::plan::{PlanOutcome, PlanSettings};
+use control::spatial::config::{SpatialConfig, SphereEntry};
+use control::spatial::sim::SpatialSimulation;
+use std::time::Instant;
+
+/// Spheres as (x, y, z, radius), m.
+type Spheres = &'static [[f64; 4]];
+
+/// The layouts: a label, the spheres, and the moment of the edit (s): 0 plans the start from
+/// its posture; later, the arm has followed the start's steered cycle until then, and the plan
+/// starts from that cycle, as the daemon's does after an edit.
+const LAYOUTS: [(&str, Spheres, f64); 5] = [
+    ("no sphere", &[], 0.0),
+    (
+        "under the circle (0.15, −0.15, 0.45) r 0.08",
+        &[[0.15, -0.15, 0.45, 0.08]],
+        0.0,
+    ),
+    (
+        "two beside it (0.3, −0.3, 0.45 and 0.6) r 0.08",
+        &[[0.3, -0.3, 0.45, 0.08], [0.3, -0.3, 0.6, 0.08]],
+        0.0,
+    ),
+    (
+        "one on the path (0.307, 0, 0.487) r 0.05",
+        &[[0.307, 0.0, 0.487, 0.05]],
+        0.0,
+    ),
+    (
+        "under the circle, added at 6.1 s",
+        &[[0.15, -0.15, 0.45, 0.08]],
+        6.1,
+    ),
+];
+
+/// A planning job: the set-up with the spheres, the task time, the posture and the cycle
+/// followed then.
+type Job = (
+    control::spatial::config::SpatialSetup<7>,
+    f64,
+    nalgebra::SVector<f64, 7>,
+    Option<control::plan::CycleTable<7>>,
+);
+
+fn job(chain: &Chain, spheres: &[[f64; 4]], at: f64) -> Result<Job> {
+    let mut cfg = SpatialConfig::preset("panda").expect("the panda preset");
+    cfg.safety.plan = true;
+    let (start, _) = cfg.setup_planned::<7>(chain)?;
+    let mut sim = SpatialSimulation::<7, 3>::new(
+        start.arm,
+        start.params,
+        start.dt,
+        start.q0,
+        start.qd0,
+        start.params.tau,
+    );
+    while sim.time() < at {
+        sim.step();
+    }
+    cfg.obstacles = spheres
+        .iter()
+        .map(|s| SphereEntry {
+            center: [s[0], s[1], s[2]],
+            radius: s[3],
+            margin: 0.1,
+        })
+        .collect();
+    let set = cfg.setup::<7>(chain)?;
+    let following = (at > 0.0)
+        .then(|| start.params.steer.map(|s: SpatialSteer| s.cycle))
+        .flatten();
+    Ok((set, sim.time(), sim.state().q, following))
+}
+
+pub fn section(quick: bool) -> Result<String> {
+    let rounds = if quick { 3 } else { 7 };
+    let chain = Chain::from_urdf(builtin("panda")?, None, None)?;
+    let jobs: Vec<Job> = LAYOUTS
+        .iter()
+        .map(|(_, s, at)| job(&chain, s, *at))
+        .collect::<Result<_>>()?;
+    let s = PlanSettings::default();
+    let mut times = vec![Vec::new(); LAYOUTS.len()];
+    let mut outcomes = vec![None; LAYOUTS.len()];
+    for order in crate::plan::interleave(&(0..LAYOUTS.len()).collect::<Vec<_>>(), rounds) {
+        for i in order {
+            let (set, t0, q, following) = &jobs[i];
+            let t = Instant::now();
+            let planned = plan_setup(set, *t0, Some(*q), following.as_ref(), &s);
+            times[i].push(t.elapsed().as_secs_f64() * 1e3);
+            outcomes[i] = Some((planned.outcome, planned.limits_only));
+        }
+    }
+    let mut text = format!(
+        "\n### Planning a clean cycle (Panda)\n\n`control::plan::spatial` on {} phases, the \
+         Panda's study set-up, {rounds} rounds, interleaved (target ≤ 1 s): the whole plan the \
+         daemon makes, from the arm's posture (at 6.1 s: from the cycle it follows then) and \
+         the starts spread over the joint box, each strict, then within the physical limits:\n\n\
+         | layout | outcome | smallest clearance | fastest joint | median | max |\n\
+         |---|---|---|---|---|---|\n",
+        s.phases
+    );
+    for (i, (label, _, _)) in LAYOUTS.iter().enumerate() {
+        let (median, max) = crate::cycle_plan::median_max(&times[i]);
+        let (found, clearance, rate) = match &outcomes[i] {
+            Some((PlanOutcome::Found(c), loose)) => (
+                if *loose {
+                    "cycle (limits only)"
+                } else {
+                    "cycle"
+                },
+                if c.min_clearance.is_finite() {
+                    format!("{:.3} m", c.min_clearance)
+                } else {
+                    "–".into()
+                },
+                format!("{:.2} rad/s", c.max_rate),
+            ),
+            _ => ("blocked", "–".into(), "–".into()),
+        };
+        text.push_str(&format!(
+            "| {label} | {found} | {clearance} | {rate} | {median:.1} ms | {max:.1} ms |\n"
+        ));
+    }
+    Ok(text)
+}
