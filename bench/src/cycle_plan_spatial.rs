@@ -64,14 +64,7 @@ fn job(chain: &Chain, spheres: &[[f64; 4]], at: f64) -> Result<Job> {
     while sim.time() < at {
         sim.step();
     }
-    cfg.obstacles = spheres
-        .iter()
-        .map(|s| SphereEntry {
-            center: [s[0], s[1], s[2]],
-            radius: s[3],
-            margin: 0.1,
-        })
-        .collect();
+    cfg.obstacles = spheres.iter().copied().map(SphereEntry::of).collect();
     let set = cfg.setup::<7>(chain)?;
     let following = (at > 0.0)
         .then(|| start.params.steer.map(|s: SpatialSteer| s.cycle))

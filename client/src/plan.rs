@@ -113,11 +113,8 @@ fn spatial(a: &PlanCmd, mut cfg: control::spatial::config::SpatialConfig) -> Res
                 o.0
             );
         };
-        cfg.obstacles.push(control::spatial::config::SphereEntry {
-            center: [x, y, z],
-            radius: r,
-            margin: 0.1,
-        });
+        cfg.obstacles
+            .push(control::spatial::config::SphereEntry::of([x, y, z, r]));
     }
     let settings = settings(a)?;
     let chain = rt::robot::load(

@@ -23,14 +23,7 @@ fn config(spheres: &[[f64; 4]], mu: f64, kick: f64, plan: bool) -> SpatialConfig
     c.sim.q0[0] += kick;
     c.sim.q0[2] -= kick;
     c.safety.plan = plan;
-    c.obstacles = spheres
-        .iter()
-        .map(|s| SphereEntry {
-            center: [s[0], s[1], s[2]],
-            radius: s[3],
-            margin: 0.1,
-        })
-        .collect();
+    c.obstacles = spheres.iter().copied().map(SphereEntry::of).collect();
     c
 }
 

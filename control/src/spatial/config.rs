@@ -256,6 +256,18 @@ fn default_margin() -> f64 {
     0.1
 }
 
+impl SphereEntry {
+    /// A sphere `[x, y, z, radius]` (m) with the default potential margin, as a file's
+    /// `[[obstacles]]` entry without `margin` reads.
+    pub fn of([x, y, z, radius]: [f64; 4]) -> Self {
+        Self {
+            center: [x, y, z],
+            radius,
+            margin: default_margin(),
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SimSection {
