@@ -102,6 +102,8 @@ pub struct SpatialReport {
     pub t_on: f64,
     pub projection: String,
     pub secondary: String,
+    /// Steered onto a planned clean cycle (`safety.plan`), which replaces the secondary task.
+    pub steered: bool,
     pub alpha: f64,
     pub dt: f64,
     pub final_q: Vec<f64>,
@@ -158,7 +160,9 @@ pub fn simulate(
             return Err(e.into());
         }
         let x = sim.state();
-        report(cfg, N, s.dt, x.q.as_slice(), x.qd.as_slice(), summary)
+        let mut r = report(cfg, N, s.dt, x.q.as_slice(), x.qd.as_slice(), summary);
+        r.steered = s.params.steer.is_some();
+        r
     });
     if let Some(mut w) = out {
         w.flush()?;
@@ -191,6 +195,7 @@ fn report(
         t_on: cfg.feedback.t_on,
         projection: cfg.feedback.projection.clone(),
         secondary: cfg.law.secondary.clone(),
+        steered: false,
         alpha: cfg.law.alpha,
         dt,
         final_q: q.to_vec(),
@@ -207,9 +212,14 @@ fn opt(v: Option<f64>, unit: &str) -> String {
 /// The human report.
 pub fn print(r: &SpatialReport) {
     let s = &r.summary;
+    let secondary = if r.steered {
+        "none: steered onto a planned clean cycle (safety.plan)".to_string()
+    } else {
+        format!("{} (α = {})", r.secondary, r.alpha)
+    };
     println!(
-        "{} ({} joints), {} task, {} s: secondary {} (α = {}), feedback μ = {} τ = {} s from t = {} s ({})",
-        r.robot, r.n, r.task, s.duration, r.secondary, r.alpha, r.mu, r.tau, r.t_on, r.projection
+        "{} ({} joints), {} task, {} s: secondary {secondary}, feedback μ = {} τ = {} s from t = {} s ({})",
+        r.robot, r.n, r.task, s.duration, r.mu, r.tau, r.t_on, r.projection
     );
     println!(
         "  tracking error   rms {:.3e} m, max {:.3e} m",

@@ -180,3 +180,25 @@ fn plan_on_the_panda_goes_round_a_sphere_and_names_one_on_the_path() {
         assert!(err.contains(says), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn simulate_steers_a_panda_whose_file_asks_for_a_plan() {
+    let dir = TempDir::new(&unique_namespace("sim-plan"));
+    let text = control::spatial::config::PANDA.replace(
+        "[safety]\nenabled = true\n",
+        "[safety]\nenabled = true\nplan = true\n",
+    ) + "\n[[obstacles]]\ncenter = [0.15, -0.15, 0.45]\nradius = 0.08\n";
+    let cfg = dir.path().join("panda.toml");
+    std::fs::write(&cfg, text).unwrap();
+    let o = Command::new(bin("chaosctl"))
+        .args(["simulate", "--config", cfg.to_str().unwrap()])
+        .args(["--duration", "20", "--transient", "10", "--json"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["steered"], true, "{v}");
+    assert!(v["rms_tracking_error"].as_f64().unwrap() < 1e-4, "{v}");
+    assert!(v["min_clearance"].as_f64().unwrap() >= 0.02, "{v}");
+    assert_eq!(v["safety_left_null_space_steps"], 0, "{v}");
+}
