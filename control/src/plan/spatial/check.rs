@@ -160,6 +160,7 @@ impl<const N: usize> SpatialProblem<N> {
         let dt = table.period / (n * SAMPLES) as f64;
         let mut kin = SpatialKinematics::<N>::default();
         let mut points: Points<N> = [PointMotion::default(); crate::config::MAX_JOINTS + 1];
+        let gains = self.law.safety.gains();
         for k in 0..n * SAMPLES {
             let t = table.t0 + k as f64 * dt;
             let r = table.sample(t);
@@ -190,7 +191,6 @@ impl<const N: usize> SpatialProblem<N> {
             for sphere in self.law.spheres.as_slice() {
                 for j in 0..N {
                     let reach = sphere.radius + self.arm.radii[j] + self.law.safety.clearance;
-                    let gains = self.law.safety.gains();
                     let row = capsule_row(&points[j], &points[j + 1], sphere.center, reach, gains);
                     if let Some((_, a, b)) = row {
                         v.filter_margin = v.filter_margin.min(a.dot(&qdd) - b);

@@ -197,13 +197,10 @@ impl<const N: usize> SpatialProblem<N> {
         }
     }
 
-    /// Plans with settings `s` from the `near` starts or the others: the first clean cycle,
-    /// or why there is none.
-    pub fn plan<const M: usize>(&self, s: &PlanSettings, near: bool) -> PlanOutcome {
-        if let Some(b) = self.path_blocked() {
-            return PlanOutcome::Blocked(b);
-        }
-        let s = &self.margin_within_path(s);
+    /// Plans with settings `s` (their margin already within the path's,
+    /// [`Self::margin_within_path`]) from the `near` starts or the others: the first clean
+    /// cycle, or why there is none.
+    fn plan<const M: usize>(&self, s: &PlanSettings, near: bool) -> PlanOutcome {
         let starts = self.starts(near, s);
         let mut best: Option<Shortfall> = None;
         let mut tried = 0;
@@ -373,6 +370,9 @@ impl<const N: usize> SpatialProblem<N> {
     /// from the others. A cycle near the arm with less margin beats a far one with more: the
     /// arm gets to it without crossing the layout.
     fn plan_twice<const M: usize>(&self, s: &PlanSettings) -> (PlanOutcome, bool) {
+        if let Some(b) = self.path_blocked() {
+            return (PlanOutcome::Blocked(b), true);
+        }
         let rate = (0..N)
             .map(|i| self.law.safety.qd_max[i])
             .fold(f64::INFINITY, f64::min);
@@ -380,6 +380,7 @@ impl<const N: usize> SpatialProblem<N> {
             candidates: s.candidates,
             ..PlanSettings::limits_only(rate.max(s.max_rate))
         };
+        let (s, loose) = (&self.margin_within_path(s), self.margin_within_path(&loose));
         let mut first = None;
         for near in [true, false] {
             if near && self.following.is_none() && self.q_now.is_none() {

@@ -12,7 +12,7 @@ use super::SpatialProblem;
 use crate::plan::PlanSettings;
 use crate::resolve::damped_pinv_m;
 use crate::spatial::arm::{SpatialKinematics, VecN};
-use crate::spatial::task::orientation_error;
+use crate::spatial::task::{orientation_error, Vec3};
 use nalgebra::{SMatrix, SVector};
 
 /// Gradient step per unit cost, and the longest slide a phase makes in one sweep (rad).
@@ -38,7 +38,7 @@ fn task_error<const N: usize, const M: usize>(
     let eo = if M == 6 {
         orientation_error(&target.rot, &kin.rot)
     } else {
-        ep * 0.0
+        Vec3::zeros()
     };
     SVector::<f64, M>::from_fn(|r, _| if r < 3 { ep[r] } else { eo[r - 3] })
 }
