@@ -55,19 +55,28 @@ fn the_daemon_says_periodic_with_feedback_and_chaotic_without_and_adapts_mu_live
     );
 
     // mu auto: adapts from the gain it had, and the window starts again for the new system.
+    let t_set = status(ns)["t"].as_f64().unwrap();
     let (code, _, err) = ctl(ns, &["set", "mu", "auto"]);
     assert_eq!(code, 0, "{err}");
     let (v, _) = poll_status(ns, Duration::from_secs(5), |v| {
         v["chaos"]["mu_auto"] == true
     });
     assert_eq!(v["chaos"]["mu_auto"], true, "{v}");
-    let (v, _) = poll_status(ns, Duration::from_secs(20), |v| {
-        verdict(v) == "periodic" && v["chaos"]["periods"].as_u64() < Some(20)
+    // Usually periodic again within 20 periods. A host stall on a loaded machine (CI saw one
+    // of 26 ms, 211 overruns) can knock the arm off the orbit; the gain then grows while the
+    // residual is large, and the orbit takes a chaotic transient to find again.
+    let (v, took) = poll_status(ns, Duration::from_secs(120), |v| {
+        verdict(v) == "periodic" && v["chaos"]["since"].as_f64() > Some(t_set)
     });
     assert_eq!(verdict(&v), "periodic", "{v}\n{}", sys.daemon.log());
     let mu = v["mu"].as_f64().unwrap();
+    eprintln!("periodic {took:?} after mu auto, μ = {mu}");
+    // Carried on from 0.2 (a restart from 0 would be far below it), within the bound; kept on
+    // the orbit (periodic again within 20 periods) it barely moves.
+    assert!((0.2..=0.4).contains(&mu), "μ = {mu}");
+    let kept = took < Duration::from_secs(20);
     assert!(
-        (0.2..0.21).contains(&mu),
+        !kept || mu < 0.21,
         "μ = {mu}: on the orbit it should barely move from 0.2"
     );
     let (code, _, err) = ctl(ns, &["set", "gamma", "1"]);
