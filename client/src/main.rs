@@ -15,6 +15,7 @@ mod simulate;
 mod spatial;
 mod spatial_figure;
 mod spatial_sweep;
+mod traps;
 
 use clap::{Parser, Subcommand};
 use client::online;

@@ -1,10 +1,12 @@
 //! `chaosctl simulate`: one deterministic closed-loop run, summarised for a person or as JSON.
 
 use crate::setup::{set_duration, ModelArgs};
+use crate::traps::{OfflineTraps, TrapEvent};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::config::{ModelKind, ProjectionKind};
-use control::{with_dof, ArmState, Config, RunStats, Simulation, Summary};
+use control::plan::Steering;
+use control::{with_dof, ArmState, Config, RunStats, Simulation, Summary, System};
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
@@ -48,6 +50,8 @@ pub struct Report {
     /// With `safety.plan`: the steering onto a planned clean cycle, or why there is none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plan: Option<String>,
+    /// The trap watch's answers, as the daemon would give them (safety on).
+    pub traps: Vec<TrapEvent>,
     #[serde(flatten)]
     pub summary: Summary,
 }
@@ -73,10 +77,15 @@ pub fn run_config(
         let mut sim = Simulation::new(cfg.model::<N>(), params, cfg.sim.dt, x0, cfg.feedback.max_tau);
         let steps = (cfg.sim.duration / cfg.sim.dt).round() as u64;
         let mut stats = RunStats::new(&params, cfg.sim.dt, cfg.sim.duration, cfg.sim.transient, &x0);
+        let mut traps = OfflineTraps::new(System::Planar(cfg.clone()), params.steer.map(Steering::Planar));
         for k in 0..steps {
             let x = *sim.state();
             let out = sim.step();
             stats.record(k, &x, &out);
+            let t = k as f64 * cfg.sim.dt;
+            if let Some(Steering::Planar(steer)) = traps.observe(t, out.flags, out.tracking_error, x.q.as_slice()) {
+                sim.params.steer = Some(steer);
+            }
             each(k, k as f64 * cfg.sim.dt, x.q.as_slice(), x.qd.as_slice(), x.phi)?;
         }
         let x = *sim.state();
@@ -99,6 +108,7 @@ pub fn run_config(
             final_qd: x.qd.as_slice().to_vec(),
             final_phi: (cfg.arm.model == ModelKind::Floating).then_some(x.phi),
             plan,
+            traps: traps.events,
             summary: stats.summary(),
         })
     })
@@ -218,6 +228,7 @@ pub fn print_report(r: &Report) {
     if let Some(p) = &r.plan {
         println!("  plan             {p}");
     }
+    crate::traps::print(&r.traps);
     println!("  final q          [{}] rad", fmt_vec(&r.final_q));
     println!("  final q̇          [{}] rad/s", fmt_vec(&r.final_qd));
     if let Some(phi) = r.final_phi {

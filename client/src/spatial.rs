@@ -6,13 +6,16 @@
 //! (t,q1..qn,qd1..qdn) so scripts that read one read the other.
 
 use crate::setup::SetupArgs;
+use crate::traps::{OfflineTraps, TrapEvent};
 use anyhow::{bail, Context, Result};
 use control::analysis::lyapunov::{Benettin, Growth};
 use control::config::ProjectionKind;
+use control::plan::Steering;
 use control::spatial::config::{is_spatial, SpatialConfig, SpatialSetup};
-use control::spatial::sim::run;
+use control::spatial::sim::{run, run_steering};
 use control::spatial::{SpatialSimulation, SpatialSummary};
-use control::{with_dof, with_task_rows, ArmState};
+use control::system::SpatialSystem;
+use control::{with_dof, with_task_rows, ArmState, System};
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
@@ -104,6 +107,8 @@ pub struct SpatialReport {
     pub secondary: String,
     /// Steered onto a planned clean cycle (`safety.plan`), which replaces the secondary task.
     pub steered: bool,
+    /// The trap watch's answers, as the daemon would give them (safety on).
+    pub traps: Vec<TrapEvent>,
     pub alpha: f64,
     pub dt: f64,
     pub final_q: Vec<f64>,
@@ -133,6 +138,15 @@ pub fn simulate(
         )),
         None => None,
     };
+    // The trap watch plans for the whole set-up, as the daemon's does.
+    let system = System::Spatial(Box::new(SpatialSystem {
+        config: cfg.clone(),
+        chain: rt::robot::load(
+            &cfg.robot.description,
+            cfg.robot.base.as_deref(),
+            cfg.robot.tip.as_deref(),
+        )?,
+    }));
     let report = with_setup!(cfg, |s, N, M| {
         if let Some(w) = out.as_mut() {
             let q: Vec<String> = (1..=N).map(|i| format!("q{i}")).collect();
@@ -143,7 +157,8 @@ pub fn simulate(
             SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
         let mut err = None;
         let mut k = 0u64;
-        let summary = run(&mut sim, s.duration, s.transient, |t, x, _| {
+        let mut traps = OfflineTraps::new(system.clone(), s.params.steer.map(Steering::Spatial));
+        let summary = run_steering(&mut sim, s.duration, s.transient, |t, x, o| {
             if let Some(w) = out.as_mut() {
                 if k.is_multiple_of(stride) && err.is_none() {
                     let row: Vec<String> =
@@ -155,6 +170,10 @@ pub fn simulate(
                 }
             }
             k += 1;
+            match traps.observe(t, o.flags, o.tracking_error, x.q.as_slice()) {
+                Some(Steering::Spatial(steer)) => Some(steer),
+                _ => None,
+            }
         });
         if let Some(e) = err {
             return Err(e.into());
@@ -162,6 +181,7 @@ pub fn simulate(
         let x = sim.state();
         let mut r = report(cfg, N, s.dt, x.q.as_slice(), x.qd.as_slice(), summary);
         r.steered = s.params.steer.is_some();
+        r.traps = traps.events;
         r
     });
     if let Some(mut w) = out {
@@ -196,6 +216,7 @@ fn report(
         projection: cfg.feedback.projection.clone(),
         secondary: cfg.law.secondary.clone(),
         steered: false,
+        traps: Vec::new(),
         alpha: cfg.law.alpha,
         dt,
         final_q: q.to_vec(),
@@ -253,6 +274,7 @@ pub fn print(r: &SpatialReport) {
         "  safety filter    active {:.2} s, left the null space {} steps, infeasible {} steps",
         s.safety_active_time, s.safety_left_null_space_steps, s.safety_infeasible_steps
     );
+    crate::traps::print(&r.traps);
     if !s.finite {
         println!("  the state became non-finite: the run stopped early");
     }

@@ -256,6 +256,7 @@ impl System {
                 obstacles: c.control.obstacles.len(),
                 trap_time: c.safety.trap_time,
                 when_blocked: c.safety.when_blocked,
+                task_period: c.task.period,
             },
             System::Spatial(s) => SafetySummary {
                 enabled: s.config.safety.enabled,
@@ -264,6 +265,7 @@ impl System {
                 obstacles: s.config.obstacles.len(),
                 trap_time: s.config.safety.trap_time,
                 when_blocked: s.config.safety.when_blocked,
+                task_period: s.config.task.period,
             },
         }
     }
@@ -351,6 +353,8 @@ pub struct SafetySummary {
     /// How long a trap lasts before the daemon acts (s), and what it does when blocked.
     pub trap_time: f64,
     pub when_blocked: crate::plan::WhenBlocked,
+    /// The task's period (s): a trap that recurs is counted in periods of it.
+    pub task_period: f64,
 }
 
 /// The feedback settings of [`System::feedback`].

@@ -9,9 +9,11 @@
 //!   or any spatial one).
 //! - **Watches for traps.** Tracking lost while the filter acts, or the filter acting outside
 //!   the null space, for `safety.trap_time` makes a trap (a start far from the path loses
-//!   tracking too, but the filter plays no part in it). The first trap of an edit is answered by steering onto a
-//!   cycle planned from where the arm is. A second one, or one on an arm without a planner,
-//!   means the arm cannot get round.
+//!   tracking too, but the filter plays no part in it); so does the filter costing tracking in
+//!   a few task periods out of a window ([`control::plan::trap`], which `chaosctl simulate`
+//!   runs too). The first trap of an edit is answered by steering onto a cycle planned from
+//!   where the arm is. A second one, or one on an arm without a planner, means the arm cannot
+//!   get round.
 //! - **Says `Blocked`.** When there is no clean cycle, or steering did not help, the daemon
 //!   enters `Blocked` with the reason in words, and holds the posture (tracking paused) or runs
 //!   on best-effort, as `safety.when_blocked` says. The next edit ends it once a clean cycle
@@ -24,8 +26,8 @@
 use crate::planner::{Done, Job, Planner, Why};
 use crate::replay::ReplayLog;
 use crate::telemetry::{LoopRequest, TickRecord};
-use control::law::flags;
-use control::plan::{spatial::SpatialSteer, PlanOutcome, Steer, Steering, WhenBlocked};
+use control::plan::trap::TrapDetector;
+use control::plan::{has_planner, plan_asked, steering_of, PlanOutcome, Steering, WhenBlocked};
 use control::System;
 use crossbeam::channel::Sender;
 
@@ -67,46 +69,6 @@ pub struct PlanInfo {
     pub limits_only: bool,
 }
 
-/// How much of the recent past was trapped: a level that rises towards 1 on trapped ticks and
-/// falls towards 0 on good ones, halving every `trap_time`. It crosses ½ after `trap_time` of
-/// a steady trap, and also when the arm keeps slipping in and out of one (tracking regained
-/// for a moment once round the circle is still a trap).
-#[derive(Clone, Copy, Debug, Default)]
-struct TrapWatch {
-    level: f64,
-    last_t: Option<f64>,
-    fired: bool,
-}
-
-/// Lost tracking is the filter's doing if the filter changed a command this recently (s).
-const FILTER_RECENT_S: f64 = 1.0;
-
-/// The level below which a trap that fired counts as over.
-const TRAP_OVER: f64 = 0.1;
-
-impl TrapWatch {
-    /// One tick on which the law ran: true once per trap, when the level first reaches ½.
-    fn observe(&mut self, t: f64, bad: bool, trap_time: f64) -> bool {
-        let dt = self.last_t.map_or(0.0, |l| (t - l).max(0.0));
-        self.last_t = Some(t);
-        let keep = (-dt * std::f64::consts::LN_2 / trap_time).exp();
-        self.level = keep * self.level + (1.0 - keep) * f64::from(u8::from(bad));
-        if self.fired {
-            self.fired = self.level >= TRAP_OVER;
-            return false;
-        }
-        if self.level >= 0.5 {
-            self.fired = true;
-            return true;
-        }
-        false
-    }
-
-    fn trapped(&self) -> bool {
-        self.level > TRAP_OVER
-    }
-}
-
 /// What a plan is made round (the obstacles and the task, as their config sections read):
 /// an edit that changes neither forces no detour.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -136,44 +98,13 @@ impl Layout {
     }
 }
 
-/// Whether the set-up asks for steering onto its planned cycle (`safety.plan`), and the pull's
-/// frequency.
-fn plan_asked(system: &System) -> (bool, f64) {
-    match system {
-        System::Planar(c) => (c.safety.plan, c.safety.plan_hz),
-        System::Spatial(s) => (s.config.safety.plan, s.config.safety.plan_hz),
-    }
-}
-
-/// Whether the arm has a cycle planner: the fixed-base 3-link planar arm, or a URDF chain.
-fn has_planner(system: &System) -> bool {
-    match system {
-        System::Planar(c) => c.n() == 3 && c.arm.model == control::config::ModelKind::Fixed,
-        System::Spatial(_) => true,
-    }
-}
-
-/// The steering onto planned cycle `c` for the arm `system` runs.
-fn steering_of(system: &System, c: &control::plan::Cycle) -> Result<Steering, String> {
-    let hz = plan_asked(system).1;
-    match system {
-        System::Planar(_) => Steer::of(c, hz).map(Steering::Planar),
-        System::Spatial(_) => SpatialSteer::of(c, hz).map(Steering::Spatial),
-    }
-}
-
 /// The reporter's side of safety without deadlock.
 pub struct Deadlock {
     planner: Option<Planner>,
     generation: u64,
-    trap: TrapWatch,
+    trap: TrapDetector,
     /// Traps seen since the last edit.
     traps: u32,
-    /// The worst tracking error and whether the filter left the null space, during the trap.
-    trap_error: f64,
-    trap_left_null_space: bool,
-    /// Controller time the filter last changed a command.
-    filter_acted: Option<f64>,
     steering_wanted: bool,
     /// A trap asked for steering: it outlives later edits.
     trap_steered: bool,
@@ -212,11 +143,8 @@ impl Deadlock {
         let mut d = Self {
             planner,
             generation: 0,
-            trap: TrapWatch::default(),
+            trap: TrapDetector::default(),
             traps: 0,
-            trap_error: 0.0,
-            trap_left_null_space: false,
-            filter_acted: None,
             steering_wanted,
             trap_steered: false,
             layout: Layout::of(system),
@@ -266,7 +194,7 @@ impl Deadlock {
         self.layout = layout;
         // `set safety.plan on|off` steers, or stops; a trap's steering stays.
         self.steering_wanted = plan_asked(system).0 || self.trap_steered;
-        self.trap = TrapWatch::default();
+        self.trap.afresh();
         self.traps = 0;
         let plans = self.planner.is_some() && system.safety().enabled;
         if plans {
@@ -288,33 +216,10 @@ impl Deadlock {
         if !s.enabled || self.blocked.is_some() {
             return;
         }
-        // A detour pauses tracking by design; the watch starts afresh when it hands over.
-        if r.law_flags & flags::DETOUR != 0 {
-            self.trap = TrapWatch::default();
-            self.filter_acted = None;
+        // A detour pauses tracking by design: the watch starts afresh when it hands over.
+        let Some(trap) = self.trap.observe(r.t, r.law_flags, r.tracking_error, &s) else {
             return;
-        }
-        // The filter's trap, not a start's transient: tracking lost while the filter acts (it
-        // need not change every command to hold the arm off its path).
-        if r.law_flags & flags::SAFETY_ACTIVE != 0 {
-            self.filter_acted = Some(r.t);
-        }
-        let filter_near = self
-            .filter_acted
-            .is_some_and(|a| r.t - a <= FILTER_RECENT_S);
-        let left = r.law_flags & flags::SAFETY_LEFT_NULL_SPACE != 0;
-        let lost = r.tracking_error > s.track_loss && filter_near;
-        if lost || left {
-            self.trap_error = self.trap_error.max(r.tracking_error);
-            self.trap_left_null_space |= left;
-        }
-        if !self.trap.observe(r.t, lost || left, s.trap_time) {
-            if !self.trap.trapped() {
-                self.trap_error = 0.0;
-                self.trap_left_null_space = false;
-            }
-            return;
-        }
+        };
         self.traps += 1;
         let q_now = r.state.map(|st| st.q[..system.n()].to_vec());
         let plans = self.planner.is_some() && self.planner_error.is_none();
@@ -322,25 +227,24 @@ impl Deadlock {
             tracing::warn!(
                 "trapped at t = {:.3} s ({}): planning a clean cycle from the arm's posture",
                 r.t,
-                self.trap_words(s.trap_time)
+                trap.words(s.trap_time)
             );
             self.steering_wanted = true;
             self.trap_steered = true;
             self.submit(system, Why::Trap, r.t, q_now);
-            self.trap = TrapWatch::default(); // the steering gets `trap_time` of its own
             return;
         }
         let reason = if plans {
             format!(
                 "trapped: steering onto the planned clean cycle did not get the arm round ({}); \
                  edit the obstacles or the task",
-                self.trap_words(s.trap_time)
+                trap.words(s.trap_time)
             )
         } else {
             format!(
                 "trapped: {}, and this arm has no cycle planner to find a way round; edit the \
                  obstacles or the task",
-                self.trap_words(s.trap_time)
+                trap.words(s.trap_time)
             )
         };
         self.block(
@@ -354,18 +258,6 @@ impl Deadlock {
                 link: None,
             },
         );
-    }
-
-    fn trap_words(&self, trap_time: f64) -> String {
-        let filter = if self.trap_left_null_space {
-            "the safety filter acting outside the null space"
-        } else {
-            "the safety filter holding the arm"
-        };
-        format!(
-            "tracking error up to {:.3} m for {trap_time} s, {filter}",
-            self.trap_error
-        )
     }
 
     /// Takes what the planner finished and sends the loop what changed (never blocks).
@@ -480,7 +372,7 @@ impl Deadlock {
                 "no longer blocked at t = {t:.3} s ({why}; blocked for {:.1} s)",
                 t - b.since
             );
-            self.trap = TrapWatch::default();
+            self.trap.afresh();
         }
         if self.holding || self.send_hold == Some(true) {
             self.send_hold = Some(false);
@@ -639,39 +531,5 @@ mod tests {
         // and the second one is still made for a new layout.
         let d = &mut Deadlock::new(&open, None);
         assert!(steered_after_edits(d, &[with_obstacle, mu_again], t, q));
-    }
-
-    #[test]
-    fn a_trap_fires_once_after_trap_time_and_good_tracking_ends_it() {
-        let dt = 0.001;
-        let mut w = TrapWatch::default();
-        let fired: Vec<usize> = (0..=4000)
-            .filter(|&k| w.observe(k as f64 * dt, true, 2.0))
-            .collect();
-        assert_eq!(fired, vec![2000], "once, after 2 s of a steady trap");
-        let (t, level) = (4.0, w.level);
-        assert!((level - 0.75).abs() < 1e-3, "{level}");
-        let over = (1..=20_000)
-            .find(|&k| {
-                w.observe(t + k as f64 * dt, false, 2.0);
-                !w.fired
-            })
-            .unwrap();
-        // From ¾ down to 0.1: log2(7.5) trap times.
-        assert!(
-            (over as f64 * dt - 2.0 * 7.5f64.log2()).abs() < 0.01,
-            "{over}"
-        );
-    }
-
-    #[test]
-    fn slipping_in_and_out_of_a_trap_is_a_trap() {
-        // Tracking regained for 1 s in every 6 s (the arm swinging past its path once round).
-        let mut w = TrapWatch::default();
-        let first = (0..30_000).find(|&k| {
-            let t = k as f64 * 0.001;
-            w.observe(t, t % 6.0 < 5.0, 2.0)
-        });
-        assert!(first.is_some_and(|k| k < 6000), "{first:?}");
     }
 }

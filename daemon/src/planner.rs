@@ -6,7 +6,7 @@
 //! plan under way for the one before), and hands back what it found. The reporter turns that
 //! into a `Copy` handover for the loop ([`crate::deadlock`]).
 
-use control::plan::{plan_config, spatial::plan_system_with, PlanSettings, Planned, Steering};
+use control::plan::{plan_arm, Planned};
 use control::System;
 use crossbeam::channel::{unbounded, Receiver, RecvTimeoutError, Sender};
 use std::thread::JoinHandle;
@@ -40,20 +40,12 @@ pub struct Job {
 impl Job {
     /// The plan for this job, by the arm's own planner.
     fn plan(&self) -> Result<Planned, String> {
-        let q = self.q_now.as_deref();
-        match &self.system {
-            System::Planar(c) => {
-                let q3 = q.filter(|q| q.len() >= 3).map(|q| [q[0], q[1], q[2]]);
-                plan_config(c, self.t0, q3)
-            }
-            System::Spatial(s) => {
-                let following = match &self.following {
-                    Some(Steering::Spatial(f)) => Some(&f.cycle),
-                    _ => None,
-                };
-                plan_system_with(s, self.t0, q, following, &PlanSettings::default())
-            }
-        }
+        plan_arm(
+            &self.system,
+            self.t0,
+            self.q_now.as_deref(),
+            self.following.as_ref(),
+        )
     }
 }
 

@@ -202,3 +202,86 @@ fn simulate_steers_a_panda_whose_file_asks_for_a_plan() {
     assert!(v["min_clearance"].as_f64().unwrap() >= 0.02, "{v}");
     assert_eq!(v["safety_left_null_space_steps"], 0, "{v}");
 }
+
+/// `chaosctl simulate --json` on `text` (a config file's text) over `duration` s, statistics
+/// after half of it.
+fn simulate_json(name: &str, text: &str, duration: &str, transient: &str) -> serde_json::Value {
+    let dir = TempDir::new(&unique_namespace(name));
+    let cfg = dir.path().join("setup.toml");
+    std::fs::write(&cfg, text).unwrap();
+    let o = Command::new(bin("chaosctl"))
+        .args(["simulate", "--config", cfg.to_str().unwrap()])
+        .args(["--duration", duration, "--transient", transient, "--json"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+/// The demo set-up with `obstacles` (a TOML array), as a user writes it.
+fn demo_with(obstacles: &str) -> String {
+    let text = toml::to_string(&control::Config::preset("demo").unwrap()).unwrap();
+    assert!(
+        text.contains("obstacles = []"),
+        "the demo's obstacles moved"
+    );
+    text.replace("obstacles = []", &format!("obstacles = {obstacles}"))
+}
+
+#[test]
+fn simulate_answers_a_trap_as_the_daemon_does_without_a_plan_asked() {
+    // The new user's obstacle, there from the start: the filter alone holds the arm off its
+    // path; the trap watch sees it and steers onto a cycle planned from the arm's posture.
+    let v = simulate_json(
+        "sim-trap",
+        &demo_with("[{ center = [0.9, 1.1], radius = 0.15 }]"),
+        "40",
+        "20",
+    );
+    let traps = v["traps"].as_array().unwrap();
+    assert_eq!(traps.len(), 1, "{v}");
+    assert_eq!(traps[0]["answer"], "steered", "{v}");
+    assert!(traps[0]["t"].as_f64().unwrap() < 10.0, "{v}");
+    assert!(v["rms_tracking_error"].as_f64().unwrap() < 1e-4, "{v}");
+    assert_eq!(v["time_in_contact"], 0.0, "{v}");
+
+    // An obstacle on the path: trapped, and no clean cycle exists: Blocked, with the reason.
+    let v = simulate_json(
+        "sim-blocked",
+        &demo_with("[{ center = [1.0, 1.5], radius = 0.05 }]"),
+        "20",
+        "10",
+    );
+    let traps = v["traps"].as_array().unwrap();
+    assert_eq!(traps.len(), 1, "{v}");
+    assert_eq!(traps[0]["answer"], "blocked", "{v}");
+    let what = traps[0]["what"].as_str().unwrap();
+    assert!(
+        what.contains("no clean cycle the arm can follow") && what.contains("obstacle 1"),
+        "{what}"
+    );
+
+    // The Panda the filter traps only now and then (plan off): the recurring trap is seen,
+    // and steering tracks to the law's precision with the filter's clearance kept.
+    let text = control::spatial::config::PANDA
+        .replace("mu = 1.0\nt_on = 60.0", "mu = 1.8\nt_on = 0.0")
+        .replace(
+            "[sim]",
+            "[[obstacles]]\ncenter = [0.3, -0.3, 0.45]\nradius = 0.08\n\n\
+             [[obstacles]]\ncenter = [0.3, -0.3, 0.6]\nradius = 0.08\n\n[sim]",
+        );
+    let v = simulate_json("sim-recur", &text, "40", "20");
+    let traps = v["traps"].as_array().unwrap();
+    assert_eq!(traps.len(), 1, "{v}");
+    assert_eq!(traps[0]["answer"], "steered", "{v}");
+    assert!(
+        traps[0]["what"]
+            .as_str()
+            .unwrap()
+            .contains("in 3 task periods out of 16"),
+        "{v}"
+    );
+    assert_eq!(v["steered"], false, "plan was not asked: {v}");
+    assert!(v["rms_tracking_error"].as_f64().unwrap() < 1e-4, "{v}");
+    assert!(v["min_clearance"].as_f64().unwrap() >= 0.0199, "{v}");
+}

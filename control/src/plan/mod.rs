@@ -11,13 +11,16 @@
 //! The planner allocates and takes milliseconds: it runs off the loop, and hands its cycle over
 //! whole.
 
+mod arm;
 pub mod detour;
 pub mod planar;
 mod policy;
 pub mod refine;
 pub mod spatial;
 mod table;
+pub mod trap;
 
+pub use arm::{has_planner, plan_arm, plan_asked, steering_of};
 pub use policy::{check_trap_time, WhenBlocked, DEFAULT_TRAP_TIME};
 pub use table::{CycleTable, Sample, MAX_PHASES};
 

@@ -14,6 +14,7 @@ use crate::analysis::lyapunov::{
 use crate::delay::DelayLine;
 use crate::law::flags;
 use crate::law::ControlOutput;
+use crate::plan::spatial::SpatialSteer;
 use crate::sim::{plant_derivative, rk4_step, ArmState};
 
 /// A spatial closed loop for a task of `M` rows. `step` allocates nothing.
@@ -177,6 +178,20 @@ pub fn run<const N: usize, const M: usize>(
     transient: f64,
     mut each: impl FnMut(f64, &ArmState<N>, &ControlOutput<N>),
 ) -> SpatialSummary {
+    run_steering(sim, duration, transient, |t, x, o| {
+        each(t, x, o);
+        None
+    })
+}
+
+/// [`run`], where `each` may hand the law a steering (a cycle planned after a trap, as the
+/// daemon does): it takes effect from the next step.
+pub fn run_steering<const N: usize, const M: usize>(
+    sim: &mut SpatialSimulation<N, M>,
+    duration: f64,
+    transient: f64,
+    mut each: impl FnMut(f64, &ArmState<N>, &ControlOutput<N>) -> Option<SpatialSteer>,
+) -> SpatialSummary {
     let dt = sim.dt();
     let p = sim.params;
     let period = p.task.path.period;
@@ -205,7 +220,9 @@ pub fn run<const N: usize, const M: usize>(
         let t = sim.time();
         let x = *sim.state();
         let out = sim.step();
-        each(t, &x, &out);
+        if let Some(steer) = each(t, &x, &out) {
+            sim.params.steer = Some(steer);
+        }
         hist.push(x.qd);
         let resid = (x.qd - hist.sample(k as f64 - period / dt)).norm();
         if t >= period && t < before_end && t >= before_end - 10.0 * period {

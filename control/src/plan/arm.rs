@@ -1,0 +1,55 @@
+//! Planning for whichever arm a [`System`] holds: the daemon's planner thread and `chaosctl
+//! simulate` both come through here, so an offline run answers a trap as the daemon does.
+
+use super::spatial::{plan_system_with, SpatialSteer};
+use super::{plan_config, Cycle, PlanSettings, Planned, Steer, Steering};
+use crate::System;
+
+/// Whether the set-up asks for steering onto its planned cycle (`safety.plan`), and the pull's
+/// frequency (Hz).
+pub fn plan_asked(system: &System) -> (bool, f64) {
+    match system {
+        System::Planar(c) => (c.safety.plan, c.safety.plan_hz),
+        System::Spatial(s) => (s.config.safety.plan, s.config.safety.plan_hz),
+    }
+}
+
+/// Whether the arm has a cycle planner: the fixed-base 3-link planar arm, or a URDF chain.
+pub fn has_planner(system: &System) -> bool {
+    match system {
+        System::Planar(c) => c.n() == 3 && c.arm.model == crate::config::ModelKind::Fixed,
+        System::Spatial(_) => true,
+    }
+}
+
+/// A cycle for `system` from task time `t0`, near the posture `q_now` when given (else the
+/// start's), and for a spatial arm bent from the cycle it `following` now.
+pub fn plan_arm(
+    system: &System,
+    t0: f64,
+    q_now: Option<&[f64]>,
+    following: Option<&Steering>,
+) -> Result<Planned, String> {
+    match system {
+        System::Planar(c) => {
+            let q3 = q_now.filter(|q| q.len() >= 3).map(|q| [q[0], q[1], q[2]]);
+            plan_config(c, t0, q3)
+        }
+        System::Spatial(s) => {
+            let following = match following {
+                Some(Steering::Spatial(f)) => Some(&f.cycle),
+                _ => None,
+            };
+            plan_system_with(s, t0, q_now, following, &PlanSettings::default())
+        }
+    }
+}
+
+/// The steering onto planned cycle `c` for the arm `system` runs, at its `safety.plan_hz`.
+pub fn steering_of(system: &System, c: &Cycle) -> Result<Steering, String> {
+    let hz = plan_asked(system).1;
+    match system {
+        System::Planar(_) => Steer::of(c, hz).map(Steering::Planar),
+        System::Spatial(_) => SpatialSteer::of(c, hz).map(Steering::Spatial),
+    }
+}
