@@ -194,7 +194,7 @@ impl Deadlock {
         self.layout = layout;
         // `set safety.plan on|off` steers, or stops; a trap's steering stays.
         self.steering_wanted = plan_asked(system).0 || self.trap_steered;
-        self.trap.afresh();
+        self.trap.settle_from(t, &system.safety());
         self.traps = 0;
         let plans = self.planner.is_some() && system.safety().enabled;
         if plans {

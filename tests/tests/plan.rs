@@ -278,7 +278,7 @@ fn simulate_answers_a_trap_as_the_daemon_does_without_a_plan_asked() {
         traps[0]["what"]
             .as_str()
             .unwrap()
-            .contains("in 3 task periods out of 16"),
+            .contains("in 2 separate task periods out of 16"),
         "{v}"
     );
     assert_eq!(v["steered"], false, "plan was not asked: {v}");
