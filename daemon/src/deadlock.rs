@@ -98,6 +98,9 @@ impl Layout {
     }
 }
 
+/// A tick this late (ns) knocks the arm: the plant ran on the previous command for 5 ticks.
+const STALL_NS: u64 = 5_000_000;
+
 /// The reporter's side of safety without deadlock.
 pub struct Deadlock {
     planner: Option<Planner>,
@@ -209,10 +212,15 @@ impl Deadlock {
 
     /// One tick record: watches for a trap while the law runs.
     pub fn observe(&mut self, r: &TickRecord, system: &System) {
+        let s = system.safety();
+        // A hold or a stalled tick knocks the arm on its own (a loaded machine: holds and 20-50
+        // ms stalls, the filter then acting on the way back): not a recurring trap.
+        if r.mode != protocol::Mode::Run || r.lateness_ns > STALL_NS {
+            self.trap.disturbed(r.t, &s);
+        }
         if !r.ran_law || r.mode != protocol::Mode::Run {
             return;
         }
-        let s = system.safety();
         if !s.enabled || self.blocked.is_some() {
             return;
         }
