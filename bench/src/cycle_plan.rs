@@ -92,11 +92,7 @@ pub fn section(quick: bool) -> Result<String> {
                 } else {
                     "cycle"
                 },
-                if c.min_clearance.is_finite() {
-                    format!("{:.3} m", c.min_clearance)
-                } else {
-                    "–".into()
-                },
+                clearance_cell(c),
                 format!("{:.1}", c.filter_margin),
             ),
             _ => ("blocked", "–".into(), "–".into()),
@@ -107,4 +103,13 @@ pub fn section(quick: bool) -> Result<String> {
         ));
     }
     Ok(text)
+}
+
+/// A table cell for a cycle's smallest clearance: "0.050 m", or "–" without obstacles.
+pub fn clearance_cell(c: &control::plan::Cycle) -> String {
+    if c.min_clearance.is_finite() {
+        format!("{:.3} m", c.min_clearance)
+    } else {
+        "–".into()
+    }
 }

@@ -109,11 +109,7 @@ pub fn section(quick: bool) -> Result<String> {
                 } else {
                     "cycle"
                 },
-                if c.min_clearance.is_finite() {
-                    format!("{:.3} m", c.min_clearance)
-                } else {
-                    "–".into()
-                },
+                crate::cycle_plan::clearance_cell(c),
                 format!("{:.2} rad/s", c.max_rate),
             ),
             _ => ("blocked", "–".into(), "–".into()),
