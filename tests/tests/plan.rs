@@ -228,6 +228,14 @@ fn demo_with(obstacles: &str) -> String {
     text.replace("obstacles = []", &format!("obstacles = {obstacles}"))
 }
 
+/// The only trap event of a `simulate --json` report, which must have been answered so.
+fn the_one_trap<'a>(v: &'a serde_json::Value, answer: &str) -> &'a serde_json::Value {
+    let traps = v["traps"].as_array().unwrap();
+    assert_eq!(traps.len(), 1, "{v}");
+    assert_eq!(traps[0]["answer"], answer, "{v}");
+    &traps[0]
+}
+
 #[test]
 fn simulate_answers_a_trap_as_the_daemon_does_without_a_plan_asked() {
     // The new user's obstacle, there from the start: the filter alone holds the arm off its
@@ -238,10 +246,8 @@ fn simulate_answers_a_trap_as_the_daemon_does_without_a_plan_asked() {
         "40",
         "20",
     );
-    let traps = v["traps"].as_array().unwrap();
-    assert_eq!(traps.len(), 1, "{v}");
-    assert_eq!(traps[0]["answer"], "steered", "{v}");
-    assert!(traps[0]["t"].as_f64().unwrap() < 10.0, "{v}");
+    let trap = the_one_trap(&v, "steered");
+    assert!(trap["t"].as_f64().unwrap() < 10.0, "{v}");
     assert!(v["rms_tracking_error"].as_f64().unwrap() < 1e-4, "{v}");
     assert_eq!(v["time_in_contact"], 0.0, "{v}");
 
@@ -252,10 +258,7 @@ fn simulate_answers_a_trap_as_the_daemon_does_without_a_plan_asked() {
         "20",
         "10",
     );
-    let traps = v["traps"].as_array().unwrap();
-    assert_eq!(traps.len(), 1, "{v}");
-    assert_eq!(traps[0]["answer"], "blocked", "{v}");
-    let what = traps[0]["what"].as_str().unwrap();
+    let what = the_one_trap(&v, "blocked")["what"].as_str().unwrap();
     assert!(
         what.contains("no clean cycle the arm can follow") && what.contains("obstacle 1"),
         "{what}"
@@ -263,19 +266,9 @@ fn simulate_answers_a_trap_as_the_daemon_does_without_a_plan_asked() {
 
     // The Panda the filter traps only now and then (plan off): the recurring trap is seen,
     // and steering tracks to the law's precision with the filter's clearance kept.
-    let text = control::spatial::config::PANDA
-        .replace("mu = 1.0\nt_on = 60.0", "mu = 1.8\nt_on = 0.0")
-        .replace(
-            "[sim]",
-            "[[obstacles]]\ncenter = [0.3, -0.3, 0.45]\nradius = 0.08\n\n\
-             [[obstacles]]\ncenter = [0.3, -0.3, 0.6]\nradius = 0.08\n\n[sim]",
-        );
-    let v = simulate_json("sim-recur", &text, "40", "20");
-    let traps = v["traps"].as_array().unwrap();
-    assert_eq!(traps.len(), 1, "{v}");
-    assert_eq!(traps[0]["answer"], "steered", "{v}");
+    let v = simulate_json("sim-recur", &panda_grazing_two_spheres(), "40", "20");
     assert!(
-        traps[0]["what"]
+        the_one_trap(&v, "steered")["what"]
             .as_str()
             .unwrap()
             .contains("in 2 separate task periods out of 16"),

@@ -269,21 +269,9 @@ fn a_live_panda_steers_round_a_new_sphere_and_says_blocked_for_one_on_its_path()
 #[test]
 fn a_live_panda_the_filter_traps_now_and_then_is_caught_and_steered_without_plan() {
     let _g = serial();
-    // Two spheres beside the circle's far side and μ = 1.8 from the start: offline, every start
-    // tried settles into a cycle where the filter leaves the null space once a period and the
-    // hand is 1-5 mm off its path, never 5 cm (`law.track_loss`), never for 2 s on end
-    // (`safety.trap_time`). `plan` stays off, as by default.
-    let cfg = PANDA
-        .replace("mu = 1.0\nt_on = 60.0", "mu = 1.8\nt_on = 0.0")
-        .replace(
-            "[sim]",
-            "[[obstacles]]\ncenter = [0.3, -0.3, 0.45]\nradius = 0.08\n\n\
-             [[obstacles]]\ncenter = [0.3, -0.3, 0.6]\nradius = 0.08\n\n[sim]",
-        );
-    assert!(
-        cfg.contains("mu = 1.8") && cfg.contains("[[obstacles]]"),
-        "the preset moved"
-    );
+    // The filter leaves the null space once a period and the hand is 1-5 mm off its path,
+    // never 5 cm (`law.track_loss`), never for 2 s on end (`safety.trap_time`).
+    let cfg = panda_grazing_two_spheres();
     let sys = start("panda-recur", &cfg);
     let ns = &sys.ns;
     let trapped = |v: &serde_json::Value| {
