@@ -16,16 +16,21 @@ type Spheres = &'static [[f64; 4]];
 /// The layouts: a label, the spheres, and the moment of the edit (s): 0 plans the start from
 /// its posture; later, the arm has followed the start's steered cycle until then, and the plan
 /// starts from that cycle, as the daemon's does after an edit.
-const LAYOUTS: [(&str, Spheres, f64); 5] = [
+const LAYOUTS: [(&str, Spheres, f64); 6] = [
     ("no sphere", &[], 0.0),
     (
-        "under the circle (0.15, −0.15, 0.45) r 0.08",
-        &[[0.15, -0.15, 0.45, 0.08]],
+        "between arm and circle (0.089, −0.196, 0.575) r 0.058",
+        &[[0.089, -0.196, 0.575, 0.058]],
         0.0,
     ),
     (
-        "two beside it (0.3, −0.3, 0.45 and 0.6) r 0.08",
-        &[[0.3, -0.3, 0.45, 0.08], [0.3, -0.3, 0.6, 0.08]],
+        "two: (0.145, −0.233, 0.675) r 0.072, (0.385, −0.315, 0.452) r 0.083",
+        &[[0.145, -0.233, 0.675, 0.072], [0.385, -0.315, 0.452, 0.083]],
+        0.0,
+    ),
+    (
+        "beside the path (0.15, −0.15, 0.45) r 0.08: the filter brakes the hand",
+        &[[0.15, -0.15, 0.45, 0.08]],
         0.0,
     ),
     (
@@ -34,8 +39,8 @@ const LAYOUTS: [(&str, Spheres, f64); 5] = [
         0.0,
     ),
     (
-        "under the circle, added at 6.1 s",
-        &[[0.15, -0.15, 0.45, 0.08]],
+        "between arm and circle, added at 6.1 s",
+        &[[0.089, -0.196, 0.575, 0.058]],
         6.1,
     ),
 ];
@@ -51,7 +56,7 @@ type Job = (
 
 fn job(chain: &Chain, spheres: &[[f64; 4]], at: f64) -> Result<Job> {
     let mut cfg = SpatialConfig::preset("panda").expect("the panda preset");
-    cfg.safety.plan = true;
+    cfg.safety.plan = control::plan::PlanMode::On;
     let (start, _) = cfg.setup_planned::<7>(chain)?;
     let mut sim = SpatialSimulation::<7, 3>::new(
         start.arm,

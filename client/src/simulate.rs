@@ -65,7 +65,7 @@ pub fn run_config(
     let n = cfg.n();
     with_dof!(n, N => {
         let (params, blocked) = cfg.law_params_planned();
-        let plan = match (&params.steer, blocked) {
+        let plan = match (&params.steer, &blocked) {
             (Some(_), _) => Some(format!(
                 "steering onto a planned clean cycle (pull at {} Hz)",
                 cfg.safety.plan_hz
@@ -78,6 +78,9 @@ pub fn run_config(
         let steps = (cfg.sim.duration / cfg.sim.dt).round() as u64;
         let mut stats = RunStats::new(&params, cfg.sim.dt, cfg.sim.duration, cfg.sim.transient, &x0);
         let mut traps = OfflineTraps::new(System::Planar(cfg.clone()), params.steer.map(Steering::Planar));
+        if let Some(b) = &blocked {
+            traps.blocked_at_start(b);
+        }
         for k in 0..steps {
             let x = *sim.state();
             let out = sim.step();

@@ -75,7 +75,10 @@ pub fn load(setup: &SetupArgs, mu: Option<f64>) -> Result<Option<SpatialConfig>>
 /// Loads the robot and calls `f` with the checked set-up, `N` the joint count and `M` the task
 /// rows bound as consts.
 macro_rules! with_setup {
-    ($cfg:expr, |$setup:ident, $n:ident, $m:ident| $body:expr) => {{
+    ($cfg:expr, |$setup:ident, $n:ident, $m:ident| $body:expr) => {
+        with_setup!($cfg, |$setup, _blocked, $n, $m| $body)
+    };
+    ($cfg:expr, |$setup:ident, $blocked:ident, $n:ident, $m:ident| $body:expr) => {{
         let cfg: &SpatialConfig = $cfg;
         let chain = rt::robot::load(
             &cfg.robot.description,
@@ -85,8 +88,8 @@ macro_rules! with_setup {
         let kind = cfg.task_kind()?;
         with_dof!(chain.dof(), $n => {
             // With `safety.plan`, steered onto the planned cycle, as the daemon would be.
-            let ($setup, blocked): (SpatialSetup<$n>, _) = cfg.setup_planned::<$n>(&chain)?;
-            if let Some(b) = blocked {
+            let ($setup, $blocked): (SpatialSetup<$n>, _) = cfg.setup_planned::<$n>(&chain)?;
+            if let Some(b) = &$blocked {
                 eprintln!("safety.plan: no clean cycle, running without steering: {}", b.reason);
             }
             with_task_rows!(kind, |$m| $body)
@@ -147,7 +150,7 @@ pub fn simulate(
             cfg.robot.tip.as_deref(),
         )?,
     }));
-    let report = with_setup!(cfg, |s, N, M| {
+    let report = with_setup!(cfg, |s, blocked, N, M| {
         if let Some(w) = out.as_mut() {
             let q: Vec<String> = (1..=N).map(|i| format!("q{i}")).collect();
             let qd: Vec<String> = (1..=N).map(|i| format!("qd{i}")).collect();
@@ -158,6 +161,9 @@ pub fn simulate(
         let mut err = None;
         let mut k = 0u64;
         let mut traps = OfflineTraps::new(system.clone(), s.params.steer.map(Steering::Spatial));
+        if let Some(b) = &blocked {
+            traps.blocked_at_start(b);
+        }
         let summary = run_steering(&mut sim, s.duration, s.transient, |t, x, o| {
             if let Some(w) = out.as_mut() {
                 if k.is_multiple_of(stride) && err.is_none() {

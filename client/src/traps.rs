@@ -111,6 +111,14 @@ impl OfflineTraps {
         }
     }
 
+    /// The start's plan found no clean cycle: the daemon would say `Blocked` at once.
+    pub fn blocked_at_start(&mut self, b: &control::plan::Blocked) {
+        self.block(
+            0.0,
+            format!("no clean cycle the arm can follow: {}", b.reason),
+        );
+    }
+
     fn block(&mut self, t: f64, what: String) {
         self.blocked = true;
         self.events.push(TrapEvent {

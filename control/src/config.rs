@@ -561,7 +561,7 @@ impl Config {
         }
         range("sim.phi0", s.phi0, -1e6, 1e6)?;
         self.safety.validate(n)?;
-        if self.safety.plan && (n != 3 || self.arm.model != ModelKind::Fixed) {
+        if self.safety.plan == crate::plan::PlanMode::On && !self.has_planner() {
             return Err(invalid(
                 "safety.plan",
                 true,
@@ -620,14 +620,27 @@ impl Config {
         }
     }
 
+    /// Whether the cycle planner handles this arm: the fixed-base 3-link one.
+    pub fn has_planner(&self) -> bool {
+        self.n() == 3 && self.arm.model == ModelKind::Fixed
+    }
+
+    /// Whether the law steers onto a planned clean cycle: the filter on, an arm with a
+    /// planner, and `safety.plan` on (or `auto` with an obstacle).
+    pub fn steers_onto_plan(&self) -> bool {
+        self.safety.enabled
+            && self.has_planner()
+            && self.safety.plan.steers(!self.control.obstacles.is_empty())
+    }
+
     /// [`Self::law_params`] with the steering onto a planned clean cycle when `safety.plan` asks
     /// for it (the filter on, the fixed-base 3-link arm), planned from the start posture; and
     /// why there is none, when the planner found none (the law then runs without it).
     pub fn law_params_planned(&self) -> (LawParams, Option<crate::plan::Blocked>) {
         use crate::plan::{PlanOutcome, Steer};
         let mut p = self.law_params();
-        if !(self.safety.enabled && self.safety.plan) || self.n() != 3 {
-            return (p, None); // a plan on another arm is refused by `validate`
+        if !self.steers_onto_plan() {
+            return (p, None);
         }
         let q0 = self.initial_state::<3>().q;
         let Ok(planned) = crate::plan::plan_config(self, 0.0, Some([q0[0], q0[1], q0[2]])) else {

@@ -22,7 +22,7 @@ fn config(spheres: &[[f64; 4]], mu: f64, kick: f64, plan: bool) -> SpatialConfig
     c.feedback.t_on = 0.0;
     c.sim.q0[0] += kick;
     c.sim.q0[2] -= kick;
-    c.safety.plan = plan;
+    c.safety.plan = plan.into();
     c.obstacles = spheres.iter().copied().map(SphereEntry::of).collect();
     c
 }
@@ -53,10 +53,11 @@ fn simulate(c: &SpatialConfig) -> Outcome {
     }
 }
 
-/// One sphere under the circle's lower half, and one beside its far side.
+/// One sphere between the arm and the circle; one above the circle's far half and one beside
+/// its lower half.
 const LAYOUTS: [&[[f64; 4]]; 2] = [
-    &[[0.15, -0.15, 0.45, 0.08]],
-    &[[0.3, -0.3, 0.45, 0.08], [0.3, -0.3, 0.6, 0.08]],
+    &[[0.089, -0.196, 0.575, 0.058]],
+    &[[0.145, -0.233, 0.675, 0.072], [0.385, -0.315, 0.452, 0.083]],
 ];
 
 #[test]

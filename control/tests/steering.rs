@@ -1,6 +1,7 @@
-//! Steering onto a planned clean cycle (`[safety] plan = true`), through the real law and the
-//! real simulation: it leaves a run untouched when off, tracks exactly and periodically on an
-//! open layout, and gets the arm out of the trap the local filter alone holds it in.
+//! Steering onto a planned clean cycle (`[safety] plan`), through the real law and the real
+//! simulation: it leaves a run untouched when off (and, by default, without obstacles), tracks
+//! exactly and periodically on an open layout, and gets the arm out of the trap the local
+//! filter alone holds it in.
 
 use control::{Config, RunStats, Simulation, Summary};
 
@@ -11,7 +12,7 @@ fn run(obstacles: &[(f64, f64, f64)], plan: bool, duration: f64) -> (Summary, bo
         .iter()
         .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
         .collect();
-    cfg.safety.plan = plan;
+    cfg.safety.plan = plan.into();
     cfg.sim.duration = duration;
     cfg.sim.transient = duration / 2.0;
     let (s, steered, blocked) = simulate(&cfg);
@@ -46,10 +47,50 @@ fn simulate(cfg: &Config) -> (Summary, bool, Option<control::plan::Blocked>) {
 #[test]
 fn off_it_changes_nothing() {
     let mut cfg = Config::preset("demo").unwrap();
-    cfg.safety.plan = false;
+    cfg.safety.plan = control::plan::PlanMode::Off;
     let (p, b) = cfg.law_params_planned();
     assert_eq!(p, cfg.law_params());
     assert!(b.is_none() && p.steer.is_none());
+}
+
+#[test]
+fn by_default_it_steers_only_where_there_is_an_obstacle_to_keep_clear_of() {
+    // Without obstacles the paper's chaos stays: the planned steering is not handed over.
+    let mut cfg = Config::preset("demo").unwrap();
+    assert_eq!(cfg.safety.plan, control::plan::PlanMode::Auto);
+    assert_eq!(cfg.law_params_planned().0, cfg.law_params());
+    cfg.control.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
+    assert!(cfg.law_params_planned().0.steer.is_some());
+    // The filter off: nothing to steer for.
+    cfg.safety.enabled = false;
+    assert!(cfg.law_params_planned().0.steer.is_none());
+    // An arm without a planner runs as before with `auto`; `true` is refused there.
+    let mut cfg = Config::preset("paper-floating").unwrap();
+    cfg.safety.enabled = true;
+    cfg.control.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
+    cfg.validate().unwrap();
+    assert!(cfg.law_params_planned().0.steer.is_none());
+}
+
+#[test]
+fn plan_takes_true_false_or_auto_in_a_file() {
+    for (v, mode) in [
+        ("true", control::plan::PlanMode::On),
+        ("false", control::plan::PlanMode::Off),
+        ("\"auto\"", control::plan::PlanMode::Auto),
+    ] {
+        let c = Config::from_toml_str(&format!("[safety]\nplan = {v}\n")).unwrap();
+        assert_eq!(c.safety.plan, mode, "{v}");
+        let back = Config::from_toml_str(&c.to_toml_string()).unwrap();
+        assert_eq!(back.safety.plan, mode, "{v} round trip");
+    }
+    for bad in ["\"sometimes\"", "3"] {
+        let e = Config::from_toml_str(&format!("[safety]\nplan = {bad}\n")).unwrap_err();
+        assert!(
+            e.to_string().contains("true, false or \"auto\""),
+            "{bad}: {e}"
+        );
+    }
 }
 
 #[test]
@@ -79,7 +120,7 @@ fn round_the_trap_the_arm_tracks_exactly_without_contact() {
 fn plan_is_refused_where_the_planner_cannot_go() {
     let mut cfg = Config::preset("paper-floating").unwrap();
     cfg.safety.enabled = true;
-    cfg.safety.plan = true;
+    cfg.safety.plan = control::plan::PlanMode::On;
     let e = cfg.validate().unwrap_err().to_string();
     assert!(e.contains("safety.plan"), "{e}");
     let mut cfg = Config::preset("demo").unwrap();
@@ -137,7 +178,7 @@ fn steered_run(obstacles: &[(f64, f64, f64)], q0: [f64; 3], mu: f64) -> (bool, f
         .iter()
         .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
         .collect();
-    cfg.safety.plan = true;
+    cfg.safety.plan = control::plan::PlanMode::On;
     cfg.feedback.mu = mu;
     cfg.feedback.enabled = mu > 0.0;
     cfg.sim.q0 = Some(q0.to_vec());

@@ -500,6 +500,8 @@ mod tests {
             [0.6390814869980641, 0.37407687103733667, 1.5400306742489358],
         );
         let mut cfg = control::Config::default();
+        // Steering not asked for: only a forced detour steers.
+        cfg.safety.plan = control::plan::PlanMode::Off;
         let offered = |cfg: &control::Config| {
             let planned = control::plan::plan_config(cfg, t, Some(q)).unwrap();
             let PlanOutcome::Found(c) = planned.outcome else {
@@ -539,5 +541,42 @@ mod tests {
         // and the second one is still made for a new layout.
         let d = &mut Deadlock::new(&open, None);
         assert!(steered_after_edits(d, &[with_obstacle, mu_again], t, q));
+    }
+
+    #[test]
+    fn by_default_an_obstacle_starts_the_steering_and_removing_the_last_one_ends_it() {
+        // The paper's arm on its circle, well inside its rate bound.
+        let mut cfg = control::Config::default();
+        let q = [0.2, 1.3, 1.1];
+        let free = System::Planar(cfg.clone());
+        let mut d = Deadlock::new(&free, None);
+        assert!(!steered_after_edits(
+            &mut d,
+            std::slice::from_ref(&free),
+            0.0,
+            q
+        ));
+        cfg.control
+            .obstacles
+            .push(control::config::ObstacleConfig::disc(-1.5, -1.5, 0.1));
+        let one = System::Planar(cfg.clone());
+        assert!(steered_after_edits(
+            &mut d,
+            std::slice::from_ref(&one),
+            0.0,
+            q
+        ));
+        assert!(d.steering());
+        let (tx, rx) = crossbeam::channel::bounded(16);
+        d.edited(&free, 0.0, Some(q.to_vec()));
+        for _ in 0..2000 {
+            d.poll(&free, 0.0, &tx, None);
+            if !d.steering() {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        assert!(!d.steering(), "still steering without an obstacle");
+        assert!(rx.try_iter().any(|r| matches!(r, LoopRequest::Steer(None))));
     }
 }

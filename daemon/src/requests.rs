@@ -6,6 +6,7 @@
 //! block, which the loop swaps in at a tick boundary. These functions do no I/O.
 
 use control::config::{validate_obstacle, ObstacleConfig, SecondaryKind};
+use control::plan::PlanMode;
 use control::Config;
 use std::path::{Component, Path, PathBuf};
 
@@ -16,7 +17,7 @@ pub const KEYS: &str = "mu (a number, or auto), gamma, max_mu (auto's tuning), t
                         safety.qd_max, safety.qdd_max (one value for all joints, or one per joint), \
                         safety.q_min, safety.q_max (one per joint; inf = unlimited), safety.k0, safety.k1, \
                         safety.push_out_speed, safety.k_rate, safety.guard_time, safety.guard_tracking_error, safety.guard_growth_time, \
-                        safety.plan (on|off), safety.plan_hz, safety.trap_time, safety.when_blocked (hold|best-effort)";
+                        safety.plan (auto|on|off), safety.plan_hz, safety.trap_time, safety.when_blocked (hold|best-effort)";
 
 pub(crate) fn on_off(key: &str, v: Option<&str>) -> Result<bool, String> {
     match v {
@@ -109,7 +110,7 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             "safety.guard_time" => c.safety.guard_time = num(key, it.next())?,
             "safety.guard_tracking_error" => c.safety.guard_tracking_error = num(key, it.next())?,
             "safety.guard_growth_time" => c.safety.guard_growth_time = num(key, it.next())?,
-            "safety.plan" => c.safety.plan = on_off(key, it.next())?,
+            "safety.plan" => c.safety.plan = PlanMode::parse(key, it.next())?,
             "safety.plan_hz" => c.safety.plan_hz = num(key, it.next())?,
             "safety.trap_time" => c.safety.trap_time = num(key, it.next())?,
             "safety.when_blocked" => {
@@ -325,6 +326,17 @@ mod tests {
         );
         let e = apply_set(&c, "safety.when_blocked later", 1e-3).unwrap_err();
         assert!(e.contains("hold or best-effort"), "{e}");
+        assert_eq!(c.safety.plan, PlanMode::Auto);
+        for (v, mode) in [
+            ("off", PlanMode::Off),
+            ("on", PlanMode::On),
+            ("auto", PlanMode::Auto),
+        ] {
+            let n = apply_set(&c, &format!("safety.plan {v}"), 1e-3).unwrap();
+            assert_eq!(n.safety.plan, mode, "{v}");
+        }
+        let e = apply_set(&c, "safety.plan sometimes", 1e-3).unwrap_err();
+        assert!(e.contains("auto, on or off"), "{e}");
         for bad in ["0", "0.05", "61", "nan"] {
             let e = apply_set(&c, &format!("safety.trap_time {bad}"), 1e-3).unwrap_err();
             assert!(e.contains("safety.trap_time"), "{bad}: {e}");

@@ -16,7 +16,7 @@ use control::System;
 pub const KEYS: &str = "mu (a number, or auto), gamma, max_mu (auto's tuning), tau, t_on, feedback (on|off), projection (full|null-space), kp, kv, alpha, \
                         secondary (none|manipulability|centring|obstacles), obstacle_weight, null_damping, \
                         damping_threshold, damping_max, track_loss, task.center X Y Z, task.radius, task.period, \
-                        safety (on|off), safety.clearance, safety.velocity_scale, safety.plan (on|off), \
+                        safety (on|off), safety.clearance, safety.velocity_scale, safety.plan (auto|on|off), \
                         safety.plan_hz, safety.trap_time, safety.when_blocked (hold|best-effort)";
 
 /// Applies `KEY VALUE… [KEY VALUE…]` to a copy of `s`; `min_tau` is one control period.
@@ -62,7 +62,7 @@ pub fn apply_set(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialS
             "safety" | "safety.enabled" => c.safety.enabled = on_off(key, it.next())?,
             "safety.clearance" => c.safety.clearance = f!()?,
             "safety.velocity_scale" => c.safety.velocity_scale = f!()?,
-            "safety.plan" => c.safety.plan = on_off(key, it.next())?,
+            "safety.plan" => c.safety.plan = control::plan::PlanMode::parse(key, it.next())?,
             "safety.plan_hz" => c.safety.plan_hz = f!()?,
             "safety.trap_time" => c.safety.trap_time = f!()?,
             "safety.when_blocked" => {

@@ -301,18 +301,23 @@ pub fn read_json(path: &Path) -> serde_json::Value {
 }
 
 /// The Panda study set-up that the filter traps only now and then: μ = 1.8 from the start and
-/// two spheres beside the circle's far side (offline, every start tried leaves the path by
-/// 1-5 mm once a period). `plan` stays off, as by default.
-pub fn panda_grazing_two_spheres() -> String {
+/// two spheres over the circle (offline, the filter leaves the null space and costs millimetres
+/// of tracking in a few task periods, never 5 cm, never 2 s on end). `plan` is `plan` (`"auto"` steers, as there are spheres; `false`
+/// leaves the arm to the trap watch).
+pub fn panda_grazing_two_spheres(plan: &str) -> String {
     let cfg = control::spatial::config::PANDA
         .replace("mu = 1.0\nt_on = 60.0", "mu = 1.8\nt_on = 0.0")
         .replace(
+            "[safety]\nenabled = true\n",
+            &format!("[safety]\nenabled = true\nplan = {plan}\n"),
+        )
+        .replace(
             "[sim]",
-            "[[obstacles]]\ncenter = [0.3, -0.3, 0.45]\nradius = 0.08\n\n\
-             [[obstacles]]\ncenter = [0.3, -0.3, 0.6]\nradius = 0.08\n\n[sim]",
+            "[[obstacles]]\ncenter = [0.145, -0.233, 0.675]\nradius = 0.072\n\n\
+             [[obstacles]]\ncenter = [0.282, -0.167, 0.606]\nradius = 0.068\n\n[sim]",
         );
     assert!(
-        cfg.contains("mu = 1.8") && cfg.contains("[[obstacles]]"),
+        cfg.contains("mu = 1.8") && cfg.contains("[[obstacles]]") && cfg.contains("plan = "),
         "the preset moved"
     );
     cfg

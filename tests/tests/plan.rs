@@ -150,7 +150,7 @@ fn plan_on_the_panda_goes_round_a_sphere_and_names_one_on_the_path() {
         "--preset",
         "panda",
         "--obstacle",
-        "0.3,-0.3,0.45,0.08",
+        "0.089,-0.196,0.575,0.058",
         "--json",
         "--csv",
         csv.to_str().unwrap(),
@@ -187,7 +187,7 @@ fn simulate_steers_a_panda_whose_file_asks_for_a_plan() {
     let text = control::spatial::config::PANDA.replace(
         "[safety]\nenabled = true\n",
         "[safety]\nenabled = true\nplan = true\n",
-    ) + "\n[[obstacles]]\ncenter = [0.15, -0.15, 0.45]\nradius = 0.08\n";
+    ) + "\n[[obstacles]]\ncenter = [0.089, -0.196, 0.575]\nradius = 0.058\n";
     let cfg = dir.path().join("panda.toml");
     std::fs::write(&cfg, text).unwrap();
     let o = Command::new(bin("chaosctl"))
@@ -218,14 +218,16 @@ fn simulate_json(name: &str, text: &str, duration: &str, transient: &str) -> ser
     serde_json::from_slice(&o.stdout).unwrap()
 }
 
-/// The demo set-up with `obstacles` (a TOML array), as a user writes it.
-fn demo_with(obstacles: &str) -> String {
+/// The demo set-up with `obstacles` (a TOML array) and `safety.plan = plan`, as a user writes
+/// it.
+fn demo_with(obstacles: &str, plan: &str) -> String {
     let text = toml::to_string(&control::Config::preset("demo").unwrap()).unwrap();
     assert!(
-        text.contains("obstacles = []"),
-        "the demo's obstacles moved"
+        text.contains("obstacles = []") && text.contains("plan = \"auto\""),
+        "the demo's obstacles or plan moved"
     );
     text.replace("obstacles = []", &format!("obstacles = {obstacles}"))
+        .replace("plan = \"auto\"", &format!("plan = {plan}"))
 }
 
 /// The only trap event of a `simulate --json` report, which must have been answered so.
@@ -236,13 +238,57 @@ fn the_one_trap<'a>(v: &'a serde_json::Value, answer: &str) -> &'a serde_json::V
     &traps[0]
 }
 
+const NEW_USERS_OBSTACLE: &str = "[{ center = [0.9, 1.1], radius = 0.15 }]";
+const OBSTACLE_ON_THE_PATH: &str = "[{ center = [1.0, 1.5], radius = 0.05 }]";
+
 #[test]
-fn simulate_answers_a_trap_as_the_daemon_does_without_a_plan_asked() {
-    // The new user's obstacle, there from the start: the filter alone holds the arm off its
-    // path; the trap watch sees it and steers onto a cycle planned from the arm's posture.
+fn simulate_steers_round_obstacles_by_default_and_says_blocked_at_once_when_it_cannot() {
+    // `plan = "auto"`: with an obstacle the safety layer steers from the start, so nothing is
+    // ever trapped, and the arm tracks within the targets' 20 s.
+    let v = simulate_json(
+        "sim-auto",
+        &demo_with(NEW_USERS_OBSTACLE, "\"auto\""),
+        "40",
+        "20",
+    );
+    assert!(v["plan"].as_str().unwrap().starts_with("steering"), "{v}");
+    assert_eq!(v["traps"].as_array().unwrap().len(), 0, "{v}");
+    assert!(v["rms_tracking_error"].as_f64().unwrap() < 1e-4, "{v}");
+    assert_eq!(v["time_in_contact"], 0.0, "{v}");
+    // No clean cycle: said at the start, as the daemon does (offline the run goes on).
+    let v = simulate_json(
+        "sim-auto-blk",
+        &demo_with(OBSTACLE_ON_THE_PATH, "\"auto\""),
+        "5",
+        "1",
+    );
+    let blocked = the_one_trap(&v, "blocked");
+    assert_eq!(blocked["t"], 0.0, "{v}");
+    assert!(
+        blocked["what"].as_str().unwrap().contains("obstacle 1"),
+        "{v}"
+    );
+    // The Panda the filter grazes now and then: steered from the start, never trapped.
+    let v = simulate_json(
+        "sim-auto-panda",
+        &panda_grazing_two_spheres("\"auto\""),
+        "40",
+        "20",
+    );
+    assert_eq!(v["steered"], true, "{v}");
+    assert_eq!(v["traps"].as_array().unwrap().len(), 0, "{v}");
+    assert!(v["rms_tracking_error"].as_f64().unwrap() < 1e-4, "{v}");
+    assert!(v["min_clearance"].as_f64().unwrap() >= 0.0199, "{v}");
+}
+
+#[test]
+fn simulate_answers_a_trap_as_the_daemon_does_with_steering_off() {
+    // The new user's obstacle, there from the start, `plan = false`: the filter alone holds
+    // the arm off its path; the trap watch sees it and steers onto a cycle planned from the
+    // arm's posture.
     let v = simulate_json(
         "sim-trap",
-        &demo_with("[{ center = [0.9, 1.1], radius = 0.15 }]"),
+        &demo_with(NEW_USERS_OBSTACLE, "false"),
         "40",
         "20",
     );
@@ -254,7 +300,7 @@ fn simulate_answers_a_trap_as_the_daemon_does_without_a_plan_asked() {
     // An obstacle on the path: trapped, and no clean cycle exists: Blocked, with the reason.
     let v = simulate_json(
         "sim-blocked",
-        &demo_with("[{ center = [1.0, 1.5], radius = 0.05 }]"),
+        &demo_with(OBSTACLE_ON_THE_PATH, "false"),
         "20",
         "10",
     );
@@ -266,7 +312,7 @@ fn simulate_answers_a_trap_as_the_daemon_does_without_a_plan_asked() {
 
     // The Panda the filter traps only now and then (plan off): the recurring trap is seen,
     // and steering tracks to the law's precision with the filter's clearance kept.
-    let v = simulate_json("sim-recur", &panda_grazing_two_spheres(), "40", "20");
+    let v = simulate_json("sim-recur", &panda_grazing_two_spheres("false"), "40", "20");
     assert!(
         the_one_trap(&v, "steered")["what"]
             .as_str()

@@ -207,9 +207,13 @@ fn a_live_panda_steers_round_a_new_sphere_and_says_blocked_for_one_on_its_path()
         sys.daemon.log()
     );
 
-    // A sphere under the circle's lower half (the filter alone loses the path on it, offline:
-    // control/tests/spatial_plan.rs): the edit's cycle goes round it, tracking within 5 s.
-    let (code, _, err) = ctl(ns, &["obstacle", "add", "0.15", "-0.15", "0.45", "0.08"]);
+    // A sphere between the arm and the circle (the filter alone loses the path on it,
+    // offline: control/tests/spatial_plan.rs): the edit's cycle goes round it, tracking
+    // within 5 s.
+    let (code, _, err) = ctl(
+        ns,
+        &["obstacle", "add", "0.089", "-0.196", "0.575", "0.058"],
+    );
     assert_eq!(code, 0, "{err}");
     let planned = |v: &serde_json::Value| v["plan"]["newest"]["generation"].as_u64() >= Some(1);
     let (v, took) = poll_status(ns, Duration::from_secs(8), |v| {
@@ -271,7 +275,7 @@ fn a_live_panda_the_filter_traps_now_and_then_is_caught_and_steered_without_plan
     let _g = serial();
     // The filter leaves the null space once a period and the hand is 1-5 mm off its path,
     // never 5 cm (`law.track_loss`), never for 2 s on end (`safety.trap_time`).
-    let cfg = panda_grazing_two_spheres();
+    let cfg = panda_grazing_two_spheres("false");
     let sys = start("panda-recur", &cfg);
     let ns = &sys.ns;
     let trapped = |v: &serde_json::Value| {

@@ -5,19 +5,19 @@ use super::spatial::{plan_system_with, SpatialSteer};
 use super::{plan_config, Cycle, PlanSettings, Planned, Steer, Steering};
 use crate::System;
 
-/// Whether the set-up asks for steering onto its planned cycle (`safety.plan`), and the pull's
-/// frequency (Hz).
+/// Whether the set-up steers onto its planned cycle now (`safety.plan`: the filter on, an arm
+/// with a planner and, for `auto`, an obstacle), and the pull's frequency (Hz).
 pub fn plan_asked(system: &System) -> (bool, f64) {
     match system {
-        System::Planar(c) => (c.safety.plan, c.safety.plan_hz),
-        System::Spatial(s) => (s.config.safety.plan, s.config.safety.plan_hz),
+        System::Planar(c) => (c.steers_onto_plan(), c.safety.plan_hz),
+        System::Spatial(s) => (s.config.steers_onto_plan(), s.config.safety.plan_hz),
     }
 }
 
 /// Whether the arm has a cycle planner: the fixed-base 3-link planar arm, or a URDF chain.
 pub fn has_planner(system: &System) -> bool {
     match system {
-        System::Planar(c) => c.n() == 3 && c.arm.model == crate::config::ModelKind::Fixed,
+        System::Planar(c) => c.has_planner(),
         System::Spatial(_) => true,
     }
 }

@@ -21,7 +21,7 @@ mod table;
 pub mod trap;
 
 pub use arm::{has_planner, plan_arm, plan_asked, steering_of};
-pub use policy::{check_trap_time, WhenBlocked, DEFAULT_TRAP_TIME};
+pub use policy::{check_trap_time, PlanMode, WhenBlocked, DEFAULT_TRAP_TIME};
 pub use table::{CycleTable, Sample, MAX_PHASES};
 
 /// How finely the planner searches, and with what margins.

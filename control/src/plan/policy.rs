@@ -49,6 +49,98 @@ impl WhenBlocked {
     }
 }
 
+/// Whether the self-motion is steered onto a planned clean cycle (`safety.plan`).
+///
+/// The filter alone is local: it keeps clearance now and can hold the arm off its path for
+/// good. Steering is the safety layer's way round, so it is on wherever the filter has an
+/// obstacle to keep clear of (`auto`, the default). Without obstacles nothing can trap the
+/// arm and the self-motion is the paper's, chaotic until the feedback holds it; `true` steers
+/// always, `false` never (the daemon then steers only after a trap).
+///
+/// ```
+/// use control::plan::PlanMode;
+/// assert!(PlanMode::Auto.steers(true) && !PlanMode::Auto.steers(false));
+/// assert_eq!(PlanMode::parse("safety.plan", Some("auto")), Ok(PlanMode::Auto));
+/// assert!(PlanMode::parse("safety.plan", Some("maybe")).is_err());
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PlanMode {
+    /// Steer while the filter is on and there is at least one obstacle.
+    #[default]
+    Auto,
+    /// Steer whenever the filter is on.
+    On,
+    /// Never steer before a trap.
+    Off,
+}
+
+impl PlanMode {
+    /// Whether this mode steers an arm whose filter is on, with or without obstacles.
+    pub fn steers(self, any_obstacle: bool) -> bool {
+        match self {
+            PlanMode::Auto => any_obstacle,
+            PlanMode::On => true,
+            PlanMode::Off => false,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PlanMode::Auto => "auto",
+            PlanMode::On => "on",
+            PlanMode::Off => "off",
+        }
+    }
+
+    /// Parses `auto`, `on` or `off` (the `set` request's value; `true`/`false` too).
+    pub fn parse(key: &str, v: Option<&str>) -> Result<Self, String> {
+        match v {
+            Some("auto") => Ok(PlanMode::Auto),
+            Some("on" | "true" | "1") => Ok(PlanMode::On),
+            Some("off" | "false" | "0") => Ok(PlanMode::Off),
+            other => Err(format!("{key}: {other:?} is not auto, on or off")),
+        }
+    }
+}
+
+impl From<bool> for PlanMode {
+    fn from(on: bool) -> Self {
+        if on {
+            PlanMode::On
+        } else {
+            PlanMode::Off
+        }
+    }
+}
+
+/// In a config file: `true`, `false` or `"auto"` (and `"on"`/`"off"`).
+impl Serialize for PlanMode {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            PlanMode::Auto => s.serialize_str("auto"),
+            PlanMode::On => s.serialize_bool(true),
+            PlanMode::Off => s.serialize_bool(false),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for PlanMode {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Bool(bool),
+            Text(String),
+        }
+        let expected = "safety.plan must be true, false or \"auto\"";
+        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom(expected))? {
+            Raw::Bool(b) => Ok(b.into()),
+            Raw::Text(t) => Self::parse("safety.plan", Some(&t))
+                .map_err(|_| serde::de::Error::custom(format!("{expected}, not {t:?}"))),
+        }
+    }
+}
+
 /// `safety.trap_time` must leave the arm time to get round (a transient: a trap shorter than
 /// a tenth of a second is a filter doing its job) and still say it within a minute.
 pub fn check_trap_time(v: f64) -> Result<(), ConfigError> {

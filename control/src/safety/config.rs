@@ -68,9 +68,9 @@ pub struct SafetyConfig {
     /// (A start far from the circle grows the error for ~0.1 s while the arm gets going.)
     pub guard_growth_time: f64,
     /// Steer the self-motion onto a planned clean cycle (the fixed-base 3-link arm;
-    /// `chaosctl plan` shows it), so the filter cannot hold the arm off its path. Off by
-    /// default: the paper's dynamics, and every result measured without it, stay as they are.
-    pub plan: bool,
+    /// `chaosctl plan` shows it), so the filter cannot hold the arm off its path: `auto` (the
+    /// default) while there is an obstacle, `true` always, `false` never before a trap.
+    pub plan: crate::plan::PlanMode,
     /// The pull's natural frequency (Hz), critically damped.
     pub plan_hz: f64,
     /// Daemon: tracking lost, or the filter acting outside the null space, for this long (s)
@@ -96,7 +96,7 @@ impl Default for SafetyConfig {
             guard_time: 0.02,
             guard_tracking_error: 1.0,
             guard_growth_time: 0.5,
-            plan: false,
+            plan: crate::plan::PlanMode::Auto,
             plan_hz: 1.0,
             trap_time: crate::plan::DEFAULT_TRAP_TIME,
             when_blocked: crate::plan::WhenBlocked::Hold,

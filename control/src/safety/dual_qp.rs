@@ -104,13 +104,20 @@ pub fn solve<const N: usize>(a: &[VecN<N>], h: &[f64]) -> Outcome<N> {
         q: 0,
     };
     for _ in 0..4 * a.len() + 8 {
-        // The most violated row, by distance.
+        // The most violated row, by distance. A violated row with no normal no δ can meet: a
+        // clearance row of the point the task holds on its path, projected onto the null space.
         let mut p = None;
         let mut worst = 0.0;
         for k in 0..a.len() {
             let s = a[k].dot(&x) - h[k];
             let norm = a[k].norm();
-            if s < -TOL * (1.0 + h[k].abs()) && norm > 1e-12 && s / norm < worst {
+            if s >= -TOL * (1.0 + h[k].abs()) {
+                continue;
+            }
+            if norm <= 1e-12 {
+                return Outcome::Infeasible;
+            }
+            if s / norm < worst {
                 (worst, p) = (s / norm, Some(k));
             }
         }
@@ -196,6 +203,18 @@ mod tests {
             ),
             Outcome::Infeasible
         );
+        // A violated row with a vanishing normal: nothing meets it (it once read "solved",
+        // δ = 0, and a Panda's hand link entered a sphere its path runs through).
+        assert_eq!(
+            solve::<3>(&[V::new(1.0, 0.0, 0.0), V::zeros()], &[1.0, 0.5]),
+            Outcome::Infeasible
+        );
+        // Met already, it is no constraint.
+        let d = solved(solve::<3>(
+            &[V::new(1.0, 0.0, 0.0), V::zeros()],
+            &[1.0, -0.5],
+        ));
+        assert!((d - V::new(1.0, 0.0, 0.0)).norm() < 1e-12);
     }
 
     #[test]

@@ -215,9 +215,9 @@ pub struct LimitsSection {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub qdd_max: Option<Vec<f64>>,
     /// Steer the self-motion onto a planned clean cycle ([`crate::plan::spatial`]), so the
-    /// filter cannot hold the arm off its path. Off by default, as on the planar arm: every
-    /// result measured without it stays as it is; the daemon steers after a trap either way.
-    pub plan: bool,
+    /// filter cannot hold the arm off its path: `auto` (the default) while there is a sphere,
+    /// `true` always, `false` never (the daemon then steers only after a trap).
+    pub plan: crate::plan::PlanMode,
     /// The pull's natural frequency (Hz), critically damped.
     pub plan_hz: f64,
     /// Daemon: tracking lost, or the filter acting outside the null space, for this long (s)
@@ -235,7 +235,7 @@ impl Default for LimitsSection {
             clearance: 0.02,
             velocity_scale: 1.0,
             qdd_max: None,
-            plan: false,
+            plan: crate::plan::PlanMode::Auto,
             plan_hz: 1.0,
             trap_time: crate::plan::DEFAULT_TRAP_TIME,
             when_blocked: crate::plan::WhenBlocked::Hold,
@@ -538,7 +538,12 @@ impl SpatialConfig {
         crate::with_dof!(chain.dof(), N => self.generator::<N>(chain, dt).map(|_| ()))
     }
 
-    /// Checks the file against `chain` and builds the run; `N` must be the chain's joint count.
+    /// Whether the law steers onto a planned clean cycle: the filter on and `safety.plan` on
+    /// (or `auto` with a sphere).
+    pub fn steers_onto_plan(&self) -> bool {
+        self.safety.enabled && self.safety.plan.steers(!self.obstacles.is_empty())
+    }
+
     /// [`Self::setup`] with the steering onto a planned clean cycle when `safety.plan` asks for
     /// it (the filter on), planned from the start posture; and why there is none, when the
     /// planner found none (the law then runs without it).
@@ -548,7 +553,7 @@ impl SpatialConfig {
     ) -> Result<(SpatialSetup<N>, Option<crate::plan::Blocked>), ConfigError> {
         use crate::plan::{spatial, PlanOutcome, PlanSettings};
         let mut set = self.setup::<N>(chain)?;
-        if !(self.safety.enabled && self.safety.plan) {
+        if !self.steers_onto_plan() {
             return Ok((set, None));
         }
         let planned = spatial::plan_setup(&set, 0.0, Some(set.q0), None, &PlanSettings::default());
@@ -561,6 +566,7 @@ impl SpatialConfig {
         }
     }
 
+    /// Checks the file against `chain` and builds the run; `N` must be the chain's joint count.
     pub fn setup<const N: usize>(&self, chain: &Chain) -> Result<SpatialSetup<N>, ConfigError> {
         self.check()?;
         let model = chain
