@@ -36,8 +36,8 @@ impl OfflineTraps {
     /// A watch for `system`, which starts steered by `following` (its `safety.plan`) or not.
     pub fn new(system: System, following: Option<Steering>) -> Self {
         Self {
+            detector: TrapDetector::starting(&system.safety()),
             system,
-            detector: TrapDetector::default(),
             following,
             traps: 0,
             blocked: false,

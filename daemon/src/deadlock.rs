@@ -146,7 +146,7 @@ impl Deadlock {
         let mut d = Self {
             planner,
             generation: 0,
-            trap: TrapDetector::default(),
+            trap: TrapDetector::starting(&system.safety()),
             traps: 0,
             steering_wanted,
             trap_steered: false,

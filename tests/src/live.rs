@@ -107,3 +107,64 @@ pub fn spawn_pair(dir: &Path, cfg: &Path) -> (Proc, Proc) {
     let daemon = Proc::spawn("daemon", &bin("chaosd"), &["run", "--config", c], dir);
     (plant, daemon)
 }
+
+/// The daemon is blocked (`status --json`'s `blocked` is not null).
+pub fn blocked(v: &serde_json::Value) -> bool {
+    !v["blocked"].is_null()
+}
+
+/// Tracking within `tol` m over the daemon's last report window, and not blocked.
+pub fn tracking(v: &serde_json::Value, tol: f64) -> bool {
+    !blocked(v)
+        && v["tracking_error_recent"]
+            .as_f64()
+            .is_some_and(|e| e <= tol)
+}
+
+/// How the daemon answered an edit: its status then, and after how long.
+pub enum Answer {
+    /// Tracking within 1e-3 m in two status reads in a row, 0.5 s apart.
+    Tracking(serde_json::Value, Duration),
+    Blocked(serde_json::Value, Duration),
+    /// Neither within the time allowed.
+    Neither(serde_json::Value),
+}
+
+/// Polls the daemon of `ns` after an edit until it tracks or says `Blocked`, for `within`.
+pub fn answer_to_edit(ns: &str, within: Duration) -> Answer {
+    let start = Instant::now();
+    let mut good = 0;
+    loop {
+        let v = status(ns);
+        good = if tracking(&v, 1e-3) { good + 1 } else { 0 };
+        if blocked(&v) {
+            return Answer::Blocked(v, start.elapsed());
+        }
+        if good >= 2 {
+            return Answer::Tracking(v, start.elapsed());
+        }
+        if start.elapsed() > within {
+            return Answer::Neither(v);
+        }
+        std::thread::sleep(Duration::from_millis(500));
+    }
+}
+
+/// A small deterministic generator for layouts drawn at random, seed fixed.
+pub struct Lcg(pub u64);
+
+impl Lcg {
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform in [lo, hi).
+    pub fn within(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.uniform()
+    }
+}

@@ -10,18 +10,6 @@ use std::time::{Duration, Instant};
 use tests::live::*;
 use tests::*;
 
-fn blocked(v: &Value) -> bool {
-    !v["blocked"].is_null()
-}
-
-/// Tracking within `tol` m over the daemon's last report window, and not blocked.
-fn tracking(v: &Value, tol: f64) -> bool {
-    !blocked(v)
-        && v["tracking_error_recent"]
-            .as_f64()
-            .is_some_and(|e| e <= tol)
-}
-
 fn replay(path: &Path) -> (i32, String) {
     let out = std::process::Command::new(bin("chaosctl"))
         .arg("replay")
@@ -146,19 +134,6 @@ fn best_effort_runs_on_with_the_flag_raised_from_the_start() {
     assert!(v["blocked"]["since"].as_f64().is_some(), "{v}");
 }
 
-/// A small deterministic generator for the layouts.
-struct Lcg(u64);
-
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 #[test]
 fn whatever_obstacle_is_added_the_daemon_tracks_or_says_blocked() {
     // The property, live: after an obstacle edit the daemon is tracking (≤ 1e-3 m) or `Blocked`
@@ -172,33 +147,22 @@ fn whatever_obstacle_is_added_the_daemon_tracks_or_says_blocked() {
     let mut rng = Lcg(25);
     let mut seen = (0, 0);
     for k in 0..5 {
-        let (x, y) = (-0.2 + 1.9 * rng.next(), 0.6 + 2.2 * rng.next());
-        let r = 0.08 + 0.17 * rng.next();
+        let (x, y) = (-0.2 + 1.9 * rng.uniform(), 0.6 + 2.2 * rng.uniform());
+        let r = 0.08 + 0.17 * rng.uniform();
         let layout = format!("({x:.2}, {y:.2}) r {r:.2}");
         let args = [format!("{x:.3}"), format!("{y:.3}"), format!("{r:.3}")];
         let (code, _, err) = ctl(&sys.ns, &["obstacle", "add", &args[0], &args[1], &args[2]]);
         assert_eq!(code, 0, "{layout}: {err}");
         let within = Duration::from_secs_f64(3.0 * trap_time + 1.0);
-        // Settled: blocked, or tracking over two report windows in a row.
-        let start = Instant::now();
-        let mut good = 0;
-        let v = loop {
-            let v = status(&sys.ns);
-            good = if tracking(&v, 1e-3) { good + 1 } else { 0 };
-            if blocked(&v) || good >= 2 || start.elapsed() > within {
-                break v;
+        match answer_to_edit(&sys.ns, within) {
+            Answer::Blocked(v, _) => {
+                assert!(!v["blocked"]["reason"].as_str().unwrap().is_empty(), "{v}");
+                seen.1 += 1;
             }
-            std::thread::sleep(Duration::from_millis(500));
-        };
-        if blocked(&v) {
-            assert!(!v["blocked"]["reason"].as_str().unwrap().is_empty(), "{v}");
-            seen.1 += 1;
-        } else {
-            assert!(
-                good >= 2,
-                "layout {k} {layout}: neither tracking nor blocked after {within:?}: {v}"
-            );
-            seen.0 += 1;
+            Answer::Tracking(..) => seen.0 += 1,
+            Answer::Neither(v) => {
+                panic!("layout {k} {layout}: neither tracking nor blocked after {within:?}: {v}")
+            }
         }
         let (code, _, err) = ctl(&sys.ns, &["obstacle", "rm", "0"]);
         assert_eq!(code, 0, "{err}");

@@ -310,14 +310,15 @@ fn simulate_answers_a_trap_as_the_daemon_does_with_steering_off() {
         "{what}"
     );
 
-    // The Panda the filter traps only now and then (plan off): the recurring trap is seen,
-    // and steering tracks to the law's precision with the filter's clearance kept.
+    // The Panda the filter traps only now and then (plan off): the graze is seen (once it
+    // costs a centimetre, or twice a millimetre), and steering tracks to the law's precision
+    // with the filter's clearance kept.
     let v = simulate_json("sim-recur", &panda_grazing_two_spheres("false"), "40", "20");
     assert!(
         the_one_trap(&v, "steered")["what"]
             .as_str()
             .unwrap()
-            .contains("in 2 separate task periods out of 16"),
+            .contains("the safety filter left the null space and cost"),
         "{v}"
     );
     assert_eq!(v["steered"], false, "plan was not asked: {v}");

@@ -64,6 +64,10 @@ pub const RECUR_WINDOW: i64 = 16;
 /// A period costs tracking when the filter left the null space in it and the hand was this far
 /// off its path (m) after that: the live target for tracking after an edit.
 pub const RECUR_ERROR: f64 = 1e-3;
+/// One period in which the filter left the null space and the hand went this far off its path
+/// (m) is a trap at once: a chaotic self-motion may graze an obstacle only every 10-20
+/// periods, but each graze costs centimetres.
+pub const SEVERE_ERROR: f64 = 1e-2;
 
 /// The task periods, by index `⌊t / period⌋`, in which the filter cost tracking.
 #[derive(Clone, Copy, Debug, Default)]
@@ -73,12 +77,18 @@ pub struct Recurrence {
     len: usize,
     /// The period in which the filter last left the null space.
     left_in: Option<i64>,
+    /// It fired on one period's cost alone ([`SEVERE_ERROR`]).
+    pub severe: bool,
+    /// One costly period is not enough, however costly: the answer to a trap (a pull onto a
+    /// new cycle from wherever the arm was) may graze once on its way.
+    pub patient: bool,
 }
 
 impl Recurrence {
     /// One tick on which the law ran, at controller time `t` with the task's `period` (s):
     /// true when this tick makes the [`RECUR_PERIODS`]th costly period within
-    /// [`RECUR_WINDOW`]. The caller starts a new watch after it fires.
+    /// [`RECUR_WINDOW`], or one period costs more than [`SEVERE_ERROR`]. The caller starts a
+    /// new watch after it fires.
     ///
     /// ```
     /// use control::plan::trap::Recurrence;
@@ -91,11 +101,18 @@ impl Recurrence {
     /// assert_eq!(fired, Some(4.0));
     /// ```
     pub fn observe(&mut self, t: f64, period: f64, left: bool, tracking_error: f64) -> bool {
+        if !(t / period).is_finite() {
+            return false;
+        }
         let k = (t / period).floor() as i64;
         if left {
             self.left_in = Some(k);
         }
         let costly = self.left_in == Some(k) && tracking_error > RECUR_ERROR;
+        if costly && tracking_error > SEVERE_ERROR && !self.patient {
+            self.severe = true;
+            return true;
+        }
         if !costly || self.counted(k) {
             return false;
         }
@@ -145,6 +162,8 @@ pub enum TrapKind {
     Steady,
     /// The filter cost tracking in [`RECUR_PERIODS`] task periods out of [`RECUR_WINDOW`].
     Recurring,
+    /// The filter cost more than [`SEVERE_ERROR`] of tracking in one task period.
+    Severe,
 }
 
 /// A trap, with what was seen during it.
@@ -161,6 +180,13 @@ impl Trap {
     /// What happened, in words: `tracking error up to 0.210 m for 2 s, the safety filter
     /// holding the arm`.
     pub fn words(&self, trap_time: f64) -> String {
+        if self.kind == TrapKind::Severe {
+            return format!(
+                "the safety filter left the null space and cost {:.3} m of tracking (more than \
+                 {SEVERE_ERROR} m at once)",
+                self.error
+            );
+        }
         if self.kind == TrapKind::Recurring {
             return format!(
                 "the safety filter left the null space and cost more than {RECUR_ERROR} m of \
@@ -260,6 +286,8 @@ impl TrapDetector {
         let trap = Trap {
             kind: if steady {
                 TrapKind::Steady
+            } else if self.recur.severe {
+                TrapKind::Severe
             } else {
                 TrapKind::Recurring
             },
@@ -267,8 +295,18 @@ impl TrapDetector {
             left_null_space: self.left_null_space,
         };
         self.afresh();
+        self.recur.patient = true;
         self.settle_until = t + settle_time(s);
         Some(trap)
+    }
+
+    /// A watch from the start of a run at time 0: the recurrence is not counted for
+    /// [`settle_time`], as a start inside the filter's margin is pushed out at a cost.
+    pub fn starting(s: &SafetySummary) -> Self {
+        Self {
+            settle_until: settle_time(s),
+            ..Self::default()
+        }
     }
 
     /// Both watches start again, and the recurrence is not counted for [`settle_time`]: after
@@ -364,7 +402,7 @@ mod tests {
         let mut r = Recurrence::default();
         // Many costly ticks in one period are one period.
         for j in 0..1000 {
-            assert!(!r.observe(j as f64 * 1e-3, 2.0, true, 5e-2));
+            assert!(!r.observe(j as f64 * 1e-3, 2.0, true, 5e-3));
         }
         assert_eq!(r.count(), 1);
         // The filter leaving the null space without costing 1 mm: not counted; nor an error
@@ -382,6 +420,51 @@ mod tests {
         let mut s = crate::System::Planar(crate::Config::default()).safety();
         s.task_period = task_period;
         s
+    }
+
+    #[test]
+    fn one_graze_that_costs_centimetres_is_a_trap_at_once_but_not_at_the_start() {
+        let s = summary(2.0);
+        // The filter leaves the null space for 50 ms at 0.1 s and 10.1 s; the hand is 3 cm off
+        // for 0.3 s each time (once only: the chaos grazes rarely).
+        let run = |d: &mut TrapDetector| {
+            (0..20_000).find_map(|k| {
+                let t = k as f64 * 1e-3;
+                let at = |t0: f64| (t0..t0 + 0.05).contains(&t);
+                let f = if at(0.1) || at(10.1) {
+                    flags::SAFETY_ACTIVE | flags::SAFETY_LEFT_NULL_SPACE
+                } else {
+                    0
+                };
+                let near = |t0: f64| (t0..t0 + 0.3).contains(&t);
+                let e = if near(0.1) || near(10.1) { 3e-2 } else { 1e-9 };
+                d.observe(t, f, e, &s).map(|trap| (t, trap))
+            })
+        };
+        // From a start, the first one is the start's transient (a start inside the margin
+        // pushed out): the second is the trap.
+        let (t, trap) = run(&mut TrapDetector::starting(&s)).unwrap();
+        assert!((10.1..10.2).contains(&t), "{t}");
+        assert_eq!(trap.kind, TrapKind::Severe);
+        assert!(
+            trap.words(s.trap_time)
+                .contains("cost 0.030 m of tracking (more than 0.01 m at once)"),
+            "{}",
+            trap.words(s.trap_time)
+        );
+        // A watch without the start's settling fires on the first; after that trap (its answer
+        // may graze once on its way onto a new cycle) one graze is not enough.
+        let mut d = TrapDetector::default();
+        let (t, _) = run(&mut d).unwrap();
+        assert!(t < 0.2, "{t}");
+        assert!(run(&mut d).is_none());
+        // An edit makes it quick again.
+        d.settle_from(0.0, &s);
+        assert!(run(&mut d).is_some_and(|(t, _)| t > 10.0));
+        // Millimetres once are no trap.
+        let mut r = Recurrence::default();
+        assert!(!r.observe(0.1, 2.0, true, 9e-3));
+        assert!(!r.severe);
     }
 
     #[test]
