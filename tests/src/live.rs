@@ -168,3 +168,11 @@ impl Lcg {
         lo + (hi - lo) * self.uniform()
     }
 }
+
+/// Removes obstacle `index` from the daemon of `ns` and waits, 8 s at most, for tracking
+/// within 1e-3 m again: the status then, and how long it took.
+pub fn remove_and_track(ns: &str, index: &str) -> (serde_json::Value, Duration) {
+    let (code, _, err) = ctl(ns, &["obstacle", "rm", index]);
+    assert_eq!(code, 0, "obstacle rm {index}: {err}");
+    poll_status(ns, Duration::from_secs(8), |v| tracking(v, 1e-3))
+}

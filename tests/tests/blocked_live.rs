@@ -164,9 +164,7 @@ fn whatever_obstacle_is_added_the_daemon_tracks_or_says_blocked() {
                 panic!("layout {k} {layout}: neither tracking nor blocked after {within:?}: {v}")
             }
         }
-        let (code, _, err) = ctl(&sys.ns, &["obstacle", "rm", "0"]);
-        assert_eq!(code, 0, "{err}");
-        let (v, _) = poll_status(&sys.ns, Duration::from_secs(8), |v| tracking(v, 1e-3));
+        let (v, _) = remove_and_track(&sys.ns, "0");
         assert!(
             tracking(&v, 1e-3),
             "layout {k} {layout}: no tracking after the removal: {v}"

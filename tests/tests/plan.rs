@@ -230,6 +230,13 @@ fn demo_with(obstacles: &str, plan: &str) -> String {
         .replace("plan = \"auto\"", &format!("plan = {plan}"))
 }
 
+/// A planar `simulate --json` report that tracks to 1e-4 m (RMS after the transient) and never
+/// touched an obstacle.
+fn tracks_cleanly(v: &serde_json::Value) {
+    assert!(v["rms_tracking_error"].as_f64().unwrap() < 1e-4, "{v}");
+    assert_eq!(v["time_in_contact"], 0.0, "{v}");
+}
+
 /// The only trap event of a `simulate --json` report, which must have been answered so.
 fn the_one_trap<'a>(v: &'a serde_json::Value, answer: &str) -> &'a serde_json::Value {
     let traps = v["traps"].as_array().unwrap();
@@ -253,8 +260,7 @@ fn simulate_steers_round_obstacles_by_default_and_says_blocked_at_once_when_it_c
     );
     assert!(v["plan"].as_str().unwrap().starts_with("steering"), "{v}");
     assert_eq!(v["traps"].as_array().unwrap().len(), 0, "{v}");
-    assert!(v["rms_tracking_error"].as_f64().unwrap() < 1e-4, "{v}");
-    assert_eq!(v["time_in_contact"], 0.0, "{v}");
+    tracks_cleanly(&v);
     // No clean cycle: said at the start, as the daemon does (offline the run goes on).
     let v = simulate_json(
         "sim-auto-blk",
@@ -294,8 +300,7 @@ fn simulate_answers_a_trap_as_the_daemon_does_with_steering_off() {
     );
     let trap = the_one_trap(&v, "steered");
     assert!(trap["t"].as_f64().unwrap() < 10.0, "{v}");
-    assert!(v["rms_tracking_error"].as_f64().unwrap() < 1e-4, "{v}");
-    assert_eq!(v["time_in_contact"], 0.0, "{v}");
+    tracks_cleanly(&v);
 
     // An obstacle on the path: trapped, and no clean cycle exists: Blocked, with the reason.
     let v = simulate_json(

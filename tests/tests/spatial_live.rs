@@ -229,9 +229,7 @@ fn whatever_sphere_is_added_a_live_panda_tracks_or_says_blocked() {
                 sys.daemon.log()
             ),
         }
-        let (code, _, err) = ctl(ns, &["obstacle", "rm", "0"]);
-        assert_eq!(code, 0, "{err}");
-        let (v, _) = poll_status(ns, Duration::from_secs(8), |v| tracking(v, 1e-3));
+        let (v, _) = remove_and_track(ns, "0");
         assert!(
             tracking(&v, 1e-3),
             "sphere {k} ({layout}): no tracking after the removal: {v}"
@@ -313,9 +311,7 @@ fn a_live_panda_steers_round_a_new_sphere_and_says_blocked_for_one_on_its_path()
     assert_eq!(v["mode"], "Hold", "tracking paused while blocked: {v}");
 
     // Removing it ends the block, and the arm tracks again round the first sphere.
-    let (code, _, err) = ctl(ns, &["obstacle", "rm", "1"]);
-    assert_eq!(code, 0, "{err}");
-    let (v, took) = poll_status(ns, Duration::from_secs(8), |v| tracking(v, 1e-3));
+    let (v, took) = remove_and_track(ns, "1");
     assert!(
         tracking(&v, 1e-3),
         "not tracking {took:?} after the removal: {v}"
