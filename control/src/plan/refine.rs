@@ -258,11 +258,11 @@ pub fn refine(p: &PlanarProblem, safety: &SafetyParams, c: &Cycle, s: &RefineSet
         }
         // Jacobian columns: posture k's slide, over the phases it moves.
         let eps = 1e-5;
+        let now = rf.table(c, &knots);
         let cols: Vec<Vec<f64>> = (0..n)
             .map(|k| {
-                let mut moved = knots.clone();
-                moved[k] = rf.knot(k, x[k] + eps);
-                let table = rf.table(c, &moved);
+                let moved = rf.knot(k, x[k] + eps);
+                let table = now.nudged(k, &std::array::from_fn(|i| moved[i] - knots[k][i]));
                 let mut col = vec![0.0; 2 * REACH * b];
                 for (w, ph) in window(k).enumerate() {
                     rf.phase(&table, ph, &mut scratch);

@@ -139,6 +139,42 @@ impl<const N: usize> CycleTable<N> {
         self.c = c;
     }
 
+    /// This table with posture `k` moved by `delta` (small: no joint wraps), without a new fit.
+    /// The fit is linear and the same at every phase, so a move of one posture moves every
+    /// control point by `delta` times the cyclic system's response to a unit at `k`,
+    /// √3 (rᵈ + rⁿ⁻ᵈ)/(1 − rⁿ) at distance d with r = √3 − 2. The refinement nudges each
+    /// posture of each step this way: one fit a nudge was 40 % of its time.
+    ///
+    /// ```
+    /// use control::plan::CycleTable;
+    /// let rows: Vec<[f64; 3]> = (0..16).map(|k| [0.1 * k as f64, (0.4 * k as f64).sin(), 0.0]).collect();
+    /// let t = CycleTable::from_rows(0.0, 1.0, &rows).unwrap();
+    /// let mut moved = rows.clone();
+    /// moved[5][1] += 1e-3;
+    /// let (a, b) = (t.nudged(5, &[0.0, 1e-3, 0.0]), CycleTable::from_rows(0.0, 1.0, &moved).unwrap());
+    /// for s in 0..40 {
+    ///     let (x, y) = (a.sample(s as f64 / 40.0), b.sample(s as f64 / 40.0));
+    ///     assert!((0..3).all(|i| (x.qdd[i] - y.qdd[i]).abs() < 1e-9));
+    /// }
+    /// ```
+    pub fn nudged(&self, k: usize, delta: &[f64; N]) -> Self {
+        let n = self.n;
+        let mut out = *self;
+        let r = 3f64.sqrt() - 2.0;
+        let scale = 3f64.sqrt() / (1.0 - r.powi(n as i32));
+        for j in 0..n {
+            let d = (j + n - k % n) % n;
+            let g = scale * (r.powi(d as i32) + r.powi((n - d) as i32));
+            for i in 0..N {
+                out.c[j][i] += g * delta[i];
+            }
+        }
+        for i in 0..N {
+            out.q[k % n][i] += delta[i];
+        }
+        out
+    }
+
     /// The postures, one per phase.
     pub fn rows(&self) -> &[[f64; N]] {
         &self.q[..self.n]
