@@ -14,7 +14,7 @@ type Discs = &'static [(f64, f64, f64)];
 
 /// The layouts: a label, the obstacles, and the task time the arm's posture is taken at (the
 /// default set-up's run, obstacle-free until then).
-const LAYOUTS: [(&str, Discs, f64); 5] = [
+const LAYOUTS: [(&str, Discs, f64); 7] = [
     ("no obstacle", &[], 0.0),
     (
         "the filter's trap (0.9, 1.1) r 0.15",
@@ -28,6 +28,16 @@ const LAYOUTS: [(&str, Discs, f64); 5] = [
     ),
     ("one on the path (1.5, 2.0) r 0.2", &[(1.5, 2.0, 0.2)], 0.0),
     ("the trap added at 5 s (a detour)", &[(0.9, 1.1, 0.15)], 5.0),
+    (
+        "two discs (−0.033, 1.838) r 0.237, (0.506, 2.727) r 0.136",
+        &[(-0.033, 1.838, 0.237), (0.506, 2.727, 0.136)],
+        0.0,
+    ),
+    (
+        "two discs (1.624, 2.319) r 0.082, (0.136, 0.989) r 0.083: the filter brakes the cycle",
+        &[(1.624, 2.319, 0.082), (0.136, 0.989, 0.083)],
+        0.0,
+    ),
 ];
 
 /// A layout's config, task time and the arm's posture then.
