@@ -84,14 +84,6 @@ impl PlanMode {
         }
     }
 
-    pub fn name(self) -> &'static str {
-        match self {
-            PlanMode::Auto => "auto",
-            PlanMode::On => "on",
-            PlanMode::Off => "off",
-        }
-    }
-
     /// Parses `auto`, `on` or `off` (the `set` request's value; `true`/`false` too).
     pub fn parse(key: &str, v: Option<&str>) -> Result<Self, String> {
         match v {
