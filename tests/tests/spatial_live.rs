@@ -211,7 +211,7 @@ fn whatever_sphere_is_added_a_live_panda_tracks_or_says_blocked() {
         // The edit's own plan (each add and removal is one): the answer is to it.
         let edit = 2 * k + 1;
         let planned = |v: &serde_json::Value| v["plan"]["newest"]["generation"] == edit;
-        let (v, _) = poll_status(ns, Duration::from_secs(3), planned);
+        let (v, _) = poll_status(ns, Duration::from_secs(5), planned);
         assert!(planned(&v), "sphere {k} ({layout}) not planned: {v}");
         match answer_to_edit(ns, within) {
             Answer::Blocked(v, took) => {
