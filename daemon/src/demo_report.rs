@@ -113,9 +113,12 @@ fn arm(r: &Run) -> String {
 /// Did the method work: tracking, the period residual, the monitor's verdict.
 fn method(r: &Run) -> Vec<Line> {
     let d = r.daemon;
-    let tracking = match d.tracking_rms_m {
-        Some(t) => format!("RMS {t:.2e} m (after the first 2 s)"),
-        None => "n/a (no states received)".into(),
+    let tracking = match (d.tracking_rms_m, d.tracking) {
+        (Some(t), Some(s)) => format!(
+            "RMS {t:.2e} m, median {:.2e} m, max {:.2e} m (after the first 2 s)",
+            s.p50_m, s.max_m
+        ),
+        _ => "n/a (no states received)".into(),
     };
     vec![
         Line::brief("tracking error", tracking),

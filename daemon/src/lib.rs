@@ -36,6 +36,7 @@ pub mod service;
 pub mod spatial_requests;
 pub mod telemetry;
 pub mod tick;
+pub mod tracking;
 pub mod trigger;
 pub mod view;
 pub mod watchdog;

@@ -56,8 +56,7 @@ pub struct Reporter {
     pub(crate) tel: Interval,
     pub(crate) tel_seq: u64,
     pub(crate) residuals: crate::residual::Residuals,
-    pub(crate) sq_track: f64,
-    pub(crate) n_track: u64,
+    pub(crate) tracking: crate::tracking::TrackingStats,
     pub(crate) feedback_on_at: Option<f64>,
     pub(crate) min_clearance: f64,
     pub(crate) safety_ticks: u64,
@@ -153,8 +152,7 @@ impl Reporter {
             },
             tel_seq: 0,
             residuals: Default::default(),
-            sq_track: 0.0,
-            n_track: 0,
+            tracking: Default::default(),
             feedback_on_at: None,
             min_clearance: f64::INFINITY,
             safety_ticks: 0,
@@ -269,10 +267,7 @@ impl Reporter {
             if r.feedback_active && self.feedback_on_at.is_none() {
                 self.feedback_on_at = Some(r.t);
             }
-            if r.t >= 2.0 {
-                self.sq_track += r.tracking_error * r.tracking_error;
-                self.n_track += 1;
-            }
+            self.tracking.observe(r.t, r.tracking_error);
             self.window_track.0 += r.tracking_error * r.tracking_error;
             self.window_track.1 += 1;
             self.window_resid.0 += r.period_residual;
@@ -609,8 +604,8 @@ impl Reporter {
             state_age: Percentiles::of(&self.state_age),
             state_to_command: Percentiles::of(&self.state_to_command),
             answered_within_period: self.answered_share(),
-            tracking_rms_m: (self.n_track > 0)
-                .then(|| (self.sq_track / self.n_track as f64).sqrt()),
+            tracking_rms_m: self.tracking.rms(),
+            tracking: self.tracking.spread(),
             period_residual_before: residual_before,
             period_residual_after: residual_after,
             feedback_on_at_s: self.feedback_on_at,

@@ -118,6 +118,9 @@ pub struct DaemonSummary {
     pub answered_within_period: Option<f64>,
     /// RMS tracking error over ticks after the first 2 s (m).
     pub tracking_rms_m: Option<f64>,
+    /// Median, 99th percentile and largest tracking error over the same ticks: a stall of the
+    /// host moves the RMS and the tail, a controller that tracks badly moves the median.
+    pub tracking: Option<crate::tracking::TrackingSpread>,
     /// Mean |q̇(t) − q̇(t − τ)| while the feedback was off (after the first 2 s).
     pub period_residual_before: Option<f64>,
     /// The same over the last 5 s with the feedback on.

@@ -300,6 +300,37 @@ pub fn read_json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{} is not JSON: {e}", path.display()))
 }
 
+/// Lateness p99 (µs) above which a live run counts as disturbed by the host.
+const DISTURBED_P99_US: f64 = 1000.0;
+
+/// Asserts that a live run's daemon summary `s` tracked its path to `bound` (m).
+///
+/// A loop that the host stalls for 10-20 ms leaves the plant running on its last command, and
+/// the arm leaves its path by up to millimetres until the law pulls it back (a time constant of
+/// 1/√kp, 0.16 s on the Panda): physics, not a fault, and a shared VM does it in bursts
+/// (injected 15 ms stalls every 0.2 s give an RMS of 0.9 mm and a median of 0.4 mm where a
+/// quiet run has 6 µm). So when more than 1 % of the wake-ups came over a period late, the run
+/// must keep its median within `bound` and its RMS within `10 · bound`; otherwise its RMS
+/// within `bound`.
+pub fn assert_tracks(s: &serde_json::Value, bound: f64) {
+    let rms = s["tracking_rms_m"].as_f64().unwrap_or(f64::NAN);
+    let p99_late = s["lateness"]["p99_us"].as_f64().unwrap_or(0.0);
+    if p99_late <= DISTURBED_P99_US {
+        assert!(rms < bound, "tracking RMS {rms} m over {bound} m: {s}");
+        return;
+    }
+    let median = s["tracking"]["p50_m"].as_f64().unwrap_or(f64::NAN);
+    eprintln!(
+        "disturbed run (lateness p99 {p99_late} µs): tracking RMS {rms} m, median {median} m"
+    );
+    assert!(
+        median < bound && rms < 10.0 * bound,
+        "a disturbed run (lateness p99 {p99_late} µs) must keep the median tracking error under \
+         {bound} m and the RMS under {} m: {s}",
+        10.0 * bound
+    );
+}
+
 /// The Panda study set-up that the filter traps only now and then: μ = 1.8 from the start and
 /// two spheres over the circle (offline, the filter leaves the null space and costs millimetres
 /// of tracking in a few task periods, never 5 cm, never 2 s on end). `plan` is `plan` (`"auto"` steers, as there are spheres; `false`

@@ -1,6 +1,6 @@
 //! The examples users start from run as their READMEs say.
 
-use tests::bin;
+use tests::{assert_tracks, bin};
 
 #[test]
 fn the_own_urdf_example_tracks_its_circle_on_the_xarm7_inside_its_limits() {
@@ -55,6 +55,6 @@ fn the_custom_task_example_runs_as_chaosd_and_plain_chaosd_names_what_is_missing
     assert!(o.status.success(), "{log}");
     assert!(log.contains("7 joints"), "{log}");
     let s = tests::read_json(&out.join("daemon-summary.json"));
-    assert!(s["tracking_rms_m"].as_f64().unwrap() < 1e-3, "{s}");
+    assert_tracks(&s, 1e-3);
     assert_eq!(s["counters"]["nonfinite"], 0, "{s}");
 }

@@ -45,7 +45,7 @@ fn the_panda_demo_runs_daemon_and_plant_inside_the_limits_and_the_feedback_shows
     let s = read_json(&out.join("daemon-summary.json"));
     assert!(s["counters"]["ticks"].as_u64().unwrap() > 10_000, "{s}");
     assert_eq!(s["counters"]["faults"], 0, "{s}");
-    assert!(s["tracking_rms_m"].as_f64().unwrap() < 1e-3, "{s}");
+    assert_tracks(&s, 1e-3);
     // Chaotic before, settling with μ = 1 from t = 5 s: the last 5 s are well below.
     let before = s["period_residual_before"].as_f64().unwrap();
     let after = s["period_residual_after"].as_f64().unwrap();
