@@ -19,6 +19,11 @@ const REST_RATE: f64 = 0.01;
 /// The longest gap between two commands the reference catches up over, in periods.
 const MAX_GAP_PERIODS: f64 = 64.0;
 
+/// A gap between two runs of the law (periods) after which the arm counts as having moved on
+/// unanswered: the guard treats catching up as a re-entry. Shorter gaps (a state lost now and
+/// then) change the demand too little to matter.
+const REENTRY_GAP_PERIODS: f64 = 5.0;
+
 /// Counters of everything the loop saw. Small and `Copy`, so a snapshot rides along with
 /// every telemetry record.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -456,6 +461,10 @@ impl<const N: usize> Controller<N> {
                         self.last_qd = None;
                         self.restart_history(g, arm_state::<N>(s).qd);
                         self.guard.reenter(t);
+                    } else if self.unanswered_since_last_run(t) {
+                        // The arm moved on without answers for a while (this loop or the plant
+                        // was stalled): catching up is a re-entry too, not a runaway.
+                        self.guard.reenter(t);
                     }
                     if restarted || self.last_stamp == 0 || s.has_flags(protocol::flags::BRAKING) {
                         // The command stream starts again exactly when the arm's does: a new
@@ -673,6 +682,13 @@ impl<const N: usize> Controller<N> {
             .map_or(1, |e| {
                 (e / self.dt).round().clamp(1.0, MAX_GAP_PERIODS) as u32
             })
+    }
+
+    /// Whether states went missing for [`REENTRY_GAP_PERIODS`] or more before this one, at
+    /// controller time `t`.
+    fn unanswered_since_last_run(&self, t: f64) -> bool {
+        self.last_run_t
+            .is_some_and(|last| t - last >= (REENTRY_GAP_PERIODS - 0.5) * self.dt)
     }
 
     /// The state the law runs on: the measured one, or the generator's reference in position
@@ -1090,11 +1106,18 @@ mod tests {
     }
 
     #[test]
-    fn catching_up_after_a_plant_side_brake_is_a_reentry_not_a_runaway() {
+    fn catching_up_after_a_plant_side_brake_or_a_gap_is_a_reentry_not_a_runaway() {
         // The same excessive demand (a tiny qdd_max set at 0.7 s): on a plant that keeps
         // following, FAULT after guard_time; on states saying the plant braked on its command
-        // timeout (this daemon was stalled), only once the re-entry window has passed.
-        let run = |braked: bool| {
+        // timeout (this daemon was stalled), or after four states went missing (a stall too
+        // short for a brake or a hold), only once the re-entry window has passed.
+        #[derive(Clone, Copy, PartialEq)]
+        enum Before {
+            Answered,
+            Braked,
+            Missing(u64),
+        }
+        let run = |before: Before| {
             let mut c = controller();
             let t0 = 1_000_000_000u64;
             let mut s = state(0, t0);
@@ -1104,7 +1127,7 @@ mod tests {
                     let mut p = *c.params().unwrap();
                     p.safety.qdd_max = [1e-6; control::MAX_JOINTS];
                     c.set_params(ParamBlock::Planar(p));
-                    if braked {
+                    if before == Before::Braked {
                         s.flags |= protocol::flags::COMMAND_TIMEOUT;
                     }
                 }
@@ -1113,6 +1136,10 @@ mod tests {
                 }
                 s.seq = k;
                 s.stamp_ns = t0 + k * 1_000_000;
+                if matches!(before, Before::Missing(m) if (700..700 + m).contains(&k)) {
+                    c.tick(None, s.stamp_ns);
+                    continue;
+                }
                 if c.tick(Some(&s), s.stamp_ns).fault.is_some() {
                     first_fault = Some(k);
                     break;
@@ -1120,11 +1147,16 @@ mod tests {
             }
             first_fault
         };
-        let plain = run(false).expect("the demand must trip the guard");
+        let plain = run(Before::Answered).expect("the demand must trip the guard");
         assert!((700..=722).contains(&plain), "{plain}");
-        let braked = run(true).expect("the window must end");
         let window = (crate::guard::REENTRY_S * 1e3) as u64;
+        let braked = run(Before::Braked).expect("the window must end");
         assert!((700 + window..=722 + window).contains(&braked), "{braked}");
+        let gap = run(Before::Missing(4)).expect("the window must end");
+        assert!((704 + window..=726 + window).contains(&gap), "{gap}");
+        // One state lost is no re-entry.
+        let lost = run(Before::Missing(1)).expect("the demand must trip the guard");
+        assert!((701..=723).contains(&lost), "{lost}");
     }
 
     #[test]

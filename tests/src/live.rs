@@ -3,6 +3,7 @@
 //! Every system gets its own namespace and directory; `Proc` kills both processes when the
 //! `System` is dropped, whatever the test's outcome.
 
+use crate::deadline::Deadline;
 use crate::{bin, unique_namespace, write_config, Proc, TempDir};
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -28,13 +29,14 @@ pub fn status(ns: &str) -> serde_json::Value {
 }
 
 /// Polls `status --json` until `done` holds or `within` passes; the last status either way
-/// (null while the daemon does not answer yet), and how long it took.
+/// (null while the daemon does not answer yet), and how long it took. Both count from the
+/// last host stall when there was one ([`Deadline`]).
 pub fn poll_status(
     ns: &str,
     within: Duration,
     done: impl Fn(&serde_json::Value) -> bool,
 ) -> (serde_json::Value, Duration) {
-    let start = Instant::now();
+    let mut deadline = Deadline::new(within);
     loop {
         let (code, out, _) = ctl(ns, &["status", "--json"]);
         let v = if code == 0 {
@@ -42,8 +44,15 @@ pub fn poll_status(
         } else {
             serde_json::Value::Null
         };
-        if done(&v) || start.elapsed() > within {
-            return (v, start.elapsed());
+        deadline.observe(&v);
+        if done(&v) || deadline.passed() {
+            if deadline.stalls() > 0 {
+                eprintln!(
+                    "{} host stall(s) pushed the deadline back",
+                    deadline.stalls()
+                );
+            }
+            return (v, deadline.took());
         }
         std::thread::sleep(Duration::from_millis(50));
     }
@@ -130,20 +139,22 @@ pub enum Answer {
     Neither(serde_json::Value),
 }
 
-/// Polls the daemon of `ns` after an edit until it tracks or says `Blocked`, for `within`.
+/// Polls the daemon of `ns` after an edit until it tracks or says `Blocked`, for `within`
+/// (from the last host stall when there was one: [`Deadline`]).
 pub fn answer_to_edit(ns: &str, within: Duration) -> Answer {
-    let start = Instant::now();
+    let mut deadline = Deadline::new(within);
     let mut good = 0;
     loop {
         let v = status(ns);
+        deadline.observe(&v);
         good = if tracking(&v, 1e-3) { good + 1 } else { 0 };
         if blocked(&v) {
-            return Answer::Blocked(v, start.elapsed());
+            return Answer::Blocked(v, deadline.took());
         }
         if good >= 2 {
-            return Answer::Tracking(v, start.elapsed());
+            return Answer::Tracking(v, deadline.took());
         }
-        if start.elapsed() > within {
+        if deadline.passed() {
             return Answer::Neither(v);
         }
         std::thread::sleep(Duration::from_millis(500));

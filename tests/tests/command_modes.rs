@@ -61,7 +61,7 @@ fn torque_mode_tracks_on_the_rigid_body_plant_and_the_feedback_still_works() {
     assert_eq!(s["command"]["mode"], "torque", "{s}");
     assert_eq!(s["counters"]["faults"], 0, "{s}");
     assert_eq!(s["device_stops"], 0, "{s}");
-    assert_tracks(&s, 1e-3);
+    assert_tracks(&[&s], 1e-3);
     let before = s["period_residual_before"].as_f64().unwrap();
     let after = s["period_residual_after"].as_f64().unwrap();
     assert!(before > 0.3 && after < 0.6 * before, "{before} → {after}");
@@ -149,7 +149,7 @@ fn with_the_limiter_the_same_run_keeps_the_device_running_and_tracks() {
         .map(|n| n.as_u64().unwrap())
         .sum();
     assert!(clamped > 0, "{s}");
-    assert_tracks(&s, 2e-3);
+    assert_tracks(&[&s], 2e-3);
 }
 
 /// Issue 24's target: position mode through the UDP bridge and chaosd-fakebot, with the
@@ -173,7 +173,7 @@ fn position_mode_through_udp_runs_a_minute_without_a_reflex() {
     assert_eq!(f["counters"]["reflex_stops"], 0, "{f}");
     assert_eq!(s["device_stops"], 0, "{s}");
     assert_eq!(s["counters"]["faults"], 0, "{s}");
-    assert_tracks(&s, 2e-3);
+    assert_tracks(&[&s], 2e-3);
     let before = s["period_residual_before"].as_f64().unwrap();
     let after = s["period_residual_after"].as_f64().unwrap();
     assert!(after * 10.0 <= before, "{before} → {after}");

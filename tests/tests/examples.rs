@@ -55,6 +55,6 @@ fn the_custom_task_example_runs_as_chaosd_and_plain_chaosd_names_what_is_missing
     assert!(o.status.success(), "{log}");
     assert!(log.contains("7 joints"), "{log}");
     let s = tests::read_json(&out.join("daemon-summary.json"));
-    assert_tracks(&s, 1e-3);
+    assert_tracks(&[&s], 1e-3);
     assert_eq!(s["counters"]["nonfinite"], 0, "{s}");
 }

@@ -75,7 +75,7 @@ fn end_effector_converges_onto_the_circle_and_commands_answer_states() {
     let cfg = Config::preset("paper").unwrap();
     let model = cfg.model::<3>();
     let mut k = Kinematics::default();
-    let mut worst: f64 = 0.0;
+    let mut off = Vec::new();
     for s in m.seen_states.iter().rev().take(500) {
         model.kinematics(
             0.0,
@@ -84,11 +84,9 @@ fn end_effector_converges_onto_the_circle_and_commands_answer_states() {
             &mut k,
         );
         let r = (k.p - nalgebra::Vector2::new(1.0, 2.0)).norm();
-        worst = worst.max((r - 0.5).abs());
+        off.push((r - 0.5).abs());
     }
-    // The start is ~1 m off; what remains is the sampled-data loop's lag (1 kHz, zero-order hold,
-    // up to one period of state age) at joint speeds up to ~20 rad/s: millimetres.
-    assert!(worst < 2e-2, "end effector is {worst} m off the circle");
+    off.sort_by(f64::total_cmp);
 
     assert!(
         daemon.terminate(Duration::from_secs(10)).success(),
@@ -101,10 +99,24 @@ fn end_effector_converges_onto_the_circle_and_commands_answer_states() {
         plant.log()
     );
     let d = read_json(&dir.path().join("out/daemon-summary.json"));
-    assert!(d["tracking_rms_m"].as_f64().unwrap() < 1e-2, "{d}");
     assert_eq!(d["counters"]["rejected_invalid"], 0);
     let p = read_json(&dir.path().join("out/plant-summary.json"));
     assert!(p["round_trip"]["count"].as_u64().unwrap() > 1000, "{p}");
+    assert_tracks(&[&d, &p], 1e-2);
+    // The start is ~1 m off; what remains is the sampled-data loop's lag (1 kHz, zero-order hold,
+    // up to one period of state age) at joint speeds up to ~20 rad/s: millimetres. A host stall
+    // of either process in the last half second takes the hand centimetres off for a moment:
+    // then most of it must still be on the circle.
+    let (median, worst) = (off[off.len() / 2], off[off.len() - 1]);
+    let ok = if disturbed(&[&d, &p]) {
+        median < 5e-3
+    } else {
+        worst < 2e-2
+    };
+    assert!(
+        ok,
+        "end effector is {worst} m (median {median} m) off the circle: {d}"
+    );
 }
 
 #[test]

@@ -45,7 +45,7 @@ fn the_panda_demo_runs_daemon_and_plant_inside_the_limits_and_the_feedback_shows
     let s = read_json(&out.join("daemon-summary.json"));
     assert!(s["counters"]["ticks"].as_u64().unwrap() > 10_000, "{s}");
     assert_eq!(s["counters"]["faults"], 0, "{s}");
-    assert_tracks(&s, 1e-3);
+    assert_tracks(&[&s], 1e-3);
     // Chaotic before, settling with μ = 1 from t = 5 s: the last 5 s are well below.
     let before = s["period_residual_before"].as_f64().unwrap();
     let after = s["period_residual_after"].as_f64().unwrap();
@@ -280,8 +280,11 @@ fn a_live_panda_steers_round_a_new_sphere_and_says_blocked_for_one_on_its_path()
         "tracking back after {took:?}"
     );
     assert_eq!(v["plan"]["newest"]["found"], true, "{v}");
+    // Still tracking 2 s on (a host stall in between takes the hand off for a moment).
     std::thread::sleep(Duration::from_secs(2));
-    let v = status(ns);
+    let (v, _) = poll_status(ns, Duration::from_secs(1), |v| {
+        tracking(v, 1e-3) && v["mode"] == "Run"
+    });
     assert!(tracking(&v, 1e-3) && v["mode"] == "Run", "{v}");
 
     // A sphere on the hand's path, where the hand starts each period (0.307, 0, 0.487): no
@@ -350,7 +353,9 @@ fn a_live_panda_the_filter_traps_now_and_then_is_caught_and_steered_without_plan
         "not tracking {took:?} after the trap: {v}"
     );
     std::thread::sleep(Duration::from_secs(8));
-    let v = status(ns);
+    let (v, _) = poll_status(ns, Duration::from_secs(1), |v| {
+        tracking(v, 1e-3) && v["mode"] == "Run" && v["blocked"].is_null()
+    });
     assert!(
         tracking(&v, 1e-3) && v["mode"] == "Run" && v["blocked"].is_null(),
         "{v}\n{}",

@@ -1,0 +1,139 @@
+//! Deadlines that a host stall pushes back.
+//!
+//! The live tests give the daemon a time to answer an edit ("tracking again within 5 s",
+//! "Blocked within 1 s"). On a shared VM the host now and then takes a vCPU away for 10-30 ms,
+//! from the loop or from the plant; the arm runs on its last command meanwhile, leaves its path
+//! by millimetres, and needs about a second to settle again. That is physics, not a slow
+//! daemon, so the time allowed counts from the later of the edit and the last stall the
+//! daemon's own counters show (periods it overran, ticks without a fresh state), and never
+//! runs past three times the time allowed. On a quiet host it is the plain deadline.
+
+use std::time::{Duration, Instant};
+
+/// Overruns or missing states between two reads, beyond twice the run's usual rate, that count
+/// as a stall.
+const STALL_TICKS: u64 = 3;
+
+/// How far past the time allowed stalls may push the deadline.
+const MAX_STRETCH: u32 = 3;
+
+/// A deadline of `within`, restarted by host stalls.
+pub struct Deadline {
+    start: Instant,
+    from: Instant,
+    within: Duration,
+    seen: Option<(u64, Instant)>,
+    /// The first count read, and when: the run's usual rate of missed ticks.
+    first: Option<(u64, Instant)>,
+    stalls: u32,
+}
+
+impl Deadline {
+    pub fn new(within: Duration) -> Self {
+        let now = Instant::now();
+        Self {
+            start: now,
+            from: now,
+            within,
+            seen: None,
+            first: None,
+            stalls: 0,
+        }
+    }
+
+    /// Reads the stall counters of a `status --json` answer (null while the daemon does not
+    /// answer yet: no news).
+    pub fn observe(&mut self, status: &serde_json::Value) {
+        let Some(count) = missed_ticks(status) else {
+            return;
+        };
+        let at = Instant::now();
+        let judged = self
+            .seen
+            .zip(self.first)
+            .filter(|(seen, first)| seen.1 > first.1);
+        if let Some(((before, then), (first, since))) = judged {
+            // Some set-ups miss ticks steadily (a plant whose phase drifts against the loop's):
+            // a stall is a burst well above the run's own rate.
+            let rate = (before - first) as f64 / then.duration_since(since).as_secs_f64().max(1e-3);
+            let usual = rate * at.duration_since(then).as_secs_f64();
+            if count as f64 >= before as f64 + 2.0 * usual + STALL_TICKS as f64 {
+                self.from = at;
+                self.stalls += 1;
+            }
+        }
+        self.first.get_or_insert((count, at));
+        self.seen = Some((count, at));
+    }
+
+    /// The time counted against the deadline: since the start, or since the last stall.
+    pub fn took(&self) -> Duration {
+        self.from.elapsed()
+    }
+
+    pub fn passed(&self) -> bool {
+        self.took() > self.within || self.start.elapsed() > self.within * MAX_STRETCH
+    }
+
+    /// Stalls seen so far, for a failure's message.
+    pub fn stalls(&self) -> u32 {
+        self.stalls
+    }
+}
+
+/// Periods the daemon overran, plus its ticks without a fresh state.
+fn missed_ticks(v: &serde_json::Value) -> Option<u64> {
+    let c = &v["counters"];
+    let n = |k: &str| c[k].as_u64();
+    Some(n("overruns")? + n("ticks")?.saturating_sub(n("fresh_states")?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn counters(overruns: u64, ticks: u64, fresh: u64) -> serde_json::Value {
+        serde_json::json!({"counters": {"overruns": overruns, "ticks": ticks, "fresh_states": fresh}})
+    }
+
+    #[test]
+    fn a_stall_restarts_the_time_allowed_and_a_quiet_run_does_not() {
+        let mut d = Deadline::new(Duration::from_millis(80));
+        d.observe(&counters(0, 100, 100));
+        d.observe(&serde_json::Value::Null);
+        std::thread::sleep(Duration::from_millis(50));
+        d.observe(&counters(1, 150, 149)); // one overrun, one state late: no stall
+        assert!(d.took() >= Duration::from_millis(50));
+        d.observe(&counters(3, 200, 197)); // two overruns and two states missing
+        assert_eq!(d.stalls(), 1);
+        assert!(d.took() < Duration::from_millis(20));
+        std::thread::sleep(Duration::from_millis(50));
+        assert!(!d.passed(), "50 ms after the stall, of 80 allowed");
+        std::thread::sleep(Duration::from_millis(40));
+        assert!(d.passed());
+    }
+
+    #[test]
+    fn stalls_push_the_deadline_three_times_at_most() {
+        let mut d = Deadline::new(Duration::from_millis(30));
+        for k in 0..=12u64 {
+            d.observe(&counters(100 * (k / 3), 1000, 1000));
+            if k < 12 {
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        }
+        assert_eq!(d.stalls(), 4);
+        assert!(d.took() < Duration::from_millis(30));
+        assert!(d.passed(), "past 3 × 30 ms");
+    }
+
+    #[test]
+    fn a_steady_rate_of_missed_ticks_is_no_stall() {
+        let mut d = Deadline::new(Duration::from_secs(10));
+        for k in 0..10u64 {
+            d.observe(&counters(0, 1000 + 100 * k, 1000 + 90 * k));
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert_eq!(d.stalls(), 0);
+    }
+}
