@@ -6,7 +6,8 @@
 //! by millimetres, and needs about a second to settle again. That is physics, not a slow
 //! daemon, so the time allowed counts from the later of the edit and the last stall the
 //! daemon's own counters show (periods it overran, ticks without a fresh state), and never
-//! runs past three times the time allowed. On a quiet host it is the plain deadline.
+//! runs past three times the time allowed, nor more than 30 s past it. On a quiet host it is
+//! the plain deadline.
 
 use std::time::{Duration, Instant};
 
@@ -14,10 +15,12 @@ use std::time::{Duration, Instant};
 /// as a stall.
 const STALL_TICKS: u64 = 3;
 
-/// How far past the time allowed stalls may push the deadline.
-const MAX_STRETCH: u32 = 3;
+/// How far past the time allowed stalls may push the deadline: twice the time allowed, and
+/// never more than [`MAX_EXTRA`] (a long wait already has room for a few stalls).
+const MAX_STRETCH: u32 = 2;
+const MAX_EXTRA: Duration = Duration::from_secs(30);
 
-/// A deadline of `within`, restarted by host stalls.
+/// A deadline of `within`, restarted by host stalls (up to `within` + min(2 · `within`, 30 s)).
 pub struct Deadline {
     start: Instant,
     from: Instant,
@@ -72,7 +75,8 @@ impl Deadline {
     }
 
     pub fn passed(&self) -> bool {
-        self.took() > self.within || self.start.elapsed() > self.within * MAX_STRETCH
+        let extra = (self.within * MAX_STRETCH).min(MAX_EXTRA);
+        self.took() > self.within || self.start.elapsed() > self.within + extra
     }
 
     /// Stalls seen so far, for a failure's message.
