@@ -24,6 +24,10 @@ const MAX_GAP_PERIODS: f64 = 64.0;
 /// then) change the demand too little to matter.
 const REENTRY_GAP_PERIODS: f64 = 5.0;
 
+/// A gap counts as a re-entry at most this often (controller time, s): a plant that drops
+/// states all the time must not keep the guard's demand criterion waiting.
+const GAP_REENTRY_EVERY_S: f64 = 5.0;
+
 /// Counters of everything the loop saw. Small and `Copy`, so a snapshot rides along with
 /// every telemetry record.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -196,6 +200,8 @@ pub struct Controller<const N: usize> {
     last_run_t: Option<f64>,
     /// The device time of that state (`StateSample::device_time_ns`).
     last_run_device_ns: Option<u64>,
+    /// When a gap last counted as a re-entry (controller time, s).
+    last_gap_reentry: Option<f64>,
     /// The planned cycle the self-motion is steered onto, kept across parameter
     /// blocks: the control service's blocks carry none, the planner's handover sets it.
     steer: Option<control::plan::Steering>,
@@ -237,6 +243,7 @@ impl<const N: usize> Controller<N> {
             device_fault_latched: false,
             last_run_t: None,
             last_run_device_ns: None,
+            last_gap_reentry: None,
             steer: None,
             blocked_hold: false,
             clear: false,
@@ -464,6 +471,7 @@ impl<const N: usize> Controller<N> {
                     } else if self.unanswered_since_last_run(t) {
                         // The arm moved on without answers for a while (this loop or the plant
                         // was stalled): catching up is a re-entry too, not a runaway.
+                        self.last_gap_reentry = Some(t);
                         self.guard.reenter(t);
                     }
                     if restarted || self.last_stamp == 0 || s.has_flags(protocol::flags::BRAKING) {
@@ -685,10 +693,15 @@ impl<const N: usize> Controller<N> {
     }
 
     /// Whether states went missing for [`REENTRY_GAP_PERIODS`] or more before this one, at
-    /// controller time `t`.
+    /// controller time `t`, and no gap counted as a re-entry in the last
+    /// [`GAP_REENTRY_EVERY_S`].
     fn unanswered_since_last_run(&self, t: f64) -> bool {
-        self.last_run_t
-            .is_some_and(|last| t - last >= (REENTRY_GAP_PERIODS - 0.5) * self.dt)
+        let gap = self
+            .last_run_t
+            .is_some_and(|last| t - last >= (REENTRY_GAP_PERIODS - 0.5) * self.dt);
+        gap && self
+            .last_gap_reentry
+            .is_none_or(|last| t - last >= GAP_REENTRY_EVERY_S)
     }
 
     /// The state the law runs on: the measured one, or the generator's reference in position
@@ -1116,6 +1129,8 @@ mod tests {
             Answered,
             Braked,
             Missing(u64),
+            /// Four states missing at 0.1 s already: the second gap within 5 s is no re-entry.
+            MissingAgain,
         }
         let run = |before: Before| {
             let mut c = controller();
@@ -1136,7 +1151,12 @@ mod tests {
                 }
                 s.seq = k;
                 s.stamp_ns = t0 + k * 1_000_000;
-                if matches!(before, Before::Missing(m) if (700..700 + m).contains(&k)) {
+                let missing = match before {
+                    Before::Missing(m) => (700..700 + m).contains(&k),
+                    Before::MissingAgain => (100..104).contains(&k) || (700..704).contains(&k),
+                    _ => false,
+                };
+                if missing {
                     c.tick(None, s.stamp_ns);
                     continue;
                 }
@@ -1154,9 +1174,11 @@ mod tests {
         assert!((700 + window..=722 + window).contains(&braked), "{braked}");
         let gap = run(Before::Missing(4)).expect("the window must end");
         assert!((704 + window..=726 + window).contains(&gap), "{gap}");
-        // One state lost is no re-entry.
+        // One state lost is no re-entry, nor is a second gap soon after a first.
         let lost = run(Before::Missing(1)).expect("the demand must trip the guard");
         assert!((701..=723).contains(&lost), "{lost}");
+        let again = run(Before::MissingAgain).expect("the demand must trip the guard");
+        assert!((704..=726).contains(&again), "{again}");
     }
 
     #[test]

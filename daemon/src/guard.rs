@@ -15,7 +15,8 @@
 //! Re-entry: when the controller takes over an arm that was not following it (a restarted plant,
 //! the end of a HOLD, a plant that braked on its own because commands stopped coming, e.g. while
 //! this daemon was stalled, or states that went missing for five periods or more while either
-//! process was stalled), the law asks for a burst of acceleration to catch the circle again.
+//! process was stalled, at most once every 5 s), the law asks for a burst of acceleration to
+//! catch the circle again.
 //! That burst is the filter's job to clamp, not a runaway, so for [`REENTRY_S`] after a re-entry
 //! the demand criterion alone is not applied; the rate, growth and non-finite criteria are.
 //! The same holds after the safety filter left the null space: it took the hand off its path on
