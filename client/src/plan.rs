@@ -29,15 +29,19 @@ pub struct PlanCmd {
     #[arg(long)]
     pub csv: Option<PathBuf>,
     /// Map where one more obstacle leaves a clean cycle, over a grid of centres round the
-    /// task, one panel per radius: writes PREFIX.csv, .png and .svg.
+    /// task, one panel per radius: writes PREFIX.csv, .png and .svg. A spatial robot's map is
+    /// one slice: the plane parallel to the path's, --map-offset from it.
     #[arg(long, value_name = "PREFIX")]
     pub map: Option<PathBuf>,
-    /// The radii the map tries (m).
-    #[arg(long = "map-radii", value_parser = parse_list, default_value = "0.1,0.2,0.3")]
-    pub map_radii: FloatList,
-    /// Centres per side of the map's grid.
-    #[arg(long = "map-cells", default_value_t = 25)]
-    pub map_cells: usize,
+    /// The radii the map tries (m) [default: 0.1,0.2,0.3; a spatial robot's: 0.06,0.1].
+    #[arg(long = "map-radii", value_parser = parse_list)]
+    pub map_radii: Option<FloatList>,
+    /// Centres per side of the map's grid [default: 25; a spatial robot's: 13].
+    #[arg(long = "map-cells")]
+    pub map_cells: Option<usize>,
+    /// A spatial robot's map: the slice's distance from the path's plane, towards the base (m).
+    #[arg(long = "map-offset", default_value_t = 0.1, allow_hyphen_values = true)]
+    pub map_offset: f64,
     /// The moment the map's obstacle is added (s): the arm is where the config's run (without
     /// it) has brought it by then.
     #[arg(long = "map-at", default_value_t = 0.0)]
@@ -63,9 +67,13 @@ pub fn run(a: &PlanCmd) -> Result<()> {
     cfg.validate()?;
     let settings = settings(a)?;
     if let Some(prefix) = &a.map {
+        let radii = a
+            .map_radii
+            .as_ref()
+            .map_or(vec![0.1, 0.2, 0.3], |r| r.0.clone());
         let spec = crate::plan_map::MapSpec {
-            radii: &a.map_radii.0,
-            cells: a.map_cells,
+            radii: &radii,
+            cells: a.map_cells.unwrap_or(25),
             at: a.map_at,
             threads: a.jobs,
         };
@@ -103,9 +111,6 @@ fn settings(a: &PlanCmd) -> Result<PlanSettings> {
 /// A spatial set-up's plan: the same planner the daemon runs, from the start posture, with
 /// `--obstacle X,Y,Z,RADIUS` spheres besides the config's.
 fn spatial(a: &PlanCmd, mut cfg: control::spatial::config::SpatialConfig) -> Result<()> {
-    if a.map.is_some() {
-        bail!("--map: the obstacle map is drawn for the planar arm only (a spatial robot's is a 3-D grid of spheres; plan one layout at a time)");
-    }
     for o in &a.obstacles {
         let [x, y, z, r] = o.0[..] else {
             bail!(
@@ -126,6 +131,24 @@ fn spatial(a: &PlanCmd, mut cfg: control::spatial::config::SpatialConfig) -> Res
     let system = control::system::SpatialSystem { config: cfg, chain };
     // Checks the file against the robot (the spheres too) before planning.
     control::System::Spatial(Box::new(system.clone())).validate()?;
+    if let Some(prefix) = &a.map {
+        let radii = a
+            .map_radii
+            .as_ref()
+            .map_or(vec![0.06, 0.1], |r| r.0.clone());
+        let spec = crate::plan_map_spatial::SpatialMapSpec {
+            radii: &radii,
+            cells: a.map_cells.unwrap_or(13),
+            at: a.map_at,
+            offset: a.map_offset,
+            threads: a.jobs,
+        };
+        println!(
+            "{}",
+            crate::plan_map_spatial::run(&system, &settings, &spec, prefix)?
+        );
+        return Ok(());
+    }
     let planned =
         control::plan::spatial::plan_system_with(&system, 0.0, Some(&q0), None, &settings)
             .map_err(|e| anyhow::anyhow!("chaosctl plan: {e}"))?;

@@ -10,6 +10,7 @@ use control::config::ObstacleConfig;
 use control::plan::planar::{plan, PlanarProblem};
 use control::plan::{detour, CycleTable, PlanOutcome, PlanSettings};
 use control::Config;
+use plotters::style::RGBColor;
 use std::path::Path;
 use std::time::Instant;
 
@@ -32,6 +33,84 @@ const NAMES: [&str; 4] = [
     "unreachable ones only (Blocked)",
     "no clean cycle (Blocked)",
 ];
+
+/// The verdicts' colours, in `NAMES`' order.
+const CATEGORIES: [(&str, RGBColor); 4] = [
+    (NAMES[0], PALETTE[2]),
+    (NAMES[1], PALETTE[0]),
+    (NAMES[2], PALETTE[3]),
+    (NAMES[3], PALETTE[1]),
+];
+
+/// A map's grid of centres: the two in-plane coordinates and their labels.
+pub struct MapAxes {
+    pub xs: Vec<f64>,
+    pub ys: Vec<f64>,
+    pub labels: (String, String),
+}
+
+/// Draws one panel per title (each `xs` × `ys` cells of `cells`, in order), colouring each
+/// cell by its category: `PREFIX.png` and `.svg`.
+pub fn save_map(
+    prefix: &Path,
+    axes: &MapAxes,
+    titles: Vec<String>,
+    cells: &[usize],
+    categories: &[(&str, RGBColor)],
+) -> Result<Vec<std::path::PathBuf>> {
+    let per = axes.xs.len() * axes.ys.len();
+    let cols = titles.len().min(3);
+    let panels = titles
+        .into_iter()
+        .enumerate()
+        .map(|(k, title)| {
+            Panel::Grid(Grid {
+                title,
+                x_label: axes.labels.0.clone(),
+                y_label: axes.labels.1.clone(),
+                xs: axes.xs.clone(),
+                ys: axes.ys.clone(),
+                cells: cells[k * per..(k + 1) * per].to_vec(),
+                categories: categories
+                    .iter()
+                    .map(|(n, c)| (n.to_string(), *c))
+                    .collect(),
+            })
+        })
+        .collect();
+    Figure {
+        title: Some("Where does the arm keep a clean periodic cycle?".into()),
+        panels,
+        cols,
+        panel_size: (820, 560),
+    }
+    .save(prefix)
+}
+
+/// Checks the map's radii and cells per side.
+pub fn check_spec(radii: &[f64], n: usize) -> Result<()> {
+    if !(3..=200).contains(&n) {
+        bail!("--map-cells {n}: must be between 3 and 200");
+    }
+    if radii.is_empty()
+        || radii
+            .iter()
+            .any(|r| !(r.is_finite() && *r > 0.0 && *r <= 2.0))
+    {
+        bail!("--map-radii {radii:?}: one or more radii in (0, 2] m");
+    }
+    Ok(())
+}
+
+/// Writes a map's CSV text to `PREFIX.csv`, creating its directory.
+pub fn save_csv(prefix: &Path, csv: &str) -> Result<std::path::PathBuf> {
+    let path = crate::plot::with_ext(prefix, "csv");
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    std::fs::write(&path, csv).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(path)
+}
 
 /// Where the arm is at task time `at` (s), without the new obstacle: simulated from the
 /// config's start, as the daemon would have run it until the obstacle is added.
@@ -93,16 +172,7 @@ pub fn run(cfg: &Config, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> Res
     if !(spec.at.is_finite() && (0.0..=600.0).contains(&spec.at)) {
         bail!("--map-at {}: must be a time in [0, 600] s", spec.at);
     }
-    if !(3..=200).contains(&n) {
-        bail!("--map-cells {n}: must be between 3 and 200");
-    }
-    if radii.is_empty()
-        || radii
-            .iter()
-            .any(|r| !(r.is_finite() && *r > 0.0 && *r <= 2.0))
-    {
-        bail!("--map-radii {radii:?}: one or more radii in (0, 2] m");
-    }
+    check_spec(radii, n)?;
     let (xs, ys) = centres(cfg, n);
     let mut cells = Vec::with_capacity(radii.len() * n * n);
     for &r in radii {
@@ -122,45 +192,23 @@ pub fn run(cfg: &Config, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> Res
     for (&(x, y, r), v) in cells.iter().zip(&verdicts) {
         csv.push_str(&format!("{x},{y},{r},{}\n", NAMES[*v as usize]));
     }
-    let path = crate::plot::with_ext(prefix, "csv");
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
-    std::fs::write(&path, csv).with_context(|| format!("cannot write {}", path.display()))?;
-    let categories: Vec<_> = NAMES
-        .iter()
-        .zip([PALETTE[2], PALETTE[0], PALETTE[3], PALETTE[1]])
-        .map(|(n, c)| (n.to_string(), c))
-        .collect();
-    let per = xs.len() * ys.len();
+    let path = save_csv(prefix, &csv)?;
     let panels = radii
         .iter()
-        .enumerate()
-        .map(|(k, r)| {
-            Panel::Grid(Grid {
-                title: format!(
-                    "one more obstacle, radius {r} m, centre (x, y), added at t = {} s",
-                    spec.at
-                ),
-                x_label: "x (m)".into(),
-                y_label: "y (m)".into(),
-                xs: xs.clone(),
-                ys: ys.clone(),
-                cells: verdicts[k * per..(k + 1) * per]
-                    .iter()
-                    .map(|v| *v as usize)
-                    .collect(),
-                categories: categories.clone(),
-            })
+        .map(|r| {
+            format!(
+                "one more obstacle, radius {r} m, centre (x, y), added at t = {} s",
+                spec.at
+            )
         })
         .collect();
-    let files = Figure {
-        title: Some("Where does the arm keep a clean periodic cycle?".into()),
-        panels,
-        cols: radii.len().min(3),
-        panel_size: (820, 560),
-    }
-    .save(prefix)?;
+    let cells: Vec<usize> = verdicts.iter().map(|v| *v as usize).collect();
+    let axes = MapAxes {
+        xs,
+        ys,
+        labels: ("x (m)".into(), "y (m)".into()),
+    };
+    let files = save_map(prefix, &axes, panels, &cells, &CATEGORIES)?;
     let share = |v: Verdict| {
         100.0 * verdicts.iter().filter(|x| **x == v).count() as f64 / verdicts.len() as f64
     };

@@ -172,12 +172,58 @@ fn plan_on_the_panda_goes_round_a_sphere_and_names_one_on_the_path() {
     );
     for (args, says) in [
         (&["--obstacle", "0.3,0.1,0.05"][..], "X,Y,Z,RADIUS"),
-        (&["--map", "m"][..], "planar arm only"),
+        (
+            &["--map", "m", "--map-offset", "nan"][..],
+            "--map-offset NaN",
+        ),
         (&["--obstacle", "0.3,0.1,0.4,-1"][..], "radius"),
     ] {
         let (code, out, err) = plan(&[&["--preset", "panda"][..], args].concat());
         assert_eq!(code, 2, "{args:?} was accepted: {out}");
         assert!(err.contains(says), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn plan_maps_a_slice_of_spheres_for_the_panda() {
+    let dir = TempDir::new(&unique_namespace("plan-map-panda"));
+    let prefix = dir.path().join("map");
+    let (code, out, err) = plan(&[
+        "--preset",
+        "panda",
+        "--map",
+        prefix.to_str().unwrap(),
+        "--map-cells",
+        "5",
+        "--map-radii",
+        "0.06",
+        "--jobs",
+        "2",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("25 sphere positions"), "{out}");
+    let csv = std::fs::read_to_string(dir.path().join("map.csv")).unwrap();
+    assert!(csv.starts_with("x,y,z,radius,verdict\n"), "{csv}");
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 25, "{csv}");
+    // One slice, 0.1 m in front of the path's plane (x = 0.307), from the floor up.
+    for r in &rows {
+        let x: f64 = r[0].parse().unwrap();
+        let z: f64 = r[2].parse().unwrap();
+        assert!((x - 0.207).abs() < 1e-3 && z >= -1e-9, "{r:?}");
+    }
+    // The slice's corners leave the arm alone; its centre column meets the hand's circle.
+    let said = |v: &str| rows.iter().any(|r| r[4] == v);
+    assert!(
+        said("clean cycle (steered)") && said("on the path (Blocked)"),
+        "{csv}"
+    );
+    for ext in ["png", "svg"] {
+        assert!(dir.path().join(format!("map.{ext}")).exists(), "no {ext}");
     }
 }
 
