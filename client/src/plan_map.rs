@@ -214,19 +214,23 @@ pub fn run(cfg: &Config, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> Res
     };
     Ok(format!(
         "{} obstacle positions in {took:.1} s: reached tracking {:.0} %, by a detour {:.0} %, \
-         clean cycles out of reach {:.0} %, none {:.0} %; wrote {}, {}",
+         clean cycles out of reach {:.0} %, none {:.0} %; wrote {}",
         verdicts.len(),
         share(Verdict::Reachable),
         share(Verdict::Detour),
         share(Verdict::Elsewhere),
         share(Verdict::None),
-        path.display(),
-        files
-            .iter()
-            .map(|f| f.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
+        wrote(&path, &files)
     ))
+}
+
+/// The files a map wrote, for its summary line.
+pub fn wrote(csv: &Path, figures: &[std::path::PathBuf]) -> String {
+    std::iter::once(csv)
+        .chain(figures.iter().map(|f| f.as_path()))
+        .map(|f| f.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@
 //! cycle remains.
 
 use crate::analysis::parallel::{jobs, run_all};
-use crate::plan_map::{check_spec, save_csv, save_map, MapAxes};
+use crate::plan_map::{check_spec, save_csv, save_map, wrote, MapAxes};
 use crate::plot::PALETTE;
 use anyhow::{bail, Result};
 use control::plan::{PlanOutcome, PlanSettings};
@@ -178,17 +178,12 @@ pub fn run(
     };
     Ok(format!(
         "{} sphere positions in {took:.1} s: clean cycle {:.0} %, on the path {:.0} %, \
-         no clean cycle {:.0} %; wrote {}, {}",
+         no clean cycle {:.0} %; wrote {}",
         verdicts.len(),
         share(Verdict::Clean),
         share(Verdict::OnPath),
         share(Verdict::NoCycle),
-        csv_path.display(),
-        files
-            .iter()
-            .map(|f| f.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
+        wrote(&csv_path, &files)
     ))
 }
 
