@@ -182,6 +182,15 @@ pub fn run(cfg: &Config, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> Res
     }
     let started = Instant::now();
     let arm = (spec.at, posture_at(cfg, spec.at));
+    let own = PlanarProblem::from_config(cfg, arm.0, Some(arm.1))
+        .map_err(|e| anyhow::anyhow!("chaosctl plan --map: {e}"))?;
+    if let PlanOutcome::Blocked(b) = plan(&own, s) {
+        bail!(
+            "--map: the config's own obstacles leave no clean cycle already ({}); map with \
+             fewer of them",
+            b.reason
+        );
+    }
     let verdicts = run_all(&cells, jobs(spec.threads), "plan map", |&cell| {
         verdict(cfg, s, arm, cell)
     })?

@@ -109,6 +109,15 @@ pub fn run(
         );
     }
     let (path, q) = path_and_posture(sys, spec.at)?;
+    let planned = control::plan::spatial::plan_system_with(sys, spec.at, Some(&q), None, s)
+        .map_err(|e| anyhow::anyhow!("chaosctl plan --map: {e}"))?;
+    if let PlanOutcome::Blocked(b) = planned.outcome {
+        bail!(
+            "--map: the config's own obstacles leave no clean cycle already ({}); map with \
+             fewer of them",
+            b.reason
+        );
+    }
     // Towards the base: the normal's sign that points from the path's centre to the origin.
     let normal = path.u.cross(&path.v);
     let toward_base = if normal.dot(&path.center) > 0.0 {

@@ -176,6 +176,10 @@ fn plan_on_the_panda_goes_round_a_sphere_and_names_one_on_the_path() {
             &["--map", "m", "--map-offset", "nan"][..],
             "--map-offset NaN",
         ),
+        (
+            &["--obstacle", "0.307,0,0.487,0.05", "--map", "m"][..],
+            "the config's own obstacles leave no clean cycle already (the path runs through",
+        ),
         (&["--obstacle", "0.3,0.1,0.4,-1"][..], "radius"),
     ] {
         let (code, out, err) = plan(&[&["--preset", "panda"][..], args].concat());
