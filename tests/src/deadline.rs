@@ -33,7 +33,10 @@ pub struct Deadline {
 
 impl Deadline {
     pub fn new(within: Duration) -> Self {
-        let now = Instant::now();
+        Self::starting(within, Instant::now())
+    }
+
+    fn starting(within: Duration, now: Instant) -> Self {
         Self {
             start: now,
             from: now,
@@ -47,10 +50,13 @@ impl Deadline {
     /// Reads the stall counters of a `status --json` answer (null while the daemon does not
     /// answer yet: no news).
     pub fn observe(&mut self, status: &serde_json::Value) {
+        self.observe_at(status, Instant::now());
+    }
+
+    fn observe_at(&mut self, status: &serde_json::Value, at: Instant) {
         let Some(count) = missed_ticks(status) else {
             return;
         };
-        let at = Instant::now();
         let judged = self
             .seen
             .zip(self.first)
@@ -75,8 +81,13 @@ impl Deadline {
     }
 
     pub fn passed(&self) -> bool {
+        self.passed_at(Instant::now())
+    }
+
+    fn passed_at(&self, now: Instant) -> bool {
         let extra = (self.within * MAX_STRETCH).min(MAX_EXTRA);
-        self.took() > self.within || self.start.elapsed() > self.within + extra
+        now.duration_since(self.from) > self.within
+            || now.duration_since(self.start) > self.within + extra
     }
 
     /// Stalls seen so far, for a failure's message.
@@ -100,43 +111,61 @@ mod tests {
         serde_json::json!({"counters": {"overruns": overruns, "ticks": ticks, "fresh_states": fresh}})
     }
 
+    const MS: Duration = Duration::from_millis(1);
+
     #[test]
     fn a_stall_restarts_the_time_allowed_and_a_quiet_run_does_not() {
-        let mut d = Deadline::new(Duration::from_millis(80));
-        d.observe(&counters(0, 100, 100));
-        d.observe(&serde_json::Value::Null);
-        std::thread::sleep(Duration::from_millis(50));
-        d.observe(&counters(1, 150, 149)); // one overrun, one state late: no stall
-        assert!(d.took() >= Duration::from_millis(50));
-        d.observe(&counters(3, 200, 197)); // two overruns and two states missing
-        assert_eq!(d.stalls(), 1);
-        assert!(d.took() < Duration::from_millis(20));
-        std::thread::sleep(Duration::from_millis(50));
-        assert!(!d.passed(), "50 ms after the stall, of 80 allowed");
-        std::thread::sleep(Duration::from_millis(40));
-        assert!(d.passed());
+        let t0 = Instant::now();
+        let mut d = Deadline::starting(80 * MS, t0);
+        d.observe_at(&counters(0, 100, 100), t0);
+        d.observe_at(&serde_json::Value::Null, t0 + 10 * MS);
+        d.observe_at(&counters(1, 150, 149), t0 + 50 * MS); // one overrun, one state late
+        assert_eq!((d.stalls(), d.from), (0, t0));
+        d.observe_at(&counters(3, 200, 197), t0 + 60 * MS); // two overruns, two states missing
+        assert_eq!((d.stalls(), d.from), (1, t0 + 60 * MS));
+        assert!(
+            !d.passed_at(t0 + 110 * MS),
+            "50 ms after the stall, of 80 allowed"
+        );
+        assert!(d.passed_at(t0 + 150 * MS));
     }
 
     #[test]
     fn stalls_push_the_deadline_three_times_at_most() {
-        let mut d = Deadline::new(Duration::from_millis(30));
-        for k in 0..=12u64 {
-            d.observe(&counters(100 * (k / 3), 1000, 1000));
-            if k < 12 {
-                std::thread::sleep(Duration::from_millis(10));
-            }
+        let t0 = Instant::now();
+        let mut d = Deadline::starting(30 * MS, t0);
+        for k in 0..=12u32 {
+            d.observe_at(
+                &counters(100 * u64::from(k / 3), 1000, 1000),
+                t0 + k * 10 * MS,
+            );
         }
-        assert_eq!(d.stalls(), 4);
-        assert!(d.took() < Duration::from_millis(30));
-        assert!(d.passed(), "past 3 × 30 ms");
+        assert_eq!((d.stalls(), d.from), (4, t0 + 120 * MS));
+        assert!(!d.passed_at(t0 + 89 * MS));
+        assert!(d.passed_at(t0 + 121 * MS), "past 3 × 30 ms");
+    }
+
+    #[test]
+    fn a_long_wait_is_stretched_30_s_at_most() {
+        let t0 = Instant::now();
+        let mut d = Deadline::starting(Duration::from_secs(60), t0);
+        d.observe_at(&counters(0, 1000, 1000), t0);
+        d.observe_at(&counters(0, 1000, 1000), t0 + Duration::from_secs(1));
+        d.observe_at(&counters(50, 1000, 1000), t0 + Duration::from_secs(80));
+        assert_eq!(d.stalls(), 1);
+        assert!(!d.passed_at(t0 + Duration::from_secs(89)));
+        assert!(d.passed_at(t0 + Duration::from_secs(91)));
     }
 
     #[test]
     fn a_steady_rate_of_missed_ticks_is_no_stall() {
-        let mut d = Deadline::new(Duration::from_secs(10));
-        for k in 0..10u64 {
-            d.observe(&counters(0, 1000 + 100 * k, 1000 + 90 * k));
-            std::thread::sleep(Duration::from_millis(10));
+        let t0 = Instant::now();
+        let mut d = Deadline::starting(Duration::from_secs(10), t0);
+        for k in 0..10u32 {
+            d.observe_at(
+                &counters(0, 1000 + 100 * u64::from(k), 1000 + 90 * u64::from(k)),
+                t0 + k * 10 * MS,
+            );
         }
         assert_eq!(d.stalls(), 0);
     }
