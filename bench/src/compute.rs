@@ -110,7 +110,7 @@ fn filter_cost(
     batches: usize,
     batch: usize,
 ) -> Result<hdrhistogram::Histogram<u64>> {
-    use control::law::flags as lf;
+    use control::basics::flags as lf;
     let mut cfg = Config::preset("paper-obstacle")?;
     cfg.safety.enabled = true;
     if case != FilterCase::Free {
@@ -121,7 +121,7 @@ fn filter_cost(
     for x in xs {
         let mut k = Kinematics::<3>::default();
         m.kinematics(x.phi, &x.q, &x.qd, &mut k);
-        let (jpinv, _, _) = control::law::damped_pinv(&k.j, p.damping_threshold, p.damping_max);
+        let (jpinv, _, _) = control::resolve::damped_pinv(&k.j, p.damping_threshold, p.damping_max);
         let mut off = p;
         off.safety.enabled = false;
         let qdd = evaluate(&off, &m, 0.0, x.phi, &x.q, &x.qd, &x.qd, &mut k.clone()).qdd;

@@ -170,8 +170,8 @@ pub fn section(quick: bool) -> Result<String> {
                 &qdd,
             );
             binding += usize::from(f.flags != 0);
-            left += usize::from(f.flags & control::law::flags::SAFETY_LEFT_NULL_SPACE != 0);
-            infeasible += usize::from(f.flags & control::law::flags::SAFETY_INFEASIBLE != 0);
+            left += usize::from(f.flags & control::basics::flags::SAFETY_LEFT_NULL_SPACE != 0);
+            infeasible += usize::from(f.flags & control::basics::flags::SAFETY_INFEASIBLE != 0);
             (kin, j, jpinv, *x, qdd)
         })
         .collect();

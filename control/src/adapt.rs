@@ -104,8 +104,8 @@ impl AutoMu {
     /// let e = AutoMu { gamma: 0.1, max_mu: 1.0 }.check(1.0).unwrap_err().to_string();
     /// assert!(e.contains("at most 4.0e-3"), "{e}");
     /// ```
-    pub fn check(&self, tau: f64) -> Result<(), crate::config::ConfigError> {
-        use crate::config::invalid;
+    pub fn check(&self, tau: f64) -> Result<(), crate::basics::ConfigError> {
+        use crate::basics::invalid;
         if !(self.max_mu.is_finite() && self.max_mu > 0.0 && self.max_mu <= 100.0) {
             let e = "must be a finite number in (0, 100]";
             return Err(invalid("feedback.max_mu", self.max_mu, e));
@@ -124,10 +124,10 @@ impl AutoMu {
 
     /// The residual the law adapts on: the null-space part when the feedback is projected there.
     #[inline]
-    pub fn residual(projection: crate::law::Projection, full: f64, null: f64) -> f64 {
+    pub fn residual(projection: crate::resolve::Projection, full: f64, null: f64) -> f64 {
         match projection {
-            crate::law::Projection::Full => full,
-            crate::law::Projection::NullSpace => null,
+            crate::resolve::Projection::Full => full,
+            crate::resolve::Projection::NullSpace => null,
         }
     }
 }
@@ -139,12 +139,12 @@ impl AutoMu {
 pub fn next_mu<const N: usize>(
     auto: &mut Option<AutoMu>,
     mu: f64,
-    projection: crate::law::Projection,
-    out: &crate::law::ControlOutput<N>,
+    projection: crate::resolve::Projection,
+    out: &crate::resolve::ControlOutput<N>,
     dt: f64,
 ) -> f64 {
     match auto {
-        Some(a) if out.flags & crate::law::flags::FEEDBACK_ACTIVE != 0 => {
+        Some(a) if out.flags & crate::basics::flags::FEEDBACK_ACTIVE != 0 => {
             let r = AutoMu::residual(projection, out.period_residual, out.null_residual);
             a.advance(mu, r, dt, out.demand)
         }
@@ -172,7 +172,7 @@ pub fn set_live(
     auto: &mut Option<AutoMu>,
 ) -> Result<(), String> {
     let v = value.ok_or_else(|| format!("{key}: missing value"))?;
-    let number = || crate::config::live_number(key, Some(v));
+    let number = || crate::basics::live_number(key, Some(v));
     match (key.trim_start_matches("feedback."), auto.as_mut()) {
         ("mu", _) if v == "auto" => {
             auto.get_or_insert_with(AutoMu::default);

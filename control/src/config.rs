@@ -9,75 +9,17 @@
 
 use crate::adapt::{AutoMu, MuSetting};
 use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
-use crate::law::{LawParams, Projection, Secondary};
+use crate::basics::{
+    excerpt, invalid, range, ConfigError, MAX_CONFIG_BYTES, MAX_JOINTS, MIN_JOINTS,
+};
+use crate::law::{LawParams, Secondary};
+use crate::resolve::Projection;
 use crate::safety::SafetyConfig;
 use crate::secondary::{Obstacle, ObstacleSet, PotentialWeights, MAX_OBSTACLES};
 use crate::sim::ArmState;
 use crate::task::Circle;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
-
-/// Largest supported arm (also the size of the wire samples' arrays).
-pub const MAX_JOINTS: usize = 7;
-/// Smallest supported arm.
-pub const MIN_JOINTS: usize = 2;
-
-/// A configuration that cannot be used, naming the offending field.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum ConfigError {
-    #[error("cannot parse config: {0}")]
-    Parse(String),
-    #[error("invalid config: {field} = {value}: {expected}")]
-    Invalid {
-        field: String,
-        value: String,
-        expected: String,
-    },
-    #[error("unknown preset {0:?} (known presets: {known}, and the spatial panda)", known = PRESETS.join(", "))]
-    UnknownPreset(String),
-    /// A spatial robot's set-up given where only the planar arm runs yet.
-    #[error("{0} is a spatial robot's set-up; `chaosd`, `chaosd-plant` and `chaosctl config|simulate|lyapunov|sweep|poincare|orbits|basins|arm-figure` run spatial robots, but this command takes the planar arm only")]
-    Spatial(String),
-}
-
-/// Largest config text accepted: a config is a few hundred bytes; a huge file is a mistake, and
-/// parsing it would cost memory in proportion.
-pub const MAX_CONFIG_BYTES: usize = 1 << 20;
-/// Longest excerpt of a bad value or a parser message quoted in an error.
-pub const MAX_QUOTE: usize = 200;
-
-/// At most [`MAX_QUOTE`] bytes of `s` (cut at a character boundary), marked when cut.
-pub fn excerpt(s: &str) -> String {
-    if s.len() <= MAX_QUOTE {
-        return s.to_string();
-    }
-    let mut end = MAX_QUOTE;
-    while !s.is_char_boundary(end) {
-        end -= 1;
-    }
-    format!("{}… ({} bytes in all)", &s[..end], s.len())
-}
-
-/// A number given on a live `set` (`KEY VALUE`): the value, or a one-line error naming the key.
-pub fn live_number(key: &str, v: Option<&str>) -> Result<f64, String> {
-    let v = v.ok_or_else(|| format!("{key}: missing value"))?;
-    let x: f64 = v
-        .parse()
-        .map_err(|_| format!("{key}: {v:?} is not a number"))?;
-    if !x.is_finite() {
-        return Err(format!("{key}: {v} is not a finite number"));
-    }
-    Ok(x)
-}
-
-/// The error for a field whose value is not what it should be (the value cut to an excerpt).
-pub(crate) fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
-    ConfigError::Invalid {
-        field: field.to_string(),
-        value: excerpt(&format!("{value:?}")),
-        expected: expected.to_string(),
-    }
-}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -411,7 +353,12 @@ impl Config {
                 c.sim.duration = 25.0;
             }
             "panda" => return Err(ConfigError::Spatial("preset \"panda\"".into())),
-            other => return Err(ConfigError::UnknownPreset(other.to_string())),
+            other => {
+                return Err(ConfigError::UnknownPreset {
+                    name: other.to_string(),
+                    known: PRESETS.join(", "),
+                })
+            }
         }
         Ok(c)
     }
@@ -720,18 +667,6 @@ fn positive(field: &str, v: f64, max: f64) -> Result<(), ConfigError> {
     }
 }
 
-pub(crate) fn range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
-    if v.is_finite() && v >= lo && v <= hi {
-        Ok(())
-    } else {
-        Err(invalid(
-            field,
-            v,
-            &format!("must be a finite number in [{lo}, {hi}]"),
-        ))
-    }
-}
-
 fn finite_vec(field: &str, v: &[f64]) -> Result<(), ConfigError> {
     match v.iter().position(|x| !x.is_finite()) {
         None => Ok(()),
@@ -751,43 +686,6 @@ fn same_len(field: &str, v: &[f64], n: usize) -> Result<(), ConfigError> {
     }
 }
 
-/// Runs `$body` with `$N` bound to the arm size `$n` as a const generic (2 ..= MAX_JOINTS).
-///
-/// The math is monomorphised per arm size so every matrix has a fixed size; this is the one place
-/// a runtime size becomes a type.
-#[macro_export]
-macro_rules! with_dof {
-    ($n:expr, $N:ident => $body:expr) => {
-        match $n {
-            2 => {
-                const $N: usize = 2;
-                $body
-            }
-            3 => {
-                const $N: usize = 3;
-                $body
-            }
-            4 => {
-                const $N: usize = 4;
-                $body
-            }
-            5 => {
-                const $N: usize = 5;
-                $body
-            }
-            6 => {
-                const $N: usize = 6;
-                $body
-            }
-            7 => {
-                const $N: usize = 7;
-                $body
-            }
-            other => panic!("unsupported arm size {other}: validate the config first"),
-        }
-    };
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -799,7 +697,7 @@ mod tests {
         }
         assert!(matches!(
             Config::preset("nope"),
-            Err(ConfigError::UnknownPreset(_))
+            Err(ConfigError::UnknownPreset { .. })
         ));
     }
 
@@ -871,7 +769,7 @@ mod tests {
         .unwrap();
         assert_eq!(seven.n(), MAX_JOINTS);
         seven.validate().unwrap();
-        assert_eq!(with_dof!(seven.n(), N => N), 7);
+        assert_eq!(crate::with_dof!(seven.n(), N => N), 7);
         let e = Config::parse("[arm]\nlinks = [1, 1, 1, 1, 1, 1, 1, 1]\n")
             .unwrap_err()
             .to_string();

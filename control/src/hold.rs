@@ -10,7 +10,7 @@
 //! ~1e-5 m and follows the continuous system's orbits (`tests/sampled_data.rs`).
 
 use crate::arm::{ArmModel, VecN};
-use crate::law::ControlOutput;
+use crate::resolve::ControlOutput;
 use crate::sim::{plant_derivative, rk4_step, ArmState};
 use crate::tick_law::{LawScratch, TickLaw};
 

@@ -12,11 +12,12 @@
 //! filtered command, and a disabled filter costs one branch.
 
 use crate::arm::{ArmModel, Jac, Kinematics, VecN};
-use crate::resolve::{resolve, NullTerms};
+use crate::basics::{flags, wrap_angle};
+use crate::resolve::{damped_pinv, resolve, ControlOutput, NullTerms, Projection};
 use crate::safety::{self, SafetyParams};
 use crate::secondary::{self, ObstacleSet, PotentialWeights};
 use crate::task::Circle;
-use nalgebra::{Matrix2, SMatrix, Vector3};
+use nalgebra::Vector3;
 
 type Vec3 = Vector3<f64>;
 
@@ -29,16 +30,6 @@ pub enum Secondary {
     Manipulability,
     /// η = −∇h, the obstacle potential (eqs. 7-10).
     Obstacles,
-}
-
-/// Where the Pyragas term acts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Projection {
-    /// −μ[q̇(t) − q̇(t−τ)] on every joint (the paper's form).
-    #[default]
-    Full,
-    /// −(I − J⁺J) μ[q̇(t) − q̇(t−τ)]: only the self-motion, so tracking is never disturbed.
-    NullSpace,
 }
 
 /// Every tunable of the control law.
@@ -82,100 +73,12 @@ pub struct LawParams {
     pub auto_mu: Option<crate::adapt::AutoMu>,
 }
 
-/// Status bits of one evaluation.
-pub mod flags {
-    /// Damped least squares was active (σ_min below the threshold).
-    pub const SINGULAR: u32 = 1 << 0;
-    /// The target is outside the annular workspace around joint 1.
-    pub const OUT_OF_REACH: u32 = 1 << 1;
-    /// Tracking error above the configured limit.
-    pub const TRACK_LOST: u32 = 1 << 2;
-    /// Some link is inside an obstacle's safety zone.
-    pub const IN_SAFETY_ZONE: u32 = 1 << 3;
-    /// The delayed feedback term was applied.
-    pub const FEEDBACK_ACTIVE: u32 = 1 << 4;
-    /// The raw command was not finite and was replaced by zero acceleration.
-    pub const NONFINITE: u32 = 1 << 5;
-    /// The safety filter changed the command (some limit or clearance was binding).
-    pub const SAFETY_ACTIVE: u32 = 1 << 6;
-    /// The null space could not keep every limit: the filter changed the task motion too, so
-    /// tracking gave way to safety.
-    pub const SAFETY_LEFT_NULL_SPACE: u32 = 1 << 7;
-    /// No acceleration within the limits meets every barrier condition; the closest one found
-    /// was used (and the acceleration limits were applied).
-    pub const SAFETY_INFEASIBLE: u32 = 1 << 8;
-    /// A joint-space detour onto a planned cycle runs: tracking is paused by design.
-    pub const DETOUR: u32 = 1 << 9;
-}
-
-/// The command and what the controller learnt while computing it.
-#[derive(Clone, Copy, Debug)]
-pub struct ControlOutput<const N: usize> {
-    pub qdd: VecN<N>,
-    /// The end effector (tool point) and its target, in the base frame (z = 0 in the plane).
-    pub p: Vec3,
-    pub p_desired: Vec3,
-    /// |p_d − p| (m).
-    pub tracking_error: f64,
-    /// |log(R_d Rᵀ)| (rad) for a pose task; 0 otherwise.
-    pub orientation_error: f64,
-    pub sigma_min: f64,
-    /// The damping λ used (0 away from singularities).
-    pub damping: f64,
-    /// Secondary-task value: w for manipulability, h for obstacles, 0 otherwise.
-    pub secondary_value: f64,
-    /// |q̇(t) − q̇(t − τ)|: the Pyragas residual, whether or not the feedback is on.
-    pub period_residual: f64,
-    /// |(I − J⁺J)(q̇(t) − q̇(t − τ))|: the residual's self-motion part.
-    pub null_residual: f64,
-    /// Obstacle clearance (m, negative: penetration); +∞ without obstacles.
-    pub clearance: f64,
-    /// Distance (rad) to the nearest joint position limit; +∞ without limits, negative beyond.
-    pub joint_margin: f64,
-    /// max_i |q̈_i| / qdd_max_i of the law's command *before* the filter: above 1 the law asks
-    /// for more than the joints may do (the daemon's runaway guard watches it).
-    pub demand: f64,
-    /// Base attitude rate (floating model).
-    pub base_rate: f64,
-    pub flags: u32,
-}
-
 impl LawParams {
     /// Whether the delayed term applies at time t.
     #[inline]
     pub fn feedback_active(&self, t: f64) -> bool {
         self.feedback && (self.mu != 0.0 || self.auto_mu.is_some()) && t >= self.t_on
     }
-}
-
-/// Smallest singular value of a 2×n matrix from the 2×2 Gram matrix.
-#[inline]
-fn sigma_min(a: &Matrix2<f64>) -> f64 {
-    let m = 0.5 * (a[(0, 0)] + a[(1, 1)]);
-    let d = 0.5 * (a[(0, 0)] - a[(1, 1)]);
-    let r = (d * d + a[(0, 1)] * a[(0, 1)]).sqrt();
-    (m - r).max(0.0).sqrt()
-}
-
-/// The damped pseudo-inverse J⁺ = Jᵀ(JJᵀ + λ²I)⁻¹ with λ² = (1 − (σ_min/ε)²) λ_max² below the
-/// threshold ε and 0 above it. Returns (J⁺, σ_min, λ). Finite for every finite J when λ_max > 0.
-#[inline]
-pub fn damped_pinv<const N: usize>(
-    j: &Jac<N>,
-    threshold: f64,
-    lambda_max: f64,
-) -> (SMatrix<f64, N, 2>, f64, f64) {
-    let a = j * j.transpose();
-    let smin = sigma_min(&a);
-    let mut lambda2 = 0.0;
-    if smin < threshold {
-        let r = smin / threshold;
-        lambda2 = (1.0 - r * r) * lambda_max * lambda_max;
-    }
-    let m = a + Matrix2::identity() * lambda2;
-    let det = m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)];
-    let minv = Matrix2::new(m[(1, 1)], -m[(0, 1)], -m[(1, 0)], m[(0, 0)]) / det;
-    (j.transpose() * minv, smin, lambda2.sqrt())
 }
 
 /// The pull towards the planned cycle at `t`, in the null space: (I − J⁺J)(q̈* + K_p(q* − q) +
@@ -193,7 +96,7 @@ fn steering<const N: usize>(
     let r = s.cycle.sample(t);
     let mut v = VecN::<N>::zeros();
     for i in 0..N.min(3) {
-        let e = crate::analysis::closed_loop::wrap_angle(r.q[i] - q[i]);
+        let e = wrap_angle(r.q[i] - q[i]);
         v[i] = r.qdd[i] + s.kp * e + s.kd * (r.qd[i] - qd[i]);
     }
     v - jpinv * (j * v)
@@ -214,7 +117,7 @@ fn detour_pull<const N: usize>(
     let r = d.sample(t, &s.cycle);
     let mut v = VecN::<N>::zeros();
     for i in 0..N.min(3) {
-        let e = crate::analysis::closed_loop::wrap_angle(r.q[i] - q[i]);
+        let e = wrap_angle(r.q[i] - q[i]);
         v[i] = r.qdd[i] + kp * e + kd * (r.qd[i] - qd[i]);
     }
     v

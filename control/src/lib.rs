@@ -12,6 +12,7 @@
 pub mod adapt;
 pub mod analysis;
 pub mod arm;
+pub mod basics;
 pub mod command;
 pub mod config;
 pub mod delay;
@@ -33,9 +34,11 @@ pub mod task;
 pub mod tick_law;
 
 pub use arm::{ArmModel, FixedArm, FloatingArm, Jac, Kinematics, Vec2, VecN};
-pub use config::{Config, ConfigError, MAX_JOINTS, MIN_JOINTS};
+pub use basics::{ConfigError, MAX_JOINTS, MIN_JOINTS};
+pub use config::Config;
 pub use delay::DelayLine;
-pub use law::{ControlOutput, LawParams, Secondary};
+pub use law::{LawParams, Secondary};
+pub use resolve::ControlOutput;
 pub use sim::{ArmState, RunStats, Simulation, Summary};
 pub use system::System;
 pub use task::Circle;

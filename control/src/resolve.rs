@@ -4,11 +4,84 @@
 //! how they build the task acceleration and the m×n Jacobian; what turns those into q̈ (the
 //! damped pseudo-inverse, the null-space projection of the secondary task, the Pyragas term) is
 //! here, generic over both sizes, on the stack. For m = 2 the pseudo-inverse keeps the closed
-//! form of [`crate::law::damped_pinv`] bit for bit, so the paper's numbers do not move.
+//! form of [`crate::resolve::damped_pinv`] bit for bit, so the paper's numbers do not move.
 
 use crate::arm::{Jac, VecN};
-use crate::law::{damped_pinv, Projection};
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Matrix2, SMatrix, SVector, Vector3};
+
+type Vec3 = Vector3<f64>;
+
+/// Where the Pyragas term acts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Projection {
+    /// −μ[q̇(t) − q̇(t−τ)] on every joint (the paper's form).
+    #[default]
+    Full,
+    /// −(I − J⁺J) μ[q̇(t) − q̇(t−τ)]: only the self-motion, so tracking is never disturbed.
+    NullSpace,
+}
+
+/// The command and what the controller learnt while computing it.
+#[derive(Clone, Copy, Debug)]
+pub struct ControlOutput<const N: usize> {
+    pub qdd: VecN<N>,
+    /// The end effector (tool point) and its target, in the base frame (z = 0 in the plane).
+    pub p: Vec3,
+    pub p_desired: Vec3,
+    /// |p_d − p| (m).
+    pub tracking_error: f64,
+    /// |log(R_d Rᵀ)| (rad) for a pose task; 0 otherwise.
+    pub orientation_error: f64,
+    pub sigma_min: f64,
+    /// The damping λ used (0 away from singularities).
+    pub damping: f64,
+    /// Secondary-task value: w for manipulability, h for obstacles, 0 otherwise.
+    pub secondary_value: f64,
+    /// |q̇(t) − q̇(t − τ)|: the Pyragas residual, whether or not the feedback is on.
+    pub period_residual: f64,
+    /// |(I − J⁺J)(q̇(t) − q̇(t − τ))|: the residual's self-motion part.
+    pub null_residual: f64,
+    /// Obstacle clearance (m, negative: penetration); +∞ without obstacles.
+    pub clearance: f64,
+    /// Distance (rad) to the nearest joint position limit; +∞ without limits, negative beyond.
+    pub joint_margin: f64,
+    /// max_i |q̈_i| / qdd_max_i of the law's command *before* the filter: above 1 the law asks
+    /// for more than the joints may do (the daemon's runaway guard watches it).
+    pub demand: f64,
+    /// Base attitude rate (floating model).
+    pub base_rate: f64,
+    pub flags: u32,
+}
+
+/// Smallest singular value of a 2×n matrix from the 2×2 Gram matrix.
+#[inline]
+fn sigma_min(a: &Matrix2<f64>) -> f64 {
+    let m = 0.5 * (a[(0, 0)] + a[(1, 1)]);
+    let d = 0.5 * (a[(0, 0)] - a[(1, 1)]);
+    let r = (d * d + a[(0, 1)] * a[(0, 1)]).sqrt();
+    (m - r).max(0.0).sqrt()
+}
+
+/// The damped pseudo-inverse J⁺ = Jᵀ(JJᵀ + λ²I)⁻¹ with λ² = (1 − (σ_min/ε)²) λ_max² below the
+/// threshold ε and 0 above it. Returns (J⁺, σ_min, λ). Finite for every finite J when λ_max > 0.
+#[inline]
+pub fn damped_pinv<const N: usize>(
+    j: &Jac<N>,
+    threshold: f64,
+    lambda_max: f64,
+) -> (SMatrix<f64, N, 2>, f64, f64) {
+    let a = j * j.transpose();
+    let smin = sigma_min(&a);
+    let mut lambda2 = 0.0;
+    if smin < threshold {
+        let r = smin / threshold;
+        lambda2 = (1.0 - r * r) * lambda_max * lambda_max;
+    }
+    let m = a + Matrix2::identity() * lambda2;
+    let det = m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)];
+    let minv = Matrix2::new(m[(1, 1)], -m[(0, 1)], -m[(1, 0)], m[(0, 0)]) / det;
+    (j.transpose() * minv, smin, lambda2.sqrt())
+}
 
 /// J⁺ = Jᵀ(JJᵀ + λ²I)⁻¹ with λ² = (1 − (σ_min/ε)²) λ_max² below the threshold ε and 0 above it,
 /// for an m×n Jacobian. Returns (J⁺, σ_min, λ); finite for every finite J when λ_max > 0.

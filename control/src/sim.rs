@@ -8,8 +8,10 @@
 //! run is reproducible from its config alone.
 
 use crate::arm::{ArmModel, Kinematics, VecN};
+use crate::basics::flags;
 use crate::delay::DelayLine;
-use crate::law::{self, flags, ControlOutput, LawParams};
+use crate::law::{self, LawParams};
+use crate::resolve::ControlOutput;
 
 /// A state an explicit Runge-Kutta method can combine.
 pub trait OdeState: Copy {

@@ -10,7 +10,9 @@
 //! A task whose period is only a few control periods cannot be followed either, and a circle
 //! outside the annulus the arm can reach would make the law chase it into a singularity.
 
-use crate::config::{excerpt, Config, ConfigError, ModelKind};
+use crate::basics::excerpt;
+use crate::basics::ConfigError;
+use crate::config::{Config, ModelKind};
 
 /// K_v·dt (and every first-order gain × dt) must stay below this.
 pub const MAX_GAIN_DT: f64 = 1.0;

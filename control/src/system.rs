@@ -7,7 +7,8 @@
 //! a file twice. The robot description itself is read by the caller (`rt::robot`): this crate
 //! does no I/O, so [`System::parse`] takes the chain resolver as an argument.
 
-use crate::config::{Config, ConfigError};
+use crate::basics::ConfigError;
+use crate::config::Config;
 use crate::model::Chain;
 use crate::spatial::config::{is_spatial, SpatialConfig};
 use crate::tick_law::{ParamBlock, TickLaw};

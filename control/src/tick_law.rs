@@ -8,7 +8,8 @@
 //! switch never allocates.
 
 use crate::arm::{ArmModel, Kinematics, VecN};
-use crate::law::{self, ControlOutput, LawParams};
+use crate::law::{self, LawParams};
+use crate::resolve::ControlOutput;
 use crate::safety::SafetyParams;
 use crate::sim::ArmState;
 use crate::spatial::{law as spatial_law, SpatialArm, SpatialKinematics, SpatialParams, TaskKind};

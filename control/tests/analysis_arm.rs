@@ -89,7 +89,7 @@ fn feedback_orbit_is_period_one_and_a_newton_fixed_point_with_the_tracking_multi
         .coords()
         .iter()
         .zip(&a.final_coords)
-        .map(|(o, f)| (control::analysis::wrap_angle(o - f)).powi(2))
+        .map(|(o, f)| (control::basics::wrap_angle(o - f)).powi(2))
         .sum::<f64>()
         .sqrt();
     assert!(

@@ -1,6 +1,8 @@
 //! Closed-loop properties of the control law and the deterministic simulation.
 
-use control::law::{damped_pinv, evaluate, flags};
+use control::basics::flags;
+use control::law::evaluate;
+use control::resolve::damped_pinv;
 use control::{with_dof, ArmState, Config, Kinematics, RunStats, Simulation, VecN};
 use proptest::prelude::*;
 

@@ -94,7 +94,7 @@ fn the_safety_filter_allocates_nothing_on_any_path() {
                 }
             });
             assert_eq!(n, 0, "{N} links: the filter allocated {n} times");
-            assert!(flags & control::law::flags::SAFETY_ACTIVE != 0, "{N} links: the filter never bound");
+            assert!(flags & control::basics::flags::SAFETY_ACTIVE != 0, "{N} links: the filter never bound");
         });
     }
 }
@@ -183,7 +183,7 @@ fn steering_along_a_detour_and_onto_the_cycle_allocates_nothing() {
     let n = allocations(|| {
         for _ in 0..steps {
             let out = std::hint::black_box(sim.step());
-            detoured += usize::from(out.flags & control::law::flags::DETOUR != 0);
+            detoured += usize::from(out.flags & control::basics::flags::DETOUR != 0);
         }
     });
     assert_eq!(n, 0, "the steered step allocated {n} times");

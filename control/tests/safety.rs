@@ -2,8 +2,9 @@
 //! closed-loop runs that must keep every link clear and every joint inside its limits.
 
 use control::arm::{ArmModel, Kinematics, Vec2, VecN};
+use control::basics::flags;
 use control::hold::integrate;
-use control::law::{damped_pinv, flags};
+use control::resolve::damped_pinv;
 use control::safety::rows::{
     obstacle_row, point_motions, visit, BarrierGains, PointMotion, Points,
 };

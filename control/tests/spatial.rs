@@ -1,7 +1,7 @@
 //! The spatial law's pieces against finite differences, and the closed loop on the Panda.
 
-use control::law::Projection;
 use control::model::{builtin, Chain};
+use control::resolve::Projection;
 use control::resolve::{damped_pinv_m, min_eigenvalue};
 use control::safety::rows::BarrierGains;
 use control::safety::SafetyParams;

@@ -4,7 +4,7 @@
 //! shared memory or the scheduler (ripgrep's validate-then-run). The `[plant]` table belongs to the
 //! plant process and is checked there; the daemon never needs it.
 
-use control::config::ConfigError;
+use control::basics::ConfigError;
 use control::{Config, System};
 use rt::{Trigger, WaitStrategy};
 use serde::{Deserialize, Serialize};
@@ -383,11 +383,11 @@ impl DaemonSetup {
 
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
-        if size > control::config::MAX_CONFIG_BYTES as u64 {
+        if size > control::basics::MAX_CONFIG_BYTES as u64 {
             anyhow::bail!(
                 "{}: the config is {size} bytes; at most {} are accepted",
                 path.display(),
-                control::config::MAX_CONFIG_BYTES
+                control::basics::MAX_CONFIG_BYTES
             );
         }
         let text = std::fs::read_to_string(path)

@@ -630,7 +630,7 @@ impl<const N: usize> Controller<N> {
         // tracking error is the pause, not a runaway. Rates and demand are judged as ever.
         let mut judged = o;
         // A detour leaves the path on purpose: the same holds for it.
-        if o.flags & control::law::flags::DETOUR != 0 {
+        if o.flags & control::basics::flags::DETOUR != 0 {
             judged.tracking_error = 0.0;
         }
         if self.blocked_hold {
@@ -717,7 +717,7 @@ impl<const N: usize> Controller<N> {
     }
 
     fn count_flags(&mut self, f: u32) {
-        use control::law::flags as lf;
+        use control::basics::flags as lf;
         let c = &mut self.counters;
         c.track_lost += u64::from(f & lf::TRACK_LOST != 0);
         c.singular += u64::from(f & lf::SINGULAR != 0);

@@ -24,7 +24,7 @@
 //! is the filter's to clamp, as it does on every tick it acts.
 //! FAULT is sticky: only an operator's `chaosctl resume` leaves it.
 
-use control::law::flags;
+use control::basics::flags;
 use control::safety::SafetyParams;
 use control::{ControlOutput, VecN};
 

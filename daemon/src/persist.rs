@@ -129,11 +129,11 @@ pub fn load(output_dir: &Path, n: usize) -> anyhow::Result<Option<LiveState>> {
     };
     let bad =
         |why: String| anyhow::anyhow!("{}: {why} (start with --fresh to ignore it)", p.display());
-    if text.len() > control::config::MAX_CONFIG_BYTES {
+    if text.len() > control::basics::MAX_CONFIG_BYTES {
         return Err(bad("too large to be a saved state".into()));
     }
     let mut s: LiveState =
-        toml::from_str(&text).map_err(|e| bad(control::config::excerpt(&e.to_string())))?;
+        toml::from_str(&text).map_err(|e| bad(control::basics::excerpt(&e.to_string())))?;
     let system = s.system.to_system().map_err(|e| bad(e.to_string()))?;
     s.t += (unix_now() - s.saved_unix_s).clamp(0.0, 1e7);
     if system.n() != n || !s.t.is_finite() || s.t < 0.0 {

@@ -3,7 +3,7 @@
 
 use crate::controller::{Controller, TickOutcome};
 use crate::telemetry::TickRecord;
-use control::law::flags as law_flags;
+use control::basics::flags as law_flags;
 use protocol::StateSample;
 
 /// Timing of one tick (CLOCK_MONOTONIC ns).

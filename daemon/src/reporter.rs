@@ -287,7 +287,7 @@ impl Reporter {
             }
             self.saturations.observe(&r.limiter_hits);
             self.tel.min_clearance = self.tel.min_clearance.min(r.clearance);
-            if r.law_flags & control::law::flags::IN_SAFETY_ZONE != 0 {
+            if r.law_flags & control::basics::flags::IN_SAFETY_ZONE != 0 {
                 self.safety_ticks += 1;
             }
         }

@@ -1,7 +1,7 @@
 //! The `[plant]` table. The plant validates it at start-up and names a bad field, as the daemon
 //! does with `[daemon]`.
 
-use control::config::ConfigError;
+use control::basics::ConfigError;
 use rt::{Trigger, WaitStrategy};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;

@@ -14,18 +14,6 @@ use super::lyapunov::{
 use crate::arm::{ArmModel, VecN};
 use crate::law::LawParams;
 use crate::sim::{ArmState, RunStats, Simulation};
-use std::f64::consts::{PI, TAU};
-
-/// Wraps an angle difference into (−π, π].
-#[inline]
-pub fn wrap_angle(a: f64) -> f64 {
-    let w = a.rem_euclid(TAU);
-    if w > PI {
-        w - TAU
-    } else {
-        w
-    }
-}
 
 /// One closed-loop trajectory, optionally recording run statistics on the way.
 #[derive(Clone, Debug)]
@@ -165,20 +153,6 @@ impl<const N: usize> Trajectory for ArmFlow<N> {
 mod tests {
     use super::*;
     use crate::Config;
-
-    #[test]
-    fn wrap_angle_is_into_the_half_open_interval() {
-        for (a, w) in [
-            (0.0, 0.0),
-            (PI, PI),
-            (-PI, PI),
-            (3.0 * PI, PI),
-            (TAU + 0.5, 0.5),
-            (-0.5, -0.5),
-        ] {
-            assert!((wrap_angle(a) - w).abs() < 1e-12, "{a} → {}", wrap_angle(a));
-        }
-    }
 
     #[test]
     fn rescale_and_distance_agree_including_history() {

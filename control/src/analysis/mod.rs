@@ -21,7 +21,7 @@ pub mod orbits;
 pub mod poincare;
 pub mod run;
 
-pub use closed_loop::{wrap_angle, ArmFlow};
+pub use closed_loop::ArmFlow;
 pub use lyapunov::{Benettin, Growth, LyapunovError, LyapunovEstimate, Trajectory};
 pub use orbits::{
     close_returns, find_orbit, newton_orbit, orbit_stability, NewtonConfig, OrbitCatalog,

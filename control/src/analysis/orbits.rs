@@ -22,11 +22,12 @@
 //! norm at μ = 0.2 with dt = 1 ms), and the default tolerance (1e-2) is far above that and far below
 //! the size of the chaotic excursions.
 
-use super::closed_loop::{wrap_angle, ArmFlow};
+use super::closed_loop::ArmFlow;
 use super::lyapunov::{Benettin, LyapunovError, LyapunovEstimate, Trajectory};
 use super::poincare::Section;
 use super::run::period_steps;
 use crate::arm::{ArmModel, VecN};
+use crate::basics::wrap_angle;
 use crate::law::LawParams;
 use crate::sim::{ArmState, Simulation};
 use nalgebra::{DMatrix, DVector};

@@ -25,7 +25,7 @@
 //! being guessed at. The largest Lyapunov exponent, computed independently, is the cross-check:
 //! λ > 0 should go with "irregular", λ ≈ 0 with "quasi-periodic", λ < 0 with "period-p".
 
-use super::closed_loop::wrap_angle;
+use crate::basics::wrap_angle;
 use serde::Serialize;
 use std::f64::consts::PI;
 

@@ -4,7 +4,8 @@ use super::{
     CommandGains, CommandMode, JointLimits, LimitOverrides, Limiter, MakerTable, MotionGenerator,
 };
 use crate::arm::VecN;
-use crate::config::{invalid, ConfigError};
+use crate::basics::invalid;
+use crate::basics::ConfigError;
 use crate::model::Chain;
 use crate::rigid_body::ServoGains;
 use serde::{Deserialize, Serialize};

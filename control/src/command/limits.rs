@@ -6,7 +6,8 @@
 //! specification is built in). The set-up may only tighten a described limit: a typo must never
 //! let the daemon send what the arm's maker forbids.
 
-use crate::config::{invalid, ConfigError};
+use crate::basics::invalid;
+use crate::basics::ConfigError;
 use crate::model::Chain;
 use serde::{Deserialize, Serialize};
 

@@ -12,7 +12,8 @@
 use super::pose::{z_onto, Pose};
 use super::urdf::{self, Description, JointType, Limits};
 use super::ModelError;
-use crate::config::{MAX_JOINTS, MIN_JOINTS};
+use crate::basics::MAX_JOINTS;
+use crate::basics::MIN_JOINTS;
 use nalgebra::{Matrix3, Vector3};
 use std::collections::HashMap;
 

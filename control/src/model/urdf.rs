@@ -330,7 +330,7 @@ fn number(text: &str, element: &str, attribute: &str) -> Result<f64, ModelError>
         _ => Err(ModelError::BadNumber {
             element: element.to_string(),
             attribute: attribute.to_string(),
-            value: crate::config::excerpt(text),
+            value: crate::basics::excerpt(text),
             expected: "a finite number",
         }),
     }
@@ -344,7 +344,7 @@ fn triple(text: Option<&str>, element: &str, attribute: &str) -> Result<Vector3<
     let bad = || ModelError::BadNumber {
         element: element.to_string(),
         attribute: attribute.to_string(),
-        value: crate::config::excerpt(text),
+        value: crate::basics::excerpt(text),
         expected: "three finite numbers",
     };
     let mut out = [0.0; 3];

@@ -20,7 +20,7 @@ pub mod rosenstein;
 pub mod run;
 pub mod zero_one;
 
-use crate::config::MAX_JOINTS;
+use crate::basics::MAX_JOINTS;
 use serde::Serialize;
 use std::collections::VecDeque;
 

@@ -6,7 +6,9 @@
 //! does, and restart the monitor's window, as the daemon does.
 
 use super::{ChaosMonitor, Edge, Evidence, MonitorSettings, Verdict};
-use crate::law::{ControlOutput, LawParams, Projection};
+use crate::law::LawParams;
+use crate::resolve::ControlOutput;
+use crate::resolve::Projection;
 use crate::sim::{ArmState, Simulation};
 use crate::spatial::sim::SpatialSimulation;
 use crate::{with_dof, Config};
@@ -141,7 +143,7 @@ pub fn watch_sim<const N: usize, S: Stepped<N>>(
             diverged = true;
             break;
         }
-        if out.flags & crate::law::flags::FEEDBACK_ACTIVE != 0 {
+        if out.flags & crate::basics::flags::FEEDBACK_ACTIVE != 0 {
             let r =
                 crate::adapt::AutoMu::residual(projection, out.period_residual, out.null_residual);
             effort += mu * mu * r * r * dt;

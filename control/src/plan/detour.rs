@@ -20,7 +20,7 @@
 
 use super::planar::PlanarProblem;
 use super::{CycleTable, Sample};
-use crate::analysis::closed_loop::wrap_angle;
+use crate::basics::wrap_angle;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::f64::consts::TAU;

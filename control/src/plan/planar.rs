@@ -17,8 +17,8 @@
 //! is smooth, slow and roomy.
 
 use super::{Blocked, Cycle, PlanOutcome, PlanSettings};
-use crate::analysis::closed_loop::wrap_angle;
 use crate::arm::Vec2;
+use crate::basics::wrap_angle;
 use crate::secondary::ObstacleSet;
 use crate::task::Circle;
 use std::f64::consts::TAU;

@@ -4,7 +4,8 @@
 //! lost, or the filter outside the null space, for `trap_time`) is detected whether or not a
 //! planner exists for the arm, and `Blocked` is then said either way.
 
-use crate::config::{invalid, ConfigError};
+use crate::basics::invalid;
+use crate::basics::ConfigError;
 use serde::{Deserialize, Serialize};
 
 /// How long (s) tracking may stay lost, or the filter act outside the null space, before the

@@ -144,7 +144,7 @@ impl<'a> Refiner<'a> {
         }
         for _ in 0..4 {
             let kin = self.kin(&q);
-            let (jpinv, _, _) = crate::law::damped_pinv(&kin.j, 1e-3, 1e-3);
+            let (jpinv, _, _) = crate::resolve::damped_pinv(&kin.j, 1e-3, 1e-3);
             let dq = jpinv * (self.hands[k] - kin.p);
             for i in 0..3 {
                 q[i] += dq[i];

@@ -9,13 +9,13 @@
 //! rate and acceleration in closed form. The spline is fitted off the loop, once; evaluating it
 //! reads four control points.
 
-use crate::analysis::closed_loop::wrap_angle;
+use crate::basics::wrap_angle;
 
 /// The most phases a cycle handed to the loop may have.
 pub const MAX_PHASES: usize = 64;
 
 /// A cycle of `N` joints in a fixed-size, `Copy` table: what the control law steers towards
-/// (`N` = 3 on the planar arm, [`crate::config::MAX_JOINTS`] on a spatial one, whose unused
+/// (`N` = 3 on the planar arm, [`crate::basics::MAX_JOINTS`] on a spatial one, whose unused
 /// joints stay zero). Built off the loop from a [`super::Cycle`]; read on the loop without
 /// allocating.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -15,7 +15,7 @@
 //! must have had a part in it). What to do about a trap (steer, or say `Blocked`) is the
 //! caller's.
 
-use crate::law::flags;
+use crate::basics::flags;
 use crate::system::SafetySummary;
 
 /// How much of the recent past was trapped: a level that rises towards 1 on trapped ticks and

@@ -2,7 +2,8 @@
 
 use super::{mismatched, RigidBody, Sensor};
 use crate::arm::VecN;
-use crate::config::{invalid, ConfigError};
+use crate::basics::invalid;
+use crate::basics::ConfigError;
 use crate::model::{Chain, Model};
 use serde::{Deserialize, Serialize};
 

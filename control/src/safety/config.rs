@@ -6,7 +6,8 @@
 //! |q̈| up to 3 400 rad/s² at μ = 0), so `--safety on` there only adds the obstacle clearance.
 
 use super::SafetyParams;
-use crate::config::{ConfigError, MAX_JOINTS};
+use crate::basics::ConfigError;
+use crate::basics::MAX_JOINTS;
 use serde::{Deserialize, Serialize};
 
 /// One limit for every joint, or one per joint.
@@ -104,9 +105,9 @@ impl Default for SafetyConfig {
     }
 }
 
-/// [`crate::config::invalid`] for a key of the `[safety]` table.
+/// [`crate::basics::invalid`] for a key of the `[safety]` table.
 fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
-    crate::config::invalid(&format!("safety.{field}"), value, expected)
+    crate::basics::invalid(&format!("safety.{field}"), value, expected)
 }
 
 fn in_range(field: &str, v: f64, lo: f64, hi: f64, open_lo: bool) -> Result<(), ConfigError> {

@@ -10,7 +10,7 @@
 //! never holds more than n independent rows, so its Gram matrix is at most n×n, on the stack.
 
 use crate::arm::VecN;
-use crate::config::MAX_JOINTS;
+use crate::basics::MAX_JOINTS;
 
 /// A row counts as met when it misses by at most this (relative to 1 + |h|).
 const TOL: f64 = 1e-9;

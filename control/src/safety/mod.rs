@@ -12,7 +12,7 @@
 //! 2. **Null space**: q̈ + N z with N = I − J⁺J, the smallest z. Tracking is untouched. For the
 //!    paper's 3-link arm N has rank 1 and this is a closed-form interval on one scalar.
 //! 3. **Full joint space**: the smallest change of q̈ overall. Safety wins over tracking, and the
-//!    output says so ([`crate::law::flags::SAFETY_LEFT_NULL_SPACE`]).
+//!    output says so ([`crate::basics::flags::SAFETY_LEFT_NULL_SPACE`]).
 //!
 //! Whatever the solver returns, the acceleration limits are applied last as a clamp (they are the
 //! actuator's), so the command is always finite and bounded. Everything is on the stack: the
@@ -24,7 +24,7 @@ pub mod rows;
 pub mod solve;
 
 use crate::arm::{ArmModel, Kinematics, VecN};
-use crate::config::MAX_JOINTS;
+use crate::basics::MAX_JOINTS;
 use crate::secondary::ObstacleSet;
 use nalgebra::SMatrix;
 

@@ -14,7 +14,7 @@
 
 use super::SafetyParams;
 use crate::arm::{ArmModel, Jac, Kinematics, Vec2, VecN};
-use crate::config::MAX_JOINTS;
+use crate::basics::MAX_JOINTS;
 use crate::secondary::ObstacleSet;
 
 /// Position, Jacobian, velocity and drift (J̇q̇) of one point of the arm.

@@ -12,8 +12,8 @@
 use super::dual_qp::{self, Outcome};
 use super::Filtered;
 use crate::arm::VecN;
-use crate::config::MAX_JOINTS;
-use crate::law::flags;
+use crate::basics::flags;
+use crate::basics::MAX_JOINTS;
 use crate::secondary::MAX_OBSTACLES;
 use nalgebra::SMatrix;
 

@@ -7,7 +7,7 @@
 //! origin acceleration at q̈ = 0; any point's motion then follows in O(n) without another pass.
 
 use super::task::Vec3;
-use crate::config::MAX_JOINTS;
+use crate::basics::MAX_JOINTS;
 use crate::model::{Frames, Model};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector6};
 

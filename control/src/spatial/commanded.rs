@@ -8,8 +8,8 @@
 //! the bench's acceptance table and the tests run; the live processes are checked separately.
 
 use crate::arm::VecN;
+use crate::basics::ConfigError;
 use crate::command::{CommandMode, LimitKind, LIMIT_KINDS};
-use crate::config::ConfigError;
 use crate::delay::DelayLine;
 use crate::hold;
 use crate::rigid_body::{Device, RigidBodyConfig};

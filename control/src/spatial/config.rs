@@ -12,9 +12,11 @@ use super::secondary::{Sphere, SphereSet, MAX_SPHERES};
 use super::task::{Path, Shape, SpatialTask, TaskKind, Vec3};
 use super::SpatialKinematics;
 use crate::adapt::{AutoMu, MuSetting};
-use crate::config::{invalid, ConfigError, MAX_JOINTS};
-use crate::law::Projection;
+use crate::basics::invalid;
+use crate::basics::ConfigError;
+use crate::basics::MAX_JOINTS;
 use crate::model::Chain;
+use crate::resolve::Projection;
 use crate::safety::SafetyParams;
 use nalgebra::{Rotation3, SVector};
 use serde::{Deserialize, Serialize};
@@ -322,11 +324,11 @@ impl SpatialConfig {
     }
 
     pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
-        if text.len() > crate::config::MAX_CONFIG_BYTES {
+        if text.len() > crate::basics::MAX_CONFIG_BYTES {
             return Err(ConfigError::Parse(format!(
                 "the config is {} bytes; at most {} are accepted",
                 text.len(),
-                crate::config::MAX_CONFIG_BYTES
+                crate::basics::MAX_CONFIG_BYTES
             )));
         }
         toml::from_str(text).map_err(|e: toml::de::Error| {
@@ -334,7 +336,7 @@ impl SpatialConfig {
                 .span()
                 .map(|s| text.get(..s.start).unwrap_or(text).matches('\n').count() + 1);
             let at = line.map(|l| format!("line {l}: ")).unwrap_or_default();
-            ConfigError::Parse(crate::config::excerpt(&format!("{at}{}", e.message())))
+            ConfigError::Parse(crate::basics::excerpt(&format!("{at}{}", e.message())))
         })
     }
 
@@ -382,7 +384,7 @@ impl SpatialConfig {
             non_negative(f, v)?;
         }
         // The planar bound: the same gain may not mean a runaway on one arm and not the other.
-        crate::config::range("feedback.mu", self.feedback.mu, 0.0, 100.0)?;
+        crate::basics::range("feedback.mu", self.feedback.mu, 0.0, 100.0)?;
         if let Some(a) = &self.feedback.auto {
             a.check(self.feedback.tau.unwrap_or(self.task.period))?;
         }

@@ -11,7 +11,9 @@
 use super::arm::{Points, SpatialArm, SpatialKinematics, VecN};
 use super::secondary::{self as sec, SphereSet};
 use super::task::{orientation_error, SpatialTask, Vec3};
-use crate::law::{flags, ControlOutput, Projection};
+use crate::basics::flags;
+use crate::resolve::ControlOutput;
+use crate::resolve::Projection;
 use crate::resolve::{damped_pinv_m, resolve, NullTerms};
 use crate::safety::SafetyParams;
 use nalgebra::{SMatrix, SVector, Vector6};
@@ -154,7 +156,7 @@ pub fn evaluate<const N: usize, const M: usize>(
             (c, Some(-g))
         }
         SpatialSecondary::Obstacles if !params.spheres.is_empty() => {
-            let mut points: Points<N> = [Default::default(); crate::config::MAX_JOINTS + 1];
+            let mut points: Points<N> = [Default::default(); crate::basics::MAX_JOINTS + 1];
             arm.capsule_points(kin, qd, &mut points);
             let (h, g) = sec::potential(arm, &points, &params.spheres, params.weight);
             (h, Some(-g))

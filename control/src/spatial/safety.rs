@@ -9,7 +9,7 @@
 use super::arm::{PointMotion, Points, SpatialArm, SpatialKinematics, VecN};
 use super::secondary::SphereSet;
 use super::task::Vec3;
-use crate::config::MAX_JOINTS;
+use crate::basics::MAX_JOINTS;
 use crate::safety::rows::{joint_box, BarrierGains};
 use crate::safety::{solve, Filtered, SafetyParams};
 use nalgebra::SMatrix;

@@ -11,10 +11,10 @@ use super::law::{evaluate, SpatialParams};
 use crate::analysis::lyapunov::{
     generic_direction, history_distance2, rescale_history, shift_history, Trajectory,
 };
+use crate::basics::flags;
 use crate::delay::DelayLine;
-use crate::law::flags;
-use crate::law::ControlOutput;
 use crate::plan::spatial::SpatialSteer;
+use crate::resolve::ControlOutput;
 use crate::sim::{plant_derivative, rk4_step, ArmState};
 
 /// A spatial closed loop for a task of `M` rows. `step` allocates nothing.

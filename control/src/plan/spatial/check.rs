@@ -159,7 +159,7 @@ impl<const N: usize> SpatialProblem<N> {
         let n = table.rows().len();
         let dt = table.period / (n * SAMPLES) as f64;
         let mut kin = SpatialKinematics::<N>::default();
-        let mut points: Points<N> = [PointMotion::default(); crate::config::MAX_JOINTS + 1];
+        let mut points: Points<N> = [PointMotion::default(); crate::basics::MAX_JOINTS + 1];
         let gains = self.law.safety.gains();
         for k in 0..n * SAMPLES {
             let t = table.t0 + k as f64 * dt;

@@ -26,7 +26,7 @@ pub use cost::Nearest;
 pub use steer::SpatialSteer;
 
 use super::{Blocked, Cycle, CycleTable, PlanOutcome, PlanSettings, Planned};
-use crate::config::MAX_JOINTS;
+use crate::basics::MAX_JOINTS;
 use crate::spatial::arm::{SpatialArm, VecN};
 use crate::spatial::SpatialParams;
 
@@ -326,7 +326,7 @@ pub fn plan_system_with(
     settings: &PlanSettings,
 ) -> Result<Planned, String> {
     let dof = sys.chain.dof();
-    if !(2..=crate::config::MAX_JOINTS).contains(&dof) {
+    if !(2..=crate::basics::MAX_JOINTS).contains(&dof) {
         return Err(format!(
             "the planner handles 2 to 7 joints (this arm has {dof})"
         ));

@@ -2,7 +2,7 @@
 //! every joint, in a table as wide as the widest arm, so the law's parameter block stays one
 //! `Copy` type whatever the arm.
 
-use crate::config::MAX_JOINTS;
+use crate::basics::MAX_JOINTS;
 use crate::plan::{Cycle, CycleTable};
 use crate::safety::SafetyParams;
 use crate::spatial::arm::VecN;

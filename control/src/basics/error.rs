@@ -1,0 +1,74 @@
+//! The refusal every layer gives a bad value: which field, what it was, what it must be.
+//!
+//! A URDF loader, a limiter and a config all refuse in the same words, so the error type and
+//! its small helpers live below all of them.
+
+/// A configuration that cannot be used, naming the offending field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot parse config: {0}")]
+    Parse(String),
+    #[error("invalid config: {field} = {value}: {expected}")]
+    Invalid {
+        field: String,
+        value: String,
+        expected: String,
+    },
+    #[error("unknown preset {name:?} (known presets: {known}, and the spatial panda)")]
+    UnknownPreset { name: String, known: String },
+    /// A spatial robot's set-up given where only the planar arm runs yet.
+    #[error("{0} is a spatial robot's set-up; `chaosd`, `chaosd-plant` and `chaosctl config|simulate|lyapunov|sweep|poincare|orbits|basins|arm-figure` run spatial robots, but this command takes the planar arm only")]
+    Spatial(String),
+}
+
+/// Largest config text accepted: a config is a few hundred bytes; a huge file is a mistake, and
+/// parsing it would cost memory in proportion.
+pub const MAX_CONFIG_BYTES: usize = 1 << 20;
+/// Longest excerpt of a bad value or a parser message quoted in an error.
+pub const MAX_QUOTE: usize = 200;
+
+/// At most [`MAX_QUOTE`] bytes of `s` (cut at a character boundary), marked when cut.
+pub fn excerpt(s: &str) -> String {
+    if s.len() <= MAX_QUOTE {
+        return s.to_string();
+    }
+    let mut end = MAX_QUOTE;
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("{}… ({} bytes in all)", &s[..end], s.len())
+}
+
+/// A number given on a live `set` (`KEY VALUE`): the value, or a one-line error naming the key.
+pub fn live_number(key: &str, v: Option<&str>) -> Result<f64, String> {
+    let v = v.ok_or_else(|| format!("{key}: missing value"))?;
+    let x: f64 = v
+        .parse()
+        .map_err(|_| format!("{key}: {v:?} is not a number"))?;
+    if !x.is_finite() {
+        return Err(format!("{key}: {v} is not a finite number"));
+    }
+    Ok(x)
+}
+
+/// The error for a field whose value is not what it should be (the value cut to an excerpt).
+pub fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigError {
+    ConfigError::Invalid {
+        field: field.to_string(),
+        value: excerpt(&format!("{value:?}")),
+        expected: expected.to_string(),
+    }
+}
+
+/// A finite number in [lo, hi], or the refusal naming `field`.
+pub fn range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(invalid(
+            field,
+            v,
+            &format!("must be a finite number in [{lo}, {hi}]"),
+        ))
+    }
+}
