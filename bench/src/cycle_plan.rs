@@ -116,7 +116,7 @@ pub fn section(quick: bool) -> Result<String> {
 }
 
 /// A table cell for a cycle's smallest clearance: "0.050 m", or "–" without obstacles.
-pub fn clearance_cell(c: &control::plan::Cycle) -> String {
+pub fn clearance_cell(c: &control::steer::Cycle) -> String {
     if c.min_clearance.is_finite() {
         format!("{:.3} m", c.min_clearance)
     } else {

@@ -4,10 +4,11 @@
 
 use anyhow::Result;
 use control::model::{builtin, Chain};
-use control::plan::spatial::{plan_setup, SpatialSteer};
+use control::plan::spatial::plan_setup;
 use control::plan::{PlanOutcome, PlanSettings};
 use control::spatial::config::{SpatialConfig, SphereEntry};
 use control::spatial::sim::SpatialSimulation;
+use control::steer::SpatialSteer;
 use std::time::Instant;
 
 /// Spheres as (x, y, z, radius), m.
@@ -51,12 +52,12 @@ type Job = (
     control::spatial::config::SpatialSetup<7>,
     f64,
     nalgebra::SVector<f64, 7>,
-    Option<control::plan::CycleTable<7>>,
+    Option<control::steer::CycleTable<7>>,
 );
 
 fn job(chain: &Chain, spheres: &[[f64; 4]], at: f64) -> Result<Job> {
     let mut cfg = SpatialConfig::preset("panda").expect("the panda preset");
-    cfg.safety.plan = control::plan::PlanMode::On;
+    cfg.safety.plan = control::safety::policy::PlanMode::On;
     let (start, _) = cfg.setup_planned::<7>(chain)?;
     let mut sim = SpatialSimulation::<7, 3>::new(
         start.arm,

@@ -5,7 +5,7 @@ use crate::traps::{OfflineTraps, TrapEvent};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::config::{ModelKind, ProjectionKind};
-use control::plan::Steering;
+use control::steer::Steering;
 use control::{with_dof, ArmState, Config, RunStats, Simulation, Summary, System};
 use serde::Serialize;
 use std::io::Write;

@@ -7,7 +7,8 @@
 //! what a daemon would have said, and when.
 
 use control::plan::trap::TrapDetector;
-use control::plan::{has_planner, plan_arm, steering_of, PlanOutcome, Steering};
+use control::plan::{has_planner, plan_arm, steering_of, PlanOutcome};
+use control::steer::Steering;
 use control::System;
 use serde::Serialize;
 
@@ -112,7 +113,7 @@ impl OfflineTraps {
     }
 
     /// The start's plan found no clean cycle: the daemon would say `Blocked` at once.
-    pub fn blocked_at_start(&mut self, b: &control::plan::Blocked) {
+    pub fn blocked_at_start(&mut self, b: &control::steer::Blocked) {
         self.block(
             0.0,
             format!("no clean cycle the arm can follow: {}", b.reason),

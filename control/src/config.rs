@@ -508,7 +508,7 @@ impl Config {
         }
         range("sim.phi0", s.phi0, -1e6, 1e6)?;
         self.safety.validate(n)?;
-        if self.safety.plan == crate::plan::PlanMode::On && !self.has_planner() {
+        if self.safety.plan == crate::safety::policy::PlanMode::On && !self.has_planner() {
             return Err(invalid(
                 "safety.plan",
                 true,
@@ -583,8 +583,9 @@ impl Config {
     /// [`Self::law_params`] with the steering onto a planned clean cycle when `safety.plan` asks
     /// for it (the filter on, the fixed-base 3-link arm), planned from the start posture; and
     /// why there is none, when the planner found none (the law then runs without it).
-    pub fn law_params_planned(&self) -> (LawParams, Option<crate::plan::Blocked>) {
-        use crate::plan::{PlanOutcome, Steer};
+    pub fn law_params_planned(&self) -> (LawParams, Option<crate::steer::Blocked>) {
+        use crate::plan::PlanOutcome;
+        use crate::steer::Steer;
         let mut p = self.law_params();
         if !self.steers_onto_plan() {
             return (p, None);

@@ -65,7 +65,7 @@ pub struct LawParams {
     pub track_loss: f64,
     /// A planned clean cycle to steer the self-motion onto ([`crate::plan`]); planar 3-link
     /// arm only. None: the law as the paper has it.
-    pub steer: Option<crate::plan::Steer>,
+    pub steer: Option<crate::steer::Steer>,
     /// Tracking paused (the daemon's blocked hold): the arm brakes to rest, the filter keeping
     /// clearance as ever ([`crate::safety::pause_brake`]).
     pub pause: bool,
@@ -86,7 +86,7 @@ impl LawParams {
 /// it instead of lagging behind. Only the first three joints have a plan.
 #[inline]
 fn steering<const N: usize>(
-    s: &crate::plan::Steer,
+    s: &crate::steer::Steer,
     t: f64,
     q: &VecN<N>,
     qd: &VecN<N>,
@@ -106,13 +106,13 @@ fn steering<const N: usize>(
 /// the full joint space (the hand leaves its path on purpose), for the first three joints.
 #[inline]
 fn detour_pull<const N: usize>(
-    s: &crate::plan::Steer,
-    d: &crate::plan::detour::DetourTable,
+    s: &crate::steer::Steer,
+    d: &crate::steer::DetourTable,
     t: f64,
     q: &VecN<N>,
     qd: &VecN<N>,
 ) -> VecN<N> {
-    let w = std::f64::consts::TAU * crate::plan::DETOUR_HZ;
+    let w = std::f64::consts::TAU * crate::steer::DETOUR_HZ;
     let (kp, kd) = (w * w, 2.0 * w);
     let r = d.sample(t, &s.cycle);
     let mut v = VecN::<N>::zeros();

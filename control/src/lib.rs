@@ -29,6 +29,7 @@ pub mod secondary;
 pub mod sim;
 pub mod spatial;
 pub mod stability;
+pub mod steer;
 pub mod system;
 pub mod task;
 pub mod tick_law;

@@ -353,7 +353,7 @@ pub struct SafetySummary {
     pub obstacles: usize,
     /// How long a trap lasts before the daemon acts (s), and what it does when blocked.
     pub trap_time: f64,
-    pub when_blocked: crate::plan::WhenBlocked,
+    pub when_blocked: crate::safety::policy::WhenBlocked,
     /// The task's period (s): a trap that recurs is counted in periods of it.
     pub task_period: f64,
 }

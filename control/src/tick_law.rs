@@ -161,8 +161,8 @@ impl<const N: usize> TickLaw<N> {
 
     /// Steers the self-motion onto a planned cycle, or stops. A cycle planned for the other
     /// kind of arm stops the steering.
-    pub fn set_steer(&mut self, steer: Option<crate::plan::Steering>) {
-        use crate::plan::Steering;
+    pub fn set_steer(&mut self, steer: Option<crate::steer::Steering>) {
+        use crate::steer::Steering;
         match self {
             TickLaw::Planar { params, .. } => {
                 params.steer = steer.and_then(|s| match s {

@@ -165,7 +165,7 @@ fn steering_along_a_detour_and_onto_the_cycle_allocates_nothing() {
     // cycle must not. An arm off its path by the trap: a detour, then the cycle.
     let mut cfg = Config::default();
     cfg.control.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
-    cfg.safety.plan = control::plan::PlanMode::On;
+    cfg.safety.plan = control::safety::policy::PlanMode::On;
     cfg.sim.q0 = Some(vec![0.3, 1.2, 1.0]);
     cfg.sim.qd0 = Some(vec![0.0; 3]);
     let (params, blocked) = cfg.law_params_planned();

@@ -4,10 +4,12 @@
 //! through a sphere is `Blocked` at once, with the reason.
 
 use control::model::{builtin, Chain};
-use control::plan::spatial::{plan_system, SpatialSteer};
-use control::plan::{Cycle, PlanOutcome};
+use control::plan::spatial::plan_system;
+use control::plan::PlanOutcome;
 use control::spatial::config::{SpatialConfig, SphereEntry};
 use control::spatial::sim::{run, SpatialSimulation};
+use control::steer::Cycle;
+use control::steer::SpatialSteer;
 use control::system::SpatialSystem;
 
 fn chain() -> Chain {

@@ -23,7 +23,7 @@ fn run(obstacles: &[(f64, f64, f64)], plan: bool, duration: f64) -> (Summary, bo
 /// Runs `cfg` (validated here) with its planned steering, if any, over `sim.duration`: the
 /// summary after `sim.transient`, whether it steered, and why not when the planner found no
 /// cycle.
-fn simulate(cfg: &Config) -> (Summary, bool, Option<control::plan::Blocked>) {
+fn simulate(cfg: &Config) -> (Summary, bool, Option<control::steer::Blocked>) {
     cfg.validate().unwrap();
     let (params, blocked) = cfg.law_params_planned();
     let (duration, transient) = (cfg.sim.duration, cfg.sim.transient);
@@ -47,7 +47,7 @@ fn simulate(cfg: &Config) -> (Summary, bool, Option<control::plan::Blocked>) {
 #[test]
 fn off_it_changes_nothing() {
     let mut cfg = Config::preset("demo").unwrap();
-    cfg.safety.plan = control::plan::PlanMode::Off;
+    cfg.safety.plan = control::safety::policy::PlanMode::Off;
     let (p, b) = cfg.law_params_planned();
     assert_eq!(p, cfg.law_params());
     assert!(b.is_none() && p.steer.is_none());
@@ -57,7 +57,7 @@ fn off_it_changes_nothing() {
 fn by_default_it_steers_only_where_there_is_an_obstacle_to_keep_clear_of() {
     // Without obstacles the paper's chaos stays: the planned steering is not handed over.
     let mut cfg = Config::preset("demo").unwrap();
-    assert_eq!(cfg.safety.plan, control::plan::PlanMode::Auto);
+    assert_eq!(cfg.safety.plan, control::safety::policy::PlanMode::Auto);
     assert_eq!(cfg.law_params_planned().0, cfg.law_params());
     cfg.control.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
     assert!(cfg.law_params_planned().0.steer.is_some());
@@ -75,9 +75,9 @@ fn by_default_it_steers_only_where_there_is_an_obstacle_to_keep_clear_of() {
 #[test]
 fn plan_takes_true_false_or_auto_in_a_file() {
     for (v, mode) in [
-        ("true", control::plan::PlanMode::On),
-        ("false", control::plan::PlanMode::Off),
-        ("\"auto\"", control::plan::PlanMode::Auto),
+        ("true", control::safety::policy::PlanMode::On),
+        ("false", control::safety::policy::PlanMode::Off),
+        ("\"auto\"", control::safety::policy::PlanMode::Auto),
     ] {
         let c = Config::from_toml_str(&format!("[safety]\nplan = {v}\n")).unwrap();
         assert_eq!(c.safety.plan, mode, "{v}");
@@ -120,7 +120,7 @@ fn round_the_trap_the_arm_tracks_exactly_without_contact() {
 fn plan_is_refused_where_the_planner_cannot_go() {
     let mut cfg = Config::preset("paper-floating").unwrap();
     cfg.safety.enabled = true;
-    cfg.safety.plan = control::plan::PlanMode::On;
+    cfg.safety.plan = control::safety::policy::PlanMode::On;
     let e = cfg.validate().unwrap_err().to_string();
     assert!(e.contains("safety.plan"), "{e}");
     let mut cfg = Config::preset("demo").unwrap();
@@ -178,7 +178,7 @@ fn steered_run(obstacles: &[(f64, f64, f64)], q0: [f64; 3], mu: f64) -> (bool, f
         .iter()
         .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
         .collect();
-    cfg.safety.plan = control::plan::PlanMode::On;
+    cfg.safety.plan = control::safety::policy::PlanMode::On;
     cfg.feedback.mu = mu;
     cfg.feedback.enabled = mu > 0.0;
     cfg.sim.q0 = Some(q0.to_vec());

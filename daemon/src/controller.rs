@@ -204,7 +204,7 @@ pub struct Controller<const N: usize> {
     last_gap_reentry: Option<f64>,
     /// The planned cycle the self-motion is steered onto, kept across parameter
     /// blocks: the control service's blocks carry none, the planner's handover sets it.
-    steer: Option<control::plan::Steering>,
+    steer: Option<control::steer::Steering>,
     /// Blocked, holding: fresh states are answered with HOLD (tracking paused) until cleared.
     blocked_hold: bool,
     /// While blocked: the arm kept the filter's clearance and was at rest on the newest law
@@ -292,7 +292,7 @@ impl<const N: usize> Controller<N> {
     /// Steers the self-motion onto a planned cycle, or stops steering (between ticks; no
     /// allocation: the cycle is a `Copy` table). The steering outlives parameter changes until
     /// the next handover.
-    pub fn set_steer(&mut self, steer: Option<control::plan::Steering>) {
+    pub fn set_steer(&mut self, steer: Option<control::steer::Steering>) {
         self.steer = steer;
         self.law.set_steer(steer);
         self.applied = Some(Applied::Steer);

@@ -27,7 +27,9 @@ use crate::planner::{Done, Job, Planner, Why};
 use crate::replay::ReplayLog;
 use crate::telemetry::{LoopRequest, TickRecord};
 use control::plan::trap::TrapDetector;
-use control::plan::{has_planner, plan_asked, steering_of, PlanOutcome, Steering, WhenBlocked};
+use control::plan::{has_planner, plan_asked, steering_of, PlanOutcome};
+use control::safety::policy::WhenBlocked;
+use control::steer::Steering;
 use control::System;
 use crossbeam::channel::Sender;
 
@@ -393,7 +395,7 @@ impl Deadlock {
     /// transient: a trap after it plans again), nor without obstacles, nor after an edit of the
     /// law alone: near a fold of its self-motion the grid can miss a way the arm has within the
     /// rate bound, and an arm no obstacle was put in the way of is not trapped.
-    fn detour_forced(&self, c: &control::plan::Cycle, why: Why, layout_edited: bool) -> bool {
+    fn detour_forced(&self, c: &control::steer::Cycle, why: Why, layout_edited: bool) -> bool {
         c.detour.is_some()
             && !c.arm_off_path
             && self.layout.obstacles.is_some()
@@ -501,7 +503,7 @@ mod tests {
         );
         let mut cfg = control::Config::default();
         // Steering not asked for: only a forced detour steers.
-        cfg.safety.plan = control::plan::PlanMode::Off;
+        cfg.safety.plan = control::safety::policy::PlanMode::Off;
         let offered = |cfg: &control::Config| {
             let planned = control::plan::plan_config(cfg, t, Some(q)).unwrap();
             let PlanOutcome::Found(c) = planned.outcome else {

@@ -34,7 +34,7 @@ pub struct Job {
     pub t0: f64,
     pub q_now: Option<Vec<f64>>,
     /// The cycle the loop steers along now, if any: a spatial plan starts from it.
-    pub following: Option<control::plan::Steering>,
+    pub following: Option<control::steer::Steering>,
 }
 
 impl Job {

@@ -176,7 +176,7 @@ impl ReplayLog {
     }
 
     /// A steering handover the planner has just sent to the loop.
-    pub fn steered(&mut self, steer: Option<&control::plan::Steer>) {
+    pub fn steered(&mut self, steer: Option<&control::steer::Steer>) {
         self.pending
             .push_back(Announced::Steer(crate::replay_steer::line(steer)));
     }
@@ -755,7 +755,7 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
             "S" => {
                 let rest: Vec<&str> = parts.collect();
                 let steer = crate::replay_steer::parse(&rest).map_err(at)?;
-                ctl.set_steer(steer.map(control::plan::Steering::Planar));
+                ctl.set_steer(steer.map(control::steer::Steering::Planar));
             }
             "B" => match (parts.next(), parts.next()) {
                 (Some("0"), None) => ctl.set_blocked_hold(false),

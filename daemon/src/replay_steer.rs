@@ -1,8 +1,11 @@
 //! A steering handover as one line of a replay recording, and back, bit for bit.
 
 use anyhow::{anyhow, bail, Result};
-use control::plan::detour::{DetourTable, MAX_DETOUR};
-use control::plan::{CycleTable, Steer, MAX_PHASES};
+use control::steer::detour::MAX_DETOUR;
+use control::steer::CycleTable;
+use control::steer::DetourTable;
+use control::steer::Steer;
+use control::steer::MAX_PHASES;
 
 fn hex(v: f64) -> String {
     format!("{:016x}", v.to_bits())

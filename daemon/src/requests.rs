@@ -6,7 +6,7 @@
 //! block, which the loop swaps in at a tick boundary. These functions do no I/O.
 
 use control::config::{validate_obstacle, ObstacleConfig, SecondaryKind};
-use control::plan::PlanMode;
+use control::safety::policy::PlanMode;
 use control::Config;
 use std::path::{Component, Path, PathBuf};
 
@@ -114,7 +114,7 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             "safety.plan_hz" => c.safety.plan_hz = num(key, it.next())?,
             "safety.trap_time" => c.safety.trap_time = num(key, it.next())?,
             "safety.when_blocked" => {
-                c.safety.when_blocked = control::plan::WhenBlocked::parse(key, it.next())?
+                c.safety.when_blocked = control::safety::policy::WhenBlocked::parse(key, it.next())?
             }
             "kp" => c.control.kp = num(key, it.next())?,
             "kv" => c.control.kv = num(key, it.next())?,
@@ -322,7 +322,7 @@ mod tests {
         assert_eq!(n.safety.trap_time, 3.5);
         assert_eq!(
             n.safety.when_blocked,
-            control::plan::WhenBlocked::BestEffort
+            control::safety::policy::WhenBlocked::BestEffort
         );
         let e = apply_set(&c, "safety.when_blocked later", 1e-3).unwrap_err();
         assert!(e.contains("hold or best-effort"), "{e}");

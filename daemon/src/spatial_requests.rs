@@ -62,11 +62,13 @@ pub fn apply_set(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialS
             "safety" | "safety.enabled" => c.safety.enabled = on_off(key, it.next())?,
             "safety.clearance" => c.safety.clearance = f!()?,
             "safety.velocity_scale" => c.safety.velocity_scale = f!()?,
-            "safety.plan" => c.safety.plan = control::plan::PlanMode::parse(key, it.next())?,
+            "safety.plan" => {
+                c.safety.plan = control::safety::policy::PlanMode::parse(key, it.next())?
+            }
             "safety.plan_hz" => c.safety.plan_hz = f!()?,
             "safety.trap_time" => c.safety.trap_time = f!()?,
             "safety.when_blocked" => {
-                c.safety.when_blocked = control::plan::WhenBlocked::parse(key, it.next())?
+                c.safety.when_blocked = control::safety::policy::WhenBlocked::parse(key, it.next())?
             }
             _ => return Err(format!("unknown key {key:?}; keys: {KEYS}")),
         }

@@ -27,7 +27,7 @@ pub enum LoopRequest {
     /// The handshake's verdict on one plant start (`crate::handshake`).
     Plant { plant_id: u64, agreed: bool },
     /// The planner's handover: a cycle to steer onto, or none (`crate::deadlock`).
-    Steer(Option<control::plan::Steering>),
+    Steer(Option<control::steer::Steering>),
     /// Blocked with the hold action, or no longer (`crate::deadlock`).
     BlockedHold(bool),
 }

@@ -147,8 +147,8 @@ fn panda_controller() -> (Controller<7>, [f64; 7]) {
     let control::plan::PlanOutcome::Found(cycle) = planned.outcome else {
         panic!("no cycle for the Panda beside one sphere");
     };
-    let steer = control::plan::spatial::SpatialSteer::of(&cycle, 1.0).unwrap();
-    c.set_steer(Some(control::plan::Steering::Spatial(steer)));
+    let steer = control::steer::SpatialSteer::of(&cycle, 1.0).unwrap();
+    c.set_steer(Some(control::steer::Steering::Spatial(steer)));
     (c, q0)
 }
 

@@ -1,8 +1,10 @@
 //! Planning for whichever arm a [`System`] holds: the daemon's planner thread and `chaosctl
 //! simulate` both come through here, so an offline run answers a trap as the daemon does.
 
-use super::spatial::{plan_system_with, SpatialSteer};
-use super::{plan_config, Cycle, PlanSettings, Planned, Steer, Steering};
+use super::spatial::plan_system_with;
+use super::{plan_config, PlanSettings, Planned};
+use crate::steer::SpatialSteer;
+use crate::steer::{Cycle, Steer, Steering};
 use crate::System;
 
 /// Whether the set-up steers onto its planned cycle now (`safety.plan`: the filter on, an arm

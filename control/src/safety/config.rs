@@ -71,14 +71,14 @@ pub struct SafetyConfig {
     /// Steer the self-motion onto a planned clean cycle (the fixed-base 3-link arm;
     /// `chaosctl plan` shows it), so the filter cannot hold the arm off its path: `auto` (the
     /// default) while there is an obstacle, `true` always, `false` never before a trap.
-    pub plan: crate::plan::PlanMode,
+    pub plan: crate::safety::policy::PlanMode,
     /// The pull's natural frequency (Hz), critically damped.
     pub plan_hz: f64,
     /// Daemon: tracking lost, or the filter acting outside the null space, for this long (s)
     /// → the arm is trapped: the daemon steers onto a planned cycle, or says `Blocked`.
     pub trap_time: f64,
     /// Daemon: what to do while blocked (no clean cycle): `hold` or `best-effort`.
-    pub when_blocked: crate::plan::WhenBlocked,
+    pub when_blocked: crate::safety::policy::WhenBlocked,
 }
 
 impl Default for SafetyConfig {
@@ -97,10 +97,10 @@ impl Default for SafetyConfig {
             guard_time: 0.02,
             guard_tracking_error: 1.0,
             guard_growth_time: 0.5,
-            plan: crate::plan::PlanMode::Auto,
+            plan: crate::safety::policy::PlanMode::Auto,
             plan_hz: 1.0,
-            trap_time: crate::plan::DEFAULT_TRAP_TIME,
-            when_blocked: crate::plan::WhenBlocked::Hold,
+            trap_time: crate::safety::policy::DEFAULT_TRAP_TIME,
+            when_blocked: crate::safety::policy::WhenBlocked::Hold,
         }
     }
 }
@@ -184,7 +184,7 @@ impl SafetyConfig {
             ));
         }
         in_range("plan_hz", self.plan_hz, 0.0, 20.0, true)?;
-        crate::plan::check_trap_time(self.trap_time)?;
+        crate::safety::policy::check_trap_time(self.trap_time)?;
         in_range("k0", self.k0, 0.0, 1e6, true)?;
         in_range("k1", self.k1, 0.0, 1e4, true)?;
         if self.k1 * self.k1 < 4.0 * self.k0 {

@@ -20,6 +20,7 @@
 
 pub mod config;
 pub mod dual_qp;
+pub mod policy;
 pub mod rows;
 pub mod solve;
 

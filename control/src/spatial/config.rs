@@ -219,7 +219,7 @@ pub struct LimitsSection {
     /// Steer the self-motion onto a planned clean cycle ([`crate::plan::spatial`]), so the
     /// filter cannot hold the arm off its path: `auto` (the default) while there is a sphere,
     /// `true` always, `false` never (the daemon then steers only after a trap).
-    pub plan: crate::plan::PlanMode,
+    pub plan: crate::safety::policy::PlanMode,
     /// The pull's natural frequency (Hz), critically damped.
     pub plan_hz: f64,
     /// Daemon: tracking lost, or the filter acting outside the null space, for this long (s)
@@ -227,7 +227,7 @@ pub struct LimitsSection {
     /// says `Blocked`.
     pub trap_time: f64,
     /// Daemon: what to do while blocked: `hold` or `best-effort`.
-    pub when_blocked: crate::plan::WhenBlocked,
+    pub when_blocked: crate::safety::policy::WhenBlocked,
 }
 
 impl Default for LimitsSection {
@@ -237,10 +237,10 @@ impl Default for LimitsSection {
             clearance: 0.02,
             velocity_scale: 1.0,
             qdd_max: None,
-            plan: crate::plan::PlanMode::Auto,
+            plan: crate::safety::policy::PlanMode::Auto,
             plan_hz: 1.0,
-            trap_time: crate::plan::DEFAULT_TRAP_TIME,
-            when_blocked: crate::plan::WhenBlocked::Hold,
+            trap_time: crate::safety::policy::DEFAULT_TRAP_TIME,
+            when_blocked: crate::safety::policy::WhenBlocked::Hold,
         }
     }
 }
@@ -413,7 +413,7 @@ impl SpatialConfig {
             self.sim.dt,
             &step,
         )?;
-        crate::plan::check_trap_time(self.safety.trap_time)?;
+        crate::safety::policy::check_trap_time(self.safety.trap_time)?;
         let hz = self.safety.plan_hz;
         if !(hz > 0.0 && hz <= 20.0) {
             return Err(invalid("safety.plan_hz", hz, "a number in (0, 20]"));
@@ -552,7 +552,7 @@ impl SpatialConfig {
     pub fn setup_planned<const N: usize>(
         &self,
         chain: &Chain,
-    ) -> Result<(SpatialSetup<N>, Option<crate::plan::Blocked>), ConfigError> {
+    ) -> Result<(SpatialSetup<N>, Option<crate::steer::Blocked>), ConfigError> {
         use crate::plan::{spatial, PlanOutcome, PlanSettings};
         let mut set = self.setup::<N>(chain)?;
         if !self.steers_onto_plan() {
@@ -561,7 +561,7 @@ impl SpatialConfig {
         let planned = spatial::plan_setup(&set, 0.0, Some(set.q0), None, &PlanSettings::default());
         match planned.outcome {
             PlanOutcome::Found(c) => {
-                set.params.steer = spatial::SpatialSteer::of(&c, self.safety.plan_hz).ok();
+                set.params.steer = crate::steer::SpatialSteer::of(&c, self.safety.plan_hz).ok();
                 Ok((set, None))
             }
             PlanOutcome::Blocked(b) => Ok((set, Some(b))),

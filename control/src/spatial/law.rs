@@ -63,7 +63,7 @@ pub struct SpatialParams {
     pub auto_mu: Option<crate::adapt::AutoMu>,
     /// A planned clean cycle to steer the self-motion onto ([`crate::plan::spatial`]); it
     /// replaces the secondary task, as on the planar arm.
-    pub steer: Option<crate::plan::spatial::SpatialSteer>,
+    pub steer: Option<crate::steer::SpatialSteer>,
 }
 
 impl SpatialParams {

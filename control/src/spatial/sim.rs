@@ -13,9 +13,9 @@ use crate::analysis::lyapunov::{
 };
 use crate::basics::flags;
 use crate::delay::DelayLine;
-use crate::plan::spatial::SpatialSteer;
 use crate::resolve::ControlOutput;
 use crate::sim::{plant_derivative, rk4_step, ArmState};
+use crate::steer::SpatialSteer;
 
 /// A spatial closed loop for a task of `M` rows. `step` allocates nothing.
 #[derive(Clone, Debug)]

@@ -6,10 +6,11 @@
 //! not count.
 
 use super::SpatialProblem;
-use crate::plan::{CycleTable, PlanSettings};
+use crate::plan::PlanSettings;
 use crate::spatial::arm::{PointMotion, Points, SpatialKinematics, VecN};
 use crate::spatial::safety::capsule_row;
 use crate::spatial::sim::SpatialSimulation;
+use crate::steer::CycleTable;
 
 /// Spline samples per span between two phases.
 const SAMPLES: usize = 4;

@@ -19,16 +19,15 @@
 mod check;
 mod cost;
 mod relax;
-mod steer;
 
 pub use check::{Fault, Shortfall, Verdict};
 pub use cost::Nearest;
-pub use steer::SpatialSteer;
 
-use super::{Blocked, Cycle, CycleTable, PlanOutcome, PlanSettings, Planned};
+use super::{PlanOutcome, PlanSettings, Planned};
 use crate::basics::MAX_JOINTS;
 use crate::spatial::arm::{SpatialArm, VecN};
 use crate::spatial::SpatialParams;
+use crate::steer::{Blocked, Cycle, CycleTable, SpatialSteer};
 
 /// Sweeps of the relaxation per start, at most, and how often the cycle is judged.
 const SWEEPS: usize = 400;

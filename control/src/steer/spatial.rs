@@ -1,11 +1,11 @@
-//! Steering a spatial arm onto its planned cycle: the planar [`crate::plan::Steer`]'s pull on
+//! Steering a spatial arm onto its planned cycle: the planar [`crate::steer::Steer`]'s pull on
 //! every joint, in a table as wide as the widest arm, so the law's parameter block stays one
 //! `Copy` type whatever the arm.
 
+use super::{Cycle, CycleTable};
+use crate::arm::VecN;
 use crate::basics::MAX_JOINTS;
-use crate::plan::{Cycle, CycleTable};
 use crate::safety::SafetyParams;
-use crate::spatial::arm::VecN;
 use nalgebra::SMatrix;
 
 /// The share of a joint's acceleration limit the law with the pull may ask for.
