@@ -2,7 +2,7 @@
 //! the rigid-body plant side by side in one run, and what the generator and limiter cost per
 //! tick next to acceleration mode's pass-through.
 //!
-//! The runs are the offline sampled-data loop (`control::spatial::commanded`: the daemon's law
+//! The runs are the offline sampled-data loop (`control::commanded`: the daemon's law
 //! and generator and the plant's device, 1 kHz, 4 substeps), the Panda on the `panda` preset's
 //! circle with μ = 1 (null space) from t = 20 s, tracking measured after 10 s. The device
 //! emulator's reflex counts come from the live runs (`chaosd demo --bridge udp --mode
@@ -11,9 +11,10 @@
 use crate::stats::{fmt_ns, summary, Bound, Table, Target};
 use anyhow::{anyhow, Result};
 use control::command::{CommandMode, LimitKind};
+use control::commanded::run;
+use control::commanded::CommandedRun;
 use control::model::{builtin, Chain};
 use control::rigid_body::RigidBodyConfig;
-use control::spatial::commanded::{run, CommandedRun};
 use control::System;
 use std::hint::black_box;
 
@@ -176,7 +177,7 @@ pub fn section(quick: bool) -> Result<String> {
 fn cost(quick: bool) -> Result<String> {
     let (batches, batch) = if quick { (300, 100) } else { (3000, 300) };
     let mut t = Table::new(&["generator + limiter per tick (Panda)", "p50", "p99", "max"]);
-    let q = nalgebra::SVector::<f64, 7>::from_column_slice(&control::spatial::config::PANDA_READY);
+    let q = nalgebra::SVector::<f64, 7>::from_column_slice(&control::config::spatial::PANDA_READY);
     let qd = nalgebra::SVector::<f64, 7>::repeat(0.3);
     let a = nalgebra::SVector::<f64, 7>::repeat(0.5);
     let r = nalgebra::SVector::<f64, 7>::repeat(2.0);

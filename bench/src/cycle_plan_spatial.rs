@@ -3,11 +3,12 @@
 //! (the path's check, the relaxations from each start, the steered law's run for a period).
 
 use anyhow::Result;
+use control::config::spatial::SpatialConfig;
+use control::config::spatial::SphereEntry;
 use control::model::{builtin, Chain};
 use control::plan::spatial::plan_setup;
 use control::plan::{PlanOutcome, PlanSettings};
-use control::spatial::config::{SpatialConfig, SphereEntry};
-use control::spatial::sim::SpatialSimulation;
+use control::sim::spatial::SpatialSimulation;
 use control::steer::SpatialSteer;
 use std::time::Instant;
 
@@ -49,7 +50,7 @@ const LAYOUTS: [(&str, Spheres, f64); 6] = [
 /// A planning job: the set-up with the spheres, the task time, the posture and the cycle
 /// followed then.
 type Job = (
-    control::spatial::config::SpatialSetup<7>,
+    control::config::spatial::SpatialSetup<7>,
     f64,
     nalgebra::SVector<f64, 7>,
     Option<control::steer::CycleTable<7>>,

@@ -7,10 +7,15 @@
 
 use crate::stats::{fmt_ns, histogram, summary, Bound, Table, Target};
 use anyhow::{anyhow, Result};
+use control::arm::spatial::SpatialKinematics;
+use control::config::spatial::SpatialConfig;
+use control::config::spatial::SpatialSetup;
+use control::config::spatial::SphereEntry;
+use control::law::spatial as law;
 use control::model::{builtin, Chain};
 use control::resolve::damped_pinv_m;
-use control::spatial::config::{SpatialConfig, SpatialSetup, SphereEntry};
-use control::spatial::{law, safety, SpatialKinematics, SpatialSimulation};
+use control::safety::capsules as safety;
+use control::sim::spatial::SpatialSimulation;
 use control::tick_law::TickLaw;
 use control::{ArmState, Config};
 use daemon::controller::{Controller, ControllerSettings};
@@ -132,7 +137,7 @@ pub fn section(quick: bool) -> Result<String> {
     };
     let mut k = SpatialKinematics::<7>::default();
     let mut pose = s.params;
-    pose.task.kind = control::spatial::TaskKind::Pose;
+    pose.task.kind = control::task::spatial::TaskKind::Pose;
     let law3 = crate::compute::per_call(batches, batch, |i| {
         let x = &xs[i % xs.len()];
         black_box(law::evaluate::<7, 3>(

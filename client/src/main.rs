@@ -195,7 +195,7 @@ fn main() -> ExitCode {
         Command::Robot(a) => robot::run(a),
         Command::Export(a) => export::run(a),
         Command::Config { preset } => {
-            match control::spatial::config::SpatialConfig::preset(&preset) {
+            match control::config::spatial::SpatialConfig::preset(&preset) {
                 Some(c) => {
                     print!("{}", c.to_toml());
                     Ok(())

@@ -110,7 +110,7 @@ fn settings(a: &PlanCmd) -> Result<PlanSettings> {
 
 /// A spatial set-up's plan: the same planner the daemon runs, from the start posture, with
 /// `--obstacle X,Y,Z,RADIUS` spheres besides the config's.
-fn spatial(a: &PlanCmd, mut cfg: control::spatial::config::SpatialConfig) -> Result<()> {
+fn spatial(a: &PlanCmd, mut cfg: control::config::spatial::SpatialConfig) -> Result<()> {
     for o in &a.obstacles {
         let [x, y, z, r] = o.0[..] else {
             bail!(
@@ -119,7 +119,7 @@ fn spatial(a: &PlanCmd, mut cfg: control::spatial::config::SpatialConfig) -> Res
             );
         };
         cfg.obstacles
-            .push(control::spatial::config::SphereEntry::of([x, y, z, r]));
+            .push(control::config::spatial::SphereEntry::of([x, y, z, r]));
     }
     let settings = settings(a)?;
     let chain = rt::robot::load(

@@ -11,11 +11,14 @@ use crate::analysis::parallel::{jobs, run_all};
 use crate::plan_map::{check_spec, save_csv, save_map, wrote, MapAxes};
 use crate::plot::PALETTE;
 use anyhow::{bail, Result};
+use control::config::spatial::SpatialSetup;
+use control::config::spatial::SphereEntry;
 use control::plan::{PlanOutcome, PlanSettings};
-use control::spatial::config::{SpatialSetup, SphereEntry};
-use control::spatial::sim::run as simulate;
-use control::spatial::{Path as TaskPath, SpatialSimulation, Vec3};
+use control::sim::spatial::run as simulate;
+use control::sim::spatial::SpatialSimulation;
 use control::system::SpatialSystem;
+use control::task::spatial::Path as TaskPath;
+use control::task::spatial::Vec3;
 use control::{with_dof, with_task_rows};
 use plotters::style::RGBColor;
 use std::path::Path;
@@ -201,7 +204,7 @@ mod tests {
     use super::*;
 
     fn panda() -> SpatialSystem {
-        let config = control::spatial::config::SpatialConfig::preset("panda").unwrap();
+        let config = control::config::spatial::SpatialConfig::preset("panda").unwrap();
         let chain = rt::robot::load(&config.robot.description, None, None).unwrap();
         SpatialSystem { config, chain }
     }

@@ -2,17 +2,21 @@
 //! `--preset panda` or a config file that has a `[robot]` table.
 //!
 //! The flags mean what they mean for the planar arm and are applied to the spatial file the same
-//! way; the run itself is [`control::spatial`], and the CSV keeps the planar columns
+//! way; the run itself is [`control::law::spatial`], and the CSV keeps the planar columns
 //! (t,q1..qn,qd1..qdn) so scripts that read one read the other.
 
 use crate::setup::SetupArgs;
 use crate::traps::{OfflineTraps, TrapEvent};
 use anyhow::{bail, Context, Result};
 use control::analysis::lyapunov::{Benettin, Growth};
+use control::config::spatial::is_spatial;
+use control::config::spatial::SpatialConfig;
+use control::config::spatial::SpatialSetup;
 use control::config::ProjectionKind;
-use control::spatial::config::{is_spatial, SpatialConfig, SpatialSetup};
-use control::spatial::sim::{run, run_steering};
-use control::spatial::{SpatialSimulation, SpatialSummary};
+use control::sim::spatial::run;
+use control::sim::spatial::run_steering;
+use control::sim::spatial::SpatialSimulation;
+use control::sim::spatial::SpatialSummary;
 use control::steer::Steering;
 use control::system::SpatialSystem;
 use control::{with_dof, with_task_rows, ArmState, System};
@@ -315,7 +319,7 @@ pub fn section(
     Ok(with_setup!(cfg, |s, N, M| {
         let mut sim =
             SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
-        control::spatial::sim::section(&mut sim, duration, transient, classify)
+        control::analysis::spatial::section(&mut sim, duration, transient, classify)
     }))
 }
 
@@ -403,7 +407,7 @@ pub fn orbits(
     newton: &control::analysis::NewtonConfig,
 ) -> Result<Vec<SpatialOrbit>> {
     use control::analysis::newton_orbit;
-    use control::spatial::sim::stroboscopic_map;
+    use control::sim::spatial::stroboscopic_map;
     let period = cfg.task.period;
     if cfg.feedback.tau.is_some_and(|t| (t - period).abs() > 1e-9) {
         bail!("orbits needs τ = T (feedback.tau = {:?} s, task.period = {period} s): only then does the feedback vanish on period-T orbits", cfg.feedback.tau);
@@ -480,7 +484,7 @@ pub fn refine(cfg: &SpatialConfig, point: &[f64]) -> Option<String> {
             }
             let steps = control::analysis::period_steps(s.params.task.path.period, s.dt)?;
             let map = |x: &ArmState<N>| {
-                control::spatial::sim::stroboscopic_map::<N, M>(&s.arm, &s.params, s.dt, steps, x)
+                control::sim::spatial::stroboscopic_map::<N, M>(&s.arm, &s.params, s.dt, steps, x)
             };
             let seed = ArmState::<N> {
                 q: control::VecN::<N>::from_fn(|i, _| point[i]),

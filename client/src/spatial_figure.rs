@@ -5,9 +5,11 @@
 
 use crate::plot::{Chart, Figure, Panel, Rule, Series, Style, DARK, GREY, PALETTE};
 use anyhow::{bail, Result};
-use control::spatial::config::{SpatialConfig, SpatialSetup};
-use control::spatial::sim::run;
-use control::spatial::{SpatialKinematics, SpatialSimulation};
+use control::arm::spatial::SpatialKinematics;
+use control::config::spatial::SpatialConfig;
+use control::config::spatial::SpatialSetup;
+use control::sim::spatial::run;
+use control::sim::spatial::SpatialSimulation;
 use control::{with_dof, with_task_rows};
 use std::f64::consts::TAU;
 use std::path::Path;

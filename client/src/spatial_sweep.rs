@@ -6,7 +6,7 @@ use crate::analysis::parallel::{jobs, run_all};
 use crate::plot::{Chart, Figure, Panel, Rule, Series, Style, DARK, PALETTE};
 use crate::spatial::{lyapunov, run_summary};
 use anyhow::{Context, Result};
-use control::spatial::config::SpatialConfig;
+use control::config::spatial::SpatialConfig;
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;

@@ -8,9 +8,10 @@
 //! does no I/O, so [`System::parse`] takes the chain resolver as an argument.
 
 use crate::basics::ConfigError;
+use crate::config::spatial::is_spatial;
+use crate::config::spatial::SpatialConfig;
 use crate::config::Config;
 use crate::model::Chain;
-use crate::spatial::config::{is_spatial, SpatialConfig};
 use crate::tick_law::{ParamBlock, TickLaw};
 use crate::{ArmState, VecN};
 
@@ -181,7 +182,7 @@ impl System {
                     auto: f.auto,
                     tau: f.tau.unwrap_or(s.config.task.period),
                     t_on: f.t_on,
-                    max_tau: crate::spatial::config::MAX_TAU,
+                    max_tau: crate::config::spatial::MAX_TAU,
                 }
             }
         }

@@ -1,5 +1,5 @@
 //! The law a control tick runs, whichever arm it drives: the paper's planar arm (closed-form
-//! kinematics, [`crate::law`]) or a URDF chain ([`crate::spatial`]).
+//! kinematics, [`crate::law`]) or a URDF chain ([`crate::law::spatial`]).
 //!
 //! The daemon's controller, the sampled-data hold and the benchmarks hold a [`TickLaw`] and never
 //! ask which it is: both evaluate to the same [`ControlOutput`], read q̇(t − τ) from the same delay
@@ -7,12 +7,16 @@
 //! evaluation is the whole cost of the choice; the scratch for both lives side by side so a
 //! switch never allocates.
 
+use crate::arm::spatial::SpatialArm;
+use crate::arm::spatial::SpatialKinematics;
 use crate::arm::{ArmModel, Kinematics, VecN};
+use crate::law::spatial as spatial_law;
+use crate::law::spatial::SpatialParams;
 use crate::law::{self, LawParams};
 use crate::resolve::ControlOutput;
 use crate::safety::SafetyParams;
 use crate::sim::ArmState;
-use crate::spatial::{law as spatial_law, SpatialArm, SpatialKinematics, SpatialParams, TaskKind};
+use crate::task::spatial::TaskKind;
 
 /// The arm model and the parameters of its law, as one `Copy` block.
 // The spatial variant is the larger by far (a URDF model, spheres); boxing it would put the
@@ -189,7 +193,7 @@ impl<const N: usize> TickLaw<N> {
 
     /// Where a spatial arm's tool point is at `q` (None for the planar arm, whose law always
     /// runs on the measured state).
-    pub fn tool_position(&self, q: &VecN<N>) -> Option<crate::spatial::task::Vec3> {
+    pub fn tool_position(&self, q: &VecN<N>) -> Option<crate::task::spatial::Vec3> {
         match self {
             TickLaw::Planar { .. } => None,
             TickLaw::Spatial { arm, .. } => Some(arm.tool_position(q)),

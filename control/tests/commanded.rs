@@ -1,11 +1,12 @@
 //! The Panda on the circle through every command interface, against the dynamic arm, offline
-//! (`control::spatial::commanded`: the daemon's law and generator and the plant's device in one
+//! (`control::commanded`: the daemon's law and generator and the plant's device in one
 //! loop, at 1 kHz with 4 substeps). The live processes run the same pieces.
 
 use control::command::{CommandMode, LimitKind};
+use control::commanded::run;
+use control::commanded::CommandedRun;
 use control::model::{builtin, Chain};
 use control::rigid_body::RigidBodyConfig;
-use control::spatial::commanded::{run, CommandedRun};
 use control::System;
 
 fn panda(mode: CommandMode) -> System {

@@ -131,16 +131,16 @@ fn the_robot_models_algorithms_allocate_nothing() {
 
 #[test]
 fn the_panda_step_allocates_nothing_in_position_and_pose_with_obstacles() {
+    use control::config::spatial::SpatialConfig;
     use control::model::{builtin, Chain};
-    use control::spatial::config::SpatialConfig;
-    use control::spatial::SpatialSimulation;
+    use control::sim::spatial::SpatialSimulation;
     let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
     for kind in ["position", "pose"] {
         let mut cfg = SpatialConfig::preset("panda").unwrap();
         cfg.task.kind = kind.into();
         cfg.feedback.t_on = 0.5;
         // A sphere next to the elbow: the capsule points and rows are built on every step.
-        cfg.obstacles.push(control::spatial::config::SphereEntry {
+        cfg.obstacles.push(control::config::spatial::SphereEntry {
             center: [0.25, 0.0, 0.75],
             radius: 0.05,
             margin: 0.1,

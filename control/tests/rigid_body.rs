@@ -1,9 +1,9 @@
 //! The dynamic plant's physics beyond pinocchio's trajectories: the servo, friction, the
 //! payload, the torque limits, and the refusals of its config.
 
+use control::config::spatial::PANDA_READY;
 use control::model::{builtin, Chain};
 use control::rigid_body::{mismatched, Drive, RigidBody, RigidBodyConfig};
-use control::spatial::config::PANDA_READY;
 use nalgebra::SVector;
 
 type V7 = SVector<f64, 7>;

@@ -1,15 +1,21 @@
 //! The spatial law's pieces against finite differences, and the closed loop on the Panda.
 
+use control::arm::spatial::Points;
+use control::arm::spatial::*;
+use control::law::spatial::*;
 use control::model::{builtin, Chain};
 use control::resolve::Projection;
 use control::resolve::{damped_pinv_m, min_eigenvalue};
+use control::safety::capsules::capsule_row;
 use control::safety::rows::BarrierGains;
 use control::safety::SafetyParams;
-use control::spatial::arm::Points;
-use control::spatial::safety::capsule_row;
-use control::spatial::secondary::{centring, manipulability, potential};
-use control::spatial::sim::run;
-use control::spatial::*;
+use control::secondary::spatial::centring;
+use control::secondary::spatial::manipulability;
+use control::secondary::spatial::potential;
+use control::secondary::spatial::*;
+use control::sim::spatial::run;
+use control::sim::spatial::*;
+use control::task::spatial::*;
 use nalgebra::{Rotation3, SMatrix, SVector};
 
 type V7 = SVector<f64, 7>;
@@ -271,7 +277,7 @@ fn centring_with_projected_feedback_makes_the_self_motion_periodic() {
 
 #[test]
 fn the_panda_preset_builds_and_bad_keys_are_named() {
-    use control::spatial::config::SpatialConfig;
+    use control::config::spatial::SpatialConfig;
     let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
     let cfg = SpatialConfig::preset("panda").unwrap();
     let s = cfg.setup::<7>(&chain).unwrap();

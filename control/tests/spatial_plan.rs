@@ -3,11 +3,13 @@
 //! planned cycle tracks from every start tried, at every μ, with the clearance kept; a path
 //! through a sphere is `Blocked` at once, with the reason.
 
+use control::config::spatial::SpatialConfig;
+use control::config::spatial::SphereEntry;
 use control::model::{builtin, Chain};
 use control::plan::spatial::plan_system;
 use control::plan::PlanOutcome;
-use control::spatial::config::{SpatialConfig, SphereEntry};
-use control::spatial::sim::{run, SpatialSimulation};
+use control::sim::spatial::run;
+use control::sim::spatial::SpatialSimulation;
 use control::steer::Cycle;
 use control::steer::SpatialSteer;
 use control::system::SpatialSystem;

@@ -10,7 +10,7 @@
 //! Not kept: the delay-line history (a restarted daemon starts a fresh one, as after HOLD), the
 //! histograms and counters (each run writes its own files).
 
-use control::spatial::config::SpatialConfig;
+use control::config::spatial::SpatialConfig;
 use control::{Config, ConfigError, System};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};

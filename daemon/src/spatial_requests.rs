@@ -8,7 +8,7 @@
 //! I/O.
 
 use crate::requests::{num, on_off};
-use control::spatial::config::SphereEntry;
+use control::config::spatial::SphereEntry;
 use control::system::SpatialSystem;
 use control::System;
 

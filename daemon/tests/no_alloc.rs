@@ -120,13 +120,13 @@ fn adapting_the_gain_on_the_tick_allocates_nothing() {
 
 /// The Panda's controller: the `panda` preset's spatial law behind the same `Controller`.
 fn panda_controller() -> (Controller<7>, [f64; 7]) {
+    use control::config::spatial::SpatialConfig;
     use control::model::{builtin, Chain};
-    use control::spatial::config::SpatialConfig;
     let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
     let mut cfg = SpatialConfig::preset("panda").unwrap();
     cfg.feedback.t_on = 0.5;
     // A sphere beside the forearm: the capsule rows are built on every tick.
-    cfg.obstacles.push(control::spatial::config::SphereEntry {
+    cfg.obstacles.push(control::config::spatial::SphereEntry {
         center: [0.45, 0.2, 0.5],
         radius: 0.05,
         margin: 0.1,

@@ -75,7 +75,7 @@ impl Launch {
 pub fn load(args: &PlantArgs) -> Result<Launch> {
     // A plant never evaluates the law, so a secondary task registered only in the controller's
     // program (examples/custom-task) must not stop it; the daemon checks the name.
-    control::spatial::custom::outside_the_controller();
+    control::secondary::custom::outside_the_controller();
     let system = match (&args.config, &args.preset) {
         (Some(p), _) => {
             let text = std::fs::read_to_string(p)

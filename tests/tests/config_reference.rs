@@ -48,7 +48,7 @@ fn documented() -> BTreeMap<String, BTreeSet<String>> {
 
 #[test]
 fn the_reference_lists_every_key_of_every_section_and_no_other() {
-    use control::spatial::config as sp;
+    use control::config::spatial as sp;
     let code: Vec<(&str, BTreeSet<String>)> = vec![
         ("[arm]", accepted::<control::config::ArmConfig>()),
         ("[task]", accepted::<control::config::TaskConfig>()),
@@ -66,7 +66,10 @@ fn the_reference_lists_every_key_of_every_section_and_no_other() {
         ("[feedback] (spatial)", accepted::<sp::FeedbackSection>()),
         ("[safety] (spatial)", accepted::<sp::LimitsSection>()),
         ("[[obstacles]]", accepted::<sp::SphereEntry>()),
-        ("[command]", accepted::<control::command::CommandSection>()),
+        (
+            "[command]",
+            accepted::<control::config::command::CommandSection>(),
+        ),
         (
             "[command.limits]",
             accepted::<control::command::LimitOverrides>(),

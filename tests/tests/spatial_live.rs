@@ -6,7 +6,7 @@ use std::time::Duration;
 use tests::live::*;
 use tests::*;
 
-const PANDA: &str = control::spatial::config::PANDA;
+const PANDA: &str = control::config::spatial::PANDA;
 
 #[test]
 fn the_panda_demo_runs_daemon_and_plant_inside_the_limits_and_the_feedback_shows() {

@@ -8,7 +8,7 @@
 use super::basins::{finish, BasinsCmd, MapBase, RunEnd};
 use super::parallel::{jobs, run_all};
 use anyhow::{bail, Result};
-use control::spatial::config::SpatialConfig;
+use control::config::spatial::SpatialConfig;
 
 /// μ values when `--mu` is not given: a spatial run costs 10× a planar one.
 const DEFAULT_MU: &str = "0:2:0.5";

@@ -178,7 +178,7 @@ pub fn run(args: MonitorCmd) -> Result<()> {
 }
 
 /// A spatial robot: its config's start, the μ sweep, and one auto run (no edits).
-fn spatial(args: &MonitorCmd, cfg: &control::spatial::config::SpatialConfig) -> Result<()> {
+fn spatial(args: &MonitorCmd, cfg: &control::config::spatial::SpatialConfig) -> Result<()> {
     if !args.starts.starts.is_empty() {
         anyhow::bail!(
             "--start applies to the planar arm; a spatial study runs its config's start (sim.q0)"

@@ -458,7 +458,7 @@ const UNIT_CIRCLE: f64 = 1e-3;
 
 /// A spatial robot: the orbit each seeding gain's run settles on, found again at μ = 0, and its
 /// Floquet multipliers there (the μ scan of λ_max on it is planar-only so far).
-fn spatial(args: &OrbitsCmd, cfg: &control::spatial::config::SpatialConfig) -> Result<()> {
+fn spatial(args: &OrbitsCmd, cfg: &control::config::spatial::SpatialConfig) -> Result<()> {
     if args.model.mu.is_some() {
         bail!("--mu: the λ_max scan over μ on each orbit runs on the planar arm only; for a spatial robot use `chaosctl sweep`");
     }

@@ -74,7 +74,7 @@ pub struct Run {
 }
 
 /// `poincare` on a spatial robot: the same section, rule, files and report.
-fn spatial(args: &PoincareCmd, cfg: &control::spatial::config::SpatialConfig) -> Result<()> {
+fn spatial(args: &PoincareCmd, cfg: &control::config::spatial::SpatialConfig) -> Result<()> {
     super::check_run_window(args.duration, args.transient)?;
     let spec = RunSpec {
         duration: args.duration,

@@ -304,7 +304,7 @@ fn print_obstacles(rows: &[Row], starts: &[Config], mus: &[f64]) {
 }
 
 /// The sweep on a spatial robot: one start (the config's), λ_max and the run's summary per μ.
-fn spatial(args: &SweepCmd, cfg: &control::spatial::config::SpatialConfig) -> Result<()> {
+fn spatial(args: &SweepCmd, cfg: &control::config::spatial::SpatialConfig) -> Result<()> {
     if args.shard.is_some() || !args.starts.starts.is_empty() {
         anyhow::bail!("--shard and --start apply to the planar arm; a spatial sweep runs one start, its config's (set sim.q0 or --q0)");
     }

@@ -20,6 +20,7 @@ pub mod lyapunov;
 pub mod orbits;
 pub mod poincare;
 pub mod run;
+pub mod spatial;
 
 pub use closed_loop::ArmFlow;
 pub use lyapunov::{Benettin, Growth, LyapunovError, LyapunovEstimate, Trajectory};

@@ -146,7 +146,7 @@ pub fn stroboscopic_map<const N: usize>(
 }
 
 /// A stroboscopic map Φ_T of some arm's loop (the planar arm's [`stroboscopic_map`], or a
-/// spatial one's `control::spatial::sim::stroboscopic_map`).
+/// spatial one's `control::sim::spatial::stroboscopic_map`).
 pub type PeriodMap<'a, const N: usize> = &'a dyn Fn(&ArmState<N>) -> ArmState<N>;
 
 /// F(x) = Φ_T(x) − x with angle differences wrapped.

@@ -252,7 +252,7 @@ mod tests {
     #[test]
     fn position_mode_integrates_the_ramp_exactly() {
         let (mut g, _) = panda(CommandMode::Position);
-        let q = VecN::<7>::from_column_slice(&crate::spatial::config::PANDA_READY);
+        let q = VecN::<7>::from_column_slice(&crate::config::spatial::PANDA_READY);
         g.restart(&q, &VecN::zeros());
         let a = VecN::<7>::repeat(0.5);
         for _ in 0..100 {
@@ -275,7 +275,7 @@ mod tests {
     #[test]
     fn over_a_gap_the_reference_holds_the_acceleration_the_first_period_reached() {
         let (mut g, _) = panda(CommandMode::Position);
-        let q = VecN::<7>::from_column_slice(&crate::spatial::config::PANDA_READY);
+        let q = VecN::<7>::from_column_slice(&crate::config::spatial::PANDA_READY);
         g.restart(&q, &VecN::zeros());
         // A steep ramp (2000 rad/s³, inside every joint's jerk limit), answered 20 periods late:
         // the first period ramps to 2 rad/s², and the rest of the gap holds it; carried on, the
@@ -290,7 +290,7 @@ mod tests {
     #[test]
     fn torque_mode_is_inverse_dynamics_on_the_reference() {
         let (mut g, model) = panda(CommandMode::Torque);
-        let q = VecN::<7>::from_column_slice(&crate::spatial::config::PANDA_READY);
+        let q = VecN::<7>::from_column_slice(&crate::config::spatial::PANDA_READY);
         let qd = VecN::<7>::repeat(0.1);
         g.restart(&q, &qd);
         // On the reference, with a small q̈: RNEA alone, within the rate limit of the start, at

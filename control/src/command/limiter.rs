@@ -345,7 +345,7 @@ mod tests {
 
     fn ready() -> MotionState<7> {
         MotionState::at_rest(
-            VecN::<7>::from_column_slice(&crate::spatial::config::PANDA_READY),
+            VecN::<7>::from_column_slice(&crate::config::spatial::PANDA_READY),
             VecN::<7>::zeros(),
         )
     }

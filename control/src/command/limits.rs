@@ -17,7 +17,7 @@ pub const DEFAULT_JERK_PER_QDD: f64 = 500.0;
 /// The torque-rate limit of a joint whose maker publishes none (N·m/s).
 pub const DEFAULT_TAU_RATE: f64 = 1000.0;
 /// The acceleration limit of a joint whose maker publishes none (rad/s² or m/s²).
-pub const DEFAULT_QDD: f64 = crate::spatial::config::DEFAULT_QDD_MAX;
+pub const DEFAULT_QDD: f64 = crate::config::spatial::DEFAULT_QDD_MAX;
 
 /// What a maker publishes beyond the URDF, per joint.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,7 +40,7 @@ pub const PANDA: MakerTable = MakerTable {
     ],
     q_max: &[2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973],
     qd: &[2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61],
-    qdd: &crate::spatial::config::PANDA_QDD_MAX,
+    qdd: &crate::config::spatial::PANDA_QDD_MAX,
     jerk: &[7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0],
     tau: &[87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
     tau_rate: &[1000.0; 7],

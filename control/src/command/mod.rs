@@ -14,13 +14,11 @@
 //!
 //! Everything here runs on the daemon's loop: fixed-size, no allocation.
 
-mod config;
 mod generator;
 mod limiter;
 mod limits;
 mod mode;
 
-pub use config::{CommandSection, DEFAULT_MARGIN};
 pub use generator::{Command, CommandGains, MotionGenerator};
 pub use limiter::{LimitKind, Limiter, MotionState, Saturations, LIMIT_KINDS};
 pub use limits::{JointLimits, LimitOverrides, MakerTable, DEFAULT_JERK_PER_QDD, PANDA};

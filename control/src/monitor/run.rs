@@ -9,8 +9,8 @@ use super::{ChaosMonitor, Edge, Evidence, MonitorSettings, Verdict};
 use crate::law::LawParams;
 use crate::resolve::ControlOutput;
 use crate::resolve::Projection;
+use crate::sim::spatial::SpatialSimulation;
 use crate::sim::{ArmState, Simulation};
-use crate::spatial::sim::SpatialSimulation;
 use crate::{with_dof, Config};
 use serde::Serialize;
 
@@ -45,7 +45,7 @@ pub struct Watched {
 }
 
 /// A closed-loop simulation the monitor can watch: the planar [`Simulation`] or the spatial
-/// [`crate::spatial::sim::SpatialSimulation`].
+/// [`crate::sim::spatial::SpatialSimulation`].
 pub trait Stepped<const N: usize> {
     fn time(&self) -> f64;
     fn state(&self) -> ArmState<N>;

@@ -18,6 +18,7 @@
 //! actuator's), so the command is always finite and bounded. Everything is on the stack: the
 //! filter never allocates.
 
+pub mod capsules;
 pub mod config;
 pub mod dual_qp;
 pub mod policy;

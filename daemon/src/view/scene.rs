@@ -183,14 +183,14 @@ impl<const N: usize> Geometry for Planar<N> {
 }
 
 struct Spatial<const N: usize> {
-    arm: control::spatial::SpatialArm<N>,
-    task: control::spatial::SpatialTask,
+    arm: control::arm::spatial::SpatialArm<N>,
+    task: control::task::spatial::SpatialTask,
 }
 
 impl<const N: usize> Geometry for Spatial<N> {
     fn posed(&self, _phi: f64, q: &[f64]) -> Posed {
         let qv = control::VecN::<N>::from_fn(|i, _| q.get(i).copied().unwrap_or(0.0));
-        let mut kin = control::spatial::SpatialKinematics::<N>::default();
+        let mut kin = control::arm::spatial::SpatialKinematics::<N>::default();
         self.arm
             .kinematics(&qv, &control::VecN::<N>::zeros(), &mut kin);
         let f = &kin.frames;

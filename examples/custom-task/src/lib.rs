@@ -6,7 +6,8 @@
 //! Jacobian, unused here), write η and return the task's value. It is called on every tick of
 //! the real-time loop, so it must not allocate, lock or block.
 
-use control::spatial::custom::{NullTask, NullTaskInput};
+use control::secondary::custom::NullTask;
+use control::secondary::custom::NullTaskInput;
 
 /// The posture task: cost ½k‖q − q_ref‖², η = −k(q − q_ref), the cost's descent direction.
 pub struct Posture {

@@ -3,7 +3,7 @@
 
 fn main() -> std::process::ExitCode {
     if let Err(e) =
-        control::spatial::custom::register(&[(custom_task::NAME, &custom_task::PANDA_READY)])
+        control::secondary::custom::register(&[(custom_task::NAME, &custom_task::PANDA_READY)])
     {
         eprintln!("chaosd-posture: {e}");
         return std::process::ExitCode::from(2);

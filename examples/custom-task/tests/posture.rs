@@ -2,9 +2,9 @@
 //! the arm nearer its ready posture than the preset's centring task does, and the hand tracks as
 //! well; and a config naming a task nobody registered is refused by name.
 
-use control::spatial::config::SpatialConfig;
-use control::spatial::sim::run;
-use control::spatial::SpatialSimulation;
+use control::config::spatial::SpatialConfig;
+use control::sim::spatial::run;
+use control::sim::spatial::SpatialSimulation;
 
 const CONFIG: &str = include_str!("../panda-posture.toml");
 
@@ -12,7 +12,7 @@ const CONFIG: &str = include_str!("../panda-posture.toml");
 fn register() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
-        control::spatial::custom::register(&[(custom_task::NAME, &custom_task::PANDA_READY)])
+        control::secondary::custom::register(&[(custom_task::NAME, &custom_task::PANDA_READY)])
             .unwrap()
     });
 }
@@ -68,7 +68,8 @@ fn a_config_naming_an_unregistered_task_is_refused_with_the_names_it_could_take(
 
 #[test]
 fn a_task_cannot_take_a_built_in_name_or_register_twice() {
-    use control::spatial::custom::{register as reg, RegisterError};
+    use control::secondary::custom::register as reg;
+    use control::secondary::custom::RegisterError;
     register();
     assert_eq!(
         reg(&[("again", &custom_task::PANDA_READY)]),

@@ -6,10 +6,13 @@
 //! not count.
 
 use super::SpatialProblem;
+use crate::arm::spatial::PointMotion;
+use crate::arm::spatial::Points;
+use crate::arm::spatial::SpatialKinematics;
+use crate::arm::spatial::VecN;
 use crate::plan::PlanSettings;
-use crate::spatial::arm::{PointMotion, Points, SpatialKinematics, VecN};
-use crate::spatial::safety::capsule_row;
-use crate::spatial::sim::SpatialSimulation;
+use crate::safety::capsules::capsule_row;
+use crate::sim::spatial::SpatialSimulation;
 use crate::steer::CycleTable;
 
 /// Spline samples per span between two phases.

@@ -3,8 +3,9 @@
 //! keeps a little more than the margin instead of grazing it.
 
 use super::SpatialProblem;
-use crate::spatial::arm::{SpatialKinematics, VecN};
-use crate::spatial::secondary::segment_parameter;
+use crate::arm::spatial::SpatialKinematics;
+use crate::arm::spatial::VecN;
+use crate::secondary::spatial::segment_parameter;
 
 /// How far beyond the demanded clearance the obstacle cost starts (m).
 pub const SPHERE_BUFFER: f64 = 0.1;

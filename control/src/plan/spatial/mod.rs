@@ -24,9 +24,10 @@ pub use check::{Fault, Shortfall, Verdict};
 pub use cost::Nearest;
 
 use super::{PlanOutcome, PlanSettings, Planned};
+use crate::arm::spatial::SpatialArm;
+use crate::arm::spatial::VecN;
 use crate::basics::MAX_JOINTS;
-use crate::spatial::arm::{SpatialArm, VecN};
-use crate::spatial::SpatialParams;
+use crate::law::spatial::SpatialParams;
 use crate::steer::{Blocked, Cycle, CycleTable, SpatialSteer};
 
 /// Sweeps of the relaxation per start, at most, and how often the cycle is judged.
@@ -339,7 +340,7 @@ pub fn plan_system_with(
 
 /// Plans for a built set-up (its arm, law and step) from task time `t0` near posture `q_now`.
 pub fn plan_setup<const N: usize>(
-    set: &crate::spatial::config::SpatialSetup<N>,
+    set: &crate::config::spatial::SpatialSetup<N>,
     t0: f64,
     q_now: Option<VecN<N>>,
     following: Option<&CycleTable<MAX_JOINTS>>,

@@ -6,12 +6,16 @@
 //! own ([`crate::safety::rows::joint_box`], [`crate::safety::solve::smallest_change`]), so the
 //! two filters cannot drift apart in behaviour.
 
-use super::arm::{PointMotion, Points, SpatialArm, SpatialKinematics, VecN};
-use super::secondary::SphereSet;
-use super::task::Vec3;
+use crate::arm::spatial::PointMotion;
+use crate::arm::spatial::Points;
+use crate::arm::spatial::SpatialArm;
+use crate::arm::spatial::SpatialKinematics;
+use crate::arm::spatial::VecN;
 use crate::basics::MAX_JOINTS;
 use crate::safety::rows::{joint_box, BarrierGains};
 use crate::safety::{solve, Filtered, SafetyParams};
+use crate::secondary::spatial::SphereSet;
+use crate::task::spatial::Vec3;
 use nalgebra::SMatrix;
 
 /// The barrier h = d − reach of the segment [P_a, P_b] against a centre (reach: sphere radius +

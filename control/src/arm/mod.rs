@@ -9,6 +9,8 @@
 //!
 //! Everything here works on fixed-size nalgebra types and stack arrays: no call allocates.
 
+pub mod spatial;
+
 use crate::dual::{Dual, Real};
 use nalgebra::{Matrix2, SMatrix, SVector, Vector2};
 

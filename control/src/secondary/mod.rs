@@ -5,6 +5,9 @@
 //! Obstacles live in a fixed-capacity array so a parameter block stays `Copy` and can be handed to
 //! the real-time loop without allocating.
 
+pub mod custom;
+pub mod spatial;
+
 use crate::arm::{Jac, Kinematics, Vec2, VecN};
 
 /// The most obstacles one parameter block holds.

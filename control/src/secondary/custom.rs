@@ -6,7 +6,7 @@
 //! lock, and the task itself must not allocate (it writes η into a buffer the law owns).
 //!
 //! ```
-//! use control::spatial::custom::{self, NullTask, NullTaskInput};
+//! use control::secondary::custom::{self, NullTask, NullTaskInput};
 //!
 //! /// η = −k (q − q_ref): pulls the self-motion towards a preferred posture.
 //! struct Posture { q_ref: [f64; 7], k: f64 }

@@ -7,6 +7,9 @@
 //!
 //! Every default is SCIENCE.md's; the `paper*` presets reproduce the paper's set-ups.
 
+pub mod command;
+pub mod spatial;
+
 use crate::adapt::{AutoMu, MuSetting};
 use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
 use crate::basics::{
@@ -371,7 +374,7 @@ impl Config {
                 text.len()
             )));
         }
-        if crate::spatial::config::is_spatial(text) {
+        if crate::config::spatial::is_spatial(text) {
             return Err(ConfigError::Spatial("a config with a [robot] table".into()));
         }
         toml::from_str(text).map_err(|e| ConfigError::Parse(excerpt(&e.to_string())))

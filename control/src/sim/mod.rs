@@ -7,6 +7,8 @@
 //! `step_index · dt`, never accumulated, so two runs with the same inputs are bit-identical and a
 //! run is reproducible from its config alone.
 
+pub mod spatial;
+
 use crate::arm::{ArmModel, Kinematics, VecN};
 use crate::basics::flags;
 use crate::delay::DelayLine;

@@ -5,9 +5,12 @@
 //! joints ∂J_i/∂q_k is a cross product of columns already in J (below), so it costs O(n²m) and
 //! no second kinematics pass; `tests` check every gradient against finite differences.
 
-use super::arm::{Points, SpatialArm, SpatialKinematics, VecN};
-use super::task::Vec3;
+use crate::arm::spatial::Points;
+use crate::arm::spatial::SpatialArm;
+use crate::arm::spatial::SpatialKinematics;
+use crate::arm::spatial::VecN;
 use crate::arm::MANIPULABILITY_FLOOR;
+use crate::task::spatial::Vec3;
 use nalgebra::{SMatrix, SVector};
 
 /// The most spheres one parameter block holds.

@@ -11,6 +11,8 @@
 //! evaluation so that the offline simulation, the analysis and the daemon all get the same
 //! filtered command, and a disabled filter costs one branch.
 
+pub mod spatial;
+
 use crate::arm::{ArmModel, Jac, Kinematics, VecN};
 use crate::basics::{flags, wrap_angle};
 use crate::resolve::{damped_pinv, resolve, ControlOutput, NullTerms, Projection};

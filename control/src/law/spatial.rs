@@ -8,14 +8,20 @@
 //! (Hsu, Hauser & Sastry 1989); it is off (k_d = 0) unless configured, so that the study can
 //! compare it with the Pyragas term.
 
-use super::arm::{Points, SpatialArm, SpatialKinematics, VecN};
-use super::secondary::{self as sec, SphereSet};
-use super::task::{orientation_error, SpatialTask, Vec3};
+use crate::arm::spatial::Points;
+use crate::arm::spatial::SpatialArm;
+use crate::arm::spatial::SpatialKinematics;
+use crate::arm::spatial::VecN;
 use crate::basics::flags;
 use crate::resolve::ControlOutput;
 use crate::resolve::Projection;
 use crate::resolve::{damped_pinv_m, resolve, NullTerms};
 use crate::safety::SafetyParams;
+use crate::secondary::spatial as sec;
+use crate::secondary::spatial::SphereSet;
+use crate::task::spatial::orientation_error;
+use crate::task::spatial::SpatialTask;
+use crate::task::spatial::Vec3;
 use nalgebra::{SMatrix, SVector, Vector6};
 
 /// Which secondary task drives a spatial arm's null space.
@@ -29,7 +35,7 @@ pub enum SpatialSecondary {
     Centring,
     /// η = −∇h, the sphere-capsule potential.
     Obstacles,
-    /// A task the program registered ([`super::custom`]), by its index there.
+    /// A task the program registered ([`crate::secondary::custom`]), by its index there.
     Custom(u8),
 }
 
@@ -81,7 +87,7 @@ fn custom_eta<const N: usize>(
     q: &VecN<N>,
     qd: &VecN<N>,
 ) -> (f64, Option<VecN<N>>) {
-    let input = super::custom::NullTaskInput {
+    let input = crate::secondary::custom::NullTaskInput {
         t,
         q: q.as_slice(),
         qd: qd.as_slice(),
@@ -91,7 +97,7 @@ fn custom_eta<const N: usize>(
         q_max: &params.safety.q_max[..N],
     };
     let mut eta = VecN::<N>::zeros();
-    let value = super::custom::call(index, &input, eta.as_mut_slice());
+    let value = crate::secondary::custom::call(index, &input, eta.as_mut_slice());
     (value, Some(eta))
 }
 
@@ -190,7 +196,7 @@ pub fn evaluate<const N: usize, const M: usize>(
         .map(|i| qdd[i].abs() / params.safety.qdd_max[i])
         .fold(0.0, f64::max);
     if params.safety.enabled && qdd.iter().all(|v| v.is_finite()) {
-        let f = super::safety::filter(
+        let f = crate::safety::capsules::filter(
             &params.safety,
             arm,
             &params.spheres,

@@ -1,11 +1,11 @@
 //! `[command]`: which interface the daemon sends and how the stream is limited.
 
-use super::{
-    CommandGains, CommandMode, JointLimits, LimitOverrides, Limiter, MakerTable, MotionGenerator,
-};
 use crate::arm::VecN;
 use crate::basics::invalid;
 use crate::basics::ConfigError;
+use crate::command::{
+    CommandGains, CommandMode, JointLimits, LimitOverrides, Limiter, MakerTable, MotionGenerator,
+};
 use crate::model::Chain;
 use crate::rigid_body::ServoGains;
 use serde::{Deserialize, Serialize};

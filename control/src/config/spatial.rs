@@ -6,18 +6,25 @@
 //! or a URDF path): this crate does no I/O. Limits come from the URDF, and the file may only
 //! tighten them, so a typo cannot loosen what the arm's maker allows.
 
-use super::arm::SpatialArm;
-use super::law::{SpatialParams, SpatialSecondary};
-use super::secondary::{Sphere, SphereSet, MAX_SPHERES};
-use super::task::{Path, Shape, SpatialTask, TaskKind, Vec3};
-use super::SpatialKinematics;
 use crate::adapt::{AutoMu, MuSetting};
+use crate::arm::spatial::SpatialArm;
+use crate::arm::spatial::SpatialKinematics;
 use crate::basics::invalid;
 use crate::basics::ConfigError;
 use crate::basics::MAX_JOINTS;
+use crate::law::spatial::SpatialParams;
+use crate::law::spatial::SpatialSecondary;
 use crate::model::Chain;
 use crate::resolve::Projection;
 use crate::safety::SafetyParams;
+use crate::secondary::spatial::Sphere;
+use crate::secondary::spatial::SphereSet;
+use crate::secondary::spatial::MAX_SPHERES;
+use crate::task::spatial::Path;
+use crate::task::spatial::Shape;
+use crate::task::spatial::SpatialTask;
+use crate::task::spatial::TaskKind;
+use crate::task::spatial::Vec3;
 use nalgebra::{Rotation3, SVector};
 use serde::{Deserialize, Serialize};
 
@@ -46,7 +53,7 @@ pub struct SpatialConfig {
     pub obstacles: Vec<SphereEntry>,
     /// The interface the daemon sends and its limiter (SCIENCE.md §9).
     #[serde(default)]
-    pub command: crate::command::CommandSection,
+    pub command: crate::config::command::CommandSection,
     pub sim: SimSection,
     /// The daemon's own table (`chaosd`), passed through untouched as in a planar file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -464,7 +471,7 @@ impl SpatialConfig {
             "manipulability" => SpatialSecondary::Manipulability,
             "centring" => SpatialSecondary::Centring,
             "obstacles" => SpatialSecondary::Obstacles,
-            s => match super::custom::lookup(s) {
+            s => match crate::secondary::custom::lookup(s) {
                 Some(i) => SpatialSecondary::Custom(i),
                 None => return Err(invalid("law.secondary", s, &secondary_names())),
             },
@@ -733,7 +740,7 @@ qd0 = [0.1, 0.0, -0.1, 0.0, 0.0, 0.0, 0.0]
 
 /// The names `law.secondary` takes in this program: the built-ins and the registered tasks.
 fn secondary_names() -> String {
-    let custom = super::custom::names();
+    let custom = crate::secondary::custom::names();
     let built_in = "\"none\", \"manipulability\", \"centring\" or \"obstacles\"";
     if custom.is_empty() {
         format!("{built_in} (a task of your own runs in a program that registers it: examples/custom-task)")

@@ -2,17 +2,16 @@
 //! spatial law, with the conventions of SCIENCE.md §3 (RK4, the law at every stage, q̇(s − τ)
 //! from the delay line, time = step · dt).
 //!
-//! It shares the planar simulation's integrator, state and delay line, and implements the
-//! Lyapunov driver's [`Trajectory`], so λ_max of a spatial arm comes from the same code and the
-//! same norm (q, q̇ and, with feedback, the stored q̇ history) as the planar arm's.
+//! It shares the planar simulation's integrator, state and delay line; the analysis drives it
+//! through the Lyapunov driver's trajectory ([`crate::analysis::spatial`]).
 
-use super::arm::{SpatialArm, SpatialKinematics, VecN};
-use super::law::{evaluate, SpatialParams};
-use crate::analysis::lyapunov::{
-    generic_direction, history_distance2, rescale_history, shift_history, Trajectory,
-};
+use crate::arm::spatial::SpatialArm;
+use crate::arm::spatial::SpatialKinematics;
+use crate::arm::spatial::VecN;
 use crate::basics::flags;
 use crate::delay::DelayLine;
+use crate::law::spatial::evaluate;
+use crate::law::spatial::SpatialParams;
 use crate::resolve::ControlOutput;
 use crate::sim::{plant_derivative, rk4_step, ArmState};
 use crate::steer::SpatialSteer;
@@ -22,16 +21,16 @@ use crate::steer::SpatialSteer;
 pub struct SpatialSimulation<const N: usize, const M: usize> {
     pub arm: SpatialArm<N>,
     pub params: SpatialParams,
-    dt: f64,
-    delay: DelayLine<N>,
-    step_index: u64,
-    state: ArmState<N>,
+    pub(crate) dt: f64,
+    pub(crate) delay: DelayLine<N>,
+    pub(crate) step_index: u64,
+    pub(crate) state: ArmState<N>,
     kin: SpatialKinematics<N>,
 }
 
 impl<const N: usize, const M: usize> SpatialSimulation<N, M> {
     /// `max_tau` fixes the delay-line capacity. Panics if `M` is not the task's row count: the
-    /// caller picks `M` from `params.task.kind` (see [`super::with_task_rows`]).
+    /// caller picks `M` from `params.task.kind` (see [`crate::with_task_rows`]).
     pub fn new(
         arm: SpatialArm<N>,
         params: SpatialParams,
@@ -92,54 +91,6 @@ impl<const N: usize, const M: usize> SpatialSimulation<N, M> {
         let p = &mut self.params;
         p.mu = crate::adapt::next_mu(&mut p.auto_mu, p.mu, p.projection, &out, dt);
         out
-    }
-}
-
-impl<const N: usize, const M: usize> Trajectory for SpatialSimulation<N, M> {
-    fn time(&self) -> f64 {
-        SpatialSimulation::time(self)
-    }
-    fn advance_to(&mut self, t: f64) {
-        let target = (t / self.dt).round().max(0.0) as u64;
-        while self.step_index < target {
-            self.step();
-            if !self.state.is_finite() {
-                return;
-            }
-        }
-    }
-    fn is_finite(&self) -> bool {
-        self.state.is_finite()
-    }
-    fn distance2(&self, other: &Self) -> f64 {
-        let (a, b) = (&self.state, &other.state);
-        let mut d2 = (b.q - a.q).norm_squared() + (b.qd - a.qd).norm_squared();
-        if self.params.mu != 0.0 && self.params.feedback {
-            d2 += history_distance2(&self.delay, &other.delay);
-        }
-        d2
-    }
-    fn rescale(&self, other: &mut Self, factor: f64) {
-        let a = self.state;
-        let b = &mut other.state;
-        b.q = a.q + (b.q - a.q) * factor;
-        b.qd = a.qd + (b.qd - a.qd) * factor;
-        if self.params.mu != 0.0 && self.params.feedback {
-            rescale_history(&self.delay, &mut other.delay, factor);
-        }
-    }
-    fn perturbed(&self, eps: f64) -> Self {
-        let mut o = self.clone();
-        let dir: Vec<f64> = generic_direction(2 * N).collect();
-        for i in 0..N {
-            o.state.q[i] += eps * dir[i];
-            o.state.qd[i] += eps * dir[N + i];
-        }
-        if self.params.mu != 0.0 && self.params.feedback {
-            let dqd = VecN::<N>::from_fn(|i, _| eps * dir[N + i]);
-            shift_history(&mut o.delay, &dqd);
-        }
-        o
     }
 }
 
@@ -278,33 +229,6 @@ pub fn run_steering<const N: usize, const M: usize>(
     s.track_lost_fraction = lost as f64 / n;
     s.safety_active_time = active as f64 * dt;
     s
-}
-
-/// The stroboscopic section x(kT) = (q, q̇) of `sim` from `transient` to `duration` (q compared
-/// modulo 2π, as for the planar arm), and its classification by the planar arm's rule.
-pub fn section<const N: usize, const M: usize>(
-    sim: &mut SpatialSimulation<N, M>,
-    duration: f64,
-    transient: f64,
-    cfg: &crate::analysis::ClassifyConfig,
-) -> (crate::analysis::Section, crate::analysis::Classification) {
-    let period = sim.params.task.path.period;
-    let mut sec = crate::analysis::Section::new(2 * N, N);
-    let periods = (duration / period + 1e-9).floor() as u64;
-    for k in 0..=periods {
-        let t = k as f64 * period;
-        sim.advance_to(t);
-        if !sim.state().is_finite() {
-            break;
-        }
-        if t >= transient - 1e-9 * period {
-            let x = sim.state();
-            let coords: Vec<f64> = x.q.iter().chain(x.qd.iter()).copied().collect();
-            sec.push(t, &coords);
-        }
-    }
-    let class = crate::analysis::classify(&sec, cfg);
-    (sec, class)
 }
 
 /// The stroboscopic map of the loop without feedback: `steps` steps (one task period) from t = 0

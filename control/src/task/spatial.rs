@@ -49,7 +49,7 @@ impl Path {
     /// `normal` need not be unit length but must not be zero.
     ///
     /// ```
-    /// use control::spatial::{Path, Shape, Vec3};
+    /// use control::task::spatial::{Path, Shape, Vec3};
     /// let p = Path::new(Shape::Circle, Vec3::new(0.5, 0.0, 0.5), Vec3::x(), 0.1, 2.0).unwrap();
     /// assert!((p.position(0.0) - Vec3::new(0.5, 0.0, 0.6)).norm() < 1e-15); // u = z
     /// assert!(Path::new(Shape::Circle, Vec3::zeros(), Vec3::zeros(), 0.1, 2.0).is_none());
@@ -185,6 +185,23 @@ pub fn orientation_error(desired: &Rotation3<f64>, actual: &nalgebra::Matrix3<f6
         a = -a;
     }
     a * s.atan2(c)
+}
+
+/// Calls `$body` with `const M: usize` bound to the task's row count (3 or 6).
+#[macro_export]
+macro_rules! with_task_rows {
+    ($kind:expr, |$m:ident| $body:expr) => {
+        match $kind {
+            $crate::task::spatial::TaskKind::Position => {
+                const $m: usize = 3;
+                $body
+            }
+            $crate::task::spatial::TaskKind::Pose => {
+                const $m: usize = 6;
+                $body
+            }
+        }
+    };
 }
 
 #[cfg(test)]

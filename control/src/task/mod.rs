@@ -1,5 +1,7 @@
 //! The end-effector task: a circle traced at constant speed (SCIENCE.md §1).
 
+pub mod spatial;
+
 use crate::arm::Vec2;
 use std::f64::consts::TAU;
 

@@ -6,9 +6,9 @@
 //! pass stores, for each body, its origin, axis, angular velocity, angular acceleration and
 //! origin acceleration at q̈ = 0; any point's motion then follows in O(n) without another pass.
 
-use super::task::Vec3;
 use crate::basics::MAX_JOINTS;
 use crate::model::{Frames, Model};
+use crate::task::spatial::Vec3;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector6};
 
 pub type VecN<const N: usize> = SVector<f64, N>;
@@ -107,7 +107,7 @@ impl<const N: usize> SpatialArm<N> {
     ///
     /// ```
     /// # use control::model::{builtin, Chain};
-    /// # use control::spatial::{SpatialArm, SpatialKinematics};
+    /// # use control::arm::spatial::{SpatialArm, SpatialKinematics};
     /// # use nalgebra::SVector;
     /// let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
     /// let arm = SpatialArm::new(chain.model::<7>().unwrap());
