@@ -59,7 +59,7 @@ type Job = (
 fn job(chain: &Chain, spheres: &[[f64; 4]], at: f64) -> Result<Job> {
     let mut cfg = SpatialConfig::preset("panda").expect("the panda preset");
     cfg.safety.plan = control::safety::policy::PlanMode::On;
-    let (start, _) = cfg.setup_planned::<7>(chain)?;
+    let (start, _) = control::plan::setup_planned::<7>(&cfg, chain)?;
     let mut sim = SpatialSimulation::<7, 3>::new(
         start.arm,
         start.params,

@@ -84,9 +84,10 @@ pub fn run(a: &PlanCmd) -> Result<()> {
     let q0 = cfg.initial_state::<3>().q;
     // What the daemon does: the grid search, the refinement against the filter, a detour when
     // the arm cannot reach the cycle tracking.
+    let started = std::time::Instant::now();
     let planned = plan_config_with(&cfg, 0.0, Some([q0[0], q0[1], q0[2]]), &settings)
         .map_err(|e| anyhow::anyhow!("chaosctl plan: {e}"))?;
-    report(a, &settings, &planned, "grid")
+    report(a, &settings, &planned, started.elapsed(), "grid")
 }
 
 /// The settings `--margin` and `--max-rate` ask for, checked.
@@ -149,16 +150,23 @@ fn spatial(a: &PlanCmd, mut cfg: control::config::spatial::SpatialConfig) -> Res
         );
         return Ok(());
     }
+    let started = std::time::Instant::now();
     let planned =
         control::plan::spatial::plan_system_with(&system, 0.0, Some(&q0), None, &settings)
             .map_err(|e| anyhow::anyhow!("chaosctl plan: {e}"))?;
-    report(a, &settings, &planned, "starts")
+    report(a, &settings, &planned, started.elapsed(), "starts")
 }
 
-/// Prints a plan (and writes `--csv`): words, or JSON with `--json`. `search` is how the
-/// planner looked: `grid` (planar) or `starts` (spatial).
-fn report(a: &PlanCmd, s: &PlanSettings, planned: &Planned, search: &str) -> Result<()> {
-    let (outcome, ms) = (&planned.outcome, planned.took.as_secs_f64() * 1e3);
+/// Prints a plan that took `took` (and writes `--csv`): words, or JSON with `--json`. `search`
+/// is how the planner looked: `grid` (planar) or `starts` (spatial).
+fn report(
+    a: &PlanCmd,
+    s: &PlanSettings,
+    planned: &Planned,
+    took: std::time::Duration,
+    search: &str,
+) -> Result<()> {
+    let (outcome, ms) = (&planned.outcome, took.as_secs_f64() * 1e3);
     let loose = planned.limits_only;
     if let (Some(path), PlanOutcome::Found(c)) = (&a.csv, outcome) {
         let dt = c.period / c.q.len() as f64;

@@ -92,7 +92,7 @@ macro_rules! with_setup {
         let kind = cfg.task_kind()?;
         with_dof!(chain.dof(), $n => {
             // With `safety.plan`, steered onto the planned cycle, as the daemon would be.
-            let ($setup, $blocked): (SpatialSetup<$n>, _) = cfg.setup_planned::<$n>(&chain)?;
+            let ($setup, $blocked): (SpatialSetup<$n>, _) = control::plan::setup_planned::<$n>(&cfg, &chain)?;
             if let Some(b) = &$blocked {
                 eprintln!("safety.plan: no clean cycle, running without steering: {}", b.reason);
             }

@@ -28,7 +28,6 @@ pub mod rigid_body;
 pub mod safety;
 pub mod secondary;
 pub mod sim;
-pub mod stability;
 pub mod steer;
 pub mod system;
 pub mod task;

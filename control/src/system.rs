@@ -118,7 +118,7 @@ impl System {
     /// τ ≥ dt (the delay line is filled once per tick).
     pub fn check_step(&self, dt: f64, step: &str) -> Result<(), ConfigError> {
         match self {
-            System::Planar(c) => crate::stability::check(c, dt, step)?,
+            System::Planar(c) => crate::config::stability::check(c, dt, step)?,
             System::Spatial(s) => s.config.check_step(&s.chain, dt, step)?,
         }
         let tau = self.feedback().tau;

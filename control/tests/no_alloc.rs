@@ -168,7 +168,7 @@ fn steering_along_a_detour_and_onto_the_cycle_allocates_nothing() {
     cfg.safety.plan = control::safety::policy::PlanMode::On;
     cfg.sim.q0 = Some(vec![0.3, 1.2, 1.0]);
     cfg.sim.qd0 = Some(vec![0.0; 3]);
-    let (params, blocked) = cfg.law_params_planned();
+    let (params, blocked) = control::plan::law_params_planned(&cfg);
     assert!(blocked.is_none(), "{blocked:?}");
     let d = params.steer.and_then(|s| s.detour).expect("a detour");
     let mut sim = Simulation::new(

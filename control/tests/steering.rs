@@ -25,7 +25,7 @@ fn run(obstacles: &[(f64, f64, f64)], plan: bool, duration: f64) -> (Summary, bo
 /// cycle.
 fn simulate(cfg: &Config) -> (Summary, bool, Option<control::steer::Blocked>) {
     cfg.validate().unwrap();
-    let (params, blocked) = cfg.law_params_planned();
+    let (params, blocked) = control::plan::law_params_planned(&cfg);
     let (duration, transient) = (cfg.sim.duration, cfg.sim.transient);
     let x0 = cfg.initial_state::<3>();
     let mut sim = Simulation::new(
@@ -48,7 +48,7 @@ fn simulate(cfg: &Config) -> (Summary, bool, Option<control::steer::Blocked>) {
 fn off_it_changes_nothing() {
     let mut cfg = Config::preset("demo").unwrap();
     cfg.safety.plan = control::safety::policy::PlanMode::Off;
-    let (p, b) = cfg.law_params_planned();
+    let (p, b) = control::plan::law_params_planned(&cfg);
     assert_eq!(p, cfg.law_params());
     assert!(b.is_none() && p.steer.is_none());
 }
@@ -58,18 +58,18 @@ fn by_default_it_steers_only_where_there_is_an_obstacle_to_keep_clear_of() {
     // Without obstacles the paper's chaos stays: the planned steering is not handed over.
     let mut cfg = Config::preset("demo").unwrap();
     assert_eq!(cfg.safety.plan, control::safety::policy::PlanMode::Auto);
-    assert_eq!(cfg.law_params_planned().0, cfg.law_params());
+    assert_eq!(control::plan::law_params_planned(&cfg).0, cfg.law_params());
     cfg.control.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
-    assert!(cfg.law_params_planned().0.steer.is_some());
+    assert!(control::plan::law_params_planned(&cfg).0.steer.is_some());
     // The filter off: nothing to steer for.
     cfg.safety.enabled = false;
-    assert!(cfg.law_params_planned().0.steer.is_none());
+    assert!(control::plan::law_params_planned(&cfg).0.steer.is_none());
     // An arm without a planner runs as before with `auto`; `true` is refused there.
     let mut cfg = Config::preset("paper-floating").unwrap();
     cfg.safety.enabled = true;
     cfg.control.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
     cfg.validate().unwrap();
-    assert!(cfg.law_params_planned().0.steer.is_none());
+    assert!(control::plan::law_params_planned(&cfg).0.steer.is_none());
 }
 
 #[test]

@@ -299,7 +299,7 @@ impl Deadlock {
                 return;
             }
         };
-        let took_ms = planned.took.as_secs_f64() * 1e3;
+        let took_ms = done.took.as_secs_f64() * 1e3;
         match planned.outcome {
             PlanOutcome::Found(c) => {
                 self.plan = Some(PlanInfo {

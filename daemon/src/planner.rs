@@ -55,6 +55,8 @@ pub struct Done {
     pub generation: u64,
     pub why: Why,
     pub result: Result<Planned, String>,
+    /// How long the planner took (the planner thread's clock: `control` reads none).
+    pub took: std::time::Duration,
 }
 
 /// The planner thread and its two channels. Dropping it ends the thread.
@@ -115,11 +117,13 @@ fn serve(jobs: &Receiver<Job>, done: &Sender<Done>) {
         while let Ok(newer) = jobs.try_recv() {
             job = newer;
         }
+        let started = std::time::Instant::now();
         let result = job.plan();
         let answer = Done {
             generation: job.generation,
             why: job.why,
             result,
+            took: started.elapsed(),
         };
         if done.send(answer).is_err() {
             return;

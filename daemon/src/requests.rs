@@ -164,7 +164,7 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
     }
     c.validate().map_err(|e| e.to_string())?;
     // The loop's own step, not only the offline `sim.dt`.
-    control::stability::check(
+    control::config::stability::check(
         &c,
         min_tau,
         &format!("the daemon's {:.0} Hz", 1.0 / min_tau),

@@ -67,7 +67,7 @@ proptest! {
         match apply_set(&cfg, &args, 1e-3) {
             Ok(c) => {
                 prop_assert!(c.validate().is_ok(), "{args}");
-                prop_assert!(control::stability::check(&c, 1e-3, "1 kHz").is_ok(), "{args}");
+                prop_assert!(control::config::stability::check(&c, 1e-3, "1 kHz").is_ok(), "{args}");
             }
             Err(e) => prop_assert!(e.len() < 1024 && !e.contains('\n'), "{args}: {e}"),
         }

@@ -8,7 +8,9 @@
 
 use crate::basics::MAX_JOINTS;
 use crate::model::{Frames, Model};
-use crate::task::spatial::Vec3;
+use nalgebra::Vector3;
+
+type Vec3 = Vector3<f64>;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector6};
 
 pub type VecN<const N: usize> = SVector<f64, N>;

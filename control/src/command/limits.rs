@@ -11,13 +11,19 @@ use crate::basics::ConfigError;
 use crate::model::Chain;
 use serde::{Deserialize, Serialize};
 
+/// Franka's published acceleration limits (SCIENCE.md §9), used for the built-in Panda; URDF
+/// has no acceleration limits.
+pub const PANDA_QDD_MAX: [f64; 7] = [15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0];
+/// The acceleration limit of a joint whose robot publishes none (rad/s² or m/s²).
+pub const DEFAULT_QDD_MAX: f64 = 10.0;
+
 /// The jerk limit of a joint whose maker publishes none: this many times its acceleration limit
 /// per second (the Panda's ratio).
 pub const DEFAULT_JERK_PER_QDD: f64 = 500.0;
 /// The torque-rate limit of a joint whose maker publishes none (N·m/s).
 pub const DEFAULT_TAU_RATE: f64 = 1000.0;
 /// The acceleration limit of a joint whose maker publishes none (rad/s² or m/s²).
-pub const DEFAULT_QDD: f64 = crate::config::spatial::DEFAULT_QDD_MAX;
+pub const DEFAULT_QDD: f64 = DEFAULT_QDD_MAX;
 
 /// What a maker publishes beyond the URDF, per joint.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,7 +46,7 @@ pub const PANDA: MakerTable = MakerTable {
     ],
     q_max: &[2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973],
     qd: &[2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61],
-    qdd: &crate::config::spatial::PANDA_QDD_MAX,
+    qdd: &PANDA_QDD_MAX,
     jerk: &[7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0],
     tau: &[87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
     tau_rate: &[1000.0; 7],

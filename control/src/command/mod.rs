@@ -21,5 +21,8 @@ mod mode;
 
 pub use generator::{Command, CommandGains, MotionGenerator};
 pub use limiter::{LimitKind, Limiter, MotionState, Saturations, LIMIT_KINDS};
-pub use limits::{JointLimits, LimitOverrides, MakerTable, DEFAULT_JERK_PER_QDD, PANDA};
+pub use limits::{
+    JointLimits, LimitOverrides, MakerTable, DEFAULT_JERK_PER_QDD, DEFAULT_QDD_MAX, PANDA,
+    PANDA_QDD_MAX,
+};
 pub use mode::CommandMode;

@@ -9,6 +9,7 @@
 
 pub mod command;
 pub mod spatial;
+pub mod stability;
 
 use crate::adapt::{AutoMu, MuSetting};
 use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
@@ -518,7 +519,7 @@ impl Config {
                 "the cycle planner handles the fixed-base 3-link arm only",
             ));
         }
-        crate::stability::check(self, s.dt, &format!("sim.dt = {} s", s.dt))
+        crate::config::stability::check(self, s.dt, &format!("sim.dt = {} s", s.dt))
     }
 
     /// The model and the law's parameters as the block a control tick runs.
@@ -581,29 +582,6 @@ impl Config {
         self.safety.enabled
             && self.has_planner()
             && self.safety.plan.steers(!self.control.obstacles.is_empty())
-    }
-
-    /// [`Self::law_params`] with the steering onto a planned clean cycle when `safety.plan` asks
-    /// for it (the filter on, the fixed-base 3-link arm), planned from the start posture; and
-    /// why there is none, when the planner found none (the law then runs without it).
-    pub fn law_params_planned(&self) -> (LawParams, Option<crate::steer::Blocked>) {
-        use crate::plan::PlanOutcome;
-        use crate::steer::Steer;
-        let mut p = self.law_params();
-        if !self.steers_onto_plan() {
-            return (p, None);
-        }
-        let q0 = self.initial_state::<3>().q;
-        let Ok(planned) = crate::plan::plan_config(self, 0.0, Some([q0[0], q0[1], q0[2]])) else {
-            return (p, None);
-        };
-        match planned.outcome {
-            PlanOutcome::Found(c) => {
-                p.steer = Steer::of(&c, self.safety.plan_hz).ok();
-                (p, None)
-            }
-            PlanOutcome::Blocked(b) => (p, Some(b)),
-        }
     }
 
     /// The arm model with N joints (N must equal `self.n()`).

@@ -12,6 +12,7 @@ use crate::arm::spatial::SpatialKinematics;
 use crate::basics::invalid;
 use crate::basics::ConfigError;
 use crate::basics::MAX_JOINTS;
+use crate::command::{DEFAULT_QDD_MAX, PANDA_QDD_MAX};
 use crate::law::spatial::SpatialParams;
 use crate::law::spatial::SpatialSecondary;
 use crate::model::Chain;
@@ -28,11 +29,6 @@ use crate::task::spatial::Vec3;
 use nalgebra::{Rotation3, SVector};
 use serde::{Deserialize, Serialize};
 
-/// Franka's published acceleration limits (SCIENCE.md §9), used for the built-in Panda; URDF
-/// has no acceleration limits.
-pub const PANDA_QDD_MAX: [f64; 7] = [15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0];
-/// The acceleration limit of a joint whose robot publishes none (rad/s² or m/s²).
-pub const DEFAULT_QDD_MAX: f64 = 10.0;
 /// The longest delay τ (s) a spatial set-up may ask for (the planar `feedback.max_tau` bound).
 pub const MAX_TAU: f64 = 60.0;
 /// The Panda's ready pose, a comfortable start in the middle of its workspace.
@@ -409,8 +405,8 @@ impl SpatialConfig {
             ));
         }
         let step = format!("sim.dt = {} s", self.sim.dt);
-        crate::stability::check_sampled(
-            &crate::stability::Sampled {
+        crate::config::stability::check_sampled(
+            &crate::config::stability::Sampled {
                 prefix: "law",
                 kp: self.law.kp,
                 kv: self.law.kv,
@@ -521,14 +517,14 @@ impl SpatialConfig {
         let safety = self.limits(chain)?;
         self.check_command(chain, dt)?;
         let barriers = [("safety.k1", safety.k1), ("safety.k_rate", safety.k_rate)];
-        let g = crate::stability::Sampled {
+        let g = crate::config::stability::Sampled {
             prefix: "law",
             kp: self.law.kp,
             kv: self.law.kv,
             period: self.task.period,
             barriers: if safety.enabled { &barriers } else { &[] },
         };
-        crate::stability::check_sampled(&g, dt, step)
+        crate::config::stability::check_sampled(&g, dt, step)
     }
 
     /// The command interface's generator at period `dt` (`N` = the chain's joint count): every
@@ -551,28 +547,6 @@ impl SpatialConfig {
     /// (or `auto` with a sphere).
     pub fn steers_onto_plan(&self) -> bool {
         self.safety.enabled && self.safety.plan.steers(!self.obstacles.is_empty())
-    }
-
-    /// [`Self::setup`] with the steering onto a planned clean cycle when `safety.plan` asks for
-    /// it (the filter on), planned from the start posture; and why there is none, when the
-    /// planner found none (the law then runs without it).
-    pub fn setup_planned<const N: usize>(
-        &self,
-        chain: &Chain,
-    ) -> Result<(SpatialSetup<N>, Option<crate::steer::Blocked>), ConfigError> {
-        use crate::plan::{spatial, PlanOutcome, PlanSettings};
-        let mut set = self.setup::<N>(chain)?;
-        if !self.steers_onto_plan() {
-            return Ok((set, None));
-        }
-        let planned = spatial::plan_setup(&set, 0.0, Some(set.q0), None, &PlanSettings::default());
-        match planned.outcome {
-            PlanOutcome::Found(c) => {
-                set.params.steer = crate::steer::SpatialSteer::of(&c, self.safety.plan_hz).ok();
-                Ok((set, None))
-            }
-            PlanOutcome::Blocked(b) => Ok((set, Some(b))),
-        }
     }
 
     /// Checks the file against `chain` and builds the run; `N` must be the chain's joint count.

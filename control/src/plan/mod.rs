@@ -15,11 +15,13 @@ mod arm;
 pub mod detour;
 pub mod planar;
 pub mod refine;
+mod setup;
 pub mod spatial;
 pub mod trap;
 
 use crate::steer::{Blocked, Cycle, CycleTable};
 pub use arm::{has_planner, plan_arm, plan_asked, steering_of};
+pub use setup::{law_params_planned, setup_planned};
 
 /// How finely the planner searches, and with what margins.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -91,7 +93,6 @@ pub struct Planned {
     /// Whether only the physical limits admit the cycle ([`PlanSettings::limits_only`]): the
     /// default settings' margins and approach bound found none.
     pub limits_only: bool,
-    pub took: std::time::Duration,
 }
 
 /// Plans for a planar config from task time `t0` near posture `q_now`: with the default
@@ -115,7 +116,6 @@ pub fn plan_config_with(
     q_now: Option<[f64; 3]>,
     settings: &PlanSettings,
 ) -> Result<Planned, String> {
-    let started = std::time::Instant::now();
     let problem = planar::PlanarProblem::from_config(cfg, t0, q_now)?;
     let mut strict = refined(&problem, cfg, planar::plan(&problem, settings));
     // A cycle the refinement could not clear of the filter: a finer grid gives another.
@@ -154,7 +154,6 @@ pub fn plan_config_with(
     Ok(Planned {
         outcome,
         limits_only,
-        took: started.elapsed(),
     })
 }
 

@@ -346,7 +346,6 @@ pub fn plan_setup<const N: usize>(
     following: Option<&CycleTable<MAX_JOINTS>>,
     settings: &PlanSettings,
 ) -> Planned {
-    let started = std::time::Instant::now();
     let problem = SpatialProblem::<N> {
         arm: set.arm,
         law: set.params,
@@ -360,7 +359,6 @@ pub fn plan_setup<const N: usize>(
     Planned {
         outcome,
         limits_only,
-        took: started.elapsed(),
     }
 }
 
