@@ -192,7 +192,7 @@ fn cost(quick: bool) -> Result<String> {
     }
     for (name, mut g) in gens {
         g.restart(&q, &qd);
-        let h = crate::compute::per_call(batches, batch, |_| {
+        let h = crate::timing::per_call(batches, batch, |_| {
             let c = g.next(&q, &qd, &a, &r);
             black_box(c);
         });

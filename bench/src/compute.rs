@@ -13,6 +13,7 @@ use crate::naive;
 use crate::plot::Panel;
 use crate::report::{header, Output, Report};
 use crate::stats::{fmt_ns, histogram, summary, Dist, Table};
+use crate::timing::per_call;
 use anyhow::{anyhow, Result};
 use control::analysis::run::LyapunovSpec;
 use control::analysis::{ArmFlow, Benettin};
@@ -21,27 +22,6 @@ use control::{ArmState, Config, Kinematics, Simulation};
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Instant;
-
-/// Per-call latency of `f`, measured in batches (the clock costs more than one call).
-pub(crate) fn per_call(
-    batches: usize,
-    batch: usize,
-    mut f: impl FnMut(usize),
-) -> hdrhistogram::Histogram<u64> {
-    let mut h = histogram();
-    for i in 0..batches / 10 {
-        f(i); // warm-up
-    }
-    for b in 0..batches {
-        let t0 = Instant::now();
-        for i in 0..batch {
-            f(b * batch + i);
-        }
-        let ns = t0.elapsed().as_nanos() as u64 / batch as u64;
-        h.saturating_record(ns.max(1));
-    }
-    h
-}
 
 fn states(n: usize) -> Vec<ArmState<3>> {
     // A chaotic trajectory's states: realistic inputs, not one cached point.

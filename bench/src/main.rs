@@ -28,7 +28,6 @@ mod cyclictest;
 mod device;
 mod e2e;
 mod jitter;
-mod late;
 mod latency;
 mod model_timing;
 mod monitor_cost;
@@ -42,6 +41,7 @@ mod soak;
 mod spatial_timing;
 mod stats;
 mod tick;
+mod timing;
 
 /// Counts allocations (armed per thread, only around what is counted): the compute benchmark
 /// reports the robot model's allocations per call with it.
@@ -281,12 +281,12 @@ fn e2e_opts(quick: bool, a: &E2eArgs) -> Result<e2e::Options> {
         o.modes = m
             .iter()
             .map(|m| match m {
-                E2eMode::Clock => e2e::Mode::Clock,
-                E2eMode::Phase => e2e::Mode::Phase,
-                E2eMode::State => e2e::Mode::State,
-                E2eMode::Pubsub => e2e::Mode::PubSub,
-                E2eMode::Udp => e2e::Mode::Udp,
-                E2eMode::UdpFree => e2e::Mode::UdpFree,
+                E2eMode::Clock => e2e::result::Mode::Clock,
+                E2eMode::Phase => e2e::result::Mode::Phase,
+                E2eMode::State => e2e::result::Mode::State,
+                E2eMode::Pubsub => e2e::result::Mode::PubSub,
+                E2eMode::Udp => e2e::result::Mode::Udp,
+                E2eMode::UdpFree => e2e::result::Mode::UdpFree,
             })
             .collect();
     }
@@ -402,7 +402,7 @@ fn main() -> ExitCode {
         Cmd::Device => device::run(quick, out, &command),
         Cmd::All { priority } => all(quick, out, *priority, &command, book.as_ref()),
         Cmd::Soak(a) => soak::run(
-            &soak::Options {
+            &soak::schedule::Options {
                 seconds: a.seconds,
                 seed: a.seed,
                 faults: a.faults.clone(),

@@ -2,7 +2,7 @@
 //! directory per subcommand, headed by the date and a description of the machine (a number
 //! without its machine is meaningless); and its tables by name, for `--book` (`crate::book`).
 
-use crate::book;
+use crate::book::table::{tables_in, Table};
 use anyhow::{bail, Context, Result};
 use hdrhistogram::Histogram;
 use std::path::{Path, PathBuf};
@@ -13,14 +13,14 @@ pub struct Report {
     name: String,
     text: String,
     pub files: Vec<PathBuf>,
-    tables: Vec<book::Table>,
+    tables: Vec<Table>,
     detail: Option<String>,
 }
 
 /// What a finished subcommand returns: its report text, and its tables for the book.
 pub struct Output {
     pub text: String,
-    pub tables: Vec<book::Table>,
+    pub tables: Vec<Table>,
 }
 
 impl Report {
@@ -61,7 +61,7 @@ impl Report {
     /// Appends markdown holding one table per name, in order, and keeps each for the book
     /// under its name. Fewer or more tables than names is a bug of the part.
     pub fn push_tables(&mut self, markdown: &str, names: &[&'static str]) -> Result<()> {
-        let found = book::tables_in(markdown);
+        let found = tables_in(markdown);
         if found.len() != names.len() {
             bail!(
                 "{}: {} table(s) where the book expects {} ({}): a bug in chaosd-bench",
@@ -73,7 +73,7 @@ impl Report {
         }
         self.push(markdown);
         for (name, markdown) in names.iter().zip(found) {
-            self.tables.push(book::Table {
+            self.tables.push(Table {
                 name,
                 date: now_utc(),
                 detail: self.detail.clone(),

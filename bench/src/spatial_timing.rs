@@ -138,14 +138,14 @@ pub fn section(quick: bool) -> Result<String> {
     let mut k = SpatialKinematics::<7>::default();
     let mut pose = s.params;
     pose.task.kind = control::task::spatial::TaskKind::Pose;
-    let law3 = crate::compute::per_call(batches, batch, |i| {
+    let law3 = crate::timing::per_call(batches, batch, |i| {
         let x = &xs[i % xs.len()];
         black_box(law::evaluate::<7, 3>(
             &s.params, &s.arm, 1.0, &x.q, &x.qd, &x.qd, &mut k,
         ));
     });
     row("spatial law, position task (m = 3), filter on", &law3);
-    let law6 = crate::compute::per_call(batches, batch, |i| {
+    let law6 = crate::timing::per_call(batches, batch, |i| {
         let x = &xs[i % xs.len()];
         black_box(law::evaluate::<7, 6>(
             &pose, &s.arm, 1.0, &x.q, &x.qd, &x.qd, &mut k,
@@ -180,7 +180,7 @@ pub fn section(quick: bool) -> Result<String> {
             (kin, j, jpinv, *x, qdd)
         })
         .collect();
-    let filter = crate::compute::per_call(batches, batch, |i| {
+    let filter = crate::timing::per_call(batches, batch, |i| {
         let (kin, j, jpinv, x, qdd) = &cases[i % cases.len()];
         black_box(safety::filter(
             &s.params.safety,
@@ -204,7 +204,7 @@ pub fn section(quick: bool) -> Result<String> {
         &filter,
     );
     let mut sim = SpatialSimulation::<7, 3>::new(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
-    let rk4 = crate::compute::per_call(batches, batch / 4, |_| {
+    let rk4 = crate::timing::per_call(batches, batch / 4, |_| {
         black_box(sim.step());
     });
     row("RK4 step (4 law evaluations)", &rk4);

@@ -50,7 +50,7 @@ enum Command {
     /// Period-T orbits by Newton's method, Floquet multipliers, and their stability against μ.
     Orbits(analysis::orbits::OrbitsCmd),
     /// Which starts end on a stabilised orbit and which stay chaotic, over starts × μ.
-    Basins(analysis::basins::BasinsCmd),
+    Basins(analysis::basins_map::BasinsCmd),
     /// The daemon's chaos monitor against the offline λ_max over starts × μ (a confusion table
     /// and its detection delay), and mu = "auto" against fixed μ and after edits (JSON, CSV, plot).
     Monitor(analysis::monitor::MonitorCmd),

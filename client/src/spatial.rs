@@ -369,7 +369,7 @@ pub fn lyapunov(
             b.growth().to_vec(),
         )
     });
-    let verdict = crate::analysis::lyapunov::verdict(&e);
+    let verdict = crate::analysis::verdict(&e);
     Ok((
         SpatialLyapunov {
             lambda_max: e.lambda_max,

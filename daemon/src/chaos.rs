@@ -9,10 +9,9 @@
 //! since returns from before the change belong to another system.
 
 use crate::controller::Applied;
-use crate::telemetry::TickRecord;
+use crate::telemetry::{ChaosSummary, TickRecord};
 use control::monitor::{ChaosMonitor, Edge, Evidence, MonitorSettings};
 use protocol::Mode;
-use serde::Serialize;
 
 /// Verdict changes kept for the summary (the first ones: how the run settled).
 pub const HISTORY: usize = 32;
@@ -25,16 +24,6 @@ pub struct ChaosWatch {
     /// μ on the newest tick (it moves with `feedback.mu = "auto"`).
     mu: f64,
     /// Verdict changes so far, and the first [`HISTORY`] of them.
-    pub edges: u64,
-    pub history: Vec<Edge>,
-}
-
-/// The summary's `chaos` part.
-#[derive(Clone, Debug, Serialize)]
-pub struct ChaosSummary {
-    pub evidence: Evidence,
-    /// μ at the end (where `feedback.mu = "auto"` took it).
-    pub mu: f64,
     pub edges: u64,
     pub history: Vec<Edge>,
 }

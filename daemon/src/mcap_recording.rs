@@ -65,7 +65,7 @@ impl Output {
         path: &Path,
         metadata: &BTreeMap<String, String>,
     ) -> Result<mcap::Writer<BufWriter<File>>, String> {
-        let file = crate::recording::open(path)
+        let file = crate::recording_files::open(path)
             .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
         let mut w = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Lz4))
@@ -188,7 +188,7 @@ impl McapRecording {
         rate_hz: f64,
         limit: Limit,
     ) -> Result<Self, String> {
-        let path = crate::recording::resolve(out_dir, name, "mcap")?;
+        let path = crate::recording_files::resolve(out_dir, name, "mcap")?;
         let offset_ns = clock_offset();
         let metadata = BTreeMap::from([
             ("config".to_string(), system.to_toml()),

@@ -9,7 +9,7 @@
 //!
 //! The reporter thread writes the file ([`ReplayLog`]); the loop only hands it the `Copy` tick
 //! record it already sends. The file is owner-only and stays in the output directory
-//! ([`crate::recording::resolve`]).
+//! ([`crate::recording_files::resolve`]).
 //!
 //! A recording is MCAP (`--record run.mcap`, or any name not ending in `.replay`): the text
 //! below, one message a tick on its `/chaosd/replay` channel, beside every channel of
@@ -110,7 +110,7 @@ impl ReplayLog {
         start_in_fault: bool,
         handshake: bool,
     ) -> Result<Self, String> {
-        let path = crate::recording::resolve(out_dir, name, "mcap")?;
+        let path = crate::recording_files::resolve(out_dir, name, "mcap")?;
         let s = settings;
         let config = system_toml(cfg);
         let header = format!(
@@ -130,7 +130,7 @@ impl ReplayLog {
         let written = header.len() as u64;
         let file = if path.extension().is_some_and(|e| e == "replay") {
             let cannot = |e: std::io::Error| format!("cannot write {}: {e}", path.display());
-            let mut file = crate::recording::open(&path).map_err(cannot)?;
+            let mut file = crate::recording_files::open(&path).map_err(cannot)?;
             file.write_all(header.as_bytes()).map_err(cannot)?;
             Out::Text(file)
         } else {

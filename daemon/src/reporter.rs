@@ -416,7 +416,7 @@ impl Reporter {
     ) -> anyhow::Result<DaemonSummary> {
         let start = Instant::now();
         let wall_start = SystemTime::now();
-        let node = match crate::service::node("chaosd-control") {
+        let node = match crate::ipc::node("chaosd-control") {
             Ok(n) => n,
             Err(e) => {
                 rt::signal::request_stop();
@@ -470,7 +470,7 @@ impl Reporter {
                 break;
             }
             if let Ok(r) = self.rt_rx.try_recv() {
-                crate::service::log_started(&self.daemon, &r);
+                log_started(&self.daemon, &r);
                 self.realtime = r;
             }
             while let Ok(Some(active)) = server.receive() {
@@ -623,4 +623,18 @@ impl Reporter {
         files.push(out_dir.join(SUMMARY_FILE));
         Ok(DaemonSummary { files, ..summary })
     }
+}
+
+/// The start-up lines, logged by the reporter thread once the loop reports its real-time set-up.
+pub fn log_started(d: &crate::config::DaemonConfig, rt_report: &rt::setup::RtReport) {
+    for w in &rt_report.warnings {
+        tracing::warn!("{w}");
+    }
+    tracing::info!(
+        "namespace {:?}, {} Hz, {} wait, {}",
+        d.namespace,
+        d.rate_hz,
+        d.wait.name(),
+        rt_report.one_line()
+    );
 }

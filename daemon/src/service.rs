@@ -14,6 +14,7 @@
 
 use crate::config::DaemonSetup;
 use crate::controller::{Controller, ControllerSettings};
+use crate::ipc::node;
 use crate::reporter::Reporter;
 use crate::telemetry::{DaemonSummary, LoopRequest, TickRecord};
 use anyhow::{anyhow, Context, Result};
@@ -24,11 +25,6 @@ use rt::clock::Schedule;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
-
-/// Creates this process's iceoryx2 node (see `protocol::node`).
-pub fn node(name: &str) -> Result<iceoryx2::node::Node<ipc::Service>> {
-    Ok(protocol::node(name)?)
-}
 
 /// Runs the daemon until SIGINT/SIGTERM, or for `duration` seconds. `on_line` gets status lines.
 pub fn run(
@@ -264,20 +260,6 @@ fn control_loop<const N: usize>(
     }
     leave_braking(&mut ctl, &publisher);
     Ok((rt_report, ctl.counters))
-}
-
-/// The start-up lines, logged by the reporter thread once the loop reports its real-time set-up.
-pub fn log_started(d: &crate::config::DaemonConfig, rt_report: &rt::setup::RtReport) {
-    for w in &rt_report.warnings {
-        tracing::warn!("{w}");
-    }
-    tracing::info!(
-        "namespace {:?}, {} Hz, {} wait, {}",
-        d.namespace,
-        d.rate_hz,
-        d.wait.name(),
-        rt_report.one_line()
-    );
 }
 
 /// Leaves the plant braking, not coasting on the last acceleration.

@@ -142,7 +142,17 @@ pub struct DaemonSummary {
     pub time_in_safety_zone_s: f64,
     pub files: Vec<PathBuf>,
     /// The chaos monitor at exit, and its first verdict changes.
-    pub chaos: crate::chaos::ChaosSummary,
+    pub chaos: ChaosSummary,
+}
+
+/// The summary's `chaos` part.
+#[derive(Clone, Debug, Serialize)]
+pub struct ChaosSummary {
+    pub evidence: control::monitor::Evidence,
+    /// μ at the end (where `feedback.mu = "auto"` took it).
+    pub mu: f64,
+    pub edges: u64,
+    pub history: Vec<control::monitor::Edge>,
 }
 
 /// Name of the JSON summary in the output directory.

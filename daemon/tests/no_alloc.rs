@@ -197,7 +197,7 @@ fn the_clock_loops_tick_allocates_only_iceoryx2s_loan() {
     use daemon::telemetry::{LoopRequest, TickRecord};
     use daemon::tick::ClockTick;
     iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
-    let node = daemon::service::node("no-alloc-test").unwrap();
+    let node = daemon::ipc::node("no-alloc-test").unwrap();
     let ns = format!(
         "t-noalloc-{}-{}",
         std::process::id(),
@@ -288,7 +288,7 @@ fn state_triggered_path(fast_lane: bool) {
     use daemon::telemetry::{LoopRequest, TickRecord};
     use daemon::trigger::{Ports, StateLoop, Timing};
     iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
-    let node = daemon::service::node("no-alloc-state").unwrap();
+    let node = daemon::ipc::node("no-alloc-state").unwrap();
     let ns = format!(
         "t-noalloc-st{}-{}-{}",
         u8::from(fast_lane),

@@ -57,7 +57,7 @@ use crate::book::names;
 use anyhow::{anyhow, bail, Context, Result};
 use iceoryx2::prelude::ipc;
 use protocol::{flags, Op, ServiceNames, StateSample};
-use schedule::{Fault, FaultKind, Rng};
+use schedule::{Fault, FaultKind, Options, Rng};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use system::{Control, Role, StateWatch, Status, ANSWER_LIMIT};
@@ -66,26 +66,6 @@ use verdict::{Episode, Verdict};
 /// The longest a recovery may take before the fault counts as not recovered. Generous: the
 /// machine is shared, and start-up after a restart includes loading and mapping.
 pub const RECOVERY_LIMIT: Duration = Duration::from_secs(20);
-
-#[derive(Clone, Debug)]
-pub struct Options {
-    pub seconds: f64,
-    pub seed: u64,
-    /// Fault kinds to inject (all when empty).
-    pub faults: Vec<FaultKind>,
-}
-
-impl Options {
-    pub fn validate(&self) -> Result<()> {
-        if !(self.seconds.is_finite() && (5.0..=86_400.0).contains(&self.seconds)) {
-            bail!(
-                "soak --seconds {}: must be between 5 and 86400",
-                self.seconds
-            );
-        }
-        Ok(())
-    }
-}
 
 /// Polls this often while waiting for something.
 const POLL: Duration = Duration::from_millis(20);

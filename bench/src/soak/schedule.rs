@@ -3,8 +3,10 @@
 //! The plan is computed before anything starts, so a seed names a run: the same seed and
 //! length give the same faults in the same order at the same planned times. Kinds are dealt
 //! from a shuffled deck, one of each kind per round, so every kind appears once the run is
-//! long enough for one round (about 40 s with all seven kinds), and no kind starves.
+//! long enough for one round (about 40 s with all seven kinds), and no kind starves. The soak's
+//! [`Options`] are the plan's inputs (length, seed, kinds), so they are defined here too.
 
+use anyhow::{bail, Result};
 use std::time::Duration;
 
 /// A small deterministic PRNG (SplitMix64): no dependency, good enough to pick times.
@@ -102,6 +104,26 @@ impl FaultKind {
             FaultKind::KillPlant => 1.5,
             _ => 1.0,
         })
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub seconds: f64,
+    pub seed: u64,
+    /// Fault kinds to inject (all when empty).
+    pub faults: Vec<FaultKind>,
+}
+
+impl Options {
+    pub fn validate(&self) -> Result<()> {
+        if !(self.seconds.is_finite() && (5.0..=86_400.0).contains(&self.seconds)) {
+            bail!(
+                "soak --seconds {}: must be between 5 and 86400",
+                self.seconds
+            );
+        }
+        Ok(())
     }
 }
 

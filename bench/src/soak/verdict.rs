@@ -1,7 +1,7 @@
 //! The soak's verdict: what was injected, detected and recovered, what the processes cost, and
 //! whether any data or resource was lost.
 
-use super::schedule::FaultKind;
+use super::schedule::{FaultKind, Options};
 use super::system::{Lifetime, Status};
 use super::windows::Checked;
 use crate::stats::fmt_ns;
@@ -133,7 +133,7 @@ fn mb(kb: u64) -> String {
 }
 
 impl Verdict {
-    pub fn new(opts: &super::Options, ns: &str) -> Self {
+    pub fn new(opts: &Options, ns: &str) -> Self {
         Self {
             seed: opts.seed,
             namespace: ns.to_string(),

@@ -2,10 +2,10 @@
 //! down the rows, μ across), each cell a run of the spatial loop.
 //!
 //! Only the runs differ: the classification, the naming of orbits, the CSV, the printed map
-//! and the figure are the planar command's own ([`super::basins::finish`]), so the two maps
+//! and the figure are the planar command's own ([`super::basins_map::finish`]), so the two maps
 //! read the same way.
 
-use super::basins::{finish, BasinsCmd, MapBase, RunEnd};
+use super::basins_map::{finish, BasinsCmd, MapBase, RunEnd};
 use super::parallel::{jobs, run_all};
 use anyhow::{bail, Result};
 use control::config::spatial::SpatialConfig;

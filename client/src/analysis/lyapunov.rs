@@ -1,10 +1,10 @@
 //! `chaosctl lyapunov`: λ_max of one closed-loop run by Benettin's method, with its standard error.
 
-use super::{analyse_config, check_config, fmt_list, ClassifyArgs, LyapunovArgs};
+use super::{analyse_config, check_config, fmt_list, verdict, ClassifyArgs, LyapunovArgs};
 use crate::setup::ModelArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use control::analysis::{Classification, Growth, LyapunovEstimate, RunAnalysis, RunSpec};
+use control::analysis::{Classification, Growth, RunAnalysis, RunSpec};
 use control::{Config, Summary};
 use serde::Serialize;
 use std::io::Write;
@@ -46,17 +46,6 @@ pub struct LyapunovReport {
     pub verdict: &'static str,
     pub section: Classification,
     pub run: Summary,
-}
-
-/// "chaotic" / "stable" / "marginal" from λ and its standard error (two standard errors).
-pub fn verdict(e: &LyapunovEstimate) -> &'static str {
-    if e.lambda_max - 2.0 * e.stderr > 0.0 {
-        "chaotic (λ_max > 0 by more than two standard errors)"
-    } else if e.lambda_max + 2.0 * e.stderr < 0.0 {
-        "stable (λ_max < 0 by more than two standard errors)"
-    } else {
-        "marginal (λ_max within two standard errors of 0)"
-    }
 }
 
 pub fn run(args: LyapunovCmd) -> Result<()> {

@@ -8,10 +8,12 @@
 
 pub mod arm_figure;
 pub mod basins;
+pub mod basins_map;
 pub mod basins_spatial;
 pub mod figures;
 pub mod lyapunov;
 pub mod monitor;
+pub mod monitor_cells;
 pub mod monitor_report;
 pub mod obstacles;
 pub mod orbits;
@@ -288,6 +290,17 @@ pub fn check_run_window(duration: f64, transient: f64) -> Result<()> {
         anyhow::bail!("--transient {transient}: must be in [0, --duration = {duration}) so that the section has points");
     }
     Ok(())
+}
+
+/// "chaotic" / "stable" / "marginal" from λ and its standard error (two standard errors).
+pub fn verdict(e: &control::analysis::LyapunovEstimate) -> &'static str {
+    if e.lambda_max - 2.0 * e.stderr > 0.0 {
+        "chaotic (λ_max > 0 by more than two standard errors)"
+    } else if e.lambda_max + 2.0 * e.stderr < 0.0 {
+        "stable (λ_max < 0 by more than two standard errors)"
+    } else {
+        "marginal (λ_max within two standard errors of 0)"
+    }
 }
 
 /// The decorations of every λ_max-against-μ plot: the paper's claimed window (when the scan

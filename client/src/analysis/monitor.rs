@@ -9,6 +9,7 @@
 //! verdict) with the monitor's detection delay, and auto-μ against the smallest fixed μ that
 //! stabilises the same start (time to periodic, final μ, control effort ∫|Pyragas term|²).
 
+use super::monitor_cells::{AutoCell, EditKind, FixedCell, Offline};
 use super::parallel::{jobs, run_all};
 use super::{analyse_config, ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
 use anyhow::Result;
@@ -18,7 +19,6 @@ use control::law::LawParams;
 use control::monitor::run::{watch, Edit, Watched};
 use control::monitor::{MonitorSettings, Verdict};
 use control::Config;
-use serde::Serialize;
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -49,65 +49,6 @@ pub struct MonitorCmd {
     /// Print the report as JSON instead of tables.
     #[arg(long)]
     pub json: bool,
-}
-
-/// What the offline analysis says of a run: λ_max beyond two standard errors either way.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Offline {
-    Chaotic,
-    Stable,
-    Marginal,
-    Failed,
-}
-
-/// One fixed-μ run of one start.
-#[derive(Clone, Debug, Serialize)]
-pub struct FixedCell {
-    pub start: usize,
-    pub mu: f64,
-    pub lambda_max: Option<f64>,
-    pub stderr: Option<f64>,
-    pub offline: Offline,
-    pub verdict: Verdict,
-    /// Periods from the start until the monitor's first verdict (its detection delay).
-    pub first_verdict_periods: Option<f64>,
-    /// The first verdict it gave.
-    pub first_verdict: Verdict,
-    /// Periods from the start until the monitor's verdict settled on its final value (for an
-    /// arm captured by the orbit, this includes the chaotic transient before capture).
-    pub settled_periods: Option<f64>,
-    pub effort: f64,
-}
-
-/// Which edit a robustness run makes half-way.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum EditKind {
-    None,
-    /// The task circle's radius × 1.1.
-    Radius,
-    /// The task's period × 1.1, and τ with it (`set task.period … tau …`).
-    Period,
-    /// The first obstacle moved 5 cm along x (a config with obstacles), else none is made.
-    Obstacle,
-}
-
-/// One `mu = "auto"` run of one start.
-#[derive(Clone, Debug, Serialize)]
-pub struct AutoCell {
-    pub start: usize,
-    pub edit: EditKind,
-    pub edit_at: Option<f64>,
-    pub verdict: Verdict,
-    /// When the verdict last became periodic (s), if it ended so.
-    pub periodic_at: Option<f64>,
-    pub mu_final: f64,
-    /// μ just before the edit.
-    pub mu_at_edit: Option<f64>,
-    pub effort: f64,
-    #[serde(skip)]
-    pub trace: Vec<control::monitor::run::PeriodPoint>,
 }
 
 enum Job {

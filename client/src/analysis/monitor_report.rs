@@ -2,7 +2,7 @@
 //! the figure; as text, JSON and CSV.
 
 use super::fmt_list;
-use super::monitor::{AutoCell, EditKind, FixedCell, Offline};
+use super::monitor_cells::{AutoCell, EditKind, FixedCell, Offline};
 use crate::plot::{Chart, Figure, Panel, Series, Style, DARK, PALETTE};
 use anyhow::{Context, Result};
 use control::adapt::AutoMu;

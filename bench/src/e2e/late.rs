@@ -10,7 +10,7 @@
 //! steps). Side by side with the late cycles,
 //! they say whose the late cycles were.
 
-use crate::e2e::RateResult;
+use super::result::RateResult;
 use crate::stats::Table;
 use serde_json::Value;
 
@@ -84,7 +84,7 @@ fn num(v: &Value) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::e2e::Mode;
+    use crate::e2e::result::Mode;
     use serde_json::json;
     use std::path::PathBuf;
 
