@@ -243,7 +243,7 @@ fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<O
         "1.0×".into(),
     ]);
 
-    // The whole 300 s run of SCIENCE.md §6, best of a few repetitions.
+    // The whole 300 s run of docs/performance.md, best of a few repetitions.
     let reps = if quick { 2 } else { 5 };
     let mut best = f64::INFINITY;
     for _ in 0..reps {

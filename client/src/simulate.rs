@@ -64,7 +64,7 @@ pub fn run_config(
 ) -> Result<Report> {
     let n = cfg.n();
     with_dof!(n, N => {
-        let (params, blocked) = control::plan::law_params_planned(&cfg);
+        let (params, blocked) = control::plan::law_params_planned(cfg);
         let plan = match (&params.steer, &blocked) {
             (Some(_), _) => Some(format!(
                 "steering onto a planned clean cycle (pull at {} Hz)",

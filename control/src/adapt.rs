@@ -1,4 +1,4 @@
-//! Adaptive delayed feedback: `feedback.mu = "auto"` (SCIENCE.md §10).
+//! Adaptive delayed feedback: `feedback.mu = "auto"` (docs/monitor.md).
 //!
 //! A fixed μ that stabilises one start, task or payload fails for another (the basins show it),
 //! so the user should not have to pick it from a sweep. The speed-gradient law of Lehnert et al.

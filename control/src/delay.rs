@@ -1,5 +1,5 @@
 //! The delay line behind the Pyragas term: q̇ on a uniform time grid, read back by linear
-//! interpolation (SCIENCE.md §3).
+//! interpolation (docs/science.md, "Time, integration and determinism").
 //!
 //! Its capacity is fixed once from the largest delay the run may ask for, so pushing and reading
 //! never allocate. Times are given in grid steps (`t / dt`) so that a delay that is a whole number of

@@ -1,4 +1,4 @@
-//! The law's joint-space core, written once for every task dimension m (SCIENCE.md §2, §8).
+//! The law's joint-space core, written once for every task dimension m (docs/science.md, "The control law" and "Spatial arms").
 //!
 //! The planar law (m = 2), the position task (m = 3) and the pose task (m = 6) differ only in
 //! how they build the task acceleration and the m×n Jacobian; what turns those into q̈ (the

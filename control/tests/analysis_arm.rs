@@ -1,5 +1,5 @@
 //! The analysis tools on the real closed loop: known structure that any correct implementation
-//! must reproduce (SCIENCE.md §5).
+//! must reproduce (docs/science.md, "Measuring chaos").
 
 use control::analysis::{
     analyse, close_returns, find_orbit, orbit_stability, ClassifyConfig, LyapunovSpec, Motion,

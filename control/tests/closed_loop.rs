@@ -62,7 +62,7 @@ fn tracking_error_converges_on_the_circle() {
 
 #[test]
 fn feedback_makes_small_mu_periodic_and_mu_zero_is_not() {
-    // SCIENCE.md §5: μ = 0 wanders; small μ (0.1) settles on a period-1 orbit.
+    // docs/science.md, "Measuring chaos": μ = 0 wanders; small μ (0.1) settles on a period-1 orbit.
     let run = |mu: f64| {
         let mut cfg = Config::preset("paper").unwrap();
         cfg.feedback.mu = mu;
@@ -139,7 +139,7 @@ fn singular_and_unreachable_targets_give_finite_commands_and_report_loss() {
 
 #[test]
 fn floating_base_drifts_and_then_loses_tracking_without_nan() {
-    // SCIENCE.md §4: the attitude drifts slowly (≈ −0.005 rad/s) and within minutes the circle
+    // docs/science.md, "The free-floating base": the attitude drifts slowly (≈ −0.005 rad/s) and within minutes the circle
     // leaves the workspace; the controller passes the singularity without NaN and reports it.
     let cfg = Config::preset("paper-floating").unwrap();
     let mut sim = sim3(&cfg);

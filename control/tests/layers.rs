@@ -77,8 +77,7 @@ fn code(text: &str) -> String {
     let mut out = String::new();
     let mut skip_depth: Option<i32> = None;
     let mut depth = 0i32;
-    let mut lines = text.lines().peekable();
-    while let Some(line) = lines.next() {
+    for line in text.lines() {
         let trimmed = line.trim_start();
         if skip_depth.is_none() && trimmed.starts_with("#[cfg(test)]") {
             skip_depth = Some(depth);
@@ -152,7 +151,7 @@ fn root_names(files: &[PathBuf]) -> BTreeMap<String, String> {
         };
         let module = ident_at(rest).to_string();
         let items = rest.split_once('{').map_or(rest, |(_, r)| r);
-        for item in items.split(|c: char| c == ',' || c == ':' || c == '}' || c == ';') {
+        for item in items.split([',', ':', '}', ';']) {
             let item = item.trim();
             if !item.is_empty() && item != module {
                 map.insert(item.to_string(), module.clone());

@@ -4,7 +4,7 @@
 //! pinocchio's ABA and RK4 at a step of 10 µs (the true trajectory to ~1e-10 rad) from three
 //! starts: a free swing under gravity, a constant torque, and a spin without gravity. The plant
 //! steps as the plant process does (1 kHz, 4 RK4 substeps) and must stay within 1e-6 rad of it
-//! over 1 s (SCIENCE.md §8 "Dynamics"; issue 24's target). No friction, no noise, no limits.
+//! over 1 s (docs/science.md, "Spatial arms" "Dynamics"; issue 24's target). No friction, no noise, no limits.
 
 use control::model::Chain;
 use control::rigid_body::{Drive, RigidBody};

@@ -39,7 +39,7 @@ struct Outcome {
 }
 
 fn simulate(c: &SpatialConfig) -> Outcome {
-    let (set, blocked) = control::plan::setup_planned::<7>(&c, &chain()).unwrap();
+    let (set, blocked) = control::plan::setup_planned::<7>(c, &chain()).unwrap();
     assert!(blocked.is_none(), "{blocked:?}");
     let p = set.params;
     let mut sim = SpatialSimulation::<7, 3>::new(set.arm, p, set.dt, set.q0, set.qd0, p.tau);

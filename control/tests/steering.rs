@@ -25,7 +25,7 @@ fn run(obstacles: &[(f64, f64, f64)], plan: bool, duration: f64) -> (Summary, bo
 /// cycle.
 fn simulate(cfg: &Config) -> (Summary, bool, Option<control::steer::Blocked>) {
     cfg.validate().unwrap();
-    let (params, blocked) = control::plan::law_params_planned(&cfg);
+    let (params, blocked) = control::plan::law_params_planned(cfg);
     let (duration, transient) = (cfg.sim.duration, cfg.sim.transient);
     let x0 = cfg.initial_state::<3>();
     let mut sim = Simulation::new(

@@ -1,7 +1,7 @@
 //! `chaosctl obstacles`: does anything keep the links out of the obstacles? The paper's potential
 //! against the safety filter, over starts × μ.
 //!
-//! SCIENCE.md §5 asks chaosd to report clearance and time in contact "so users can see whether
+//! docs/science.md, "Measuring chaos" asks chaosd to report clearance and time in contact "so users can see whether
 //! avoidance works", and §7 adds a filter that is meant to guarantee it. This study runs every
 //! (start, μ) cell twice, filter off and on, and reports per run what a user would ask first: was
 //! a link ever inside an obstacle, for how long, how close did it come, did tracking survive, and

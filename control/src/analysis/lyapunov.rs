@@ -14,7 +14,7 @@
 //! For a delay differential equation the state is the whole history segment on [t − τ, t], so the
 //! perturbation and the renormalisation must act on the stored history too; otherwise the copy's
 //! history keeps an unrenormalised separation and the estimate is biased. [`history_distance2`] and
-//! [`rescale_history`] do that for a [`DelayLine`], with the norm of SCIENCE.md §5:
+//! [`rescale_history`] do that for a [`DelayLine`], with the norm of docs/science.md, "Measuring chaos":
 //! norm² = |δq|² + |δq̇|² + mean over the stored history of |δq̇_hist|².
 
 use crate::arm::VecN;

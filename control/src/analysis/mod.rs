@@ -1,4 +1,4 @@
-//! Chaos analysis of the closed loop (SCIENCE.md §5): Lyapunov exponents, stroboscopic Poincaré
+//! Chaos analysis of the closed loop (docs/science.md, "Measuring chaos"): Lyapunov exponents, stroboscopic Poincaré
 //! sections and their classification, period-T orbits with their Floquet multipliers and their
 //! stability under Pyragas feedback.
 //!

@@ -17,7 +17,7 @@
 //!
 //! "Away" needs a tolerance well above the Newton residual. The simulated Pyragas term is not
 //! exactly non-invasive: RK4's mid-stages read q̇(s − τ) by linear interpolation between stored
-//! samples (SCIENCE.md §3), an O(dt²·|d³q/dt³|) error that the feedback multiplies by μ. The
+//! samples (docs/science.md, "Time, integration and determinism"), an O(dt²·|d³q/dt³|) error that the feedback multiplies by μ. The
 //! controlled loop's orbit therefore sits a little off the μ = 0 orbit (about 4e-5 in the section
 //! norm at μ = 0.2 with dt = 1 ms), and the default tolerance (1e-2) is far above that and far below
 //! the size of the chaotic excursions.

@@ -2,7 +2,7 @@
 //!
 //! Both models fill the same [`Kinematics`] block so the control law never needs to know which
 //! one it drives. The fixed base is the hot default and is written in closed form (suffix sums over
-//! the links, one `sin_cos` per link). The floating base follows SCIENCE.md §4: the base attitude φ
+//! the links, one `sin_cos` per link). The floating base follows docs/science.md, "The free-floating base": the base attitude φ
 //! is not actuated but follows from zero angular momentum, which makes the generalized Jacobian J*
 //! a rational function of q; it is written once, generic over [`Real`], and differentiated with
 //! dual numbers.
@@ -62,7 +62,7 @@ fn perp(v: Vec2) -> Vec2 {
     Vec2::new(-v.y, v.x)
 }
 
-/// The fixed-base planar arm of SCIENCE.md §1, base at the origin.
+/// The fixed-base planar arm of docs/science.md, "The planar arm and its task", base at the origin.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FixedArm<const N: usize> {
     pub links: [f64; N],
@@ -143,7 +143,7 @@ impl<const N: usize> FixedArm<N> {
     }
 }
 
-/// The free-floating-base planar arm of SCIENCE.md §4.
+/// The free-floating-base planar arm of docs/science.md, "The free-floating base".
 ///
 /// The system's centre of mass stays at the origin and total momentum is zero, so the base
 /// position and attitude rate follow from (φ, q, q̇). The default base is heavy (200 kg,

@@ -11,7 +11,7 @@ use crate::basics::ConfigError;
 use crate::model::Chain;
 use serde::{Deserialize, Serialize};
 
-/// Franka's published acceleration limits (SCIENCE.md §9), used for the built-in Panda; URDF
+/// Franka's published acceleration limits (docs/science.md, "Commanding real arms"), used for the built-in Panda; URDF
 /// has no acceleration limits.
 pub const PANDA_QDD_MAX: [f64; 7] = [15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0];
 /// The acceleration limit of a joint whose robot publishes none (rad/s² or m/s²).
@@ -38,7 +38,7 @@ pub struct MakerTable {
     pub tau_rate: &'static [f64],
 }
 
-/// Franka's published joint specification for the Panda (SCIENCE.md §9).
+/// Franka's published joint specification for the Panda (docs/science.md, "Commanding real arms").
 pub const PANDA: MakerTable = MakerTable {
     robot: "panda",
     q_min: &[

@@ -1,4 +1,4 @@
-//! From the law's joint acceleration to what a real arm accepts (SCIENCE.md §9).
+//! From the law's joint acceleration to what a real arm accepts (docs/science.md, "Commanding real arms").
 //!
 //! The law speaks q̈; robots take positions, velocities or torques at a fixed rate and stop with a
 //! reflex error when the stream implies motion beyond their limits. This module turns one into

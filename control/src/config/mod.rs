@@ -5,7 +5,7 @@
 //! [`Config::validate`] checks every field and names the first bad one with its allowed range.
 //! Nothing downstream re-checks; the runtime types built from a validated config are trusted.
 //!
-//! Every default is SCIENCE.md's; the `paper*` presets reproduce the paper's set-ups.
+//! Every default is docs/science.md's; the `paper*` presets reproduce the paper's set-ups.
 
 pub mod command;
 pub mod spatial;

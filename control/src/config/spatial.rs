@@ -1,5 +1,5 @@
 //! The spatial set-up as a TOML file: which robot, which task, the law's gains, the feedback,
-//! the limits and the run (SCIENCE.md §8). `chaosctl config --preset panda` prints one.
+//! the limits and the run (docs/science.md, "Spatial arms"). `chaosctl config --preset panda` prints one.
 //!
 //! A file with a `[robot]` table is a spatial set-up; every planar config (no `[robot]`) keeps
 //! its own format and meaning. The robot is named here but read by the caller (a built-in name
@@ -47,7 +47,7 @@ pub struct SpatialConfig {
     pub safety: LimitsSection,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub obstacles: Vec<SphereEntry>,
-    /// The interface the daemon sends and its limiter (SCIENCE.md §9).
+    /// The interface the daemon sends and its limiter (docs/science.md, "Commanding real arms").
     #[serde(default)]
     pub command: crate::config::command::CommandSection,
     pub sim: SimSection,

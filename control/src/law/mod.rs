@@ -1,4 +1,4 @@
-//! The resolved-acceleration control law of SCIENCE.md §2 (eqs. 1, 11, 13).
+//! The resolved-acceleration control law of docs/science.md, "The control law" (eqs. 1, 11, 13).
 //!
 //! q̈ = J⁺(p̈_d + K_v(ṗ_d − Jq̇) + K_p(p_d − p) − J̇q̇) + α(I − J⁺J)η − μ[q̇(t) − q̇(t−τ)]
 //!

@@ -1,4 +1,4 @@
-//! The control law of SCIENCE.md §2 on a spatial arm, for a task of m = 3 or 6 rows.
+//! The control law of docs/science.md, "The control law" on a spatial arm, for a task of m = 3 or 6 rows.
 //!
 //! Only the task side is spatial: the tool point's error (and for the pose task the orientation
 //! error as a rotation vector) with its feed-forward. Everything after the task acceleration is

@@ -2,7 +2,7 @@
 //!
 //! The offline tools measure Lyapunov exponents with a model ([`crate::analysis`]); a running
 //! daemon has only what its arm does. So the monitor works on the tick stream alone, once per
-//! period τ (SCIENCE.md §10):
+//! period τ (docs/monitor.md):
 //! - the **period residual** |q̇(t) − q̇(t − τ)|, full and null-space, averaged over each period,
 //!   and its trend (the per-period factor over the last few periods: below 1 it decays, and its
 //!   rate is the leading Floquet multiplier);

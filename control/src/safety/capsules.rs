@@ -1,4 +1,4 @@
-//! The safety filter on a spatial arm (SCIENCE.md §7 with §8's capsules): every link capsule
+//! The safety filter on a spatial arm (docs/science.md, "Keeping clear of obstacles" with §8's capsules): every link capsule
 //! clear of every sphere, every joint inside its position, rate and acceleration limits.
 //!
 //! Only the rows are spatial. The joint box and the solver (null space first, whatever its

@@ -1,5 +1,5 @@
 //! The safety filter: the smallest change to the commanded q̈ that keeps every link clear of every
-//! obstacle and every joint inside its position, rate and acceleration limits (SCIENCE.md §7).
+//! obstacle and every joint inside its position, rate and acceleration limits (docs/science.md, "Keeping clear of obstacles").
 //!
 //! The paper's obstacle potential only *biases* the null-space motion; against the undamped,
 //! chaotic self-motion it does not keep the links out (80 s of contact in 400 s at μ = 0). A

@@ -1,4 +1,4 @@
-//! Barrier conditions as linear rows a·q̈ ≥ b (SCIENCE.md §7).
+//! Barrier conditions as linear rows a·q̈ ≥ b (docs/science.md, "Keeping clear of obstacles").
 //!
 //! A barrier h(q, q̇) ≥ 0 is kept by asking its derivatives to fall no faster than an exponential:
 //! ḧ + k₁ḣ + k₀h ≥ 0 for positions (obstacle distance, joint angle) and ḣ + k h ≥ 0 for rates.

@@ -1,4 +1,4 @@
-//! Secondary tasks for the null space: the obstacle-avoidance potential of SCIENCE.md §2.
+//! Secondary tasks for the null space: the obstacle-avoidance potential of docs/science.md, "The control law".
 //!
 //! The potential is a sum of one-sided quadratic penalties, so its gradient is written out by
 //! the chain rule over the joint positions and their Jacobians, which both arm models provide.

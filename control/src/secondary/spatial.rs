@@ -1,4 +1,4 @@
-//! Secondary tasks for a spatial arm's null space (SCIENCE.md §2, §8): manipulability ascent,
+//! Secondary tasks for a spatial arm's null space (docs/science.md, "The control law" and "Spatial arms"): manipulability ascent,
 //! joint-limit centring and the obstacle potential of spheres against link capsules.
 //!
 //! Each returns its value and gradient. The manipulability gradient is analytic: for revolute

@@ -1,5 +1,5 @@
 //! The deterministic in-process simulation: plant model and control law coupled by the
-//! conventions of SCIENCE.md §3.
+//! conventions of docs/science.md, "Time, integration and determinism".
 //!
 //! The plant here is the kinematic one of the paper: the commanded q̈ is the joint acceleration,
 //! and for the floating base φ follows φ̇ = −H_b⁻¹H_bm q̇. The control law is evaluated at every RK4
@@ -200,7 +200,7 @@ pub struct RunStats<const N: usize> {
     next_strobe: u64,
 }
 
-/// The human summary of a run (SCIENCE.md units: m, rad, s).
+/// The human summary of a run (docs/science.md's units: m, rad, s).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Summary {
     pub duration: f64,

@@ -1,5 +1,5 @@
 //! The deterministic closed loop on a spatial arm: the kinematic plant (q̈ is commanded) under the
-//! spatial law, with the conventions of SCIENCE.md §3 (RK4, the law at every stage, q̇(s − τ)
+//! spatial law, with the conventions of docs/science.md, "Time, integration and determinism" (RK4, the law at every stage, q̇(s − τ)
 //! from the delay line, time = step · dt).
 //!
 //! It shares the planar simulation's integrator, state and delay line; the analysis drives it
@@ -94,7 +94,7 @@ impl<const N: usize, const M: usize> SpatialSimulation<N, M> {
     }
 }
 
-/// What a spatial run did, in SCIENCE.md units (m, rad, s).
+/// What a spatial run did, in docs/science.md's units (m, rad, s).
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct SpatialSummary {
     pub duration: f64,

@@ -1,4 +1,4 @@
-//! The end-effector task: a circle traced at constant speed (SCIENCE.md §1).
+//! The end-effector task: a circle traced at constant speed (docs/science.md, "The planar arm and its task").
 
 pub mod spatial;
 

@@ -1,5 +1,5 @@
 //! Spatial tasks: where the tool point should be, and (pose task) how the tool should be turned
-//! (SCIENCE.md §8).
+//! (docs/science.md, "Spatial arms").
 //!
 //! A path lies in a plane given by its normal, so the same description fits an arm of any
 //! orientation; the in-plane basis is fixed by a rule (below) rather than by the user, so that a

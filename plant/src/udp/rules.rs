@@ -1,4 +1,4 @@
-//! The rules a real arm's controller applies to every command it receives (SCIENCE.md §9): the
+//! The rules a real arm's controller applies to every command it receives (docs/science.md, "Commanding real arms"): the
 //! stream must stay continuous and inside the joint limits, or the arm stops with a reflex
 //! error naming the joint and the rule.
 //!
