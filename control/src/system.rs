@@ -7,13 +7,14 @@
 //! a file twice. The robot description itself is read by the caller (`rt::robot`): this crate
 //! does no I/O, so [`System::parse`] takes the chain resolver as an argument.
 
+use crate::arm::VecN;
 use crate::basics::ConfigError;
 use crate::config::spatial::is_spatial;
 use crate::config::spatial::SpatialConfig;
 use crate::config::Config;
 use crate::model::Chain;
+use crate::sim::ArmState;
 use crate::tick_law::{ParamBlock, TickLaw};
-use crate::{ArmState, VecN};
 
 /// The spatial half: the file and the chain its `[robot]` names.
 #[derive(Clone, Debug, PartialEq)]
@@ -98,14 +99,14 @@ impl System {
             System::Planar(c) => c.validate(),
             System::Spatial(s) => {
                 let n = s.chain.dof();
-                if !(crate::MIN_JOINTS..=crate::MAX_JOINTS).contains(&n) {
+                if !(crate::basics::MIN_JOINTS..=crate::basics::MAX_JOINTS).contains(&n) {
                     return Err(ConfigError::Invalid {
                         field: "robot.description".into(),
                         value: format!("{:?}", s.config.robot.description),
                         expected: format!(
                             "a chain of {} to {} joints (this one has {n})",
-                            crate::MIN_JOINTS,
-                            crate::MAX_JOINTS
+                            crate::basics::MIN_JOINTS,
+                            crate::basics::MAX_JOINTS
                         ),
                     });
                 }

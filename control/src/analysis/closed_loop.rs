@@ -152,7 +152,7 @@ impl<const N: usize> Trajectory for ArmFlow<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Config;
+    use crate::config::Config;
 
     #[test]
     fn rescale_and_distance_agree_including_history() {

@@ -6,12 +6,13 @@
 //! does, and restart the monitor's window, as the daemon does.
 
 use super::{ChaosMonitor, Edge, Evidence, MonitorSettings, Verdict};
+use crate::config::Config;
 use crate::law::LawParams;
 use crate::resolve::ControlOutput;
 use crate::resolve::Projection;
 use crate::sim::spatial::SpatialSimulation;
 use crate::sim::{ArmState, Simulation};
-use crate::{with_dof, Config};
+use crate::with_dof;
 use serde::Serialize;
 
 /// A change to the law at a time, as a live `chaosctl set` would make it.

@@ -5,7 +5,7 @@ use super::spatial::plan_system_with;
 use super::{plan_config, PlanSettings, Planned};
 use crate::steer::SpatialSteer;
 use crate::steer::{Cycle, Steer, Steering};
-use crate::System;
+use crate::system::System;
 
 /// Whether the set-up steers onto its planned cycle now (`safety.plan`: the filter on, an arm
 /// with a planner and, for `auto`, an obstacle), and the pull's frequency (Hz).

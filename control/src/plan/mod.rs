@@ -102,7 +102,7 @@ pub struct Planned {
 /// the arm off its path each time round, which is a trap, so it is `Blocked` with the row that
 /// brakes it.
 pub fn plan_config(
-    cfg: &crate::Config,
+    cfg: &crate::config::Config,
     t0: f64,
     q_now: Option<[f64; 3]>,
 ) -> Result<Planned, String> {
@@ -111,7 +111,7 @@ pub fn plan_config(
 
 /// [`plan_config`] with settings of one's own for the first try (`chaosctl plan --margin`).
 pub fn plan_config_with(
-    cfg: &crate::Config,
+    cfg: &crate::config::Config,
     t0: f64,
     q_now: Option<[f64; 3]>,
     settings: &PlanSettings,
@@ -207,8 +207,8 @@ impl Unusable {
 /// Where the config's arm is at task time `at` (s), simulated from its start without steering:
 /// the posture a planner asked at that moment starts from. Returns the step's time and the
 /// posture.
-pub fn posture_at(cfg: &crate::Config, at: f64) -> (f64, [f64; 3]) {
-    let mut sim = crate::Simulation::new(
+pub fn posture_at(cfg: &crate::config::Config, at: f64) -> (f64, [f64; 3]) {
+    let mut sim = crate::sim::Simulation::new(
         cfg.model::<3>(),
         cfg.law_params(),
         cfg.sim.dt,
@@ -226,7 +226,7 @@ pub fn posture_at(cfg: &crate::Config, at: f64) -> (f64, [f64; 3]) {
 /// nothing to do on it.
 fn refined(
     problem: &planar::PlanarProblem,
-    cfg: &crate::Config,
+    cfg: &crate::config::Config,
     o: PlanOutcome,
 ) -> Result<Cycle, Unusable> {
     match o {
@@ -281,7 +281,7 @@ impl planar::PlanarProblem {
     /// and joint limits, starting at task time `t0` near posture `q_now`. Only the fixed-base
     /// 3-link arm has its self-motion on a circle the planner grids; other arms are refused.
     pub fn from_config(
-        cfg: &crate::Config,
+        cfg: &crate::config::Config,
         t0: f64,
         q_now: Option<[f64; 3]>,
     ) -> Result<Self, String> {

@@ -170,7 +170,7 @@ impl<'a> Refiner<'a> {
             let (q, qd, qdd) = (VecN::from(r.q), VecN::from(r.qd), VecN::from(r.qdd));
             let mut kin = Kinematics::<3>::default();
             self.model.kinematics(0.0, &q, &qd, &mut kin);
-            let mut pts: Points<3> = [PointMotion::default(); crate::MAX_JOINTS + 1];
+            let mut pts: Points<3> = [PointMotion::default(); crate::basics::MAX_JOINTS + 1];
             rows::point_motions(&self.model, &kin, 0.0, &q, &qd, &mut pts);
             let block = &mut out[j * self.per_sample..(j + 1) * self.per_sample];
             block.fill(0.0);

@@ -238,7 +238,7 @@ impl TrapDetector {
     /// paused by design).
     ///
     /// ```
-    /// use control::law::flags;
+    /// use control::basics::flags;
     /// use control::plan::trap::{TrapDetector, TrapKind};
     /// use control::System;
     /// let s = System::Planar(control::Config::default()).safety();
@@ -417,7 +417,7 @@ mod tests {
     }
 
     fn summary(task_period: f64) -> SafetySummary {
-        let mut s = crate::System::Planar(crate::Config::default()).safety();
+        let mut s = crate::system::System::Planar(crate::config::Config::default()).safety();
         s.task_period = task_period;
         s
     }

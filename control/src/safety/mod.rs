@@ -143,7 +143,7 @@ pub struct Filtered<const N: usize> {
 /// let (q, qd) = (VecN::<3>::new(0.0, 1.5, 1.5), VecN::<3>::zeros());
 /// let mut kin = Kinematics::default();
 /// model.kinematics(0.0, &q, &qd, &mut kin);
-/// let (jpinv, _, _) = control::law::damped_pinv(&kin.j, 0.05, 0.05);
+/// let (jpinv, _, _) = control::resolve::damped_pinv(&kin.j, 0.05, 0.05);
 /// let wild = VecN::<3>::new(1e4, -1e4, 0.0);
 /// let out = filter(&p, &model, &cfg.law_params().obstacles, &kin, 0.0, &q, &qd, &jpinv, &wild);
 /// assert!(out.qdd.amax() <= 100.0);

@@ -59,7 +59,7 @@ impl WhenBlocked {
 /// always, `false` never (the daemon then steers only after a trap).
 ///
 /// ```
-/// use control::plan::PlanMode;
+/// use control::safety::policy::PlanMode;
 /// assert!(PlanMode::Auto.steers(true) && !PlanMode::Auto.steers(false));
 /// assert_eq!(PlanMode::parse("safety.plan", Some("auto")), Ok(PlanMode::Auto));
 /// assert!(PlanMode::parse("safety.plan", Some("maybe")).is_err());

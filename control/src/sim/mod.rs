@@ -431,7 +431,7 @@ impl<const N: usize> RunStats<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Config;
+    use crate::config::Config;
 
     fn output(clearance: f64, joint_margin: f64, flags: u32) -> ControlOutput<3> {
         ControlOutput {

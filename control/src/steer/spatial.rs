@@ -26,7 +26,7 @@ impl SpatialSteer {
     /// damped.
     ///
     /// ```
-    /// # use control::plan::{Cycle, spatial::SpatialSteer};
+    /// # use control::steer::{Cycle, SpatialSteer};
     /// let c = Cycle {
     ///     t0: 0.0, period: 2.0,
     ///     q: (0..8).map(|k| vec![0.1 * k as f64; 7]).collect(),

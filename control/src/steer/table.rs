@@ -146,7 +146,7 @@ impl<const N: usize> CycleTable<N> {
     /// posture of each step this way: one fit a nudge was 40 % of its time.
     ///
     /// ```
-    /// use control::plan::CycleTable;
+    /// use control::steer::CycleTable;
     /// let rows: Vec<[f64; 3]> = (0..16).map(|k| [0.1 * k as f64, (0.4 * k as f64).sin(), 0.0]).collect();
     /// let t = CycleTable::from_rows(0.0, 1.0, &rows).unwrap();
     /// let mut moved = rows.clone();
