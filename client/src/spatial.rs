@@ -100,6 +100,7 @@ macro_rules! with_setup {
         })
     }};
 }
+pub(crate) use with_setup;
 
 /// What `simulate --json` prints for a spatial robot.
 #[derive(Serialize)]

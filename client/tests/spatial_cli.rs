@@ -197,6 +197,45 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
 }
 
 #[test]
+fn figures_on_the_panda_draws_every_figure_and_the_feedback_shows() {
+    let dir = tmp("figures");
+    let out = ok(&chaosctl(&[
+        "figures",
+        "--preset",
+        "panda",
+        "--t-on",
+        "20",
+        "--duration",
+        "80",
+        "--output-dir",
+        dir.to_str().unwrap(),
+    ]));
+    for what in ["time", "phase", "poincare", "residual"] {
+        for ext in ["png", "svg"] {
+            let f = dir.join(format!("mu1_{what}.{ext}"));
+            assert!(
+                std::fs::metadata(&f).is_ok_and(|m| m.len() > 1000),
+                "{f:?}\n{out}"
+            );
+        }
+    }
+    // Seven joints in the start, and the residual falls once the feedback is on.
+    assert_eq!(
+        out.lines().next().unwrap().matches(", ").count(),
+        8,
+        "{out}"
+    );
+    let line = out.lines().find(|l| l.contains("period residual")).unwrap();
+    let nums: Vec<f64> = line
+        .split_whitespace()
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    assert_eq!(nums.len(), 2, "{line}");
+    assert!(nums[1] < nums[0] / 10.0, "{line}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn orbits_finds_the_cycle_the_feedback_settles_on_and_it_is_neutral_without_it() {
     let o = chaosctl(&[
         "orbits",

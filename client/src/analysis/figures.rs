@@ -4,6 +4,8 @@
 //! when the motion became periodic, and, with obstacles, the clearance over time.
 //!
 //! Run it once with `--mu 0` (before control) and once with the feedback on (after control).
+//! Every arm gets the same pictures: the planar arm's run and a URDF robot's (`--preset panda`,
+//! or a file with a `[robot]` table) each fill one [`Trace`], and one drawing code reads it.
 
 use super::{check_config, fmt_list, fmt_num, ClassifyArgs};
 use crate::plot::{Chart, Figure, Panel, Rule, Series, Style, GREY, PALETTE};
@@ -11,7 +13,10 @@ use crate::setup::{set_duration, ModelArgs};
 use anyhow::{bail, Result};
 use clap::Args;
 use control::analysis::{classify, Classification, ClassifyConfig, Section};
-use control::{with_dof, Config, RunStats, Simulation, Summary};
+use control::basics::flags;
+use control::config::spatial::{SpatialConfig, SpatialSetup};
+use control::sim::spatial::SpatialSimulation;
+use control::{with_dof, with_task_rows, Config, RunStats, Simulation};
 use plotters::style::RGBColor;
 use std::path::PathBuf;
 
@@ -49,12 +54,65 @@ pub struct Trace {
     pub residual: Vec<f64>,
     pub clearance: Vec<f64>,
     pub section: Section,
-    pub summary: Summary,
+    pub numbers: Numbers,
     /// Time between kept samples (s).
     pub stride_dt: f64,
 }
 
+/// What the figures print of a run, whichever arm ran it.
+#[derive(Clone, Debug, Default)]
+pub struct Numbers {
+    pub period_residual_before: Option<f64>,
+    pub period_residual_final: Option<f64>,
+    pub rms_tracking_error: f64,
+    pub max_tracking_error: f64,
+    /// Smallest clearance (m) to an obstacle's surface; None without obstacles.
+    pub min_clearance: Option<f64>,
+    /// Time (s) some link was inside an obstacle's safety zone (radius + margin).
+    pub time_in_safety_zone: f64,
+}
+
+/// What the titles say of a run: its gain, switch-on, start, period and obstacle margin.
+pub struct Labels {
+    pub mu: f64,
+    /// The feedback is on at some point of the run.
+    pub on: bool,
+    pub t_on: f64,
+    pub q0: Vec<f64>,
+    pub period: f64,
+    pub duration: f64,
+    /// The smallest obstacle margin (m); +∞ without obstacles.
+    pub margin: f64,
+}
+
 impl Trace {
+    /// An empty trace of `n` joints with room for `cap` samples, one every `stride_dt` s.
+    fn with_capacity(n: usize, cap: usize, stride_dt: f64) -> Self {
+        let rows = || (0..n).map(|_| Vec::with_capacity(cap)).collect();
+        Trace {
+            n,
+            t: Vec::with_capacity(cap),
+            q: rows(),
+            qd: rows(),
+            residual: Vec::with_capacity(cap),
+            clearance: Vec::with_capacity(cap),
+            section: Section::new(2 * n, n),
+            numbers: Numbers::default(),
+            stride_dt,
+        }
+    }
+
+    /// Keeps the sample at `t`: the state before the step and what the law said at it.
+    fn keep(&mut self, t: f64, q: &[f64], qd: &[f64], residual: f64, clearance: f64) {
+        self.t.push(t);
+        for i in 0..self.n {
+            self.q[i].push(q[i]);
+            self.qd[i].push(qd[i]);
+        }
+        self.residual.push(residual);
+        self.clearance.push(clearance);
+    }
+
     /// Time with an obstacle clearance below zero (a link inside an obstacle), from the samples.
     pub fn contact_time(&self) -> f64 {
         self.clearance.iter().filter(|c| **c < 0.0).count() as f64 * self.stride_dt
@@ -84,17 +142,7 @@ pub fn trace(cfg: &Config, stride: u64, transient: f64) -> Result<Trace> {
         let mut sim = Simulation::new(cfg.model::<N>(), params, dt, x0, cfg.feedback.max_tau);
         let mut stats = RunStats::new(&params, dt, cfg.sim.duration, transient, &x0);
         let cap = (steps / stride + 2) as usize;
-        let mut tr = Trace {
-            n,
-            t: Vec::with_capacity(cap),
-            q: vec![Vec::with_capacity(cap); n],
-            qd: vec![Vec::with_capacity(cap); n],
-            residual: Vec::with_capacity(cap),
-            clearance: Vec::with_capacity(cap),
-            section: Section::new(2 * N, N),
-            summary: stats.summary(),
-            stride_dt: stride as f64 * dt,
-        };
+        let mut tr = Trace::with_capacity(n, cap, stride as f64 * dt);
         for k in 0..=steps {
             let x = *sim.state();
             if !x.is_finite() {
@@ -111,16 +159,67 @@ pub fn trace(cfg: &Config, stride: u64, transient: f64) -> Result<Trace> {
             let out = sim.step();
             stats.record(k, &x, &out);
             if k % stride == 0 {
-                tr.t.push(t);
-                for i in 0..N {
-                    tr.q[i].push(x.q[i]);
-                    tr.qd[i].push(x.qd[i]);
-                }
-                tr.residual.push(out.period_residual);
-                tr.clearance.push(out.clearance);
+                tr.keep(t, x.q.as_slice(), x.qd.as_slice(), out.period_residual, out.clearance);
             }
         }
-        tr.summary = stats.summary();
+        let s = stats.summary();
+        tr.numbers = Numbers {
+            period_residual_before: s.period_residual_before,
+            period_residual_final: s.period_residual_final,
+            rms_tracking_error: s.rms_tracking_error,
+            max_tracking_error: s.max_tracking_error,
+            min_clearance: s.min_clearance,
+            time_in_safety_zone: s.time_in_safety_zone,
+        };
+        Ok(tr)
+    })
+}
+
+/// [`trace`] for a URDF robot: its law on the kinematic plant, steered onto a planned cycle when
+/// `safety.plan` asks for it, as `chaosctl simulate` runs it.
+pub fn spatial_trace(cfg: &SpatialConfig, stride: u64, transient: f64) -> Result<Trace> {
+    crate::spatial::with_setup!(cfg, |set, _blocked, N, M| {
+        let dt = set.dt;
+        let per = control::analysis::period_steps(set.params.task.path.period, dt)?;
+        let mut sim = SpatialSimulation::<N, M>::new(
+            set.arm,
+            set.params,
+            dt,
+            set.q0,
+            set.qd0,
+            set.params.tau,
+        );
+        let cap = ((set.duration / dt) as u64 / stride + 2) as usize;
+        let mut tr = Trace::with_capacity(N, cap, stride as f64 * dt);
+        let mut in_zone = 0u64;
+        let s = control::sim::spatial::run(&mut sim, set.duration, transient, |t, x, out| {
+            let k = (t / dt).round() as u64;
+            if k.is_multiple_of(per) && t >= transient - 1e-9 {
+                let coords: Vec<f64> = x.q.iter().chain(x.qd.iter()).copied().collect();
+                tr.section.push(t, &coords);
+            }
+            in_zone += u64::from(out.flags & flags::IN_SAFETY_ZONE != 0);
+            if k.is_multiple_of(stride) {
+                tr.keep(
+                    t,
+                    x.q.as_slice(),
+                    x.qd.as_slice(),
+                    out.period_residual,
+                    out.clearance,
+                );
+            }
+        });
+        if !s.finite {
+            bail!("the simulation diverged (non-finite state)");
+        }
+        tr.numbers = Numbers {
+            period_residual_before: s.period_residual_before,
+            period_residual_final: s.period_residual_final,
+            rms_tracking_error: s.rms_tracking_error,
+            max_tracking_error: s.max_tracking_error,
+            min_clearance: s.min_clearance,
+            time_in_safety_zone: in_zone as f64 * dt,
+        };
         Ok(tr)
     })
 }
@@ -187,20 +286,10 @@ fn describe(c: &Classification) -> String {
 }
 
 pub fn run(args: FiguresCmd) -> Result<()> {
-    let mut cfg = args.model.load()?;
-    set_duration(
-        &mut cfg,
-        Some(args.duration),
-        Some(args.transient.min(args.duration)),
-    )?;
-    if !(args.transient >= 0.0 && args.transient < args.duration) {
-        bail!(
-            "--transient {}: must be in [0, --duration = {})",
-            args.transient,
-            args.duration
-        );
-    }
-    check_config(&cfg)?;
+    let (labels, tr) = match crate::spatial::load(&args.model.setup, args.model.mu)? {
+        Some(mut cfg) => spatial_run(&args, &mut cfg)?,
+        None => planar_run(&args)?,
+    };
     let phase = args
         .phase_window
         .unwrap_or([(args.duration - 20.0).max(args.transient), args.duration]);
@@ -213,37 +302,121 @@ pub fn run(args: FiguresCmd) -> Result<()> {
         );
     }
     let classify_cfg: ClassifyConfig = args.classify.config()?;
-    let stride = ((0.01 / cfg.sim.dt).round() as u64).max(1);
-    let tr = trace(&cfg, stride, args.transient)?;
-    let class = classify(&tr.section, &classify_cfg);
+    draw(
+        &args,
+        &labels,
+        &tr,
+        phase,
+        &classify(&tr.section, &classify_cfg),
+    )
+}
+
+/// `--transient` inside `[0, --duration)`.
+fn check_transient(args: &FiguresCmd) -> Result<()> {
+    if !(args.transient >= 0.0 && args.transient < args.duration) {
+        bail!(
+            "--transient {}: must be in [0, --duration = {})",
+            args.transient,
+            args.duration
+        );
+    }
+    Ok(())
+}
+
+/// Every 10 ms of the run, at least every step.
+fn stride(dt: f64) -> u64 {
+    ((0.01 / dt).round() as u64).max(1)
+}
+
+/// The planar arm's run and its labels.
+fn planar_run(args: &FiguresCmd) -> Result<(Labels, Trace)> {
+    let mut cfg = args.model.load()?;
+    set_duration(
+        &mut cfg,
+        Some(args.duration),
+        Some(args.transient.min(args.duration)),
+    )?;
+    check_transient(args)?;
+    check_config(&cfg)?;
+    let tr = trace(&cfg, stride(cfg.sim.dt), args.transient)?;
+    let labels = Labels {
+        mu: cfg.feedback.mu,
+        on: cfg.feedback.enabled && cfg.feedback.mu != 0.0,
+        t_on: cfg.feedback.t_on,
+        q0: cfg.q0(),
+        period: cfg.task.period,
+        duration: cfg.sim.duration,
+        margin: cfg
+            .control
+            .obstacles
+            .iter()
+            .map(|o| o.margin)
+            .fold(f64::INFINITY, f64::min),
+    };
+    Ok((labels, tr))
+}
+
+/// A URDF robot's run and its labels.
+fn spatial_run(args: &FiguresCmd, cfg: &mut SpatialConfig) -> Result<(Labels, Trace)> {
+    cfg.sim.duration = args.duration;
+    cfg.sim.transient = args.transient.min(args.duration);
+    check_transient(args)?;
+    let tr = spatial_trace(cfg, stride(cfg.sim.dt), args.transient)?;
+    let labels = Labels {
+        mu: cfg.feedback.mu,
+        on: cfg.feedback.enabled && cfg.feedback.mu != 0.0,
+        t_on: cfg.feedback.t_on,
+        q0: tr
+            .q
+            .iter()
+            .map(|q| q.first().copied().unwrap_or(0.0))
+            .collect(),
+        period: cfg.task.period,
+        duration: cfg.sim.duration,
+        margin: cfg
+            .obstacles
+            .iter()
+            .map(|o| o.margin)
+            .fold(f64::INFINITY, f64::min),
+    };
+    Ok((labels, tr))
+}
+
+/// The four figures of one run, and the summary printed after them.
+fn draw(
+    args: &FiguresCmd,
+    cfg: &Labels,
+    tr: &Trace,
+    phase: [f64; 2],
+    class: &Classification,
+) -> Result<()> {
     let stem = args
         .name
         .clone()
-        .unwrap_or_else(|| format!("mu{}", fmt_num(cfg.feedback.mu)));
+        .unwrap_or_else(|| format!("mu{}", fmt_num(cfg.mu)));
     let prefix = |what: &str| args.output_dir.join(format!("{stem}_{what}"));
-    let mu = cfg.feedback.mu;
-    let on = cfg.feedback.enabled && mu != 0.0;
+    let (mu, on) = (cfg.mu, cfg.on);
     let when = if on {
-        format!("μ = {mu}, feedback on at t = {} s", cfg.feedback.t_on)
+        format!("μ = {mu}, feedback on at t = {} s", cfg.t_on)
     } else {
         "μ = 0 (no feedback)".into()
     };
-    let start = format!("q0 = ({})", fmt_list(&cfg.q0()));
+    let start = format!("q0 = ({})", fmt_list(&cfg.q0));
     let (fig_t, fig_p, fig_s) = if on { ("7", "8", "9") } else { ("2", "3", "4") };
     let mut written: Vec<PathBuf> = Vec::new();
 
     // Time courses: the whole run and its last three periods.
-    let last = (args.duration - 3.0 * cfg.task.period).max(0.0);
+    let last = (args.duration - 3.0 * cfg.period).max(0.0);
     let mut panels = Vec::new();
     for i in 0..tr.n {
         let pts: Vec<(f64, f64)> = tr.t.iter().zip(&tr.q[i]).map(|(t, q)| (*t, *q)).collect();
         let tail: Vec<(f64, f64)> = pts.iter().filter(|p| p.0 >= last).copied().collect();
         let rules = if on {
             vec![Rule {
-                value: cfg.feedback.t_on,
+                value: cfg.t_on,
                 vertical: true,
                 color: PALETTE[1],
-                label: Some(format!("feedback on (t = {} s)", cfg.feedback.t_on)),
+                label: Some(format!("feedback on (t = {} s)", cfg.t_on)),
             }]
         } else {
             vec![]
@@ -318,7 +491,7 @@ pub fn run(args: FiguresCmd) -> Result<()> {
                 } else {
                     "μ = 0".into()
                 },
-                describe(&class)
+                describe(class)
             )),
             panels: section_panels(&tr.section, tr.n, phase[0]),
             cols: tr.n,
@@ -332,7 +505,7 @@ pub fn run(args: FiguresCmd) -> Result<()> {
     let resid: Vec<(f64, f64)> =
         tr.t.iter()
             .zip(&tr.residual)
-            .filter(|(t, _)| **t >= cfg.task.period)
+            .filter(|(t, _)| **t >= cfg.period)
             .map(|(t, r)| (*t, r.max(floor).log10()))
             .collect();
     let mut panels = vec![Panel::Chart(Chart {
@@ -342,7 +515,7 @@ pub fn run(args: FiguresCmd) -> Result<()> {
         series: vec![Series::new(None, PALETTE[0], Style::Line(1), resid)],
         rules: if on {
             vec![Rule {
-                value: cfg.feedback.t_on,
+                value: cfg.t_on,
                 vertical: true,
                 color: PALETTE[1],
                 label: Some("feedback on".into()),
@@ -353,14 +526,9 @@ pub fn run(args: FiguresCmd) -> Result<()> {
         legend: on,
         ..Default::default()
     })];
-    if tr.summary.min_clearance.is_some() {
+    if tr.numbers.min_clearance.is_some() {
         let contact = tr.contact_time();
-        let margin = cfg
-            .control
-            .obstacles
-            .iter()
-            .map(|o| o.margin)
-            .fold(f64::INFINITY, f64::min);
+        let margin = cfg.margin;
         let clear: Vec<(f64, f64)> =
             tr.t.iter()
                 .zip(&tr.clearance)
@@ -369,8 +537,8 @@ pub fn run(args: FiguresCmd) -> Result<()> {
         panels.push(Panel::Chart(Chart {
             title: format!(
                 "obstacle clearance: min {:+.3} m; {:.1} s of {} s inside a safety zone, {contact:.1} s in contact",
-                tr.summary.min_clearance.unwrap_or(f64::NAN),
-                tr.summary.time_in_safety_zone,
+                tr.numbers.min_clearance.unwrap_or(f64::NAN),
+                tr.numbers.time_in_safety_zone,
                 args.duration
             ),
             x_label: "t (s)".into(),
@@ -395,27 +563,30 @@ pub fn run(args: FiguresCmd) -> Result<()> {
         }));
     }
     let rows = panels.len();
+    let title = format!("Does the motion become periodic? {when}, {start}");
+    // Wide enough for the title: a 7-joint start is a long line.
+    let width = 1000.max(9 * title.chars().count() as u32);
     written.extend(
         Figure {
-            title: Some(format!("Does the motion become periodic? {when}, {start}")),
+            title: Some(title),
             panels,
             cols: 1,
-            panel_size: (1000, if rows > 1 { 280 } else { 340 }),
+            panel_size: (width, if rows > 1 { 280 } else { 340 }),
         }
         .save(&prefix("residual"))?,
     );
 
-    print_summary(&cfg, &tr, &class, &written);
+    print_summary(cfg, tr, class, &written);
     Ok(())
 }
 
-fn print_summary(cfg: &Config, tr: &Trace, class: &Classification, files: &[PathBuf]) {
-    let s = &tr.summary;
+fn print_summary(cfg: &Labels, tr: &Trace, class: &Classification, files: &[PathBuf]) {
+    let s = &tr.numbers;
     println!(
         "chaosd figures: μ = {}, q0 = ({}), {} s",
-        cfg.feedback.mu,
-        fmt_list(&cfg.q0()),
-        cfg.sim.duration
+        cfg.mu,
+        fmt_list(&cfg.q0),
+        cfg.duration
     );
     println!(
         "  Poincaré section  {} ({} points)",
