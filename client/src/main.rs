@@ -62,8 +62,9 @@ enum Command {
     /// The arm itself at several instants of one period, filter off and on side by side, with
     /// the circle, the obstacles and their clearance rings (PNG + SVG).
     ArmFigure(analysis::arm_figure::ArmFigureCmd),
-    /// Whether a clean periodic posture cycle exists for a set-up (the planar 3-link arm): its
-    /// smallest clearance and the planning time, or why there is none (--json, --csv).
+    /// Whether a clean periodic posture cycle exists for a set-up (the planar arm: a grid search;
+    /// a URDF robot: cycles relaxed from several starts): its smallest clearance and the planning
+    /// time, or why there is none (--json, --csv).
     Plan(plan::PlanCmd),
     /// Put the shard files of one sharded sweep, basins or obstacles run back together: checks
     /// that every grid point is there exactly once (naming any missing one) and writes exactly

@@ -226,9 +226,11 @@ fn figures_on_the_panda_draws_every_figure_and_the_feedback_shows() {
         "{out}"
     );
     let line = out.lines().find(|l| l.contains("period residual")).unwrap();
-    let nums: Vec<f64> = line
-        .split_whitespace()
-        .filter_map(|w| w.parse().ok())
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let nums: Vec<f64> = words
+        .windows(2)
+        .filter(|w| w[1].starts_with("rad/s"))
+        .filter_map(|w| w[0].parse().ok())
         .collect();
     assert_eq!(nums.len(), 2, "{line}");
     assert!(nums[1] < nums[0] / 10.0, "{line}");
