@@ -295,7 +295,7 @@ impl Deadlock {
                 if self.planner_error.is_none() {
                     tracing::warn!("the cycle planner cannot plan for this set-up: {e}");
                 }
-                self.planner_error = Some(e);
+                self.planner_error = Some(e.to_string());
                 return;
             }
         };

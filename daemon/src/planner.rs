@@ -39,7 +39,7 @@ pub struct Job {
 
 impl Job {
     /// The plan for this job, by the arm's own planner.
-    fn plan(&self) -> Result<Planned, String> {
+    fn plan(&self) -> Result<Planned, control::plan::PlanError> {
         plan_arm(
             &self.system,
             self.t0,
@@ -54,7 +54,7 @@ impl Job {
 pub struct Done {
     pub generation: u64,
     pub why: Why,
-    pub result: Result<Planned, String>,
+    pub result: Result<Planned, control::plan::PlanError>,
     /// How long the planner took (the planner thread's clock: `control` reads none).
     pub took: std::time::Duration,
 }

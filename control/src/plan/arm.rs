@@ -31,7 +31,7 @@ pub fn plan_arm(
     t0: f64,
     q_now: Option<&[f64]>,
     following: Option<&Steering>,
-) -> Result<Planned, String> {
+) -> Result<Planned, super::PlanError> {
     match system {
         System::Planar(c) => {
             let q3 = q_now.filter(|q| q.len() >= 3).map(|q| [q[0], q[1], q[2]]);
@@ -48,7 +48,7 @@ pub fn plan_arm(
 }
 
 /// The steering onto planned cycle `c` for the arm `system` runs, at its `safety.plan_hz`.
-pub fn steering_of(system: &System, c: &Cycle) -> Result<Steering, String> {
+pub fn steering_of(system: &System, c: &Cycle) -> Result<Steering, crate::steer::SteerError> {
     let hz = plan_asked(system).1;
     match system {
         System::Planar(_) => Steer::of(c, hz).map(Steering::Planar),

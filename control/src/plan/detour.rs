@@ -280,7 +280,7 @@ fn plan_with(
     let earliest = t_start + duration + BLEND;
     let periods = ((earliest - phase_t) / cycle.period).ceil();
     let t_arrive = phase_t + periods * cycle.period;
-    let table = DetourTable::new(t_start, duration, t_arrive, &pts)?;
+    let table = DetourTable::new(t_start, duration, t_arrive, &pts).map_err(|e| e.to_string())?;
     check(p, &table, cycle, margin)?;
     Ok(table)
 }

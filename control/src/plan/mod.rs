@@ -19,7 +19,26 @@ mod setup;
 pub mod spatial;
 pub mod trap;
 
-use crate::steer::{Blocked, Cycle, CycleTable};
+use crate::steer::{Blocked, Cycle, CycleTable, SteerError};
+
+/// A set-up the planner cannot plan for, or a cycle the loop cannot hold.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlanError {
+    #[error(
+        "the planner handles the fixed-base 3-link arm (this one has {links} links, {base:?} base)"
+    )]
+    PlanarArm {
+        links: usize,
+        base: crate::config::ModelKind,
+    },
+    #[error("the planner handles 2 to 7 joints (this arm has {0})")]
+    Joints(usize),
+    #[error(transparent)]
+    Config(#[from] crate::basics::ConfigError),
+    #[error(transparent)]
+    Steer(#[from] SteerError),
+}
 pub use arm::{has_planner, plan_arm, plan_asked, steering_of};
 pub use setup::{law_params_planned, setup_planned};
 
@@ -105,7 +124,7 @@ pub fn plan_config(
     cfg: &crate::config::Config,
     t0: f64,
     q_now: Option<[f64; 3]>,
-) -> Result<Planned, String> {
+) -> Result<Planned, PlanError> {
     plan_config_with(cfg, t0, q_now, &PlanSettings::default())
 }
 
@@ -115,7 +134,7 @@ pub fn plan_config_with(
     t0: f64,
     q_now: Option<[f64; 3]>,
     settings: &PlanSettings,
-) -> Result<Planned, String> {
+) -> Result<Planned, PlanError> {
     let problem = planar::PlanarProblem::from_config(cfg, t0, q_now)?;
     let mut strict = refined(&problem, cfg, planar::plan(&problem, settings));
     // A cycle the refinement could not clear of the filter: a finer grid gives another.
@@ -163,7 +182,9 @@ fn with_detour(problem: &planar::PlanarProblem, mut c: Cycle) -> PlanOutcome {
     let (Some(why), Some(q_now)) = (c.unreachable.clone(), problem.q_now) else {
         return PlanOutcome::Found(c);
     };
-    let way = CycleTable::new(&c).and_then(|t| detour::plan(problem, &t, q_now, problem.t0));
+    let way = CycleTable::new(&c)
+        .map_err(|e| e.to_string())
+        .and_then(|t| detour::plan(problem, &t, q_now, problem.t0));
     match way {
         Ok(d) => {
             c.detour = Some(Box::new(d));
@@ -284,13 +305,12 @@ impl planar::PlanarProblem {
         cfg: &crate::config::Config,
         t0: f64,
         q_now: Option<[f64; 3]>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, PlanError> {
         if cfg.n() != 3 || cfg.arm.model != crate::config::ModelKind::Fixed {
-            return Err(format!(
-                "the planner handles the fixed-base 3-link arm (this one has {} links, {:?} base)",
-                cfg.n(),
-                cfg.arm.model
-            ));
+            return Err(PlanError::PlanarArm {
+                links: cfg.n(),
+                base: cfg.arm.model,
+            });
         }
         let p = cfg.law_params();
         Ok(Self {

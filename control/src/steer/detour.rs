@@ -2,6 +2,7 @@
 //! reach it tracking, as a fixed-size `Copy` table ([`crate::plan::detour`] searches for it).
 
 use super::table::{CycleTable, Sample};
+use super::SteerError;
 use crate::basics::wrap_angle;
 
 /// The most control points a detour may have.
@@ -33,7 +34,12 @@ fn smoothstep(x: f64) -> (f64, f64, f64) {
 
 impl DetourTable {
     /// The table of control points `c` (the first the arm's posture, the last the cycle's).
-    pub fn new(t_start: f64, duration: f64, t_arrive: f64, c: &[[f64; 3]]) -> Result<Self, String> {
+    pub fn new(
+        t_start: f64,
+        duration: f64,
+        t_arrive: f64,
+        c: &[[f64; 3]],
+    ) -> Result<Self, SteerError> {
         let ok = (2..=MAX_DETOUR).contains(&c.len())
             && duration > 0.0
             && t_arrive >= t_start + duration
@@ -42,9 +48,9 @@ impl DetourTable {
                 .chain([&t_start, &duration, &t_arrive])
                 .all(|v| v.is_finite());
         if !ok {
-            return Err(format!(
-                "a detour of 2 to {MAX_DETOUR} finite postures, ending after it starts"
-            ));
+            return Err(SteerError::Detour {
+                max_points: MAX_DETOUR,
+            });
         }
         let mut t = Self {
             t_start,

@@ -5,10 +5,12 @@
 //! loop holds it, so it sits below the law and the planner both and ties neither to the other.
 
 pub mod detour;
+mod error;
 pub mod spatial;
 pub mod table;
 
 pub use detour::DetourTable;
+pub use error::SteerError;
 pub use spatial::SpatialSteer;
 pub use table::{CycleTable, Sample, MAX_PHASES};
 
@@ -90,7 +92,7 @@ impl Steer {
     }
 
     /// The steering onto planned cycle `c`, with its detour if it has one.
-    pub fn of(c: &Cycle, hz: f64) -> Result<Self, String> {
+    pub fn of(c: &Cycle, hz: f64) -> Result<Self, SteerError> {
         Ok(Self {
             detour: c.detour.as_deref().copied(),
             ..Self::new(CycleTable::new(c)?, hz)

@@ -36,7 +36,7 @@ impl SpatialSteer {
     /// let s = SpatialSteer::of(&c, 1.0).unwrap();
     /// assert!((s.cycle.sample(0.5).q[6] - 0.2).abs() < 1e-12); // the second phase's posture
     /// ```
-    pub fn of(c: &Cycle, hz: f64) -> Result<Self, String> {
+    pub fn of(c: &Cycle, hz: f64) -> Result<Self, super::SteerError> {
         let w = std::f64::consts::TAU * hz;
         Ok(Self {
             cycle: CycleTable::new(c)?,

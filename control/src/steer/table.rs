@@ -9,6 +9,7 @@
 //! rate and acceleration in closed form. The spline is fitted off the loop, once; evaluating it
 //! reads four control points.
 
+use super::SteerError;
 use crate::basics::wrap_angle;
 
 /// The most phases a cycle handed to the loop may have.
@@ -64,15 +65,16 @@ pub struct Sample<const N: usize = 3> {
 impl<const N: usize> CycleTable<N> {
     /// The table of a cycle of at most [`MAX_PHASES`] phases and at most `N` joints (the
     /// joints past the cycle's stay zero).
-    pub fn new(c: &super::Cycle) -> Result<Self, String> {
+    pub fn new(c: &super::Cycle) -> Result<Self, SteerError> {
         let joints = c.q.first().map_or(0, Vec::len);
         let bad = c.q.iter().any(|q| q.len() != joints) || joints == 0 || joints > N;
         if c.q.is_empty() || c.q.len() > MAX_PHASES || bad {
-            return Err(format!(
-                "a cycle of 1 to {MAX_PHASES} phases of 1 to {N} joints (this one has {} \
-                 phases of {joints})",
-                c.q.len()
-            ));
+            return Err(SteerError::CycleShape {
+                max_phases: MAX_PHASES,
+                max_joints: N,
+                phases: c.q.len(),
+                joints,
+            });
         }
         let rows: Vec<[f64; N]> =
             c.q.iter()
@@ -82,12 +84,13 @@ impl<const N: usize> CycleTable<N> {
     }
 
     /// The table of `rows` postures (as [`Self::rows`] gives them back: a recording's copy).
-    pub fn from_rows(t0: f64, period: f64, rows: &[[f64; N]]) -> Result<Self, String> {
+    pub fn from_rows(t0: f64, period: f64, rows: &[[f64; N]]) -> Result<Self, SteerError> {
         let n = rows.len();
         if n == 0 || n > MAX_PHASES {
-            return Err(format!(
-                "a cycle of 1 to {MAX_PHASES} phases (this one has {n})"
-            ));
+            return Err(SteerError::Phases {
+                max_phases: MAX_PHASES,
+                phases: n,
+            });
         }
         let mut q = [[0.0; N]; MAX_PHASES];
         // Unwrapped along the cycle, so the spline never jumps by a turn between phases.

@@ -312,7 +312,7 @@ pub fn plan_system(
     sys: &crate::system::SpatialSystem,
     t0: f64,
     q_now: Option<&[f64]>,
-) -> Result<Planned, String> {
+) -> Result<Planned, super::PlanError> {
     plan_system_with(sys, t0, q_now, None, &PlanSettings::default())
 }
 
@@ -324,15 +324,13 @@ pub fn plan_system_with(
     q_now: Option<&[f64]>,
     following: Option<&CycleTable<MAX_JOINTS>>,
     settings: &PlanSettings,
-) -> Result<Planned, String> {
+) -> Result<Planned, super::PlanError> {
     let dof = sys.chain.dof();
     if !(2..=crate::basics::MAX_JOINTS).contains(&dof) {
-        return Err(format!(
-            "the planner handles 2 to 7 joints (this arm has {dof})"
-        ));
+        return Err(super::PlanError::Joints(dof));
     }
     Ok(crate::with_dof!(dof, N => {
-        let set = sys.config.setup::<N>(&sys.chain).map_err(|e| e.to_string())?;
+        let set = sys.config.setup::<N>(&sys.chain)?;
         let q = q_now.filter(|q| q.len() >= N).map(|q| VecN::<N>::from_fn(|i, _| q[i]));
         plan_setup(&set, t0, q, following, settings)
     }))
