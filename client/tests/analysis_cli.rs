@@ -70,6 +70,11 @@ fn windows_outside_the_run_are_refused() {
         &["--transient"],
     );
     refused(&["figures", "--duration=-5"], &["--duration"]);
+    refused(&["figures", "--duration=1e12"], &["--duration"]);
+    refused(
+        &["figures", "--preset", "panda", "--duration=1e12"],
+        &["--duration"],
+    );
     refused(
         &["basins", "--duration", "50", "--transient", "30"],
         &["section would have 21 points"],

@@ -286,6 +286,7 @@ fn describe(c: &Classification) -> String {
 }
 
 pub fn run(args: FiguresCmd) -> Result<()> {
+    check_transient(&args)?;
     let (labels, tr) = match crate::spatial::load(&args.model.setup, args.model.mu)? {
         Some(mut cfg) => spatial_run(&args, &mut cfg)?,
         None => planar_run(&args)?,
@@ -311,8 +312,18 @@ pub fn run(args: FiguresCmd) -> Result<()> {
     )
 }
 
-/// `--transient` inside `[0, --duration)`.
+/// The longest run the figures draw (s): every 10 ms kept, a 7-joint run of this length is
+/// about 140 MB of samples; a longer one would exhaust memory before it drew anything.
+const MAX_DURATION: f64 = 1e4;
+
+/// `--duration` in (0, [`MAX_DURATION`]] and `--transient` inside `[0, --duration)`.
 fn check_transient(args: &FiguresCmd) -> Result<()> {
+    if !(args.duration > 0.0 && args.duration <= MAX_DURATION) {
+        bail!(
+            "--duration {}: must be a number of seconds in (0, {MAX_DURATION}] (the figures keep a sample every 10 ms)",
+            args.duration
+        );
+    }
     if !(args.transient >= 0.0 && args.transient < args.duration) {
         bail!(
             "--transient {}: must be in [0, --duration = {})",
@@ -336,7 +347,6 @@ fn planar_run(args: &FiguresCmd) -> Result<(Labels, Trace)> {
         Some(args.duration),
         Some(args.transient.min(args.duration)),
     )?;
-    check_transient(args)?;
     check_config(&cfg)?;
     let tr = trace(&cfg, stride(cfg.sim.dt), args.transient)?;
     let labels = Labels {
@@ -360,7 +370,6 @@ fn planar_run(args: &FiguresCmd) -> Result<(Labels, Trace)> {
 fn spatial_run(args: &FiguresCmd, cfg: &mut SpatialConfig) -> Result<(Labels, Trace)> {
     cfg.sim.duration = args.duration;
     cfg.sim.transient = args.transient.min(args.duration);
-    check_transient(args)?;
     let tr = spatial_trace(cfg, stride(cfg.sim.dt), args.transient)?;
     let labels = Labels {
         mu: cfg.feedback.mu,
