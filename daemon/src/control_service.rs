@@ -38,8 +38,8 @@ impl Reporter {
         let q_now = self.last_state.map(|s| s.q[..self.system.n()].to_vec());
         self.deadlock.edited(&self.system, t, q_now);
         self.limits.set_limits(*self.system.param_block().safety());
-        if let (Some(log), System::Planar(c)) = (self.replay.as_mut(), &self.system) {
-            log.committed(c);
+        if let Some(log) = self.replay.as_mut() {
+            log.committed(&self.system);
         }
         self.save_live_state();
         let mut answer = self.law_settings();

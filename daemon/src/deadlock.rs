@@ -406,14 +406,13 @@ impl Deadlock {
     fn flush(&mut self, tx: &Sender<LoopRequest>, replay: Option<&mut ReplayLog>) {
         if let Some(s) = self.send_steer {
             if tx.try_send(LoopRequest::Steer(s)).is_ok() {
+                if let Some(log) = replay {
+                    log.steered(s.as_ref());
+                }
                 let planar = s.and_then(|s| match s {
                     Steering::Planar(p) => Some(p),
                     Steering::Spatial(_) => None,
                 });
-                // Replay recordings are of the planar arm only.
-                if let Some(log) = replay {
-                    log.steered(planar.as_ref());
-                }
                 self.steering = s.is_some();
                 self.following = s;
                 self.detour = planar

@@ -16,52 +16,64 @@
 //! [`crate::view`], so the run that replays bit for bit also opens in Foxglove. A name ending in
 //! `.replay` writes the text alone; [`replay`] reads both.
 //!
-//! # Format (text, version 2; every `f64` as the 16 hex digits of its bits)
+//! # Format (text, version 3; every `f64` as the 16 hex digits of its bits)
 //!
 //! ```text
-//! chaosd-replay 2
+//! chaosd-replay 3
 //! settings n=3 rate_hz=<f64> first_order_hold=1 hold_after=5 stale_ns=5000000 \
-//!          future_slack_ns=1000000 daemon_id=<u64> t_start=<f64> fault=0 handshake=1
+//!          future_slack_ns=1000000 daemon_id=<u64> t_start=<f64> fault=0 handshake=1 \
+//!          [arm=<u64 hex>]
 //! config <k>                  the running configuration as TOML, k lines follow
 //! P <tick> <k>                a parameter block taking effect before <tick>: its config, k lines
 //! R <tick>                    an operator's resume taking effect before <tick>
 //! H <tick> <plant_id> <0|1>   the handshake's verdict on a plant start, before <tick>
 //! S <tick> 0                  steering stops, before <tick>
 //! S <tick> 1 <t0> <period> <kp> <kd> <k> <q…>   steering onto a planned cycle of k postures
-//!                             (3 joints each), before <tick> (`crate::replay_steer`)
+//!                             (3 joints each on the planar arm, MAX_JOINTS on a robot's
+//!                             chain), before <tick> (`crate::replay_steer`)
 //! B <tick> <0|1>              blocked with the hold action begins (1) or ends (0), before <tick>
 //! T <tick> <now_ns> <state> <command>
 //! G <tick> <missing>          <missing> records never reached the reporter: the recording ends
 //! ```
-//! (the `settings` line is one line). `<state>` is `-` (nothing received) or
-//! `seq,stamp_ns,plant_id,n,flags,phi,q[0..7],qd[0..7]`; `<command>` is `-` (none sent) or
-//! `seq,state_seq,state_stamp_ns,stamp_ns,daemon_id,mode,n,qdd[0..7],qddd[0..7]`: every array
-//! whole, `MAX_JOINTS` entries. Integers are decimal. Ticks count from 0 at the daemon's start.
-//! Version 1 was the same with arrays of 6 entries (before the joint capacity became 7); it is
-//! refused by name.
+//! (the `settings` line is one line). `arm` is a robot's fingerprint (`System::identity`: its
+//! chain's every number), present when the config has a `[robot]`: a replay loads the robot the
+//! config names and refuses one whose numbers changed since. `<state>` is `-` (nothing
+//! received) or `seq,stamp_ns,plant_id,n,flags,phi,q[0..7],qd[0..7]`; `<command>` is `-` (none
+//! sent) or `seq,state_seq,state_stamp_ns,stamp_ns,daemon_id,mode,n,interface,qdd[0..7],
+//! qddd[0..7],q[0..7],qd[0..7],tau[0..7]` (one field list): every array whole, `MAX_JOINTS`
+//! entries, so that a position, velocity or torque command is compared whole. Integers are
+//! decimal. Ticks count from 0 at the daemon's start.
+//!
+//! Version 2 was the same without `arm` and with the command's `interface`, `q`, `qd` and
+//! `tau` left out (recordings of the planar arm in acceleration mode): it still replays, its
+//! commands compared on what it holds. Version 1 had arrays of 6 entries (before the joint
+//! capacity became 7); it is refused by name.
 
 use crate::controller::{Applied, Controller, ControllerSettings};
 use crate::telemetry::TickRecord;
 use anyhow::{anyhow, bail, Result};
-use control::Config;
+use control::System;
 use protocol::{CommandSample, StateSample, MAX_JOINTS};
 use std::collections::VecDeque;
 use std::fmt::Write as _;
 use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
 
-const MAGIC: &str = "chaosd-replay 2";
+const MAGIC: &str = "chaosd-replay 3";
+/// The header of format 2 (commands without their interface, references and torques).
+const MAGIC_V2: &str = "chaosd-replay 2";
 /// The header of format 1 (arrays of 6 entries), which this build cannot read.
 const MAGIC_V1: &str = "chaosd-replay 1";
 /// No line of a valid recording comes near this.
 const MAX_LINE: u64 = 16 * 1024;
 
 /// The running configuration as the recording stores it (without `[daemon]` and `[plant]`).
-pub fn system_toml(cfg: &Config) -> String {
-    let mut c = cfg.clone();
-    c.daemon = None;
-    c.plant = None;
-    c.to_toml_string()
+pub fn system_toml(system: &System) -> String {
+    let mut s = system.clone();
+    let (daemon, plant) = s.tables_mut();
+    *daemon = None;
+    *plant = None;
+    s.to_toml()
 }
 
 /// What the loop is sent with data a replay needs, in the order sent.
@@ -105,17 +117,20 @@ impl ReplayLog {
     pub fn create(
         out_dir: &Path,
         name: &str,
-        cfg: &Config,
+        system: &System,
         settings: &ControllerSettings,
         start_in_fault: bool,
         handshake: bool,
     ) -> Result<Self, String> {
         let path = crate::recording_files::resolve(out_dir, name, "mcap")?;
         let s = settings;
-        let config = system_toml(cfg);
+        let config = system_toml(system);
+        let arm = system
+            .identity()
+            .map_or(String::new(), |id| format!(" arm={:016x}", id.fingerprint));
         let header = format!(
-            "{MAGIC}\nsettings n={} rate_hz={:016x} first_order_hold={} hold_after={} stale_ns={} future_slack_ns={} daemon_id={} t_start={:016x} fault={} handshake={}\nconfig {}\n{config}",
-            cfg.n(),
+            "{MAGIC}\nsettings n={} rate_hz={:016x} first_order_hold={} hold_after={} stale_ns={} future_slack_ns={} daemon_id={} t_start={:016x} fault={} handshake={}{arm}\nconfig {}\n{config}",
+            system.n(),
             s.rate_hz.to_bits(),
             u8::from(s.first_order_hold),
             s.hold_after,
@@ -138,13 +153,12 @@ impl ReplayLog {
                 .strip_prefix(out_dir)
                 .unwrap_or(&path)
                 .to_string_lossy();
-            let system = control::System::Planar(cfg.clone());
             let no_limit = crate::rotate::Limit {
                 max_bytes: None,
                 keep: 0,
             };
             let rec = crate::mcap_recording::McapRecording::start(
-                out_dir, &name, &system, s.rate_hz, no_limit,
+                out_dir, &name, system, s.rate_hz, no_limit,
             )?;
             Out::Mcap {
                 rec: Box::new(rec),
@@ -171,12 +185,13 @@ impl ReplayLog {
     }
 
     /// A configuration the control service has just sent to the loop.
-    pub fn committed(&mut self, cfg: &Config) {
-        self.pending.push_back(Announced::Config(system_toml(cfg)));
+    pub fn committed(&mut self, system: &System) {
+        self.pending
+            .push_back(Announced::Config(system_toml(system)));
     }
 
     /// A steering handover the planner has just sent to the loop.
-    pub fn steered(&mut self, steer: Option<&control::steer::Steer>) {
+    pub fn steered(&mut self, steer: Option<&control::steer::Steering>) {
         self.pending
             .push_back(Announced::Steer(crate::replay_steer::line(steer)));
     }
@@ -238,7 +253,7 @@ impl ReplayLog {
                 "tick records were lost (the telemetry queue was full)",
             ));
         }
-        let mut out = String::with_capacity(700);
+        let mut out = String::with_capacity(1400);
         match r.applied {
             Some(Applied::Params) => {
                 let Some(Announced::Config(cfg)) = self.pending.pop_front() else {
@@ -330,10 +345,17 @@ fn state_fields(out: &mut String, s: &StateSample) {
 fn command_fields(out: &mut String, c: &CommandSample) {
     let _ = write!(
         out,
-        "{},{},{},{},{},{},{}",
-        c.seq, c.state_seq, c.state_stamp_ns, c.stamp_ns, c.daemon_id, c.mode, c.n
+        "{},{},{},{},{},{},{},{}",
+        c.seq, c.state_seq, c.state_stamp_ns, c.stamp_ns, c.daemon_id, c.mode, c.n, c.interface
     );
-    for v in c.qdd.iter().chain(&c.qddd) {
+    for v in c
+        .qdd
+        .iter()
+        .chain(&c.qddd)
+        .chain(&c.q)
+        .chain(&c.qd)
+        .chain(&c.tau)
+    {
         let _ = write!(out, ",{:016x}", v.to_bits());
     }
 }
@@ -407,7 +429,8 @@ fn parse_state(text: &str) -> Result<Option<StateSample>> {
     Ok(Some(s))
 }
 
-fn parse_command(text: &str) -> Result<Option<CommandSample>> {
+/// A command of format 3 (`whole`) or of format 2 (without interface, references and torques).
+fn parse_command(text: &str, whole: bool) -> Result<Option<CommandSample>> {
     if text == "-" {
         return Ok(None);
     }
@@ -420,11 +443,21 @@ fn parse_command(text: &str) -> Result<Option<CommandSample>> {
         daemon_id: f.int()?,
         mode: f.int()?,
         n: f.int()?,
-        // Recordings are of acceleration-mode runs: q̈ and its rate are the whole command.
         ..CommandSample::default()
     };
-    for v in c.qdd.iter_mut().chain(c.qddd.iter_mut()) {
-        *v = f.f64()?;
+    if whole {
+        c.interface = f.int()?;
+        let arrays =
+            c.q.iter_mut()
+                .chain(c.qd.iter_mut())
+                .chain(c.tau.iter_mut());
+        for v in c.qdd.iter_mut().chain(c.qddd.iter_mut()).chain(arrays) {
+            *v = f.f64()?;
+        }
+    } else {
+        for v in c.qdd.iter_mut().chain(c.qddd.iter_mut()) {
+            *v = f.f64()?;
+        }
     }
     f.end()?;
     Ok(Some(c))
@@ -485,10 +518,13 @@ fn float(v: f64) -> String {
     format!("{v:e} (bits 0x{:016x})", v.to_bits())
 }
 
+/// The first field where the recorded command and the replayed one differ (`whole`: a format-3
+/// recording, which holds every field; format 2 holds the acceleration and its rate).
 fn compare(
     tick: u64,
     rec: Option<&CommandSample>,
     rep: Option<&CommandSample>,
+    whole: bool,
 ) -> Option<Mismatch> {
     let m = |field: &str, recorded: String, replayed: String| {
         Some(Mismatch {
@@ -512,13 +548,21 @@ fn compare(
         ("daemon_id", a.daemon_id, b.daemon_id),
         ("mode", a.mode.into(), b.mode.into()),
         ("n", a.n.into(), b.n.into()),
+        ("interface", a.interface.into(), b.interface.into()),
     ] {
-        if x != y {
+        if x != y && (whole || name != "interface") {
             return m(&format!("command.{name}"), x.to_string(), y.to_string());
         }
     }
-    for (name, xs, ys) in [("qdd", &a.qdd, &b.qdd), ("qddd", &a.qddd, &b.qddd)] {
-        for (i, (x, y)) in xs.iter().zip(ys).enumerate() {
+    let arrays = [
+        ("qdd", &a.qdd, &b.qdd),
+        ("qddd", &a.qddd, &b.qddd),
+        ("q", &a.q, &b.q),
+        ("qd", &a.qd, &b.qd),
+        ("tau", &a.tau, &b.tau),
+    ];
+    for (name, xs, ys) in &arrays[..if whole { 5 } else { 2 }] {
+        for (i, (x, y)) in xs.iter().zip(ys.iter()).enumerate() {
             if x.to_bits() != y.to_bits() {
                 return m(&format!("command.{name}[{i}]"), float(*x), float(*y));
             }
@@ -568,8 +612,14 @@ impl<R: BufRead> Lines<R> {
     }
 }
 
-fn parse_config(text: &str) -> Result<Config> {
-    Config::parse(text).map_err(|e| anyhow!("a recorded config does not parse: {e}"))
+/// A recorded configuration; a robot's chain is `chain` when given (a parameter change keeps the
+/// robot the header loaded), else loaded from what the config names.
+fn parse_system(text: &str, chain: Option<&control::model::Chain>) -> Result<System> {
+    let parsed = match chain {
+        Some(chain) => System::parse(text, &|_, _, _| Ok(chain.clone())),
+        None => rt::robot::parse(text),
+    };
+    parsed.map_err(|e| anyhow!("a recorded config does not parse: {e}"))
 }
 
 /// One `key=value` of the settings line.
@@ -606,15 +656,18 @@ struct Header {
     settings: ControllerSettings,
     start_in_fault: bool,
     handshake: bool,
-    cfg: Config,
+    system: System,
+    /// Format 3: commands hold every field.
+    whole: bool,
 }
 
 fn header<R: BufRead>(lines: &mut Lines<R>) -> Result<Header> {
-    match lines.next()? {
-        Some(MAGIC) => {}
+    let whole = match lines.next()? {
+        Some(MAGIC) => true,
+        Some(MAGIC_V2) => false,
         Some(MAGIC_V1) => bail!("a replay recording of format 1 (6-joint arrays, chaosd before wire version 5); this build reads format 2: replay it with the build that recorded it"),
         _ => bail!("not a chaosd replay recording (the first line is not {MAGIC:?}; `chaosctl record` CSV files cannot be replayed)"),
-    }
+    };
     let line = lines
         .next()?
         .ok_or_else(|| anyhow!("the recording ends after its first line"))?
@@ -638,6 +691,21 @@ fn header<R: BufRead>(lines: &mut Lines<R>) -> Result<Header> {
     };
     let start_in_fault = int::<u8>(setting(&mut f, "fault")?, "fault")? != 0;
     let handshake = int::<u8>(setting(&mut f, "handshake")?, "handshake")? != 0;
+    let arm = match f.next() {
+        None => None,
+        Some(a) => {
+            let hex = a.strip_prefix("arm=").ok_or_else(|| {
+                anyhow!("the settings line has {:?} after handshake=", excerpt(a))
+            })?;
+            Some(
+                u64::from_str_radix(hex, 16)
+                    .map_err(|_| anyhow!("arm = {:?} is not a fingerprint in hex", excerpt(hex)))?,
+            )
+        }
+    };
+    if f.next().is_some() {
+        bail!("the settings line has fields after arm=");
+    }
     if !(settings.rate_hz.is_finite() && settings.rate_hz > 0.0 && settings.t_start.is_finite()) {
         bail!("the settings line has a rate or start time that no daemon runs with");
     }
@@ -645,20 +713,38 @@ fn header<R: BufRead>(lines: &mut Lines<R>) -> Result<Header> {
         Some(k) => int::<usize>(k, "config line count")?,
         None => bail!("line 3 is not the config line"),
     };
-    let cfg = parse_config(&lines.block(k)?)?;
-    if cfg.n() != n {
+    let system = parse_system(&lines.block(k)?, None)?;
+    if system.n() != n {
         bail!(
-            "the settings say n = {n} but the config has {} links",
-            cfg.n()
+            "the settings say n = {n} but the config has {} joints",
+            system.n()
         );
     }
+    check_arm(&system, arm)?;
     Ok(Header {
         n,
         settings,
         start_in_fault,
         handshake,
-        cfg,
+        system,
+        whole,
     })
+}
+
+/// A robot's chain as loaded now must be the one recorded (`arm`, its fingerprint then).
+fn check_arm(system: &System, arm: Option<u64>) -> Result<()> {
+    match (system.identity(), arm) {
+        (None, None) => Ok(()),
+        (Some(id), Some(fp)) if id.fingerprint == fp => Ok(()),
+        (Some(id), Some(fp)) => bail!(
+            "the robot {} loads with fingerprint {:016x}, but the recording was made with {fp:016x}: \
+             its description changed since (a replay needs the robot's numbers as they were)",
+            id.name,
+            id.fingerprint
+        ),
+        (Some(id), None) => bail!("the config names robot {} but the settings line has no arm=", id.name),
+        (None, Some(_)) => bail!("the settings line has arm= but the config is the planar arm's"),
+    }
 }
 
 /// Replays the recording at `path`: every recorded tick through a fresh [`Controller`], every
@@ -696,7 +782,20 @@ pub fn replay_from(r: impl BufRead) -> Result<ReplayReport> {
 }
 
 fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Result<ReplayReport> {
-    let mut ctl = Controller::<N>::new(h.cfg.tick_law::<N>(), h.cfg.feedback.max_tau, h.settings);
+    let generator = h
+        .system
+        .generator::<N>(1.0 / h.settings.rate_hz)
+        .map_err(|e| anyhow!("the recorded config's command interface: {e}"))?;
+    let mut ctl = Controller::<N>::new(
+        h.system.tick_law::<N>(),
+        h.system.feedback().max_tau,
+        h.settings,
+    )
+    .with_generator(generator);
+    let chain = match &h.system {
+        System::Spatial(s) => Some(s.chain.clone()),
+        System::Planar(_) => None,
+    };
     if h.start_in_fault {
         ctl.enter_fault(crate::guard::FaultReason::Restored);
     }
@@ -729,9 +828,9 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
                 };
                 let now: u64 = int(now, "now_ns").map_err(at)?;
                 let state = parse_state(state).map_err(at)?;
-                let recorded = parse_command(cmd).map_err(at)?;
+                let recorded = parse_command(cmd, h.whole).map_err(at)?;
                 let o = ctl.tick(state.as_ref(), now);
-                match compare(tick, recorded.as_ref(), o.command.as_ref()) {
+                match compare(tick, recorded.as_ref(), o.command.as_ref(), h.whole) {
                     None => rep.matched += 1,
                     Some(m) if rep.first_mismatch.is_none() => rep.first_mismatch = Some(m),
                     Some(_) => {}
@@ -741,11 +840,14 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
             }
             "P" => {
                 let k = int::<usize>(parts.next().unwrap_or(""), "config line count").map_err(at)?;
-                let cfg = parse_config(&lines.block(k)?).map_err(at)?;
-                if cfg.n() != N {
-                    bail!("line {no}: a parameter change for {} links", cfg.n());
+                let system = parse_system(&lines.block(k)?, chain.as_ref()).map_err(at)?;
+                if system.n() != N || system.planar().is_some() != chain.is_none() {
+                    bail!(
+                        "line {no}: a parameter change for another arm ({})",
+                        system.describe_arm()
+                    );
                 }
-                ctl.set_params(control::tick_law::ParamBlock::Planar(cfg.law_params()));
+                ctl.set_params(system.param_block());
                 rep.param_changes += 1;
             }
             "R" => {
@@ -754,8 +856,8 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
             }
             "S" => {
                 let rest: Vec<&str> = parts.collect();
-                let steer = crate::replay_steer::parse(&rest).map_err(at)?;
-                ctl.set_steer(steer.map(control::steer::Steering::Planar));
+                let steer = crate::replay_steer::parse(&rest, chain.is_some()).map_err(at)?;
+                ctl.set_steer(steer);
             }
             "B" => match (parts.next(), parts.next()) {
                 (Some("0"), None) => ctl.set_blocked_hold(false),
@@ -789,6 +891,7 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
 mod tests {
     use super::*;
     use crate::record::{tick_record, TickTimes};
+    use control::Config;
 
     fn settings() -> ControllerSettings {
         ControllerSettings {
@@ -816,7 +919,8 @@ mod tests {
     fn record_as(dir: &Path, name: &str, max_bytes: u64) -> Result<PathBuf, String> {
         let mut cfg = Config::preset("paper").unwrap();
         cfg.feedback.t_on = 0.3;
-        let mut log = ReplayLog::create(dir, name, &cfg, &settings(), false, true)
+        let system = System::Planar(cfg.clone());
+        let mut log = ReplayLog::create(dir, name, &system, &settings(), false, true)
             .unwrap()
             .with_max_bytes(max_bytes);
         let mut ctl = Controller::<3>::new(cfg.tick_law::<3>(), cfg.feedback.max_tau, settings());
@@ -830,7 +934,7 @@ mod tests {
             }
             if k == 150 {
                 cfg.feedback.mu = 0.7;
-                log.committed(&cfg);
+                log.committed(&System::Planar(cfg.clone()));
                 ctl.set_params(control::tick_law::ParamBlock::Planar(cfg.law_params()));
             }
             let now = t0 + k * 1_000_000 + (k * 7919) % 300_000;
@@ -859,6 +963,126 @@ mod tests {
         log.finish()
     }
 
+    /// A Panda's run in `mode` on synthetic states, with a live change of μ (tick 150) and a
+    /// steering handover (tick 250), recorded as the daemon records it.
+    fn record_panda(dir: &Path, mode: control::command::CommandMode) -> PathBuf {
+        let mut system = rt::robot::preset("panda").unwrap();
+        let System::Spatial(s) = &mut system else {
+            unreachable!()
+        };
+        s.config.command.mode = mode;
+        let q0 = s.config.sim.q0.clone();
+        let mut log = ReplayLog::create(
+            dir,
+            &format!("{mode:?}.replay"),
+            &system,
+            &settings(),
+            false,
+            true,
+        )
+        .unwrap();
+        let generator = system.generator::<7>(1e-3).unwrap();
+        let mut ctl =
+            Controller::<7>::new(system.tick_law::<7>(), 2.0, settings()).with_generator(generator);
+        ctl.require_handshake();
+        ctl.set_plant_verdict(5, true);
+        let t0 = 7_000_000_000u64;
+        for k in 0..400u64 {
+            if k == 150 {
+                let System::Spatial(s) = &mut system else {
+                    unreachable!()
+                };
+                s.config.feedback.mu = 0.7;
+                log.committed(&system);
+                ctl.set_params(system.param_block());
+            }
+            if k == 250 {
+                let cycle = control::steer::Cycle {
+                    t0: 0.0,
+                    period: 2.0,
+                    q: (0..8)
+                        .map(|j| q0.iter().map(|q| q + 0.01 * j as f64).collect())
+                        .collect(),
+                    min_clearance: f64::INFINITY,
+                    max_rate: 0.0,
+                    filter_margin: f64::INFINITY,
+                    unreachable: None,
+                    arm_off_path: false,
+                    detour: None,
+                };
+                let steer = control::steer::SpatialSteer::of(&cycle, 1.0).unwrap();
+                let steering = control::steer::Steering::Spatial(steer);
+                log.steered(Some(&steering));
+                ctl.set_steer(Some(steering));
+            }
+            let now = t0 + k * 1_000_000 + (k * 7919) % 300_000;
+            let mut st = StateSample {
+                seq: k,
+                stamp_ns: now - 40_000,
+                plant_id: 5,
+                n: 7,
+                ..StateSample::default()
+            };
+            for i in 0..7 {
+                st.q[i] = q0[i] + 0.01 * (k as f64 * 1e-2 + i as f64).sin();
+                st.qd[i] = 0.01 * (i as f64 - 3.0);
+            }
+            let o = ctl.tick(Some(&st), now);
+            let times = TickTimes {
+                due: now,
+                woke: now,
+                done: now + 1,
+            };
+            let ctx = crate::view::TickContext {
+                chaos: control::monitor::Verdict::Unknown,
+                blocked: None,
+            };
+            log.tick(&tick_record(&ctl, &o, Some(st), times), ctx);
+        }
+        log.finish().unwrap()
+    }
+
+    #[test]
+    fn a_panda_replays_bit_for_bit_in_every_command_mode() {
+        let d = dir("panda");
+        use control::command::CommandMode as M;
+        for mode in [M::Acceleration, M::Position, M::Velocity, M::Torque] {
+            let p = record_panda(&d, mode);
+            let r = replay(&p).unwrap();
+            assert!(r.all_matched(), "{mode:?}: {r}");
+            assert_eq!((r.ticks, r.param_changes), (400, 1), "{mode:?}");
+            assert!(r.commands > 350, "{mode:?}: {r}");
+            let text = std::fs::read_to_string(&p).unwrap();
+            assert!(
+                text.contains("\nS 250 1 ") && text.contains(" arm="),
+                "{mode:?}"
+            );
+            // A torque or a reference changed by one bit late in the run: found.
+            let mut lines: Vec<String> = text.lines().map(String::from).collect();
+            let i = lines.iter().position(|l| l.starts_with("T 300 ")).unwrap();
+            let mut fields: Vec<String> = lines[i].split(',').map(String::from).collect();
+            let q0 = fields.len() - 3 * MAX_JOINTS; // the command's q[0]
+            let v = u64::from_str_radix(&fields[q0], 16).unwrap() ^ 1;
+            fields[q0] = format!("{v:016x}");
+            lines[i] = fields.join(",");
+            std::fs::write(&p, lines.join("\n") + "\n").unwrap();
+            let m = replay(&p).unwrap().first_mismatch.unwrap();
+            assert_eq!(
+                (m.tick, m.field.as_str()),
+                (300, "command.q[0]"),
+                "{mode:?}"
+            );
+            // A recording of another robot's numbers is refused by name.
+            let at = text.find(" arm=").unwrap() + 5;
+            let fp = u64::from_str_radix(&text[at..at + 16], 16).unwrap();
+            let other = text.replacen(&text[at..at + 16], &format!("{:016x}", fp ^ 1), 1);
+            std::fs::write(&p, other).unwrap();
+            let e = replay(&p).unwrap_err().to_string();
+            assert!(e.contains("description changed since"), "{e}");
+        }
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
     fn dir(name: &str) -> PathBuf {
         let d = std::env::temp_dir().join(format!("chaosd-replay-{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
@@ -879,7 +1103,7 @@ mod tests {
         let mut lines: Vec<String> = text.lines().map(String::from).collect();
         let i = lines.iter().position(|l| l.starts_with("T 200 ")).unwrap();
         let mut fields: Vec<String> = lines[i].split(',').map(String::from).collect();
-        let qdd1 = fields.len() - 2 * MAX_JOINTS + 1; // the command's qdd[1]
+        let qdd1 = fields.len() - 5 * MAX_JOINTS + 1; // the command's qdd[1]
         let v = u64::from_str_radix(&fields[qdd1], 16).unwrap() ^ 1;
         fields[qdd1] = format!("{v:016x}");
         lines[i] = fields.join(",");
@@ -890,6 +1114,53 @@ mod tests {
         let m = r.first_mismatch.unwrap();
         assert_eq!((m.tick, m.field.as_str()), (200, "command.qdd[1]"));
         assert!(m.recorded.contains(&format!("0x{v:016x}")), "{m}");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    /// `text` as format 2 wrote it: the command without interface, q, qd and tau.
+    fn as_format_2(text: &str) -> String {
+        let mut out = String::new();
+        for line in text.lines() {
+            let line = line.replacen("chaosd-replay 3", "chaosd-replay 2", 1);
+            let mut parts: Vec<String> = line.split(' ').map(String::from).collect();
+            if parts[0] == "T" && parts[4] != "-" {
+                let f: Vec<&str> = parts[4].split(',').collect();
+                let mut short: Vec<&str> = f[..7].to_vec();
+                short.extend(&f[8..8 + 2 * MAX_JOINTS]);
+                parts[4] = short.join(",");
+            }
+            out.push_str(&parts.join(" "));
+            out.push('\n');
+        }
+        out
+    }
+
+    #[test]
+    fn a_format_2_recording_still_replays_on_what_it_holds() {
+        let d = dir("v2");
+        let p = record(&d);
+        let v2 = as_format_2(&std::fs::read_to_string(&p).unwrap());
+        std::fs::write(&p, &v2).unwrap();
+        let r = replay(&p).unwrap();
+        assert!(r.all_matched(), "{r}");
+        assert_eq!((r.ticks, r.param_changes), (400, 1));
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_reference_or_torque_that_differs_is_found_in_format_3() {
+        let d = dir("whole");
+        let p = record(&d);
+        let text = std::fs::read_to_string(&p).unwrap();
+        let mut lines: Vec<String> = text.lines().map(String::from).collect();
+        let i = lines.iter().position(|l| l.starts_with("T 200 ")).unwrap();
+        let mut fields: Vec<String> = lines[i].split(',').map(String::from).collect();
+        let tau6 = fields.len() - 1; // the command's tau[MAX_JOINTS - 1]
+        fields[tau6] = format!("{:016x}", 1.5f64.to_bits());
+        lines[i] = fields.join(",");
+        std::fs::write(&p, lines.join("\n") + "\n").unwrap();
+        let m = replay(&p).unwrap().first_mismatch.unwrap();
+        assert_eq!((m.tick, m.field.as_str()), (200, "command.tau[6]"));
         std::fs::remove_dir_all(&d).unwrap();
     }
 
@@ -967,6 +1238,14 @@ mod tests {
             ),
             (text.replacen("config ", "config 9", 1), "config"),
             (
+                text.replacen("handshake=1", "handshake=1 arm=00000000000000ff", 1),
+                "the config is the planar arm's",
+            ),
+            (
+                text.replacen("handshake=1", "handshake=1 robot=panda", 1),
+                "after handshake=",
+            ),
+            (
                 text.replace(",3fd5555555555555,", ",3fd55555555zz555,"),
                 "not hex",
             ),
@@ -976,7 +1255,7 @@ mod tests {
             ),
             (format!("{}\n", "x".repeat(100_000)), "longer than"),
             (
-                text.replacen("chaosd-replay 2", "chaosd-replay 1", 1),
+                text.replacen("chaosd-replay 3", "chaosd-replay 1", 1),
                 "format 1 (6-joint arrays",
             ),
         ] {

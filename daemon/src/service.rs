@@ -52,17 +52,12 @@ fn run_n<const N: usize>(
     let (rt_tx, rt_rx) = crossbeam::channel::bounded::<rt::setup::RtReport>(1);
     let settings = setup.controller_settings(protocol::new_instance_id());
     let start_in_fault = setup.live.as_ref().is_some_and(|l| l.fault.is_some());
-    let replay = match (&setup.record, setup.system.planar()) {
-        (Some(_), None) => {
-            return Err(anyhow!(
-                "--record: replay recordings are made of the planar arm only so far (`chaosctl record start` records a spatial robot's ticks as CSV)"
-            ))
-        }
-        (Some(name), Some(planar)) => Some(
+    let replay = match &setup.record {
+        Some(name) => Some(
             crate::replay::ReplayLog::create(
                 &d.output_dir,
                 name,
-                planar,
+                &setup.system,
                 &settings,
                 start_in_fault,
                 true, // the loop requires the handshake (below)
@@ -70,7 +65,7 @@ fn run_n<const N: usize>(
             .map_err(|e| anyhow!("--record: {e}"))?
             .with_max_bytes(d.record_max_bytes),
         ),
-        (None, _) => None,
+        None => None,
     };
     let running = Arc::new(AtomicBool::new(true));
     // The handshake: which plant the loop may control (see `handshake`).

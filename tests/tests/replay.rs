@@ -1,13 +1,14 @@
 //! Record a live run (daemon + plant, a `chaosctl set` part-way) and replay it through the
-//! daemon's controller with `chaosctl replay`: every command bit for bit. A recording with one
-//! bit changed is caught, and a cut one is refused with the line.
+//! daemon's controller with `chaosctl replay`: every command bit for bit, on the planar arm and
+//! on the Panda. A recording with one bit changed is caught, and a cut one is refused with the
+//! line.
 
 use std::os::unix::fs::PermissionsExt;
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 use tests::live::{ctl, NEAR_ORBIT};
-use tests::{bin, serial, unique_namespace, write_config, Proc, TempDir};
+use tests::{bin, serial, unique_namespace, Proc, TempDir};
 
 /// `chaosctl replay FILE`: (exit code, stdout, stderr).
 fn replay(path: &Path) -> (i32, String, String) {
@@ -43,9 +44,20 @@ fn wait_for_run(ns: &str, daemon: &Proc, plant: &Proc) {
 /// Runs daemon and plant with `--record NAME` for about 2 s, with `set mu 0.3 feedback on t_on 0`
 /// part-way, and shuts them down; returns the directory (kept alive) and the recording's path.
 fn record_live_run(test: &str, name: &str) -> (TempDir, std::path::PathBuf) {
+    record_live(test, name, (NEAR_ORBIT, ""), &[])
+}
+
+/// [`record_live_run`] of the set-up `top` with `[plant]` lines `plant`, and the live commands
+/// `more` after the `set`.
+fn record_live(
+    test: &str,
+    name: &str,
+    (top, plant): (&str, &str),
+    more: &[&[&str]],
+) -> (TempDir, std::path::PathBuf) {
     let ns = unique_namespace(test);
     let dir = TempDir::new(&ns);
-    let cfg = write_config(dir.path(), &ns, "", NEAR_ORBIT);
+    let cfg = tests::write_config_with(dir.path(), &ns, "", plant, top);
     let c = cfg.to_str().unwrap();
     let mut daemon = Proc::spawn(
         "daemon",
@@ -59,6 +71,11 @@ fn record_live_run(test: &str, name: &str) -> (TempDir, std::path::PathBuf) {
     // A live change part-way: the feedback on with a new gain, from now.
     let (code, _, err) = ctl(&ns, &["set", "mu", "0.3", "feedback", "on", "t_on", "0"]);
     assert_eq!(code, 0, "{err}");
+    for args in more {
+        std::thread::sleep(Duration::from_millis(200));
+        let (code, _, err) = ctl(&ns, args);
+        assert_eq!(code, 0, "{args:?}: {err}");
+    }
     std::thread::sleep(Duration::from_millis(1200));
     let (code, _, err) = ctl(&ns, &["shutdown"]);
     assert_eq!(code, 0, "{err}");
@@ -72,6 +89,11 @@ fn record_live_run(test: &str, name: &str) -> (TempDir, std::path::PathBuf) {
 
 /// Replays `rec`: all ticks bit-identical, more than 1500 of them, the one change among them.
 fn replays_whole(rec: &Path) -> u64 {
+    replays_with(rec, 1)
+}
+
+/// [`replays_whole`] with `changes` parameter changes among the ticks.
+fn replays_with(rec: &Path, changes: u64) -> u64 {
     let (code, out, err) = replay(rec);
     assert_eq!(code, 0, "replay failed: {out}{err}");
     // "K of K ticks replayed bit-identically (C commands, 1 parameter changes, 0 resumes)"
@@ -79,7 +101,10 @@ fn replays_whole(rec: &Path) -> u64 {
     let (matched, ticks): (u64, u64) = (words[0].parse().unwrap(), words[2].parse().unwrap());
     assert_eq!(matched, ticks, "{out}");
     assert!(ticks > 1500, "too short a run to mean much: {out}");
-    assert!(out.contains(" 1 parameter changes"), "{out}");
+    assert!(
+        out.contains(&format!(" {changes} parameter changes")),
+        "{out}"
+    );
     ticks
 }
 
@@ -97,7 +122,7 @@ fn a_live_run_replays_bit_for_bit_and_a_tampered_recording_is_caught() {
         .rposition(|l| l.starts_with("T ") && !l.ends_with(" -"))
         .expect("a tick with a command");
     let mut fields: Vec<String> = lines[i].split(',').map(String::from).collect();
-    let qdd0 = fields.len() - 2 * protocol::MAX_JOINTS; // the command's qdd[0]
+    let qdd0 = fields.len() - 5 * protocol::MAX_JOINTS; // the command's qdd[0]
     let v = u64::from_str_radix(&fields[qdd0], 16).unwrap() ^ 1;
     fields[qdd0] = format!("{v:016x}");
     lines[i] = fields.join(",");
@@ -121,6 +146,47 @@ fn a_live_run_replays_bit_for_bit_and_a_tampered_recording_is_caught() {
     assert!(
         err.contains("truncated") && err.lines().count() == 1,
         "{err}"
+    );
+}
+
+#[test]
+fn a_live_panda_run_replays_bit_for_bit_with_its_edits_and_a_changed_torque_is_caught() {
+    let _g = serial();
+    // Torque mode: the command carries τ, the reference and q̈, and every field is compared.
+    let top = format!(
+        "{}\n[command]\nmode = \"torque\"\n",
+        control::config::spatial::PANDA
+    );
+    let sphere: &[&str] = &["obstacle", "add", "1.0", "-1.0", "1.5", "0.05"];
+    let plant = "dynamics = \"rigid-body\"";
+    let (dir, rec) = record_live("replay-panda", "panda.replay", (&top, plant), &[sphere]);
+    replays_with(&rec, 2);
+    let text = std::fs::read_to_string(&rec).unwrap();
+    assert!(
+        text.lines().nth(1).unwrap().contains(" arm="),
+        "the robot's fingerprint"
+    );
+    // One bit of one torque, late in the run: caught by name.
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let i = lines
+        .iter()
+        .rposition(|l| l.starts_with("T ") && !l.ends_with(" -"))
+        .expect("a tick with a command");
+    let mut fields: Vec<String> = lines[i].split(',').map(String::from).collect();
+    let tau0 = fields.len() - protocol::MAX_JOINTS; // the command's tau[0]
+    let v = u64::from_str_radix(&fields[tau0], 16).unwrap() ^ 1;
+    fields[tau0] = format!("{v:016x}");
+    lines[i] = fields.join(",");
+    let tick = lines[i].split(' ').nth(1).unwrap().to_string();
+    let tampered = dir.path().join("tampered.replay");
+    std::fs::write(&tampered, lines.join("\n") + "\n").unwrap();
+    let (code, out, _) = replay(&tampered);
+    assert_eq!(code, 1, "{out}");
+    assert!(
+        out.contains(&format!(
+            "first mismatch at tick {tick}: command.tau[0] recorded"
+        )),
+        "{out}"
     );
 }
 
