@@ -192,6 +192,37 @@ fn basins_shards_merge_to_the_unsharded_csv() {
 }
 
 #[test]
+fn panda_basins_shards_merge_to_the_unsharded_csv() {
+    let dir = scratch("basins-panda");
+    // 3 starts × 2 μ of the Panda in 4 shards (2, 2, 1, 1 points).
+    let scan = [
+        "basins",
+        "--preset",
+        "panda",
+        "--vary",
+        "q1=-0.2:0.2:0.2",
+        "--mu",
+        "0:1:1",
+        "--duration",
+        "30",
+        "--transient",
+        "10",
+    ];
+    let files = merged_equals_unsharded(&dir, &scan, 4, 6);
+    // A shard whose recorded run window was edited is of another grid.
+    let text = std::fs::read_to_string(&files[0]).unwrap();
+    let edited = text.replacen("\"30\"", "\"31\"", 1);
+    assert_ne!(edited, text);
+    let forged = dir.join("forged.shard-0-of-4.json");
+    std::fs::write(&forged, edited).unwrap();
+    let out = dir.join("m3");
+    let mut args = vec!["merge", "--out", s(&out), s(&forged)];
+    args.extend(files[1..].iter().map(|f| s(f)));
+    refused(&args, &["grid"]);
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
 fn obstacles_shards_merge_to_the_unsharded_csv() {
     let dir = scratch("obstacles");
     let scan = [

@@ -184,13 +184,7 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
     assert_eq!(o.status.code(), Some(2));
     // What runs only the planar arm says so.
     std::fs::write(&cfg, &base).unwrap();
-    let o = chaosctl(&[
-        "basins",
-        "--config",
-        cfg.to_str().unwrap(),
-        "--shard",
-        "0/2",
-    ]);
+    let o = chaosctl(&["obstacles", "--config", cfg.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("planar arm only"), "{err}");

@@ -144,6 +144,9 @@ impl Plan {
 
 /// `chaosctl merge` of basins shards: the same CSV, map and plot as the unsharded run.
 pub fn merge(args: BasinsCmd, files: Vec<Loaded>) -> Result<()> {
+    if let Some(cfg) = crate::spatial::load(&args.model.setup, None)? {
+        return super::basins_spatial::merge(&args, &cfg, files);
+    }
     let plan = plan(&args)?;
     let runs: Vec<Result<RunEnd, String>> = shard::collect(&grid(&args, &plan), files)?;
     let base = plan.map_base(&args);
