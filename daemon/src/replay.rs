@@ -1023,8 +1023,8 @@ mod tests {
                 n: 7,
                 ..StateSample::default()
             };
-            for i in 0..7 {
-                st.q[i] = q0[i] + 0.01 * (k as f64 * 1e-2 + i as f64).sin();
+            for (i, q) in q0.iter().enumerate() {
+                st.q[i] = q + 0.01 * (k as f64 * 1e-2 + i as f64).sin();
                 st.qd[i] = 0.01 * (i as f64 - 3.0);
             }
             let o = ctl.tick(Some(&st), now);
