@@ -2,17 +2,16 @@
 //! run did (final period residual, joint drift per period, speed, margin to the limits), in
 //! parallel; writes PREFIX.csv and a two-panel figure (λ_max and log₁₀ residual against μ).
 
-use crate::analysis::parallel::{jobs, run_all};
 use crate::plot::{Chart, Figure, Panel, Rule, Series, Style, DARK, PALETTE};
 use crate::spatial::{lyapunov, run_summary};
 use anyhow::{Context, Result};
 use control::config::spatial::SpatialConfig;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
 
-/// One μ of the sweep.
-#[derive(Serialize, Clone, Debug)]
+/// One μ of the sweep; a shard file carries exactly this per μ.
+#[derive(Serialize, Deserialize, Clone, Debug)]
 pub struct SpatialRow {
     pub mu: f64,
     pub lambda_max: Option<f64>,
@@ -26,14 +25,41 @@ pub struct SpatialRow {
     pub error: Option<String>,
 }
 
-fn row(
-    cfg: &SpatialConfig,
-    mu: f64,
-    duration: f64,
-    window: [f64; 2],
-    d0: f64,
-    blocks: usize,
-) -> SpatialRow {
+/// How each μ is run: the length, λ_max's window, the partner's offset and the blocks of the
+/// standard error.
+#[derive(Clone, Copy, Debug)]
+pub struct Spec {
+    pub duration: f64,
+    pub window: [f64; 2],
+    pub d0: f64,
+    pub blocks: usize,
+}
+
+impl Spec {
+    /// The window defaults to the last two thirds of the run.
+    pub fn new(duration: f64, window: Option<[f64; 2]>, d0: f64, blocks: usize) -> Self {
+        Self {
+            duration,
+            window: window.unwrap_or([duration / 3.0, duration]),
+            d0,
+            blocks,
+        }
+    }
+}
+
+/// Fails early, once, on a set-up that cannot run.
+pub fn check(cfg: &SpatialConfig) -> Result<()> {
+    crate::spatial::run_summary(&{
+        let mut c = cfg.clone();
+        c.sim.duration = c.sim.dt;
+        c
+    })?;
+    Ok(())
+}
+
+/// Runs one μ.
+pub fn row(cfg: &SpatialConfig, mu: f64, spec: &Spec) -> SpatialRow {
+    let (duration, window) = (spec.duration, spec.window);
     let mut c = cfg.clone();
     c.feedback.mu = mu;
     c.sim.duration = duration;
@@ -48,7 +74,7 @@ fn row(
         motion: None,
         error: None,
     };
-    match lyapunov(&c, duration, Some(window), d0, None, blocks) {
+    match lyapunov(&c, duration, Some(window), spec.d0, None, spec.blocks) {
         Ok((l, _)) => (r.lambda_max, r.stderr) = (Some(l.lambda_max), Some(l.stderr)),
         Err(e) => r.error = Some(format!("{e:#}")),
     }
@@ -68,31 +94,10 @@ fn row(
     r
 }
 
-/// Runs the sweep and writes its files; returns the rows in μ order.
-#[allow(clippy::too_many_arguments)]
-pub fn sweep(
-    cfg: &SpatialConfig,
-    mus: &[f64],
-    duration: f64,
-    window: Option<[f64; 2]>,
-    d0: f64,
-    blocks: usize,
-    threads: Option<usize>,
-    prefix: &Path,
-) -> Result<Vec<SpatialRow>> {
-    let window = window.unwrap_or([duration / 3.0, duration]);
-    // Fail early, once, on a set-up that cannot run.
-    crate::spatial::run_summary(&{
-        let mut c = cfg.clone();
-        c.sim.duration = c.sim.dt;
-        c
-    })?;
-    let rows = run_all(mus, jobs(threads), "sweep", |&mu| {
-        row(cfg, mu, duration, window, d0, blocks)
-    })?;
-    write_csv(&crate::plot::with_ext(prefix, "csv"), &rows)?;
-    plot(prefix, &rows, cfg, window)?;
-    Ok(rows)
+/// Writes PREFIX.csv and the figure.
+pub fn write(prefix: &Path, rows: &[SpatialRow], cfg: &SpatialConfig, spec: &Spec) -> Result<()> {
+    write_csv(&crate::plot::with_ext(prefix, "csv"), rows)?;
+    plot(prefix, rows, cfg, spec.window)
 }
 
 fn cell(v: Option<f64>) -> String {

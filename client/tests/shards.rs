@@ -192,6 +192,27 @@ fn basins_shards_merge_to_the_unsharded_csv() {
 }
 
 #[test]
+fn panda_sweep_shards_merge_to_the_unsharded_csv() {
+    let dir = scratch("sweep-panda");
+    // 3 μ of the Panda (its one start) in 2 shards.
+    let scan = [
+        "sweep",
+        "--preset",
+        "panda",
+        "--mu",
+        "0:1:0.5",
+        "--t-on",
+        "5",
+        "--duration",
+        "30",
+    ];
+    merged_equals_unsharded(&dir, &scan, 2, 3);
+    let csv = std::fs::read_to_string(dir.join("merged.csv")).unwrap();
+    assert!(csv.starts_with("mu,lambda_max,"), "{csv}");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
 fn panda_basins_shards_merge_to_the_unsharded_csv() {
     let dir = scratch("basins-panda");
     // 3 starts × 2 μ of the Panda in 4 shards (2, 2, 1, 1 points).

@@ -8,6 +8,7 @@ use crate::plot::{Chart, Figure, Panel, Series, Style, DARK, PALETTE};
 use anyhow::{Context, Result};
 use clap::Args;
 use control::analysis::{Motion, RunSpec};
+use control::config::spatial::SpatialConfig;
 use control::Config;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -126,6 +127,9 @@ pub fn run(args: SweepCmd) -> Result<()> {
 
 /// `chaosctl merge` of sweep shards: the same CSV, plot and table as the unsharded run.
 pub fn merge(args: SweepCmd, files: Vec<Loaded>) -> Result<()> {
+    if let Some(cfg) = crate::spatial::load(&args.model.setup, None)? {
+        return spatial_merge(&args, &cfg, files);
+    }
     let plan = plan(&args)?;
     let rows: Vec<Row> = shard::collect(&grid(&plan), files)?;
     finish(&args, &plan, &rows, None)
@@ -303,38 +307,73 @@ fn print_obstacles(rows: &[Row], starts: &[Config], mus: &[f64]) {
     }
 }
 
-/// The sweep on a spatial robot: one start (the config's), λ_max and the run's summary per μ.
-fn spatial(args: &SweepCmd, cfg: &control::config::spatial::SpatialConfig) -> Result<()> {
-    if args.shard.is_some() || !args.starts.starts.is_empty() {
-        anyhow::bail!("--shard and --start apply to the planar arm; a spatial sweep runs one start, its config's (set sim.q0 or --q0)");
+/// The sweep on a spatial robot: one start (the config's), λ_max and the run's summary per μ;
+/// sharded over μ like the planar grid.
+fn spatial(args: &SweepCmd, cfg: &SpatialConfig) -> Result<()> {
+    let (mus, spec) = spatial_plan(args)?;
+    crate::spatial_sweep::check(cfg)?;
+    let threads = jobs(args.jobs);
+    let work = |&mu: &f64| crate::spatial_sweep::row(cfg, mu, &spec);
+    if let Some(s) = args.shard {
+        let grid = spatial_grid(cfg, &mus, &spec);
+        shard::run_shard(&grid, s, &mus, &args.output, threads, work)?;
+        return Ok(());
+    }
+    let t0 = Instant::now();
+    let rows = run_all(&mus, threads, "sweep", work)?;
+    spatial_finish(args, cfg, &spec, &rows, Some(t0.elapsed().as_secs_f64()))
+}
+
+/// The μ values and the run of each, for a spatial robot (which runs its config's one start).
+fn spatial_plan(args: &SweepCmd) -> Result<(Vec<f64>, crate::spatial_sweep::Spec)> {
+    if !args.starts.starts.is_empty() {
+        anyhow::bail!("--start applies to the planar arm; a spatial sweep runs one start, its config's (set sim.q0 or --q0)");
     }
     let mus = match &args.model.mu {
         Some(r) => r.0.clone(),
         None => super::parse_range("0:3:0.25").map_err(anyhow::Error::msg)?,
     };
     let l = &args.lyapunov;
-    let t0 = Instant::now();
-    let rows = crate::spatial_sweep::sweep(
-        cfg,
-        &mus,
-        l.duration,
-        l.window,
-        l.d0,
-        l.blocks,
-        args.jobs,
-        &args.output,
-    )?;
+    let spec = crate::spatial_sweep::Spec::new(l.duration, l.window, l.d0, l.blocks);
+    Ok((mus, spec))
+}
+
+fn spatial_grid(cfg: &SpatialConfig, mus: &[f64], spec: &crate::spatial_sweep::Spec) -> Grid {
+    let parts = [format!("spatial {spec:?}"), format!("{cfg:?}")]
+        .into_iter()
+        .chain(mus.iter().map(|mu| format!("{mu:?}")));
+    let labels = mus.iter().map(|mu| format!("μ = {mu}")).collect();
+    Grid::new("sweep", parts, labels)
+}
+
+/// `chaosctl merge` of a spatial robot's sweep shards.
+fn spatial_merge(args: &SweepCmd, cfg: &SpatialConfig, files: Vec<Loaded>) -> Result<()> {
+    let (mus, spec) = spatial_plan(args)?;
+    let rows: Vec<crate::spatial_sweep::SpatialRow> =
+        shard::collect(&spatial_grid(cfg, &mus, &spec), files)?;
+    spatial_finish(args, cfg, &spec, &rows, None)
+}
+
+/// Writes the CSV and figure and prints the table; `wall` is a local run's time.
+fn spatial_finish(
+    args: &SweepCmd,
+    cfg: &SpatialConfig,
+    spec: &crate::spatial_sweep::Spec,
+    rows: &[crate::spatial_sweep::SpatialRow],
+    wall: Option<f64>,
+) -> Result<()> {
+    crate::spatial_sweep::write(&args.output, rows, cfg, spec)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&rows)?);
-    } else {
-        crate::spatial_sweep::print(&rows);
-        println!(
-            "{} runs in {:.1} s; wrote {} and its .png/.svg",
-            rows.len(),
-            t0.elapsed().as_secs_f64(),
-            crate::plot::with_ext(&args.output, "csv").display()
-        );
+        return Ok(());
     }
+    crate::spatial_sweep::print(rows);
+    let took = wall.map_or(String::new(), |w| format!(" in {w:.1} s"));
+    println!(
+        "{} runs{took}; wrote {} and its .png/.svg",
+        rows.len(),
+        crate::plot::with_ext(&args.output, "csv").display()
+    );
     Ok(())
 }
 
