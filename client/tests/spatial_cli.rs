@@ -184,10 +184,78 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
     assert_eq!(o.status.code(), Some(2));
     // What runs only the planar arm says so.
     std::fs::write(&cfg, &base).unwrap();
-    let o = chaosctl(&["obstacles", "--config", cfg.to_str().unwrap()]);
+    let o = chaosctl(&[
+        "orbits",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--mu",
+        "0:1:0.5",
+    ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("planar arm only"), "{err}");
+}
+
+#[test]
+fn obstacles_on_the_panda_compares_the_potential_with_the_filter_round_a_sphere() {
+    let dir = tmp("obstacles");
+    std::fs::create_dir_all(&dir).unwrap();
+    let prefix = dir.join("obs");
+    // A sphere the ready pose's elbow sweeps through: without the filter some start touches it,
+    // with the filter no link ever does.
+    let out = ok(&chaosctl(&[
+        "obstacles",
+        "--preset",
+        "panda",
+        "--obstacle",
+        "0.45,0.25,0.45,0.08",
+        "--starts",
+        "3",
+        "--mu",
+        "1",
+        "--t-on",
+        "5",
+        "--duration",
+        "40",
+        "--rms-from",
+        "10",
+        "--output",
+        prefix.to_str().unwrap(),
+    ]));
+    assert!(
+        out.contains("1 obstacle(s) (0.45, 0.25, 0.45) r 0.08"),
+        "{out}"
+    );
+    let csv = std::fs::read_to_string(dir.join("obs.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (safety, contact) = (col("safety"), col("time_in_contact"));
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 6, "3 starts × filter off and on: {csv}");
+    let touch = |on: &str| -> Vec<f64> {
+        rows.iter()
+            .filter(|r| r[safety] == on)
+            .map(|r| r[contact].parse().unwrap())
+            .collect()
+    };
+    assert!(touch("off").iter().any(|t| *t > 0.0), "{csv}");
+    assert!(touch("on").iter().all(|t| *t == 0.0), "{csv}");
+    assert!(dir.join("obs.png").exists() && dir.join("obs.svg").exists());
+    // A disk is not a robot's obstacle.
+    let o = chaosctl(&[
+        "obstacles",
+        "--preset",
+        "panda",
+        "--obstacle",
+        "0.4,0.2,0.1",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("a sphere X,Y,Z,R"), "{err}");
 }
 
 #[test]

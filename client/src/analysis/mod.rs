@@ -15,6 +15,7 @@ pub mod lyapunov;
 pub mod monitor;
 pub mod monitor_cells;
 pub mod monitor_report;
+pub mod obstacle_cells;
 pub mod obstacles;
 pub mod orbits;
 pub mod parallel;

@@ -9,6 +9,7 @@
 //! some) is flagged, and its clearance is also measured from the moment it first got clear, so the
 //! filter's push-out is visible instead of hidden.
 
+use super::obstacle_cells::{self, Arm, Cell, RunResult, Window};
 use super::parallel::{jobs, run_all};
 use super::shard::{self, Grid, Loaded, Shard};
 use super::{check_config, fmt_list, ClassifyArgs};
@@ -16,9 +17,10 @@ use crate::plot::{with_ext, Chart, Figure, Panel, Rule, Series, Style, DARK, GRE
 use crate::setup::{parse_list, FloatList, SetupArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use control::analysis::{classify, ArmFlow, ClassifyConfig, Motion, Section, Trajectory};
+use control::analysis::Motion;
+use control::config::spatial::{SpatialConfig, SphereEntry};
 use control::config::ObstacleConfig;
-use control::{with_dof, Config, Summary};
+use control::{Config, Summary};
 use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -27,11 +29,13 @@ use std::time::Instant;
 /// The basin grid's range of the first joint angle (rad): `basins`' default `q1=-1.5:1.5:0.125`.
 const Q1_RANGE: (f64, f64) = (-1.5, 1.5);
 
-/// `--obstacle X,Y,R[,MARGIN]`, repeated: replaces the configuration's obstacles.
+/// `--obstacle X,Y,R[,MARGIN]` (a sphere X,Y,Z,R[,MARGIN] for a robot), repeated: replaces the
+/// configuration's obstacles.
 #[derive(Args, Debug, Clone)]
 pub struct ObstacleArgs {
     /// An obstacle at (X, Y) with radius R (m) and the paper's potential margin (default 0.1 m);
-    /// repeat for several. Replaces the obstacles of the config file or preset.
+    /// for a URDF robot a sphere X,Y,Z,R[,MARGIN]. Repeat for several. Replaces the obstacles of
+    /// the config file or preset.
     #[arg(long = "obstacle", value_parser = parse_list, allow_hyphen_values = true, value_name = "X,Y,R[,MARGIN]")]
     pub obstacles: Vec<FloatList>,
 }
@@ -60,6 +64,33 @@ impl ObstacleArgs {
             })
             .collect::<Result<_>>()?;
         cfg.validate()?;
+        Ok(())
+    }
+
+    /// Puts the given spheres into a robot's `cfg` (checked against its chain by the caller).
+    pub fn apply_spatial(&self, cfg: &mut SpatialConfig) -> Result<()> {
+        if self.obstacles.is_empty() {
+            return Ok(());
+        }
+        cfg.obstacles = self
+            .obstacles
+            .iter()
+            .map(|o| match o.0.as_slice() {
+                &[x, y, z, r] => Ok(SphereEntry {
+                    center: [x, y, z],
+                    radius: r,
+                    margin: 0.1,
+                }),
+                &[x, y, z, r, m] => Ok(SphereEntry {
+                    center: [x, y, z],
+                    radius: r,
+                    margin: m,
+                }),
+                v => bail!(
+                    "--obstacle {v:?}: a robot's obstacle is a sphere X,Y,Z,R or X,Y,Z,R,MARGIN"
+                ),
+            })
+            .collect::<Result<_>>()?;
         Ok(())
     }
 }
@@ -102,9 +133,6 @@ pub struct ObstaclesCmd {
     pub shard: Option<Shard>,
 }
 
-/// One run's result, as a shard file carries it.
-type RunResult = Result<(Summary, Motion, Option<f64>), String>;
-
 /// One run of the study.
 #[derive(Serialize, Clone, Debug)]
 pub struct Row {
@@ -118,27 +146,129 @@ pub struct Row {
     pub error: Option<String>,
 }
 
-/// The validated study: one config per run, in the order μ → filter → start.
+/// The validated study: one cell per run, in the order μ → filter → start.
 struct Plan {
-    cfgs: Vec<Config>,
-    duration: f64,
-    rms_from: f64,
-    section_from: f64,
-    classify: ClassifyConfig,
+    cells: Vec<Cell>,
+    window: Window,
     filters: Vec<bool>,
     mus: Vec<f64>,
+    /// What the header and the figure say of the set-up: the obstacles, the filter's required
+    /// clearance, and the start the others vary from.
+    obstacles: Vec<String>,
+    clearance: f64,
+    q0: Vec<f64>,
+    /// What keeps the arm off the obstacles with the filter off: the paper's potential, or
+    /// nothing (another secondary task).
+    off: String,
 }
 
-fn plan(args: &ObstaclesCmd) -> Result<Plan> {
+/// The study's base set-up, for either arm.
+struct Base {
+    arm: Arm,
+    obstacles: Vec<String>,
+    clearance: f64,
+    q0: Vec<f64>,
+    off: String,
+}
+
+/// What the law does about obstacles with the filter off, for secondary task `secondary`.
+fn without_filter(potential: bool, secondary: &str) -> String {
+    if potential {
+        "the paper's potential".into()
+    } else {
+        format!("the law alone (secondary task {secondary})")
+    }
+}
+
+fn base(args: &ObstaclesCmd) -> Result<Base> {
     let mut setup = args.setup.clone();
     if setup.config.is_none() && setup.preset.is_none() {
         setup.preset = Some("paper-obstacle".into());
+    }
+    if let Some(mut c) = crate::spatial::load(&setup, None)? {
+        args.obstacles.apply_spatial(&mut c)?;
+        if c.obstacles.is_empty() {
+            bail!("the configuration has no obstacles: give spheres with --obstacle X,Y,Z,R (repeat for several) or [[obstacles]] entries in the --config");
+        }
+        let r = &c.robot;
+        let chain = rt::robot::load(&r.description, r.base.as_deref(), r.tip.as_deref())?;
+        obstacle_cells::check_spatial(&c, &chain)?;
+        let obstacles = c
+            .obstacles
+            .iter()
+            .map(|o| {
+                format!(
+                    "({}, {}, {}) r {}",
+                    o.center[0], o.center[1], o.center[2], o.radius
+                )
+            })
+            .collect();
+        return Ok(Base {
+            obstacles,
+            off: without_filter(c.law.secondary == "obstacles", &c.law.secondary),
+            clearance: c.safety.clearance,
+            q0: c.sim.q0.clone(),
+            arm: Arm::Spatial(Box::new(c), std::sync::Arc::new(chain)),
+        });
     }
     let mut base = setup.load_with_mu(None)?;
     args.obstacles.apply(&mut base)?;
     if base.control.obstacles.is_empty() {
         bail!("the configuration has no obstacles: use --preset paper-obstacle or a --config with [[control.obstacles]] entries");
     }
+    Ok(Base {
+        obstacles: base
+            .control
+            .obstacles
+            .iter()
+            .map(|o| format!("({}, {}) r {}", o.center[0], o.center[1], o.radius))
+            .collect(),
+        clearance: base.safety.clearance,
+        q0: base.q0(),
+        off: without_filter(
+            base.control.secondary == control::config::SecondaryKind::Obstacles,
+            &format!("{:?}", base.control.secondary).to_lowercase(),
+        ),
+        arm: Arm::Planar(base),
+    })
+}
+
+/// The cell of `base` at gain `mu`, filter `on`, start `q0`, run for `d` s.
+fn cell(base: &Base, mu: f64, on: bool, q0: Vec<f64>, d: f64, rms_from: f64) -> Result<Cell> {
+    let arm = match &base.arm {
+        Arm::Planar(b) => {
+            let mut c = b.clone();
+            c.feedback.mu = mu;
+            c.safety.enabled = on;
+            c.sim.q0 = Some(q0.clone());
+            c.sim.duration = d;
+            c.sim.transient = rms_from;
+            c.validate()?;
+            check_config(&c).with_context(|| format!("start with q1 = {}", q0[0]))?;
+            Arm::Planar(c)
+        }
+        Arm::Spatial(b, chain) => {
+            let mut c = b.clone();
+            c.feedback.mu = mu;
+            c.safety.enabled = on;
+            c.sim.q0 = q0.clone();
+            c.sim.duration = d;
+            c.sim.transient = rms_from;
+            obstacle_cells::check_spatial(&c, chain)
+                .with_context(|| format!("start with q1 = {}", q0[0]))?;
+            Arm::Spatial(c, chain.clone())
+        }
+    };
+    Ok(Cell {
+        mu,
+        safety: on,
+        q0,
+        arm,
+    })
+}
+
+fn plan(args: &ObstaclesCmd) -> Result<Plan> {
+    let base = base(args)?;
     let d = args.duration;
     if !(d.is_finite() && d > 0.0) {
         bail!("--duration {d}: must be a finite number of seconds > 0");
@@ -163,7 +293,7 @@ fn plan(args: &ObstaclesCmd) -> Result<Plan> {
         Some(on) => vec![on],
         None => vec![false, true],
     };
-    let q0 = base.q0();
+    let q0 = base.q0.clone();
     let q1s: Vec<f64> = if args.starts == 1 {
         vec![q0[0]]
     } else {
@@ -175,79 +305,50 @@ fn plan(args: &ObstaclesCmd) -> Result<Plan> {
             })
             .collect()
     };
-    let mut cfgs = Vec::new();
+    let mut cells = Vec::new();
     for &mu in &args.mu.0 {
         for &on in &filters {
             for &q1 in &q1s {
-                let mut c = base.clone();
-                c.feedback.mu = mu;
-                c.safety.enabled = on;
                 let mut q = q0.clone();
                 q[0] = q1;
-                c.sim.q0 = Some(q);
-                c.sim.duration = d;
-                c.sim.transient = args.rms_from;
-                c.validate()?;
-                check_config(&c).with_context(|| format!("start with q1 = {q1}"))?;
-                cfgs.push(c);
+                cells.push(cell(&base, mu, on, q, d, args.rms_from)?);
             }
         }
     }
     Ok(Plan {
-        cfgs,
-        duration: d,
-        rms_from: args.rms_from,
-        section_from,
-        classify: args.classify.config()?,
+        cells,
+        window: Window {
+            duration: d,
+            rms_from: args.rms_from,
+            section_from,
+            classify: args.classify.config()?,
+        },
         filters,
         mus: args.mu.0.clone(),
-    })
-}
-
-/// One run: the statistics of `simulate` and the Poincaré class of `basins`, in one pass.
-fn run_one(cfg: &Config, plan: &Plan) -> RunResult {
-    with_dof!(cfg.n(), N => {
-        let mut flow = ArmFlow::new(cfg.model::<N>(), cfg.law_params(), cfg.sim.dt, cfg.initial_state::<N>())
-            .with_stats(plan.duration, plan.rms_from);
-        let period = cfg.task.period;
-        let mut section = Section::new(flow.coords().len(), flow.angle_coords());
-        let periods = (plan.duration / period + 1e-9).floor() as u64;
-        for k in 0..=periods {
-            let t = k as f64 * period;
-            flow.advance_to(t);
-            if !flow.is_finite() {
-                return Err(format!("the simulation diverged by t = {} s", flow.time()));
-            }
-            if t >= plan.section_from - 1e-9 * period {
-                section.push(t, &flow.coords());
-            }
-        }
-        flow.advance_to(plan.duration);
-        if !flow.is_finite() {
-            return Err(format!("the simulation diverged by t = {} s", flow.time()));
-        }
-        let c = classify(&section, &plan.classify);
-        let summary = flow.stats().map(|s| s.summary()).ok_or("run statistics missing")?;
-        Ok((summary, c.motion, c.k))
+        obstacles: base.obstacles,
+        clearance: base.clearance,
+        q0,
+        off: base.off,
     })
 }
 
 fn grid(plan: &Plan) -> Grid {
+    let w = &plan.window;
     let parts = [format!(
         "{} {} {} {:?}",
-        plan.duration, plan.rms_from, plan.section_from, plan.classify
+        w.duration, w.rms_from, w.section_from, w.classify
     )]
     .into_iter()
-    .chain(plan.cfgs.iter().map(|c| format!("{c:?}")));
+    .chain(plan.cells.iter().map(|c| c.to_string()));
     let labels = plan
-        .cfgs
+        .cells
         .iter()
         .map(|c| {
             format!(
                 "μ = {}, filter {}, q1 = {}",
-                c.feedback.mu,
-                if c.safety.enabled { "on" } else { "off" },
-                c.q0()[0]
+                c.mu,
+                if c.safety { "on" } else { "off" },
+                c.q0[0]
             )
         })
         .collect();
@@ -257,13 +358,13 @@ fn grid(plan: &Plan) -> Grid {
 pub fn run(args: ObstaclesCmd) -> Result<()> {
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
-    let work = |c: &Config| run_one(c, &plan);
+    let work = |c: &Cell| obstacle_cells::run(c, &plan.window);
     if let Some(s) = args.shard {
-        shard::run_shard(&grid(&plan), s, &plan.cfgs, &args.output, threads, work)?;
+        shard::run_shard(&grid(&plan), s, &plan.cells, &args.output, threads, work)?;
         return Ok(());
     }
     let started = Instant::now();
-    let results = run_all(&plan.cfgs, threads, "obstacles", work)?;
+    let results = run_all(&plan.cells, threads, "obstacles", work)?;
     finish(&args, &plan, results, Some(started.elapsed().as_secs_f64()))
 }
 
@@ -282,7 +383,7 @@ fn finish(
     wall: Option<f64>,
 ) -> Result<()> {
     let rows: Vec<Row> = plan
-        .cfgs
+        .cells
         .iter()
         .zip(results)
         .map(|(c, r)| {
@@ -291,9 +392,9 @@ fn finish(
                 Err(e) => (None, None, None, Some(e)),
             };
             Row {
-                mu: c.feedback.mu,
-                safety: c.safety.enabled,
-                q0: c.q0(),
+                mu: c.mu,
+                safety: c.safety,
+                q0: c.q0.clone(),
                 summary,
                 motion,
                 k01,
@@ -301,46 +402,42 @@ fn finish(
             }
         })
         .collect();
-    let base = &plan.cfgs[0];
     let csv = with_ext(&args.output, "csv");
     write_csv(&csv, &rows)?;
     let files = plot(&args.output, plan, &rows)?;
-    print_header(base, plan, rows.len(), wall);
-    print_table(plan, &rows, base.safety.clearance);
+    print_header(plan, rows.len(), wall);
+    print_table(plan, &rows, plan.clearance);
     super::print_written(&[std::slice::from_ref(&csv), &files[..]].concat());
     Ok(())
 }
 
-fn obstacle_list(cfg: &Config) -> String {
-    cfg.control
-        .obstacles
-        .iter()
-        .map(|o| format!("({}, {}) r {}", o.center[0], o.center[1], o.radius))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-fn print_header(base: &Config, plan: &Plan, runs: usize, wall: Option<f64>) {
-    let q0 = base.q0();
+fn print_header(plan: &Plan, runs: usize, wall: Option<f64>) {
+    let q0 = &plan.q0;
     let wall = wall.map_or_else(
         || "merged from shards".to_string(),
         |w| format!("in {w:.1} s wall"),
     );
     println!(
         "chaosd obstacles: {} obstacle(s) {}; required clearance {} m; {} runs of {} s ({} s simulated {wall})",
-        base.control.obstacles.len(),
-        obstacle_list(base),
-        base.safety.clearance,
+        plan.obstacles.len(),
+        plan.obstacles.join(", "),
+        plan.clearance,
         runs,
-        plan.duration,
-        runs as f64 * plan.duration,
+        plan.window.duration,
+        runs as f64 * plan.window.duration,
     );
     println!(
         "  starts: q1 varied, others from ({}); RMS tracking from {} s; Poincaré section from {} s",
         fmt_list(&q0[1..]),
-        plan.rms_from,
-        plan.section_from
+        plan.window.rms_from,
+        plan.window.section_from
     );
+    if !plan.off.starts_with("the paper's") {
+        println!(
+            "  filter off: {}: nothing but the filter keeps the links out of the obstacles",
+            plan.off
+        );
+    }
 }
 
 /// Sorted finite values.
@@ -408,7 +505,7 @@ fn class_counts(rows: &[&Row]) -> String {
 fn print_table(plan: &Plan, rows: &[Row], clearance: f64) {
     println!(
         "| μ | filter | runs (start in contact) | contact (s) worst / median | contact after getting clear (s) worst | closer than {clearance} m (s) worst / median | min clearance after clear (m) worst / median | RMS tracking after {} s (m) worst / median | Poincaré class | left the null space (s) worst / median |",
-        plan.rms_from
+        plan.window.rms_from
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for &mu in &plan.mus {
@@ -591,7 +688,7 @@ fn plot(prefix: &Path, plan: &Plan, rows: &[Row]) -> Result<Vec<PathBuf>> {
             true,
         ),
     ];
-    let clearance = plan.cfgs[0].safety.clearance;
+    let clearance = plan.clearance;
     let panels = metrics
         .iter()
         .map(|(title, y_label, metric, only_on)| {
@@ -662,12 +759,12 @@ fn plot(prefix: &Path, plan: &Plan, rows: &[Row]) -> Result<Vec<PathBuf>> {
             })
         })
         .collect();
-    let base = &plan.cfgs[0];
     Figure {
         title: Some(format!(
-            "Obstacles {}: the paper's potential (filter off) vs the safety filter (on), {} s runs",
-            obstacle_list(base),
-            plan.duration
+            "Obstacles {}: {} (filter off) vs the safety filter (on), {} s runs",
+            plan.obstacles.join(", "),
+            plan.off,
+            plan.window.duration
         )),
         panels,
         cols: 2,

@@ -17,7 +17,7 @@ pub enum ConfigError {
     #[error("unknown preset {name:?} (known presets: {known}, and the spatial panda)")]
     UnknownPreset { name: String, known: String },
     /// A spatial robot's set-up given where only the planar arm runs yet.
-    #[error("{0} is a spatial robot's set-up; `chaosd`, `chaosd-plant` and `chaosctl config|simulate|lyapunov|sweep|poincare|orbits|basins|arm-figure|figures` run spatial robots, but this command takes the planar arm only")]
+    #[error("{0} is a spatial robot's set-up; `chaosd`, `chaosd-plant` and `chaosctl config|simulate|lyapunov|sweep|poincare|orbits|basins|monitor|figures|obstacles|arm-figure|plan|replay` run spatial robots, but this command takes the planar arm only")]
     Spatial(String),
 }
 

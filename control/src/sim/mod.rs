@@ -252,8 +252,39 @@ pub struct Summary {
     pub safety_infeasible_steps: u64,
 }
 
+/// What a run's statistics need to know of the law, whatever the arm: the planar law's
+/// ([`StatsSetup::planar`]) or a spatial one's (`StatsSetup::spatial`), so that one
+/// [`RunStats`] and one [`Summary`] describe every arm's run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StatsSetup {
+    /// The task period T (s): the residual's delay and the strobe's step.
+    pub period: f64,
+    /// When the feedback switches on (s), and whether it is used at all (on, μ ≠ 0).
+    pub t_on: f64,
+    pub feedback_used: bool,
+    /// The clearance the safety filter requires (m), `safety.clearance`.
+    pub required_clearance: f64,
+    pub has_obstacles: bool,
+    pub safety_enabled: bool,
+}
+
+impl StatsSetup {
+    /// The planar law's.
+    pub fn planar(params: &LawParams) -> Self {
+        Self {
+            period: params.task.period,
+            t_on: params.t_on,
+            feedback_used: params.feedback && params.mu != 0.0,
+            required_clearance: params.safety.clearance,
+            has_obstacles: !params.obstacles.is_empty(),
+            safety_enabled: params.safety.enabled,
+        }
+    }
+}
+
 impl<const N: usize> RunStats<N> {
-    /// Statistics for a run of `duration` s whose transient lasts `transient` s.
+    /// Statistics for a run of the planar law of `duration` s whose transient lasts
+    /// `transient` s.
     pub fn new(
         params: &LawParams,
         dt: f64,
@@ -261,14 +292,26 @@ impl<const N: usize> RunStats<N> {
         transient: f64,
         initial: &ArmState<N>,
     ) -> Self {
-        let period = params.task.period;
+        Self::of(StatsSetup::planar(params), dt, duration, transient, initial)
+    }
+
+    /// Statistics for a run of any arm's law (`setup`) of `duration` s whose transient lasts
+    /// `transient` s.
+    pub fn of(
+        setup: StatsSetup,
+        dt: f64,
+        duration: f64,
+        transient: f64,
+        initial: &ArmState<N>,
+    ) -> Self {
+        let period = setup.period;
         Self {
             period,
             dt,
             transient,
-            t_on: params.t_on,
+            t_on: setup.t_on,
             end: duration,
-            feedback_used: params.feedback && params.mu != 0.0,
+            feedback_used: setup.feedback_used,
             history: DelayLine::new(period / dt, initial.qd),
             steps_after_transient: 0,
             sq_err: 0.0,
@@ -280,9 +323,9 @@ impl<const N: usize> RunStats<N> {
             nonfinite_steps: 0,
             min_clearance: f64::INFINITY,
             safety_zone_steps: 0,
-            required_clearance: params.safety.clearance,
-            has_obstacles: !params.obstacles.is_empty(),
-            safety_enabled: params.safety.enabled,
+            required_clearance: setup.required_clearance,
+            has_obstacles: setup.has_obstacles,
+            safety_enabled: setup.safety_enabled,
             contact_steps: 0,
             inside_clearance_steps: 0,
             start_clearance: f64::NAN,

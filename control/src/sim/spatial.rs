@@ -122,6 +122,20 @@ pub struct SpatialSummary {
     pub finite: bool,
 }
 
+impl super::StatsSetup {
+    /// A spatial law's: its path's period, its feedback, its spheres and its filter.
+    pub fn spatial(p: &SpatialParams) -> Self {
+        Self {
+            period: p.task.path.period,
+            t_on: p.t_on,
+            feedback_used: p.feedback && p.mu != 0.0,
+            required_clearance: p.safety.clearance,
+            has_obstacles: !p.spheres.is_empty(),
+            safety_enabled: p.safety.enabled,
+        }
+    }
+}
+
 /// Runs `sim` for `duration` s, calling `each(t, state, output)` every step, and summarises.
 pub fn run<const N: usize, const M: usize>(
     sim: &mut SpatialSimulation<N, M>,
