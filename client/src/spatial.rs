@@ -386,6 +386,21 @@ pub fn lyapunov(
     ))
 }
 
+/// λ_max of the loop of `cfg` at gain `mu`, starting on `orbit` with its own history (the
+/// `orbits --mu` scan on a spatial robot).
+pub fn orbit_stability(
+    cfg: &SpatialConfig,
+    orbit: &control::analysis::PeriodicOrbit,
+    mu: f64,
+    spec: &control::analysis::StabilitySpec,
+) -> Result<control::analysis::OrbitStability> {
+    Ok(with_setup!(cfg, |s, N, M| {
+        let mut p = s.params;
+        p.mu = mu;
+        control::analysis::spatial::orbit_stability::<N, M>(&s.arm, &p, s.dt, orbit, spec)?
+    }))
+}
+
 /// One seed of `orbits` on a spatial robot: where the loop with feedback gain `seed_mu` ended
 /// (at a multiple of T), and the μ = 0 period-T orbit Newton's method found from there.
 #[derive(Serialize)]

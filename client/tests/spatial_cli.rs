@@ -180,20 +180,18 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
     }
     let o = chaosctl(&["simulate", "--preset", "panda", "--model", "floating"]);
     assert_eq!(o.status.code(), Some(2));
-    let o = chaosctl(&["sweep", "--preset", "panda", "--start", "0,1,2"]);
-    assert_eq!(o.status.code(), Some(2));
-    // What runs only the planar arm says so.
+    // What runs only the planar arm says so: a spatial sweep runs its config's one start.
     std::fs::write(&cfg, &base).unwrap();
     let o = chaosctl(&[
-        "orbits",
+        "sweep",
         "--config",
         cfg.to_str().unwrap(),
-        "--mu",
-        "0:1:0.5",
+        "--start",
+        "0,1,2",
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains("planar arm only"), "{err}");
+    assert!(err.contains("--start applies to the planar arm"), "{err}");
 }
 
 #[test]
@@ -333,9 +331,46 @@ fn orbits_finds_the_cycle_the_feedback_settles_on_and_it_is_neutral_without_it()
             .count();
         assert_eq!(on_circle, 8, "{f}");
     }
-    let o = chaosctl(&["orbits", "--preset", "panda", "--mu", "0:1:0.5"]);
-    assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("planar arm only"));
+    // λ_max on the cycle over μ, as for the planar arm: neutral at μ = 0 (within two standard
+    // errors of 0), stable with the feedback, and the window says so.
+    let dir = tmp("orbits");
+    let o = chaosctl(&[
+        "orbits",
+        "--preset",
+        "panda",
+        "--seed-mu",
+        "0.5",
+        "--seed-duration",
+        "100",
+        "--mu",
+        "0:1:0.5",
+        "--average",
+        "40",
+        "--json",
+        "--output",
+        dir.to_str().unwrap(),
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let orbits = v.as_array().unwrap();
+    assert_eq!(orbits.len(), 1, "both seeds settle on one cycle: {out}");
+    let verdicts: Vec<(f64, &str, f64)> = orbits[0]["stability"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| {
+            let s = &s["Ok"];
+            let l = s["lyapunov"]["lambda_max"].as_f64().unwrap();
+            (s["mu"].as_f64().unwrap(), s["verdict"].as_str().unwrap(), l)
+        })
+        .collect();
+    assert_eq!(verdicts[0].1, "marginal", "{verdicts:?}");
+    for &(mu, verdict, l) in &verdicts[1..] {
+        assert!(verdict == "stable" && l < -0.02, "μ = {mu}: {verdicts:?}");
+    }
+    assert_eq!(orbits[0]["stable_windows"], serde_json::json!([[0.5, 1.0]]));
+    assert!(tmp("orbits.png").exists());
 }
 
 #[test]

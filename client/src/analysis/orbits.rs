@@ -192,21 +192,7 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
             args.seed_duration
         );
     }
-    let spec = StabilitySpec {
-        settle: args.settle,
-        duration: args.average,
-        ..StabilitySpec::default()
-    };
-    if !(spec.settle.is_finite() && spec.settle >= 0.0) {
-        bail!("--settle {}: must be ≥ 0", spec.settle);
-    }
-    if !(spec.duration.is_finite() && spec.duration >= 4.0 * base.task.period) {
-        bail!(
-            "--average {}: must be at least 4 task periods ({} s)",
-            spec.duration,
-            4.0 * base.task.period
-        );
-    }
+    let spec = stability_spec(&args, base.task.period)?;
     let starts = args.starts.configs(&base, args.model.setup.q0.is_some())?;
     let threads = jobs(args.jobs);
 
@@ -301,7 +287,7 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
             }
         })
         .collect();
-    let files = plot(&args.output, &reports, &mus, &spec)?;
+    let files = plot(&args.output, &reports, &mus, &spec, true)?;
     if args.json {
         let r = Report {
             seeds_tried: seeds.len(),
@@ -317,7 +303,34 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
         converged,
         reports.len()
     );
-    for r in &reports {
+    print_reports(&reports, &mus, &spec);
+    super::print_written(&files);
+    Ok(())
+}
+
+/// The stability runs' window (`--settle`, `--average`), checked against the task period.
+fn stability_spec(args: &OrbitsCmd, period: f64) -> Result<StabilitySpec> {
+    let spec = StabilitySpec {
+        settle: args.settle,
+        duration: args.average,
+        ..StabilitySpec::default()
+    };
+    if !(spec.settle.is_finite() && spec.settle >= 0.0) {
+        bail!("--settle {}: must be ≥ 0", spec.settle);
+    }
+    if !(spec.duration.is_finite() && spec.duration >= 4.0 * period) {
+        bail!(
+            "--average {}: must be at least 4 task periods ({} s)",
+            spec.duration,
+            4.0 * period
+        );
+    }
+    Ok(spec)
+}
+
+/// Each orbit, its Floquet multipliers at μ = 0 and its λ_max over μ, as text.
+fn print_reports(reports: &[OrbitReport], mus: &[f64], spec: &StabilitySpec) {
+    for r in reports {
         println!("\norbit {}: {}", r.id, r.kind);
         println!("  q(kT)      ({}) rad", fmt_list(&r.orbit.q));
         println!("  q̇(kT)      ({}) rad/s", fmt_list(&r.orbit.qd));
@@ -363,15 +376,15 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
         spec.settle,
         spec.settle + spec.duration
     );
-    super::print_written(&files);
-    Ok(())
 }
 
+/// The λ_max-over-μ figure; `paper` marks the window the paper claims (for its planar arm).
 fn plot(
     prefix: &std::path::Path,
     reports: &[OrbitReport],
     mus: &[f64],
     spec: &StabilitySpec,
+    paper: bool,
 ) -> Result<Vec<PathBuf>> {
     // Orbits stabilised somewhere get their own colour; the rest share one grey entry (after they
     // leave the orbit, their λ_max is the exponent of wherever the trajectory went).
@@ -429,7 +442,10 @@ fn plot(
         );
     }
     let mu_max = mus.iter().cloned().fold(0.0, f64::max);
-    let marks = super::lambda_plot_marks(mu_max);
+    let mut marks = super::lambda_plot_marks(mu_max);
+    if !paper {
+        marks.0.clear();
+    }
     Figure {
         title: Some("Which period-T orbit does Pyragas feedback stabilise, and for which μ?".into()),
         panels: vec![Panel::Chart(Chart {
@@ -457,11 +473,13 @@ fn plot(
 const UNIT_CIRCLE: f64 = 1e-3;
 
 /// A spatial robot: the orbit each seeding gain's run settles on, found again at μ = 0, and its
-/// Floquet multipliers there (the μ scan of λ_max on it is planar-only so far).
+/// Floquet multipliers there; with `--mu`, each distinct orbit's λ_max over μ as for the planar
+/// arm (the same stability run, table and figure).
 fn spatial(args: &OrbitsCmd, cfg: &control::config::spatial::SpatialConfig) -> Result<()> {
-    if args.model.mu.is_some() {
-        bail!("--mu: the λ_max scan over μ on each orbit runs on the planar arm only; for a spatial robot use `chaosctl sweep`");
-    }
+    let scan = match &args.model.mu {
+        Some(m) => Some((m.0.clone(), stability_spec(args, cfg.task.period)?)),
+        None => None,
+    };
     if !(args.seed_duration.is_finite() && args.seed_duration >= cfg.task.period) {
         bail!(
             "--seed-duration {}: must be at least one period ({} s)",
@@ -479,8 +497,19 @@ fn spatial(args: &OrbitsCmd, cfg: &control::config::spatial::SpatialConfig) -> R
         }
     }
     let found = crate::spatial::orbits(cfg, &gains, args.seed_duration, &NewtonConfig::default())?;
+    let reports = match &scan {
+        Some((mus, spec)) => Some(spatial_scan(args, cfg, &found, mus, spec)?),
+        None => None,
+    };
+    let files = match (&reports, &scan) {
+        (Some(r), Some((mus, spec))) => plot(&args.output, r, mus, spec, false)?,
+        _ => Vec::new(),
+    };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&found)?);
+        match reports {
+            Some(r) => println!("{}", serde_json::to_string_pretty(&r)?),
+            None => println!("{}", serde_json::to_string_pretty(&found)?),
+        }
         return Ok(());
     }
     println!(
@@ -520,7 +549,52 @@ fn spatial(args: &OrbitsCmd, cfg: &control::config::spatial::SpatialConfig) -> R
             o.seed_mu, o.seed_residual
         );
     }
+    if let (Some(reports), Some((mus, spec))) = (reports, scan) {
+        println!("\n{} distinct orbits, λ_max over μ on each:", reports.len());
+        print_reports(&reports, &mus, &spec);
+        super::print_written(&files);
+    }
     Ok(())
+}
+
+/// The distinct orbits the seeds found, each with its λ_max at every μ of `mus` (in parallel).
+fn spatial_scan(
+    args: &OrbitsCmd,
+    cfg: &control::config::spatial::SpatialConfig,
+    found: &[crate::spatial::SpatialOrbit],
+    mus: &[f64],
+    spec: &StabilitySpec,
+) -> Result<Vec<OrbitReport>> {
+    let n = cfg.sim.q0.len();
+    let mut catalog = OrbitCatalog::new(2 * n, n, 1e-6);
+    let mut orbits: Vec<PeriodicOrbit> = Vec::new();
+    for o in found.iter().filter_map(|o| o.orbit.as_ref().ok()) {
+        if catalog.find_or_insert(&o.coords()).1 {
+            orbits.push(o.clone());
+        }
+    }
+    let cells: Vec<(usize, f64)> = (0..orbits.len())
+        .flat_map(|i| mus.iter().map(move |m| (i, *m)))
+        .collect();
+    let stab = run_all(&cells, jobs(args.jobs), "stability", |(i, mu)| {
+        crate::spatial::orbit_stability(cfg, &orbits[*i], *mu, spec).map_err(|e| format!("{e:#}"))
+    })?;
+    let mut stab = stab.into_iter();
+    Ok(orbits
+        .into_iter()
+        .enumerate()
+        .map(|(i, o)| {
+            let s: Vec<_> = stab.by_ref().take(mus.len()).collect();
+            OrbitReport {
+                id: orbit_name(i),
+                kind: kind(&o),
+                floquet_exponent: o.floquet_exponent(cfg.task.period),
+                stable_windows: windows(mus, &s),
+                stability: s,
+                orbit: o,
+            }
+        })
+        .collect())
 }
 
 #[cfg(test)]

@@ -417,12 +417,36 @@ pub fn orbit_stability<const N: usize>(
 ) -> Result<OrbitStability, OrbitError> {
     check_fixed(model)?;
     let period = params.task.period;
+    check_stability_run(period, params.tau, dt, spec)?;
+    let mut p = *params;
+    p.t_on = period;
+    let mut flow = ArmFlow::new(*model, p, dt, orbit.state::<N>());
+    flow.advance_to(period);
+    stability_on_orbit(
+        flow,
+        |f| f.coords(),
+        2 * N,
+        N,
+        orbit,
+        period,
+        params.mu,
+        spec,
+    )
+}
+
+/// The rules of a stability run: τ = T (so the feedback vanishes on a period-T orbit) and a
+/// window of at least four periods.
+pub fn check_stability_run(
+    period: f64,
+    tau: f64,
+    dt: f64,
+    spec: &StabilitySpec,
+) -> Result<(), OrbitError> {
     let steps = period_steps(period, dt).map_err(|e| OrbitError::Invalid(e.to_string()))?;
-    if ((params.tau / dt) - steps as f64).abs() > 1e-6 {
+    if ((tau / dt) - steps as f64).abs() > 1e-6 {
         return Err(OrbitError::Invalid(format!(
-            "τ = {} s differs from the task period T = {period} s: the feedback does not vanish on a \
-             period-T orbit, so these orbits are not orbits of the controlled loop",
-            params.tau
+            "τ = {tau} s differs from the task period T = {period} s: the feedback does not vanish on a \
+             period-T orbit, so these orbits are not orbits of the controlled loop"
         )));
     }
     if !(spec.settle >= 0.0 && spec.duration >= 4.0 * period && spec.d0 > 0.0 && spec.blocks >= 2) {
@@ -431,12 +455,27 @@ pub fn orbit_stability<const N: usize>(
             spec.settle, spec.duration
         )));
     }
-    let mut p = *params;
-    p.t_on = period;
-    let mut flow = ArmFlow::new(*model, p, dt, orbit.state::<N>());
-    flow.advance_to(period);
+    Ok(())
+}
+
+/// λ_max of `flow`, which ran one period along `orbit` with the feedback off (so its delay line
+/// holds the orbit's own history) and switches the feedback on now, with gain `mu`; `coords`
+/// reads its section coordinates (`dim` of them, the first `angles` compared modulo 2π). Any
+/// arm's loop: the planar [`orbit_stability`] and a spatial robot's
+/// (`analysis::spatial::orbit_stability`).
+#[allow(clippy::too_many_arguments)]
+pub fn stability_on_orbit<T: Trajectory>(
+    flow: T,
+    coords: impl Fn(&T) -> Vec<f64>,
+    dim: usize,
+    angles: usize,
+    orbit: &PeriodicOrbit,
+    period: f64,
+    mu: f64,
+    spec: &StabilitySpec,
+) -> Result<OrbitStability, OrbitError> {
     let target = orbit.coords();
-    let probe = Section::new(2 * N, N);
+    let probe = Section::new(dim, angles);
     let mut pair = Benettin::new(flow, spec.d0, period)?;
     let start = period + spec.settle;
     let end = start + spec.duration;
@@ -446,7 +485,7 @@ pub fn orbit_stability<const N: usize>(
     for k in 2..=periods {
         let t = k as f64 * period;
         pair.advance_to(t)?;
-        let d = probe.distance(&pair.reference().coords(), &target);
+        let d = probe.distance(&coords(pair.reference()), &target);
         max_distance = max_distance.max(d);
         if left_orbit_at.is_none() && (d > spec.leave_tol || d.is_nan()) {
             left_orbit_at = Some(t);
@@ -462,7 +501,7 @@ pub fn orbit_stability<const N: usize>(
         Verdict::Marginal
     };
     Ok(OrbitStability {
-        mu: params.mu,
+        mu,
         lyapunov,
         left_orbit_at,
         max_distance,

@@ -82,3 +82,27 @@ pub fn section<const N: usize, const M: usize>(
     let class = super::classify(&sec, cfg);
     (sec, class)
 }
+
+/// λ_max of a spatial loop at `params.mu`, starting on `orbit` (a period-T orbit of the loop
+/// without feedback, found by `newton_orbit` on [`crate::sim::spatial::stroboscopic_map`]) with its
+/// own history: the planar arm's [`super::orbits::orbit_stability`] for a URDF chain.
+pub fn orbit_stability<const N: usize, const M: usize>(
+    arm: &crate::arm::spatial::SpatialArm<N>,
+    params: &crate::law::spatial::SpatialParams,
+    dt: f64,
+    orbit: &super::PeriodicOrbit,
+    spec: &super::StabilitySpec,
+) -> Result<super::OrbitStability, super::OrbitError> {
+    let period = params.task.path.period;
+    super::orbits::check_stability_run(period, params.tau, dt, spec)?;
+    let mut p = *params;
+    p.t_on = period;
+    let x = orbit.state::<N>();
+    let mut sim = SpatialSimulation::<N, M>::new(*arm, p, dt, x.q, x.qd, p.tau);
+    sim.advance_to(period);
+    let coords = |s: &SpatialSimulation<N, M>| -> Vec<f64> {
+        let x = s.state();
+        x.q.iter().chain(x.qd.iter()).copied().collect()
+    };
+    super::orbits::stability_on_orbit(sim, coords, 2 * N, N, orbit, period, params.mu, spec)
+}
