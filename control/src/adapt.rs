@@ -23,6 +23,7 @@
 //! The update is one multiply-add on the tick, shared by the daemon's controller and the offline
 //! simulation, so what the book measures is what the daemon runs.
 
+use crate::basics::{ConfigError, LiveError};
 use serde::{Deserialize, Serialize};
 
 /// The speed-gradient law's settings (a `Copy` block inside the law's parameters).
@@ -170,24 +171,20 @@ pub fn set_live(
     value: Option<&str>,
     mu: &mut f64,
     auto: &mut Option<AutoMu>,
-) -> Result<(), String> {
-    let v = value.ok_or_else(|| format!("{key}: missing value"))?;
+) -> Result<(), LiveError> {
+    let v = value.ok_or_else(|| LiveError::Missing { key: key.into() })?;
     let number = || crate::basics::live_number(key, Some(v));
     match (key.trim_start_matches("feedback."), auto.as_mut()) {
         ("mu", _) if v == "auto" => {
             auto.get_or_insert_with(AutoMu::default);
         }
         ("mu", _) => {
-            *mu = number().map_err(|e| format!("{e} (give a number ≥ 0, or auto)"))?;
+            *mu = number().map_err(|e| LiveError::NotAGain(Box::new(e)))?;
             *auto = None;
         }
         ("gamma", Some(a)) => a.gamma = number()?,
         ("max_mu", Some(a)) => a.max_mu = number()?,
-        (k, _) => {
-            return Err(format!(
-                "feedback.{k} tunes mu = \"auto\": set mu auto first (chaosctl set mu auto)"
-            ))
-        }
+        (k, _) => return Err(LiveError::NeedsAuto { key: k.into() }),
     }
     Ok(())
 }
@@ -238,11 +235,11 @@ pub fn auto_from_toml(
     mu: MuSetting,
     gamma: Option<f64>,
     max_mu: Option<f64>,
-) -> Result<Option<AutoMu>, String> {
+) -> Result<Option<AutoMu>, ConfigError> {
     if !mu.is_auto() {
         return match (gamma, max_mu) {
             (None, None) => Ok(None),
-            _ => Err("feedback.gamma and feedback.max_mu tune mu = \"auto\"; with a fixed mu they do nothing: remove them".into()),
+            _ => Err(ConfigError::AutoTuningWithoutAuto),
         };
     }
     Ok(Some(AutoMu {
@@ -252,15 +249,15 @@ pub fn auto_from_toml(
 }
 
 impl std::str::FromStr for MuSetting {
-    type Err = String;
+    type Err = LiveError;
     /// `auto` or a finite number ≥ 0 (a command line's `--mu`).
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, LiveError> {
         if s == "auto" {
             return Ok(MuSetting::Auto);
         }
         match s.parse::<f64>() {
             Ok(v) if v.is_finite() && v >= 0.0 => Ok(MuSetting::Fixed(v)),
-            _ => Err(format!("{s:?}: must be a number ≥ 0 or \"auto\"")),
+            _ => Err(LiveError::NotAGainWord { value: s.into() }),
         }
     }
 }

@@ -66,7 +66,7 @@ fn limit<'a>(
 }
 
 pub(crate) fn num(key: &str, v: Option<&str>) -> Result<f64, String> {
-    control::basics::live_number(key, v)
+    control::basics::live_number(key, v).map_err(String::from)
 }
 
 /// Applies `KEY VALUE… [KEY VALUE…]` to a copy of `cfg` and validates the result.

@@ -16,6 +16,9 @@ pub enum ConfigError {
     },
     #[error("unknown preset {name:?} (known presets: {known}, and the spatial panda)")]
     UnknownPreset { name: String, known: String },
+    /// `feedback.gamma` or `feedback.max_mu` beside a fixed μ: they would silently do nothing.
+    #[error("feedback.gamma and feedback.max_mu tune mu = \"auto\"; with a fixed mu they do nothing: remove them")]
+    AutoTuningWithoutAuto,
     /// A spatial robot's set-up given where only the planar arm runs yet.
     #[error("{0} is a spatial robot's set-up; `chaosd`, `chaosd-plant` and `chaosctl config|simulate|lyapunov|sweep|poincare|orbits|basins|monitor|figures|obstacles|arm-figure|plan|replay` run spatial robots, but this command takes the planar arm only")]
     Spatial(String),
@@ -39,14 +42,65 @@ pub fn excerpt(s: &str) -> String {
     format!("{}… ({} bytes in all)", &s[..end], s.len())
 }
 
+/// A value given on a live `set` (`KEY VALUE`) or a command line that cannot be used: one line
+/// naming the key. The daemon prints it as the request's answer.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LiveError {
+    #[error("{key}: missing value")]
+    Missing { key: String },
+    #[error("{key}: {value:?} is not a number")]
+    NotANumber { key: String, value: String },
+    #[error("{key}: {value} is not a finite number")]
+    NotFinite { key: String, value: String },
+    /// A word that is none of `expected` (given as `None` when the value was missing).
+    #[error("{key}: {value:?} is not {expected}")]
+    NotOneOf {
+        key: String,
+        value: Option<String>,
+        expected: &'static str,
+    },
+    /// A gain that is neither a number ≥ 0 nor `auto`.
+    #[error("{0} (give a number ≥ 0, or auto)")]
+    NotAGain(Box<LiveError>),
+    #[error("{value:?}: must be a number ≥ 0 or \"auto\"")]
+    NotAGainWord { value: String },
+    /// `gamma` or `max_mu` while μ is fixed.
+    #[error("feedback.{key} tunes mu = \"auto\": set mu auto first (chaosctl set mu auto)")]
+    NeedsAuto { key: String },
+    #[error("unknown command mode {0:?} (expected \"acceleration\", \"velocity\", \"position\" or \"torque\")")]
+    CommandMode(String),
+}
+
+/// For the daemon's answers, which are text.
+impl From<LiveError> for String {
+    fn from(e: LiveError) -> Self {
+        e.to_string()
+    }
+}
+
+impl LiveError {
+    /// `value` is not one of the words in `expected` (e.g. `"hold or best-effort"`).
+    pub fn not_one_of(key: &str, value: Option<&str>, expected: &'static str) -> Self {
+        LiveError::NotOneOf {
+            key: key.into(),
+            value: value.map(String::from),
+            expected,
+        }
+    }
+}
+
 /// A number given on a live `set` (`KEY VALUE`): the value, or a one-line error naming the key.
-pub fn live_number(key: &str, v: Option<&str>) -> Result<f64, String> {
-    let v = v.ok_or_else(|| format!("{key}: missing value"))?;
-    let x: f64 = v
-        .parse()
-        .map_err(|_| format!("{key}: {v:?} is not a number"))?;
+pub fn live_number(key: &str, v: Option<&str>) -> Result<f64, LiveError> {
+    let v = v.ok_or_else(|| LiveError::Missing { key: key.into() })?;
+    let x: f64 = v.parse().map_err(|_| LiveError::NotANumber {
+        key: key.into(),
+        value: v.into(),
+    })?;
     if !x.is_finite() {
-        return Err(format!("{key}: {v} is not a finite number"));
+        return Err(LiveError::NotFinite {
+            key: key.into(),
+            value: v.into(),
+        });
     }
     Ok(x)
 }

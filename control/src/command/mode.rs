@@ -40,18 +40,13 @@ impl CommandMode {
     /// ```
     /// use control::command::CommandMode;
     /// assert_eq!(CommandMode::parse("torque"), Ok(CommandMode::Torque));
-    /// assert!(CommandMode::parse("effort").unwrap_err().contains("position"));
+    /// assert!(CommandMode::parse("effort").unwrap_err().to_string().contains("position"));
     /// ```
-    pub fn parse(name: &str) -> Result<Self, String> {
+    pub fn parse(name: &str) -> Result<Self, crate::basics::LiveError> {
         Self::ALL
             .into_iter()
             .find(|m| m.name() == name)
-            .ok_or_else(|| {
-                format!(
-                    "unknown command mode {name:?} (expected \"acceleration\", \"velocity\", \
-                 \"position\" or \"torque\")"
-                )
-            })
+            .ok_or_else(|| crate::basics::LiveError::CommandMode(name.into()))
     }
 
     /// The code on the wire (`protocol::interface`): 0, 1, 2, 3 in the order above.

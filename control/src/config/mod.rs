@@ -199,8 +199,8 @@ impl Default for FeedbackToml {
 }
 
 impl TryFrom<FeedbackToml> for FeedbackConfig {
-    type Error = String;
-    fn try_from(f: FeedbackToml) -> Result<Self, String> {
+    type Error = ConfigError;
+    fn try_from(f: FeedbackToml) -> Result<Self, ConfigError> {
         Ok(Self {
             mu: f.mu.start(),
             auto: crate::adapt::auto_from_toml(f.mu, f.gamma, f.max_mu)?,

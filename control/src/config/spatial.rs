@@ -165,8 +165,8 @@ impl Default for FeedbackToml {
 }
 
 impl TryFrom<FeedbackToml> for FeedbackSection {
-    type Error = String;
-    fn try_from(f: FeedbackToml) -> Result<Self, String> {
+    type Error = ConfigError;
+    fn try_from(f: FeedbackToml) -> Result<Self, ConfigError> {
         Ok(Self {
             enabled: f.enabled,
             mu: f.mu.start(),

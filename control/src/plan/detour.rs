@@ -152,6 +152,24 @@ impl Search<'_> {
     }
 }
 
+/// Why no joint-space detour onto the cycle was found: the reason of the last search margin
+/// tried (the planner adds it to the `Blocked` it reports).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DetourError {
+    #[error("no joint-space path keeps clear of the obstacles either")]
+    NoPath,
+    #[error("the joint-space path needs {steps} steps (at most {max})")]
+    TooLong { steps: usize, max: usize },
+    #[error(
+        "the joint-space path comes {clearance:.3} m from an obstacle at {at:.2} s of {of:.2} s"
+    )]
+    TooClose { clearance: f64, at: f64, of: f64 },
+    #[error("the joint-space path breaks a joint limit")]
+    JointLimit,
+    #[error(transparent)]
+    Table(#[from] crate::steer::SteerError),
+}
+
 /// Plans a detour from posture `q_now` at `t_start` onto `cycle`: the control points, the
 /// path's duration and the arrival time, checked densely; or why there is none.
 pub fn plan(
@@ -159,8 +177,8 @@ pub fn plan(
     cycle: &CycleTable,
     q_now: [f64; 3],
     t_start: f64,
-) -> Result<DetourTable, String> {
-    let mut last = Err(String::new());
+) -> Result<DetourTable, DetourError> {
+    let mut last = Err(DetourError::NoPath);
     for margin in SEARCH_MARGINS {
         last = plan_with(p, cycle, q_now, t_start, margin);
         if last.is_ok() {
@@ -176,7 +194,7 @@ fn plan_with(
     q_now: [f64; 3],
     t_start: f64,
     margin: f64,
-) -> Result<DetourTable, String> {
+) -> Result<DetourTable, DetourError> {
     let rows = cycle.rows();
     let phases = rows.len();
     // An arm inside a margin first backs out along its clearance's gradient, slowly.
@@ -237,7 +255,7 @@ fn plan_with(
             }
         }
     }
-    let end = reached.ok_or("no joint-space path keeps clear of the obstacles either")?;
+    let end = reached.ok_or(DetourError::NoPath)?;
     let k = goal[index(end)] as usize;
     // The cells back to the arm, as continuous joint angles.
     let mut cells = vec![end];
@@ -267,10 +285,10 @@ fn plan_with(
         pts.push(pts[0]);
     }
     if pts.len() > MAX_DETOUR {
-        return Err(format!(
-            "the joint-space path needs {} steps (at most {MAX_DETOUR})",
-            pts.len()
-        ));
+        return Err(DetourError::TooLong {
+            steps: pts.len(),
+            max: MAX_DETOUR,
+        });
     }
     let h = TAU / GRID as f64;
     let duration = (1.875 * (pts.len() + 1) as f64 * h / SPEED).max(0.5);
@@ -280,7 +298,7 @@ fn plan_with(
     let earliest = t_start + duration + BLEND;
     let periods = ((earliest - phase_t) / cycle.period).ceil();
     let t_arrive = phase_t + periods * cycle.period;
-    let table = DetourTable::new(t_start, duration, t_arrive, &pts).map_err(|e| e.to_string())?;
+    let table = DetourTable::new(t_start, duration, t_arrive, &pts)?;
     check(p, &table, cycle, margin)?;
     Ok(table)
 }
@@ -369,7 +387,7 @@ fn check(
     d: &DetourTable,
     cycle: &CycleTable,
     margin: f64,
-) -> Result<(), String> {
+) -> Result<(), DetourError> {
     let steps = ((d.t_arrive - d.t_start) / 0.002).ceil() as usize;
     let mut floor = p
         .clearance
@@ -382,14 +400,14 @@ fn check(
             floor = p.clearance + margin / 2.0;
         }
         if c < floor {
-            return Err(format!(
-                "the joint-space path comes {c:.3} m from an obstacle at {:.2} s of {:.2} s",
-                t - d.t_start,
-                d.t_arrive - d.t_start
-            ));
+            return Err(DetourError::TooClose {
+                clearance: c,
+                at: t - d.t_start,
+                of: d.t_arrive - d.t_start,
+            });
         }
         if (0..3).any(|i| r.qd[i].abs() > p.qd_max[i]) || !p.within_limits(&r.q, 0.0) {
-            return Err("the joint-space path breaks a joint limit".into());
+            return Err(DetourError::JointLimit);
         }
     }
     Ok(())

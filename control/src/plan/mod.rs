@@ -183,7 +183,7 @@ fn with_detour(problem: &planar::PlanarProblem, mut c: Cycle) -> PlanOutcome {
         return PlanOutcome::Found(c);
     };
     let way = CycleTable::new(&c)
-        .map_err(|e| e.to_string())
+        .map_err(detour::DetourError::from)
         .and_then(|t| detour::plan(problem, &t, q_now, problem.t0));
     match way {
         Ok(d) => {

@@ -6,6 +6,7 @@
 
 use crate::basics::invalid;
 use crate::basics::ConfigError;
+use crate::basics::LiveError;
 use serde::{Deserialize, Serialize};
 
 /// How long (s) tracking may stay lost, or the filter act outside the null space, before the
@@ -41,11 +42,11 @@ impl WhenBlocked {
     }
 
     /// Parses `hold` or `best-effort` (the `set` request's value).
-    pub fn parse(key: &str, v: Option<&str>) -> Result<Self, String> {
+    pub fn parse(key: &str, v: Option<&str>) -> Result<Self, LiveError> {
         match v {
             Some("hold") => Ok(WhenBlocked::Hold),
             Some("best-effort") => Ok(WhenBlocked::BestEffort),
-            other => Err(format!("{key}: {other:?} is not hold or best-effort")),
+            other => Err(LiveError::not_one_of(key, other, "hold or best-effort")),
         }
     }
 }
@@ -86,12 +87,12 @@ impl PlanMode {
     }
 
     /// Parses `auto`, `on` or `off` (the `set` request's value; `true`/`false` too).
-    pub fn parse(key: &str, v: Option<&str>) -> Result<Self, String> {
+    pub fn parse(key: &str, v: Option<&str>) -> Result<Self, LiveError> {
         match v {
             Some("auto") => Ok(PlanMode::Auto),
             Some("on" | "true" | "1") => Ok(PlanMode::On),
             Some("off" | "false" | "0") => Ok(PlanMode::Off),
-            other => Err(format!("{key}: {other:?} is not auto, on or off")),
+            other => Err(LiveError::not_one_of(key, other, "auto, on or off")),
         }
     }
 }
