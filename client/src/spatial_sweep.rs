@@ -1,6 +1,7 @@
-//! `chaosctl sweep` on a spatial robot: for each μ, λ_max (Benettin, the planar norm) and what the
-//! run did (final period residual, joint drift per period, speed, margin to the limits), in
-//! parallel; writes PREFIX.csv and a two-panel figure (λ_max and log₁₀ residual against μ).
+//! `chaosctl sweep` on a spatial robot: for each μ and start, λ_max (Benettin, the planar norm) and
+//! what the run did (final period residual, joint drift per period, speed, margin to the limits),
+//! in parallel; writes PREFIX.csv and a two-panel figure (λ_max and log₁₀ residual against μ, a
+//! line per start).
 
 use crate::plot::{Chart, Figure, Panel, Rule, Series, Style, DARK, PALETTE};
 use crate::spatial::{lyapunov, run_summary};
@@ -10,10 +11,13 @@ use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
 
-/// One μ of the sweep; a shard file carries exactly this per μ.
+/// One (μ, start) of the sweep; a shard file carries exactly this per grid point.
 #[derive(Serialize, Deserialize, Clone, Debug)]
 pub struct SpatialRow {
     pub mu: f64,
+    /// Which start (0-based, in `--start` order; 0 alone without `--start`) and its posture.
+    pub start: usize,
+    pub q0: Vec<f64>,
     pub lambda_max: Option<f64>,
     pub stderr: Option<f64>,
     pub residual_final: Option<f64>,
@@ -57,14 +61,16 @@ pub fn check(cfg: &SpatialConfig) -> Result<()> {
     Ok(())
 }
 
-/// Runs one μ.
-pub fn row(cfg: &SpatialConfig, mu: f64, spec: &Spec) -> SpatialRow {
+/// Runs one μ from start number `start` (`cfg` starts there).
+pub fn row(cfg: &SpatialConfig, start: usize, mu: f64, spec: &Spec) -> SpatialRow {
     let (duration, window) = (spec.duration, spec.window);
     let mut c = cfg.clone();
     c.feedback.mu = mu;
     c.sim.duration = duration;
     let mut r = SpatialRow {
         mu,
+        start,
+        q0: c.sim.q0.clone(),
         lambda_max: None,
         stderr: None,
         residual_final: None,
@@ -110,13 +116,16 @@ fn write_csv(path: &Path, rows: &[SpatialRow]) -> Result<()> {
     );
     writeln!(
         w,
-        "mu,lambda_max,stderr,motion,residual_final,drift_per_period,max_joint_speed,min_joint_margin,error"
+        "mu,start,q0,lambda_max,stderr,motion,residual_final,drift_per_period,max_joint_speed,min_joint_margin,error"
     )?;
     for r in rows {
+        let q0: Vec<String> = r.q0.iter().map(f64::to_string).collect();
         writeln!(
             w,
-            "{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{}",
             r.mu,
+            r.start + 1,
+            q0.join(";"),
             cell(r.lambda_max),
             cell(r.stderr),
             r.motion.as_deref().unwrap_or(""),
@@ -132,34 +141,49 @@ fn write_csv(path: &Path, rows: &[SpatialRow]) -> Result<()> {
 }
 
 fn plot(prefix: &Path, rows: &[SpatialRow], cfg: &SpatialConfig, window: [f64; 2]) -> Result<()> {
-    let ok: Vec<&SpatialRow> = rows.iter().filter(|r| r.lambda_max.is_some()).collect();
-    let lambda = Series::new(
-        Some("λ_max ± stderr".into()),
-        PALETTE[0],
-        Style::LineMarkers { width: 2, size: 3 },
-        ok.iter()
-            .map(|r| (r.mu, r.lambda_max.unwrap_or(f64::NAN)))
-            .collect(),
-    )
-    .yerr(ok.iter().map(|r| r.stderr.unwrap_or(0.0)).collect());
+    let starts = rows.iter().map(|r| r.start + 1).max().unwrap_or(1);
+    let label = |what: &str, s: usize| {
+        if starts == 1 {
+            what.to_string()
+        } else {
+            format!("{what}, start {}", s + 1)
+        }
+    };
+    let (mut lambda, mut residual) = (Vec::new(), Vec::new());
+    for s in 0..starts {
+        let of: Vec<&SpatialRow> = rows.iter().filter(|r| r.start == s).collect();
+        let ok: Vec<&&SpatialRow> = of.iter().filter(|r| r.lambda_max.is_some()).collect();
+        let color = PALETTE[(2 * s) % PALETTE.len()];
+        lambda.push(
+            Series::new(
+                Some(label("λ_max ± stderr", s)),
+                color,
+                Style::LineMarkers { width: 2, size: 3 },
+                ok.iter()
+                    .map(|r| (r.mu, r.lambda_max.unwrap_or(f64::NAN)))
+                    .collect(),
+            )
+            .yerr(ok.iter().map(|r| r.stderr.unwrap_or(0.0)).collect()),
+        );
+        residual.push(Series::new(
+            Some(label("log₁₀ final residual |q̇(t) − q̇(t − T)|", s)),
+            PALETTE[(2 * s + 1) % PALETTE.len()],
+            Style::LineMarkers { width: 2, size: 3 },
+            of.iter()
+                .filter_map(|r| {
+                    r.residual_final
+                        .filter(|v| *v > 0.0)
+                        .map(|v| (r.mu, v.log10()))
+                })
+                .collect(),
+        ));
+    }
     let zero = Rule {
         value: 0.0,
         vertical: false,
         color: DARK,
         label: None,
     };
-    let residual = Series::new(
-        Some("log₁₀ final residual |q̇(t) − q̇(t − T)|".into()),
-        PALETTE[1],
-        Style::LineMarkers { width: 2, size: 3 },
-        rows.iter()
-            .filter_map(|r| {
-                r.residual_final
-                    .filter(|v| *v > 0.0)
-                    .map(|v| (r.mu, v.log10()))
-            })
-            .collect(),
-    );
     let title = cfg.describe();
     Figure {
         title: Some(title),
@@ -168,7 +192,7 @@ fn plot(prefix: &Path, rows: &[SpatialRow], cfg: &SpatialConfig, window: [f64; 2
                 title: format!("λ_max over {:.0}–{:.0} s", window[0], window[1]),
                 x_label: "Pyragas gain μ (1/s)".into(),
                 y_label: "λ_max (1/s)".into(),
-                series: vec![lambda],
+                series: lambda,
                 rules: vec![zero],
                 legend: true,
                 ..Default::default()
@@ -177,7 +201,7 @@ fn plot(prefix: &Path, rows: &[SpatialRow], cfg: &SpatialConfig, window: [f64; 2
                 title: "period residual over the last 10 periods".into(),
                 x_label: "Pyragas gain μ (1/s)".into(),
                 y_label: "log₁₀ residual (rad/s)".into(),
-                series: vec![residual],
+                series: residual,
                 legend: true,
                 ..Default::default()
             }),
@@ -191,7 +215,16 @@ fn plot(prefix: &Path, rows: &[SpatialRow], cfg: &SpatialConfig, window: [f64; 2
 
 /// The rows as a table.
 pub fn print(rows: &[SpatialRow]) {
-    println!("      μ   λ_max (1/s)       Poincaré class       residual  drift/period  max speed  min margin");
+    let several = rows.iter().any(|r| r.start > 0);
+    let start = |r: Option<&SpatialRow>| match (several, r) {
+        (false, _) => String::new(),
+        (true, None) => "start  ".into(),
+        (true, Some(r)) => format!("{:>5}  ", r.start + 1),
+    };
+    println!(
+        "{}      μ   λ_max (1/s)       Poincaré class       residual  drift/period  max speed  min margin",
+        start(None)
+    );
     let f = |v: Option<f64>| v.map(|x| format!("{x:.2e}")).unwrap_or_else(|| "—".into());
     for r in rows {
         let lam = match (r.lambda_max, r.stderr) {
@@ -199,7 +232,8 @@ pub fn print(rows: &[SpatialRow]) {
             _ => "—".into(),
         };
         println!(
-            "{:7.3}  {lam:>16}  {:<18}  {:>11}  {:>12}  {:>9}  {:>10}{}",
+            "{}{:7.3}  {lam:>16}  {:<18}  {:>11}  {:>12}  {:>9}  {:>10}{}",
+            start(Some(r)),
             r.mu,
             r.motion.as_deref().unwrap_or("—"),
             f(r.residual_final),

@@ -194,21 +194,31 @@ fn basins_shards_merge_to_the_unsharded_csv() {
 #[test]
 fn panda_sweep_shards_merge_to_the_unsharded_csv() {
     let dir = scratch("sweep-panda");
-    // 3 μ of the Panda (its one start) in 2 shards.
+    // 3 μ × 2 starts of the Panda in 4 shards.
     let scan = [
         "sweep",
         "--preset",
         "panda",
         "--mu",
         "0:1:0.5",
+        "--start=0,-0.785,0,-2.356,0,1.571,0.785",
+        "--start=0.3,-0.785,0,-2.356,0,1.571,0.785",
         "--t-on",
         "5",
         "--duration",
         "30",
     ];
-    merged_equals_unsharded(&dir, &scan, 2, 3);
+    merged_equals_unsharded(&dir, &scan, 4, 6);
     let csv = std::fs::read_to_string(dir.join("merged.csv")).unwrap();
-    assert!(csv.starts_with("mu,lambda_max,"), "{csv}");
+    assert!(csv.starts_with("mu,start,q0,lambda_max,"), "{csv}");
+    // The two starts are two runs: their λ_max differ at μ = 0.
+    let lambda: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .take(2)
+        .map(|l| l.split(',').nth(3).unwrap())
+        .collect();
+    assert_ne!(lambda[0], lambda[1], "{csv}");
     std::fs::remove_dir_all(dir).ok();
 }
 

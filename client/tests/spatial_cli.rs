@@ -180,7 +180,7 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
     }
     let o = chaosctl(&["simulate", "--preset", "panda", "--model", "floating"]);
     assert_eq!(o.status.code(), Some(2));
-    // What runs only the planar arm says so: a spatial sweep runs its config's one start.
+    // A start of the planar arm's size given to a robot's sweep: named, with the rule.
     std::fs::write(&cfg, &base).unwrap();
     let o = chaosctl(&[
         "sweep",
@@ -191,7 +191,10 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains("--start applies to the planar arm"), "{err}");
+    assert!(
+        err.contains("start 1") && err.contains("one per joint"),
+        "{err}"
+    );
 }
 
 #[test]

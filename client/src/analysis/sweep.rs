@@ -310,48 +310,88 @@ fn print_obstacles(rows: &[Row], starts: &[Config], mus: &[f64]) {
 /// The sweep on a spatial robot: one start (the config's), λ_max and the run's summary per μ;
 /// sharded over μ like the planar grid.
 fn spatial(args: &SweepCmd, cfg: &SpatialConfig) -> Result<()> {
-    let (mus, spec) = spatial_plan(args)?;
-    crate::spatial_sweep::check(cfg)?;
+    let plan = spatial_plan(args, cfg)?;
     let threads = jobs(args.jobs);
-    let work = |&mu: &f64| crate::spatial_sweep::row(cfg, mu, &spec);
+    let work =
+        |&(i, mu): &(usize, f64)| crate::spatial_sweep::row(&plan.starts[i], i, mu, &plan.spec);
     if let Some(s) = args.shard {
-        let grid = spatial_grid(cfg, &mus, &spec);
-        shard::run_shard(&grid, s, &mus, &args.output, threads, work)?;
+        let grid = spatial_grid(&plan);
+        shard::run_shard(&grid, s, &plan.items, &args.output, threads, work)?;
         return Ok(());
     }
     let t0 = Instant::now();
-    let rows = run_all(&mus, threads, "sweep", work)?;
-    spatial_finish(args, cfg, &spec, &rows, Some(t0.elapsed().as_secs_f64()))
+    let rows = run_all(&plan.items, threads, "sweep", work)?;
+    spatial_finish(
+        args,
+        cfg,
+        &plan.spec,
+        &rows,
+        Some(t0.elapsed().as_secs_f64()),
+    )
 }
 
-/// The μ values and the run of each, for a spatial robot (which runs its config's one start).
-fn spatial_plan(args: &SweepCmd) -> Result<(Vec<f64>, crate::spatial_sweep::Spec)> {
-    if !args.starts.starts.is_empty() {
-        anyhow::bail!("--start applies to the planar arm; a spatial sweep runs one start, its config's (set sim.q0 or --q0)");
-    }
+/// A spatial robot's sweep: one config per start, and the grid points (start, μ) in CSV row
+/// order (μ outer, as for the planar arm).
+struct SpatialPlan {
+    spec: crate::spatial_sweep::Spec,
+    starts: Vec<SpatialConfig>,
+    items: Vec<(usize, f64)>,
+}
+
+/// The μ values, the starts (`--start`, repeated, or the config's `sim.q0`) and the run of each.
+fn spatial_plan(args: &SweepCmd, cfg: &SpatialConfig) -> Result<SpatialPlan> {
     let mus = match &args.model.mu {
         Some(r) => r.0.clone(),
         None => super::parse_range("0:3:0.25").map_err(anyhow::Error::msg)?,
     };
     let l = &args.lyapunov;
     let spec = crate::spatial_sweep::Spec::new(l.duration, l.window, l.d0, l.blocks);
-    Ok((mus, spec))
+    let mut starts = vec![cfg.clone()];
+    if !args.starts.starts.is_empty() {
+        starts = args
+            .starts
+            .starts
+            .iter()
+            .map(|q0| {
+                let mut c = cfg.clone();
+                c.sim.q0 = q0.0.clone();
+                c
+            })
+            .collect();
+    }
+    for (i, c) in starts.iter().enumerate() {
+        // Fail early, once a start, on one that cannot run.
+        crate::spatial_sweep::check(c).with_context(|| format!("start {}", i + 1))?;
+    }
+    let items = mus
+        .iter()
+        .flat_map(|&mu| (0..starts.len()).map(move |i| (i, mu)))
+        .collect();
+    Ok(SpatialPlan {
+        spec,
+        starts,
+        items,
+    })
 }
 
-fn spatial_grid(cfg: &SpatialConfig, mus: &[f64], spec: &crate::spatial_sweep::Spec) -> Grid {
-    let parts = [format!("spatial {spec:?}"), format!("{cfg:?}")]
+fn spatial_grid(plan: &SpatialPlan) -> Grid {
+    let parts = [format!("spatial {:?}", plan.spec)]
         .into_iter()
-        .chain(mus.iter().map(|mu| format!("{mu:?}")));
-    let labels = mus.iter().map(|mu| format!("μ = {mu}")).collect();
+        .chain(plan.starts.iter().map(|c| format!("{c:?}")))
+        .chain(plan.items.iter().map(|(i, mu)| format!("{i} {mu:?}")));
+    let labels = plan
+        .items
+        .iter()
+        .map(|(i, mu)| format!("μ = {mu}, start {}", i + 1))
+        .collect();
     Grid::new("sweep", parts, labels)
 }
 
 /// `chaosctl merge` of a spatial robot's sweep shards.
 fn spatial_merge(args: &SweepCmd, cfg: &SpatialConfig, files: Vec<Loaded>) -> Result<()> {
-    let (mus, spec) = spatial_plan(args)?;
-    let rows: Vec<crate::spatial_sweep::SpatialRow> =
-        shard::collect(&spatial_grid(cfg, &mus, &spec), files)?;
-    spatial_finish(args, cfg, &spec, &rows, None)
+    let plan = spatial_plan(args, cfg)?;
+    let rows: Vec<crate::spatial_sweep::SpatialRow> = shard::collect(&spatial_grid(&plan), files)?;
+    spatial_finish(args, cfg, &plan.spec, &rows, None)
 }
 
 /// Writes the CSV and figure and prints the table; `wall` is a local run's time.
