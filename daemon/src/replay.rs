@@ -905,6 +905,26 @@ mod tests {
         }
     }
 
+    /// Records the tick just run at `now` as the reporter does.
+    fn log_tick<const N: usize>(
+        log: &mut ReplayLog,
+        ctl: &Controller<N>,
+        o: &crate::controller::TickOutcome<N>,
+        state: Option<StateSample>,
+        now: u64,
+    ) {
+        let times = TickTimes {
+            due: now,
+            woke: now,
+            done: now + 1,
+        };
+        let ctx = crate::view::TickContext {
+            chaos: control::monitor::Verdict::Unknown,
+            blocked: None,
+        };
+        log.tick(&tick_record(ctl, o, state, times), ctx);
+    }
+
     /// Runs a controller on synthetic states with a parameter change and a gap, recording it.
     fn record(dir: &Path) -> PathBuf {
         record_capped(dir, u64::MAX).unwrap()
@@ -949,16 +969,7 @@ mod tests {
             s.qd[..3].copy_from_slice(&[1.0 / 3.0, -0.2, (k as f64).sqrt()]);
             let newest = (k % 50 < 45).then_some(s);
             let o = ctl.tick(newest.as_ref(), now);
-            let times = TickTimes {
-                due: now,
-                woke: now,
-                done: now + 1,
-            };
-            let ctx = crate::view::TickContext {
-                chaos: control::monitor::Verdict::Unknown,
-                blocked: None,
-            };
-            log.tick(&tick_record(&ctl, &o, newest, times), ctx);
+            log_tick(&mut log, &ctl, &o, newest, now);
         }
         log.finish()
     }
@@ -1028,16 +1039,7 @@ mod tests {
                 st.qd[i] = 0.01 * (i as f64 - 3.0);
             }
             let o = ctl.tick(Some(&st), now);
-            let times = TickTimes {
-                due: now,
-                woke: now,
-                done: now + 1,
-            };
-            let ctx = crate::view::TickContext {
-                chaos: control::monitor::Verdict::Unknown,
-                blocked: None,
-            };
-            log.tick(&tick_record(&ctl, &o, Some(st), times), ctx);
+            log_tick(&mut log, &ctl, &o, Some(st), now);
         }
         log.finish().unwrap()
     }

@@ -271,22 +271,7 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
             })
         },
     )?;
-    let mut stab = stab.into_iter();
-    let reports: Vec<OrbitReport> = orbits
-        .into_iter()
-        .enumerate()
-        .map(|(i, o)| {
-            let s: Vec<_> = stab.by_ref().take(mus.len()).collect();
-            OrbitReport {
-                id: orbit_name(i),
-                kind: kind(&o),
-                floquet_exponent: o.floquet_exponent(base.task.period),
-                stable_windows: windows(&mus, &s),
-                stability: s,
-                orbit: o,
-            }
-        })
-        .collect();
+    let reports = reports(orbits, &mus, stab, base.task.period);
     let files = plot(&args.output, &reports, &mus, &spec, true)?;
     if args.json {
         let r = Report {
@@ -579,8 +564,18 @@ fn spatial_scan(
     let stab = run_all(&cells, jobs(args.jobs), "stability", |(i, mu)| {
         crate::spatial::orbit_stability(cfg, &orbits[*i], *mu, spec).map_err(|e| format!("{e:#}"))
     })?;
+    Ok(reports(orbits, mus, stab, cfg.task.period))
+}
+
+/// Each orbit with its stability at every μ (`stab`: orbit-major, μ inner) and its name.
+fn reports(
+    orbits: Vec<PeriodicOrbit>,
+    mus: &[f64],
+    stab: Vec<Result<OrbitStability, String>>,
+    period: f64,
+) -> Vec<OrbitReport> {
     let mut stab = stab.into_iter();
-    Ok(orbits
+    orbits
         .into_iter()
         .enumerate()
         .map(|(i, o)| {
@@ -588,13 +583,13 @@ fn spatial_scan(
             OrbitReport {
                 id: orbit_name(i),
                 kind: kind(&o),
-                floquet_exponent: o.floquet_exponent(cfg.task.period),
+                floquet_exponent: o.floquet_exponent(period),
                 stable_windows: windows(mus, &s),
                 stability: s,
                 orbit: o,
             }
         })
-        .collect())
+        .collect()
 }
 
 #[cfg(test)]
