@@ -13,15 +13,12 @@ use anyhow::{anyhow, Result};
 use control::command::{CommandMode, LimitKind};
 use control::commanded::run;
 use control::commanded::CommandedRun;
-use control::model::{builtin, Chain};
 use control::rigid_body::RigidBodyConfig;
 use control::System;
 use std::hint::black_box;
 
 fn panda(mode: CommandMode, pd_hz: f64) -> Result<System> {
-    let resolve: control::system::Resolve = &|d, b, t| {
-        Chain::from_urdf(builtin(d).map_err(|e| e.to_string())?, b, t).map_err(|e| e.to_string())
-    };
+    let resolve: control::system::Resolve = &control::system::builtin_robot;
     let mut s = System::preset("panda", resolve)?;
     let System::Spatial(sp) = &mut s else {
         return Err(anyhow!("the panda preset is not spatial"));

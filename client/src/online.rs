@@ -269,8 +269,8 @@ impl Link {
     /// Sends one request and waits up to `timeout` for the answer.
     pub fn request(&self, op: Op, args: &str, timeout: Duration) -> Result<String, Failure> {
         let names = &self.names;
-        let req =
-            ControlRequest::new(std::process::id() as u64, op, args).map_err(Failure::Usage)?;
+        let req = ControlRequest::new(std::process::id() as u64, op, args)
+            .map_err(|e| Failure::Usage(e.to_string()))?;
         let pending = self.client.send_copy(req).map_err(|e| {
             Failure::Unreachable(format!("cannot send to {}: {e:?}", names.control()))
         })?;

@@ -33,7 +33,28 @@ pub enum System {
 }
 
 /// Loads the chain a `[robot]` table names: `(description, base, tip)`.
-pub type Resolve<'a> = &'a dyn Fn(&str, Option<&str>, Option<&str>) -> Result<Chain, String>;
+pub type Resolve<'a> =
+    &'a dyn Fn(&str, Option<&str>, Option<&str>) -> Result<Chain, crate::model::RobotError>;
+
+/// A [`Resolve`] that knows the robots built into this crate and nothing else (it reads no
+/// file): for tests and benchmarks that must not depend on the disk.
+///
+/// ```
+/// let s = control::System::preset("panda", &control::system::builtin_robot).unwrap();
+/// assert_eq!(s.n(), 7);
+/// ```
+pub fn builtin_robot(
+    description: &str,
+    base: Option<&str>,
+    tip: Option<&str>,
+) -> Result<Chain, crate::model::RobotError> {
+    let model = |error| crate::model::RobotError::Model {
+        origin: format!("built-in robot {description:?}"),
+        error,
+    };
+    let text = crate::model::builtin(description).map_err(model)?;
+    Chain::from_urdf(text, base, tip).map_err(model)
+}
 
 /// Who the arm is, for the handshake: a name a person reads and a fingerprint of every number.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -70,7 +91,7 @@ impl System {
             ConfigError::Invalid {
                 field: "robot.description".into(),
                 value: format!("{:?}", r.description),
-                expected: e,
+                expected: e.to_string(),
             }
         })?;
         let s = System::Spatial(Box::new(SpatialSystem { config, chain }));
@@ -383,10 +404,7 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 mod tests {
     use super::*;
 
-    fn builtin(d: &str, b: Option<&str>, t: Option<&str>) -> Result<Chain, String> {
-        let text = crate::model::builtin(d).map_err(|e| e.to_string())?;
-        Chain::from_urdf(text, b, t).map_err(|e| e.to_string())
-    }
+    use super::builtin_robot as builtin;
 
     #[test]
     fn tells_planar_from_spatial_and_names_the_arm() {

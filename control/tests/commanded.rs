@@ -5,14 +5,11 @@
 use control::command::{CommandMode, LimitKind};
 use control::commanded::run;
 use control::commanded::CommandedRun;
-use control::model::{builtin, Chain};
 use control::rigid_body::RigidBodyConfig;
 use control::System;
 
 fn panda(mode: CommandMode) -> System {
-    let resolve: control::system::Resolve = &|d, b, t| {
-        Chain::from_urdf(builtin(d).map_err(|e| e.to_string())?, b, t).map_err(|e| e.to_string())
-    };
+    let resolve: control::system::Resolve = &control::system::builtin_robot;
     let mut s = System::preset("panda", resolve).unwrap();
     if let System::Spatial(sp) = &mut s {
         sp.config.command.mode = mode;

@@ -7,6 +7,8 @@
 //! `#[cfg(test)]` blocks is an import of module `x` (a crate-root name is followed to the
 //! module that defines or re-exports it). It also checks that no module reads a clock: timing a
 //! computation is the caller's business, so the same call is bit-identical wherever it runs.
+//! And it checks that no public seam of `control`, `protocol` or `rt` answers with a bare
+//! `String` for an error.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -306,4 +308,51 @@ fn the_checker_sees_what_it_should() {
     let names = imported_names(&code(text));
     let expected: BTreeSet<String> = ["a", "c", "d", "g"].map(String::from).into();
     assert_eq!(names, expected);
+}
+
+/// Every `Result<…, String>` written in `code` (white space and a trailing comma aside, as
+/// rustfmt splits a long one over lines): from `Result<` to the `String>` that closes it, when
+/// no `;`, `{` or `}` falls between (one signature or type).
+fn string_results(code: &str) -> Vec<String> {
+    let compact: String = code.split_whitespace().collect::<String>().replace(",>", ">");
+    let mut found = Vec::new();
+    for (i, _) in compact.match_indices(",String>") {
+        let Some(start) = compact[..i].rfind("Result<") else {
+            continue;
+        };
+        if !compact[start..i].contains([';', '{', '}']) {
+            found.push(compact[start..i + ",String>".len()].to_string());
+        }
+    }
+    found
+}
+
+/// The public seams of `control`, `protocol` and `rt` give typed errors: a caller can match on
+/// what went wrong, and only the outermost layer (the daemon's answer, the client's message)
+/// turns one into text.
+#[test]
+fn no_string_errors_at_the_seams() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut offenders = Vec::new();
+    for krate in ["control", "protocol", "rt"] {
+        let mut files = Vec::new();
+        rust_files(&root.join(krate).join("src"), &mut files);
+        for f in files {
+            for hit in string_results(&code(&std::fs::read_to_string(&f).unwrap())) {
+                offenders.push(format!("{}: {hit}", f.display()));
+            }
+        }
+    }
+    assert!(
+        offenders.is_empty(),
+        "Result<_, String> outside tests:\n{}",
+        offenders.join("\n")
+    );
+}
+
+#[test]
+fn the_string_result_check_sees_what_it_should() {
+    let text = "pub fn a() -> Result<u8, String> {}\nfn b() -> Result<\n    Vec<u8>,\n    String,\n> {}\nfn c() -> Result<(), Error> { let s: Vec<String> = v; }\n";
+    let hits = string_results(&code(text));
+    assert_eq!(hits, ["Result<u8,String>", "Result<Vec<u8>,String>"], "{hits:?}");
 }

@@ -118,25 +118,25 @@ impl<T: ZeroCopySend + Copy + Default + Debug + 'static> Board<T> {
     }
 
     /// The board's one writer. Fails while another process writes it.
-    pub fn writer(&self) -> Result<BoardWriter<T>, String> {
+    pub fn writer(&self) -> Result<BoardWriter<T>, PortError> {
         let w = self
             .service
             .writer_builder()
             .create()
-            .map_err(|e| format!("{e:?}"))?;
-        let entry = w.entry::<T>(&KEY).map_err(|e| format!("{e:?}"))?;
+            .map_err(PortError::of)?;
+        let entry = w.entry::<T>(&KEY).map_err(PortError::of)?;
         Ok(BoardWriter { entry })
     }
 
     /// A reader that reports only values written after it was made: what is on the board now
     /// was written for somebody else (a previous run, a dead peer).
-    pub fn reader(&self) -> Result<BoardReader<T>, String> {
+    pub fn reader(&self) -> Result<BoardReader<T>, PortError> {
         let r = self
             .service
             .reader_builder()
             .create()
-            .map_err(|e| format!("{e:?}"))?;
-        let entry = r.entry::<T>(&KEY).map_err(|e| format!("{e:?}"))?;
+            .map_err(PortError::of)?;
+        let entry = r.entry::<T>(&KEY).map_err(PortError::of)?;
         let seen = entry.get();
         Ok(BoardReader {
             entry,
@@ -208,6 +208,28 @@ pub struct Lane<Out: Origin, In: Origin> {
     _boards: (Board<Out>, Board<In>),
 }
 
+/// Why a board's port could not be made: iceoryx2's own refusal, in its words.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct PortError(pub String);
+
+impl PortError {
+    fn of(e: impl core::fmt::Debug) -> Self {
+        Self(format!("{e:?}"))
+    }
+}
+
+/// Why a lane could not be opened: which board, and which step.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum LaneError {
+    #[error(transparent)]
+    Open(#[from] ServiceError),
+    #[error("cannot write the {channel} board: {error}")]
+    Write { channel: Channel, error: PortError },
+    #[error("cannot read the {channel} board: {error}")]
+    Read { channel: Channel, error: PortError },
+}
+
 /// The plant's end: states out, commands in.
 pub type PlantLane = Lane<crate::StateSample, crate::CommandSample>;
 /// The daemon's end: commands out, states in.
@@ -220,16 +242,18 @@ impl<Out: Origin, In: Origin> Lane<Out, In> {
         names: &ServiceNames,
         out: Channel,
         inn: Channel,
-    ) -> Result<Self, String> {
-        let out_board = Board::<Out>::open(node, names, out).map_err(|e| e.to_string())?;
-        let in_board = Board::<In>::open(node, names, inn).map_err(|e| e.to_string())?;
+    ) -> Result<Self, LaneError> {
+        let out_board = Board::<Out>::open(node, names, out)?;
+        let in_board = Board::<In>::open(node, names, inn)?;
         Ok(Self {
-            out: out_board
-                .writer()
-                .map_err(|e| format!("cannot write the {out} board: {e}"))?,
-            inn: in_board
-                .reader()
-                .map_err(|e| format!("cannot read the {inn} board: {e}"))?,
+            out: out_board.writer().map_err(|error| LaneError::Write {
+                channel: out,
+                error,
+            })?,
+            inn: in_board.reader().map_err(|error| LaneError::Read {
+                channel: inn,
+                error,
+            })?,
             taken: core::cell::Cell::new(None),
             _boards: (out_board, in_board),
         })
@@ -260,14 +284,14 @@ impl<Out: Origin, In: Origin> Lane<Out, In> {
 
 impl PlantLane {
     /// The plant's end of the lane in `names`' namespace.
-    pub fn plant(node: &Node<ipc::Service>, names: &ServiceNames) -> Result<Self, String> {
+    pub fn plant(node: &Node<ipc::Service>, names: &ServiceNames) -> Result<Self, LaneError> {
         Self::open(node, names, Channel::State, Channel::Command)
     }
 }
 
 impl DaemonLane {
     /// The daemon's end of the lane in `names`' namespace.
-    pub fn daemon(node: &Node<ipc::Service>, names: &ServiceNames) -> Result<Self, String> {
+    pub fn daemon(node: &Node<ipc::Service>, names: &ServiceNames) -> Result<Self, LaneError> {
         Self::open(node, names, Channel::Command, Channel::State)
     }
 }

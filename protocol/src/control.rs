@@ -132,14 +132,18 @@ fn read(src: &[u8], len: u32) -> Result<&str, &'static str> {
     core::str::from_utf8(&src[..n]).map_err(|_| "text is not UTF-8")
 }
 
+/// A request whose arguments do not fit in one sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("arguments are {len} bytes; at most {MAX_ARGS} fit in a request")]
+pub struct ArgsTooLong {
+    pub len: usize,
+}
+
 impl ControlRequest {
     /// A request; arguments longer than [`MAX_ARGS`] are refused.
-    pub fn new(id: u64, op: Op, args: &str) -> Result<Self, String> {
+    pub fn new(id: u64, op: Op, args: &str) -> Result<Self, ArgsTooLong> {
         if args.len() > MAX_ARGS {
-            return Err(format!(
-                "arguments are {} bytes; at most {MAX_ARGS} fit in a request",
-                args.len()
-            ));
+            return Err(ArgsTooLong { len: args.len() });
         }
         let mut r = Self {
             id,

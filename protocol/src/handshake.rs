@@ -294,6 +294,26 @@ impl Side {
     }
 }
 
+/// Why one side's handshake ports could not be opened: one line for the user.
+#[derive(Debug, thiserror::Error)]
+pub enum HandshakeError {
+    #[error(transparent)]
+    Node(#[from] crate::NodeError),
+    #[error(transparent)]
+    Service(#[from] crate::qos::ServiceError),
+    #[error("cannot publish on {service}: {detail} (is another {who} already running in namespace {namespace:?}?)")]
+    Publish {
+        service: String,
+        detail: String,
+        who: &'static str,
+        namespace: String,
+    },
+    #[error("cannot publish on {service}: {detail}")]
+    Send { service: String, detail: String },
+    #[error("cannot subscribe to {service}: {detail}")]
+    Subscribe { service: String, detail: String },
+}
+
 /// One side's handshake ports: its own description published (and re-offered to peers that
 /// join later), the peer's read. The daemon and the plant run the same exchange on a helper
 /// thread, each judging the peer's description in its own way.
@@ -306,12 +326,12 @@ pub struct Exchange {
 impl Exchange {
     /// Opens both info services in `names`, publishes `mine` on `side`'s and subscribes to the
     /// peer's. The error is one line, for the user.
-    pub fn open(side: Side, names: &ServiceNames, mine: ArmInfo) -> Result<Self, String> {
+    pub fn open(side: Side, names: &ServiceNames, mine: ArmInfo) -> Result<Self, HandshakeError> {
         let node_name = match side {
             Side::Daemon => "chaosd-handshake",
             Side::Plant => "chaosd-plant-handshake",
         };
-        let node = crate::node(node_name).map_err(|e| e.to_string())?;
+        let node = crate::node(node_name)?;
         let (our_name, their_name) = match side {
             Side::Daemon => (names.daemon_info(), names.plant_info()),
             Side::Plant => (names.plant_info(), names.daemon_info()),
@@ -326,20 +346,28 @@ impl Exchange {
                 open_daemon_info_service(&node, names),
             ),
         };
-        let ours = our_svc.map_err(|e| e.to_string())?.publisher_builder().create().map_err(|e| {
-            format!(
-                "cannot publish on {our_name}: {e:?} (is another {} already running in namespace {:?}?)",
-                side.who(),
-                names.namespace()
-            )
-        })?;
-        ours.send_copy(mine)
-            .map_err(|e| format!("cannot publish on {our_name}: {e:?}"))?;
-        let theirs = their_svc
-            .map_err(|e| e.to_string())?
-            .subscriber_builder()
+        let busy = |e: &dyn core::fmt::Debug| HandshakeError::Publish {
+            service: our_name.to_string(),
+            detail: format!("{e:?}"),
+            who: side.who(),
+            namespace: names.namespace().to_string(),
+        };
+        let ours = our_svc?
+            .publisher_builder()
             .create()
-            .map_err(|e| format!("cannot subscribe to {their_name}: {e:?}"))?;
+            .map_err(|e| busy(&e))?;
+        ours.send_copy(mine).map_err(|e| HandshakeError::Send {
+            service: our_name.to_string(),
+            detail: format!("{e:?}"),
+        })?;
+        let theirs =
+            their_svc?
+                .subscriber_builder()
+                .create()
+                .map_err(|e| HandshakeError::Subscribe {
+                    service: their_name.to_string(),
+                    detail: format!("{e:?}"),
+                })?;
         Ok(Self {
             _node: node,
             ours,

@@ -34,15 +34,17 @@ impl WaitStrategy {
 }
 
 impl std::str::FromStr for WaitStrategy {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = crate::word::UnknownWord;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "sleep" => Ok(WaitStrategy::Sleep),
             "hybrid" => Ok(WaitStrategy::Hybrid),
             "spin" => Ok(WaitStrategy::Spin),
-            _ => Err(format!(
-                "{s:?} is not a wait strategy (expected sleep, hybrid or spin)"
-            )),
+            _ => Err(crate::word::UnknownWord {
+                value: s.to_string(),
+                what: "a wait strategy",
+                expected: "sleep, hybrid or spin",
+            }),
         }
     }
 }
@@ -183,6 +185,7 @@ mod tests {
         assert!("fast"
             .parse::<WaitStrategy>()
             .unwrap_err()
+            .to_string()
             .contains("sleep, hybrid or spin"));
     }
 }

@@ -18,6 +18,7 @@ pub mod setup;
 pub mod signal;
 pub mod throttle;
 pub mod trigger;
+pub mod word;
 
 pub use clock::{wait_until, wait_until_warm, WaitStrategy};
 pub use protocol::monotonic_ns;

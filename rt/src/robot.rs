@@ -6,24 +6,11 @@
 //! plumbing, because the daemon, the plant and the client must read a config the same way and
 //! the daemon may not depend on the plant.
 
-use control::model::{builtin, Chain, ModelError, MAX_URDF_BYTES};
+pub use control::model::RobotError;
+use control::model::{builtin, Chain, MAX_URDF_BYTES};
 use control::{ConfigError, System};
 use std::io::Read;
-use std::path::{Path, PathBuf};
-
-/// Why a robot could not be loaded.
-#[derive(Debug, thiserror::Error)]
-pub enum RobotError {
-    #[error("cannot read robot description {path}: {error}")]
-    Read {
-        path: PathBuf,
-        error: std::io::Error,
-    },
-    #[error("robot description {path} is over {limit} bytes")]
-    TooLarge { path: PathBuf, limit: usize },
-    #[error("{origin}: {error}")]
-    Model { origin: String, error: ModelError },
-}
+use std::path::Path;
 
 /// Loads the chain from `base` to `tip` of a built-in robot (by name) or of a URDF file.
 ///
@@ -70,9 +57,9 @@ fn looks_like_a_name(spec: &str) -> bool {
 }
 
 fn read(path: &Path) -> Result<String, RobotError> {
-    let err = |error| RobotError::Read {
+    let err = |error: std::io::Error| RobotError::Read {
         path: path.to_path_buf(),
-        error,
+        reason: error.to_string(),
     };
     let file = std::fs::File::open(path).map_err(err)?;
     let mut text = String::new();
@@ -106,8 +93,8 @@ pub fn parse(text: &str) -> Result<System, ConfigError> {
 }
 
 /// [`load`] as `System` wants it.
-pub fn resolve(spec: &str, base: Option<&str>, tip: Option<&str>) -> Result<Chain, String> {
-    load(spec, base, tip).map_err(|e| e.to_string())
+pub fn resolve(spec: &str, base: Option<&str>, tip: Option<&str>) -> Result<Chain, RobotError> {
+    load(spec, base, tip)
 }
 
 /// The arm `system` describes, as the handshake sends it, for the process with `instance_id`

@@ -31,12 +31,16 @@ impl Trigger {
 }
 
 impl std::str::FromStr for Trigger {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = crate::word::UnknownWord;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "clock" => Ok(Trigger::Clock),
             "state" => Ok(Trigger::State),
-            _ => Err(format!("{s:?} is not a trigger (expected clock or state)")),
+            _ => Err(crate::word::UnknownWord {
+                value: s.to_string(),
+                what: "a trigger",
+                expected: "clock or state",
+            }),
         }
     }
 }
@@ -242,6 +246,7 @@ mod tests {
         assert!("tick"
             .parse::<Trigger>()
             .unwrap_err()
+            .to_string()
             .contains("clock or state"));
     }
 

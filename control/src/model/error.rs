@@ -94,3 +94,24 @@ pub enum ModelError {
     #[error("robot size mismatch: the chain has {chain} joints, the caller asked for {asked}")]
     Dof { chain: usize, asked: usize },
 }
+
+/// Why the robot a set-up names could not be had: its description unreadable, too large, or
+/// not a chain. The loader that reads files (`rt::robot`) reports with it; this crate, which
+/// does no I/O, only names the failure, so that [`crate::system::System`] can say which field
+/// was at fault.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RobotError {
+    #[error("cannot read robot description {path}: {reason}")]
+    Read {
+        path: std::path::PathBuf,
+        /// The operating system's words.
+        reason: String,
+    },
+    #[error("robot description {path} is over {limit} bytes")]
+    TooLarge {
+        path: std::path::PathBuf,
+        limit: usize,
+    },
+    #[error("{origin}: {error}")]
+    Model { origin: String, error: ModelError },
+}

@@ -21,7 +21,7 @@ pub mod urdf;
 
 pub use builtin::{builtin, BUILTIN};
 pub use chain::{Body, Chain, ChainJoint, JointKind, STANDARD_GRAVITY};
-pub use error::ModelError;
+pub use error::{ModelError, RobotError};
 pub use eval::{Evaluation, LengthError};
 pub use fixed::{Frames, Model};
 pub use kinematics::TipKinematics;
