@@ -60,7 +60,7 @@ fn job(chain: &Chain, spheres: &[[f64; 4]], at: f64) -> Result<Job> {
     let mut cfg = SpatialConfig::preset("panda").expect("the panda preset");
     cfg.safety.plan = control::safety::policy::PlanMode::On;
     let (start, _) = control::plan::setup_planned::<7>(&cfg, chain)?;
-    let mut sim = SpatialSimulation::<7, 3>::new(
+    let mut sim = SpatialSimulation::<7, 3>::spatial(
         start.arm,
         start.params,
         start.dt,

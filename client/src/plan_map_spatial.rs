@@ -85,7 +85,7 @@ fn path_and_posture(sys: &SpatialSystem, at: f64) -> Result<(TaskPath, Vec<f64>)
         if at > 0.0 {
             with_task_rows!(kind, |M| {
                 let mut sim =
-                    SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+                    SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
                 simulate(&mut sim, at, 0.0, |_, x, _| q = x.q.iter().copied().collect());
             });
         }

@@ -87,7 +87,7 @@ pub fn run_config(
             stats.record(k, &x, &out);
             let t = k as f64 * cfg.sim.dt;
             if let Some(Steering::Planar(steer)) = traps.observe(t, out.flags, out.tracking_error, x.q.as_slice()) {
-                sim.params.steer = Some(steer);
+                sim.law.params.steer = Some(steer);
             }
             each(k, k as f64 * cfg.sim.dt, x.q.as_slice(), x.qd.as_slice(), x.phi)?;
         }

@@ -162,7 +162,7 @@ pub fn simulate(
             writeln!(w, "t,{},{}", q.join(","), qd.join(","))?;
         }
         let mut sim =
-            SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
         let mut err = None;
         let mut k = 0u64;
         let mut traps = OfflineTraps::new(system.clone(), s.params.steer.map(Steering::Spatial));
@@ -302,7 +302,7 @@ pub fn print(r: &SpatialReport) {
 pub fn run_summary(cfg: &SpatialConfig) -> Result<SpatialSummary> {
     Ok(with_setup!(cfg, |s, N, M| {
         let mut sim =
-            SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
         run(&mut sim, s.duration, s.transient, |_, _, _| {})
     }))
 }
@@ -318,9 +318,10 @@ pub fn section(
     control::analysis::Classification,
 )> {
     Ok(with_setup!(cfg, |s, N, M| {
-        let mut sim =
-            SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
-        control::analysis::spatial::section(&mut sim, duration, transient, classify)
+        let sim =
+            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        let mut flow = control::analysis::ArmFlow::of(sim);
+        control::analysis::spatial::section(&mut flow, duration, transient, classify)
     }))
 }
 
@@ -345,7 +346,7 @@ pub fn watch(
 ) -> Result<control::monitor::run::Watched> {
     Ok(with_setup!(cfg, |s, N, M| {
         let mut sim =
-            SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
         control::monitor::run::watch_sim(&mut sim, duration, settings, s.params.tau, |_, _| None)
     }))
 }
@@ -362,8 +363,9 @@ pub fn lyapunov(
     let renorm = renorm.unwrap_or(cfg.task.period);
     let window = window.unwrap_or([duration / 3.0, duration]);
     let (e, growth) = with_setup!(cfg, |s, N, M| {
-        let sim = SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
-        let mut b = Benettin::new(sim, d0, renorm)?;
+        let sim =
+            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        let mut b = Benettin::new(control::analysis::ArmFlow::of(sim), d0, renorm)?;
         b.advance_to(duration)?;
         (
             b.estimate(window[0], window[1], blocks)?,
@@ -434,7 +436,7 @@ pub fn orbits(
             let steps = control::analysis::period_steps(period, s.dt)?;
             let mut p = s.params;
             p.mu = mu;
-            let mut sim = SpatialSimulation::<N, M>::new(s.arm, p, s.dt, s.q0, s.qd0, p.tau);
+            let mut sim = SpatialSimulation::<N, M>::spatial(s.arm, p, s.dt, s.q0, s.qd0, p.tau);
             for _ in 0..(duration / period).round() as u64 * steps {
                 sim.step();
             }
@@ -467,7 +469,7 @@ pub fn run_end(
 ) -> Result<(control::analysis::Classification, f64, Vec<f64>)> {
     Ok(with_setup!(cfg, |s, N, M| {
         let mut sim =
-            SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
         let period = s.params.task.path.period;
         let mut sec = control::analysis::Section::new(2 * N, N);
         let mut last = Vec::new();

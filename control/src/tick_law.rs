@@ -15,7 +15,8 @@ use crate::law::spatial::SpatialParams;
 use crate::law::{self, LawParams};
 use crate::resolve::ControlOutput;
 use crate::safety::SafetyParams;
-use crate::sim::ArmState;
+use crate::sim::law::adapt_mu;
+use crate::sim::{ArmState, LoopFeedback};
 use crate::task::spatial::TaskKind;
 
 /// The arm model and the parameters of its law, as one `Copy` block.
@@ -127,15 +128,13 @@ impl<const N: usize> TickLaw<N> {
     /// tracking is paused: the braking arm's residual says nothing about the gain.
     #[inline]
     pub fn adapt(&mut self, out: &ControlOutput<N>, dt: f64) {
-        use crate::adapt::next_mu;
         match self {
-            TickLaw::Planar { params: p, .. } if !p.pause => {
-                p.mu = next_mu(&mut p.auto_mu, p.mu, p.projection, out, dt);
+            TickLaw::Planar { params: p, .. } => {
+                adapt_mu(&mut p.auto_mu, &mut p.mu, p.projection, p.pause, out, dt)
             }
-            TickLaw::Spatial { params: p, .. } if !p.pause => {
-                p.mu = next_mu(&mut p.auto_mu, p.mu, p.projection, out, dt);
+            TickLaw::Spatial { params: p, .. } => {
+                adapt_mu(&mut p.auto_mu, &mut p.mu, p.projection, p.pause, out, dt)
             }
-            _ => {}
         }
     }
 
@@ -205,6 +204,45 @@ impl<const N: usize> TickLaw<N> {
         match self {
             TickLaw::Planar { params, .. } => Some(params),
             TickLaw::Spatial { .. } => None,
+        }
+    }
+}
+
+/// The daemon's law in the one closed loop: a simulation of a [`crate::system::System`] runs what
+/// the daemon runs, whichever arm it holds.
+impl<const N: usize> crate::sim::ClosedLoopLaw<N> for TickLaw<N> {
+    type Scratch = LawScratch<N>;
+
+    #[inline]
+    fn evaluate(
+        &self,
+        t: f64,
+        x: &ArmState<N>,
+        delayed: &VecN<N>,
+        scratch: &mut LawScratch<N>,
+    ) -> ControlOutput<N> {
+        TickLaw::evaluate(self, t, x, delayed, scratch)
+    }
+    fn loop_feedback(&self) -> LoopFeedback {
+        match self {
+            TickLaw::Planar { params: p, .. } => {
+                LoopFeedback::of(p.mu, p.tau, p.projection, p.feedback)
+            }
+            TickLaw::Spatial { params: p, .. } => {
+                LoopFeedback::of(p.mu, p.tau, p.projection, p.feedback)
+            }
+        }
+    }
+    fn adapt(&mut self, out: &ControlOutput<N>, dt: f64) {
+        TickLaw::adapt(self, out, dt)
+    }
+    fn is_floating(&self) -> bool {
+        matches!(self, TickLaw::Planar { model, .. } if model.is_floating())
+    }
+    fn stats_setup(&self) -> crate::sim::StatsSetup {
+        match self {
+            TickLaw::Planar { params, .. } => crate::sim::StatsSetup::planar(params),
+            TickLaw::Spatial { params, .. } => crate::sim::StatsSetup::spatial(params),
         }
     }
 }

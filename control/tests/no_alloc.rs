@@ -148,7 +148,8 @@ fn the_panda_step_allocates_nothing_in_position_and_pose_with_obstacles() {
         cfg.law.secondary = "obstacles".into();
         let s = cfg.setup::<7>(&chain).unwrap();
         control::with_task_rows!(s.params.task.kind, |M| {
-            let mut sim = SpatialSimulation::<7, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
+            let mut sim =
+                SpatialSimulation::<7, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
             let n = allocations(|| {
                 for _ in 0..1500 {
                     std::hint::black_box(sim.step());

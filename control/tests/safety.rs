@@ -429,7 +429,7 @@ fn an_obstacle_that_appears_on_a_link_pushes_it_out_at_a_bounded_acceleration() 
     cfg.model::<3>().kinematics(0.0, &x.q, &x.qd, &mut kin);
     let mid = (kin.points[1] + kin.points[2]) / 2.0;
     p.obstacles = obstacles(&[(mid.x, mid.y, 0.1)]);
-    sim.params = p;
+    sim.law.params = p;
     let (mut worst_acc, mut worst_jump, mut out_at, mut prev_qd) = (0.0f64, 0.0f64, None, x.qd);
     for k in 0..3000 {
         let o = sim.step();

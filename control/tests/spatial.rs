@@ -243,7 +243,7 @@ fn the_panda_tracks_its_circle_in_position_and_pose() {
         let mut qd0 = V7::zeros();
         qd0[0] = 0.1;
         let s = control::with_task_rows!(kind, |M| {
-            let mut sim = SpatialSimulation::<7, M>::new(arm, p, 0.001, q0, qd0, 2.0);
+            let mut sim = SpatialSimulation::<7, M>::spatial(arm, p, 0.001, q0, qd0, 2.0);
             run(&mut sim, 20.0, 5.0, |_, _, _| {})
         });
         assert!(s.finite && s.max_tracking_error < 1e-6, "{kind:?}: {s:?}");
@@ -260,7 +260,7 @@ fn centring_with_projected_feedback_makes_the_self_motion_periodic() {
     let summary = |alpha: f64, mu: f64| {
         let (mut p, q0) = panda_params(&arm, TaskKind::Position);
         (p.alpha, p.mu) = (alpha, mu);
-        let mut sim = SpatialSimulation::<7, 3>::new(arm, p, 0.001, q0, qd0, 2.0);
+        let mut sim = SpatialSimulation::<7, 3>::spatial(arm, p, 0.001, q0, qd0, 2.0);
         run(&mut sim, 150.0, 5.0, |_, _, _| {})
     };
     let both = summary(20.0, 3.0);

@@ -181,7 +181,7 @@ pub fn spatial_trace(cfg: &SpatialConfig, stride: u64, transient: f64) -> Result
     crate::spatial::with_setup!(cfg, |set, _blocked, N, M| {
         let dt = set.dt;
         let per = control::analysis::period_steps(set.params.task.path.period, dt)?;
-        let mut sim = SpatialSimulation::<N, M>::new(
+        let mut sim = SpatialSimulation::<N, M>::spatial(
             set.arm,
             set.params,
             dt,

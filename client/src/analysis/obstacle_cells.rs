@@ -109,7 +109,7 @@ fn run_spatial(cfg: &SpatialConfig, chain: &Chain, w: &Window) -> Result<RunResu
     Ok(with_dof!(chain.dof(), N => {
         let s = cfg.setup::<N>(chain)?;
         with_task_rows!(kind, |M| {
-            let mut sim = SpatialSimulation::<N, M>::new(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+            let mut sim = SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
             let setup = StatsSetup::spatial(&s.params);
             let mut stats = RunStats::<N>::of(setup, s.dt, w.duration, w.rms_from, sim.state());
             let mut section = Section::new(2 * N, N);

@@ -13,12 +13,12 @@ use super::lyapunov::{
 };
 use crate::arm::{ArmModel, VecN};
 use crate::law::LawParams;
-use crate::sim::{ArmState, RunStats, Simulation};
+use crate::sim::{ArmState, ClosedLoopLaw, PlanarLaw, RunStats, Simulation};
 
-/// One closed-loop trajectory, optionally recording run statistics on the way.
+/// One closed-loop trajectory of any arm's law, optionally recording run statistics on the way.
 #[derive(Clone, Debug)]
-pub struct ArmFlow<const N: usize> {
-    sim: Simulation<N>,
+pub struct ArmFlow<const N: usize, L: ClosedLoopLaw<N> = PlanarLaw<N>> {
+    sim: Simulation<N, L>,
     /// The delay history is part of the state (feedback on with μ ≠ 0).
     delay_state: bool,
     /// The base attitude is part of the state (floating base).
@@ -27,27 +27,34 @@ pub struct ArmFlow<const N: usize> {
 }
 
 impl<const N: usize> ArmFlow<N> {
-    /// A trajectory from `initial` at t = 0. The delay line holds exactly τ (see the module docs).
+    /// The planar arm from `initial` at t = 0. The delay line holds exactly τ (see the module docs).
     pub fn new(model: ArmModel<N>, params: LawParams, dt: f64, initial: ArmState<N>) -> Self {
-        let floating = model.is_floating();
-        let delay_state = params.feedback && params.mu != 0.0;
+        let sim = Simulation::new(model, params, dt, initial, params.tau);
+        Self::of(sim)
+    }
+}
+
+impl<const N: usize, L: ClosedLoopLaw<N>> ArmFlow<N, L> {
+    /// The trajectory `sim` runs from where it stands. For the history distance to be the τ
+    /// window's, its delay line should hold exactly τ (`max_tau = tau`, see the module docs).
+    pub fn of(sim: Simulation<N, L>) -> Self {
         Self {
-            sim: Simulation::new(model, params, dt, initial, params.tau),
-            delay_state,
-            floating,
+            delay_state: sim.law.loop_feedback().delay_is_state,
+            floating: sim.law.is_floating(),
+            sim,
             stats: None,
         }
     }
 
     /// Records [`RunStats`] on this trajectory (not on the perturbed partner of a pair).
     pub fn with_stats(mut self, duration: f64, transient: f64) -> Self {
-        let p = self.sim.params;
-        let stats = RunStats::new(&p, self.sim.dt(), duration, transient, self.sim.state());
+        let setup = self.sim.law.stats_setup();
+        let stats = RunStats::of(setup, self.sim.dt(), duration, transient, self.sim.state());
         self.stats = Some(Box::new(stats));
         self
     }
 
-    pub fn sim(&self) -> &Simulation<N> {
+    pub fn sim(&self) -> &Simulation<N, L> {
         &self.sim
     }
     pub fn state(&self) -> &ArmState<N> {
@@ -80,7 +87,7 @@ impl<const N: usize> ArmFlow<N> {
     }
 }
 
-impl<const N: usize> Trajectory for ArmFlow<N> {
+impl<const N: usize, L: ClosedLoopLaw<N>> Trajectory for ArmFlow<N, L> {
     fn time(&self) -> f64 {
         self.sim.time()
     }

@@ -1,70 +1,22 @@
-//! The chaos analysis of a spatial closed loop: the Lyapunov driver's trajectory and the
-//! stroboscopic section, so λ_max and the Poincaré class of a URDF arm come from the same code
-//! and the same norm (q, q̇ and, with feedback, the stored q̇ history) as the planar arm's.
+//! The chaos analysis of a spatial closed loop: the stroboscopic section and the stability of an
+//! orbit. The trajectory is the planar arm's [`ArmFlow`] on a [`SpatialLaw`], so λ_max and the
+//! Poincaré class of a URDF arm come from the same code and the same norm (q, q̇ and, with
+//! feedback, the stored q̇ history) as the planar arm's.
 
-use super::lyapunov::{
-    generic_direction, history_distance2, rescale_history, shift_history, Trajectory,
-};
-use crate::arm::VecN;
+use super::closed_loop::ArmFlow;
+use super::lyapunov::Trajectory;
 use crate::sim::spatial::SpatialSimulation;
-
-impl<const N: usize, const M: usize> Trajectory for SpatialSimulation<N, M> {
-    fn time(&self) -> f64 {
-        SpatialSimulation::time(self)
-    }
-    fn advance_to(&mut self, t: f64) {
-        let target = (t / self.dt).round().max(0.0) as u64;
-        while self.step_index < target {
-            self.step();
-            if !self.state.is_finite() {
-                return;
-            }
-        }
-    }
-    fn is_finite(&self) -> bool {
-        self.state.is_finite()
-    }
-    fn distance2(&self, other: &Self) -> f64 {
-        let (a, b) = (&self.state, &other.state);
-        let mut d2 = (b.q - a.q).norm_squared() + (b.qd - a.qd).norm_squared();
-        if self.params.mu != 0.0 && self.params.feedback {
-            d2 += history_distance2(&self.delay, &other.delay);
-        }
-        d2
-    }
-    fn rescale(&self, other: &mut Self, factor: f64) {
-        let a = self.state;
-        let b = &mut other.state;
-        b.q = a.q + (b.q - a.q) * factor;
-        b.qd = a.qd + (b.qd - a.qd) * factor;
-        if self.params.mu != 0.0 && self.params.feedback {
-            rescale_history(&self.delay, &mut other.delay, factor);
-        }
-    }
-    fn perturbed(&self, eps: f64) -> Self {
-        let mut o = self.clone();
-        let dir: Vec<f64> = generic_direction(2 * N).collect();
-        for i in 0..N {
-            o.state.q[i] += eps * dir[i];
-            o.state.qd[i] += eps * dir[N + i];
-        }
-        if self.params.mu != 0.0 && self.params.feedback {
-            let dqd = VecN::<N>::from_fn(|i, _| eps * dir[N + i]);
-            shift_history(&mut o.delay, &dqd);
-        }
-        o
-    }
-}
+use crate::sim::SpatialLaw;
 
 /// The stroboscopic section x(kT) = (q, q̇) of `sim` from `transient` to `duration` (q compared
 /// modulo 2π, as for the planar arm), and its classification by the planar arm's rule.
 pub fn section<const N: usize, const M: usize>(
-    sim: &mut SpatialSimulation<N, M>,
+    sim: &mut ArmFlow<N, SpatialLaw<N, M>>,
     duration: f64,
     transient: f64,
     cfg: &super::ClassifyConfig,
 ) -> (super::Section, super::Classification) {
-    let period = sim.params.task.path.period;
+    let period = sim.sim().law.params.task.path.period;
     let mut sec = super::Section::new(2 * N, N);
     let periods = (duration / period + 1e-9).floor() as u64;
     for k in 0..=periods {
@@ -98,9 +50,11 @@ pub fn orbit_stability<const N: usize, const M: usize>(
     let mut p = *params;
     p.t_on = period;
     let x = orbit.state::<N>();
-    let mut sim = SpatialSimulation::<N, M>::new(*arm, p, dt, x.q, x.qd, p.tau);
+    let mut sim = ArmFlow::of(SpatialSimulation::<N, M>::spatial(
+        *arm, p, dt, x.q, x.qd, p.tau,
+    ));
     sim.advance_to(period);
-    let coords = |s: &SpatialSimulation<N, M>| -> Vec<f64> {
+    let coords = |s: &ArmFlow<N, SpatialLaw<N, M>>| -> Vec<f64> {
         let x = s.state();
         x.q.iter().chain(x.qd.iter()).copied().collect()
     };

@@ -8,10 +8,7 @@
 use super::{ChaosMonitor, Edge, Evidence, MonitorSettings, Verdict};
 use crate::config::Config;
 use crate::law::LawParams;
-use crate::resolve::ControlOutput;
-use crate::resolve::Projection;
-use crate::sim::spatial::SpatialSimulation;
-use crate::sim::{ArmState, Simulation};
+use crate::sim::{ClosedLoopLaw, LoopFeedback, Simulation};
 use crate::with_dof;
 use serde::Serialize;
 
@@ -45,47 +42,6 @@ pub struct Watched {
     pub diverged: bool,
 }
 
-/// A closed-loop simulation the monitor can watch: the planar [`Simulation`] or the spatial
-/// [`crate::sim::spatial::SpatialSimulation`].
-pub trait Stepped<const N: usize> {
-    fn time(&self) -> f64;
-    fn state(&self) -> ArmState<N>;
-    /// One step of dt; the law's output at its start.
-    fn step(&mut self) -> ControlOutput<N>;
-    /// (μ now, where the feedback acts, dt).
-    fn feedback(&self) -> (f64, Projection, f64);
-}
-
-impl<const N: usize> Stepped<N> for Simulation<N> {
-    fn time(&self) -> f64 {
-        Simulation::time(self)
-    }
-    fn state(&self) -> ArmState<N> {
-        *Simulation::state(self)
-    }
-    fn step(&mut self) -> ControlOutput<N> {
-        Simulation::step(self)
-    }
-    fn feedback(&self) -> (f64, Projection, f64) {
-        (self.params.mu, self.params.projection, self.dt())
-    }
-}
-
-impl<const N: usize, const M: usize> Stepped<N> for SpatialSimulation<N, M> {
-    fn time(&self) -> f64 {
-        SpatialSimulation::time(self)
-    }
-    fn state(&self) -> ArmState<N> {
-        *SpatialSimulation::state(self)
-    }
-    fn step(&mut self) -> ControlOutput<N> {
-        SpatialSimulation::step(self)
-    }
-    fn feedback(&self) -> (f64, Projection, f64) {
-        (self.params.mu, self.params.projection, self.dt())
-    }
-}
-
 /// Runs `cfg` (planar) for `duration` s with the monitor watching; `edits` sorted by time.
 pub fn watch(cfg: &Config, duration: f64, settings: MonitorSettings, edits: &[Edit]) -> Watched {
     with_dof!(cfg.n(), N => watch_n::<N>(cfg, duration, settings, edits))
@@ -111,34 +67,34 @@ fn watch_n<const N: usize>(
         let mut edited = false;
         while let Some(e) = pending.next_if(|e| e.t <= t) {
             // As in the daemon: a new block adapts with the config's γ from the current μ.
-            sim.params.auto_mu = params.auto_mu;
-            (e.apply)(&mut sim.params);
+            sim.law.params.auto_mu = params.auto_mu;
+            (e.apply)(&mut sim.law.params);
             edited = true;
         }
-        edited.then_some(sim.params.tau)
+        edited.then_some(sim.law.params.tau)
     })
 }
 
 /// Runs `sim` for `duration` s with a monitor for period `tau` watching. Before each step,
 /// `edit(t, sim)` may change the simulation; it returns the new τ when it did (the monitor's
 /// window then restarts, as the daemon's does after an edit).
-pub fn watch_sim<const N: usize, S: Stepped<N>>(
-    sim: &mut S,
+pub fn watch_sim<const N: usize, L: ClosedLoopLaw<N>>(
+    sim: &mut Simulation<N, L>,
     duration: f64,
     settings: MonitorSettings,
     tau: f64,
-    mut edit: impl FnMut(f64, &mut S) -> Option<f64>,
+    mut edit: impl FnMut(f64, &mut Simulation<N, L>) -> Option<f64>,
 ) -> Watched {
     let mut monitor = ChaosMonitor::new(settings, tau);
     let (mut edges, mut trace, mut effort, mut diverged) = (Vec::new(), Vec::new(), 0.0, false);
-    let steps = (duration / sim.feedback().2).round() as u64;
+    let (dt, steps) = (sim.dt(), (duration / sim.dt()).round() as u64);
     for _ in 0..steps {
         let t = sim.time();
         if let Some(tau) = edit(t, sim) {
             monitor.restart(t, tau);
         }
-        let (mu, projection, dt) = sim.feedback();
-        let x = sim.state();
+        let LoopFeedback { mu, projection, .. } = sim.law.loop_feedback();
+        let x = *sim.state();
         let out = sim.step();
         if !sim.state().is_finite() {
             diverged = true;
@@ -167,7 +123,7 @@ pub fn watch_sim<const N: usize, S: Stepped<N>>(
     Watched {
         edges,
         last,
-        mu_final: sim.feedback().0,
+        mu_final: sim.law.loop_feedback().mu,
         trace,
         effort,
         settled_at,

@@ -7,12 +7,15 @@
 //! `step_index · dt`, never accumulated, so two runs with the same inputs are bit-identical and a
 //! run is reproducible from its config alone.
 
+pub mod law;
 pub mod spatial;
 
-use crate::arm::{ArmModel, Kinematics, VecN};
+pub use law::{ClosedLoopLaw, LoopFeedback, PlanarLaw, SpatialLaw};
+
+use crate::arm::{ArmModel, VecN};
 use crate::basics::flags;
 use crate::delay::DelayLine;
-use crate::law::{self, LawParams};
+use crate::law::LawParams;
 use crate::resolve::ControlOutput;
 
 /// A state an explicit Runge-Kutta method can combine.
@@ -73,20 +76,23 @@ pub fn plant_derivative<const N: usize>(
     }
 }
 
-/// A closed-loop simulation. Owns its delay line (sized once) and scratch; `step` allocates nothing.
+/// A closed-loop simulation of any arm's law ([`ClosedLoopLaw`]): the planar arm by default,
+/// a URDF chain as [`spatial::SpatialSimulation`], the daemon's [`crate::tick_law::TickLaw`] as
+/// it stands. Owns its delay line (sized once) and scratch; `step` allocates nothing.
 #[derive(Clone, Debug)]
-pub struct Simulation<const N: usize> {
-    pub model: ArmModel<N>,
-    pub params: LawParams,
+pub struct Simulation<const N: usize, L: ClosedLoopLaw<N> = PlanarLaw<N>> {
+    /// The arm and its law's parameters; a change takes effect at the next step.
+    pub law: L,
     dt: f64,
     delay: DelayLine<N>,
     step_index: u64,
     state: ArmState<N>,
-    kin: Kinematics<N>,
+    scratch: L::Scratch,
 }
 
 impl<const N: usize> Simulation<N> {
-    /// `max_tau` fixes the delay-line capacity; `params.tau` may later change up to it.
+    /// The planar arm `model` under `params` from `initial`. `max_tau` fixes the delay-line
+    /// capacity; `params.tau` may later change up to it.
     pub fn new(
         model: ArmModel<N>,
         params: LawParams,
@@ -94,15 +100,21 @@ impl<const N: usize> Simulation<N> {
         initial: ArmState<N>,
         max_tau: f64,
     ) -> Self {
-        let max_tau = max_tau.max(params.tau);
+        Self::of(PlanarLaw { model, params }, dt, initial, max_tau)
+    }
+}
+
+impl<const N: usize, L: ClosedLoopLaw<N>> Simulation<N, L> {
+    /// `law` from `initial`; the delay line holds `max_tau` (at least the law's τ).
+    pub fn of(law: L, dt: f64, initial: ArmState<N>, max_tau: f64) -> Self {
+        let max_tau = max_tau.max(law.loop_feedback().tau);
         Self {
-            model,
-            params,
+            law,
             dt,
             delay: DelayLine::new(max_tau / dt, initial.qd),
             step_index: 0,
             state: initial,
-            kin: Kinematics::default(),
+            scratch: L::Scratch::default(),
         }
     }
 
@@ -132,14 +144,14 @@ impl<const N: usize> Simulation<N> {
     pub fn step(&mut self) -> ControlOutput<N> {
         let k = self.step_index as f64;
         self.delay.push(self.state.qd);
-        let tau_steps = self.params.tau / self.dt;
-        let (dt, model, params, delay) = (self.dt, &self.model, &self.params, &self.delay);
-        let kin = &mut self.kin;
+        let tau_steps = self.law.loop_feedback().tau / self.dt;
+        let (dt, law, delay) = (self.dt, &self.law, &self.delay);
+        let scratch = &mut self.scratch;
         let mut first = None;
         self.state = rk4_step(&self.state, dt, |c, x| {
             let s = (k + c) * dt;
             let delayed = delay.sample(k + c - tau_steps);
-            let out = law::evaluate(params, model, s, x.phi, &x.q, &x.qd, &delayed, kin);
+            let out = law.evaluate(s, x, &delayed, scratch);
             if first.is_none() {
                 first = Some(out);
             }
@@ -147,8 +159,7 @@ impl<const N: usize> Simulation<N> {
         });
         self.step_index += 1;
         let out = first.expect("rk4 evaluates stage 1");
-        let p = &mut self.params;
-        p.mu = crate::adapt::next_mu(&mut p.auto_mu, p.mu, p.projection, &out, dt);
+        self.law.adapt(&out, dt);
         out
     }
 }

@@ -2,36 +2,26 @@
 //! spatial law, with the conventions of docs/science.md, "Time, integration and determinism" (RK4, the law at every stage, q̇(s − τ)
 //! from the delay line, time = step · dt).
 //!
-//! It shares the planar simulation's integrator, state and delay line; the analysis drives it
-//! through the Lyapunov driver's trajectory ([`crate::analysis::spatial`]).
+//! The loop itself is the one [`Simulation`]; what is spatial here is the summary of a run and the
+//! stroboscopic map the orbit search iterates.
 
 use crate::arm::spatial::SpatialArm;
-use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
 use crate::basics::flags;
 use crate::delay::DelayLine;
-use crate::law::spatial::evaluate;
 use crate::law::spatial::SpatialParams;
 use crate::resolve::ControlOutput;
-use crate::sim::{plant_derivative, rk4_step, ArmState};
+use crate::sim::{ArmState, Simulation, SpatialLaw};
 use crate::steer::SpatialSteer;
 
-/// A spatial closed loop for a task of `M` rows. `step` allocates nothing.
-#[derive(Clone, Debug)]
-pub struct SpatialSimulation<const N: usize, const M: usize> {
-    pub arm: SpatialArm<N>,
-    pub params: SpatialParams,
-    pub(crate) dt: f64,
-    pub(crate) delay: DelayLine<N>,
-    pub(crate) step_index: u64,
-    pub(crate) state: ArmState<N>,
-    kin: SpatialKinematics<N>,
-}
+/// A spatial closed loop for a task of `M` rows: the one [`Simulation`] on a [`SpatialLaw`].
+pub type SpatialSimulation<const N: usize, const M: usize> = Simulation<N, SpatialLaw<N, M>>;
 
-impl<const N: usize, const M: usize> SpatialSimulation<N, M> {
-    /// `max_tau` fixes the delay-line capacity. Panics if `M` is not the task's row count: the
-    /// caller picks `M` from `params.task.kind` (see [`crate::with_task_rows`]).
-    pub fn new(
+impl<const N: usize, const M: usize> Simulation<N, SpatialLaw<N, M>> {
+    /// `arm` under `params` from rest-or-moving (`q0`, `qd0`); `max_tau` fixes the delay-line
+    /// capacity. Panics if `M` is not the task's row count: the caller picks `M` from
+    /// `params.task.kind` (see [`crate::with_task_rows`]).
+    pub fn spatial(
         arm: SpatialArm<N>,
         params: SpatialParams,
         dt: f64,
@@ -40,57 +30,12 @@ impl<const N: usize, const M: usize> SpatialSimulation<N, M> {
         max_tau: f64,
     ) -> Self {
         assert_eq!(M, params.task.kind.rows(), "task rows and M disagree");
-        let max_tau = max_tau.max(params.tau);
-        Self {
-            arm,
-            params,
-            dt,
-            delay: DelayLine::new(max_tau / dt, qd0),
-            step_index: 0,
-            state: ArmState {
-                q: q0,
-                qd: qd0,
-                phi: 0.0,
-            },
-            kin: SpatialKinematics::default(),
-        }
-    }
-
-    pub fn dt(&self) -> f64 {
-        self.dt
-    }
-    pub fn step_index(&self) -> u64 {
-        self.step_index
-    }
-    pub fn time(&self) -> f64 {
-        self.step_index as f64 * self.dt
-    }
-    pub fn state(&self) -> &ArmState<N> {
-        &self.state
-    }
-
-    /// Advances one step of dt; returns the law's output at the start of the step.
-    pub fn step(&mut self) -> ControlOutput<N> {
-        let k = self.step_index as f64;
-        self.delay.push(self.state.qd);
-        let tau_steps = self.params.tau / self.dt;
-        let (dt, arm, params, delay) = (self.dt, &self.arm, &self.params, &self.delay);
-        let kin = &mut self.kin;
-        let mut first = None;
-        self.state = rk4_step(&self.state, dt, |c, x| {
-            let s = (k + c) * dt;
-            let delayed = delay.sample(k + c - tau_steps);
-            let out = evaluate::<N, M>(params, arm, s, &x.q, &x.qd, &delayed, kin);
-            if first.is_none() {
-                first = Some(out);
-            }
-            plant_derivative(x, &out.qdd, 0.0)
-        });
-        self.step_index += 1;
-        let out = first.expect("rk4 evaluates stage 1");
-        let p = &mut self.params;
-        p.mu = crate::adapt::next_mu(&mut p.auto_mu, p.mu, p.projection, &out, dt);
-        out
+        let initial = ArmState {
+            q: q0,
+            qd: qd0,
+            phi: 0.0,
+        };
+        Simulation::of(SpatialLaw { arm, params }, dt, initial, max_tau)
     }
 }
 
@@ -158,7 +103,7 @@ pub fn run_steering<const N: usize, const M: usize>(
     mut each: impl FnMut(f64, &ArmState<N>, &ControlOutput<N>) -> Option<SpatialSteer>,
 ) -> SpatialSummary {
     let dt = sim.dt();
-    let p = sim.params;
+    let p = sim.law.params;
     let period = p.task.path.period;
     let steps = (duration / dt).round() as u64;
     let per = (period / dt).round().max(1.0) as u64;
@@ -186,7 +131,7 @@ pub fn run_steering<const N: usize, const M: usize>(
         let x = *sim.state();
         let out = sim.step();
         if let Some(steer) = each(t, &x, &out) {
-            sim.params.steer = Some(steer);
+            sim.law.params.steer = Some(steer);
         }
         hist.push(x.qd);
         let resid = (x.qd - hist.sample(k as f64 - period / dt)).norm();
@@ -257,7 +202,7 @@ pub fn stroboscopic_map<const N: usize, const M: usize>(
 ) -> ArmState<N> {
     let mut p = *params;
     p.feedback = false;
-    let mut sim = SpatialSimulation::<N, M>::new(*arm, p, dt, x.q, x.qd, p.tau);
+    let mut sim = SpatialSimulation::<N, M>::spatial(*arm, p, dt, x.q, x.qd, p.tau);
     for _ in 0..steps {
         sim.step();
     }

@@ -141,7 +141,7 @@ impl<const N: usize> SpatialProblem<N> {
             VecN::<N>::from_fn(|i, _| s.q[i]),
             VecN::<N>::from_fn(|i, _| s.qd[i]),
         );
-        let mut sim = SpatialSimulation::<N, M>::new(self.arm, law, self.dt, q0, qd0, law.tau);
+        let mut sim = SpatialSimulation::<N, M>::spatial(self.arm, law, self.dt, q0, qd0, law.tau);
         let mut kin = SpatialKinematics::<N>::default();
         for _ in 0..(period / self.dt).ceil() as u64 {
             let t = sim.time();

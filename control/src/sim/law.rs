@@ -1,0 +1,155 @@
+//! What a closed loop needs of its law, whichever arm it drives, so that one [`super::Simulation`],
+//! one Lyapunov trajectory and one monitored run serve the planar arm and every URDF chain.
+//!
+//! A law here is an arm model with its parameter block: the planar closed form with
+//! [`LawParams`] ([`PlanarLaw`]), a URDF chain with [`SpatialParams`] for a task of `M` rows
+//! ([`SpatialLaw`]), or the daemon's [`crate::tick_law::TickLaw`], which holds either. The
+//! simulation steps all of them with the same integrator, delay line and adaptation, so a
+//! number that differs between two arms differs because of the arm, never because of the loop.
+
+use super::{ArmState, StatsSetup};
+use crate::adapt::{next_mu, AutoMu};
+use crate::arm::spatial::{SpatialArm, SpatialKinematics};
+use crate::arm::{ArmModel, Kinematics, VecN};
+use crate::law::spatial::SpatialParams;
+use crate::law::{self, LawParams};
+use crate::resolve::{ControlOutput, Projection};
+
+/// A control law a closed loop can step: its evaluation and the few numbers the loop reads.
+pub trait ClosedLoopLaw<const N: usize>: Clone {
+    /// The law's scratch (kinematics), kept by the simulation so that a step never allocates.
+    type Scratch: Clone + Default + std::fmt::Debug;
+
+    /// The law at time `t` on state `x`, with the delayed velocity q̇(t − τ).
+    fn evaluate(
+        &self,
+        t: f64,
+        x: &ArmState<N>,
+        delayed: &VecN<N>,
+        scratch: &mut Self::Scratch,
+    ) -> ControlOutput<N>;
+
+    /// The gains the loop reads: μ now, τ, where the feedback acts, and whether the delayed
+    /// history is part of the state (feedback on with μ ≠ 0).
+    fn loop_feedback(&self) -> LoopFeedback;
+
+    /// Adapts μ after a step whose output was `out` (`feedback.mu = "auto"`), `dt` after the last.
+    fn adapt(&mut self, out: &ControlOutput<N>, dt: f64);
+
+    /// Whether the base turns (the planar floating base): φ is then part of the state.
+    fn is_floating(&self) -> bool {
+        false
+    }
+
+    /// What a run's statistics need of this law.
+    fn stats_setup(&self) -> StatsSetup;
+}
+
+/// The feedback numbers a closed loop reads from its law.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LoopFeedback {
+    pub mu: f64,
+    pub tau: f64,
+    pub projection: Projection,
+    /// Feedback switched on with μ ≠ 0: the q̇ history is part of the state.
+    pub delay_is_state: bool,
+}
+
+impl LoopFeedback {
+    /// From a parameter block's μ, τ, projection and feedback switch.
+    pub fn of(mu: f64, tau: f64, projection: Projection, on: bool) -> Self {
+        Self {
+            mu,
+            tau,
+            projection,
+            delay_is_state: on && mu != 0.0,
+        }
+    }
+}
+
+/// One adaptation step of μ, the same for every law: not while tracking is paused (the braking
+/// arm's residual says nothing about the gain).
+pub(crate) fn adapt_mu<const N: usize>(
+    auto_mu: &mut Option<AutoMu>,
+    mu: &mut f64,
+    projection: Projection,
+    pause: bool,
+    out: &ControlOutput<N>,
+    dt: f64,
+) {
+    if !pause {
+        *mu = next_mu(auto_mu, *mu, projection, out, dt);
+    }
+}
+
+/// The paper's planar arm (fixed or floating base) under [`crate::law::evaluate`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlanarLaw<const N: usize> {
+    pub model: ArmModel<N>,
+    pub params: LawParams,
+}
+
+impl<const N: usize> ClosedLoopLaw<N> for PlanarLaw<N> {
+    type Scratch = Kinematics<N>;
+
+    #[inline]
+    fn evaluate(
+        &self,
+        t: f64,
+        x: &ArmState<N>,
+        delayed: &VecN<N>,
+        kin: &mut Kinematics<N>,
+    ) -> ControlOutput<N> {
+        let (m, p) = (&self.model, &self.params);
+        law::evaluate(p, m, t, x.phi, &x.q, &x.qd, delayed, kin)
+    }
+    fn loop_feedback(&self) -> LoopFeedback {
+        let p = &self.params;
+        LoopFeedback::of(p.mu, p.tau, p.projection, p.feedback)
+    }
+    fn adapt(&mut self, out: &ControlOutput<N>, dt: f64) {
+        let p = &mut self.params;
+        adapt_mu(&mut p.auto_mu, &mut p.mu, p.projection, p.pause, out, dt);
+    }
+    fn is_floating(&self) -> bool {
+        self.model.is_floating()
+    }
+    fn stats_setup(&self) -> StatsSetup {
+        StatsSetup::planar(&self.params)
+    }
+}
+
+/// A URDF chain under [`crate::law::spatial::evaluate`] for a task of `M` rows (3: position, 6:
+/// pose); `M` is static so that the task's size costs nothing per step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpatialLaw<const N: usize, const M: usize> {
+    pub arm: SpatialArm<N>,
+    pub params: SpatialParams,
+}
+
+impl<const N: usize, const M: usize> ClosedLoopLaw<N> for SpatialLaw<N, M> {
+    type Scratch = SpatialKinematics<N>;
+
+    #[inline]
+    fn evaluate(
+        &self,
+        t: f64,
+        x: &ArmState<N>,
+        delayed: &VecN<N>,
+        kin: &mut SpatialKinematics<N>,
+    ) -> ControlOutput<N> {
+        let (arm, p) = (&self.arm, &self.params);
+        law::spatial::evaluate::<N, M>(p, arm, t, &x.q, &x.qd, delayed, kin)
+    }
+    fn loop_feedback(&self) -> LoopFeedback {
+        let p = &self.params;
+        LoopFeedback::of(p.mu, p.tau, p.projection, p.feedback)
+    }
+    fn adapt(&mut self, out: &ControlOutput<N>, dt: f64) {
+        let p = &mut self.params;
+        adapt_mu(&mut p.auto_mu, &mut p.mu, p.projection, p.pause, out, dt);
+    }
+    fn stats_setup(&self) -> StatsSetup {
+        StatsSetup::spatial(&self.params)
+    }
+}
