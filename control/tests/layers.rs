@@ -314,7 +314,10 @@ fn the_checker_sees_what_it_should() {
 /// rustfmt splits a long one over lines): from `Result<` to the `String>` that closes it, when
 /// no `;`, `{` or `}` falls between (one signature or type).
 fn string_results(code: &str) -> Vec<String> {
-    let compact: String = code.split_whitespace().collect::<String>().replace(",>", ">");
+    let compact: String = code
+        .split_whitespace()
+        .collect::<String>()
+        .replace(",>", ">");
     let mut found = Vec::new();
     for (i, _) in compact.match_indices(",String>") {
         let Some(start) = compact[..i].rfind("Result<") else {
@@ -354,5 +357,9 @@ fn no_string_errors_at_the_seams() {
 fn the_string_result_check_sees_what_it_should() {
     let text = "pub fn a() -> Result<u8, String> {}\nfn b() -> Result<\n    Vec<u8>,\n    String,\n> {}\nfn c() -> Result<(), Error> { let s: Vec<String> = v; }\n";
     let hits = string_results(&code(text));
-    assert_eq!(hits, ["Result<u8,String>", "Result<Vec<u8>,String>"], "{hits:?}");
+    assert_eq!(
+        hits,
+        ["Result<u8,String>", "Result<Vec<u8>,String>"],
+        "{hits:?}"
+    );
 }

@@ -11,15 +11,18 @@
 //! evaluation so that the offline simulation, the analysis and the daemon all get the same
 //! filtered command, and a disabled filter costs one branch.
 
+pub mod pipeline;
 pub mod spatial;
 
 use crate::arm::{ArmModel, Jac, Kinematics, VecN};
 use crate::basics::{flags, wrap_angle};
-use crate::resolve::{damped_pinv, resolve, ControlOutput, NullTerms, Projection};
+use crate::resolve::{ControlOutput, Projection};
 use crate::safety::{self, SafetyParams};
 use crate::secondary::{self, ObstacleSet, PotentialWeights};
 use crate::task::Circle;
+use nalgebra::SMatrix;
 use nalgebra::Vector3;
+use pipeline::{ArmSide, Gains, TaskRows};
 
 type Vec3 = Vector3<f64>;
 
@@ -125,6 +128,168 @@ fn detour_pull<const N: usize>(
     v
 }
 
+/// The planar arm's side of the law: the closed-form kinematics, the circle in the plane, the
+/// paper's secondary tasks, the planned cycle and its detour, discs against the links.
+struct PlanarSide<'a, const N: usize> {
+    params: &'a LawParams,
+    model: &'a ArmModel<N>,
+    phi: f64,
+    kin: &'a mut Kinematics<N>,
+}
+
+impl<const N: usize> PlanarSide<'_, N> {
+    /// The steering and its detour, when one is under way.
+    fn detour(&self) -> Option<(&crate::steer::Steer, &crate::steer::DetourTable)> {
+        // By reference: the table is kilobytes, and this runs every tick.
+        let s = self.params.steer.as_ref()?;
+        s.detour.as_ref().map(|d| (s, d))
+    }
+}
+
+impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
+    #[inline]
+    fn pinv(&self, j: &Jac<N>, threshold: f64, lambda_max: f64) -> (SMatrix<f64, N, 2>, f64, f64) {
+        crate::resolve::damped_pinv(j, threshold, lambda_max)
+    }
+
+    #[inline]
+    fn gains(&self, t: f64) -> Gains<'_> {
+        let p = self.params;
+        Gains {
+            alpha: p.alpha,
+            damping_threshold: p.damping_threshold,
+            damping_max: p.damping_max,
+            mu: p.mu,
+            feedback_on: p.feedback_active(t),
+            projection: p.projection,
+            pause: p.pause,
+            track_loss: p.track_loss,
+            safety: &p.safety,
+        }
+    }
+
+    #[inline]
+    fn task(&mut self, t: f64, q: &VecN<N>, qd: &VecN<N>) -> TaskRows<N, 2> {
+        let p = self.params;
+        self.model.kinematics(self.phi, q, qd, self.kin);
+        let kin = &*self.kin;
+        let target = p.task.at(t);
+        let j: Jac<N> = kin.j;
+        let err = target.p - kin.p;
+        TaskRows {
+            acc: target.a + (target.v - j * qd) * p.kv + err * p.kp - kin.jdot_qd,
+            j,
+            position_error: err.norm(),
+            orientation_error: 0.0,
+            p: Vec3::new(kin.p.x, kin.p.y, 0.0),
+            p_desired: Vec3::new(target.p.x, target.p.y, 0.0),
+        }
+    }
+
+    #[inline]
+    fn steering(&self) -> bool {
+        self.params.steer.is_some()
+    }
+
+    #[inline]
+    fn secondary(
+        &mut self,
+        _t: f64,
+        q: &VecN<N>,
+        _qd: &VecN<N>,
+        _j: &Jac<N>,
+    ) -> (f64, Option<VecN<N>>) {
+        let p = self.params;
+        match p.secondary {
+            Secondary::None => (0.0, None),
+            Secondary::Manipulability => {
+                let (w, g) = self.model.manipulability(q, self.kin);
+                (w, Some(g))
+            }
+            Secondary::Obstacles => {
+                let (h, g) = secondary::potential(self.kin, &p.obstacles, p.weights);
+                (h, Some(-g))
+            }
+        }
+    }
+
+    #[inline]
+    fn feedback_held(&self, t: f64) -> bool {
+        self.detour()
+            .is_some_and(|(_, d)| t < d.t_arrive + self.params.tau)
+    }
+
+    #[inline]
+    fn takeover(&self, t: f64, q: &VecN<N>, qd: &VecN<N>) -> Option<(VecN<N>, u32)> {
+        let (s, d) = self.detour().filter(|(_, d)| d.running(t))?;
+        Some((detour_pull(s, d, t, q, qd), flags::DETOUR))
+    }
+
+    #[inline]
+    fn shape(
+        &self,
+        t: f64,
+        q: &VecN<N>,
+        qd: &VecN<N>,
+        j: &Jac<N>,
+        jpinv: &SMatrix<f64, N, 2>,
+        qdd: &mut VecN<N>,
+    ) {
+        if let Some(s) = &self.params.steer {
+            *qdd += steering(s, t, q, qd, j, jpinv);
+        }
+    }
+
+    #[inline]
+    fn filter(
+        &self,
+        q: &VecN<N>,
+        qd: &VecN<N>,
+        _j: &Jac<N>,
+        jpinv: &SMatrix<f64, N, 2>,
+        qdd: &VecN<N>,
+    ) -> safety::Filtered<N> {
+        let p = self.params;
+        let (model, kin) = (self.model, &*self.kin);
+        safety::filter(
+            &p.safety,
+            model,
+            &p.obstacles,
+            kin,
+            self.phi,
+            q,
+            qd,
+            jpinv,
+            qdd,
+        )
+    }
+
+    #[inline]
+    fn clearance(&self) -> (f64, bool) {
+        if self.params.obstacles.is_empty() {
+            (f64::INFINITY, false)
+        } else {
+            secondary::clearance(self.kin, &self.params.obstacles)
+        }
+    }
+
+    #[inline]
+    fn task_flags(&self, rows: &TaskRows<N, 2>) -> u32 {
+        let target = nalgebra::Vector2::new(rows.p_desired.x, rows.p_desired.y);
+        let from_base = (target - self.kin.points[0]).norm();
+        if from_base > self.model.reach() || from_base < self.model.inner_reach() {
+            flags::OUT_OF_REACH
+        } else {
+            0
+        }
+    }
+
+    #[inline]
+    fn base_rate(&self) -> f64 {
+        self.kin.base_rate
+    }
+}
+
 /// Evaluates the law at time `t` for state (φ, q, q̇) with delayed velocity q̇(t − τ).
 ///
 /// `kin` is scratch; on return it holds the kinematics at the state.
@@ -140,126 +305,11 @@ pub fn evaluate<const N: usize>(
     qd_delayed: &VecN<N>,
     kin: &mut Kinematics<N>,
 ) -> ControlOutput<N> {
-    model.kinematics(phi, q, qd, kin);
-    let target = params.task.at(t);
-    let j: &Jac<N> = &kin.j;
-    let mut flag = 0u32;
-
-    let (jpinv, smin, lambda) = damped_pinv(j, params.damping_threshold, params.damping_max);
-    if lambda > 0.0 {
-        flag |= flags::SINGULAR;
-    }
-    let err = target.p - kin.p;
-    let task_acc = target.a + (target.v - j * qd) * params.kv + err * params.kp - kin.jdot_qd;
-    let mut secondary_value = 0.0;
-    // Steering onto a planned cycle replaces the secondary task: both shape the self-motion.
-    let secondary = if params.steer.is_some() {
-        Secondary::None
-    } else {
-        params.secondary
+    let mut side = PlanarSide {
+        params,
+        model,
+        phi,
+        kin,
     };
-    let eta = match secondary {
-        Secondary::None => None,
-        Secondary::Manipulability => {
-            let (w, g) = model.manipulability(q, kin);
-            secondary_value = w;
-            Some(g)
-        }
-        Secondary::Obstacles => {
-            let (h, g) = secondary::potential(kin, &params.obstacles, params.weights);
-            secondary_value = h;
-            Some(-g)
-        }
-    };
-    let diff = qd - qd_delayed;
-    // A detour's motion is not the cycle's: the delayed feedback waits a delay past it.
-    // By reference: the table is kilobytes, and this runs every tick.
-    let detour = params
-        .steer
-        .as_ref()
-        .and_then(|s| s.detour.as_ref().map(|d| (s, d)));
-    let after_detour = detour.is_some_and(|(_, d)| t < d.t_arrive + params.tau);
-    let feedback = params.feedback_active(t) && !after_detour;
-    if feedback {
-        flag |= flags::FEEDBACK_ACTIVE;
-    }
-    let terms = NullTerms {
-        eta,
-        alpha: params.alpha,
-        diff,
-        mu: feedback.then_some(params.mu),
-        projection: params.projection,
-    };
-    let mut qdd = match detour.filter(|(_, d)| d.running(t)) {
-        Some((s, d)) => {
-            flag |= flags::DETOUR;
-            detour_pull(s, d, t, q, qd)
-        }
-        None => {
-            let mut qdd = resolve(j, &jpinv, &task_acc, &terms);
-            if let Some(s) = &params.steer {
-                qdd += steering(s, t, q, qd, j, &jpinv);
-            }
-            qdd
-        }
-    };
-    if params.pause {
-        qdd = safety::pause_brake(qd, &params.safety.qdd_max);
-    }
-    let demand = (0..N)
-        .map(|i| qdd[i].abs() / params.safety.qdd_max[i])
-        .fold(0.0, f64::max);
-    if params.safety.enabled && qdd.iter().all(|v| v.is_finite()) {
-        let f = safety::filter(
-            &params.safety,
-            model,
-            &params.obstacles,
-            kin,
-            phi,
-            q,
-            qd,
-            &jpinv,
-            &qdd,
-        );
-        qdd = f.qdd;
-        flag |= f.flags;
-    }
-
-    let (clearance, in_zone) = if params.obstacles.is_empty() {
-        (f64::INFINITY, false)
-    } else {
-        secondary::clearance(kin, &params.obstacles)
-    };
-    if in_zone {
-        flag |= flags::IN_SAFETY_ZONE;
-    }
-    let tracking_error = err.norm();
-    if tracking_error.is_nan() || tracking_error > params.track_loss {
-        flag |= flags::TRACK_LOST;
-    }
-    let from_base = (target.p - kin.points[0]).norm();
-    if from_base > model.reach() || from_base < model.inner_reach() {
-        flag |= flags::OUT_OF_REACH;
-    }
-    if !qdd.iter().all(|v| v.is_finite()) {
-        qdd = VecN::<N>::zeros();
-        flag |= flags::NONFINITE;
-    }
-    ControlOutput {
-        qdd,
-        p: Vec3::new(kin.p.x, kin.p.y, 0.0),
-        p_desired: Vec3::new(target.p.x, target.p.y, 0.0),
-        tracking_error,
-        orientation_error: 0.0,
-        sigma_min: smin,
-        damping: lambda,
-        secondary_value,
-        period_residual: diff.norm(),
-        null_residual: (diff - jpinv * (j * diff)).norm(),
-        clearance,
-        joint_margin: params.safety.joint_margin(q),
-        demand,
-        base_rate: kin.base_rate,
-        flags: flag,
-    }
+    pipeline::evaluate(&mut side, t, q, qd, qd_delayed)
 }

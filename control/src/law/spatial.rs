@@ -8,21 +8,20 @@
 //! (Hsu, Hauser & Sastry 1989); it is off (k_d = 0) unless configured, so that the study can
 //! compare it with the Pyragas term.
 
+use super::pipeline::{ArmSide, Gains, TaskRows};
 use crate::arm::spatial::Points;
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
-use crate::basics::flags;
 use crate::resolve::ControlOutput;
 use crate::resolve::Projection;
-use crate::resolve::{damped_pinv_m, resolve, NullTerms};
-use crate::safety::SafetyParams;
+use crate::safety::{Filtered, SafetyParams};
 use crate::secondary::spatial as sec;
 use crate::secondary::spatial::SphereSet;
 use crate::task::spatial::orientation_error;
 use crate::task::spatial::SpatialTask;
 use crate::task::spatial::Vec3;
-use nalgebra::{SMatrix, SVector, Vector6};
+use nalgebra::{SMatrix, Vector6};
 
 /// Which secondary task drives a spatial arm's null space.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -101,6 +100,147 @@ fn custom_eta<const N: usize>(
     (value, Some(eta))
 }
 
+/// A URDF chain's side of the law: the chain's kinematics, a spatial path (position or pose),
+/// the spatial secondary tasks, the planned cycle's pull, capsules against spheres.
+struct SpatialSide<'a, const N: usize> {
+    params: &'a SpatialParams,
+    arm: &'a SpatialArm<N>,
+    kin: &'a mut SpatialKinematics<N>,
+}
+
+impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
+    #[inline]
+    fn gains(&self, t: f64) -> Gains<'_> {
+        let p = self.params;
+        Gains {
+            alpha: p.alpha,
+            damping_threshold: p.damping_threshold,
+            damping_max: p.damping_max,
+            mu: p.mu,
+            feedback_on: p.feedback_active(t),
+            projection: p.projection,
+            pause: p.pause,
+            track_loss: p.track_loss,
+            safety: &p.safety,
+        }
+    }
+
+    #[inline]
+    fn task(&mut self, t: f64, q: &VecN<N>, qd: &VecN<N>) -> TaskRows<N, M> {
+        let p = self.params;
+        debug_assert_eq!(M, p.task.kind.rows());
+        self.arm.kinematics(q, qd, self.kin);
+        let kin = &*self.kin;
+        let target = p.task.at(t);
+        let ep = target.p - kin.p;
+        let eo = if M == 6 {
+            orientation_error(&target.rot, &kin.rot)
+        } else {
+            Vec3::zeros()
+        };
+        let vel = kin.jac * qd;
+        let desired = Vector6::new(
+            target.a.x,
+            target.a.y,
+            target.a.z,
+            target.wd.x,
+            target.wd.y,
+            target.wd.z,
+        ) + (Vector6::new(
+            target.v.x, target.v.y, target.v.z, target.w.x, target.w.y, target.w.z,
+        ) - vel)
+            * p.kv
+            + Vector6::new(ep.x, ep.y, ep.z, eo.x, eo.y, eo.z) * p.kp
+            - kin.jdot_qd;
+        TaskRows {
+            j: kin.jac.fixed_rows::<M>(0).into_owned(),
+            acc: sec::rows::<M>(&desired),
+            position_error: ep.norm(),
+            orientation_error: eo.norm(),
+            p: kin.p,
+            p_desired: target.p,
+        }
+    }
+
+    #[inline]
+    fn steering(&self) -> bool {
+        self.params.steer.is_some()
+    }
+
+    #[inline]
+    fn secondary(
+        &mut self,
+        t: f64,
+        q: &VecN<N>,
+        qd: &VecN<N>,
+        j: &SMatrix<f64, M, N>,
+    ) -> (f64, Option<VecN<N>>) {
+        let (p, arm, kin) = (self.params, self.arm, &*self.kin);
+        match p.secondary {
+            SpatialSecondary::None => (0.0, None),
+            SpatialSecondary::Manipulability => {
+                let (w, g) = sec::manipulability(arm, kin, j);
+                (w, Some(g))
+            }
+            SpatialSecondary::Centring => {
+                let (c, g) = sec::centring(q, &p.safety.q_min, &p.safety.q_max);
+                (c, Some(-g))
+            }
+            SpatialSecondary::Obstacles if !p.spheres.is_empty() => {
+                let mut points: Points<N> = [Default::default(); crate::basics::MAX_JOINTS + 1];
+                arm.capsule_points(kin, qd, &mut points);
+                let (h, g) = sec::potential(arm, &points, &p.spheres, p.weight);
+                (h, Some(-g))
+            }
+            SpatialSecondary::Obstacles => (0.0, Some(VecN::<N>::zeros())),
+            SpatialSecondary::Custom(index) => custom_eta(index, p, kin, t, q, qd),
+        }
+    }
+
+    #[inline]
+    fn shape(
+        &self,
+        t: f64,
+        q: &VecN<N>,
+        qd: &VecN<N>,
+        j: &SMatrix<f64, M, N>,
+        jpinv: &SMatrix<f64, N, M>,
+        qdd: &mut VecN<N>,
+    ) {
+        let p = self.params;
+        if let Some(s) = &p.steer {
+            *qdd += s.pull(t, q, qd, j, jpinv, qdd, &p.safety);
+        }
+        if p.null_damping != 0.0 {
+            *qdd -= (qd - jpinv * (j * qd)) * p.null_damping;
+        }
+    }
+
+    #[inline]
+    fn filter(
+        &self,
+        q: &VecN<N>,
+        qd: &VecN<N>,
+        j: &SMatrix<f64, M, N>,
+        jpinv: &SMatrix<f64, N, M>,
+        qdd: &VecN<N>,
+    ) -> Filtered<N> {
+        let p = self.params;
+        let (arm, kin) = (self.arm, &*self.kin);
+        crate::safety::capsules::filter(&p.safety, arm, &p.spheres, kin, q, qd, j, jpinv, qdd)
+    }
+
+    #[inline]
+    fn clearance(&self) -> (f64, bool) {
+        let (p, arm) = (self.params, self.arm);
+        if p.spheres.is_empty() {
+            (f64::INFINITY, false)
+        } else {
+            sec::clearance(arm, &arm.capsule_positions(self.kin)[..N + 1], &p.spheres)
+        }
+    }
+}
+
 /// Evaluates the law at time t for state (q, q̇) with delayed velocity q̇(t − τ); `M` must be
 /// the task's row count (3: position, 6: pose). `kin` is scratch.
 #[inline]
@@ -114,133 +254,6 @@ pub fn evaluate<const N: usize, const M: usize>(
     qd_delayed: &VecN<N>,
     kin: &mut SpatialKinematics<N>,
 ) -> ControlOutput<N> {
-    debug_assert_eq!(M, params.task.kind.rows());
-    arm.kinematics(q, qd, kin);
-    let target = params.task.at(t);
-    let j: SMatrix<f64, M, N> = kin.jac.fixed_rows::<M>(0).into_owned();
-    let mut flag = 0u32;
-    let (jpinv, smin, lambda) = damped_pinv_m(&j, params.damping_threshold, params.damping_max);
-    if lambda > 0.0 {
-        flag |= flags::SINGULAR;
-    }
-    let ep = target.p - kin.p;
-    let eo = if M == 6 {
-        orientation_error(&target.rot, &kin.rot)
-    } else {
-        Vec3::zeros()
-    };
-    let vel = kin.jac * qd;
-    let desired = Vector6::new(
-        target.a.x,
-        target.a.y,
-        target.a.z,
-        target.wd.x,
-        target.wd.y,
-        target.wd.z,
-    ) + (Vector6::new(
-        target.v.x, target.v.y, target.v.z, target.w.x, target.w.y, target.w.z,
-    ) - vel)
-        * params.kv
-        + Vector6::new(ep.x, ep.y, ep.z, eo.x, eo.y, eo.z) * params.kp
-        - kin.jdot_qd;
-    let task_acc: SVector<f64, M> = sec::rows::<M>(&desired);
-
-    // Steering onto a planned cycle replaces the secondary task: both shape the self-motion.
-    let secondary = if params.steer.is_some() {
-        SpatialSecondary::None
-    } else {
-        params.secondary
-    };
-    let (secondary_value, eta) = match secondary {
-        SpatialSecondary::None => (0.0, None),
-        SpatialSecondary::Manipulability => {
-            let (w, g) = sec::manipulability(arm, kin, &j);
-            (w, Some(g))
-        }
-        SpatialSecondary::Centring => {
-            let (c, g) = sec::centring(q, &params.safety.q_min, &params.safety.q_max);
-            (c, Some(-g))
-        }
-        SpatialSecondary::Obstacles if !params.spheres.is_empty() => {
-            let mut points: Points<N> = [Default::default(); crate::basics::MAX_JOINTS + 1];
-            arm.capsule_points(kin, qd, &mut points);
-            let (h, g) = sec::potential(arm, &points, &params.spheres, params.weight);
-            (h, Some(-g))
-        }
-        SpatialSecondary::Obstacles => (0.0, Some(VecN::<N>::zeros())),
-        SpatialSecondary::Custom(index) => custom_eta(index, params, kin, t, q, qd),
-    };
-    let diff = qd - qd_delayed;
-    let feedback = params.feedback_active(t);
-    if feedback {
-        flag |= flags::FEEDBACK_ACTIVE;
-    }
-    let terms = NullTerms {
-        eta,
-        alpha: params.alpha,
-        diff,
-        mu: feedback.then_some(params.mu),
-        projection: params.projection,
-    };
-    let mut qdd = resolve(&j, &jpinv, &task_acc, &terms);
-    if let Some(s) = &params.steer {
-        qdd += s.pull(t, q, qd, &j, &jpinv, &qdd, &params.safety);
-    }
-    if params.null_damping != 0.0 {
-        qdd -= (qd - jpinv * (j * qd)) * params.null_damping;
-    }
-    if params.pause {
-        qdd = crate::safety::pause_brake(qd, &params.safety.qdd_max);
-    }
-    let demand = (0..N)
-        .map(|i| qdd[i].abs() / params.safety.qdd_max[i])
-        .fold(0.0, f64::max);
-    if params.safety.enabled && qdd.iter().all(|v| v.is_finite()) {
-        let f = crate::safety::capsules::filter(
-            &params.safety,
-            arm,
-            &params.spheres,
-            kin,
-            q,
-            qd,
-            &j,
-            &jpinv,
-            &qdd,
-        );
-        qdd = f.qdd;
-        flag |= f.flags;
-    }
-    let (clearance, in_zone) = if params.spheres.is_empty() {
-        (f64::INFINITY, false)
-    } else {
-        sec::clearance(arm, &arm.capsule_positions(kin)[..N + 1], &params.spheres)
-    };
-    if in_zone {
-        flag |= flags::IN_SAFETY_ZONE;
-    }
-    let tracking_error = ep.norm();
-    if tracking_error.is_nan() || tracking_error > params.track_loss {
-        flag |= flags::TRACK_LOST;
-    }
-    if !qdd.iter().all(|v| v.is_finite()) {
-        qdd = VecN::<N>::zeros();
-        flag |= flags::NONFINITE;
-    }
-    ControlOutput {
-        qdd,
-        p: kin.p,
-        p_desired: target.p,
-        tracking_error,
-        orientation_error: eo.norm(),
-        sigma_min: smin,
-        damping: lambda,
-        secondary_value,
-        period_residual: diff.norm(),
-        null_residual: (diff - jpinv * (j * diff)).norm(),
-        clearance,
-        joint_margin: params.safety.joint_margin(q),
-        demand,
-        base_rate: 0.0,
-        flags: flag,
-    }
+    let mut side = SpatialSide { params, arm, kin };
+    super::pipeline::evaluate::<N, M>(&mut side, t, q, qd, qd_delayed)
 }
