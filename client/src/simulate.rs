@@ -5,8 +5,9 @@ use crate::traps::{OfflineTraps, TrapEvent};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::config::{ModelKind, ProjectionKind};
+use control::sim::run_steering;
 use control::steer::Steering;
-use control::{with_dof, ArmState, Config, RunStats, Simulation, Summary, System};
+use control::{with_dof, ArmState, Config, Simulation, Summary, System};
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
@@ -76,20 +77,20 @@ pub fn run_config(
         let x0: ArmState<N> = cfg.initial_state();
         let mut sim = Simulation::new(cfg.model::<N>(), params, cfg.sim.dt, x0, cfg.feedback.max_tau);
         let steps = (cfg.sim.duration / cfg.sim.dt).round() as u64;
-        let mut stats = RunStats::new(&params, cfg.sim.dt, cfg.sim.duration, cfg.sim.transient, &x0);
         let mut traps = OfflineTraps::new(System::Planar(cfg.clone()), params.steer.map(Steering::Planar));
         if let Some(b) = &blocked {
             traps.blocked_at_start(b);
         }
-        for k in 0..steps {
-            let x = *sim.state();
-            let out = sim.step();
-            stats.record(k, &x, &out);
-            let t = k as f64 * cfg.sim.dt;
-            if let Some(Steering::Planar(steer)) = traps.observe(t, out.flags, out.tracking_error, x.q.as_slice()) {
-                sim.law.params.steer = Some(steer);
+        let (mut k, mut failed) = (0u64, None);
+        let summary = run_steering(&mut sim, cfg.sim.duration, cfg.sim.transient, |t, x, out| {
+            if failed.is_none() {
+                failed = each(k, t, x.q.as_slice(), x.qd.as_slice(), x.phi).err();
             }
-            each(k, k as f64 * cfg.sim.dt, x.q.as_slice(), x.qd.as_slice(), x.phi)?;
+            k += 1;
+            traps.observe(t, out.flags, out.tracking_error, x.q.as_slice())
+        });
+        if let Some(e) = failed {
+            return Err(e);
         }
         let x = *sim.state();
         if !x.is_finite() {
@@ -112,7 +113,7 @@ pub fn run_config(
             final_phi: (cfg.arm.model == ModelKind::Floating).then_some(x.phi),
             plan,
             traps: traps.events,
-            summary: stats.summary(),
+            summary,
         })
     })
 }

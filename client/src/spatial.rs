@@ -16,7 +16,7 @@ use control::config::ProjectionKind;
 use control::sim::spatial::run;
 use control::sim::spatial::run_steering;
 use control::sim::spatial::SpatialSimulation;
-use control::sim::spatial::SpatialSummary;
+use control::sim::Summary;
 use control::steer::Steering;
 use control::system::SpatialSystem;
 use control::{with_dof, with_task_rows, ArmState, System};
@@ -122,7 +122,7 @@ pub struct SpatialReport {
     pub final_q: Vec<f64>,
     pub final_qd: Vec<f64>,
     #[serde(flatten)]
-    pub summary: SpatialSummary,
+    pub summary: Summary,
 }
 
 /// `chaosctl simulate` on a spatial robot.
@@ -181,10 +181,7 @@ pub fn simulate(
                 }
             }
             k += 1;
-            match traps.observe(t, o.flags, o.tracking_error, x.q.as_slice()) {
-                Some(Steering::Spatial(steer)) => Some(steer),
-                _ => None,
-            }
+            traps.observe(t, o.flags, o.tracking_error, x.q.as_slice())
         });
         if let Some(e) = err {
             return Err(e.into());
@@ -215,7 +212,7 @@ fn report(
     dt: f64,
     q: &[f64],
     qd: &[f64],
-    summary: SpatialSummary,
+    summary: Summary,
 ) -> SpatialReport {
     SpatialReport {
         robot: cfg.robot.description.clone(),
@@ -299,7 +296,7 @@ pub fn print(r: &SpatialReport) {
 }
 
 /// One run of `cfg` to its duration: the summary alone.
-pub fn run_summary(cfg: &SpatialConfig) -> Result<SpatialSummary> {
+pub fn run_summary(cfg: &SpatialConfig) -> Result<Summary> {
     Ok(with_setup!(cfg, |s, N, M| {
         let mut sim =
             SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);

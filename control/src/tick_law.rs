@@ -239,6 +239,9 @@ impl<const N: usize> crate::sim::ClosedLoopLaw<N> for TickLaw<N> {
     fn is_floating(&self) -> bool {
         matches!(self, TickLaw::Planar { model, .. } if model.is_floating())
     }
+    fn set_steering(&mut self, steering: Option<crate::steer::Steering>) {
+        self.set_steer(steering)
+    }
     fn stats_setup(&self) -> crate::sim::StatsSetup {
         match self {
             TickLaw::Planar { params, .. } => crate::sim::StatsSetup::planar(params),

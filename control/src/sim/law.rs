@@ -14,6 +14,7 @@ use crate::arm::{ArmModel, Kinematics, VecN};
 use crate::law::spatial::SpatialParams;
 use crate::law::{self, LawParams};
 use crate::resolve::{ControlOutput, Projection};
+use crate::steer::Steering;
 
 /// A control law a closed loop can step: its evaluation and the few numbers the loop reads.
 pub trait ClosedLoopLaw<const N: usize>: Clone {
@@ -43,6 +44,10 @@ pub trait ClosedLoopLaw<const N: usize>: Clone {
 
     /// What a run's statistics need of this law.
     fn stats_setup(&self) -> StatsSetup;
+
+    /// Steers the self-motion onto a planned cycle, or stops (None). A cycle planned for
+    /// another kind of arm stops the steering.
+    fn set_steering(&mut self, steering: Option<Steering>);
 }
 
 /// The feedback numbers a closed loop reads from its law.
@@ -117,6 +122,12 @@ impl<const N: usize> ClosedLoopLaw<N> for PlanarLaw<N> {
     fn stats_setup(&self) -> StatsSetup {
         StatsSetup::planar(&self.params)
     }
+    fn set_steering(&mut self, steering: Option<Steering>) {
+        self.params.steer = match steering {
+            Some(Steering::Planar(s)) => Some(s),
+            _ => None,
+        };
+    }
 }
 
 /// A URDF chain under [`crate::law::spatial::evaluate`] for a task of `M` rows (3: position, 6:
@@ -151,5 +162,11 @@ impl<const N: usize, const M: usize> ClosedLoopLaw<N> for SpatialLaw<N, M> {
     }
     fn stats_setup(&self) -> StatsSetup {
         StatsSetup::spatial(&self.params)
+    }
+    fn set_steering(&mut self, steering: Option<Steering>) {
+        self.params.steer = match steering {
+            Some(Steering::Spatial(s)) => Some(s),
+            _ => None,
+        };
     }
 }

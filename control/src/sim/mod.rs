@@ -17,6 +17,7 @@ use crate::basics::flags;
 use crate::delay::DelayLine;
 use crate::law::LawParams;
 use crate::resolve::ControlOutput;
+use crate::steer::Steering;
 
 /// A state an explicit Runge-Kutta method can combine.
 pub trait OdeState: Copy {
@@ -164,6 +165,50 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Simulation<N, L> {
     }
 }
 
+/// Runs `sim` for `duration` s, calling `each(t, state, output)` every step, and summarises.
+pub fn run<const N: usize, L: ClosedLoopLaw<N>>(
+    sim: &mut Simulation<N, L>,
+    duration: f64,
+    transient: f64,
+    mut each: impl FnMut(f64, &ArmState<N>, &ControlOutput<N>),
+) -> Summary {
+    run_steering(sim, duration, transient, |t, x, o| {
+        each(t, x, o);
+        None
+    })
+}
+
+/// [`run`], where `each` may hand the law a steering (a cycle planned after a trap, as the
+/// daemon does): it takes effect from the next step. A run whose state stops being finite
+/// stops there, its summary's `finite` false.
+pub fn run_steering<const N: usize, L: ClosedLoopLaw<N>>(
+    sim: &mut Simulation<N, L>,
+    duration: f64,
+    transient: f64,
+    mut each: impl FnMut(f64, &ArmState<N>, &ControlOutput<N>) -> Option<Steering>,
+) -> Summary {
+    let setup = sim.law.stats_setup();
+    let mut stats = RunStats::of(setup, sim.dt(), duration, transient, sim.state());
+    let steps = (duration / sim.dt()).round() as u64;
+    let mut finite = true;
+    for _ in 0..steps {
+        let (k, t, x) = (sim.step_index(), sim.time(), *sim.state());
+        let out = sim.step();
+        if let Some(steer) = each(t, &x, &out) {
+            sim.law.set_steering(Some(steer));
+        }
+        stats.record(k, &x, &out);
+        if !sim.state().is_finite() {
+            finite = false;
+            break;
+        }
+    }
+    Summary {
+        finite,
+        ..stats.summary()
+    }
+}
+
 /// Windowed statistics of a run, accumulated step by step without allocation.
 #[derive(Clone, Debug)]
 pub struct RunStats<const N: usize> {
@@ -205,6 +250,12 @@ pub struct RunStats<const N: usize> {
     pub safety_active_steps: u64,
     pub safety_left_null_space_steps: u64,
     pub safety_infeasible_steps: u64,
+    /// Largest orientation error after the transient (rad; 0 without a pose task).
+    pub max_orientation_error: f64,
+    /// Largest |q̇_i| and largest |q̇_i| / q̇_max,i over the run.
+    pub max_joint_speed: f64,
+    pub max_speed_ratio: f64,
+    qd_max: [f64; crate::basics::MAX_JOINTS],
     before: (f64, u64),
     after: (f64, u64),
     strobe: [Option<ArmState<N>>; 2],
@@ -223,7 +274,8 @@ pub struct Summary {
     pub singular_fraction: f64,
     pub out_of_reach_fraction: f64,
     pub nonfinite_steps: u64,
-    /// Mean |q̇(t) − q̇(t − T)| over the 10 periods before feedback switches on (None if too short).
+    /// Mean |q̇(t) − q̇(t − T)| over the 10 periods before feedback switches on, or without
+    /// feedback over the first 10 after the transient (None if the run is too short).
     pub period_residual_before: Option<f64>,
     /// The same over the last 10 periods of the run.
     pub period_residual_final: Option<f64>,
@@ -261,6 +313,25 @@ pub struct Summary {
     pub safety_left_null_space_time: f64,
     /// Steps on which no acceleration within the limits met every barrier condition.
     pub safety_infeasible_steps: u64,
+    /// |q(kT) − q((k−1)T)| at the last two stroboscopic samples: the joint drift per period.
+    #[serde(default)]
+    pub drift_per_period: Option<f64>,
+    /// Largest orientation error after the transient (rad; 0 without a pose task).
+    #[serde(default)]
+    pub max_orientation_error: f64,
+    /// Largest joint speed (rad/s) and largest speed / limit over the run (above 1: a rate
+    /// limit was exceeded; 0 without rate limits).
+    #[serde(default)]
+    pub max_joint_speed: f64,
+    #[serde(default)]
+    pub max_speed_ratio: f64,
+    /// Whether the state stayed finite to the end (a run that diverged stops there).
+    #[serde(default = "yes")]
+    pub finite: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// What a run's statistics need to know of the law, whatever the arm: the planar law's
@@ -277,6 +348,8 @@ pub struct StatsSetup {
     pub required_clearance: f64,
     pub has_obstacles: bool,
     pub safety_enabled: bool,
+    /// The joints' rate limits (rad/s; +∞ where there is none).
+    pub qd_max: [f64; crate::basics::MAX_JOINTS],
 }
 
 impl StatsSetup {
@@ -289,6 +362,7 @@ impl StatsSetup {
             required_clearance: params.safety.clearance,
             has_obstacles: !params.obstacles.is_empty(),
             safety_enabled: params.safety.enabled,
+            qd_max: params.safety.qd_max,
         }
     }
 }
@@ -347,6 +421,10 @@ impl<const N: usize> RunStats<N> {
             safety_active_steps: 0,
             safety_left_null_space_steps: 0,
             safety_infeasible_steps: 0,
+            max_orientation_error: 0.0,
+            max_joint_speed: 0.0,
+            max_speed_ratio: 0.0,
+            qd_max: setup.qd_max,
             before: (0.0, 0),
             after: (0.0, 0),
             strobe: [None, None],
@@ -362,10 +440,12 @@ impl<const N: usize> RunStats<N> {
         let resid = (x.qd - back).norm();
         let w = 10.0 * self.period;
         if t >= self.period {
+            // Before the feedback: the 10 periods before it switches on or, without it, the
+            // first 10 after the transient.
             let before_end = if self.feedback_used {
                 self.t_on
             } else {
-                f64::INFINITY
+                self.transient + w
             };
             if t < before_end && t >= before_end - w {
                 self.before.0 += resid;
@@ -380,6 +460,11 @@ impl<const N: usize> RunStats<N> {
             self.strobe = [self.strobe[1], Some(*x)];
             self.next_strobe += 1;
         }
+        self.max_joint_speed = self.max_joint_speed.max(x.qd.amax());
+        let ratio = (0..N)
+            .map(|i| x.qd[i].abs() / self.qd_max[i])
+            .fold(0.0, f64::max);
+        self.max_speed_ratio = self.max_speed_ratio.max(ratio);
         self.min_clearance = self.min_clearance.min(out.clearance);
         if out.flags & flags::IN_SAFETY_ZONE != 0 {
             self.safety_zone_steps += 1;
@@ -399,6 +484,7 @@ impl<const N: usize> RunStats<N> {
         self.steps_after_transient += 1;
         self.sq_err += out.tracking_error * out.tracking_error;
         self.max_tracking_error = self.max_tracking_error.max(out.tracking_error);
+        self.max_orientation_error = self.max_orientation_error.max(out.orientation_error);
         if out.flags & flags::TRACK_LOST != 0 {
             self.track_lost_steps += 1;
             self.first_track_loss.get_or_insert(t);
@@ -432,13 +518,14 @@ impl<const N: usize> RunStats<N> {
         let n = self.steps_after_transient.max(1) as f64;
         let mean = |(s, c): (f64, u64)| if c > 0 { Some(s / c as f64) } else { None };
         let obstacles = self.has_obstacles;
-        let strobe_return = match self.strobe {
+        let (strobe_return, drift_per_period) = match self.strobe {
             [Some(a), Some(b)] => {
                 let dq = b.q - a.q;
                 let dqd = b.qd - a.qd;
-                Some((dq.norm_squared() + dqd.norm_squared()).sqrt())
+                let both = (dq.norm_squared() + dqd.norm_squared()).sqrt();
+                (Some(both), Some(dq.norm()))
             }
-            _ => None,
+            _ => (None, None),
         };
         Summary {
             duration: self.end,
@@ -478,6 +565,11 @@ impl<const N: usize> RunStats<N> {
             safety_left_null_space_steps: self.safety_left_null_space_steps,
             safety_left_null_space_time: self.safety_left_null_space_steps as f64 * self.dt,
             safety_infeasible_steps: self.safety_infeasible_steps,
+            drift_per_period,
+            max_orientation_error: self.max_orientation_error,
+            max_joint_speed: self.max_joint_speed,
+            max_speed_ratio: self.max_speed_ratio,
+            finite: true,
         }
     }
 }
