@@ -6,7 +6,11 @@
 //! loop measures and computes, and trips the daemon into FAULT (the plant brakes) when:
 //! - the law's result is not finite (at once);
 //! - a measured joint rate stays beyond `safety.qd_max` (5 % slack) for `safety.guard_time`;
-//! - the law asks for more than `safety.qdd_max` for `safety.guard_time`;
+//! - the law asks for more than `safety.qdd_max` for `safety.guard_time` while nothing holds the
+//!   command inside the limits (the filter off, or infeasible on that tick): with the filter on
+//!   and feasible the plant never gets the excess, and clamping it is the filter's job on every
+//!   tick it acts (a steered arm passing an obstacle asks 1.1× for a few ticks and tracks to a
+//!   fraction of a millimetre); the rate and growth criteria still watch such an arm;
 //! - the tracking error stays above `safety.guard_tracking_error` and keeps growing for
 //!   `safety.guard_growth_time`.
 //!
@@ -144,7 +148,9 @@ impl Guard {
             self.reenter(t);
         }
         let settling = self.reentry_until.is_some_and(|until| t < until);
-        let over = out.demand > 1.0 && !settling;
+        let clamped =
+            out.flags & flags::SAFETY_ACTIVE != 0 && out.flags & flags::SAFETY_INFEASIBLE == 0;
+        let over = out.demand > 1.0 && !settling && !clamped;
         if let Some(for_s) = held(&mut self.demand_since, over, t, p.guard_time) {
             return Some(FaultReason::Demand {
                 ratio: out.demand,
@@ -239,6 +245,25 @@ mod tests {
         let greedy = output(0.0, 3.0, 0);
         let tripped =
             (0..50).find_map(|k| g.check(k as f64 * 1e-3, &p, &slow, &greedy).map(|r| (k, r)));
+        assert!(
+            matches!(tripped, Some((20, FaultReason::Demand { .. }))),
+            "{tripped:?}"
+        );
+        // The same demand clamped by a feasible filter: the plant never gets it.
+        let mut g = Guard::default();
+        let clamped = output(0.0, 3.0, flags::SAFETY_ACTIVE);
+        for k in 0..100 {
+            assert_eq!(
+                g.check(k as f64 * 1e-3, &p, &slow, &clamped),
+                None,
+                "tick {k}"
+            );
+        }
+        // An infeasible filter holds nothing: it counts again.
+        let mut g = Guard::default();
+        let unheld = output(0.0, 3.0, flags::SAFETY_ACTIVE | flags::SAFETY_INFEASIBLE);
+        let tripped =
+            (0..50).find_map(|k| g.check(k as f64 * 1e-3, &p, &slow, &unheld).map(|r| (k, r)));
         assert!(
             matches!(tripped, Some((20, FaultReason::Demand { .. }))),
             "{tripped:?}"
