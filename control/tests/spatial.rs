@@ -215,7 +215,7 @@ fn panda_params(arm: &SpatialArm<7>, kind: TaskKind) -> (SpatialParams, V7) {
         kp: 40.0,
         kv: 15.0,
         alpha: 20.0,
-        secondary: SpatialSecondary::Centring,
+        secondary: control::Secondary::Centring,
         spheres: SphereSet::default(),
         weight: 2.0,
         null_damping: 0.0,

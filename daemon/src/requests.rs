@@ -128,11 +128,14 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
                 c.control.secondary = match it.next() {
                     Some("none") => SecondaryKind::None,
                     Some("manipulability") => SecondaryKind::Manipulability,
+                    Some("centring") => SecondaryKind::Centring,
                     Some("obstacles") => SecondaryKind::Obstacles,
+                    Some(name) if control::Secondary::parse(name).is_some() => {
+                        SecondaryKind::Custom(name.to_string())
+                    }
                     other => {
-                        return Err(format!(
-                            "{key}: {other:?} is not none, manipulability or obstacles"
-                        ))
+                        let names = control::Secondary::names();
+                        return Err(format!("{key}: {other:?} is not {names}"));
                     }
                 }
             }

@@ -33,13 +33,18 @@ pub enum ModelKind {
     Floating,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+/// `control.secondary`: a built-in task by name, or a task the program registered
+/// ([`crate::secondary::custom`]), named in the file as in a robot's `law.secondary`.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum SecondaryKind {
     None,
     #[default]
     Manipulability,
+    Centring,
     Obstacles,
+    #[serde(untagged)]
+    Custom(String),
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -475,6 +480,19 @@ impl Config {
         for (i, o) in c.obstacles.iter().enumerate() {
             validate_obstacle(&format!("control.obstacles[{i}]"), o)?;
         }
+        if let SecondaryKind::Custom(name) = &c.secondary {
+            if Secondary::parse(name).is_none() {
+                return Err(invalid("control.secondary", name, &Secondary::names()));
+            }
+        }
+        let limits = self.safety.q_min.is_some() && self.safety.q_max.is_some();
+        if c.secondary == SecondaryKind::Centring && !limits {
+            return Err(invalid(
+                "control.secondary",
+                "\"centring\"",
+                "centring pulls each joint to the middle of its range: give safety.q_min and safety.q_max",
+            ));
+        }
         if c.secondary == SecondaryKind::Obstacles && c.obstacles.is_empty() {
             return Err(invalid(
                 "control.obstacles",
@@ -542,10 +560,13 @@ impl Config {
             kp: c.kp,
             kv: c.kv,
             alpha: c.alpha,
-            secondary: match c.secondary {
+            secondary: match &c.secondary {
                 SecondaryKind::None => Secondary::None,
                 SecondaryKind::Manipulability => Secondary::Manipulability,
+                SecondaryKind::Centring => Secondary::Centring,
                 SecondaryKind::Obstacles => Secondary::Obstacles,
+                // Validation refuses a name no program registered.
+                SecondaryKind::Custom(name) => Secondary::parse(name).unwrap_or(Secondary::None),
             },
             obstacles: c
                 .obstacles

@@ -14,7 +14,7 @@ use crate::basics::ConfigError;
 use crate::basics::MAX_JOINTS;
 use crate::command::{DEFAULT_QDD_MAX, PANDA_QDD_MAX};
 use crate::law::spatial::SpatialParams;
-use crate::law::spatial::SpatialSecondary;
+use crate::law::Secondary;
 use crate::model::Chain;
 use crate::resolve::Projection;
 use crate::safety::SafetyParams;
@@ -461,17 +461,9 @@ impl SpatialConfig {
         Ok(SVector::from_fn(|i, _| v.get(i).copied().unwrap_or(0.0)))
     }
 
-    fn secondary(&self) -> Result<SpatialSecondary, ConfigError> {
-        Ok(match self.law.secondary.as_str() {
-            "none" => SpatialSecondary::None,
-            "manipulability" => SpatialSecondary::Manipulability,
-            "centring" => SpatialSecondary::Centring,
-            "obstacles" => SpatialSecondary::Obstacles,
-            s => match crate::secondary::custom::lookup(s) {
-                Some(i) => SpatialSecondary::Custom(i),
-                None => return Err(invalid("law.secondary", s, &secondary_names())),
-            },
-        })
+    fn secondary(&self) -> Result<Secondary, ConfigError> {
+        let s = self.law.secondary.as_str();
+        Secondary::parse(s).ok_or_else(|| invalid("law.secondary", s, &Secondary::names()))
     }
 
     fn projection(&self) -> Result<Projection, ConfigError> {
@@ -711,17 +703,3 @@ transient = 5.0
 q0 = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]
 qd0 = [0.1, 0.0, -0.1, 0.0, 0.0, 0.0, 0.0]
 "#;
-
-/// The names `law.secondary` takes in this program: the built-ins and the registered tasks.
-fn secondary_names() -> String {
-    let custom = crate::secondary::custom::names();
-    let built_in = "\"none\", \"manipulability\", \"centring\" or \"obstacles\"";
-    if custom.is_empty() {
-        format!("{built_in} (a task of your own runs in a program that registers it: examples/custom-task)")
-    } else {
-        format!(
-            "{built_in}, or a task this program registered: {}",
-            custom.join(", ")
-        )
-    }
-}

@@ -26,15 +26,80 @@ use pipeline::{ArmSide, Gains, TaskRows};
 
 type Vec3 = Vector3<f64>;
 
-/// Which secondary task drives the null space.
+/// Which secondary task drives the null space: one set for every arm, each arm computing it
+/// on its own geometry.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Secondary {
     None,
-    /// η = +∇w, w = √det(JJᵀ) (eq. 1).
+    /// η = +∇w, w = √det(JJᵀ) of the task rows (eq. 1).
     #[default]
     Manipulability,
-    /// η = −∇h, the obstacle potential (eqs. 7-10).
+    /// η = −∇c, c the joint-limit centring cost (joints without limits are left alone).
+    Centring,
+    /// η = −∇h, the obstacle potential (eqs. 7-10): discs on the planar arm, spheres against
+    /// capsules on a chain.
     Obstacles,
+    /// A task the program registered ([`crate::secondary::custom`]), by its index there.
+    Custom(u8),
+}
+
+impl Secondary {
+    /// The task a config names: a built-in's name or a registered task's.
+    ///
+    /// ```
+    /// use control::Secondary;
+    /// assert_eq!(Secondary::parse("centring"), Some(Secondary::Centring));
+    /// assert_eq!(Secondary::parse("manipulabilty"), None);
+    /// ```
+    pub fn parse(name: &str) -> Option<Self> {
+        Some(match name {
+            "none" => Secondary::None,
+            "manipulability" => Secondary::Manipulability,
+            "centring" => Secondary::Centring,
+            "obstacles" => Secondary::Obstacles,
+            s => Secondary::Custom(crate::secondary::custom::lookup(s)?),
+        })
+    }
+
+    /// What [`Self::parse`] takes, for a refusal's message.
+    pub fn names() -> String {
+        let custom = crate::secondary::custom::names();
+        let built_in = "\"none\", \"manipulability\", \"centring\" or \"obstacles\"";
+        if custom.is_empty() {
+            format!("{built_in} (a task of your own runs in a program that registers it: examples/custom-task)")
+        } else {
+            format!(
+                "{built_in}, or a task this program registered: {}",
+                custom.join(", ")
+            )
+        }
+    }
+}
+
+/// A registered task's value and η at (t, q, q̇), given the tool point, its 6 × N Jacobian
+/// (column-major, rows 0-2 linear, 3-5 angular) and the joint limits.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn custom_eta<const N: usize>(
+    index: u8,
+    t: f64,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+    tip: [f64; 3],
+    jacobian: &SMatrix<f64, 6, N>,
+    safety: &SafetyParams,
+) -> (f64, Option<VecN<N>>) {
+    let input = crate::secondary::custom::NullTaskInput {
+        t,
+        q: q.as_slice(),
+        qd: qd.as_slice(),
+        tip,
+        jacobian: jacobian.as_slice(),
+        q_min: &safety.q_min[..N],
+        q_max: &safety.q_max[..N],
+    };
+    let mut eta = VecN::<N>::zeros();
+    let value = crate::secondary::custom::call(index, &input, eta.as_mut_slice());
+    (value, Some(eta))
 }
 
 /// Every tunable of the control law.
@@ -194,10 +259,10 @@ impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
     #[inline]
     fn secondary(
         &mut self,
-        _t: f64,
+        t: f64,
         q: &VecN<N>,
-        _qd: &VecN<N>,
-        _j: &Jac<N>,
+        qd: &VecN<N>,
+        j: &Jac<N>,
     ) -> (f64, Option<VecN<N>>) {
         let p = self.params;
         match p.secondary {
@@ -206,9 +271,24 @@ impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
                 let (w, g) = self.model.manipulability(q, self.kin);
                 (w, Some(g))
             }
+            Secondary::Centring => {
+                let (c, g) = secondary::spatial::centring(q, &p.safety.q_min, &p.safety.q_max);
+                (c, Some(-g))
+            }
             Secondary::Obstacles => {
                 let (h, g) = secondary::potential(self.kin, &p.obstacles, p.weights);
                 (h, Some(-g))
+            }
+            Secondary::Custom(index) => {
+                // The plane's tool point and its Jacobian as a chain's: x and y rows, and the
+                // turn about z every joint adds.
+                let jac = SMatrix::<f64, 6, N>::from_fn(|r, c| match r {
+                    0 | 1 => j[(r, c)],
+                    5 => 1.0,
+                    _ => 0.0,
+                });
+                let tip = [self.kin.p.x, self.kin.p.y, 0.0];
+                custom_eta(index, t, q, qd, tip, &jac, &p.safety)
             }
         }
     }

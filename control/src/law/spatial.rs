@@ -9,6 +9,7 @@
 //! compare it with the Pyragas term.
 
 use super::pipeline::{ArmSide, Gains, TaskRows};
+use super::Secondary;
 use crate::arm::spatial::Points;
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
@@ -23,21 +24,6 @@ use crate::task::spatial::SpatialTask;
 use crate::task::spatial::Vec3;
 use nalgebra::{SMatrix, Vector6};
 
-/// Which secondary task drives a spatial arm's null space.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum SpatialSecondary {
-    #[default]
-    None,
-    /// η = +∇w, w = √det(JJᵀ) of the task rows.
-    Manipulability,
-    /// η = −∇c, c the joint-limit centring cost.
-    Centring,
-    /// η = −∇h, the sphere-capsule potential.
-    Obstacles,
-    /// A task the program registered ([`crate::secondary::custom`]), by its index there.
-    Custom(u8),
-}
-
 /// Every tunable of the spatial law: a `Copy` block, like the planar [`crate::LawParams`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpatialParams {
@@ -45,7 +31,7 @@ pub struct SpatialParams {
     pub kp: f64,
     pub kv: f64,
     pub alpha: f64,
-    pub secondary: SpatialSecondary,
+    pub secondary: Secondary,
     pub spheres: SphereSet,
     /// The obstacle potential's weight W.
     pub weight: f64,
@@ -75,29 +61,6 @@ impl SpatialParams {
     pub fn feedback_active(&self, t: f64) -> bool {
         self.feedback && (self.mu != 0.0 || self.auto_mu.is_some()) && t >= self.t_on
     }
-}
-
-/// A registered task's value and η, on the kinematics the law already computed.
-fn custom_eta<const N: usize>(
-    index: u8,
-    params: &SpatialParams,
-    kin: &SpatialKinematics<N>,
-    t: f64,
-    q: &VecN<N>,
-    qd: &VecN<N>,
-) -> (f64, Option<VecN<N>>) {
-    let input = crate::secondary::custom::NullTaskInput {
-        t,
-        q: q.as_slice(),
-        qd: qd.as_slice(),
-        tip: [kin.p.x, kin.p.y, kin.p.z],
-        jacobian: kin.jac.as_slice(),
-        q_min: &params.safety.q_min[..N],
-        q_max: &params.safety.q_max[..N],
-    };
-    let mut eta = VecN::<N>::zeros();
-    let value = crate::secondary::custom::call(index, &input, eta.as_mut_slice());
-    (value, Some(eta))
 }
 
 /// A URDF chain's side of the law: the chain's kinematics, a spatial path (position or pose),
@@ -177,23 +140,26 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
     ) -> (f64, Option<VecN<N>>) {
         let (p, arm, kin) = (self.params, self.arm, &*self.kin);
         match p.secondary {
-            SpatialSecondary::None => (0.0, None),
-            SpatialSecondary::Manipulability => {
+            Secondary::None => (0.0, None),
+            Secondary::Manipulability => {
                 let (w, g) = sec::manipulability(arm, kin, j);
                 (w, Some(g))
             }
-            SpatialSecondary::Centring => {
+            Secondary::Centring => {
                 let (c, g) = sec::centring(q, &p.safety.q_min, &p.safety.q_max);
                 (c, Some(-g))
             }
-            SpatialSecondary::Obstacles if !p.spheres.is_empty() => {
+            Secondary::Obstacles if !p.spheres.is_empty() => {
                 let mut points: Points<N> = [Default::default(); crate::basics::MAX_JOINTS + 1];
                 arm.capsule_points(kin, qd, &mut points);
                 let (h, g) = sec::potential(arm, &points, &p.spheres, p.weight);
                 (h, Some(-g))
             }
-            SpatialSecondary::Obstacles => (0.0, Some(VecN::<N>::zeros())),
-            SpatialSecondary::Custom(index) => custom_eta(index, p, kin, t, q, qd),
+            Secondary::Obstacles => (0.0, Some(VecN::<N>::zeros())),
+            Secondary::Custom(index) => {
+                let tip = [kin.p.x, kin.p.y, kin.p.z];
+                super::custom_eta(index, t, q, qd, tip, &kin.jac, &p.safety)
+            }
         }
     }
 
