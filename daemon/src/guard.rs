@@ -6,11 +6,11 @@
 //! loop measures and computes, and trips the daemon into FAULT (the plant brakes) when:
 //! - the law's result is not finite (at once);
 //! - a measured joint rate stays beyond `safety.qd_max` (5 % slack) for `safety.guard_time`;
-//! - the law asks for more than `safety.qdd_max` for `safety.guard_time` while nothing holds the
-//!   command inside the limits (the filter off, or infeasible on that tick): with the filter on
-//!   and feasible the plant never gets the excess, and clamping it is the filter's job on every
-//!   tick it acts (a steered arm passing an obstacle asks 1.1× for a few ticks and tracks to a
-//!   fraction of a millimetre); the rate and growth criteria still watch such an arm;
+//! - the law asks for more than `safety.qdd_max` for `safety.guard_time`, unless a feasible
+//!   filter clamps the command while the arm tracks its path: then the plant never gets the
+//!   excess, and clamping it is the filter's job on every tick it acts (a steered arm passing an
+//!   obstacle asks 1.1× for a few ticks and tracks to a fraction of a millimetre). A clamped
+//!   demand with tracking lost still counts: the law is fighting something;
 //! - the tracking error stays above `safety.guard_tracking_error` and keeps growing for
 //!   `safety.guard_growth_time`.
 //!
@@ -148,8 +148,8 @@ impl Guard {
             self.reenter(t);
         }
         let settling = self.reentry_until.is_some_and(|until| t < until);
-        let clamped =
-            out.flags & flags::SAFETY_ACTIVE != 0 && out.flags & flags::SAFETY_INFEASIBLE == 0;
+        let clamped = out.flags & flags::SAFETY_ACTIVE != 0
+            && out.flags & (flags::SAFETY_INFEASIBLE | flags::TRACK_LOST) == 0;
         let over = out.demand > 1.0 && !settling && !clamped;
         if let Some(for_s) = held(&mut self.demand_since, over, t, p.guard_time) {
             return Some(FaultReason::Demand {
@@ -249,7 +249,8 @@ mod tests {
             matches!(tripped, Some((20, FaultReason::Demand { .. }))),
             "{tripped:?}"
         );
-        // The same demand clamped by a feasible filter: the plant never gets it.
+        // The same demand clamped by a feasible filter while the arm tracks: the plant never
+        // gets it.
         let mut g = Guard::default();
         let clamped = output(0.0, 3.0, flags::SAFETY_ACTIVE);
         for k in 0..100 {
@@ -259,6 +260,17 @@ mod tests {
                 "tick {k}"
             );
         }
+        // Clamped, but the arm has lost its path: the law is fighting something.
+        let mut g = Guard::default();
+        let fighting = output(0.0, 3.0, flags::SAFETY_ACTIVE | flags::TRACK_LOST);
+        let tripped = (0..50).find_map(|k| {
+            g.check(k as f64 * 1e-3, &p, &slow, &fighting)
+                .map(|r| (k, r))
+        });
+        assert!(
+            matches!(tripped, Some((20, FaultReason::Demand { .. }))),
+            "{tripped:?}"
+        );
         // An infeasible filter holds nothing: it counts again.
         let mut g = Guard::default();
         let unheld = output(0.0, 3.0, flags::SAFETY_ACTIVE | flags::SAFETY_INFEASIBLE);
