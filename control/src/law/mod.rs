@@ -22,7 +22,7 @@ use crate::secondary::{self, ObstacleSet, PotentialWeights};
 use crate::task::Circle;
 use nalgebra::SMatrix;
 use nalgebra::Vector3;
-use pipeline::{ArmSide, Gains, TaskRows};
+use pipeline::{gains_of, ArmSide, Gains, TaskRows};
 
 type Vec3 = Vector3<f64>;
 
@@ -219,18 +219,7 @@ impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
 
     #[inline]
     fn gains(&self, t: f64) -> Gains<'_> {
-        let p = self.params;
-        Gains {
-            alpha: p.alpha,
-            damping_threshold: p.damping_threshold,
-            damping_max: p.damping_max,
-            mu: p.mu,
-            feedback_on: p.feedback_active(t),
-            projection: p.projection,
-            pause: p.pause,
-            track_loss: p.track_loss,
-            safety: &p.safety,
-        }
+        gains_of!(self.params, t)
     }
 
     #[inline]

@@ -8,7 +8,7 @@
 //! (Hsu, Hauser & Sastry 1989); it is off (k_d = 0) unless configured, so that the study can
 //! compare it with the Pyragas term.
 
-use super::pipeline::{ArmSide, Gains, TaskRows};
+use super::pipeline::{gains_of, ArmSide, Gains, TaskRows};
 use super::Secondary;
 use crate::arm::spatial::Points;
 use crate::arm::spatial::SpatialArm;
@@ -74,18 +74,7 @@ struct SpatialSide<'a, const N: usize> {
 impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
     #[inline]
     fn gains(&self, t: f64) -> Gains<'_> {
-        let p = self.params;
-        Gains {
-            alpha: p.alpha,
-            damping_threshold: p.damping_threshold,
-            damping_max: p.damping_max,
-            mu: p.mu,
-            feedback_on: p.feedback_active(t),
-            projection: p.projection,
-            pause: p.pause,
-            track_loss: p.track_loss,
-            safety: &p.safety,
-        }
+        gains_of!(self.params, t)
     }
 
     #[inline]
