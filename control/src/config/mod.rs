@@ -489,7 +489,7 @@ impl Config {
         if c.secondary == SecondaryKind::Centring && !limits {
             return Err(invalid(
                 "control.secondary",
-                "\"centring\"",
+                "centring",
                 "centring pulls each joint to the middle of its range: give safety.q_min and safety.q_max",
             ));
         }
