@@ -88,6 +88,22 @@ impl<const N: usize> DelayLine<N> {
         a + (b - a) * frac
     }
 
+    /// The stored sample of grid index `index`, or None when it is not held (not pushed yet, or
+    /// already overwritten): the delay system's state coordinates, for a linearisation that
+    /// perturbs them one by one (`analysis::floquet`).
+    pub fn stored_mut(&mut self, index: u64) -> Option<&mut VecN<N>> {
+        let cap = self.buf.len() as u64;
+        let held = index < self.pushed && index + cap >= self.pushed;
+        held.then(|| &mut self.buf[(index % cap) as usize])
+    }
+
+    /// The stored sample of grid index `index`, when held (see [`Self::stored_mut`]).
+    pub fn stored(&self, index: u64) -> Option<VecN<N>> {
+        let cap = self.buf.len() as u64;
+        let held = index < self.pushed && index + cap >= self.pushed;
+        held.then(|| self.buf[(index % cap) as usize])
+    }
+
     /// Stored samples from oldest to newest (mutable), with the initial history: the delay
     /// system's state segment, which a Lyapunov pair perturbs and renormalises.
     pub fn history_mut(&mut self) -> (&mut [VecN<N>], &mut VecN<N>) {

@@ -217,6 +217,23 @@ fn on_orbit_exponent_is_the_floquet_exponent_and_feedback_stabilises_the_ellipti
     .unwrap();
     assert_eq!(s1.verdict, Verdict::Stable, "{s1:?}");
     assert!(s1.max_distance < 1e-3, "{s1:?}");
+
+    // The delayed loop's leading Floquet multiplier, Benettin's λ_max and the measured decay on
+    // the section are three views of one rate, and agree to 0.01 /s (docs/science.md).
+    let f = s1
+        .floquet
+        .as_ref()
+        .expect("μ ≠ 0: the delayed loop's spectrum");
+    assert!(f.converged, "{f:?}");
+    assert!(f.exponent < -0.1, "{f:?}");
+    assert!(
+        (f.exponent - s1.lyapunov.lambda_max).abs() < 0.01,
+        "{f:?} {s1:?}"
+    );
+    let measured = s1.section_rate.expect("a measurable decay");
+    assert!((f.exponent - measured).abs() < 0.01, "{f:?} vs {measured}");
+    // At μ = 0 the loop is an ordinary differential equation: no delayed spectrum.
+    assert!(s0.floquet.is_none());
 }
 
 #[test]

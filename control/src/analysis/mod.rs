@@ -14,8 +14,11 @@
 //!   irregular classifier (its rule is documented there).
 //! - [`run`]: one analysed run, the unit every tool is built from.
 //! - [`orbits`]: Newton's method on the stroboscopic map, Floquet multipliers, stability vs μ.
+//! - [`floquet`]: the leading Floquet multipliers of the loop with its delayed feedback (the
+//!   monodromy operator of the delay equation, by Arnoldi on the simulation's period map).
 
 pub mod closed_loop;
+pub mod floquet;
 pub mod lyapunov;
 pub mod orbits;
 pub mod poincare;
@@ -23,6 +26,7 @@ pub mod run;
 pub mod spatial;
 
 pub use closed_loop::ArmFlow;
+pub use floquet::{delay_multipliers, DelayMultipliers, FloquetSpec};
 pub use lyapunov::{Benettin, Growth, LyapunovError, LyapunovEstimate, Trajectory};
 pub use orbits::{
     close_returns, find_orbit, newton_orbit, orbit_stability, NewtonConfig, OrbitCatalog,

@@ -23,13 +23,14 @@
 //! the size of the chaotic excursions.
 
 use super::closed_loop::ArmFlow;
+use super::floquet::{delay_multipliers, section_rate, DelayMultipliers, FloquetSpec};
 use super::lyapunov::{Benettin, LyapunovError, LyapunovEstimate, Trajectory};
 use super::poincare::Section;
 use super::run::period_steps;
 use crate::arm::{ArmModel, VecN};
 use crate::basics::wrap_angle;
 use crate::law::LawParams;
-use crate::sim::{ArmState, Simulation};
+use crate::sim::{ArmState, ClosedLoopLaw, Simulation};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -378,6 +379,13 @@ impl Default for StabilitySpec {
 pub struct OrbitStability {
     pub mu: f64,
     pub lyapunov: LyapunovEstimate,
+    /// The leading Floquet multipliers of the delayed loop on the orbit (None at μ = 0, where
+    /// the loop is not a delay equation: see [`PeriodicOrbit::multipliers`]).
+    pub floquet: Option<DelayMultipliers>,
+    /// How fast a small offset from the orbit shrinks (< 0) or grows, measured on the section
+    /// x(kT) of a perturbed run (1/s); None when it could not be measured (the offset left the
+    /// linear range or reached round-off within a few periods).
+    pub section_rate: Option<f64>,
     /// First section time at which the reference was farther than `leave_tol` from the orbit.
     pub left_orbit_at: Option<f64>,
     /// Largest section distance of the reference from the orbit over the run.
@@ -420,18 +428,10 @@ pub fn orbit_stability<const N: usize>(
     check_stability_run(period, params.tau, dt, spec)?;
     let mut p = *params;
     p.t_on = period;
+    p.auto_mu = None;
     let mut flow = ArmFlow::new(*model, p, dt, orbit.state::<N>());
     flow.advance_to(period);
-    stability_on_orbit(
-        flow,
-        |f| f.coords(),
-        2 * N,
-        N,
-        orbit,
-        period,
-        params.mu,
-        spec,
-    )
+    stability_on_orbit(flow, orbit, period, params.mu, spec)
 }
 
 /// The rules of a stability run: τ = T (so the feedback vanishes on a period-T orbit) and a
@@ -458,24 +458,33 @@ pub fn check_stability_run(
     Ok(())
 }
 
-/// λ_max of `flow`, which ran one period along `orbit` with the feedback off (so its delay line
-/// holds the orbit's own history) and switches the feedback on now, with gain `mu`; `coords`
-/// reads its section coordinates (`dim` of them, the first `angles` compared modulo 2π). Any
-/// arm's loop: the planar [`orbit_stability`] and a spatial robot's
+/// The stability of `orbit` at gain `mu`, judged from `flow`, which ran one period along it with
+/// the feedback off (so its delay line holds the orbit's own history) and switches the feedback
+/// on now. Three measures that must agree: the leading Floquet multipliers of the delayed loop
+/// ([`super::floquet`]), λ_max by Benettin's method, and the contraction rate of the section.
+/// Any arm's loop: the planar [`orbit_stability`] and a spatial robot's
 /// (`analysis::spatial::orbit_stability`).
-#[allow(clippy::too_many_arguments)]
-pub fn stability_on_orbit<T: Trajectory>(
-    flow: T,
-    coords: impl Fn(&T) -> Vec<f64>,
-    dim: usize,
-    angles: usize,
+pub fn stability_on_orbit<const N: usize, L: ClosedLoopLaw<N>>(
+    flow: ArmFlow<N, L>,
     orbit: &PeriodicOrbit,
     period: f64,
     mu: f64,
     spec: &StabilitySpec,
 ) -> Result<OrbitStability, OrbitError> {
+    let steps =
+        period_steps(period, flow.sim().dt()).map_err(|e| OrbitError::Invalid(e.to_string()))?;
+    let floquet = if flow.has_delay_state() {
+        Some(delay_multipliers(
+            flow.sim(),
+            steps,
+            &FloquetSpec::default(),
+        )?)
+    } else {
+        None
+    };
+    let section_rate = section_rate(flow.sim(), steps, spec.settle + spec.duration);
     let target = orbit.coords();
-    let probe = Section::new(dim, angles);
+    let probe = Section::new(2 * N, N);
     let mut pair = Benettin::new(flow, spec.d0, period)?;
     let start = period + spec.settle;
     let end = start + spec.duration;
@@ -485,7 +494,7 @@ pub fn stability_on_orbit<T: Trajectory>(
     for k in 2..=periods {
         let t = k as f64 * period;
         pair.advance_to(t)?;
-        let d = probe.distance(&coords(pair.reference()), &target);
+        let d = probe.distance(&pair.reference().coords(), &target);
         max_distance = max_distance.max(d);
         if left_orbit_at.is_none() && (d > spec.leave_tol || d.is_nan()) {
             left_orbit_at = Some(t);
@@ -503,6 +512,8 @@ pub fn stability_on_orbit<T: Trajectory>(
     Ok(OrbitStability {
         mu,
         lyapunov,
+        floquet,
+        section_rate,
         left_orbit_at,
         max_distance,
         verdict,

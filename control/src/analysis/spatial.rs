@@ -49,14 +49,11 @@ pub fn orbit_stability<const N: usize, const M: usize>(
     super::orbits::check_stability_run(period, params.tau, dt, spec)?;
     let mut p = *params;
     p.t_on = period;
+    p.auto_mu = None;
     let x = orbit.state::<N>();
     let mut sim = ArmFlow::of(SpatialSimulation::<N, M>::spatial(
         *arm, p, dt, x.q, x.qd, p.tau,
     ));
     sim.advance_to(period);
-    let coords = |s: &ArmFlow<N, SpatialLaw<N, M>>| -> Vec<f64> {
-        let x = s.state();
-        x.q.iter().chain(x.qd.iter()).copied().collect()
-    };
-    super::orbits::stability_on_orbit(sim, coords, 2 * N, N, orbit, period, params.mu, spec)
+    super::orbits::stability_on_orbit(sim, orbit, period, params.mu, spec)
 }
