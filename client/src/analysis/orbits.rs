@@ -66,6 +66,11 @@ pub struct OrbitReport {
     pub floquet_exponent: f64,
     /// μ intervals (over the scanned values) in which the orbit is stable.
     pub stable_windows: Vec<[f64; 2]>,
+    /// μ intervals in which the delayed loop's leading multiplier is inside the unit circle,
+    /// their edges interpolated between the scanned μ where ln|ρ₁|/T changes sign.
+    pub floquet_windows: Vec<[f64; 2]>,
+    /// The scanned μ with the fastest decay, and that rate ln|ρ₁|/T (1/s).
+    pub fastest: Option<[f64; 2]>,
     pub stability: Vec<Result<OrbitStability, String>>,
 }
 
@@ -140,6 +145,54 @@ fn windows(mus: &[f64], stab: &[Result<OrbitStability, String>]) -> Vec<[f64; 2]
     }
     out.extend(open);
     out
+}
+
+/// The (μ, ln|ρ₁|/T) of every scanned μ where the delayed spectrum was computed.
+fn floquet_rates(mus: &[f64], stab: &[Result<OrbitStability, String>]) -> Vec<[f64; 2]> {
+    mus.iter()
+        .zip(stab)
+        .filter_map(|(m, s)| Some([*m, s.as_ref().ok()?.floquet.as_ref()?.exponent]))
+        .collect()
+}
+
+/// Where the rate is negative, as μ intervals; an edge between two scanned gains of opposite
+/// sign is where the straight line between them crosses 0.
+fn floquet_windows(rates: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let crossing = |[m0, l0]: [f64; 2], [m1, l1]: [f64; 2]| m0 + (m1 - m0) * l0 / (l0 - l1);
+    let mut out = Vec::new();
+    let mut open: Option<f64> = None;
+    for (i, &[mu, l]) in rates.iter().enumerate() {
+        let prev = i.checked_sub(1).map(|j| rates[j]);
+        match (l < 0.0, open) {
+            (true, None) => {
+                open = Some(match prev {
+                    Some(p) if p[1] >= 0.0 => crossing(p, [mu, l]),
+                    _ => mu,
+                })
+            }
+            (false, Some(start)) => {
+                let p = prev.expect("an open window has a predecessor");
+                out.push([start, crossing(p, [mu, l])]);
+                open = None;
+            }
+            _ => {}
+        }
+    }
+    if let (Some(start), Some(last)) = (open, rates.last()) {
+        out.push([start, last[0]]);
+    }
+    out
+}
+
+/// Interpolated windows as text, to three decimals.
+fn fmt_floquet_windows(w: &[[f64; 2]]) -> String {
+    if w.is_empty() {
+        return "none of the scanned μ".into();
+    }
+    w.iter()
+        .map(|[a, b]| format!("{a:.3}–{b:.3}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn fmt_windows(w: &[[f64; 2]]) -> String {
@@ -337,6 +390,13 @@ fn print_reports(reports: &[OrbitReport], mus: &[f64], spec: &StabilitySpec) {
                 .join("  ")
         );
         println!("  stable for μ in {}", fmt_windows(&r.stable_windows));
+        if let Some([mu, rate]) = r.fastest {
+            println!(
+                "  Floquet    |ρ₁| < 1 for μ in {}; fastest at μ = {mu}: {rate:+.4} /s (an e-fold in {:.1} s)",
+                fmt_floquet_windows(&r.floquet_windows),
+                -1.0 / rate
+            );
+        }
         println!(
             "  {:>6}  {:>10}  {:>17}  {:>9}  {:<8}  leading multipliers with the feedback",
             "μ", "λ Floquet", "λ_max Benettin", "section", "verdict"
@@ -628,7 +688,10 @@ fn reports(
         .enumerate()
         .map(|(i, o)| {
             let s: Vec<_> = stab.by_ref().take(mus.len()).collect();
+            let rates = floquet_rates(mus, &s);
             OrbitReport {
+                floquet_windows: floquet_windows(&rates),
+                fastest: rates.into_iter().min_by(|a, b| a[1].total_cmp(&b[1])),
                 id: orbit_name(i),
                 kind: kind(&o),
                 floquet_exponent: o.floquet_exponent(period),
@@ -651,5 +714,17 @@ mod tests {
         assert_eq!(orbit_name(26), "AA");
         assert_eq!(fmt_windows(&[]), "none of the scanned μ");
         assert_eq!(fmt_windows(&[[0.1, 0.3], [1.5, 1.5]]), "0.1–0.3, 1.5");
+        // Orbit J of the paper preset: stable from about 1.15 to 2.0.
+        let rates = [[1.1, 0.2676], [1.2, -0.1461], [1.9, -0.0137], [2.0, 0.0004]];
+        let w = floquet_windows(&rates);
+        assert_eq!(w.len(), 1);
+        assert!((w[0][0] - (1.1 + 0.1 * 0.2676 / (0.2676 + 0.1461))).abs() < 1e-12);
+        assert!((w[0][1] - (1.9 + 0.1 * 0.0137 / 0.0141)).abs() < 1e-12);
+        // Open at either end: the scanned μ itself.
+        assert_eq!(
+            floquet_windows(&[[0.1, -0.2], [0.2, -0.3]]),
+            vec![[0.1, 0.2]]
+        );
+        assert!(floquet_windows(&[[0.1, 0.2]]).is_empty());
     }
 }
