@@ -268,3 +268,39 @@ fn bad_specs_are_errors_not_panics() {
     );
     assert!(o.unwrap_err().to_string().contains("fixed-base"));
 }
+
+/// The delayed loop's spectrum is that of a discretised history (one sample per step): halving dt
+/// doubles the history's samples, and the leading multiplier must not move (the convergence check
+/// of a semi-discretisation). The elliptic orbit of the paper preset at μ = 0.2, from its printed
+/// strobe point.
+#[test]
+fn the_delayed_spectrum_converges_as_the_history_grid_is_refined() {
+    use control::analysis::{delay_multipliers, ArmFlow, FloquetSpec, Trajectory};
+    let cfg = config(0.0, [0.0, 1.0, 1.0]);
+    let model = cfg.model::<3>();
+    let seed = state(&[1.550, -0.488, -0.934, -4.361, 9.229, -4.001]);
+    let rate = |dt: f64| {
+        let mut p = cfg.law_params();
+        let orbit = find_orbit(&model, &p, dt, &seed, &NewtonConfig::default()).unwrap();
+        p.mu = 0.2;
+        p.t_on = p.task.period;
+        let mut flow = ArmFlow::new(model, p, dt, orbit.state::<3>());
+        flow.advance_to(p.task.period);
+        let steps = (p.task.period / dt).round() as u64;
+        let f = delay_multipliers(flow.sim(), steps, &FloquetSpec::default()).unwrap();
+        assert!(f.converged, "{f:?}");
+        assert_eq!(f.dimension, 6 + 3 * steps as usize);
+        f
+    };
+    let (coarse, fine) = (rate(1e-3), rate(5e-4));
+    assert!(
+        (coarse.exponent - fine.exponent).abs() < 1e-3,
+        "{coarse:?} {fine:?}"
+    );
+    assert!((coarse.exponent + 0.213).abs() < 0.005, "{coarse:?}");
+    let (a, b) = (coarse.multipliers[0], fine.multipliers[0]);
+    assert!(
+        (a[0] - b[0]).hypot(a[1].abs() - b[1].abs()) < 1e-3,
+        "{a:?} {b:?}"
+    );
+}
