@@ -272,6 +272,11 @@ pub fn print(r: &SpatialReport) {
         100.0 * s.max_speed_ratio
     );
     println!(
+        "  joint commands   max {:.0}% of the acceleration limit, {:.0}% of the jerk limit",
+        100.0 * s.max_accel_ratio,
+        100.0 * s.max_jerk_ratio
+    );
+    println!(
         "  joint margin     min {} to a position limit",
         opt(s.min_joint_margin, "rad")
     );

@@ -499,6 +499,10 @@ impl SpatialConfig {
                 return Err(invalid("safety.qdd_max", qdd[i], "numbers > 0"));
             }
             s.qdd_max[i] = qdd[i];
+            // The maker's published jerk limit, else the command interface's default ratio.
+            s.jerk_max[i] = crate::command::MakerTable::for_robot(&self.robot.description, n)
+                .and_then(|t| t.jerk.get(i).copied())
+                .unwrap_or(crate::command::DEFAULT_JERK_PER_QDD * qdd[i]);
         }
         Ok(s)
     }

@@ -231,6 +231,8 @@ impl SafetyConfig {
             q_max: self.q_max(n),
             qd_max: self.qd_max.resolve(n),
             qdd_max: self.qdd_max.resolve(n),
+            // The planar arm's model publishes no jerk limit.
+            jerk_max: [f64::INFINITY; MAX_JOINTS],
             k0: self.k0,
             k1: self.k1,
             push_out_speed: self.push_out_speed,

@@ -46,6 +46,9 @@ pub struct SafetyParams {
     pub qd_max: [f64; MAX_JOINTS],
     /// Joint acceleration limits |q̈_i| ≤ qdd_max_i (rad/s²).
     pub qdd_max: [f64; MAX_JOINTS],
+    /// Joint jerk limits (rad/s³; +∞ where none is known). The filter does not use them (the
+    /// command interface's limiter shapes the jerk); a run's statistics report against them.
+    pub jerk_max: [f64; MAX_JOINTS],
     /// Position barriers: ḧ + k1 ḣ + k0 h ≥ 0 (s² + k1 s + k0 has real negative roots).
     pub k0: f64,
     pub k1: f64,
@@ -81,6 +84,7 @@ impl SafetyParams {
             q_max: [f64::INFINITY; MAX_JOINTS],
             qd_max: [f64::INFINITY; MAX_JOINTS],
             qdd_max: [f64::INFINITY; MAX_JOINTS],
+            jerk_max: [f64::INFINITY; MAX_JOINTS],
             k0: 100.0,
             k1: 20.0,
             push_out_speed: 0.1,

@@ -255,7 +255,14 @@ pub struct RunStats<const N: usize> {
     /// Largest |q̇_i| and largest |q̇_i| / q̇_max,i over the run.
     pub max_joint_speed: f64,
     pub max_speed_ratio: f64,
+    /// Largest |q̈_i| / q̈_max,i and |Δq̈_i / dt| / jerk_max,i of the law's command over the run.
+    pub max_accel_ratio: f64,
+    pub max_jerk_ratio: f64,
     qd_max: [f64; crate::basics::MAX_JOINTS],
+    qdd_max: [f64; crate::basics::MAX_JOINTS],
+    jerk_max: [f64; crate::basics::MAX_JOINTS],
+    /// The last recorded command (None before the first step).
+    last_qdd: Option<VecN<N>>,
     before: (f64, u64),
     after: (f64, u64),
     strobe: [Option<ArmState<N>>; 2],
@@ -325,6 +332,12 @@ pub struct Summary {
     pub max_joint_speed: f64,
     #[serde(default)]
     pub max_speed_ratio: f64,
+    /// Largest |q̈_i| / q̈_max,i and step-to-step |Δq̈_i| / (dt · jerk_max,i) of the commanded
+    /// acceleration over the run (above 1: that limit was exceeded; 0 without such limits).
+    #[serde(default)]
+    pub max_accel_ratio: f64,
+    #[serde(default)]
+    pub max_jerk_ratio: f64,
     /// Whether the state stayed finite to the end (a run that diverged stops there).
     #[serde(default = "yes")]
     pub finite: bool,
@@ -348,8 +361,10 @@ pub struct StatsSetup {
     pub required_clearance: f64,
     pub has_obstacles: bool,
     pub safety_enabled: bool,
-    /// The joints' rate limits (rad/s; +∞ where there is none).
+    /// The joints' rate, acceleration and jerk limits (+∞ where there is none).
     pub qd_max: [f64; crate::basics::MAX_JOINTS],
+    pub qdd_max: [f64; crate::basics::MAX_JOINTS],
+    pub jerk_max: [f64; crate::basics::MAX_JOINTS],
 }
 
 impl StatsSetup {
@@ -363,6 +378,8 @@ impl StatsSetup {
             has_obstacles: !params.obstacles.is_empty(),
             safety_enabled: params.safety.enabled,
             qd_max: params.safety.qd_max,
+            qdd_max: params.safety.qdd_max,
+            jerk_max: params.safety.jerk_max,
         }
     }
 }
@@ -424,7 +441,12 @@ impl<const N: usize> RunStats<N> {
             max_orientation_error: 0.0,
             max_joint_speed: 0.0,
             max_speed_ratio: 0.0,
+            max_accel_ratio: 0.0,
+            max_jerk_ratio: 0.0,
             qd_max: setup.qd_max,
+            qdd_max: setup.qdd_max,
+            jerk_max: setup.jerk_max,
+            last_qdd: None,
             before: (0.0, 0),
             after: (0.0, 0),
             strobe: [None, None],
@@ -465,6 +487,7 @@ impl<const N: usize> RunStats<N> {
             .map(|i| x.qd[i].abs() / self.qd_max[i])
             .fold(0.0, f64::max);
         self.max_speed_ratio = self.max_speed_ratio.max(ratio);
+        self.record_command(&out.qdd);
         self.min_clearance = self.min_clearance.min(out.clearance);
         if out.flags & flags::IN_SAFETY_ZONE != 0 {
             self.safety_zone_steps += 1;
@@ -495,6 +518,25 @@ impl<const N: usize> RunStats<N> {
         if out.flags & flags::OUT_OF_REACH != 0 {
             self.out_of_reach_steps += 1;
         }
+    }
+
+    /// The command's acceleration and jerk against their limits (a non-finite command is
+    /// counted by its flag, not here).
+    fn record_command(&mut self, qdd: &VecN<N>) {
+        if !qdd.iter().all(|v| v.is_finite()) {
+            return;
+        }
+        let accel = (0..N)
+            .map(|i| qdd[i].abs() / self.qdd_max[i])
+            .fold(0.0, f64::max);
+        self.max_accel_ratio = self.max_accel_ratio.max(accel);
+        if let Some(last) = self.last_qdd {
+            let jerk = (0..N)
+                .map(|i| (qdd[i] - last[i]).abs() / self.dt / self.jerk_max[i])
+                .fold(0.0, f64::max);
+            self.max_jerk_ratio = self.max_jerk_ratio.max(jerk);
+        }
+        self.last_qdd = Some(*qdd);
     }
 
     /// Contact and clearance bookkeeping of one step (the clearance is +∞ without obstacles).
@@ -569,6 +611,8 @@ impl<const N: usize> RunStats<N> {
             max_orientation_error: self.max_orientation_error,
             max_joint_speed: self.max_joint_speed,
             max_speed_ratio: self.max_speed_ratio,
+            max_accel_ratio: self.max_accel_ratio,
+            max_jerk_ratio: self.max_jerk_ratio,
             finite: true,
         }
     }

@@ -46,6 +46,8 @@ impl super::StatsSetup {
             has_obstacles: !p.spheres.is_empty(),
             safety_enabled: p.safety.enabled,
             qd_max: p.safety.qd_max,
+            qdd_max: p.safety.qdd_max,
+            jerk_max: p.safety.jerk_max,
         }
     }
 }
