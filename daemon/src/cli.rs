@@ -115,7 +115,7 @@ struct Common {
     #[arg(long, conflicts_with = "preset")]
     config: Option<PathBuf>,
     /// A built-in set-up (paper, paper-eq11, paper-obstacle, paper-floating, demo; panda for
-    /// the 7-joint Panda).
+    /// the 7-joint Panda, panda-damped for it with null-space damping).
     #[arg(long, conflicts_with = "robot")]
     preset: Option<String>,
     /// A built-in robot's set-up: `panda` (the Panda study's working set-up, the same as

@@ -14,7 +14,7 @@ pub enum ConfigError {
         value: String,
         expected: String,
     },
-    #[error("unknown preset {name:?} (known presets: {known}, and the spatial panda)")]
+    #[error("unknown preset {name:?} (known presets: {known})")]
     UnknownPreset { name: String, known: String },
     /// `feedback.gamma` or `feedback.max_mu` beside a fixed μ: they would silently do nothing.
     #[error("feedback.gamma and feedback.max_mu tune mu = \"auto\"; with a fixed mu they do nothing: remove them")]

@@ -361,11 +361,18 @@ impl Config {
                 c.feedback.t_on = 8.0;
                 c.sim.duration = 25.0;
             }
-            "panda" => return Err(ConfigError::Spatial("preset \"panda\"".into())),
+            s if spatial::SPATIAL_PRESETS.contains(&s) => {
+                return Err(ConfigError::Spatial(format!("preset {s:?}")))
+            }
             other => {
                 return Err(ConfigError::UnknownPreset {
                     name: other.to_string(),
-                    known: PRESETS.join(", "),
+                    known: PRESETS
+                        .iter()
+                        .chain(spatial::SPATIAL_PRESETS)
+                        .copied()
+                        .collect::<Vec<_>>()
+                        .join(", "),
                 })
             }
         }

@@ -321,9 +321,22 @@ pub struct SpatialSetup<const N: usize> {
 }
 
 impl SpatialConfig {
-    /// The built-in spatial presets: `panda` (the study's working set-up, docs/panda-study.md).
+    /// The built-in spatial presets ([`SPATIAL_PRESETS`]): `panda` (the study's working set-up,
+    /// docs/panda-study.md) and `panda-damped` (the same arm and path with the gain study's
+    /// stabiliser: centring α = 40, null-space damping k_d = 2, μ = 0.25 from t = 0).
     pub fn preset(name: &str) -> Option<Self> {
-        (name == "panda").then(|| toml::from_str(PANDA).expect("the panda preset parses"))
+        let mut c: Self = SPATIAL_PRESETS
+            .contains(&name)
+            .then(|| toml::from_str(PANDA).expect("the panda preset parses"))?;
+        if name == "panda-damped" {
+            // docs/panda-study.md, "How fast, and what makes it faster": λ = −0.96 /s on the
+            // cycle, periodic inside every limit from 100 of 100 starts near the ready pose.
+            c.law.alpha = 40.0;
+            c.law.null_damping = 2.0;
+            c.feedback.mu = 0.25;
+            c.feedback.t_on = 0.0;
+        }
+        Some(c)
     }
 
     pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
@@ -668,6 +681,9 @@ fn check_reach<const N: usize>(
     }
     Ok(())
 }
+
+/// Names accepted by [`SpatialConfig::preset`].
+pub const SPATIAL_PRESETS: &[&str] = &["panda", "panda-damped"];
 
 /// The study's working set-up (docs/panda-study.md): a 0.15 m circle in the vertical plane in
 /// front of the Panda, position task, joint-limit centring α = 20, feedback μ = 1 projected into
