@@ -7,7 +7,8 @@
 # Usage: scripts/panda-study/basins.sh [near|box] [N] [out-dir]
 #   near: each joint within ±0.5 rad of the ready pose, rates within ±0.1 rad/s;
 #   box:  anywhere in the joint box (10 % in from each limit), rates within ±0.2 rad/s.
-# Needs a release build. About 4 minutes per variant for N = 100 on 2 cores.
+# The last variant starts the path from rest (task.ramp = 1 s), the `panda-damped` preset.
+# Needs a release build. About a minute per variant for N = 100 on 2 cores.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 kind=${1:-near}
@@ -66,10 +67,11 @@ export -f draw one
 export ctl kind
 
 variant() {
-  local name="a$1_kd$2_mu$3" cfg
+  local ramp=${4:-0} name="a$1_kd$2_mu$3_ramp${4:-0}" cfg
   cfg="$out/$name.toml"
   sed -e "s/^alpha = .*/alpha = $1/" -e "s/^null_damping = .*/null_damping = $2/" \
-    -e "s/^mu = .*/mu = $3/" "$out/panda.toml" > "$cfg"
+    -e "s/^mu = .*/mu = $3/" -e "s/^period = 2.0/period = 2.0\nramp = $ramp/" \
+    "$out/panda.toml" > "$cfg"
   seq 1 "$n" | xargs -P 2 -I{} bash -c "one '$cfg' {}" | sort -n > "$out/$name.txt"
   local total ok
   total=$(grep -vc refused "$out/$name.txt" || true)
@@ -79,13 +81,14 @@ variant() {
   late=$(awk '$2 == "acceleration-at-start" && $3 <= 1e-3 && $4 <= 1e-6 { c++ } END { print c + 0 }' "$out/$name.txt")
   local fails
   fails=$(awk '$2 != "ok" && $2 != "refused" { c[$2]++ } END { for (k in c) printf "%s %d, ", k, c[k] }' "$out/$name.txt")
-  printf '| %s | %s | %s | %d of %d | %d of %d | %s |\n' "$1" "$2" "$3" "$ok" "$total" \
+  printf '| %s | %s | %s | %s | %d of %d | %d of %d | %s |\n' "$1" "$2" "$3" "$ramp" "$ok" "$total" \
     "$((ok + late))" "$total" "${fails%, }"
 }
 
-echo "| α | k_d | μ | periodic inside every limit | the same, but for the first 0.1 s's acceleration | failures (first limit broken, or too slow) |"
-echo "|---|---|---|---|---|---|"
+echo "| α | k_d | μ | task.ramp (s) | periodic inside every limit | the same, but for the first 0.1 s's acceleration | failures (first limit broken, or too slow) |"
+echo "|---|---|---|---|---|---|---|"
 variant 20.0 0.0 1.0
 variant 20.0 1.0 0.25
 variant 40.0 2.0 0.0
 variant 40.0 2.0 0.25
+variant 40.0 2.0 0.25 1.0

@@ -43,3 +43,4 @@ variant 20.0 0.0 1.0
 variant 20.0 1.0 0.0
 variant 20.0 1.0 0.25
 variant 20.0 2.0 0.75
+variant 40.0 2.0 0.25

@@ -86,6 +86,14 @@ pub struct TaskConfig {
     pub center: [f64; 2],
     pub radius: f64,
     pub period: f64,
+    /// Seconds over which the path speeds up from rest ([`crate::task::ramp`]); 0: full speed.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub ramp: f64,
+}
+
+/// Keeps a key that is off out of a printed config.
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl Default for TaskConfig {
@@ -94,6 +102,7 @@ impl Default for TaskConfig {
             center: [1.0, 2.0],
             radius: 0.5,
             period: 1.0,
+            ramp: 0.0,
         }
     }
 }
@@ -467,6 +476,7 @@ impl Config {
         finite_vec("task.center", &self.task.center)?;
         positive("task.radius", self.task.radius, 100.0)?;
         positive("task.period", self.task.period, 1e4)?;
+        crate::config::spatial::check_ramp(self.task.ramp)?;
 
         let c = &self.control;
         range("control.kp", c.kp, 0.0, 1e6)?;
@@ -563,6 +573,7 @@ impl Config {
                 center: Vec2::new(self.task.center[0], self.task.center[1]),
                 radius: self.task.radius,
                 period: self.task.period,
+                ramp: self.task.ramp,
             },
             kp: c.kp,
             kv: c.kv,

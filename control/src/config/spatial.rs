@@ -93,6 +93,26 @@ pub struct TaskSection {
     /// Pose task: the tool orientation as roll, pitch, yaw (rad); default: the start's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub orientation_rpy: Option<[f64; 3]>,
+    /// Seconds over which the path speeds up from rest ([`crate::task::ramp`]); 0: full speed.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub ramp: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+/// `task.ramp`: a finite number of seconds ≥ 0.
+pub(crate) fn check_ramp(seconds: f64) -> Result<(), ConfigError> {
+    if seconds.is_finite() && (0.0..=1e4).contains(&seconds) {
+        Ok(())
+    } else {
+        Err(invalid(
+            "task.ramp",
+            seconds,
+            "seconds in [0, 10000] (0: no ramp)",
+        ))
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -323,18 +343,22 @@ pub struct SpatialSetup<const N: usize> {
 impl SpatialConfig {
     /// The built-in spatial presets ([`SPATIAL_PRESETS`]): `panda` (the study's working set-up,
     /// docs/panda-study.md) and `panda-damped` (the same arm and path with the gain study's
-    /// stabiliser: centring α = 40, null-space damping k_d = 2, μ = 0.25 from t = 0).
+    /// stabiliser: centring α = 40, null-space damping k_d = 2, μ = 0.25 from t = 0, and the path
+    /// starting from rest over 1 s).
     pub fn preset(name: &str) -> Option<Self> {
         let mut c: Self = SPATIAL_PRESETS
             .contains(&name)
             .then(|| toml::from_str(PANDA).expect("the panda preset parses"))?;
         if name == "panda-damped" {
             // docs/panda-study.md, "How fast, and what makes it faster": λ = −0.96 /s on the
-            // cycle, periodic inside every limit from 100 of 100 starts near the ready pose.
+            // cycle (μ = 0), periodic inside every limit from 100 of 100 starts near the ready
+            // pose.
             c.law.alpha = 40.0;
             c.law.null_damping = 2.0;
             c.feedback.mu = 0.25;
             c.feedback.t_on = 0.0;
+            // The hand starts at rest: the path comes up to speed over half a period.
+            c.task.ramp = 1.0;
         }
         Some(c)
     }
@@ -603,8 +627,10 @@ impl SpatialConfig {
             Some(c) => Vec3::from(c),
             None => kin.p - probe.position(0.0) * self.task.radius,
         };
+        check_ramp(self.task.ramp)?;
         let path = Path::new(shape, center, normal, self.task.radius, self.task.period)
-            .ok_or_else(|| invalid("task.normal", self.task.normal, "a non-zero vector"))?;
+            .ok_or_else(|| invalid("task.normal", self.task.normal, "a non-zero vector"))?
+            .with_ramp(self.task.ramp);
         let orientation = match self.task.orientation_rpy {
             Some([r, p, y]) => Rotation3::from_euler_angles(r, p, y),
             None => Rotation3::from_matrix_unchecked(kin.rot),

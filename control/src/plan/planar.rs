@@ -484,6 +484,7 @@ mod tests {
                 center: Vec2::new(1.0, 2.0),
                 radius: 0.5,
                 period: 1.0,
+                ramp: 0.0,
             },
             obstacles: set,
             clearance: 0.05,

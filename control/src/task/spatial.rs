@@ -31,6 +31,9 @@ pub struct Path {
     /// plane is nearly horizontal), v = n × u.
     pub u: Vec3,
     pub v: Vec3,
+    /// Seconds over which the path speeds up from rest ([`crate::task::ramp`]); 0 unless
+    /// [`Self::with_ramp`] sets it.
+    pub ramp: f64,
 }
 
 /// The desired motion at one instant: tool position, velocity, acceleration, and the tool's
@@ -69,7 +72,14 @@ impl Path {
             period,
             u,
             v: n.cross(&u),
+            ramp: 0.0,
         })
+    }
+
+    /// The same path starting from rest, up to speed over `seconds` ([`crate::task::ramp`]).
+    pub fn with_ramp(mut self, seconds: f64) -> Self {
+        self.ramp = seconds;
+        self
     }
 
     pub fn normal(&self) -> Vec3 {
@@ -87,6 +97,17 @@ impl Path {
     /// Position, velocity and acceleration at time t.
     #[inline]
     pub fn at(&self, t: f64) -> (Vec3, Vec3, Vec3) {
+        if self.ramp <= 0.0 {
+            return self.at_full_speed(t);
+        }
+        let (s, ds, dds) = crate::task::ramp(t, self.ramp);
+        let (p, v, a) = self.at_full_speed(s);
+        (p, v * ds, a * (ds * ds) + v * dds)
+    }
+
+    /// The path without its ramp: at full speed from t = 0.
+    #[inline]
+    fn at_full_speed(&self, t: f64) -> (Vec3, Vec3, Vec3) {
         let w = self.omega();
         let r = self.radius;
         let (s, c) = (w * t).sin_cos();
@@ -221,6 +242,20 @@ mod tests {
                 assert!(((vb - va) / (2.0 * h) - acc).norm() < 1e-6, "{shape:?}");
             }
             assert!((c.position(0.0) - c.position(2.0)).norm() < 1e-14);
+            // Ramped: the same start point, at rest, the same derivatives' consistency, and the
+            // path at full speed half a ramp behind once it is up to speed.
+            let r = c.with_ramp(1.0);
+            let (p0, v0, a0) = r.at(0.0);
+            assert_eq!(
+                (p0, v0, a0),
+                (c.position(0.0), Vec3::zeros(), Vec3::zeros())
+            );
+            for &t in &[0.2, 0.6, 0.99, 1.01, 2.5] {
+                let ((a, va, _), (b, vb, _), (_, v, acc)) = (r.at(t - h), r.at(t + h), r.at(t));
+                assert!(((b - a) / (2.0 * h) - v).norm() < 1e-8, "{shape:?} {t}");
+                assert!(((vb - va) / (2.0 * h) - acc).norm() < 1e-6, "{shape:?} {t}");
+            }
+            assert!((r.position(3.0) - c.position(2.5)).norm() < 1e-14);
         }
     }
 
