@@ -17,11 +17,21 @@
 //! retarded delay equation are few and well separated from the rest, which accumulate at 0, so a
 //! few dozen products give them.
 
-use super::orbits::OrbitError;
 use crate::basics::wrap_angle;
 use crate::sim::{ClosedLoopLaw, Simulation};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
+
+/// Why the multipliers could not be had.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FloquetError {
+    /// The loop is not one whose period map this computes (the message says why).
+    #[error("{0}")]
+    Invalid(String),
+    #[error("the trajectory diverged (non-finite state)")]
+    Diverged,
+}
 
 /// How the leading multipliers are computed.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -82,7 +92,7 @@ pub fn delay_multipliers<const N: usize, L: ClosedLoopLaw<N>>(
     sim: &Simulation<N, L>,
     steps: u64,
     spec: &FloquetSpec,
-) -> Result<DelayMultipliers, OrbitError> {
+) -> Result<DelayMultipliers, FloquetError> {
     let map = PeriodMap::new(sim, steps, spec.fd_step)?;
     let dim = map.dimension();
     let (ritz, krylov, change) = arnoldi(|v| map.derivative(v), dim, spec)?;
@@ -165,24 +175,24 @@ struct PeriodMap<'a, const N: usize, L: ClosedLoopLaw<N>> {
 }
 
 impl<'a, const N: usize, L: ClosedLoopLaw<N>> PeriodMap<'a, N, L> {
-    fn new(base: &'a Simulation<N, L>, steps: u64, fd_step: f64) -> Result<Self, OrbitError> {
+    fn new(base: &'a Simulation<N, L>, steps: u64, fd_step: f64) -> Result<Self, FloquetError> {
         let fb = base.law.loop_feedback();
         if base.law.is_floating() {
-            return Err(OrbitError::Invalid(
+            return Err(FloquetError::Invalid(
                 "Floquet multipliers need the fixed-base model: the floating base's attitude \
                  drifts, so its motion does not close after one period"
                     .into(),
             ));
         }
         if !fb.delay_is_state {
-            return Err(OrbitError::Invalid(
+            return Err(FloquetError::Invalid(
                 "the delayed feedback is off (or μ = 0): the loop is an ordinary differential \
                  equation, whose multipliers `orbits` computes at μ = 0"
                     .into(),
             ));
         }
         if steps == 0 || !(fd_step > 0.0 && fd_step.is_finite()) {
-            return Err(OrbitError::Invalid(format!(
+            return Err(FloquetError::Invalid(format!(
                 "one period must be at least one step ({steps}) and the difference step positive \
                  ({fd_step})"
             )));
@@ -193,7 +203,7 @@ impl<'a, const N: usize, L: ClosedLoopLaw<N>> PeriodMap<'a, N, L> {
         let k = base.step_index();
         let held = (k as usize) >= h && base.delay().stored(k - h as u64).is_some();
         if !held {
-            return Err(OrbitError::Invalid(format!(
+            return Err(FloquetError::Invalid(format!(
                 "the delay line holds {} of the {h} samples of history the delayed loop's state \
                  needs: run at least τ + dt with the feedback's history first",
                 base.delay().filled()
@@ -208,7 +218,7 @@ impl<'a, const N: usize, L: ClosedLoopLaw<N>> PeriodMap<'a, N, L> {
         };
         map.image = map.run(None);
         if !map.image.iter().all(|v| v.is_finite()) {
-            return Err(OrbitError::Diverged);
+            return Err(FloquetError::Diverged);
         }
         Ok(map)
     }
@@ -278,7 +288,7 @@ fn arnoldi(
     apply: impl Fn(&DVector<f64>) -> DVector<f64>,
     dim: usize,
     spec: &FloquetSpec,
-) -> Result<(Vec<[f64; 2]>, usize, f64), OrbitError> {
+) -> Result<(Vec<[f64; 2]>, usize, f64), FloquetError> {
     let max = spec.max_krylov.min(dim).max(1);
     let mut basis: Vec<DVector<f64>> = vec![start_vector(dim)];
     let mut h = DMatrix::<f64>::zeros(max + 1, max);
@@ -287,7 +297,7 @@ fn arnoldi(
     for j in 0..max {
         let mut w = apply(&basis[j]);
         if !w.iter().all(|v| v.is_finite()) {
-            return Err(OrbitError::Diverged);
+            return Err(FloquetError::Diverged);
         }
         // Modified Gram–Schmidt, twice: one pass loses orthogonality on a non-normal operator.
         for _ in 0..2 {
@@ -337,8 +347,22 @@ fn start_vector(dim: usize) -> DVector<f64> {
 }
 
 /// The eigenvalues of `m`, largest modulus first.
-fn eigenvalues(m: &DMatrix<f64>) -> Result<Vec<[f64; 2]>, OrbitError> {
-    super::orbits::multipliers(m)
+fn eigenvalues(m: &DMatrix<f64>) -> Result<Vec<[f64; 2]>, FloquetError> {
+    multipliers(m)
+}
+
+/// Floquet multipliers (the eigenvalues of a monodromy matrix), largest modulus first.
+pub fn multipliers(m: &DMatrix<f64>) -> Result<Vec<[f64; 2]>, FloquetError> {
+    if !m.iter().all(|v| v.is_finite()) {
+        return Err(FloquetError::Diverged);
+    }
+    let mut ev: Vec<[f64; 2]> = m
+        .complex_eigenvalues()
+        .iter()
+        .map(|c| [c.re, c.im])
+        .collect();
+    ev.sort_by(|a, b| b[0].hypot(b[1]).total_cmp(&a[0].hypot(a[1])));
+    Ok(ev)
 }
 
 /// How far the values `now` lie from `before`: for each, the distance to the nearest of `before`

@@ -26,7 +26,7 @@ pub mod run;
 pub mod spatial;
 
 pub use closed_loop::ArmFlow;
-pub use floquet::{delay_multipliers, DelayMultipliers, FloquetSpec};
+pub use floquet::{delay_multipliers, DelayMultipliers, FloquetError, FloquetSpec};
 pub use lyapunov::{Benettin, Growth, LyapunovError, LyapunovEstimate, Trajectory};
 pub use orbits::{
     close_returns, find_orbit, newton_orbit, orbit_stability, NewtonConfig, OrbitCatalog,

@@ -23,7 +23,10 @@
 //! the size of the chaotic excursions.
 
 use super::closed_loop::ArmFlow;
-use super::floquet::{delay_multipliers, section_rate, DelayMultipliers, FloquetSpec};
+pub use super::floquet::multipliers;
+use super::floquet::{
+    delay_multipliers, section_rate, DelayMultipliers, FloquetError, FloquetSpec,
+};
 use super::lyapunov::{Benettin, LyapunovError, LyapunovEstimate, Trajectory};
 use super::poincare::Section;
 use super::run::period_steps;
@@ -48,6 +51,8 @@ pub enum OrbitError {
     Diverged,
     #[error(transparent)]
     Lyapunov(#[from] LyapunovError),
+    #[error(transparent)]
+    Floquet(#[from] FloquetError),
 }
 
 /// Newton's method settings.
@@ -190,20 +195,6 @@ pub fn monodromy_of<const N: usize>(map: PeriodMap<N>, x: &ArmState<N>, h: f64) 
         }
     }
     m
-}
-
-/// Floquet multipliers (eigenvalues of the monodromy matrix), largest modulus first.
-pub fn multipliers(m: &DMatrix<f64>) -> Result<Vec<[f64; 2]>, OrbitError> {
-    if !m.iter().all(|v| v.is_finite()) {
-        return Err(OrbitError::Diverged);
-    }
-    let mut ev: Vec<[f64; 2]> = m
-        .complex_eigenvalues()
-        .iter()
-        .map(|c| [c.re, c.im])
-        .collect();
-    ev.sort_by(|a, b| b[0].hypot(b[1]).total_cmp(&a[0].hypot(a[1])));
-    Ok(ev)
 }
 
 /// Newton's method on Φ_T(x) − x from `seed` (μ = 0; the fixed-base model only).
