@@ -391,10 +391,14 @@ fn print_reports(reports: &[OrbitReport], mus: &[f64], spec: &StabilitySpec) {
         );
         println!("  stable for μ in {}", fmt_windows(&r.stable_windows));
         if let Some([mu, rate]) = r.fastest {
+            let pace = if rate < 0.0 {
+                format!("an e-fold in {:.1} s", -1.0 / rate)
+            } else {
+                "growing: not stabilised".into()
+            };
             println!(
-                "  Floquet    |ρ₁| < 1 for μ in {}; fastest at μ = {mu}: {rate:+.4} /s (an e-fold in {:.1} s)",
+                "  Floquet    |ρ₁| < 1 for μ in {}; fastest at μ = {mu}: {rate:+.4} /s ({pace})",
                 fmt_floquet_windows(&r.floquet_windows),
-                -1.0 / rate
             );
         }
         println!(
