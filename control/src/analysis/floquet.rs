@@ -73,16 +73,6 @@ pub struct DelayMultipliers {
     pub converged: bool,
 }
 
-impl DelayMultipliers {
-    /// |ρ₁|, the largest modulus.
-    pub fn leading_modulus(&self) -> f64 {
-        self.multipliers
-            .first()
-            .map(|z| z[0].hypot(z[1]))
-            .unwrap_or(f64::NAN)
-    }
-}
-
 /// The leading multipliers of the loop `sim` runs, over the next `steps` steps (one period T =
 /// steps · dt), linearised about the trajectory from where `sim` stands. For the orbit's
 /// multipliers `sim` must stand on the orbit at a whole number of periods, with the feedback on
@@ -312,7 +302,7 @@ fn arnoldi(
         let m = j + 1;
         let exhausted = beta <= 1e-13 * h.view((0, 0), (m, m)).norm() || m == max;
         if m >= spec.count && (m % 5 == 0 || exhausted) {
-            let ritz = eigenvalues(&h.view((0, 0), (m, m)).into_owned())?;
+            let ritz = multipliers(&h.view((0, 0), (m, m)).into_owned())?;
             if !previous.is_empty() {
                 change = moved(&ritz[..spec.count.min(ritz.len())], &previous);
             }
@@ -344,11 +334,6 @@ fn start_vector(dim: usize) -> DVector<f64> {
     });
     let n = v.norm();
     v / n
-}
-
-/// The eigenvalues of `m`, largest modulus first.
-fn eigenvalues(m: &DMatrix<f64>) -> Result<Vec<[f64; 2]>, FloquetError> {
-    multipliers(m)
 }
 
 /// Floquet multipliers (the eigenvalues of a monodromy matrix), largest modulus first.

@@ -92,8 +92,21 @@ pub struct TaskConfig {
 }
 
 /// Keeps a key that is off out of a printed config.
-fn is_zero(v: &f64) -> bool {
+pub(crate) fn is_zero(v: &f64) -> bool {
     *v == 0.0
+}
+
+/// `task.ramp`, of either arm's file: a finite number of seconds ≥ 0.
+pub(crate) fn check_ramp(seconds: f64) -> Result<(), ConfigError> {
+    if seconds.is_finite() && (0.0..=1e4).contains(&seconds) {
+        Ok(())
+    } else {
+        Err(invalid(
+            "task.ramp",
+            seconds,
+            "seconds in [0, 10000] (0: no ramp)",
+        ))
+    }
 }
 
 impl Default for TaskConfig {
@@ -476,7 +489,7 @@ impl Config {
         finite_vec("task.center", &self.task.center)?;
         positive("task.radius", self.task.radius, 100.0)?;
         positive("task.period", self.task.period, 1e4)?;
-        crate::config::spatial::check_ramp(self.task.ramp)?;
+        check_ramp(self.task.ramp)?;
 
         let c = &self.control;
         range("control.kp", c.kp, 0.0, 1e6)?;

@@ -94,25 +94,8 @@ pub struct TaskSection {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub orientation_rpy: Option<[f64; 3]>,
     /// Seconds over which the path speeds up from rest ([`crate::task::ramp`]); 0: full speed.
-    #[serde(default, skip_serializing_if = "is_zero")]
+    #[serde(default, skip_serializing_if = "crate::config::is_zero")]
     pub ramp: f64,
-}
-
-fn is_zero(v: &f64) -> bool {
-    *v == 0.0
-}
-
-/// `task.ramp`: a finite number of seconds ≥ 0.
-pub(crate) fn check_ramp(seconds: f64) -> Result<(), ConfigError> {
-    if seconds.is_finite() && (0.0..=1e4).contains(&seconds) {
-        Ok(())
-    } else {
-        Err(invalid(
-            "task.ramp",
-            seconds,
-            "seconds in [0, 10000] (0: no ramp)",
-        ))
-    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -627,7 +610,7 @@ impl SpatialConfig {
             Some(c) => Vec3::from(c),
             None => kin.p - probe.position(0.0) * self.task.radius,
         };
-        check_ramp(self.task.ramp)?;
+        crate::config::check_ramp(self.task.ramp)?;
         let path = Path::new(shape, center, normal, self.task.radius, self.task.period)
             .ok_or_else(|| invalid("task.normal", self.task.normal, "a non-zero vector"))?
             .with_ramp(self.task.ramp);
