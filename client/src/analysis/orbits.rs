@@ -217,10 +217,12 @@ enum Seeding {
 }
 
 pub fn run(args: OrbitsCmd) -> Result<()> {
-    if let Some(cfg) = crate::spatial::load(&args.model.setup, None)? {
+    if let Some(mut cfg) = crate::spatial::load(&args.model.setup, None)? {
+        cfg.task.ramp = periodic_path(cfg.task.ramp);
         return spatial(&args, &cfg);
     }
-    let (base, mus) = args.model.load("0:3:0.1")?;
+    let (mut base, mus) = args.model.load("0:3:0.1")?;
+    base.task.ramp = periodic_path(base.task.ramp);
     if base.arm.model != ModelKind::Fixed {
         bail!("orbits needs the fixed-base model (--model fixed): the floating base's attitude drifts, so its motion never closes after one period");
     }
@@ -347,6 +349,16 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
 }
 
 /// The stability runs' window (`--settle`, `--average`), checked against the task period.
+/// The orbits of the periodic loop: a path that starts from rest (`task.ramp`) is a start-up
+/// transient, and a period map from t = 0 through the ramp has fixed points that are not the
+/// cycle's. The path runs at full speed from t = 0 here (said on stderr).
+fn periodic_path(ramp: f64) -> f64 {
+    if ramp > 0.0 {
+        eprintln!("task.ramp = {ramp} s is left out: the orbits are those of the full-speed path");
+    }
+    0.0
+}
+
 fn stability_spec(args: &OrbitsCmd, period: f64) -> Result<StabilitySpec> {
     let spec = StabilitySpec {
         settle: args.settle,

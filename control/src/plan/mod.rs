@@ -135,6 +135,16 @@ pub fn plan_config_with(
     q_now: Option<[f64; 3]>,
     settings: &PlanSettings,
 ) -> Result<Planned, PlanError> {
+    // The cycle is one of the periodic loop: the path's start-up ramp is not part of it.
+    let periodic;
+    let cfg = if cfg.task.ramp > 0.0 {
+        let mut c = cfg.clone();
+        c.task.ramp = 0.0;
+        periodic = c;
+        &periodic
+    } else {
+        cfg
+    };
     let problem = planar::PlanarProblem::from_config(cfg, t0, q_now)?;
     let mut strict = refined(&problem, cfg, planar::plan(&problem, settings));
     // A cycle the refinement could not clear of the filter: a finer grid gives another.

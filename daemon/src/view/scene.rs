@@ -54,7 +54,9 @@ const PATH_POINTS: usize = 96;
 impl Scene {
     /// The scene of a valid `system`.
     pub fn of(system: &System) -> Scene {
-        let (base, joints, links, urdf, obstacles, period, geometry) = match system {
+        // One period once the path is up to speed: the start-up ramp (`task.ramp`) is not part
+        // of the loop the tool goes round.
+        let (base, joints, links, urdf, obstacles, (ramp, period), geometry) = match system {
             System::Planar(c) => {
                 let n = c.n();
                 let geometry: Box<dyn Geometry> = control::with_dof!(n, N => Box::new(Planar::<N> {
@@ -69,7 +71,7 @@ impl Scene {
                     (1..=n).map(|i| format!("link{i}")).collect(),
                     Some(planar_urdf(&c.arm.links)),
                     obstacles.collect(),
-                    c.task.period,
+                    (c.task.ramp, c.task.period),
                     geometry,
                 )
             }
@@ -86,13 +88,13 @@ impl Scene {
                     chain.joints.iter().map(|j| j.links[0].clone()).collect(),
                     rt::robot::text(&s.config.robot.description).ok(),
                     obstacles.collect(),
-                    s.config.task.period,
+                    (s.config.task.ramp, s.config.task.period),
                     geometry,
                 )
             }
         };
         let path = (0..=PATH_POINTS)
-            .map(|k| geometry.target(period * k as f64 / PATH_POINTS as f64))
+            .map(|k| geometry.target(ramp + period * k as f64 / PATH_POINTS as f64))
             .collect();
         Scene {
             base,

@@ -344,9 +344,12 @@ pub fn plan_setup<const N: usize>(
     following: Option<&CycleTable<MAX_JOINTS>>,
     settings: &PlanSettings,
 ) -> Planned {
+    // The cycle is one of the periodic loop: the path's start-up ramp is not part of it.
+    let mut law = set.params;
+    law.task.path = law.task.path.with_ramp(0.0);
     let problem = SpatialProblem::<N> {
         arm: set.arm,
-        law: set.params,
+        law,
         dt: set.dt,
         t0,
         q_now,
