@@ -34,7 +34,7 @@ struct Outcome {
 /// The Panda with stiff task gains and the safety filter off: the law's q̈ at the start is a
 /// few times the acceleration limits, and only the limiter stands between it and the device.
 fn unbounded_panda(dir: &Path) -> Result<PathBuf> {
-    let cfg = control::config::spatial::PANDA
+    let cfg = control::config::spatial::PANDA_PAPER
         .replace("kp = 40.0", "kp = 900.0")
         .replace("kv = 15.0", "kv = 60.0")
         .replace("[safety]\nenabled = true", "[safety]\nenabled = false");

@@ -203,8 +203,9 @@ pub fn run(
 mod tests {
     use super::*;
 
+    /// The paper's recipe, the set-up of the book's plan map (docs/analysis.md).
     fn panda() -> SpatialSystem {
-        let config = control::config::spatial::SpatialConfig::preset("panda").unwrap();
+        let config = control::config::spatial::SpatialConfig::preset("panda-paper").unwrap();
         let chain = rt::robot::load(&config.robot.description, None, None).unwrap();
         SpatialSystem { config, chain }
     }

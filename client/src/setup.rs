@@ -17,7 +17,7 @@ pub struct SetupArgs {
     /// TOML config file (see `chaosctl config --preset paper` for every key).
     #[arg(long, conflicts_with = "preset")]
     pub config: Option<PathBuf>,
-    /// Built-in set-up: paper, paper-eq11, paper-obstacle, paper-floating, demo; panda, panda-damped (spatial, 7 joints).
+    /// Built-in set-up: paper, paper-eq11, paper-obstacle, paper-floating, demo; panda, panda-paper (spatial, 7 joints).
     #[arg(long)]
     pub preset: Option<String>,
     /// Pyragas delay τ (s).

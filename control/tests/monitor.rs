@@ -133,7 +133,8 @@ fn auto_in_a_config_file_parses_round_trips_and_refuses_bad_gains() {
 
 #[test]
 fn the_spatial_feedback_section_takes_auto_too() {
-    let text = control::config::spatial::PANDA.replace("mu = 1.0", "mu = \"auto\"\nmax_mu = 2.0");
+    let text =
+        control::config::spatial::PANDA_PAPER.replace("mu = 1.0", "mu = \"auto\"\nmax_mu = 2.0");
     let c: control::config::spatial::SpatialConfig = toml::from_str(&text).unwrap();
     assert_eq!(c.feedback.auto.map(|a| a.max_mu), Some(2.0));
     assert_eq!(c.feedback.mu, 0.0);

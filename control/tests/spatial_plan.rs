@@ -18,10 +18,11 @@ fn chain() -> Chain {
     Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap()
 }
 
-/// The study's Panda with `spheres` (x, y, z, r), feedback `mu` from the start, and the start
-/// posture kicked by `kick` rad on joints 1 and 3 (the path follows the start's hand).
+/// The paper's recipe on the Panda (`panda-paper`: undamped centring, which these spheres trap)
+/// with `spheres` (x, y, z, r), feedback `mu` from the start, and the start posture kicked by
+/// `kick` rad on joints 1 and 3 (the path follows the start's hand).
 fn config(spheres: &[[f64; 4]], mu: f64, kick: f64, plan: bool) -> SpatialConfig {
-    let mut c = SpatialConfig::preset("panda").unwrap();
+    let mut c = SpatialConfig::preset("panda-paper").unwrap();
     c.feedback.mu = mu;
     c.feedback.t_on = 0.0;
     c.sim.q0[0] += kick;

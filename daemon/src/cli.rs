@@ -115,7 +115,7 @@ struct Common {
     #[arg(long, conflicts_with = "preset")]
     config: Option<PathBuf>,
     /// A built-in set-up (paper, paper-eq11, paper-obstacle, paper-floating, demo; panda for
-    /// the 7-joint Panda, panda-damped for it with null-space damping).
+    /// the 7-joint Panda, panda-paper for it with the paper's recipe: chaotic first, slow).
     #[arg(long, conflicts_with = "robot")]
     preset: Option<String>,
     /// A built-in robot's set-up: `panda` (the Panda study's working set-up, the same as
@@ -377,7 +377,9 @@ fn demo(
         (None, m) if m > 0.0 => MuSetting::Fixed(m),
         _ => MuSetting::Fixed(0.2),
     });
-    let t_on = t_on.unwrap_or(if fb.t_on > 0.0 && fb.t_on < duration {
+    // The file's switch-on time (0 for the `panda` preset: its feedback is part of the law
+    // from the start), unless the run ends before it.
+    let t_on = t_on.unwrap_or(if fb.t_on < duration {
         fb.t_on
     } else {
         duration / 3.0

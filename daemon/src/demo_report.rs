@@ -5,6 +5,7 @@
 //! so the short report can never disagree with the full one.
 
 use crate::config::DaemonSetup;
+use crate::residual;
 use crate::telemetry::DaemonSummary;
 use serde_json::Value;
 use std::path::Path;
@@ -129,19 +130,43 @@ fn method(r: &Run) -> Vec<Line> {
 
 fn residual(r: &Run) -> String {
     let d = r.daemon;
+    let ratio = |b: f64, a: f64| {
+        if a == 0.0 {
+            "periodic to rounding".to_string()
+        } else if a <= b && b / a >= 1000.0 {
+            format!("{:.1e}× smaller", b / a)
+        } else if a <= b {
+            format!("{:.1}× smaller", b / a)
+        } else {
+            format!("{:.1}× LARGER: not settled on a period-T orbit", a / b)
+        }
+    };
+    let auto = if r.setup.system.feedback().auto.is_some() {
+        " (auto)"
+    } else {
+        ""
+    };
+    let from_start = d
+        .feedback_on_at_s
+        .is_some_and(|t| t < residual::SKIP_S as f64);
     match (d.period_residual_before, d.period_residual_after) {
         (Some(b), Some(a)) => format!(
-            "mean |q̇(t) − q̇(t−τ)|: {b:.3} rad/s before feedback → {a:.3} rad/s over the last 5 s with μ = {}{} ({})",
+            "mean |q̇(t) − q̇(t−τ)|: {} rad/s before feedback → {} rad/s over the last 5 s with μ = {}{auto} ({})",
+            sig(b),
+            sig(a),
             d.chaos.mu,
-            if r.setup.system.feedback().auto.is_some() { " (auto)" } else { "" },
-            if a == 0.0 {
-                "periodic to rounding".to_string()
-            } else if a <= b {
-                format!("{:.1}× smaller", b / a)
-            } else {
-                format!("{:.1}× LARGER: not settled on a period-T orbit", a / b)
-            }
+            ratio(b, a)
         ),
+        (None, Some(a)) if from_start && d.period_residual_start.is_some() => {
+            let s = d.period_residual_start.unwrap_or(a);
+            format!(
+                "mean |q̇(t) − q̇(t−τ)|: {} rad/s over 2-7 s → {} rad/s over the last 5 s, μ = {}{auto} from the start ({})",
+                sig(s),
+                sig(a),
+                d.chaos.mu,
+                ratio(s, a)
+            )
+        }
         (b, a) => {
             let show = |v: Option<f64>| v.map_or("n/a".to_string(), |x| format!("{x:.3} rad/s"));
             format!(
@@ -446,4 +471,13 @@ pub fn pct(v: &Value, key: &str) -> String {
         g("p999_us"),
         g("max_us")
     )
+}
+
+/// A residual with three significant digits at any size (2.3e-4 is not "0.000").
+fn sig(x: f64) -> String {
+    if x == 0.0 || (1e-2..1e3).contains(&x.abs()) {
+        format!("{x:.3}")
+    } else {
+        format!("{x:.2e}")
+    }
 }

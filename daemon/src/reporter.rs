@@ -590,7 +590,7 @@ impl Reporter {
         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", hlog.display()))?;
         files.push(hlog);
 
-        let (residual_before, residual_after) = self.residuals.means();
+        let (residual_before, residual_start, residual_after) = self.residuals.all_means();
         let counters = self.last.map(|r| r.counters).unwrap_or_default();
         let summary = DaemonSummary {
             namespace: self.names.namespace().to_string(),
@@ -608,6 +608,7 @@ impl Reporter {
             tracking: self.tracking.spread(),
             period_residual_before: residual_before,
             period_residual_after: residual_after,
+            period_residual_start: residual_start,
             feedback_on_at_s: self.feedback_on_at,
             min_clearance_m: self.min_clearance.is_finite().then_some(self.min_clearance),
             joint_limits: self.limits.seen(),

@@ -1,7 +1,9 @@
 //! The period residual before and after the feedback, in constant memory.
 //!
 //! The demo report compares the mean |q̇(t) − q̇(t − τ)| while the feedback was off with its mean
-//! over the last 5 s with it on. A daemon runs for months, so nothing here may grow with its
+//! over the last 5 s with it on. A set-up whose feedback acts from the start (the `panda`
+//! preset) has no "before": its report compares the first 5 s after the start-up transient
+//! with the last 5 s. A daemon runs for months, so nothing here may grow with its
 //! lifetime: whole seconds are folded into a running "before" sum as they complete, and only the
 //! last few seconds with the feedback on are kept.
 
@@ -26,6 +28,8 @@ struct Second {
 pub struct Residuals {
     cur: Option<Second>,
     before: (f64, u64),
+    /// Seconds [`SKIP_S`] to [`SKIP_S`] + [`AFTER_S`], feedback or not.
+    start: (f64, u64),
     last_on: VecDeque<Second>,
 }
 
@@ -34,6 +38,7 @@ impl Default for Residuals {
         Self {
             cur: None,
             before: (0.0, 0),
+            start: (0.0, 0),
             last_on: VecDeque::with_capacity(AFTER_S + 1),
         }
     }
@@ -58,6 +63,10 @@ impl Residuals {
     /// Moves the current second into the running sums.
     fn fold(&mut self) {
         let Some(c) = self.cur.take() else { return };
+        if (SKIP_S..SKIP_S + AFTER_S as u64).contains(&c.index) {
+            self.start.0 += c.resid;
+            self.start.1 += c.n;
+        }
         if c.feedback {
             if self.last_on.len() == AFTER_S {
                 self.last_on.pop_front();
@@ -72,9 +81,17 @@ impl Residuals {
     /// (mean before the feedback, mean over the last [`AFTER_S`] s with it), the current
     /// second included.
     pub fn means(&self) -> (Option<f64>, Option<f64>) {
+        let (before, _, after) = self.all_means();
+        (before, after)
+    }
+
+    /// (before the feedback, the first [`AFTER_S`] s after the start-up transient, the last
+    /// [`AFTER_S`] s with the feedback on).
+    pub fn all_means(&self) -> (Option<f64>, Option<f64>, Option<f64>) {
         let mut copy = Self {
             cur: self.cur,
             before: self.before,
+            start: self.start,
             last_on: self.last_on.clone(),
         };
         copy.fold();
@@ -83,7 +100,7 @@ impl Residuals {
             .last_on
             .iter()
             .fold((0.0, 0), |(s, n), c| (s + c.resid, n + c.n));
-        (mean(copy.before), mean(after))
+        (mean(copy.before), mean(copy.start), mean(after))
     }
 }
 
@@ -118,5 +135,12 @@ mod tests {
             r.add(k as f64 * 0.1, 1.0, false);
         }
         assert_eq!(r.means(), (Some(1.0), None));
+        // On from the start: no "before"; the start's mean covers seconds 2-7.
+        let mut r = Residuals::default();
+        for k in 0..200 {
+            let t = k as f64 * 0.1;
+            r.add(t, if t < 7.0 { 3.0 } else { 0.5 }, true);
+        }
+        assert_eq!(r.all_means(), (None, Some(3.0), Some(0.5)));
     }
 }

@@ -125,6 +125,9 @@ pub struct DaemonSummary {
     pub period_residual_before: Option<f64>,
     /// The same over the last 5 s with the feedback on.
     pub period_residual_after: Option<f64>,
+    /// The same over 2-7 s, feedback or not: the reference of a run whose feedback acts from
+    /// the start.
+    pub period_residual_start: Option<f64>,
     pub feedback_on_at_s: Option<f64>,
     pub min_clearance_m: Option<f64>,
     /// How close the arm came to its joint limits (states the law used, commands sent).

@@ -7,7 +7,8 @@
 # Usage: scripts/panda-study/basins.sh [near|box] [N] [out-dir]
 #   near: each joint within ±0.5 rad of the ready pose, rates within ±0.1 rad/s;
 #   box:  anywhere in the joint box (10 % in from each limit), rates within ±0.2 rad/s.
-# The last variant starts the path from rest (task.ramp = 1 s), the `panda-damped` preset.
+# The last variants start the path from rest (task.ramp = 1 s); the ones with null_speed cap the
+# centring pull's velocity (law.null_speed), the `panda` preset. VARIANTS=new runs the α = 160 rows.
 # Needs a release build. About a minute per variant for N = 100 on 2 cores.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -16,7 +17,7 @@ n=${2:-100}
 out=${3:-out/panda-basins-$kind}
 mkdir -p "$out"
 ctl=$PWD/target/release/chaosctl
-$ctl config --preset panda > "$out/panda.toml"
+$ctl config --preset panda-paper > "$out/panda.toml"
 
 # draw I: "q0 qd0" of start I (awk's generator, seeded by I).
 draw() {
@@ -67,9 +68,9 @@ export -f draw one
 export ctl kind
 
 variant() {
-  local ramp=${4:-0} name="a$1_kd$2_mu$3_ramp${4:-0}" cfg
+  local ramp=${4:-0} speed=${5:-0} name="a$1_kd$2_mu$3_ramp${4:-0}_speed${5:-0}" cfg
   cfg="$out/$name.toml"
-  sed -e "s/^alpha = .*/alpha = $1/" -e "s/^null_damping = .*/null_damping = $2/" \
+  sed -e "s/^alpha = .*/alpha = $1/" -e "s/^null_damping = .*/null_damping = $2\nnull_speed = $speed/" \
     -e "s/^mu = .*/mu = $3/" -e "s/^period = 2.0/period = 2.0\nramp = $ramp/" \
     "$out/panda.toml" > "$cfg"
   seq 1 "$n" | xargs -P 2 -I{} bash -c "one '$cfg' {}" | sort -n > "$out/$name.txt"
@@ -81,14 +82,19 @@ variant() {
   late=$(awk '$2 == "acceleration-at-start" && $3 <= 1e-3 && $4 <= 1e-6 { c++ } END { print c + 0 }' "$out/$name.txt")
   local fails
   fails=$(awk '$2 != "ok" && $2 != "refused" { c[$2]++ } END { for (k in c) printf "%s %d, ", k, c[k] }' "$out/$name.txt")
-  printf '| %s | %s | %s | %s | %d of %d | %d of %d | %s |\n' "$1" "$2" "$3" "$ramp" "$ok" "$total" \
+  printf '| %s | %s | %s | %s | %s | %d of %d | %d of %d | %s |\n' "$1" "$2" "$3" "$ramp" "$speed" "$ok" "$total" \
     "$((ok + late))" "$total" "${fails%, }"
 }
 
-echo "| α | k_d | μ | task.ramp (s) | periodic inside every limit | the same, but for the first 0.1 s's acceleration | failures (first limit broken, or too slow) |"
-echo "|---|---|---|---|---|---|---|"
-variant 20.0 0.0 1.0
-variant 20.0 1.0 0.25
-variant 40.0 2.0 0.0
-variant 40.0 2.0 0.25
-variant 40.0 2.0 0.25 1.0
+echo "| α | k_d | μ | task.ramp (s) | null_speed (rad/s) | periodic inside every limit | the same, but for the first 0.1 s's acceleration | failures (first limit broken, or too slow) |"
+echo "|---|---|---|---|---|---|---|---|"
+if [ "${VARIANTS:-all}" = all ]; then
+  variant 20.0 0.0 1.0
+  variant 20.0 1.0 0.25
+  variant 40.0 2.0 0.0
+  variant 40.0 2.0 0.25
+  variant 40.0 2.0 0.25 1.0
+fi
+variant 160.0 8.0 0.25 1.0
+variant 160.0 8.0 0.25 1.0 1.0
+variant 160.0 8.0 0.5 1.0 1.0

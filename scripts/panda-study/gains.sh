@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The gain study of docs/panda-study.md ("How fast, and what makes it faster"): for each variant
-# of `chaosctl config --preset panda`, the period-T cycle of its loop without feedback and the
-# leading Floquet multiplier of the delayed loop on it at each μ, by `chaosctl orbits`.
+# of `chaosctl config --preset panda-paper` (the paper's recipe), the period-T cycle of its loop
+# without feedback and the leading Floquet multiplier of the delayed loop on it at each μ, by `chaosctl orbits`.
 # Usage: scripts/panda-study/gains.sh [out-dir]. Needs a release build (cargo build --release -p
 # client). About 3 minutes on 2 cores.
 set -euo pipefail
@@ -9,7 +9,7 @@ cd "$(dirname "$0")/../.."
 out=${1:-out/panda-gains}
 mkdir -p "$out"
 ctl=target/release/chaosctl
-$ctl config --preset panda > "$out/panda.toml"
+$ctl config --preset panda-paper > "$out/panda.toml"
 
 # row ALPHA NULL_DAMPING: one line of the table.
 row() {
@@ -31,3 +31,5 @@ echo "| α | null damping k_d | largest \\|ρ\\| at μ = 0 | ln\\|ρ\\|/T at μ 
 echo "|---|---|---|---|---|"
 for kd in 0.0 0.5 1.0 2.0 3.0 5.0; do row 20.0 "$kd"; done
 for a in 10.0 40.0 80.0; do row "$a" 0.0; row "$a" 2.0; done
+row 160.0 4.0
+row 160.0 8.0   # the `panda` preset's gains

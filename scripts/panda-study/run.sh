@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # The Panda study of docs/panda-study.md: every row of its table, from `chaosctl config --preset
-# panda` with one change per variant. Usage: scripts/panda-study/run.sh [out-dir]
+# panda-paper` (the paper's recipe) with one change per variant. Usage: scripts/panda-study/run.sh [out-dir]
 # Needs a release build (cargo build --release -p client). About a minute on one core.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 out=${1:-out/panda-study}
 mkdir -p "$out"
 ctl=target/release/chaosctl
-$ctl config --preset panda > "$out/panda.toml"
+$ctl config --preset panda-paper > "$out/panda.toml"
 
 # variant NAME 'sed expressions' : writes $out/NAME.toml from the preset.
 variant() {
@@ -50,6 +50,6 @@ cat "$out/table.md"
 # without: the pyragas-ns variant) and the arm figure of the preset.
 $ctl sweep --config "$out/both.toml" --mu 0:3:0.25 --duration 150 --window 50:150 --output "$out/sweep"
 $ctl sweep --config "$out/pyragas-ns.toml" --mu 0:3:0.25 --duration 150 --window 50:150 --output "$out/sweep-no-centring"
-$ctl arm-figure --preset panda --from 195 --frames 6 --output "$out/arm"
+$ctl arm-figure --preset panda-paper --from 195 --frames 6 --output "$out/arm"
 $ctl poincare --config "$out/both.toml" --duration 300 --transient 100 --output "$out/poincare"
 $ctl poincare --config "$out/pyragas-ns.toml" --duration 300 --transient 100 --output "$out/poincare-no-centring"

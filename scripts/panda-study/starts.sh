@@ -9,7 +9,7 @@ cd "$(dirname "$0")/../.."
 out=${1:-out/panda-starts}
 mkdir -p "$out"
 ctl=target/release/chaosctl
-$ctl config --preset panda > "$out/panda.toml"
+$ctl config --preset panda-paper > "$out/panda.toml"
 
 # The i-th start: the ready pose plus a uniform draw in [−0.5, 0.5) per joint.
 start() {

@@ -359,7 +359,7 @@ pub fn assert_tracks(summaries: &[&serde_json::Value], bound: f64) {
 /// of tracking in a few task periods, never 5 cm, never 2 s on end). `plan` is `plan` (`"auto"` steers, as there are spheres; `false`
 /// leaves the arm to the trap watch).
 pub fn panda_grazing_two_spheres(plan: &str) -> String {
-    let cfg = control::config::spatial::PANDA
+    let cfg = control::config::spatial::PANDA_PAPER
         .replace("mu = 1.0\nt_on = 60.0", "mu = 1.8\nt_on = 0.0")
         .replace(
             "[safety]\nenabled = true\n",

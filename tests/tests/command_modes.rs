@@ -16,7 +16,7 @@ fn demo_without_stall_holds(dir: &Path, out: &Path, args: &[&str]) -> Output {
     let cfg = dir.join("panda.toml");
     let text = format!(
         "{}\n[daemon]\nhold_after = 500\n",
-        control::config::spatial::PANDA
+        control::config::spatial::PANDA_PAPER
     );
     std::fs::write(&cfg, text).unwrap();
     Command::new(bin("chaosd"))
@@ -75,7 +75,7 @@ fn torque_mode_tracks_on_the_rigid_body_plant_and_the_feedback_still_works() {
 /// on q̈; off, only the limiter stands between the law and the device.
 fn unbounded_panda(dir: &Path) -> std::path::PathBuf {
     let path = dir.join("unbounded.toml");
-    let cfg = control::config::spatial::PANDA
+    let cfg = control::config::spatial::PANDA_PAPER
         .replace("kp = 40.0", "kp = 900.0")
         .replace("kv = 15.0", "kv = 60.0")
         .replace("[safety]\nenabled = true", "[safety]\nenabled = false");
@@ -182,7 +182,7 @@ fn position_mode_through_udp_runs_a_minute_without_a_reflex() {
 #[test]
 fn a_set_up_that_cannot_run_is_refused_at_start_up_by_name() {
     let dir = TempDir::new(&unique_namespace("command-refusals"));
-    let panda = control::config::spatial::PANDA;
+    let panda = control::config::spatial::PANDA_PAPER;
     for (extra, says) in [
         ("[command]\nmode = \"effort\"\n", "effort"),
         ("[command]\nmargin = 0.49\n", "joint 4 starts at -2.356 rad"),

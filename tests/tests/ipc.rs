@@ -506,8 +506,6 @@ fn the_demo_runs_end_to_end_and_leaves_nothing_running() {
             "demo",
             "--duration",
             "12",
-            "--t-on",
-            "4",
             "--namespace",
             &ns,
             "--output",
@@ -573,11 +571,18 @@ fn the_demo_runs_end_to_end_and_leaves_nothing_running() {
         assert!(out.join(f).exists(), "{f} missing");
     }
     let d = read_json(&out.join("daemon-summary.json"));
-    let (before, after) = (
-        d["period_residual_before"].as_f64().unwrap(),
+    // The `panda` preset's feedback acts from the start: the report compares 2-7 s with the
+    // last 5 s.
+    assert!(d["period_residual_before"].is_null(), "{d}");
+    let (start, after) = (
+        d["period_residual_start"].as_f64().unwrap(),
         d["period_residual_after"].as_f64().unwrap(),
     );
-    assert!(after < before, "residual {before} → {after}");
+    assert!(after < start, "residual {start} → {after}");
+    assert!(
+        log.contains("over 2-7 s →") && log.contains("from the start"),
+        "{log}"
+    );
     // The plant was a child of the demo: it must be gone.
     let plant_pid = log
         .split("plant pid ")

@@ -248,7 +248,7 @@ fn a_planar_run_records_as_mcap_that_reads_back_exports_to_csv_and_logs_the_edit
 #[test]
 fn a_panda_run_records_its_urdf_links_and_the_obstacle_it_is_given() {
     let _g = serial();
-    let sys = start("mcap-panda", control::config::spatial::PANDA);
+    let sys = start("mcap-panda", control::config::spatial::PANDA_PAPER);
     let edit = ["obstacle", "add", "0.3", "0.4", "0.9", "0.05"];
     let (path, stop) = record(&sys, "panda.mcap", &edit, 2.0);
     let joints: Vec<String> = (1..=7).map(|i| format!("panda_joint{i}")).collect();

@@ -234,7 +234,7 @@ fn plan_maps_a_slice_of_spheres_for_the_panda() {
 #[test]
 fn simulate_steers_a_panda_whose_file_asks_for_a_plan() {
     let dir = TempDir::new(&unique_namespace("sim-plan"));
-    let text = control::config::spatial::PANDA.replace(
+    let text = control::config::spatial::PANDA_PAPER.replace(
         "[safety]\nenabled = true\n",
         "[safety]\nenabled = true\nplan = true\n",
     ) + "\n[[obstacles]]\ncenter = [0.089, -0.196, 0.575]\nradius = 0.058\n";

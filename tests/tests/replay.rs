@@ -155,7 +155,7 @@ fn a_live_panda_run_replays_bit_for_bit_with_its_edits_and_a_changed_torque_is_c
     // Torque mode: the command carries τ, the reference and q̈, and every field is compared.
     let top = format!(
         "{}\n[command]\nmode = \"torque\"\n",
-        control::config::spatial::PANDA
+        control::config::spatial::PANDA_PAPER
     );
     let sphere: &[&str] = &["obstacle", "add", "1.0", "-1.0", "1.5", "0.05"];
     let plant = "dynamics = \"rigid-body\"";

@@ -37,6 +37,9 @@ pub struct SpatialParams {
     pub weight: f64,
     /// Null-space joint damping k_d ≥ 0 (0: the paper's law).
     pub null_damping: f64,
+    /// The largest joint speed (rad/s) the secondary task's pull may ask of the self-motion
+    /// ([`pull_scale`]); 0: no cap.
+    pub null_speed: f64,
     pub damping_threshold: f64,
     pub damping_max: f64,
     pub mu: f64,
@@ -69,6 +72,8 @@ struct SpatialSide<'a, const N: usize> {
     params: &'a SpatialParams,
     arm: &'a SpatialArm<N>,
     kin: &'a mut SpatialKinematics<N>,
+    /// The secondary task's η, kept for [`pull_scale`] in `shape` (zero while steering).
+    eta: VecN<N>,
 }
 
 impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
@@ -127,29 +132,11 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
         qd: &VecN<N>,
         j: &SMatrix<f64, M, N>,
     ) -> (f64, Option<VecN<N>>) {
-        let (p, arm, kin) = (self.params, self.arm, &*self.kin);
-        match p.secondary {
-            Secondary::None => (0.0, None),
-            Secondary::Manipulability => {
-                let (w, g) = sec::manipulability(arm, kin, j);
-                (w, Some(g))
-            }
-            Secondary::Centring => {
-                let (c, g) = sec::centring(q, &p.safety.q_min, &p.safety.q_max);
-                (c, Some(-g))
-            }
-            Secondary::Obstacles if !p.spheres.is_empty() => {
-                let mut points: Points<N> = [Default::default(); crate::basics::MAX_JOINTS + 1];
-                arm.capsule_points(kin, qd, &mut points);
-                let (h, g) = sec::potential(arm, &points, &p.spheres, p.weight);
-                (h, Some(-g))
-            }
-            Secondary::Obstacles => (0.0, Some(VecN::<N>::zeros())),
-            Secondary::Custom(index) => {
-                let tip = [kin.p.x, kin.p.y, kin.p.z];
-                super::custom_eta(index, t, q, qd, tip, &kin.jac, &p.safety)
-            }
+        let (value, eta) = self.secondary_task(t, q, qd, j);
+        if let Some(e) = &eta {
+            self.eta = *e;
         }
+        (value, eta)
     }
 
     #[inline]
@@ -167,6 +154,13 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
             *qdd += s.pull(t, q, qd, j, jpinv, qdd, &p.safety);
         }
         if p.null_damping != 0.0 {
+            if p.null_speed > 0.0 {
+                let pull = (self.eta - jpinv * (j * self.eta)) * p.alpha;
+                let s = pull_scale(pull.norm(), p.null_damping, p.null_speed);
+                if s < 1.0 {
+                    *qdd -= pull * (1.0 - s);
+                }
+            }
             *qdd -= (qd - jpinv * (j * qd)) * p.null_damping;
         }
     }
@@ -196,6 +190,42 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
     }
 }
 
+impl<const N: usize> SpatialSide<'_, N> {
+    /// The secondary task's value and η at this state.
+    #[inline]
+    fn secondary_task<const M: usize>(
+        &self,
+        t: f64,
+        q: &VecN<N>,
+        qd: &VecN<N>,
+        j: &SMatrix<f64, M, N>,
+    ) -> (f64, Option<VecN<N>>) {
+        let (p, arm, kin) = (self.params, self.arm, &*self.kin);
+        match p.secondary {
+            Secondary::None => (0.0, None),
+            Secondary::Manipulability => {
+                let (w, g) = sec::manipulability(arm, kin, j);
+                (w, Some(g))
+            }
+            Secondary::Centring => {
+                let (c, g) = sec::centring(q, &p.safety.q_min, &p.safety.q_max);
+                (c, Some(-g))
+            }
+            Secondary::Obstacles if !p.spheres.is_empty() => {
+                let mut points: Points<N> = [Default::default(); crate::basics::MAX_JOINTS + 1];
+                arm.capsule_points(kin, qd, &mut points);
+                let (h, g) = sec::potential(arm, &points, &p.spheres, p.weight);
+                (h, Some(-g))
+            }
+            Secondary::Obstacles => (0.0, Some(VecN::<N>::zeros())),
+            Secondary::Custom(index) => {
+                let tip = [kin.p.x, kin.p.y, kin.p.z];
+                super::custom_eta(index, t, q, qd, tip, &kin.jac, &p.safety)
+            }
+        }
+    }
+}
+
 /// Evaluates the law at time t for state (q, q̇) with delayed velocity q̇(t − τ); `M` must be
 /// the task's row count (3: position, 6: pose). `kin` is scratch.
 #[inline]
@@ -209,6 +239,41 @@ pub fn evaluate<const N: usize, const M: usize>(
     qd_delayed: &VecN<N>,
     kin: &mut SpatialKinematics<N>,
 ) -> ControlOutput<N> {
-    let mut side = SpatialSide { params, arm, kin };
+    let mut side = SpatialSide {
+        params,
+        arm,
+        kin,
+        eta: VecN::<N>::zeros(),
+    };
     super::pipeline::evaluate::<N, M>(&mut side, t, q, qd, qd_delayed)
+}
+
+/// With null-space damping k_d the secondary task's pull α N η − k_d q̇_N (N = I − J⁺J) is a
+/// velocity servo: it drives the self-motion towards the speed v = α N η / k_d. Far from the
+/// task's optimum v is large (a start near a joint limit asks several rad/s of the centring
+/// spring), and the first ticks' acceleration α N η with it. The factor that caps |v| at `speed`
+/// (the pull scaled as a whole, so its direction stays the gradient's) bounds both: the
+/// self-motion approaches at most `speed` and is asked at most k_d · (speed + |q̇_N|). Where
+/// |v| ≤ `speed` the factor is 1 and the law is the uncapped one; on the Panda's cycles v stays
+/// below 1 rad/s, so the capped law's cycles and Floquet multipliers are the uncapped law's.
+///
+/// ```
+/// use control::law::spatial::pull_scale;
+/// // |α N η| = 20 rad/s², k_d = 10 /s: v = 2 rad/s, capped at 0.5 → a quarter of the pull.
+/// assert_eq!(pull_scale(20.0, 10.0, 0.5), 0.25);
+/// assert_eq!(pull_scale(20.0, 10.0, 4.0), 1.0); // under the cap: untouched
+/// assert_eq!(pull_scale(20.0, 10.0, 0.0), 1.0); // 0: no cap
+/// assert_eq!(pull_scale(20.0, 0.0, 0.5), 1.0); // no damping: no velocity to cap
+/// ```
+#[inline]
+pub fn pull_scale(pull: f64, null_damping: f64, speed: f64) -> f64 {
+    if speed <= 0.0 || null_damping <= 0.0 {
+        return 1.0;
+    }
+    let v = pull / null_damping;
+    if v > speed {
+        speed / v
+    } else {
+        1.0
+    }
 }
