@@ -4,7 +4,7 @@
 # when its period residual is ≤ 1e-3 rad/s over 40-60 s and ≤ 1e-6 over 100-120 s, and every
 # joint stays inside its position, speed, acceleration and jerk limits for all 120 s. Starts
 # whose circle is out of reach are refused by the config check and left out.
-# Usage: scripts/panda-study/basins.sh [near|box] [N] [out-dir]
+# Usage: [ROBOT=panda|xarm7] [VARIANTS=all|new] scripts/panda-study/basins.sh [near|box] [N] [out-dir]
 #   near: each joint within ±0.5 rad of the ready pose, rates within ±0.1 rad/s;
 #   box:  anywhere in the joint box (10 % in from each limit), rates within ±0.2 rad/s.
 # The last variants start the path from rest (task.ramp = 1 s); the ones with null_speed cap the
@@ -14,17 +14,31 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 kind=${1:-near}
 n=${2:-100}
-out=${3:-out/panda-basins-$kind}
+robot=${ROBOT:-panda}
+out=${3:-out/$robot-basins-$kind}
 mkdir -p "$out"
 ctl=$PWD/target/release/chaosctl
-$ctl config --preset panda-paper > "$out/panda.toml"
+# The arm's ready pose and joint box, and its set-up with the paper's recipe to vary.
+case $robot in
+  panda)
+    ready="0.0 -0.785 0.0 -2.356 0.0 1.571 0.785"
+    lo="-2.8973 -1.7628 -2.8973 -3.0718 -2.8973 -0.0175 -2.8973"
+    hi="2.8973 1.7628 2.8973 -0.0698 2.8973 3.7525 2.8973"
+    $ctl config --preset panda-paper > "$out/panda.toml" ;;
+  xarm7)
+    ready="0.0 -0.5 0.0 0.7 0.0 1.2 0.0"
+    lo="-6.2832 -2.0590 -6.2832 -0.1920 -6.2832 -1.6930 -6.2832"
+    hi="6.2832 2.0944 6.2832 3.9270 6.2832 3.1416 6.2832"
+    sed -e 's/^secondary = "centring"/secondary = "centring"\nnull_damping = 0.0/' \
+      examples/own-urdf/xarm7.toml > "$out/panda.toml" ;;
+  *) echo "ROBOT=$robot: panda or xarm7" >&2; exit 2 ;;
+esac
 
 # draw I: "q0 qd0" of start I (awk's generator, seeded by I).
 draw() {
-  awk -v s="$1" -v kind="$kind" 'BEGIN { srand(s * 104729 + 17);
-    split("0.0 -0.785 0.0 -2.356 0.0 1.571 0.785", r, " ");
-    split("-2.8973 -1.7628 -2.8973 -3.0718 -2.8973 -0.0175 -2.8973", lo, " ");
-    split("2.8973 1.7628 2.8973 -0.0698 2.8973 3.7525 2.8973", hi, " ");
+  awk -v s="$1" -v kind="$kind" -v ready="$ready" -v low="$lo" -v high="$hi" 'BEGIN {
+    srand(s * 104729 + 17);
+    split(ready, r, " "); split(low, lo, " "); split(high, hi, " ");
     q = ""; qd = "";
     for (j = 1; j <= 7; j++) {
       if (kind == "box") { m = 0.1 * (hi[j] - lo[j]); v = lo[j] + m + rand() * (hi[j] - lo[j] - 2 * m); w = 0.2 }
@@ -65,7 +79,7 @@ one() {
   echo "$i $v $r60 $r120 $sp $ac $je $mg"
 }
 export -f draw one
-export ctl kind
+export ctl kind ready lo hi
 
 variant() {
   local ramp=${4:-0} speed=${5:-0} name="a$1_kd$2_mu$3_ramp${4:-0}_speed${5:-0}" cfg
@@ -88,6 +102,14 @@ variant() {
 
 echo "| α | k_d | μ | task.ramp (s) | null_speed (rad/s) | periodic inside every limit | the same, but for the first 0.1 s's acceleration | failures (first limit broken, or too slow) |"
 echo "|---|---|---|---|---|---|---|---|"
+if [ "$robot" = xarm7 ]; then
+  # The example's recipe (α = 20, μ = 1), the Panda's preset gains, and the xArm7's own
+  # (docs/panda-study.md, "A second arm").
+  variant 20.0 0.0 1.0 1.0
+  variant 160.0 8.0 0.25 1.0 1.0
+  variant 320.0 4.0 0.25 1.0 1.0
+  exit 0
+fi
 if [ "${VARIANTS:-all}" = all ]; then
   variant 20.0 0.0 1.0
   variant 20.0 1.0 0.25
