@@ -4,7 +4,7 @@
 # when its period residual is ≤ 1e-3 rad/s over 40-60 s and ≤ 1e-6 over 100-120 s, and every
 # joint stays inside its position, speed, acceleration and jerk limits for all 120 s. Starts
 # whose circle is out of reach are refused by the config check and left out.
-# Usage: [ROBOT=panda|xarm7] [VARIANTS=all|new] scripts/panda-study/basins.sh [near|box] [N] [out-dir]
+# Usage: [ROBOT=panda|xarm7] [VARIANTS=all|new] [FILTER=on] scripts/panda-study/basins.sh [near|box] [N] [out-dir]
 #   near: each joint within ±0.5 rad of the ready pose, rates within ±0.1 rad/s;
 #   box:  anywhere in the joint box (10 % in from each limit), rates within ±0.2 rad/s.
 # The last variants start the path from rest (task.ramp = 1 s); the ones with null_speed cap the
@@ -99,6 +99,25 @@ variant() {
   printf '| %s | %s | %s | %s | %s | %d of %d | %d of %d | %s |\n' "$1" "$2" "$3" "$ramp" "$speed" "$ok" "$total" \
     "$((ok + late))" "$total" "${fails%, }"
 }
+
+# FILTER=on: the `panda` preset as shipped (safety filter on) from the same starts, 120 s each:
+# on how many starts, and on how many for more than 1 % of the ticks, the filter acts.
+filtered() {
+  local i=$1 q0 qd0 out
+  read -r q0 qd0 <<< "$(draw "$i")"
+  out=$($ctl simulate --preset panda --q0="$q0" --qd0="$qd0" --safety on --duration 120 --transient 0 2>&1) \
+    || { echo "$i refused"; return; }
+  echo "$i $(grep -o 'active [0-9.]* s' <<< "$out" | awk '{print $2}')"
+}
+export -f filtered
+if [ "${FILTER:-off}" = on ]; then
+  [ "$robot" = panda ] || { echo "FILTER=on runs the panda preset" >&2; exit 2; }
+  seq 1 "$n" | xargs -P 2 -I{} bash -c "filtered {}" | sort -n > "$out/filter.txt"
+  awk '$2 != "refused" { n++; if ($2 > 0) any++; if ($2 > 1.2) over++ }
+    END { printf "filter on: %d starts; it acts on %d, on more than 1 %% of the ticks on %d\n", n, any, over }' \
+    "$out/filter.txt"
+  exit 0
+fi
 
 echo "| α | k_d | μ | task.ramp (s) | null_speed (rad/s) | periodic inside every limit | the same, but for the first 0.1 s's acceleration | failures (first limit broken, or too slow) |"
 echo "|---|---|---|---|---|---|---|---|"
