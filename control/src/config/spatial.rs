@@ -421,7 +421,7 @@ impl SpatialConfig {
             return Err(invalid(
                 "law.null_speed",
                 self.law.null_speed,
-                "0 without law.null_damping: the cap bounds the velocity α∇/k_d the damped self-motion is pulled to",
+                "0 while law.null_damping = 0 (the cap acts on the velocity α∇/k_d that damping pulls the self-motion to)",
             ));
         }
         // The planar bound: the same gain may not mean a runaway on one arm and not the other.
