@@ -135,11 +135,15 @@ fn bad_inputs_are_one_clear_line() {
     );
     refused(
         &["robot", "show", "control/tests/fixtures/urdf/ur5.urdf"],
-        &["leaf links", "tool0", "--tip"],
+        &["3 leaf links", "\"tool0\" (6)", "\"base\" (0)", "--tip"],
     );
     refused(
         &["robot", "show", "panda", "--tip", "panda_hand"],
         &["no link named \"panda_hand\""],
+    );
+    refused(
+        &["robot", "show", "panda", "--tip", "panda_link9"],
+        &["did you mean \"panda_link0\" or \"panda_link1\""],
     );
     refused(
         &["robot", "eval", "panda", "--q", "0,0,0"],

@@ -95,10 +95,27 @@ fn several_leaves_ask_for_a_tip() {
         r#"<link name="d"/><joint name="j3" type="fixed"><parent link="b"/><child link="d"/></joint>"#,
         "revolute",
     ));
+    // Every leaf, the arm's end (most movable joints above it) first.
     assert!(
-        e.contains("2 leaf links") && e.contains("\"c\"") && e.contains("\"d\""),
+        e.contains("2 leaf links") && e.contains("\"c\" (2), \"d\" (1)"),
         "{e}"
     );
+}
+
+#[test]
+fn a_misspelt_link_gets_the_nearest_names() {
+    let text = arm(
+        r#"<link name="gripper"/><joint name="j3" type="fixed"><parent link="c"/><child link="gripper"/></joint>"#,
+        "revolute",
+    );
+    let e = Chain::from_urdf(&text, None, Some("Griper"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("did you mean \"gripper\"?"), "{e}");
+    let far = Chain::from_urdf(&text, None, Some("tool_frame"))
+        .unwrap_err()
+        .to_string();
+    assert!(!far.contains("did you mean"), "{far}");
 }
 
 #[test]

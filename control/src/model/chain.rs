@@ -450,8 +450,19 @@ impl<'a> Tree<'a> {
             .ok_or_else(|| ModelError::NoSuchLink {
                 link: name.to_string(),
                 role,
+                nearest: nearest(name, self.d.links.iter().map(|l| l.name.as_str())),
                 known: names(self.d.links.iter().map(|l| l.name.as_str())),
             })
+    }
+
+    /// Movable joints on the way from `base` down to `link` (0 when `link` is not below it).
+    fn movable_below(&self, base: usize, link: usize) -> usize {
+        self.path(base, link).map_or(0, |joints| {
+            joints
+                .iter()
+                .filter(|&&j| !matches!(self.d.joints[j].kind, Ok(JointType::Fixed)))
+                .count()
+        })
     }
 
     fn root(&self) -> Result<usize, ModelError> {
@@ -481,10 +492,19 @@ impl<'a> Tree<'a> {
         match leaves.as_slice() {
             [l] => Ok(*l),
             _ => {
-                leaves.sort();
+                // The arm's ends first: a user looks for the leaf with the most joints above it.
+                let mut ranked: Vec<(usize, usize)> = leaves
+                    .iter()
+                    .map(|&l| (self.movable_below(base, l), l))
+                    .collect();
+                ranked.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
                 Err(ModelError::AmbiguousTip {
                     count: leaves.len(),
-                    leaves: names(leaves.iter().map(|&l| self.d.links[l].name.as_str())),
+                    leaves: ranked
+                        .iter()
+                        .map(|&(n, l)| format!("{:?} ({n})", self.d.links[l].name))
+                        .collect::<Vec<_>>()
+                        .join(", "),
                 })
             }
         }
@@ -507,6 +527,41 @@ impl<'a> Tree<'a> {
         out.reverse();
         Ok(out)
     }
+}
+
+/// The names closest to a misspelt `name` (edit distance: at most three, no further than one
+/// edit beyond the closest, and within half the name's length), for a message's "did you mean".
+fn nearest<'s>(name: &str, it: impl Iterator<Item = &'s str>) -> String {
+    let want = name.to_lowercase();
+    let mut scored: Vec<(usize, &str)> = it
+        .map(|n| (edit_distance(&want, &n.to_lowercase()), n))
+        .filter(|&(d, _)| d <= (want.chars().count() / 2).max(2))
+        .collect();
+    scored.sort();
+    let best = scored.first().map_or(0, |&(d, _)| d);
+    scored
+        .iter()
+        .take_while(|&&(d, _)| d <= best + 1)
+        .take(3)
+        .map(|(_, n)| format!("{n:?}"))
+        .collect::<Vec<_>>()
+        .join(" or ")
+}
+
+/// Levenshtein distance over characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let substitute = diagonal + usize::from(ca != cb);
+            diagonal = row[j + 1];
+            row[j + 1] = substitute.min(row[j] + 1).min(diagonal + 1);
+        }
+    }
+    row[b.len()]
 }
 
 /// A short list of names for a message: at most a dozen, then a count.

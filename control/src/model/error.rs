@@ -30,10 +30,12 @@ pub enum ModelError {
         role: &'static str,
         link: String,
     },
-    #[error("no link named {link:?} (the {role}); links: {known}")]
+    #[error("no link named {link:?} (the {role}){}; links: {known}", did_you_mean(nearest))]
     NoSuchLink {
         link: String,
         role: &'static str,
+        /// The closest names, `"a" or "b"`; empty when none is close.
+        nearest: String,
         known: String,
     },
     #[error("link {link:?} has two parent joints, {first:?} and {second:?}; a URDF is a tree")]
@@ -48,7 +50,7 @@ pub enum ModelError {
     Roots { count: usize, roots: String },
     #[error("the description has no links")]
     Empty,
-    #[error("{count} leaf links ({leaves}): name the tip link (--tip or robot.tip)")]
+    #[error("{count} leaf links: name the tip link (--tip or robot.tip); each with the movable joints above it: {leaves}")]
     AmbiguousTip { count: usize, leaves: String },
     #[error("link {base:?} is not on the path from the root to {tip:?}: the base must be an ancestor of the tip")]
     NotAncestor { base: String, tip: String },
@@ -114,4 +116,13 @@ pub enum RobotError {
     },
     #[error("{origin}: {error}")]
     Model { origin: String, error: ModelError },
+}
+
+/// `, did you mean "a"?`, or nothing when no name is close.
+fn did_you_mean(nearest: &str) -> String {
+    if nearest.is_empty() {
+        String::new()
+    } else {
+        format!("; did you mean {nearest}?")
+    }
 }
