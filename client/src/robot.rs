@@ -96,6 +96,7 @@ pub fn run(cmd: RobotCmd) -> anyhow::Result<()> {
                 &vec("--qdd", &qdd)?,
                 &vec("--tau", &tau)?,
             )?;
+            finite(&chain, &e)?;
             if json {
                 println!("{}", serde_json::to_string(&e)?);
             } else {
@@ -194,22 +195,31 @@ pub fn describe(chain: &Chain, spec: &str) -> String {
         g.y,
         g.z
     ));
-    if let Some(j) = chain
-        .joints
-        .iter()
-        .rev()
-        .scan(0.0, |m, j| {
-            *m += j.body.mass;
-            Some((*m, j))
-        })
-        .find(|(m, _)| *m <= 0.0)
-    {
-        s.push_str(&format!(
-            "warning: joint {:?} moves no mass: the mass matrix is singular and ABA is undefined\n",
-            j.1.name
-        ));
+    if let Some(e) = chain.massless_joint("") {
+        s.push_str(&format!("warning: {e}\n"));
     }
     s
+}
+
+/// Refuses an evaluation with a non-finite number in it, naming the cause where it is known:
+/// no command prints a NaN and exits 0.
+fn finite(chain: &Chain, e: &control::model::Evaluation) -> anyhow::Result<()> {
+    let parts = [
+        ("tip_pose", &e.tip_pose),
+        ("jacobian", &e.jacobian),
+        ("jdot_qd", &e.jdot_qd),
+        ("mass_matrix", &e.mass_matrix),
+        ("rnea", &e.rnea),
+        ("gravity", &e.gravity),
+        ("aba", &e.aba),
+    ];
+    let Some((name, _)) = parts.iter().find(|(_, v)| v.iter().any(|x| !x.is_finite())) else {
+        return Ok(());
+    };
+    match chain.massless_joint("") {
+        Some(cause) => bail!("{name} is not finite at this state: {cause}"),
+        None => bail!("{name} is not finite at this state (the mass matrix is singular there, or the state too large)"),
+    }
 }
 
 fn pretty(e: &control::model::Evaluation, n: usize) -> String {

@@ -260,6 +260,22 @@ impl System {
         }
     }
 
+    /// Each joint's effort limit (N·m or N) as the command stream obeys it: the description's,
+    /// tightened by the maker's table and `[command.limits]`; ∞ for the planar arm (it has
+    /// none) and past [`System::n`].
+    pub fn effort_limits(&self) -> [f64; crate::basics::MAX_JOINTS] {
+        let mut out = [f64::INFINITY; crate::basics::MAX_JOINTS];
+        if let System::Spatial(s) = self {
+            let c = &s.config;
+            crate::with_dof!(s.chain.dof(), N => {
+                if let Ok(l) = c.command.limits::<N>(&s.chain, &c.robot.description) {
+                    out[..N].copy_from_slice(&l.tau);
+                }
+            });
+        }
+        out
+    }
+
     /// The running law's parameters as a block for [`TickLaw::set`]. The set-up was validated.
     pub fn param_block(&self) -> ParamBlock {
         match self {

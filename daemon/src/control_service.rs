@@ -174,6 +174,8 @@ impl Reporter {
             "blocked": self.deadlock.blocked.as_ref().map(|b| b.to_json()),
             "plan": self.deadlock.plan_json(),
             "chaos": self.chaos.to_json(self.mu_auto()),
+            "joint_limits": self.limits.seen(),
+            "limit_breaches": self.limits.seen().breaches(),
         });
         for k in [
             "kp",

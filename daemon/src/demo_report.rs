@@ -114,9 +114,13 @@ fn arm(r: &Run) -> String {
 /// Did the method work: tracking, the period residual, the monitor's verdict.
 fn method(r: &Run) -> Vec<Line> {
     let d = r.daemon;
-    let tracking = match (d.tracking_rms_m, d.tracking) {
-        (Some(t), Some(s)) => format!(
+    let tracking = match (d.tracking_rms_m, d.tracking, d.tracking_whole_rms_m, d.tracking_whole) {
+        (Some(t), Some(s), _, _) => format!(
             "RMS {t:.2e} m, median {:.2e} m, max {:.2e} m (after the first 2 s)",
+            s.p50_m, s.max_m
+        ),
+        (_, _, Some(t), Some(s)) => format!(
+            "RMS {t:.2e} m, median {:.2e} m, max {:.2e} m (the start-up transient: the law stopped tracking before 2 s)",
             s.p50_m, s.max_m
         ),
         _ => "n/a (no states received)".into(),
@@ -326,13 +330,14 @@ fn problems(r: &Run) -> String {
     .iter()
     .filter(|(n, _)| *n > 0)
     .map(|(n, what)| format!("{n} {what}"))
+    .chain(d.joint_limits.breaches())
     .collect();
     let blocked = d
         .first_blocked
         .as_ref()
         .map_or(String::new(), |b| format!(" (first Blocked: {b})"));
     if seen.is_empty() {
-        "none (no faults, rejected samples, holds, restarts, overruns or dropped records)".into()
+        "none (no limit breaches, faults, rejected samples, holds, restarts, overruns or dropped records)".into()
     } else {
         format!("{}{blocked}; see --details", seen.join(", "))
     }

@@ -108,7 +108,11 @@ impl Reporter {
     ) -> anyhow::Result<Self> {
         let names =
             ServiceNames::new(&daemon.namespace).map_err(|e| anyhow!("daemon.namespace: {e}"))?;
-        let limits = crate::limits::LimitWatch::new(*system.param_block().safety(), system.n());
+        let limits = crate::limits::LimitWatch::new(
+            *system.param_block().safety(),
+            system.effort_limits(),
+            system.n(),
+        );
         let saturations = crate::saturations::SaturationTable::new(
             system.command_mode(),
             system.limiter_on(),
@@ -606,6 +610,8 @@ impl Reporter {
             answered_within_period: self.answered_share(),
             tracking_rms_m: self.tracking.rms(),
             tracking: self.tracking.spread(),
+            tracking_whole_rms_m: self.tracking.whole_rms(),
+            tracking_whole: self.tracking.whole_spread(),
             period_residual_before: residual_before,
             period_residual_after: residual_after,
             period_residual_start: residual_start,

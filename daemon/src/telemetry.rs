@@ -121,6 +121,10 @@ pub struct DaemonSummary {
     /// Median, 99th percentile and largest tracking error over the same ticks: a stall of the
     /// host moves the RMS and the tail, a controller that tracks badly moves the median.
     pub tracking: Option<crate::tracking::TrackingSpread>,
+    /// The same over every tick, the start-up transient included: what a run that ended (by
+    /// a FAULT, say) before 2 s tracked.
+    pub tracking_whole_rms_m: Option<f64>,
+    pub tracking_whole: Option<crate::tracking::TrackingSpread>,
     /// Mean |q̇(t) − q̇(t − τ)| while the feedback was off (after the first 2 s).
     pub period_residual_before: Option<f64>,
     /// The same over the last 5 s with the feedback on.

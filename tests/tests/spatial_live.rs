@@ -29,7 +29,7 @@ fn the_panda_demo_runs_daemon_and_plant_inside_the_limits_and_the_feedback_shows
     );
     assert!(
         stdout.contains(
-            "0 states outside a position or speed limit, 0 commands beyond an acceleration limit"
+            "0 states outside a position or speed limit, 0 commands beyond an acceleration, jerk or effort limit"
         ),
         "{stdout}"
     );

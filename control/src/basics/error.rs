@@ -20,8 +20,37 @@ pub enum ConfigError {
     #[error("feedback.gamma and feedback.max_mu tune mu = \"auto\"; with a fixed mu they do nothing: remove them")]
     AutoTuningWithoutAuto,
     /// A spatial robot's set-up given where only the planar arm runs yet.
+    /// The robot's own physics cannot do what the set-up asks (found before the first command).
+    #[error(transparent)]
+    Physics(#[from] PhysicsError),
     #[error("{0} is a spatial robot's set-up; `chaosd`, `chaosd-plant` and `chaosctl config|simulate|lyapunov|sweep|poincare|orbits|basins|monitor|figures|obstacles|arm-figure|plan|replay` run spatial robots, but this command takes the planar arm only")]
     Spatial(String),
+}
+
+/// A robot whose physics cannot do what is asked of it, named by joint and number: found at
+/// start-up so that it never surfaces later as a NaN or a runaway-guard FAULT.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PhysicsError {
+    /// A movable joint that moves nothing: the mass matrix is singular.
+    #[error("joint {index} ({joint:?}) moves no mass or inertia: link {link:?} and every link after it weigh nothing (a link without <inertial> has mass 0), so the mass matrix is singular and the arm's dynamics are undefined; give those links an <inertial>{remedy}")]
+    Massless {
+        /// 1-based, as every message numbers joints.
+        index: usize,
+        joint: String,
+        link: String,
+        /// What the user can do instead, where there is something (", or …").
+        remedy: &'static str,
+    },
+    /// An effort limit below the gravity load at the start posture.
+    #[error("joint {index} ({joint:?}) cannot hold the start posture: gravity there needs {load:.2} {unit} and its effort limit is {limit:.2} {unit}; start where the arm carries less (sim.q0){remedy}")]
+    GravityBeyondEffort {
+        index: usize,
+        joint: String,
+        load: f64,
+        limit: f64,
+        unit: &'static str,
+        remedy: &'static str,
+    },
 }
 
 /// Largest config text accepted: a config is a few hundred bytes; a huge file is a mistake, and

@@ -12,5 +12,6 @@ pub mod flags;
 pub use angle::wrap_angle;
 pub use dof::{MAX_JOINTS, MIN_JOINTS};
 pub use error::{
-    excerpt, invalid, live_number, range, ConfigError, LiveError, MAX_CONFIG_BYTES, MAX_QUOTE,
+    excerpt, invalid, live_number, range, ConfigError, LiveError, PhysicsError, MAX_CONFIG_BYTES,
+    MAX_QUOTE,
 };

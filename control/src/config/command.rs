@@ -129,6 +129,17 @@ impl CommandSection {
         let model = chain
             .model::<N>()
             .map_err(|e| invalid("robot.description", robot, &e.to_string()))?;
+        if self.mode == CommandMode::Torque {
+            let instead = ", or use command.mode = \"acceleration\"";
+            if let Some(e) = chain.massless_joint(instead) {
+                return Err(e.into());
+            }
+            if let Some(e) =
+                chain.gravity_beyond_effort(&model, q0, &VecN::<N>::from(limits.tau), instead)
+            {
+                return Err(e.into());
+            }
+        }
         let ms = crate::rigid_body::inertias(&model, chain, q0);
         let auto = ServoGains::from_bandwidth(&ms, self.pd_bandwidth_hz, self.pd_damping);
         let g = CommandGains {

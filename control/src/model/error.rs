@@ -30,7 +30,10 @@ pub enum ModelError {
         role: &'static str,
         link: String,
     },
-    #[error("no link named {link:?} (the {role}){}; links: {known}", did_you_mean(nearest))]
+    #[error(
+        "no link named {link:?} (the {role}){}; links: {known}",
+        did_you_mean(nearest)
+    )]
     NoSuchLink {
         link: String,
         role: &'static str,

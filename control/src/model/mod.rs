@@ -14,6 +14,7 @@ mod error;
 mod eval;
 mod fixed;
 mod kinematics;
+mod physics;
 mod pose;
 mod rnea;
 pub mod spatial;

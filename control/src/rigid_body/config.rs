@@ -249,7 +249,15 @@ impl RigidBodyConfig {
         let described: Model<N> = chain
             .model::<N>()
             .map_err(|e| invalid("robot.description", &chain.robot, &e.to_string()))?;
+        if let Some(e) =
+            chain.massless_joint(", or run the kinematic plant (plant.dynamics = \"kinematic\")")
+        {
+            return Err(e.into());
+        }
         let model = mismatched(&described, self.payload, self.payload_com, self.mass_scale);
+        if let Some(e) = chain.gravity_beyond_effort(&model, &start.0, &tau_max, "") {
+            return Err(e.into());
+        }
         let ms = inertias(&model, chain, &start.0);
         let auto = ServoGains::from_bandwidth(&ms, self.servo_bandwidth_hz, self.servo_damping);
         let servo = ServoGains {

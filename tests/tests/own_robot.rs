@@ -1,0 +1,162 @@
+//! A robot nobody tuned for, through the real processes: a start the arm cannot hold and a body
+//! without mass are refused before the first command with the physical cause, and a run that
+//! breaks a limit says so on the one-screen report's problems line (and in its summary).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use tests::*;
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn demo(cfg: &Path, out: &Path, args: &[&str]) -> Output {
+    Command::new(bin("chaosd"))
+        .args(["demo", "--config", cfg.to_str().unwrap()])
+        .args(args)
+        .args(["--output", out.to_str().unwrap()])
+        .output()
+        .unwrap()
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// The Panda with every `<inertial>` of `links` removed (a URDF that forgot them).
+fn panda_without_inertials(links: &[&str]) -> String {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/panda.urdf");
+    let mut s = std::fs::read_to_string(path).unwrap();
+    for l in links {
+        let open = format!("<link name=\"{l}\">");
+        let start = s.find(&open).expect("the link is in the Panda's URDF");
+        let end = start + s[start..].find("</link>").unwrap();
+        if let Some(i) = s[start..end].find("<inertial>") {
+            let j = s[start..end].find("</inertial>").unwrap() + "</inertial>".len();
+            s.replace_range(start + i..start + j, "");
+        }
+    }
+    s
+}
+
+#[test]
+fn a_start_the_arm_cannot_hold_is_refused_by_joint_and_number_in_every_torque_driven_mode() {
+    let _g = serial();
+    let dir = TempDir::new(&unique_namespace("cannot-hold"));
+    // Joint 4 carries 18.57 N·m of gravity at the ready pose; its limit tightened to 15.
+    let cfg = write(
+        dir.path(),
+        "weak.toml",
+        &format!(
+            "{}\n[command.limits]\ntorque = [87.0, 87.0, 87.0, 15.0, 12.0, 12.0, 12.0]\n",
+            control::config::spatial::PANDA_PAPER
+        ),
+    );
+    let out = dir.path().join("out");
+    let cause = "joint 4 (\"panda_joint4\") cannot hold the start posture: gravity there needs 18.57 N·m and its effort limit is 15.00 N·m";
+    for (mode, who) in [("torque", "chaosd:"), ("position", "chaosd-plant:")] {
+        let o = demo(&cfg, &out, &["--mode", mode, "--duration", "3"]);
+        let all = text(&o);
+        assert!(!o.status.success(), "{mode}: {all}");
+        assert!(
+            all.contains(&format!("{who} error: {cause}")),
+            "{mode}: {all}"
+        );
+        assert!(!all.contains("== chaosd demo report =="), "{mode}: {all}");
+    }
+}
+
+#[test]
+fn a_body_without_mass_is_named_never_a_nan() {
+    let _g = serial();
+    let dir = TempDir::new(&unique_namespace("massless"));
+    let urdf = write(
+        dir.path(),
+        "massless.urdf",
+        &panda_without_inertials(&["panda_link7"]),
+    );
+    let o = Command::new(bin("chaosctl"))
+        .args(["robot", "eval", urdf.to_str().unwrap(), "--json"])
+        .output()
+        .unwrap();
+    let all = text(&o);
+    assert!(!o.status.success(), "{all}");
+    assert!(
+        !all.contains("null") && !all.contains("NaN"),
+        "a non-finite number printed: {all}"
+    );
+    let cause = "joint 7 (\"panda_joint7\") moves no mass or inertia";
+    assert!(
+        all.contains(&format!("aba is not finite at this state: {cause}")),
+        "{all}"
+    );
+    let show = Command::new(bin("chaosctl"))
+        .args(["robot", "show", urdf.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(show.status.success() && text(&show).contains(&format!("warning: {cause}")));
+    let cfg = write(
+        dir.path(),
+        "massless.toml",
+        &control::config::spatial::PANDA_PAPER.replace(
+            "description = \"panda\"",
+            &format!("description = {:?}", urdf.to_str().unwrap()),
+        ),
+    );
+    let out = dir.path().join("out");
+    let o = demo(&cfg, &out, &["--mode", "torque", "--duration", "3"]);
+    let all = text(&o);
+    assert!(!o.status.success() && all.contains(cause), "{all}");
+    // A body is not needed to command accelerations to the kinematic plant.
+    let o = demo(&cfg, &out, &["--mode", "acceleration", "--duration", "3"]);
+    assert!(o.status.success(), "{}", text(&o));
+}
+
+#[test]
+fn a_limit_breach_is_on_the_problems_line_with_its_count_and_worst_joint() {
+    let _g = serial();
+    let dir = TempDir::new(&unique_namespace("breach"));
+    // Filter and limiter off, and a start above joint 1's speed limit (2.175 rad/s): the law
+    // brakes it in one tick, past the acceleration limit. Nothing hides either.
+    let base = control::config::spatial::PANDA_PAPER;
+    assert!(!base.contains("[command]"));
+    let text_cfg = base.replace("[safety]\nenabled = true", "[safety]\nenabled = false")
+        + "\n[command]\nlimiter = false\n";
+    let text_cfg = match text_cfg.find("qd0 = ") {
+        Some(i) => {
+            let end = i + text_cfg[i..].find('\n').unwrap();
+            format!(
+                "{}qd0 = [3.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]{}",
+                &text_cfg[..i],
+                &text_cfg[end..]
+            )
+        }
+        None => text_cfg.replace("[sim]", "[sim]\nqd0 = [3.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]"),
+    };
+    assert!(text_cfg.contains("limiter = false") && text_cfg.contains("enabled = false"));
+    let cfg = write(dir.path(), "breach.toml", &text_cfg);
+    let out = dir.path().join("out");
+    let o = demo(&cfg, &out, &["--duration", "3"]);
+    let all = text(&o);
+    assert!(o.status.success(), "{all}");
+    let problems = all
+        .lines()
+        .find(|l| l.starts_with("problems"))
+        .unwrap_or_else(|| panic!("no problems line: {all}"));
+    assert!(
+        problems.contains("states above a speed limit (worst joint 1, 1")
+            && problems.contains("commands above an acceleration limit (worst joint 1,"),
+        "{problems}"
+    );
+    let s = read_json(&out.join("daemon-summary.json"));
+    let l = &s["joint_limits"];
+    assert!(l["speed_outside"].as_u64().unwrap() >= 1, "{l}");
+    assert_eq!(l["peak_speed_joint"], 1, "{l}");
+    assert!(l["peak_speed_fraction"].as_f64().unwrap() > 1.3, "{l}");
+}
