@@ -121,8 +121,8 @@ pub enum ObstacleAction {
         #[arg(long, default_value_t = 0.1)]
         margin: f64,
     },
-    /// Remove obstacle INDEX (see `ls`).
-    Rm { index: usize },
+    /// Remove obstacle N, numbered from 1 as `ls` and every message number them.
+    Rm { number: usize },
     /// List the obstacles.
     Ls,
 }
@@ -146,7 +146,7 @@ impl ObstacleAction {
                 let v: Vec<String> = values.iter().map(f64::to_string).collect();
                 (Op::ObstacleAdd, format!("{} margin={margin}", v.join(" ")))
             }
-            ObstacleAction::Rm { index } => (Op::ObstacleRemove, index.to_string()),
+            ObstacleAction::Rm { number } => (Op::ObstacleRemove, number.to_string()),
             ObstacleAction::Ls => (Op::ObstacleList, String::new()),
         }
     }

@@ -165,6 +165,10 @@ pub fn next_mu<const N: usize>(
 /// set_live("mu", Some("0.1"), &mut mu, &mut auto).unwrap();
 /// assert_eq!((mu, auto), (0.1, None));
 /// assert!(set_live("max_mu", Some("1"), &mut mu, &mut auto).is_err());
+/// // Auto from a gain above its cap starts at the cap.
+/// let (mut mu, mut auto) = (0.5, None);
+/// set_live("mu", Some("auto"), &mut mu, &mut auto).unwrap();
+/// assert_eq!(mu, AutoMu::default().max_mu);
 /// ```
 pub fn set_live(
     key: &str,
@@ -185,6 +189,11 @@ pub fn set_live(
         ("gamma", Some(a)) => a.gamma = number()?,
         ("max_mu", Some(a)) => a.max_mu = number()?,
         (k, _) => return Err(LiveError::NeedsAuto { key: k.into() }),
+    }
+    // The adaptation never goes past max_mu: the gain it starts from may not either, or the
+    // answer and the file would say a gain the loop never runs.
+    if let Some(a) = auto {
+        *mu = mu.min(a.max_mu);
     }
     Ok(())
 }

@@ -187,6 +187,20 @@ impl System {
         }
     }
 
+    /// The arm's smallest clearance to the set-up's obstacles at posture `q` (m; negative: a
+    /// link inside one; ∞ without obstacles), by the law's own geometry: the law evaluated once
+    /// at rest there. Not for the loop (it builds the law).
+    pub fn clearance_at(&self, q: &[f64]) -> f64 {
+        crate::with_dof!(self.n(), N => {
+            let law = self.tick_law::<N>();
+            let mut x = self.initial_state::<N>();
+            x.q = VecN::<N>::from_fn(|i, _| q.get(i).copied().unwrap_or(0.0));
+            x.qd = VecN::<N>::zeros();
+            let mut scratch = crate::tick_law::LawScratch::<N>::default();
+            law.evaluate(0.0, &x, &VecN::<N>::zeros(), &mut scratch).clearance
+        })
+    }
+
     /// The feedback settings every arm has.
     pub fn feedback(&self) -> Feedback {
         match self {

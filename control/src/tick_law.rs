@@ -139,12 +139,20 @@ impl<const N: usize> TickLaw<N> {
     }
 
     /// After a new parameter block: an adapting gain goes on from `mu` (the gain before the
-    /// change) rather than from the block's start, so an edit does not throw the adaptation away.
+    /// change) rather than from the block's start, so an edit does not throw the adaptation away;
+    /// never past the block's `max_mu`, which the adaptation itself never passes.
     pub fn carry_adapted_mu(&mut self, mu: f64) {
         match self {
-            TickLaw::Planar { params: p, .. } if p.auto_mu.is_some() => p.mu = mu,
-            TickLaw::Spatial { params: p, .. } if p.auto_mu.is_some() => p.mu = mu,
-            _ => {}
+            TickLaw::Planar { params: p, .. } => {
+                if let Some(a) = p.auto_mu {
+                    p.mu = mu.min(a.max_mu);
+                }
+            }
+            TickLaw::Spatial { params: p, .. } => {
+                if let Some(a) = p.auto_mu {
+                    p.mu = mu.min(a.max_mu);
+                }
+            }
         }
     }
 

@@ -33,6 +33,7 @@ impl Reporter {
             .map_err(|_| {
                 "the control loop has not taken the previous change yet; try again".to_string()
             })?;
+        let answer = crate::change::describe(&self.system, &new);
         self.system = new;
         let t = self.last.map_or(self.t_start, |r| r.t);
         let q_now = self.last_state.map(|s| s.q[..self.system.n()].to_vec());
@@ -42,9 +43,7 @@ impl Reporter {
             log.committed(&self.system);
         }
         self.save_live_state();
-        let mut answer = self.law_settings();
-        answer["applied"] = "at the next tick".into();
-        Ok(answer.to_string())
+        Ok(answer)
     }
 
     /// The law's settings as `status` and a change's answer show them.
@@ -98,9 +97,29 @@ impl Reporter {
         }
     }
 
+    /// Refuses a new obstacle that a link is already inside: the filter keeps links out of an
+    /// obstacle and cannot bring one out, so the arm would run on inside it.
+    fn outside_obstacles(&self, op: Op, new: System) -> Result<System, String> {
+        let Some(q) = self.last_state.map(|s| s.q[..self.system.n()].to_vec()) else {
+            return Ok(new);
+        };
+        if op != Op::ObstacleAdd {
+            return Ok(new);
+        }
+        let (before, after) = (self.system.clearance_at(&q), new.clearance_at(&q));
+        if after < 0.0 && after < before {
+            return Err(format!(
+                "a link of the arm is {:.3} m inside that obstacle at its posture now: the safety filter keeps links out of an obstacle but cannot bring one out; place it clear of the arm",
+                -after
+            ));
+        }
+        Ok(new)
+    }
+
     /// The obstacles as `obstacle ls` lists them (2-D circles or 3-D spheres).
     fn obstacles(&self) -> serde_json::Value {
-        let row = |i: usize, c: &[f64], r: f64, m: f64| serde_json::json!({"index": i, "center": c, "radius": r, "margin": m});
+        // Numbered from 1, as `obstacle rm`, Blocked and every other message number them.
+        let row = |i: usize, c: &[f64], r: f64, m: f64| serde_json::json!({"number": i + 1, "center": c, "radius": r, "margin": m});
         let rows: Vec<_> = match &self.system {
             System::Planar(c) => c
                 .control
@@ -224,9 +243,10 @@ impl Reporter {
                 *c.tables_mut().0 = toml::Table::try_from(&self.daemon).ok();
                 Ok(c.to_toml())
             }
-            Op::Set | Op::DfcOn | Op::DfcOff | Op::ObstacleAdd | Op::ObstacleRemove => {
-                self.change(op, args, now).and_then(|c| self.commit(c))
-            }
+            Op::Set | Op::DfcOn | Op::DfcOff | Op::ObstacleAdd | Op::ObstacleRemove => self
+                .change(op, args, now)
+                .and_then(|c| self.outside_obstacles(op, c))
+                .and_then(|c| self.commit(c)),
             Op::ObstacleList => Ok(self.obstacles().to_string()),
             Op::HistSnapshot => Ok(self.percentiles().to_string()),
             Op::HistReset => {

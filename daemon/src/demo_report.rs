@@ -331,6 +331,11 @@ fn problems(r: &Run) -> String {
     .filter(|(n, _)| *n > 0)
     .map(|(n, what)| format!("{n} {what}"))
     .chain(d.joint_limits.breaches())
+    .chain(
+        d.min_clearance_m
+            .filter(|&m| m < 0.0)
+            .map(|m| format!("a link {:.3} m inside an obstacle", -m)),
+    )
     .collect();
     let blocked = d
         .first_blocked

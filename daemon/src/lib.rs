@@ -7,6 +7,7 @@
 //! real-time loop on iceoryx2 ([`service`]) and the reporting that keeps work out of the tick
 //! ([`telemetry`] the shared types, [`reporter`], [`control_service`], [`recording`]).
 
+pub mod change;
 pub mod chaos;
 pub mod cli;
 pub mod config;

@@ -235,19 +235,26 @@ pub fn apply_obstacle_add(cfg: &Config, args: &str) -> Result<Config, String> {
     Ok(c)
 }
 
-/// `INDEX` (as listed by `obstacle ls`).
-pub fn apply_obstacle_remove(cfg: &Config, args: &str) -> Result<Config, String> {
-    let i: usize = args
-        .trim()
-        .parse()
-        .map_err(|_| format!("obstacle rm needs an index, got {:?}", args.trim()))?;
-    let mut c = cfg.clone();
-    if i >= c.control.obstacles.len() {
-        return Err(format!(
-            "no obstacle {i}: there are {}",
-            c.control.obstacles.len()
-        ));
+/// `obstacle rm N`: the obstacle's number as `obstacle ls`, status and every message give it,
+/// counted from 1; its 0-based place in a list of `count`.
+pub(crate) fn obstacle_number(args: &str, count: usize) -> Result<usize, String> {
+    let n: usize = args.trim().parse().map_err(|_| {
+        format!(
+            "obstacle rm needs an obstacle's number (obstacle ls), got {:?}",
+            args.trim()
+        )
+    })?;
+    match n {
+        0 => Err("obstacles are numbered from 1, as obstacle ls lists them".into()),
+        n if n > count => Err(format!("no obstacle {n}: there are {count}")),
+        n => Ok(n - 1),
     }
+}
+
+/// `N`, as listed by `obstacle ls` (from 1).
+pub fn apply_obstacle_remove(cfg: &Config, args: &str) -> Result<Config, String> {
+    let mut c = cfg.clone();
+    let i = obstacle_number(args, c.control.obstacles.len())?;
     c.control.obstacles.remove(i);
     c.validate().map_err(|e| {
         format!("{e} (set secondary to none or manipulability before removing the last obstacle)")
@@ -461,13 +468,16 @@ mod tests {
             .contains("obstacle.radius"));
         assert!(apply_obstacle_add(&c, "0 1.6").is_err());
         let c2 = apply_set(&c, "secondary obstacles", 1e-3).unwrap();
-        assert!(apply_obstacle_remove(&c2, "0")
+        assert!(apply_obstacle_remove(&c2, "1")
             .unwrap_err()
             .contains("secondary"));
         assert!(apply_obstacle_remove(&c2, "3")
             .unwrap_err()
             .contains("no obstacle 3"));
         assert!(apply_obstacle_remove(&c, "0")
+            .unwrap_err()
+            .contains("numbered from 1"));
+        assert!(apply_obstacle_remove(&c, "1")
             .unwrap()
             .control
             .obstacles

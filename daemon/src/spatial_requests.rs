@@ -131,23 +131,14 @@ pub fn apply_obstacle_add(
     checked(n, min_tau)
 }
 
-/// `INDEX` (as listed by `obstacle ls`).
+/// `N`, as listed by `obstacle ls` (from 1).
 pub fn apply_obstacle_remove(
     s: &SpatialSystem,
     args: &str,
     min_tau: f64,
 ) -> Result<SpatialSystem, String> {
-    let i: usize = args
-        .trim()
-        .parse()
-        .map_err(|_| format!("obstacle rm needs an index, got {:?}", args.trim()))?;
     let mut n = s.clone();
-    if i >= n.config.obstacles.len() {
-        return Err(format!(
-            "no obstacle {i}: there are {}",
-            n.config.obstacles.len()
-        ));
-    }
+    let i = crate::requests::obstacle_number(args, n.config.obstacles.len())?;
     n.config.obstacles.remove(i);
     checked(n, min_tau)
 }
@@ -211,7 +202,7 @@ mod tests {
         assert_eq!(m.config.obstacles[0].margin, 0.2);
         assert!(apply_obstacle_add(&p, "0.5 0.2 nan 0.05", 1e-3).is_err());
         assert!(apply_obstacle_add(&p, "0.5 0.2 0.4 -1", 1e-3).is_err());
-        let back = apply_obstacle_remove(&n, "0", 1e-3).unwrap();
+        let back = apply_obstacle_remove(&n, "1", 1e-3).unwrap();
         assert!(back.config.obstacles.is_empty());
         assert!(apply_obstacle_remove(&n, "3", 1e-3)
             .unwrap_err()

@@ -8,8 +8,24 @@ use crate::{bin, unique_namespace, write_config, Proc, TempDir};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-/// Runs chaosctl; returns (exit code, stdout, stderr).
+/// Runs chaosctl; returns (exit code, stdout, stderr). An `obstacle add` that the daemon
+/// refuses because a link is inside the obstacle at that moment is tried again, for 5 s, as
+/// the arm moves on: these tests put obstacles where the arm passes, at moments they cannot
+/// choose (`own_robot` tests the refusal itself).
 pub fn ctl(ns: &str, args: &[&str]) -> (i32, String, String) {
+    let until = Instant::now() + Duration::from_secs(5);
+    loop {
+        let (code, out, err) = ctl_once(ns, args);
+        let on_the_arm = code == 1 && err.contains("inside that obstacle");
+        if !(on_the_arm && args.starts_with(&["obstacle", "add"]) && Instant::now() < until) {
+            return (code, out, err);
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// [`ctl`] without the retry.
+pub fn ctl_once(ns: &str, args: &[&str]) -> (i32, String, String) {
     let out = std::process::Command::new(bin("chaosctl"))
         .args(args)
         .args(["--namespace", ns])
@@ -180,7 +196,7 @@ impl Lcg {
     }
 }
 
-/// Removes obstacle `index` from the daemon of `ns` and waits, 8 s at most, for tracking
+/// Removes obstacle number `index` (from 1) from the daemon of `ns` and waits, 8 s at most, for tracking
 /// within 1e-3 m again: the status then, and how long it took.
 pub fn remove_and_track(ns: &str, index: &str) -> (serde_json::Value, Duration) {
     let (code, _, err) = ctl(ns, &["obstacle", "rm", index]);

@@ -78,7 +78,7 @@ fn an_obstacle_with_no_way_round_blocks_at_once_and_removing_it_resumes_tracking
     assert!(daemon.log().contains("BLOCKED at t ="), "{}", daemon.log());
 
     // Removing it ends the block, and the arm tracks again.
-    let (code, _, err) = ctl(&ns, &["obstacle", "rm", "0"]);
+    let (code, _, err) = ctl(&ns, &["obstacle", "rm", "1"]);
     assert_eq!(code, 0, "{err}");
     let (v, took) = poll_status(&ns, Duration::from_secs(3), |v| !blocked(v));
     assert!(
@@ -164,7 +164,7 @@ fn whatever_obstacle_is_added_the_daemon_tracks_or_says_blocked() {
                 panic!("layout {k} {layout}: neither tracking nor blocked after {within:?}: {v}")
             }
         }
-        let (v, _) = remove_and_track(&sys.ns, "0");
+        let (v, _) = remove_and_track(&sys.ns, "1");
         assert!(
             tracking(&v, 1e-3),
             "layout {k} {layout}: no tracking after the removal: {v}"

@@ -160,3 +160,39 @@ fn a_limit_breach_is_on_the_problems_line_with_its_count_and_worst_joint() {
     assert_eq!(l["peak_speed_joint"], 1, "{l}");
     assert!(l["peak_speed_fraction"].as_f64().unwrap() > 1.3, "{l}");
 }
+
+#[test]
+fn an_obstacle_dropped_onto_the_arm_is_refused_with_the_reason_and_nothing_changes() {
+    let _g = serial();
+    // Joints 1 and 2 of the Panda meet at (0, 0, 0.333) whatever the joints do: a sphere
+    // there is inside the first capsule (radius 0.08) at every moment.
+    let sys = tests::live::start("on-the-arm", control::config::spatial::PANDA_PAPER);
+    let (code, _, err) =
+        tests::live::ctl_once(&sys.ns, &["obstacle", "add", "0.0", "0.0", "0.333", "0.05"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("a link of the arm is 0.130 m inside that obstacle"),
+        "{err}"
+    );
+    let (code, out, _) = tests::live::ctl_once(&sys.ns, &["obstacle", "ls"]);
+    assert_eq!((code, out.trim()), (0, "[]"));
+    // A sphere clear of the arm is taken, numbered from 1, and the answer says what changed.
+    let (code, out, err) =
+        tests::live::ctl_once(&sys.ns, &["obstacle", "add", "1.0", "-1.0", "1.5", "0.05"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("obstacles[1].radius: (none) → 0.05")
+            && out.contains("applied at the next tick"),
+        "{out}"
+    );
+    let (_, out, _) = tests::live::ctl_once(&sys.ns, &["obstacle", "ls"]);
+    assert!(out.contains("\"number\": 1"), "{out}");
+    let (code, _, err) = tests::live::ctl_once(&sys.ns, &["obstacle", "rm", "0"]);
+    assert!(code == 1 && err.contains("numbered from 1"), "{err}");
+    let (code, out, err) = tests::live::ctl_once(&sys.ns, &["set", "mu", "0.5"]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(
+        out.trim(),
+        "feedback.mu: 1.0 → 0.5\napplied at the next tick"
+    );
+}

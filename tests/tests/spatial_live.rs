@@ -99,7 +99,7 @@ fn a_live_panda_takes_spheres_and_gains_and_refuses_what_its_file_could_not_say(
         (Some("Run"), Some(1)),
         "{st}"
     );
-    let (code, _, err) = ctl(&sys.ns, &["obstacle", "rm", "0"]);
+    let (code, _, err) = ctl(&sys.ns, &["obstacle", "rm", "1"]);
     assert_eq!(code, 0, "{err}");
     let (code, text, err) = ctl(&sys.ns, &["status"]);
     assert_eq!(code, 0, "{err}");
@@ -223,7 +223,7 @@ fn whatever_sphere_is_added_a_live_panda_tracks_or_says_blocked() {
                 sys.daemon.log()
             ),
         }
-        let (v, _) = remove_and_track(ns, "0");
+        let (v, _) = remove_and_track(ns, "1");
         assert!(
             tracking(&v, 1e-3),
             "sphere {k} ({layout}): no tracking after the removal: {v}"
@@ -308,7 +308,7 @@ fn a_live_panda_steers_round_a_new_sphere_and_says_blocked_for_one_on_its_path()
     assert_eq!(v["mode"], "Hold", "tracking paused while blocked: {v}");
 
     // Removing it ends the block, and the arm tracks again round the first sphere.
-    let (v, took) = remove_and_track(ns, "1");
+    let (v, took) = remove_and_track(ns, "2");
     assert!(
         tracking(&v, 1e-3),
         "not tracking {took:?} after the removal: {v}"
