@@ -267,8 +267,10 @@ pub fn print(r: &SpatialReport) {
         opt(s.drift_per_period, "rad")
     );
     println!(
-        "  joint speeds     max {:.3} rad/s ({:.0}% of the limit)",
+        "  joint speeds     fastest {:.3} rad/s (joint {}); closest to its limit: joint {} at {:.0}%",
         s.max_joint_speed,
+        s.max_joint_speed_joint,
+        s.max_speed_ratio_joint,
         100.0 * s.max_speed_ratio
     );
     println!(

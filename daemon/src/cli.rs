@@ -70,9 +70,9 @@ enum Cmd {
         /// else a third of the way in).
         #[arg(long = "t-on")]
         t_on: Option<f64>,
-        /// What starts a tick: state (each state is answered in the same cycle; the default
-        /// for the built-in robots) or clock (free-running loops; a --config file's
-        /// daemon.trigger is kept unless this is given). Sets daemon.trigger and plant.trigger.
+        /// What starts a tick: state (each state is answered in the same cycle; the default)
+        /// or clock (free-running loops). A --config file's daemon.trigger or plant.trigger is
+        /// kept unless this is given. Sets daemon.trigger and plant.trigger.
         #[arg(long)]
         trigger: Option<rt::Trigger>,
         /// Drive the arm through a hardware bridge instead of the simulator: `udp` runs
@@ -336,13 +336,6 @@ fn demo(
         );
     }
     let built_in = common.config.is_none();
-    // Same-cycle is the better default wherever the set-up does not say otherwise: the answer
-    // reaches the plant microseconds after its state, not a period later (docs/service.md).
-    let trigger = if bridge.is_some() || (trigger.is_none() && built_in) {
-        Some(rt::Trigger::State)
-    } else {
-        trigger
-    };
     let mut s = if built_in && common.preset.is_none() {
         Common {
             preset: Some(common.robot_preset("demo")?.unwrap_or("panda".into())),
@@ -360,6 +353,17 @@ fn demo(
         control::System::Spatial(_) => 60.0,
     });
     check_duration(duration)?;
+    // Same-cycle is the better default wherever the set-up does not say otherwise (a built-in
+    // set-up, or a file of one's own without daemon.trigger or plant.trigger): the answer
+    // reaches the plant microseconds after its state, not a period later (docs/service.md).
+    let (daemon_table, plant_table) = s.system.tables();
+    let says = |t: &Option<toml::Table>| t.as_ref().is_some_and(|t| t.contains_key("trigger"));
+    let file_says = says(daemon_table) || says(plant_table);
+    let trigger = if bridge.is_some() || (trigger.is_none() && !file_says) {
+        Some(rt::Trigger::State)
+    } else {
+        trigger
+    };
     if built_in {
         // About a dozen status lines, whatever the length: the run fits one screen.
         s.daemon.report_every_s = (duration / 12.0).round().clamp(2.0, 60.0);

@@ -39,7 +39,7 @@ use std::process::ExitCode;
 /// The flags every plant process takes; `#[command(flatten)]` them into a bridge's own `Args`.
 #[derive(clap::Args, Clone, Debug, Default)]
 pub struct PlantArgs {
-    /// TOML config file (the same file the daemon reads; a plant uses [arm], [sim] and [plant]).
+    /// TOML config file (the same file the daemon reads; a plant uses the arm ([arm] or [robot]), [sim], [command] and [plant]).
     #[arg(long, conflicts_with = "preset")]
     pub config: Option<PathBuf>,
     /// A built-in set-up instead of a file.
@@ -51,7 +51,9 @@ pub struct PlantArgs {
     /// Overrides plant.output_dir.
     #[arg(long)]
     pub output: Option<PathBuf>,
-    /// Stop after this many seconds.
+    /// Stop after this many seconds (default: on SIGINT or SIGTERM). A daemon that shuts down
+    /// leaves the arm braked, not the plant stopped: as a real arm outlives its controller, the
+    /// plant waits braked for a daemon to start again (a restarted daemon takes the arm over).
     #[arg(long)]
     pub duration: Option<f64>,
 }

@@ -97,7 +97,7 @@ pub fn run<P: Plant>(
 ) -> Result<PlantSummary> {
     if plant.n() != arm.n as usize {
         return Err(anyhow!(
-            "the plant has {} joints, but [arm] describes {}",
+            "the plant has {} joints, but the daemon's arm is {}",
             plant.n(),
             arm
         ));

@@ -252,9 +252,11 @@ pub struct RunStats<const N: usize> {
     pub safety_infeasible_steps: u64,
     /// Largest orientation error after the transient (rad; 0 without a pose task).
     pub max_orientation_error: f64,
-    /// Largest |q̇_i| and largest |q̇_i| / q̇_max,i over the run.
+    /// Largest |q̇_i| and largest |q̇_i| / q̇_max,i over the run, each with its joint (1-based).
     pub max_joint_speed: f64,
+    pub max_joint_speed_joint: usize,
     pub max_speed_ratio: f64,
+    pub max_speed_ratio_joint: usize,
     /// Largest |q̈_i| / q̈_max,i and |Δq̈_i / dt| / jerk_max,i of the law's command over the run.
     pub max_accel_ratio: f64,
     pub max_jerk_ratio: f64,
@@ -330,8 +332,14 @@ pub struct Summary {
     /// limit was exceeded; 0 without rate limits).
     #[serde(default)]
     pub max_joint_speed: f64,
+    /// The joint of `max_joint_speed` (1-based; 0 before any step).
+    #[serde(default)]
+    pub max_joint_speed_joint: usize,
     #[serde(default)]
     pub max_speed_ratio: f64,
+    /// The joint of `max_speed_ratio` (1-based; 0 without rate limits): not always the fastest.
+    #[serde(default)]
+    pub max_speed_ratio_joint: usize,
     /// Largest |q̈_i| / q̈_max,i and step-to-step |Δq̈_i| / (dt · jerk_max,i) of the commanded
     /// acceleration over the run (above 1: that limit was exceeded; 0 without such limits).
     #[serde(default)]
@@ -440,7 +448,9 @@ impl<const N: usize> RunStats<N> {
             safety_infeasible_steps: 0,
             max_orientation_error: 0.0,
             max_joint_speed: 0.0,
+            max_joint_speed_joint: 0,
             max_speed_ratio: 0.0,
+            max_speed_ratio_joint: 0,
             max_accel_ratio: 0.0,
             max_jerk_ratio: 0.0,
             qd_max: setup.qd_max,
@@ -482,11 +492,15 @@ impl<const N: usize> RunStats<N> {
             self.strobe = [self.strobe[1], Some(*x)];
             self.next_strobe += 1;
         }
-        self.max_joint_speed = self.max_joint_speed.max(x.qd.amax());
-        let ratio = (0..N)
-            .map(|i| x.qd[i].abs() / self.qd_max[i])
-            .fold(0.0, f64::max);
-        self.max_speed_ratio = self.max_speed_ratio.max(ratio);
+        for i in 0..N {
+            let (speed, ratio) = (x.qd[i].abs(), x.qd[i].abs() / self.qd_max[i]);
+            if speed > self.max_joint_speed {
+                (self.max_joint_speed, self.max_joint_speed_joint) = (speed, i + 1);
+            }
+            if ratio > self.max_speed_ratio {
+                (self.max_speed_ratio, self.max_speed_ratio_joint) = (ratio, i + 1);
+            }
+        }
         self.record_command(&out.qdd);
         self.min_clearance = self.min_clearance.min(out.clearance);
         if out.flags & flags::IN_SAFETY_ZONE != 0 {
@@ -610,7 +624,9 @@ impl<const N: usize> RunStats<N> {
             drift_per_period,
             max_orientation_error: self.max_orientation_error,
             max_joint_speed: self.max_joint_speed,
+            max_joint_speed_joint: self.max_joint_speed_joint,
             max_speed_ratio: self.max_speed_ratio,
+            max_speed_ratio_joint: self.max_speed_ratio_joint,
             max_accel_ratio: self.max_accel_ratio,
             max_jerk_ratio: self.max_jerk_ratio,
             finite: true,
