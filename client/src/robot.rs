@@ -197,8 +197,28 @@ pub fn describe(chain: &Chain, spec: &str) -> String {
     ));
     if let Some(e) = chain.massless_joint("") {
         s.push_str(&format!("warning: {e}\n"));
+    } else if let Some(c) = mass_matrix_condition(chain).filter(|&c| c > BAD_CONDITION) {
+        s.push_str(&format!(
+            "warning: the mass matrix at q = 0 has condition number {c:.1e}: a body nearly without inertia makes the forward dynamics (torque, position and velocity modes on the rigid-body plant) stiff or inaccurate\n"
+        ));
     }
     s
+}
+
+/// A mass matrix worse conditioned than this is named by `robot show` (the Panda's is about
+/// 1e3; iCub's neck, with a head of 1e-35 kg·m², about 1e17).
+const BAD_CONDITION: f64 = 1e10;
+
+/// The mass matrix's condition number at q = 0 (largest over smallest eigenvalue), or None
+/// when it cannot be evaluated.
+fn mass_matrix_condition(chain: &Chain) -> Option<f64> {
+    let n = chain.dof();
+    let z = vec![0.0; n];
+    let e = chain.evaluate(&z, &z, &z, &z).ok()?;
+    let m = nalgebra::DMatrix::from_row_slice(n, n, &e.mass_matrix);
+    let eig = m.symmetric_eigenvalues();
+    let (lo, hi) = (eig.min(), eig.max());
+    (lo.is_finite() && hi.is_finite()).then(|| if lo > 0.0 { hi / lo } else { f64::INFINITY })
 }
 
 /// Refuses an evaluation with a non-finite number in it, naming the cause where it is known:

@@ -163,3 +163,38 @@ fn bad_inputs_are_one_clear_line() {
     );
     refused(&["robot", "show", "Cargo.toml"], &["not XML"]);
 }
+
+#[test]
+fn show_warns_of_a_body_nearly_without_inertia() {
+    let dir = std::env::temp_dir().join(format!("chaosctl-robot-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("feather.urdf");
+    let link = |name: &str, m: &str, i: &str| {
+        format!(
+            r#"<link name="{name}"><inertial><mass value="{m}"/><inertia ixx="{i}" ixy="0" ixz="0" iyy="{i}" iyz="0" izz="{i}"/></inertial></link>"#
+        )
+    };
+    let joint = |name: &str, parent: &str, child: &str| {
+        format!(
+            r#"<joint name="{name}" type="revolute"><parent link="{parent}"/><child link="{child}"/><origin xyz="0.5 0 0"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1" effort="10"/></joint>"#
+        )
+    };
+    let text = format!(
+        r#"<robot name="feather"><link name="a"/>{}{}{}{}</robot>"#,
+        link("b", "1", "0.1"),
+        link("c", "1e-30", "1e-35"),
+        joint("j1", "a", "b"),
+        joint("j2", "b", "c")
+    );
+    std::fs::write(&path, text).unwrap();
+    let o = chaosctl(&["robot", "show", path.to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{out}");
+    assert!(
+        out.contains("warning: the mass matrix at q = 0 has condition number"),
+        "{out}"
+    );
+    let panda = chaosctl(&["robot", "show", "panda"]);
+    assert!(!String::from_utf8_lossy(&panda.stdout).contains("warning"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -307,10 +307,8 @@ fn faults(r: &Run) -> Vec<Line> {
 fn problems(r: &Run) -> String {
     let d = r.daemon;
     let c = &d.counters;
-    let late = r
-        .plant
-        .and_then(|p| p["counters"]["late_cycles"].as_u64())
-        .unwrap_or(0);
+    let plant = |k: &str| r.plant.and_then(|p| p["counters"][k].as_u64()).unwrap_or(0);
+    let late = plant("late_cycles");
     let seen: Vec<String> = [
         (c.faults, "runaway-guard faults"),
         (d.blocked_entered, "times Blocked"),
@@ -324,6 +322,10 @@ fn problems(r: &Run) -> String {
         (c.plant_restarts, "plant restarts"),
         (c.overruns, "skipped periods"),
         (late, "late cycles"),
+        (
+            plant("effort_clamps"),
+            "plant substeps with a torque clamped at its effort limit",
+        ),
         (c.telemetry_dropped, "telemetry records dropped"),
         (c.nonfinite, "non-finite results"),
     ]

@@ -39,6 +39,8 @@ pub struct PlantCounters {
     pub late_answers: u64,
     /// State trigger: times `max_late_cycles` late cycles in a row made the plant brake.
     pub late_brakes: u64,
+    /// Substeps in which a joint's torque was clamped at its effort limit ([`crate::Plant::effort_clamps`]).
+    pub effort_clamps: u64,
 }
 
 impl PlantCounters {

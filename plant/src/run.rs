@@ -190,6 +190,7 @@ pub fn run<P: Plant>(
     };
     let fault = lp.cycles(plant, start, duration).err();
     plant.deactivate();
+    lp.c.effort_clamps = plant.effort_clamps();
     let refused = handshake.stop();
     let summary = lp.finish(rt_report, start, wall_start)?;
     match (fault, refused) {

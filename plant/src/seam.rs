@@ -191,6 +191,13 @@ pub trait Plant {
     fn device_clocked(&self) -> bool {
         false
     }
+
+    /// Substeps in which the arm could not apply a torque it was asked for and clamped it at
+    /// the joint's effort limit (a simulator knows; a bridge whose device does not say, 0).
+    /// Reported at exit, so that a run that asked for more than the motors have says so.
+    fn effort_clamps(&self) -> u64 {
+        0
+    }
 }
 
 /// The actuation a RUN command asks for, in its interface (`since`: how long ago the answered

@@ -333,6 +333,13 @@ impl<const N: usize> Plant for SimPlant<N> {
     fn stamp(&self, nominal_ns: u64, _now_ns: u64) -> u64 {
         nominal_ns
     }
+
+    fn effort_clamps(&self) -> u64 {
+        match &self.physics {
+            Physics::RigidBody(d) => d.arm.torque_saturations,
+            Physics::Kinematic(_) => 0,
+        }
+    }
 }
 
 /// The limits a device of this set-up enforces (the description's, undated).

@@ -196,3 +196,110 @@ fn an_obstacle_dropped_onto_the_arm_is_refused_with_the_reason_and_nothing_chang
         "feedback.mu: 1.0 → 0.5\napplied at the next tick"
     );
 }
+
+/// An arm nobody here tuned for, from example-robot-data (`control/tests/fixtures/urdf`), with
+/// the recipe a new user starts from: the Panda's paper set-up's law (centring α = 20, μ = 1 in
+/// the null space from the start), a 0.1 m circle in 2 s, q̈ limits of 10 rad/s² (a URDF has
+/// none), and a start posture the arm can hold.
+struct Arm {
+    file: &'static str,
+    base: &'static str,
+    tip: &'static str,
+    q0: &'static str,
+}
+
+const ARMS: [Arm; 3] = [
+    Arm {
+        file: "baxter.urdf",
+        base: "base",
+        tip: "left_gripper",
+        q0: "[0.0, -0.8, 0.0, 2.0, 0.0, 1.0, 0.0]",
+    },
+    Arm {
+        file: "pr2.urdf",
+        base: "torso_lift_link",
+        tip: "l_wrist_roll_link",
+        q0: "[0.5, 1.3, 1.5, -1.5, 0.0, -0.5, 0.0]",
+    },
+    Arm {
+        file: "tiago_no_hand.urdf",
+        base: "torso_lift_link",
+        tip: "arm_7_link",
+        q0: "[0.5, 0.0, -1.5, 1.5, 0.0, 0.0, 0.0]",
+    },
+];
+
+fn arm_config(arm: &Arm, q0: &str) -> String {
+    let urdf = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../control/tests/fixtures/urdf")
+        .join(arm.file);
+    format!(
+        "[robot]\ndescription = {:?}\nbase = {:?}\ntip = {:?}\n\n\
+         [task]\nkind = \"position\"\npath = \"circle\"\nnormal = [1.0, 0.0, 0.0]\nradius = 0.1\nperiod = 2.0\n\n\
+         [law]\nalpha = 20.0\nsecondary = \"centring\"\n\n\
+         [feedback]\nmu = 1.0\nt_on = 0.0\nprojection = \"null-space\"\n\n\
+         [safety]\nenabled = true\nqdd_max = [10.0, 10.0, 10.0, 10.0, 10.0, 10.0, 10.0]\n\n\
+         [sim]\ndt = 0.001\nduration = 20.0\ntransient = 2.0\nq0 = {q0}\n\n\
+         [daemon]\nhold_after = 500\n",
+        urdf.to_str().unwrap(),
+        arm.base,
+        arm.tip
+    )
+}
+
+#[test]
+fn three_arms_nobody_tuned_for_track_in_every_mode_inside_every_limit() {
+    let _g = serial();
+    let dir = TempDir::new(&unique_namespace("own-arms"));
+    let runs: [&[&str]; 5] = [
+        &["--mode", "acceleration"],
+        &["--mode", "position"],
+        &["--mode", "velocity"],
+        &["--mode", "torque"],
+        &["--mode", "position", "--bridge", "udp"],
+    ];
+    for arm in &ARMS {
+        let cfg = write(dir.path(), "arm.toml", &arm_config(arm, arm.q0));
+        for args in runs {
+            let what = format!("{} {}", arm.file, args.join(" "));
+            let out = dir.path().join("out");
+            let _ = std::fs::remove_dir_all(&out);
+            let mut all_args = args.to_vec();
+            all_args.extend(["--duration", "6", "--details"]);
+            let o = demo(&cfg, &out, &all_args);
+            let all = text(&o);
+            assert!(o.status.success(), "{what}: {all}");
+            let s = read_json(&out.join("daemon-summary.json"));
+            assert_eq!(s["counters"]["faults"], 0, "{what}: {all}");
+            let rms = s["tracking_rms_m"].as_f64().unwrap();
+            let l = &s["joint_limits"];
+            eprintln!("{what}: tracking RMS {rms:.2e} m, {l}");
+            assert!(rms <= 1e-3, "{what}: tracking RMS {rms} m\n{all}");
+            assert_eq!(
+                (l["states_outside"].as_u64(), l["commands_outside"].as_u64()),
+                (Some(0), Some(0)),
+                "{what}: {all}"
+            );
+        }
+    }
+}
+
+#[test]
+fn baxter_at_a_start_its_shoulder_cannot_hold_is_refused_in_torque_driven_modes() {
+    let _g = serial();
+    let dir = TempDir::new(&unique_namespace("baxter-weak"));
+    // The issue's start: gravity needs 50.2 N·m at left_s1, whose limit is 50 (the real arm
+    // has a spring there that its URDF does not model).
+    let q0 = "[0.0, -0.55, 0.0, 0.75, 0.0, 1.26, 0.0]";
+    let cfg = write(dir.path(), "baxter.toml", &arm_config(&ARMS[0], q0));
+    let out = dir.path().join("out");
+    for mode in ["torque", "position", "velocity"] {
+        let o = demo(&cfg, &out, &["--mode", mode, "--duration", "3"]);
+        let all = text(&o);
+        assert!(!o.status.success(), "{mode}: {all}");
+        assert!(
+            all.contains("joint 2 (\"left_s1\") cannot hold the start posture: gravity there needs 50.20 N·m and its effort limit is 50.00 N·m"),
+            "{mode}: {all}"
+        );
+    }
+}
