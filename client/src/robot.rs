@@ -224,15 +224,7 @@ fn mass_matrix_condition(chain: &Chain) -> Option<f64> {
 /// Refuses an evaluation with a non-finite number in it, naming the cause where it is known:
 /// no command prints a NaN and exits 0.
 fn finite(chain: &Chain, e: &control::model::Evaluation) -> anyhow::Result<()> {
-    let parts = [
-        ("tip_pose", &e.tip_pose),
-        ("jacobian", &e.jacobian),
-        ("jdot_qd", &e.jdot_qd),
-        ("mass_matrix", &e.mass_matrix),
-        ("rnea", &e.rnea),
-        ("gravity", &e.gravity),
-        ("aba", &e.aba),
-    ];
+    let parts = e.named();
     let Some((name, _)) = parts.iter().find(|(_, v)| v.iter().any(|x| !x.is_finite())) else {
         return Ok(());
     };

@@ -83,15 +83,7 @@ fn check(name: &str) {
                 &floats(&case["tau"]),
             )
             .unwrap();
-        for (what, ours) in [
-            ("tip_pose", &e.tip_pose),
-            ("jacobian", &e.jacobian),
-            ("jdot_qd", &e.jdot_qd),
-            ("mass_matrix", &e.mass_matrix),
-            ("rnea", &e.rnea),
-            ("gravity", &e.gravity),
-            ("aba", &e.aba),
-        ] {
+        for (what, ours) in e.named() {
             worst = worst.max(close(what, ours, &floats(&case[what]), &ctx));
         }
         let links = link_poses(&chain, &floats(&case["q"]));

@@ -26,6 +26,22 @@ pub struct Evaluation {
     pub aba: Vec<f64>,
 }
 
+impl Evaluation {
+    /// Every quantity with its name, in the order and words of `robot eval --json` and the
+    /// pinocchio fixtures.
+    pub fn named(&self) -> [(&'static str, &[f64]); 7] {
+        [
+            ("tip_pose", &self.tip_pose),
+            ("jacobian", &self.jacobian),
+            ("jdot_qd", &self.jdot_qd),
+            ("mass_matrix", &self.mass_matrix),
+            ("rnea", &self.rnea),
+            ("gravity", &self.gravity),
+            ("aba", &self.aba),
+        ]
+    }
+}
+
 /// Which of the state's vectors was the wrong length.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("{name} has {got} entries; the chain has {n} joints")]
