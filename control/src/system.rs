@@ -187,13 +187,15 @@ impl System {
         }
     }
 
-    /// The arm's smallest clearance to the set-up's obstacles at posture `q` (m; negative: a
-    /// link inside one; ∞ without obstacles), by the law's own geometry: the law evaluated once
-    /// at rest there. Not for the loop (it builds the law).
-    pub fn clearance_at(&self, q: &[f64]) -> f64 {
+    /// The arm's smallest clearance to the set-up's obstacles at posture `q` and base attitude
+    /// `phi` (the planar floating base's; 0 for every other arm) (m; negative: a link inside
+    /// one; ∞ without obstacles), by the law's own geometry: the law evaluated once at rest
+    /// there. Not for the loop (it builds the law).
+    pub fn clearance_at(&self, phi: f64, q: &[f64]) -> f64 {
         crate::with_dof!(self.n(), N => {
             let law = self.tick_law::<N>();
             let mut x = self.initial_state::<N>();
+            x.phi = phi;
             x.q = VecN::<N>::from_fn(|i, _| q.get(i).copied().unwrap_or(0.0));
             x.qd = VecN::<N>::zeros();
             let mut scratch = crate::tick_law::LawScratch::<N>::default();

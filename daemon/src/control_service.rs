@@ -100,13 +100,17 @@ impl Reporter {
     /// Refuses a new obstacle that a link is already inside: the filter keeps links out of an
     /// obstacle and cannot bring one out, so the arm would run on inside it.
     fn outside_obstacles(&self, op: Op, new: System) -> Result<System, String> {
-        let Some(q) = self.last_state.map(|s| s.q[..self.system.n()].to_vec()) else {
+        let Some(s) = self.last_state else {
             return Ok(new);
         };
         if op != Op::ObstacleAdd {
             return Ok(new);
         }
-        let (before, after) = (self.system.clearance_at(&q), new.clearance_at(&q));
+        let q = &s.q[..self.system.n()];
+        let (before, after) = (
+            self.system.clearance_at(s.phi, q),
+            new.clearance_at(s.phi, q),
+        );
         if after < 0.0 && after < before {
             return Err(format!(
                 "a link of the arm is {:.3} m inside that obstacle at its posture now: the safety filter keeps links out of an obstacle but cannot bring one out; place it clear of the arm",
