@@ -25,20 +25,16 @@ pub fn describe(old: &System, new: &System) -> String {
             format!("{k}: {x} → {y}")
         })
         .collect();
-    let (mu_old, mu_new) = (old.feedback().mu, new.feedback().mu);
-    if mu_old != mu_new
-        && !lines
-            .iter()
-            .any(|l| l.starts_with("feedback.mu: ") && l.ends_with(&format!("→ {mu_new}")))
-    {
-        lines.push(format!(
-            "the gain μ: {mu_old} → {mu_new}{}",
-            match new.feedback().auto {
-                Some(a) if mu_new == a.max_mu =>
-                    " (auto starts from the gain it had, at most max_mu)",
-                _ => "",
-            }
-        ));
+    // With `mu = "auto"` the file holds no number: the gain the adaptation starts from is said
+    // on its own line.
+    let (mu_old, mu_new, auto) = (old.feedback().mu, new.feedback().mu, new.feedback().auto);
+    if let Some(a) = auto.filter(|_| mu_old != mu_new) {
+        let capped = if mu_new == a.max_mu {
+            " (auto starts from the gain it had, at most max_mu)"
+        } else {
+            ""
+        };
+        lines.push(format!("the gain μ: {mu_old} → {mu_new}{capped}"));
     }
     if lines.is_empty() {
         return "nothing changed (every value was already so)".into();

@@ -100,12 +100,9 @@ impl Reporter {
     /// Refuses a new obstacle that a link is already inside: the filter keeps links out of an
     /// obstacle and cannot bring one out, so the arm would run on inside it.
     fn outside_obstacles(&self, op: Op, new: System) -> Result<System, String> {
-        let Some(s) = self.last_state else {
+        let Some(s) = self.last_state.filter(|_| op == Op::ObstacleAdd) else {
             return Ok(new);
         };
-        if op != Op::ObstacleAdd {
-            return Ok(new);
-        }
         let q = &s.q[..self.system.n()];
         let (before, after) = (
             self.system.clearance_at(s.phi, q),
