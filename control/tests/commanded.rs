@@ -27,11 +27,16 @@ fn go(system: &System, plant: &RigidBodyConfig, duration: f64) -> CommandedRun {
 
 #[test]
 fn every_mode_tracks_and_the_feedback_still_makes_the_motion_periodic() {
+    let mut rms = Vec::new();
     for mode in CommandMode::ALL {
         let r = go(&panda(mode), &RigidBodyConfig::default(), 60.0);
-        // The servo of position and velocity modes lags its reference: millimetres, not microns.
+        rms.push((mode, r.tracking_rms));
+        // The servo of position mode lags its reference: a millimetre, not microns. Velocity
+        // mode's position correction takes back part of that lag (it drifted to 2–3 mm
+        // without it).
         let bound = match mode {
-            CommandMode::Position | CommandMode::Velocity => 2e-3,
+            CommandMode::Position => 2e-3,
+            CommandMode::Velocity => 5e-4,
             CommandMode::Acceleration | CommandMode::Torque => 1e-4,
         };
         assert!(
@@ -53,6 +58,11 @@ fn every_mode_tracks_and_the_feedback_still_makes_the_motion_periodic() {
         assert_eq!(r.plant_torque_saturations, 0, "{mode}");
         assert_eq!(r.saturations[LimitKind::Position as usize], 0, "{mode}");
     }
+    let of = |m| rms.iter().find(|(x, _)| *x == m).unwrap().1;
+    assert!(
+        of(CommandMode::Velocity) < of(CommandMode::Position),
+        "{rms:?}"
+    );
 }
 
 #[test]

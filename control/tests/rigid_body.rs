@@ -153,3 +153,26 @@ fn bad_physics_is_refused_by_name() {
         assert!(e.contains(&format!("plant.rigid_body.{field}")), "{e}");
     }
 }
+
+#[test]
+fn a_late_velocity_command_leaves_the_set_point_where_the_rate_took_it() {
+    use control::command::{Command, CommandMode};
+    use control::rigid_body::{Device, Sensor};
+    let device = || Device::new(build(&RigidBodyConfig::default()).unwrap(), Sensor::exact());
+    let mut c = Command::<7>::still(CommandMode::Velocity);
+    c.qd = V7::repeat(0.3);
+    // One device answered every period, the other misses the second (it runs on at the last
+    // rate, as a robot's velocity interface does): the same rate over the same time is the
+    // same motion, so the set-points and the arms agree.
+    let (mut every, mut missed) = (device(), device());
+    for k in 0..200 {
+        every.command(&c, 1e-3, 0.0);
+        if k != 1 {
+            missed.command(&c, 1e-3, 0.0);
+        }
+        every.advance(1e-3, 4);
+        missed.advance(1e-3, 4);
+    }
+    let (a, b) = (every.measure().q, missed.measure().q);
+    assert!((a - b).amax() < 1e-12, "{}", a - b);
+}

@@ -18,19 +18,28 @@ use super::mode::CommandMode;
 use crate::arm::VecN;
 use crate::model::Model;
 
-/// Torque mode's joint PD on (q_r − q, q̇_r − q̇), N·m/rad and N·m·s/rad.
+/// Torque mode's joint PD on (q_r − q, q̇_r − q̇), N·m/rad and N·m·s/rad, and velocity mode's
+/// position correction on q_r − q (1/s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CommandGains<const N: usize> {
     pub kp: VecN<N>,
     pub kd: VecN<N>,
+    pub kv: VecN<N>,
 }
+
+/// The most velocity mode's position correction adds to a joint's rate, as a share of its
+/// velocity limit: an arm held back (by a collision, a brake, a weak motor) gets a bounded
+/// push, not one that grows with its error.
+pub const CORRECTION_SHARE: f64 = 0.05;
 
 /// One tick's command in every interface's terms (the plant uses the one its mode names).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Command<const N: usize> {
     pub mode: CommandMode,
-    /// The reference at the end of the period.
+    /// The reference position at the end of the period.
     pub q: VecN<N>,
+    /// The rate sent: the reference's at the end of the period, plus in velocity mode the
+    /// position correction `kv·(q_r − q)` on the measured state.
     pub qd: VecN<N>,
     /// The limited acceleration ramp over the period.
     pub qdd: VecN<N>,
@@ -39,6 +48,8 @@ pub struct Command<const N: usize> {
     pub tau: VecN<N>,
     /// Which limits clamped each joint this tick (bits of `LimitKind`).
     pub hits: [u8; N],
+    /// Where the stream's reference is at the end of the period (its next tick starts here).
+    pub end: MotionState<N>,
 }
 
 impl<const N: usize> Command<N> {
@@ -53,6 +64,7 @@ impl<const N: usize> Command<N> {
             qddd: zero,
             tau: zero,
             hits: [0; N],
+            end: MotionState::at_rest(zero, zero),
         }
     }
 }
@@ -98,6 +110,7 @@ impl<const N: usize> MotionGenerator<N> {
         let gains = CommandGains {
             kp: VecN::<N>::zeros(),
             kd: VecN::<N>::zeros(),
+            kv: VecN::<N>::zeros(),
         };
         Self::new(CommandMode::Acceleration, limiter, gains, None).expect("no model needed")
     }
@@ -163,15 +176,39 @@ impl<const N: usize> MotionGenerator<N> {
             }
             _ => VecN::<N>::zeros(),
         };
+        let qd_sent = match self.mode {
+            CommandMode::Velocity => end.qd + self.correction(&(from.q - q)),
+            _ => end.qd,
+        };
         Command {
             mode: self.mode,
             q: end.q,
-            qd: end.qd,
+            qd: qd_sent,
             qdd: a,
             qddd: r,
             tau,
             hits,
+            end,
         }
+    }
+
+    /// Velocity mode's pull back to the reference: a velocity interface integrates what it is
+    /// sent, so whatever the arm loses (a late or dropped command, its servo's lag, its own
+    /// integration) would stay lost, and the tip would drift off the path. `kv·(q_r − q)` on
+    /// the measured state makes the arm's position, not only its rate, follow the reference
+    /// (the velocity feed-forward plus P of ros2_control's trajectory controller), each joint's
+    /// push capped at [`CORRECTION_SHARE`] of its velocity limit.
+    fn correction(&self, error: &VecN<N>) -> VecN<N> {
+        let l = self.limiter.limits();
+        VecN::<N>::from_fn(|i, _| {
+            let push = self.gains.kv[i] * error[i];
+            let cap = CORRECTION_SHARE * l.qd[i];
+            if cap.is_finite() {
+                push.clamp(-cap, cap)
+            } else {
+                push
+            }
+        })
     }
 
     /// [`Self::next`] for a command that comes `periods` periods after the last one (states
@@ -198,11 +235,7 @@ impl<const N: usize> MotionGenerator<N> {
         let held = c.qdd + c.qddd * self.limiter_dt();
         for _ in 1..periods {
             hits.iter_mut().zip(&c.hits).for_each(|(h, x)| *h |= x);
-            g.reference = MotionState {
-                q: c.q,
-                qd: c.qd,
-                qdd: c.qdd + c.qddd * self.limiter_dt(),
-            };
+            g.reference = c.end;
             c = g.next(q, qd, &held, &VecN::<N>::zeros());
         }
         hits.iter_mut().zip(&c.hits).for_each(|(h, x)| *h |= x);
@@ -212,11 +245,7 @@ impl<const N: usize> MotionGenerator<N> {
 
     /// Makes `c` (computed by [`Self::next`] this tick) the stream's last command.
     pub fn commit(&mut self, c: &Command<N>) {
-        self.reference = MotionState {
-            q: c.q,
-            qd: c.qd,
-            qdd: c.qdd + c.qddd * self.limiter_dt(),
-        };
+        self.reference = c.end;
         self.last_tau = c.tau;
         self.saturations.add(&c.hits);
     }
@@ -239,6 +268,7 @@ mod tests {
         let gains = CommandGains {
             kp: VecN::<7>::repeat(100.0),
             kd: VecN::<7>::repeat(10.0),
+            kv: VecN::<7>::repeat(20.0),
         };
         let g = MotionGenerator::new(
             mode,
@@ -285,6 +315,31 @@ mod tests {
         let end = c.qdd + c.qddd * 1e-3;
         assert!((end - VecN::<7>::repeat(2.0)).amax() < 1e-9, "{end}");
         assert_eq!(c.hits, [0; 7]);
+    }
+
+    #[test]
+    fn velocity_mode_pulls_the_arm_back_to_the_reference_by_a_bounded_push() {
+        let (mut g, _) = panda(CommandMode::Velocity);
+        let q = VecN::<7>::from_column_slice(&crate::config::spatial::PANDA_READY);
+        g.restart(&q, &VecN::zeros());
+        let a = VecN::<7>::repeat(0.5);
+        // On the reference: the reference's own rate, and the stream moves on by it alone.
+        let on = g.next(&q, &VecN::zeros(), &a, &VecN::zeros());
+        assert_eq!(on.qd, on.end.qd);
+        // 1 mrad behind on joint 1: 20 /s × 1e-3 = 0.02 rad/s more, and the reference the
+        // stream reaches is the same (the push is the arm's, not the reference's).
+        let mut behind = q;
+        behind[0] -= 1e-3;
+        let c = g.next(&behind, &VecN::zeros(), &a, &VecN::zeros());
+        assert!((c.qd[0] - c.end.qd[0] - 0.02).abs() < 1e-12, "{}", c.qd[0]);
+        assert_eq!((c.end, c.qd[1]), (on.end, on.qd[1]));
+        // Far behind: the push stops at its share of the velocity limit.
+        behind[0] -= 1.0;
+        let c = g.next(&behind, &VecN::zeros(), &a, &VecN::zeros());
+        let cap = CORRECTION_SHARE * g.limiter().limits().qd[0];
+        assert!((c.qd[0] - c.end.qd[0] - cap).abs() < 1e-12);
+        g.commit(&c);
+        assert_eq!(*g.reference(), on.end);
     }
 
     #[test]

@@ -30,10 +30,18 @@ pub struct CommandSection {
     pub kp: Option<Vec<f64>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub kd: Option<Vec<f64>>,
+    /// Velocity mode's position correction (1/s): the rate sent is the reference's plus
+    /// `velocity_kp·(q_r − q)`, so the arm's position follows the reference and does not drift.
+    /// 0 sends the reference's rate alone.
+    pub velocity_kp: f64,
     /// Tighter limits than the description's.
     #[serde(skip_serializing_if = "is_default")]
     pub limits: LimitOverrides,
 }
+
+/// Velocity mode's default pull back to the reference (1/s): a 50 ms time constant, a tenth of
+/// the rigid-body plant's 50 Hz servo, so the outer loop does not fight the arm's own.
+pub const DEFAULT_VELOCITY_KP: f64 = 5.0;
 
 fn is_default(o: &LimitOverrides) -> bool {
     *o == LimitOverrides::default()
@@ -49,6 +57,7 @@ impl Default for CommandSection {
             pd_damping: 1.0,
             kp: None,
             kd: None,
+            velocity_kp: DEFAULT_VELOCITY_KP,
             limits: LimitOverrides::default(),
         }
     }
@@ -125,6 +134,14 @@ impl CommandSection {
                 return Err(invalid(f, v, "a number > 0"));
             }
         }
+        let kv_max = 0.1 / dt;
+        if !(self.velocity_kp.is_finite() && (0.0..=kv_max).contains(&self.velocity_kp)) {
+            return Err(invalid(
+                "command.velocity_kp",
+                self.velocity_kp,
+                &format!("a rate in [0, {kv_max:.0}] 1/s (a tenth of the loop's rate, so the correction stays smooth)"),
+            ));
+        }
         let limits = self.limits::<N>(chain, robot)?;
         let model = chain
             .model::<N>()
@@ -151,6 +168,7 @@ impl CommandSection {
                 Some(v) => gains::<N>("command.kd", v)?,
                 None => auto.kd,
             },
+            kv: VecN::<N>::repeat(self.velocity_kp),
         };
         if self.mode == CommandMode::Torque {
             let kp = if self.kp.is_some() {

@@ -64,8 +64,9 @@ impl<const N: usize> Device<N> {
                 }
             }
             CommandMode::Velocity => {
+                // The set-point moves on from where it is now, by what `advance` integrates.
+                self.offset = 0.0;
                 let from = *self.set_point.get_or_insert(self.arm.state.q);
-                self.set_point = Some(from + c.qd * dt);
                 Drive::Track {
                     q: from,
                     qd: c.qd,
@@ -84,6 +85,11 @@ impl<const N: usize> Device<N> {
     /// Advances one period of `dt` in `substeps`.
     pub fn advance(&mut self, dt: f64, substeps: u32) {
         self.arm.advance(&self.drive, self.offset, dt, substeps);
+        // Velocity mode's set-point keeps integrating the last rate over a late period, as the
+        // drive's reference does (it once stood still there, and each late command was a step).
+        if let (Some(sp), Drive::Track { qd, .. }) = (&mut self.set_point, &self.drive) {
+            *sp += qd * dt;
+        }
         // A command is for one period; a late one keeps its reference moving on.
         self.offset += dt;
     }
