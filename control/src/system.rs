@@ -9,6 +9,7 @@
 
 use crate::arm::VecN;
 use crate::basics::ConfigError;
+use crate::command::CommandMode;
 use crate::config::spatial::is_spatial;
 use crate::config::spatial::SpatialConfig;
 use crate::config::Config;
@@ -152,6 +153,20 @@ impl System {
             });
         }
         Ok(())
+    }
+
+    /// Refuses a start whose first seconds of motion need more than a joint's effort limit
+    /// (`control::config::rehearsal`), in the interfaces where the arm's own motors carry the
+    /// motion (position, velocity, torque). Acceleration mode is the ideal arm's interface (the
+    /// kinematic plant integrates q̈ whatever it costs) and the planar arm has no dynamics:
+    /// both pass.
+    pub fn check_motion_effort(&self) -> Result<(), ConfigError> {
+        match self {
+            System::Spatial(s) if s.config.command.mode != CommandMode::Acceleration => {
+                crate::with_dof!(s.chain.dof(), N => s.config.check_motion_effort::<N>(&s.chain))
+            }
+            _ => Ok(()),
+        }
     }
 
     /// The law a control tick runs; `N` must be [`System::n`]. The set-up was validated.

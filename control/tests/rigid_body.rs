@@ -176,3 +176,23 @@ fn a_late_velocity_command_leaves_the_set_point_where_the_rate_took_it() {
     let (a, b) = (every.measure().q, missed.measure().q);
     assert!((a - b).amax() < 1e-12, "{}", a - b);
 }
+
+#[test]
+fn a_brake_at_full_torque_is_counted_apart_from_a_command_the_arm_could_not_follow() {
+    let mut m = *build(&RigidBodyConfig::default()).unwrap().model();
+    m.gravity = nalgebra::Vector3::zeros();
+    // Moving at 1 rad/s with 5 N·m motors: the servo's brake asks for far more.
+    let mut arm = RigidBody::new(m, ready(), V7::repeat(1.0), V7::repeat(5.0)).with_servo(
+        control::rigid_body::ServoGains {
+            kp: V7::repeat(400.0),
+            kd: V7::repeat(40.0),
+        },
+    );
+    for _ in 0..20 {
+        arm.advance(&Drive::Hold, 0.0, 1e-3, 4);
+    }
+    assert!(arm.brake_saturations > 0);
+    assert_eq!(arm.torque_saturations, 0);
+    arm.advance(&Drive::Torque(V7::repeat(1e4)), 0.0, 1e-3, 4);
+    assert_eq!(arm.torque_saturations, 4);
+}

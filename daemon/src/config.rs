@@ -378,7 +378,8 @@ impl DaemonSetup {
         self.system.check_step(
             1.0 / self.daemon.rate_hz,
             &format!("daemon.rate_hz = {}", self.daemon.rate_hz),
-        )
+        )?;
+        self.system.check_motion_effort()
     }
 
     pub fn load(path: &Path) -> anyhow::Result<Self> {

@@ -193,8 +193,10 @@ pub trait Plant {
     }
 
     /// Substeps in which the arm could not apply a torque it was asked for and clamped it at
-    /// the joint's effort limit (a simulator knows; a bridge whose device does not say, 0).
-    /// Reported at exit, so that a run that asked for more than the motors have says so.
+    /// the joint's effort limit while following a command (a simulator knows; a bridge whose
+    /// device does not say, 0). A brake to rest uses every newton-metre the motors have by
+    /// design and is not counted. Reported at exit, so that a run that asked for more than the
+    /// motors have says so.
     fn effort_clamps(&self) -> u64 {
         0
     }

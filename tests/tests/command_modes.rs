@@ -199,8 +199,8 @@ fn a_set_up_that_cannot_run_is_refused_at_start_up_by_name() {
             "command.limits.jerk",
         ),
         (
-            "[command]\nmode = \"velocity\"\nvelocity_kp = 500.0\n",
-            "command.velocity_kp = 500.0: a rate in [0, 100] 1/s",
+            "[command]\nmode = \"velocity\"\nvelocity_kp = 1000.0\n",
+            "command.velocity_kp = 1000.0: a rate in [0, 500] 1/s",
         ),
     ] {
         let path = dir.path().join("bad.toml");

@@ -51,6 +51,19 @@ pub enum PhysicsError {
         unit: &'static str,
         remedy: &'static str,
     },
+    /// A motion from the start that needs more than a joint's effort limit, found by
+    /// rehearsing the law offline (`control::config::rehearsal`).
+    #[error("joint {index} ({joint:?}) cannot carry the motion from this start: the law, rehearsed offline over its first {span:.1} s, needs {load:.2} {unit} there at t = {t:.2} s and its effort limit is {limit:.2} {unit}; start where the arm carries less (sim.q0) or slow the path (task.period)")]
+    MotionBeyondEffort {
+        index: usize,
+        joint: String,
+        load: f64,
+        limit: f64,
+        unit: &'static str,
+        /// When (s from the start) and over how long a rehearsal.
+        t: f64,
+        span: f64,
+    },
 }
 
 /// Largest config text accepted: a config is a few hundred bytes; a huge file is a mistake, and

@@ -39,8 +39,9 @@ pub struct CommandSection {
     pub limits: LimitOverrides,
 }
 
-/// Velocity mode's default pull back to the reference (1/s): a 50 ms time constant, a tenth of
-/// the rigid-body plant's 50 Hz servo, so the outer loop does not fight the arm's own.
+/// Velocity mode's default pull back to the reference (1/s): a 0.2 s time constant, half the
+/// gain at which the Panda and Baxter, offline, start to hunt on a slow coupled mode of their
+/// servos (docs/commanding.md).
 pub const DEFAULT_VELOCITY_KP: f64 = 5.0;
 
 fn is_default(o: &LimitOverrides) -> bool {
@@ -134,12 +135,13 @@ impl CommandSection {
                 return Err(invalid(f, v, "a number > 0"));
             }
         }
-        let kv_max = 0.1 / dt;
-        if !(self.velocity_kp.is_finite() && (0.0..=kv_max).contains(&self.velocity_kp)) {
+        let kv_max = 0.5 / dt;
+        let kv = self.velocity_kp;
+        if self.mode == CommandMode::Velocity && !(kv.is_finite() && (0.0..=kv_max).contains(&kv)) {
             return Err(invalid(
                 "command.velocity_kp",
-                self.velocity_kp,
-                &format!("a rate in [0, {kv_max:.0}] 1/s (a tenth of the loop's rate, so the correction stays smooth)"),
+                kv,
+                &format!("a rate in [0, {kv_max:.0}] 1/s (half the loop's rate: the correction acts once a period)"),
             ));
         }
         let limits = self.limits::<N>(chain, robot)?;

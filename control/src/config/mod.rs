@@ -8,6 +8,7 @@
 //! Every default is docs/science.md's; the `paper*` presets reproduce the paper's set-ups.
 
 pub mod command;
+pub mod rehearsal;
 pub mod spatial;
 pub mod stability;
 

@@ -77,8 +77,12 @@ pub struct RigidBody<const N: usize> {
     pub applied: VecN<N>,
     /// Where a Hold keeps the joints.
     hold_at: Option<VecN<N>>,
-    /// Substeps in which a torque was clamped to its limit.
+    /// Substeps in which a torque was clamped to its limit while following a command.
     pub torque_saturations: u64,
+    /// Substeps in which it was clamped while braking to rest ([`Drive::Hold`]): a brake
+    /// stops the arm with all the torque it has, so these are the brake at work, not a
+    /// command the arm could not follow.
+    pub brake_saturations: u64,
 }
 
 impl<const N: usize> RigidBody<N> {
@@ -98,6 +102,7 @@ impl<const N: usize> RigidBody<N> {
             applied: VecN::<N>::zeros(),
             hold_at: None,
             torque_saturations: 0,
+            brake_saturations: 0,
         }
     }
 
@@ -177,7 +182,10 @@ impl<const N: usize> RigidBody<N> {
         }
         let clamped = VecN::<N>::from_fn(|i, _| wanted[i].clamp(-self.tau_max[i], self.tau_max[i]));
         if clamped != wanted {
-            self.torque_saturations += 1;
+            match drive {
+                Drive::Hold => self.brake_saturations += 1,
+                _ => self.torque_saturations += 1,
+            }
         }
         clamped
     }
