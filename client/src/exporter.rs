@@ -390,7 +390,8 @@ const DISTRIBUTIONS: &[(&str, &str, Dist)] = &[
     ),
 ];
 
-/// The command interface, the limiter's clamps per kind of limit, and the device's status.
+/// The command interface, the limiter's clamps and the limit breaches per kind of limit, and
+/// the device's status.
 fn command_series(o: &mut String, live: &[(String, &TelemetrySample)]) {
     let _ = writeln!(
         o,
@@ -402,6 +403,18 @@ fn command_series(o: &mut String, live: &[(String, &TelemetrySample)]) {
                 o,
                 "chaosd_limiter_saturations_total{{namespace=\"{l}\",kind=\"{}\"}} {n}",
                 kind.name()
+            );
+        }
+    }
+    let _ = writeln!(
+        o,
+        "# HELP chaosd_limit_breaches_total States past a position or speed limit, and commands past an acceleration, jerk or effort limit, per kind.\n# TYPE chaosd_limit_breaches_total counter"
+    );
+    for (l, t) in live {
+        for (kind, n) in protocol::LIMIT_BREACH_KINDS.iter().zip(t.limit_breaches) {
+            let _ = writeln!(
+                o,
+                "chaosd_limit_breaches_total{{namespace=\"{l}\",kind=\"{kind}\"}} {n}"
             );
         }
     }
@@ -538,6 +551,7 @@ mod tests {
             interface: protocol::interface::TORQUE,
             device: protocol::DeviceStatus::JerkLimit as u32,
             saturations: [0, 0, 0, 7, 0, 2],
+            limit_breaches: [0, 3, 0, 0, 1],
             ..Default::default()
         };
         let labels = vec!["a".to_string(), "b".to_string()];
@@ -555,6 +569,8 @@ mod tests {
         assert!(
             text.contains("chaosd_limiter_saturations_total{namespace=\"a\",kind=\"jerk\"} 7\n")
         );
+        assert!(text.contains("chaosd_limit_breaches_total{namespace=\"a\",kind=\"speed\"} 3\n"));
+        assert!(text.contains("chaosd_limit_breaches_total{namespace=\"a\",kind=\"effort\"} 1\n"));
         assert!(text.contains("chaosd_command_interface{namespace=\"a\",interface=\"torque\"} 1\n"));
         assert!(text.contains("chaosd_device_status{namespace=\"a\"} 3\n"));
         assert!(text.contains("chaosd_tracking_error_meters{namespace=\"a\"} NaN\n"));

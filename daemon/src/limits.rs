@@ -137,6 +137,18 @@ impl LimitWatch {
 }
 
 impl LimitsSeen {
+    /// The breach counts in the order of [`protocol::LIMIT_BREACH_KINDS`] (the telemetry's
+    /// `limit_breaches`).
+    pub fn by_kind(&self) -> [u64; 5] {
+        [
+            self.position_outside,
+            self.speed_outside,
+            self.acceleration_outside,
+            self.jerk_outside,
+            self.effort_outside,
+        ]
+    }
+
     /// One line for a report, or None when no limit is finite.
     pub fn one_line(&self) -> Option<String> {
         let mut parts = Vec::new();

@@ -400,6 +400,7 @@ impl Reporter {
         for kind in control::command::LimitKind::ALL {
             t.saturations[kind as usize] = self.saturations.total(kind);
         }
+        t.limit_breaches = self.limits.seen().by_kind();
         if let Some(s) = self.last_state {
             t.state_seq = s.seq;
             t.phi = s.phi;

@@ -190,9 +190,12 @@ impl ControlResponse {
     }
 }
 
+/// The kinds of [`TelemetrySample::limit_breaches`], in order (the metrics' `kind` label).
+pub const LIMIT_BREACH_KINDS: [&str; 5] = ["position", "speed", "acceleration", "jerk", "effort"];
+
 /// One telemetry sample, published by the daemon at `daemon.telemetry_hz`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::TelemetrySample.v6")]
+#[type_name("chaosd::TelemetrySample.v7")]
 #[repr(C)]
 pub struct TelemetrySample {
     pub seq: u64,
@@ -264,6 +267,10 @@ pub struct TelemetrySample {
     /// Its evidence: the finite-time Lyapunov estimate (1/s) and the 0–1 test's K (NaN: none yet).
     pub lyapunov: f64,
     pub k01: f64,
+    /// Limit breaches since start, per kind ([`LIMIT_BREACH_KINDS`]): states past a position
+    /// limit, states past a speed limit, commands past an acceleration, a jerk and an effort
+    /// limit.
+    pub limit_breaches: [u64; 5],
 }
 
 /// Control service settings: one daemon serves; several clients may ask at once, one request
@@ -379,7 +386,7 @@ mod tests {
     fn telemetry_layout_is_pinned() {
         use core::mem::{align_of, offset_of, size_of};
         assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<TelemetrySample>(), 520);
+        assert_eq!(size_of::<TelemetrySample>(), 560);
         assert_eq!(align_of::<TelemetrySample>(), 8);
         assert_eq!(offset_of!(TelemetrySample, phi), 168);
         assert_eq!(offset_of!(TelemetrySample, q), 176);
@@ -392,10 +399,11 @@ mod tests {
         assert_eq!(offset_of!(TelemetrySample, chaos), 496);
         assert_eq!(offset_of!(TelemetrySample, lyapunov), 504);
         assert_eq!(offset_of!(TelemetrySample, steering), 492);
+        assert_eq!(offset_of!(TelemetrySample, limit_breaches), 520);
         // SAFETY: type_name only returns the string set by #[type_name].
         assert_eq!(
             unsafe { <TelemetrySample as ZeroCopySend>::type_name() },
-            "chaosd::TelemetrySample.v6"
+            "chaosd::TelemetrySample.v7"
         );
     }
 }

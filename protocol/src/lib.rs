@@ -64,6 +64,7 @@ pub mod sample;
 
 pub use control::{
     ControlRequest, ControlResponse, ControlService, Op, Status, TelemetrySample, TelemetryService,
+    LIMIT_BREACH_KINDS,
 };
 pub use device::{interface, DeviceStatus};
 pub use handshake::{mismatch, ArmInfo, FloatingBase};

@@ -232,6 +232,17 @@ fn the_exporter_serves_prometheus_metrics_from_a_live_daemon() {
         ),
         Some(1.0)
     );
+    // Every kind of limit breach has its counter, from the daemon's own watch (none here).
+    for kind in protocol::LIMIT_BREACH_KINDS {
+        assert_eq!(
+            value(
+                &text,
+                &format!("chaosd_limit_breaches_total{{namespace=\"{ns}\",kind=\"{kind}\"}}")
+            ),
+            Some(0.0),
+            "{kind}:\n{text}"
+        );
+    }
     for q in ["0.5", "0.99", "0.999", "1"] {
         for d in ["wakeup_lateness", "compute", "state_age"] {
             let v = value(
