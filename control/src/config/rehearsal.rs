@@ -11,7 +11,7 @@
 //! self-motion may wander later, and the live limit watch reports what it finds there.
 
 use crate::basics::{ConfigError, PhysicsError};
-use crate::config::spatial::SpatialConfig;
+use crate::config::spatial::{SpatialConfig, SpatialSetup};
 use crate::model::Chain;
 use crate::sim::spatial::SpatialSimulation;
 
@@ -44,11 +44,28 @@ impl SpatialConfig {
     /// that comes closest to (or furthest past) its effort limit. `N` must be the chain's
     /// joint count.
     pub fn effort_peak<const N: usize>(&self, chain: &Chain) -> Result<EffortPeak, ConfigError> {
+        let (setup, limits) = self.effort_setup::<N>(chain)?;
+        self.rehearse(&setup, &limits)
+    }
+
+    /// The run and the effort limits the stream obeys (the description's, tightened).
+    fn effort_setup<const N: usize>(
+        &self,
+        chain: &Chain,
+    ) -> Result<(SpatialSetup<N>, [f64; N]), ConfigError> {
         let setup = self.setup::<N>(chain)?;
         let limits = self
             .command
             .limits::<N>(chain, &self.robot.description)?
             .tau;
+        Ok((setup, limits))
+    }
+
+    fn rehearse<const N: usize>(
+        &self,
+        setup: &SpatialSetup<N>,
+        limits: &[f64; N],
+    ) -> Result<EffortPeak, ConfigError> {
         let span = (REHEARSAL_PERIODS * self.task.period).max(REHEARSAL_MIN_S);
         let steps = (span / setup.dt).ceil() as u64;
         let model = setup.arm.model;
@@ -90,26 +107,21 @@ impl SpatialConfig {
     /// Refuses a start the arm cannot hold, then one whose first seconds of motion need more
     /// than a joint's effort limit (the first is the plainer cause, so it is named first).
     pub fn check_motion_effort<const N: usize>(&self, chain: &Chain) -> Result<(), ConfigError> {
-        let setup = self.setup::<N>(chain)?;
-        let tau = self
-            .command
-            .limits::<N>(chain, &self.robot.description)?
-            .tau;
+        let (setup, tau) = self.effort_setup::<N>(chain)?;
         let hold = chain.gravity_beyond_effort(&setup.arm.model, &setup.q0, &tau.into(), "");
         if let Some(e) = hold {
             return Err(e.into());
         }
-        let p = self.effort_peak::<N>(chain)?;
+        let p = self.rehearse(&setup, &tau)?;
         if p.torque <= p.limit {
             return Ok(());
         }
-        let j = &chain.joints[p.joint];
         Err(PhysicsError::MotionBeyondEffort {
             index: p.joint + 1,
-            joint: j.name.clone(),
+            joint: chain.joints[p.joint].name.clone(),
             load: p.torque,
             limit: p.limit,
-            unit: if j.kind.is_prismatic() { "N" } else { "N·m" },
+            unit: chain.effort_unit(p.joint),
             t: p.t,
             span: p.span,
         }

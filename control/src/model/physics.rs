@@ -38,6 +38,15 @@ impl Chain {
         })
     }
 
+    /// The unit of joint `i`'s effort (0-based): a force for a prismatic joint, else a torque.
+    pub fn effort_unit(&self, i: usize) -> &'static str {
+        if self.joints[i].kind.is_prismatic() {
+            "N"
+        } else {
+            "N·m"
+        }
+    }
+
     /// The first joint whose effort limit (`tau_max`, the tighter of the URDF's and any
     /// table's) is below the gravity load of `model` (the arm as simulated, payload included)
     /// at posture `q`, or `None`.
@@ -55,11 +64,7 @@ impl Chain {
             joint: self.joints[i].name.clone(),
             load: g[i].abs(),
             limit: tau_max[i],
-            unit: if self.joints[i].kind.is_prismatic() {
-                "N"
-            } else {
-                "N·m"
-            },
+            unit: self.effort_unit(i),
             remedy,
         })
     }
