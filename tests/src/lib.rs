@@ -75,7 +75,7 @@ impl Drop for TempDir {
     }
 }
 
-/// A child process that is killed when dropped.
+/// A child process that is stopped when dropped (SIGTERM, then SIGKILL).
 pub struct Proc {
     pub name: String,
     child: Option<Child>,
@@ -189,10 +189,26 @@ impl Proc {
 }
 
 impl Drop for Proc {
+    /// SIGTERM first, so the process releases its iceoryx2 node and services as it does on a
+    /// clean stop (a SIGKILL leaves them on the machine until another node sweeps them up);
+    /// SIGKILL after a grace of [`DROP_GRACE`]. Never panics: it runs when a test has failed.
     fn drop(&mut self) {
+        if let Some(c) = self.child.as_mut() {
+            if let Ok(None) = c.try_wait() {
+                // SAFETY: kill(2) on our own child, which has not been reaped.
+                unsafe { libc::kill(c.id() as i32, libc::SIGTERM) };
+                let until = Instant::now() + DROP_GRACE;
+                while Instant::now() < until && matches!(c.try_wait(), Ok(None)) {
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+            }
+        }
         self.kill9();
     }
 }
+
+/// How long a dropped [`Proc`] has to stop cleanly after its SIGTERM.
+pub const DROP_GRACE: Duration = Duration::from_secs(3);
 
 /// A config file for a test system: namespaced, writing into the test's directory, sleeping
 /// waits (never a spin: the test and its peers share 2 cores) at SCHED_FIFO 40 where permitted,
