@@ -418,8 +418,8 @@ fn device(summary: Option<&Value>) -> Vec<Line> {
         Line::detail(
             "device cycles",
             format!(
-                "{} cycles, {} answered in time, {} missed, {} late answers, {} brakes; {} states and {} commands lost (injected)",
-                n("cycles"), n("answered_in_time"), n("missed"), n("late_answers"), n("brakes"), n("states_lost"), n("commands_lost")
+                "{} cycles ({} skipped by its own lateness), {} answered in time, {} missed, {} late answers, {} brakes; {} states and {} commands lost (injected)",
+                n("cycles"), n("skipped"), n("answered_in_time"), n("missed"), n("late_answers"), n("brakes"), n("states_lost"), n("commands_lost")
             ),
         ),
         Line::detail(

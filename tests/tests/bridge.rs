@@ -330,6 +330,40 @@ fn a_killed_bridge_makes_the_device_brake_and_a_restarted_one_resumes() {
     assert!(c["missed"].as_u64().unwrap() >= 10, "{f}");
 }
 
+/// The device owns the clock: a bridge that stops answering (here stopped by SIGSTOP for 60 ms,
+/// as a host takes a vCPU away) costs one miss each period, and 20 in a row brake the device.
+/// (A device that waited for each answer up to its next cycle and then counted that cycle as
+/// skipped sent a state every other period while unanswered, and braked after 40 ms, or not.)
+#[test]
+fn a_stalled_bridge_costs_the_device_a_miss_every_period_and_a_brake() {
+    let _g = serial();
+    let mut u = setup("udp-bridge-stall");
+    let mut device = u.fakebot("fakebot", &["--max-missed", "20"]);
+    let mut bridge = u.bridge("bridge");
+    let mut daemon = u.daemon();
+    u.m.wait_for("the daemon to run", Duration::from_secs(15), |m| {
+        runs(m) > 200
+    });
+    bridge.signal(libc::SIGSTOP);
+    std::thread::sleep(Duration::from_millis(60));
+    bridge.signal(libc::SIGCONT);
+    u.m.clear();
+    u.m.wait_for("the device following again", Duration::from_secs(15), |m| {
+        runs(m) > 200
+    });
+    // The device stops first: its counters then hold the stall's misses and no others.
+    assert!(device.terminate(Duration::from_secs(10)).success());
+    assert!(daemon.terminate(Duration::from_secs(10)).success());
+    assert!(bridge.terminate(Duration::from_secs(10)).success());
+    let f = json(&u.summary());
+    let c = &f["counters"];
+    assert!(c["brakes"].as_u64().unwrap() >= 1, "{f}");
+    // Stopped for 60 periods, the bridge left at least that many states unanswered, each a
+    // miss; the device's clock skipped none of them (a host stall of its own may skip a few).
+    assert!(c["missed"].as_u64().unwrap() >= 55, "{f}");
+    assert!(c["skipped"].as_u64().unwrap() <= 5, "{f}");
+}
+
 #[test]
 fn bad_bridge_and_fakebot_flags_are_refused() {
     let _g = serial();

@@ -270,7 +270,11 @@ fn position_mode_through_udp_rides_out_stalls_of_the_daemon_and_the_bridge() {
     assert_eq!(s["device_stops"], 0, "{s}");
     assert_eq!(s["counters"]["faults"], 0, "{s}");
     // The stalls did what they are for: the device braked, and the daemon held.
-    assert!(f["counters"]["brakes"].as_u64().unwrap() >= 1, "{f}");
+    assert!(
+        f["counters"]["brakes"].as_u64().unwrap() >= 1,
+        "{f}\n{s}\n{}",
+        demo.log()
+    );
     assert!(s["counters"]["holds_entered"].as_u64().unwrap() >= 1, "{s}");
 }
 

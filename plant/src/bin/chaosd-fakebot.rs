@@ -247,8 +247,8 @@ fn main() -> ExitCode {
                 s.round_trip.one_line()
             );
             eprintln!(
-                "chaosd-fakebot: {} cycles, {} answered in time, {} missed, {} late answers, {} malformed, {} stale; lost {} states and {} commands; {} brakes, {} spikes, {} restarts; {} reflex stops{}",
-                c.cycles, c.answered_in_time, c.missed, c.late_answers, c.malformed, c.stale_session, c.states_lost, c.commands_lost, c.brakes, c.spikes, c.restarts,
+                "chaosd-fakebot: {} cycles ({} skipped by its own lateness), {} answered in time, {} missed, {} late answers, {} malformed, {} stale; lost {} states and {} commands; {} brakes, {} spikes, {} restarts; {} reflex stops{}",
+                c.cycles, c.skipped, c.answered_in_time, c.missed, c.late_answers, c.malformed, c.stale_session, c.states_lost, c.commands_lost, c.brakes, c.spikes, c.restarts,
                 c.reflex_stops, s.first_reflex.as_ref().map_or(String::new(), |f| format!(", the first {f}"))
             );
             ExitCode::SUCCESS

@@ -117,6 +117,9 @@ impl Placement {
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
 pub struct FakebotCounters {
     pub cycles: u64,
+    /// Cycles the device's own lateness skipped (its thread ran a whole period late): no
+    /// state went out for them. A real device's clock skips none; here the host's stalls do.
+    pub skipped: u64,
     pub states_sent: u64,
     pub answered_in_time: u64,
     /// Cycles whose state got no answer in time.
@@ -262,7 +265,12 @@ pub fn run<const N: usize>(
         }
         dev.cycle(period, behind);
         dev.await_answer(deadline + period);
-        behind = sched.advance(monotonic_ns());
+        // The wait for an answer runs up to the next cycle's start, so a silent controller
+        // leaves the device there, due but not late: only a whole period past it is a skipped
+        // cycle. (Counted from the wait's end, every miss skipped the next cycle, and a 40 ms
+        // silence made 20 misses, not 40: the brake after 20 came or not by chance.)
+        behind = sched.advance(monotonic_ns().saturating_sub(period));
+        dev.c.skipped += behind;
     }
     dev.sim.deactivate();
     Ok(FakebotSummary {
