@@ -141,3 +141,18 @@ fn unitree_z1_with_a_locked_gripper_matches_pinocchio() {
 fn prismatic_joints_turned_axes_and_a_tilted_base_match_pinocchio() {
     check("quirks");
 }
+
+#[test]
+fn tiago_torso_and_arm_eight_joints_match_pinocchio() {
+    check("tiago_no_hand");
+}
+
+#[test]
+fn talos_two_torso_joints_and_an_arm_nine_joints_match_pinocchio() {
+    check("talos_reduced");
+}
+
+#[test]
+fn a_twelve_joint_chain_at_full_capacity_matches_pinocchio() {
+    check("snake12");
+}

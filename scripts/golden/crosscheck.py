@@ -1,7 +1,7 @@
 """chaosctl robot eval against pinocchio on every arm in example-robot-data, as a new user would.
 
 For every URDF that example-robot-data ships and every leaf link of it, the chain from the root
-to that leaf is built the way chaosd reads it (pinocchio_fixtures.urdf_chain); chains of 2 to 7
+to that leaf is built the way chaosd reads it (pinocchio_fixtures.urdf_chain); chains of 2 to 12
 revolute/continuous/prismatic joints are evaluated at random states by the built `chaosctl robot
 eval FILE --base ROOT --tip LEAF --json` and by pinocchio's reduced model, and the worst relative
 error over every quantity is printed. Nothing is written; the exit code is 1 if any chain that
@@ -61,7 +61,7 @@ def main():
                 chain = fx.urdf_chain(path, roots[0], leaf)
                 arm = fx.Chain(str(path), roots[0], leaf, chain)
             except SystemExit:
-                continue  # not a serial arm of 1..7 joints from the root
+                continue  # not a serial arm of 1..12 joints from the root
             except Exception as e:  # pinocchio's own limits (e.g. a link named like a joint)
                 print(f"{path.relative_to(robots)} -> {leaf}: pinocchio cannot build it ({e})")
                 continue

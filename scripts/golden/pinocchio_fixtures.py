@@ -27,7 +27,7 @@ q̈ ~ U[-5, 5], τ ~ U[-0.5, 0.5]·effort (no or zero effort: U[-10, 10]).
 
 Self-checks (the script fails loudly): aba(rnea(q̈)) = q̈ to 1e-9; M symmetric positive definite
 and equal to RNEA's columns; the Jacobian and J̇q̇ against central finite differences; the chain
-is 1 to 7 revolute/continuous/prismatic joints; robots/panda.urdf's flange equals Franka's
+is 1 to 12 revolute/continuous/prismatic joints; robots/panda.urdf's flange equals Franka's
 modified-DH product to 1e-12.
 
 Deterministic and idempotent: rerunning rewrites identical files. Usage (repo root or anywhere):
@@ -70,6 +70,11 @@ ROBOTS = [
     ("z1", "erd:z1_description/urdf/z1.urdf", "link00", "gripperStator"),
     # Ours: prismatic joints, axes off x/y/z, a tilted base, a load on an off-chain joint.
     ("quirks", "control/tests/fixtures/urdf/quirks.urdf", "base", "tcp"),
+    # Longer than an arm: a torso joint and a 7-joint arm (8), two torso joints (9), and ours at
+    # chaosd's capacity (12).
+    ("tiago_no_hand", "erd:tiago_description/robots/tiago_no_hand.urdf", "base_link", "arm_7_link"),
+    ("talos_reduced", "erd:talos_data/robots/talos_reduced.urdf", "base_link", "arm_left_7_link"),
+    ("snake12", "control/tests/fixtures/urdf/snake12.urdf", "base", "tip"),
 ]
 
 MOVABLE = ("revolute", "continuous", "prismatic")
@@ -138,8 +143,8 @@ def urdf_chain(path, base, tip):
         else:
             lower, upper = attr("lower"), attr("upper")
         chain.append((j.get("name"), kind, lower, upper, attr("effort")))
-    if not 1 <= len(chain) <= 7:
-        sys.exit(f"{path}: {len(chain)} joints from {base} to {tip}; chaosd takes 1 to 7")
+    if not 1 <= len(chain) <= 12:
+        sys.exit(f"{path}: {len(chain)} joints from {base} to {tip}; chaosd takes 1 to 12")
     return chain
 
 
