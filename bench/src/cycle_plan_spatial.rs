@@ -53,7 +53,7 @@ type Job = (
     control::config::spatial::SpatialSetup<7>,
     f64,
     nalgebra::SVector<f64, 7>,
-    Option<control::steer::CycleTable<7>>,
+    Option<control::steer::CycleTable<{ control::MAX_JOINTS }>>,
 );
 
 fn job(chain: &Chain, spheres: &[[f64; 4]], at: f64) -> Result<Job> {

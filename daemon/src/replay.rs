@@ -16,10 +16,10 @@
 //! [`crate::view`], so the run that replays bit for bit also opens in Foxglove. A name ending in
 //! `.replay` writes the text alone; [`replay`] reads both.
 //!
-//! # Format (text, version 3; every `f64` as the 16 hex digits of its bits)
+//! # Format (text, version 4; every `f64` as the 16 hex digits of its bits)
 //!
 //! ```text
-//! chaosd-replay 3
+//! chaosd-replay 4
 //! settings n=3 rate_hz=<f64> first_order_hold=1 hold_after=5 stale_ns=5000000 \
 //!          future_slack_ns=1000000 daemon_id=<u64> t_start=<f64> fault=0 handshake=1 \
 //!          [arm=<u64 hex>]
@@ -38,16 +38,17 @@
 //! (the `settings` line is one line). `arm` is a robot's fingerprint (`System::identity`: its
 //! chain's every number), present when the config has a `[robot]`: a replay loads the robot the
 //! config names and refuses one whose numbers changed since. `<state>` is `-` (nothing
-//! received) or `seq,stamp_ns,plant_id,n,flags,phi,q[0..7],qd[0..7]`; `<command>` is `-` (none
-//! sent) or `seq,state_seq,state_stamp_ns,stamp_ns,daemon_id,mode,n,interface,qdd[0..7],
-//! qddd[0..7],q[0..7],qd[0..7],tau[0..7]` (one field list): every array whole, `MAX_JOINTS`
+//! received) or `seq,stamp_ns,plant_id,n,flags,phi,q[0..12],qd[0..12]`; `<command>` is `-` (none
+//! sent) or `seq,state_seq,state_stamp_ns,stamp_ns,daemon_id,mode,n,interface,qdd[0..12],
+//! qddd[0..12],q[0..12],qd[0..12],tau[0..12]` (one field list): every array whole, `MAX_JOINTS`
 //! entries, so that a position, velocity or torque command is compared whole. Integers are
 //! decimal. Ticks count from 0 at the daemon's start.
 //!
-//! Version 2 was the same without `arm` and with the command's `interface`, `q`, `qd` and
-//! `tau` left out (recordings of the planar arm in acceleration mode): it still replays, its
-//! commands compared on what it holds. Version 1 had arrays of 6 entries (before the joint
-//! capacity became 7); it is refused by name.
+//! Older recordings still replay: version 3 is the same with arrays (and steering postures) of
+//! 7 entries, before the joint capacity became 12; version 2 is version 3 without `arm` and with
+//! the command's `interface`, `q`, `qd` and `tau` left out (recordings of the planar arm in
+//! acceleration mode), its commands compared on what they hold. Version 1 had arrays of 6
+//! entries (before the capacity became 7); it is refused by name.
 
 use crate::controller::{Applied, Controller, ControllerSettings};
 use crate::telemetry::TickRecord;
@@ -59,9 +60,13 @@ use std::fmt::Write as _;
 use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
 
-const MAGIC: &str = "chaosd-replay 3";
-/// The header of format 2 (commands without their interface, references and torques).
+const MAGIC: &str = "chaosd-replay 4";
+/// The header of format 3 (arrays of 7 entries).
+const MAGIC_V3: &str = "chaosd-replay 3";
+/// The header of format 2 (arrays of 7, commands without interface, references and torques).
 const MAGIC_V2: &str = "chaosd-replay 2";
+/// The entries of every per-joint array in formats 2 and 3 (the joint capacity then).
+const OLD_WIDTH: usize = 7;
 /// The header of format 1 (arrays of 6 entries), which this build cannot read.
 const MAGIC_V1: &str = "chaosd-replay 1";
 /// No line of a valid recording comes near this.
@@ -408,7 +413,15 @@ fn excerpt(s: &str) -> String {
     s.chars().take(40).collect()
 }
 
-fn parse_state(text: &str) -> Result<Option<StateSample>> {
+/// What a recording's format holds: every command field (`whole`, formats 3 and 4) or the
+/// acceleration and its rate (format 2), and how many entries each per-joint array has.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Layout {
+    whole: bool,
+    width: usize,
+}
+
+fn parse_state(text: &str, width: usize) -> Result<Option<StateSample>> {
     if text == "-" {
         return Ok(None);
     }
@@ -422,15 +435,15 @@ fn parse_state(text: &str) -> Result<Option<StateSample>> {
         phi: f.f64()?,
         ..StateSample::default()
     };
-    for v in s.q.iter_mut().chain(s.qd.iter_mut()) {
+    for v in s.q[..width].iter_mut().chain(s.qd[..width].iter_mut()) {
         *v = f.f64()?;
     }
     f.end()?;
     Ok(Some(s))
 }
 
-/// A command of format 3 (`whole`) or of format 2 (without interface, references and torques).
-fn parse_command(text: &str, whole: bool) -> Result<Option<CommandSample>> {
+/// A command of the recording's [`Layout`]; the entries past its width stay zero.
+fn parse_command(text: &str, layout: Layout) -> Result<Option<CommandSample>> {
     if text == "-" {
         return Ok(None);
     }
@@ -445,17 +458,22 @@ fn parse_command(text: &str, whole: bool) -> Result<Option<CommandSample>> {
         n: f.int()?,
         ..CommandSample::default()
     };
-    if whole {
+    let w = layout.width;
+    if layout.whole {
         c.interface = f.int()?;
-        let arrays =
-            c.q.iter_mut()
-                .chain(c.qd.iter_mut())
-                .chain(c.tau.iter_mut());
-        for v in c.qdd.iter_mut().chain(c.qddd.iter_mut()).chain(arrays) {
+        let arrays = c.q[..w]
+            .iter_mut()
+            .chain(c.qd[..w].iter_mut())
+            .chain(c.tau[..w].iter_mut());
+        for v in c.qdd[..w]
+            .iter_mut()
+            .chain(c.qddd[..w].iter_mut())
+            .chain(arrays)
+        {
             *v = f.f64()?;
         }
     } else {
-        for v in c.qdd.iter_mut().chain(c.qddd.iter_mut()) {
+        for v in c.qdd[..w].iter_mut().chain(c.qddd[..w].iter_mut()) {
             *v = f.f64()?;
         }
     }
@@ -519,7 +537,7 @@ fn float(v: f64) -> String {
 }
 
 /// The first field where the recorded command and the replayed one differ (`whole`: a format-3
-/// recording, which holds every field; format 2 holds the acceleration and its rate).
+/// or 4 recording, which holds every field; format 2 holds the acceleration and its rate).
 fn compare(
     tick: u64,
     rec: Option<&CommandSample>,
@@ -657,15 +675,15 @@ struct Header {
     start_in_fault: bool,
     handshake: bool,
     system: System,
-    /// Format 3: commands hold every field.
-    whole: bool,
+    layout: Layout,
 }
 
 fn header<R: BufRead>(lines: &mut Lines<R>) -> Result<Header> {
-    let whole = match lines.next()? {
-        Some(MAGIC) => true,
-        Some(MAGIC_V2) => false,
-        Some(MAGIC_V1) => bail!("a replay recording of format 1 (6-joint arrays, chaosd before wire version 5); this build reads format 2: replay it with the build that recorded it"),
+    let (whole, width) = match lines.next()? {
+        Some(MAGIC) => (true, MAX_JOINTS),
+        Some(MAGIC_V3) => (true, OLD_WIDTH),
+        Some(MAGIC_V2) => (false, OLD_WIDTH),
+        Some(MAGIC_V1) => bail!("a replay recording of format 1 (6-joint arrays, chaosd before wire version 5); this build reads formats 2 to 4: replay it with the build that recorded it"),
         _ => bail!("not a chaosd replay recording (the first line is not {MAGIC:?}; `chaosctl record` CSV files cannot be replayed)"),
     };
     let line = lines
@@ -677,8 +695,8 @@ fn header<R: BufRead>(lines: &mut Lines<R>) -> Result<Header> {
         .ok_or_else(|| anyhow!("line 2 is not the settings line"))?
         .split(' ');
     let n: usize = int(setting(&mut f, "n")?, "n")?;
-    if !(protocol::MIN_JOINTS..=MAX_JOINTS).contains(&n) {
-        bail!("the settings say n = {n}: not an arm size chaosd runs");
+    if !(protocol::MIN_JOINTS..=width).contains(&n) {
+        bail!("the settings say n = {n}: not an arm size chaosd runs (or recorded in this format)");
     }
     let settings = ControllerSettings {
         rate_hz: bits(setting(&mut f, "rate_hz")?, "rate_hz")?,
@@ -727,7 +745,7 @@ fn header<R: BufRead>(lines: &mut Lines<R>) -> Result<Header> {
         start_in_fault,
         handshake,
         system,
-        whole,
+        layout: Layout { whole, width },
     })
 }
 
@@ -827,10 +845,10 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
                     bail!("line {no}: a tick needs 4 fields after T");
                 };
                 let now: u64 = int(now, "now_ns").map_err(at)?;
-                let state = parse_state(state).map_err(at)?;
-                let recorded = parse_command(cmd, h.whole).map_err(at)?;
+                let state = parse_state(state, h.layout.width).map_err(at)?;
+                let recorded = parse_command(cmd, h.layout).map_err(at)?;
                 let o = ctl.tick(state.as_ref(), now);
-                match compare(tick, recorded.as_ref(), o.command.as_ref(), h.whole) {
+                match compare(tick, recorded.as_ref(), o.command.as_ref(), h.layout.whole) {
                     None => rep.matched += 1,
                     Some(m) if rep.first_mismatch.is_none() => rep.first_mismatch = Some(m),
                     Some(_) => {}
@@ -856,7 +874,8 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
             }
             "S" => {
                 let rest: Vec<&str> = parts.collect();
-                let steer = crate::replay_steer::parse(&rest, chain.is_some()).map_err(at)?;
+                let width = chain.is_some().then_some(h.layout.width);
+                let steer = crate::replay_steer::parse(&rest, width).map_err(at)?;
                 ctl.set_steer(steer);
             }
             "B" => match (parts.next(), parts.next()) {
@@ -1119,22 +1138,83 @@ mod tests {
         std::fs::remove_dir_all(&d).unwrap();
     }
 
-    /// `text` as format 2 wrote it: the command without interface, q, qd and tau.
-    fn as_format_2(text: &str) -> String {
+    /// The first `OLD_WIDTH` entries of each of `arrays` per-joint arrays after `head` fields
+    /// (the entries dropped are zero: the arm has at most 7 joints).
+    fn narrow(text: &str, head: usize, arrays: usize) -> String {
+        if text == "-" {
+            return text.into();
+        }
+        let f: Vec<&str> = text.split(',').collect();
+        assert_eq!(f.len(), head + arrays * MAX_JOINTS, "{text}");
+        let mut out: Vec<&str> = f[..head].to_vec();
+        for a in f[head..].chunks(MAX_JOINTS) {
+            assert!(a[OLD_WIDTH..].iter().all(|v| *v == "0000000000000000"));
+            out.extend(&a[..OLD_WIDTH]);
+        }
+        out.join(",")
+    }
+
+    /// `text` (format 4) as format 3 wrote it: every array, and a robot's steering postures,
+    /// 7 entries long.
+    fn as_format_3(text: &str) -> String {
+        let spatial = text.contains(" arm=");
         let mut out = String::new();
         for line in text.lines() {
+            let line = line.replacen("chaosd-replay 4", "chaosd-replay 3", 1);
+            let mut parts: Vec<String> = line.split(' ').map(String::from).collect();
+            if parts[0] == "T" {
+                parts[3] = narrow(&parts[3], 6, 2);
+                parts[4] = narrow(&parts[4], 8, 5);
+            }
+            if parts[0] == "S" && parts[2] == "1" && spatial {
+                let postures = parts[8..].join(",");
+                let head = parts[..8].join(" ");
+                let k: usize = parts[7].parse().unwrap();
+                let narrowed = narrow(&format!("x,{postures}"), 1, k);
+                parts = vec![head, narrowed[2..].replace(',', " ")];
+            }
+            out.push_str(&parts.join(" "));
+            out.push('\n');
+        }
+        out
+    }
+
+    /// `text` (format 4) as format 2 wrote it: arrays of 7, the command without interface, q,
+    /// qd and tau.
+    fn as_format_2(text: &str) -> String {
+        let mut out = String::new();
+        for line in as_format_3(text).lines() {
             let line = line.replacen("chaosd-replay 3", "chaosd-replay 2", 1);
             let mut parts: Vec<String> = line.split(' ').map(String::from).collect();
             if parts[0] == "T" && parts[4] != "-" {
                 let f: Vec<&str> = parts[4].split(',').collect();
                 let mut short: Vec<&str> = f[..7].to_vec();
-                short.extend(&f[8..8 + 2 * MAX_JOINTS]);
+                short.extend(&f[8..8 + 2 * OLD_WIDTH]);
                 parts[4] = short.join(",");
             }
             out.push_str(&parts.join(" "));
             out.push('\n');
         }
         out
+    }
+
+    /// Recordings made when the capacity was 7 (format 3) replay bit for bit: the planar arm,
+    /// and the Panda in a command mode with steering.
+    #[test]
+    fn a_format_3_recording_still_replays_bit_for_bit() {
+        let d = dir("v3");
+        for p in [
+            record(&d),
+            record_panda(&d, control::command::CommandMode::Position),
+        ] {
+            let v3 = as_format_3(&std::fs::read_to_string(&p).unwrap());
+            assert!(v3.starts_with("chaosd-replay 3\n"));
+            std::fs::write(&p, &v3).unwrap();
+            let r = replay(&p).unwrap();
+            assert!(r.all_matched(), "{r}");
+            assert_eq!((r.ticks, r.param_changes), (400, 1));
+        }
+        std::fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]
@@ -1150,7 +1230,7 @@ mod tests {
     }
 
     #[test]
-    fn a_reference_or_torque_that_differs_is_found_in_format_3() {
+    fn a_reference_or_torque_that_differs_is_found_in_format_4() {
         let d = dir("whole");
         let p = record(&d);
         let text = std::fs::read_to_string(&p).unwrap();
@@ -1162,7 +1242,7 @@ mod tests {
         lines[i] = fields.join(",");
         std::fs::write(&p, lines.join("\n") + "\n").unwrap();
         let m = replay(&p).unwrap().first_mismatch.unwrap();
-        assert_eq!((m.tick, m.field.as_str()), (200, "command.tau[6]"));
+        assert_eq!((m.tick, m.field.as_str()), (200, "command.tau[11]"));
         std::fs::remove_dir_all(&d).unwrap();
     }
 
@@ -1208,8 +1288,9 @@ mod tests {
         );
         let p = d.join("a.replay");
         let size = std::fs::metadata(&p).unwrap().len();
+        // Stopped within two tick lines of the cap (one is about 1.5 kB with arrays of 12).
         assert!(
-            size <= cap && size > cap - 1000,
+            size <= cap && size > cap - 4000,
             "{size} bytes for a cap of {cap}"
         );
         let r = replay(&p).unwrap();
@@ -1257,7 +1338,7 @@ mod tests {
             ),
             (format!("{}\n", "x".repeat(100_000)), "longer than"),
             (
-                text.replacen("chaosd-replay 3", "chaosd-replay 1", 1),
+                text.replacen("chaosd-replay 4", "chaosd-replay 1", 1),
                 "format 1 (6-joint arrays",
             ),
         ] {

@@ -195,7 +195,7 @@ pub const LIMIT_BREACH_KINDS: [&str; 5] = ["position", "speed", "acceleration", 
 
 /// One telemetry sample, published by the daemon at `daemon.telemetry_hz`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::TelemetrySample.v7")]
+#[type_name("chaosd::TelemetrySample.v8")]
 #[repr(C)]
 pub struct TelemetrySample {
     pub seq: u64,
@@ -385,25 +385,25 @@ mod tests {
     #[test]
     fn telemetry_layout_is_pinned() {
         use core::mem::{align_of, offset_of, size_of};
-        assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<TelemetrySample>(), 560);
+        assert_eq!(MAX_JOINTS, 12);
+        assert_eq!(size_of::<TelemetrySample>(), 640);
         assert_eq!(align_of::<TelemetrySample>(), 8);
         assert_eq!(offset_of!(TelemetrySample, phi), 168);
         assert_eq!(offset_of!(TelemetrySample, q), 176);
-        assert_eq!(offset_of!(TelemetrySample, qd), 232);
-        assert_eq!(offset_of!(TelemetrySample, faults), 288);
-        assert_eq!(offset_of!(TelemetrySample, state_age_us), 400);
-        assert_eq!(offset_of!(TelemetrySample, interface), 432);
-        assert_eq!(offset_of!(TelemetrySample, saturations), 440);
-        assert_eq!(offset_of!(TelemetrySample, blocked), 488);
-        assert_eq!(offset_of!(TelemetrySample, chaos), 496);
-        assert_eq!(offset_of!(TelemetrySample, lyapunov), 504);
-        assert_eq!(offset_of!(TelemetrySample, steering), 492);
-        assert_eq!(offset_of!(TelemetrySample, limit_breaches), 520);
+        assert_eq!(offset_of!(TelemetrySample, qd), 272);
+        assert_eq!(offset_of!(TelemetrySample, faults), 368);
+        assert_eq!(offset_of!(TelemetrySample, state_age_us), 480);
+        assert_eq!(offset_of!(TelemetrySample, interface), 512);
+        assert_eq!(offset_of!(TelemetrySample, saturations), 520);
+        assert_eq!(offset_of!(TelemetrySample, blocked), 568);
+        assert_eq!(offset_of!(TelemetrySample, chaos), 576);
+        assert_eq!(offset_of!(TelemetrySample, lyapunov), 584);
+        assert_eq!(offset_of!(TelemetrySample, steering), 572);
+        assert_eq!(offset_of!(TelemetrySample, limit_breaches), 600);
         // SAFETY: type_name only returns the string set by #[type_name].
         assert_eq!(
             unsafe { <TelemetrySample as ZeroCopySend>::type_name() },
-            "chaosd::TelemetrySample.v7"
+            "chaosd::TelemetrySample.v8"
         );
     }
 }

@@ -13,7 +13,8 @@
 //! can still exchange, so that they can tell each other which versions they speak. Its arrays
 //! are [`MAX_JOINTS`] long, so it changed with the joint capacity (6 → 7, wire version 4 → 5:
 //! 192 → 216 bytes), and again when URDF chains joined the planar arms (version 6: the robot's
-//! name and fingerprint, 288 bytes). Builds on either side of such a change cannot exchange it:
+//! name and fingerprint, 288 bytes), and with the capacity again (7 → 12, wire version 9: 408
+//! bytes, so that a torso and a 7-joint arm fit). Builds on either side of such a change cannot exchange it:
 //! whichever starts second fails to open the info service (`IncompatibleTypes`) instead of naming
 //! both versions.
 //!
@@ -480,24 +481,24 @@ mod tests {
     }
 
     /// This layout must not change: it is how two wire versions tell each other apart. It last
-    /// changed when URDF chains joined (wire version 6; it was 216 bytes).
+    /// changed with the joint capacity (7 → 12, wire version 9; it was 288 bytes).
     #[test]
     fn info_layout_is_frozen() {
-        assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<ArmInfo>(), 288);
+        assert_eq!(MAX_JOINTS, 12);
+        assert_eq!(size_of::<ArmInfo>(), 408);
         assert_eq!(align_of::<ArmInfo>(), 8);
         assert_eq!(offset_of!(ArmInfo, wire_version), 0);
         assert_eq!(offset_of!(ArmInfo, kind), 4);
         assert_eq!(offset_of!(ArmInfo, instance_id), 8);
         assert_eq!(offset_of!(ArmInfo, n), 16);
         assert_eq!(offset_of!(ArmInfo, links), 24);
-        assert_eq!(offset_of!(ArmInfo, link_masses), 80);
-        assert_eq!(offset_of!(ArmInfo, link_inertias), 136);
-        assert_eq!(offset_of!(ArmInfo, base_mass), 192);
-        assert_eq!(offset_of!(ArmInfo, base_inertia), 200);
-        assert_eq!(offset_of!(ArmInfo, base_offset), 208);
-        assert_eq!(offset_of!(ArmInfo, robot), 216);
-        assert_eq!(offset_of!(ArmInfo, fingerprint), 280);
+        assert_eq!(offset_of!(ArmInfo, link_masses), 120);
+        assert_eq!(offset_of!(ArmInfo, link_inertias), 216);
+        assert_eq!(offset_of!(ArmInfo, base_mass), 312);
+        assert_eq!(offset_of!(ArmInfo, base_inertia), 320);
+        assert_eq!(offset_of!(ArmInfo, base_offset), 328);
+        assert_eq!(offset_of!(ArmInfo, robot), 336);
+        assert_eq!(offset_of!(ArmInfo, fingerprint), 400);
         // SAFETY: type_name only returns the string set by #[type_name].
         assert_eq!(
             unsafe { <ArmInfo as ZeroCopySend>::type_name() },

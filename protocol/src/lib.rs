@@ -82,13 +82,13 @@ pub use sample::{
 };
 
 /// Largest supported arm; the length of every per-joint array on the wire.
-pub const MAX_JOINTS: usize = 7;
+pub const MAX_JOINTS: usize = 12;
 /// Smallest supported arm.
 pub const MIN_JOINTS: usize = 2;
 
 /// Wire-format version, embedded in the iceoryx2 type names of the samples. Bump it whenever a
 /// sample's layout or the meaning of a field changes.
-pub const WIRE_VERSION: u32 = 8;
+pub const WIRE_VERSION: u32 = 9;
 
 /// Nanoseconds of `CLOCK_MONOTONIC`, the clock every `*_ns` stamp on the wire uses.
 ///

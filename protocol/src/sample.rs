@@ -32,7 +32,7 @@ pub mod flags {
 
 /// The plant's measured state, published once per plant tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::StateSample.v8")]
+#[type_name("chaosd::StateSample.v9")]
 #[repr(C)]
 pub struct StateSample {
     /// Per-plant sequence number, +1 per published sample, starting at 0 after each plant start.
@@ -255,7 +255,7 @@ impl From<Mode> for u32 {
 
 /// The daemon's command, published once per control tick in answer to a [`StateSample`].
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::CommandSample.v8")]
+#[type_name("chaosd::CommandSample.v9")]
 #[repr(C)]
 pub struct CommandSample {
     /// Per-daemon sequence number, +1 per published command, starting at 0 after each start.
@@ -470,7 +470,7 @@ mod tests {
 
     #[test]
     fn wrong_joint_count_is_rejected() {
-        for n in [0u32, 1, 8, 100, u32::MAX] {
+        for n in [0u32, 1, 13, 100, u32::MAX] {
             let mut s = good_state(4);
             s.n = n;
             assert_eq!(
@@ -556,10 +556,10 @@ mod tests {
             "state sample has n = 3, but this arm has 4 joints"
         );
         let mut s = good_state(4);
-        s.n = 9;
+        s.n = 13;
         assert_eq!(
             s.validate(4).unwrap_err().to_string(),
-            "state sample has n = 9; supported arms have 2..=7 joints"
+            "state sample has n = 13; supported arms have 2..=12 joints"
         );
     }
 
@@ -574,8 +574,8 @@ mod tests {
     /// `WIRE_VERSION` and the `type_name`s.
     #[test]
     fn state_layout_is_pinned() {
-        assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<StateSample>(), 224);
+        assert_eq!(MAX_JOINTS, 12);
+        assert_eq!(size_of::<StateSample>(), 344);
         assert_eq!(align_of::<StateSample>(), 8);
         assert_eq!(offset_of!(StateSample, seq), 0);
         assert_eq!(offset_of!(StateSample, stamp_ns), 8);
@@ -584,17 +584,17 @@ mod tests {
         assert_eq!(offset_of!(StateSample, flags), 28);
         assert_eq!(offset_of!(StateSample, phi), 32);
         assert_eq!(offset_of!(StateSample, q), 40);
-        assert_eq!(offset_of!(StateSample, qd), 96);
-        assert_eq!(offset_of!(StateSample, tau), 152);
-        assert_eq!(offset_of!(StateSample, device), 208);
-        assert_eq!(offset_of!(StateSample, device_joint), 212);
-        assert_eq!(offset_of!(StateSample, device_time_ns), 216);
+        assert_eq!(offset_of!(StateSample, qd), 136);
+        assert_eq!(offset_of!(StateSample, tau), 232);
+        assert_eq!(offset_of!(StateSample, device), 328);
+        assert_eq!(offset_of!(StateSample, device_joint), 332);
+        assert_eq!(offset_of!(StateSample, device_time_ns), 336);
     }
 
     #[test]
     fn command_layout_is_pinned() {
-        assert_eq!(MAX_JOINTS, 7);
-        assert_eq!(size_of::<CommandSample>(), 336);
+        assert_eq!(MAX_JOINTS, 12);
+        assert_eq!(size_of::<CommandSample>(), 536);
         assert_eq!(align_of::<CommandSample>(), 8);
         assert_eq!(offset_of!(CommandSample, seq), 0);
         assert_eq!(offset_of!(CommandSample, state_seq), 8);
@@ -604,12 +604,12 @@ mod tests {
         assert_eq!(offset_of!(CommandSample, mode), 40);
         assert_eq!(offset_of!(CommandSample, n), 44);
         assert_eq!(offset_of!(CommandSample, qdd), 48);
-        assert_eq!(offset_of!(CommandSample, qddd), 104);
-        assert_eq!(offset_of!(CommandSample, interface), 160);
-        assert_eq!(offset_of!(CommandSample, reserved), 164);
-        assert_eq!(offset_of!(CommandSample, q), 168);
-        assert_eq!(offset_of!(CommandSample, qd), 224);
-        assert_eq!(offset_of!(CommandSample, tau), 280);
+        assert_eq!(offset_of!(CommandSample, qddd), 144);
+        assert_eq!(offset_of!(CommandSample, interface), 240);
+        assert_eq!(offset_of!(CommandSample, reserved), 244);
+        assert_eq!(offset_of!(CommandSample, q), 248);
+        assert_eq!(offset_of!(CommandSample, qd), 344);
+        assert_eq!(offset_of!(CommandSample, tau), 440);
     }
 
     #[test]

@@ -235,12 +235,13 @@ fn arm_config(arm: &Arm, q0: &str) -> String {
     let urdf = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../control/tests/fixtures/urdf")
         .join(arm.file);
+    let qdd_max = vec![10.0; q0.split(',').count()];
     format!(
         "[robot]\ndescription = {:?}\nbase = {:?}\ntip = {:?}\n\n\
          [task]\nkind = \"position\"\npath = \"circle\"\nnormal = [1.0, 0.0, 0.0]\nradius = 0.1\nperiod = 2.0\n\n\
          [law]\nalpha = 20.0\nsecondary = \"centring\"\n\n\
          [feedback]\nmu = 1.0\nt_on = 0.0\nprojection = \"null-space\"\n\n\
-         [safety]\nenabled = true\nqdd_max = [10.0, 10.0, 10.0, 10.0, 10.0, 10.0, 10.0]\n\n\
+         [safety]\nenabled = true\nqdd_max = {qdd_max:?}\n\n\
          [sim]\ndt = 0.001\nduration = 20.0\ntransient = 2.0\nq0 = {q0}\n\n\
          [daemon]\nhold_after = 500\n",
         urdf.to_str().unwrap(),
@@ -261,29 +262,67 @@ fn three_arms_nobody_tuned_for_track_in_every_mode_inside_every_limit() {
         &["--mode", "position", "--bridge", "udp"],
     ];
     for arm in &ARMS {
-        let cfg = write(dir.path(), "arm.toml", &arm_config(arm, arm.q0));
-        for args in runs {
-            let what = format!("{} {}", arm.file, args.join(" "));
-            let out = dir.path().join("out");
-            let _ = std::fs::remove_dir_all(&out);
-            let mut all_args = args.to_vec();
-            all_args.extend(["--duration", "6", "--details"]);
-            let o = demo(&cfg, &out, &all_args);
-            let all = text(&o);
-            assert!(o.status.success(), "{what}: {all}");
-            let s = read_json(&out.join("daemon-summary.json"));
-            assert_eq!(s["counters"]["faults"], 0, "{what}: {all}");
-            let rms = s["tracking_rms_m"].as_f64().unwrap();
-            let l = &s["joint_limits"];
-            eprintln!("{what}: tracking RMS {rms:.2e} m, {l}");
-            assert!(rms <= 1e-3, "{what}: tracking RMS {rms} m\n{all}");
-            assert_eq!(
-                (l["states_outside"].as_u64(), l["commands_outside"].as_u64()),
-                (Some(0), Some(0)),
-                "{what}: {all}"
-            );
-        }
+        tracks_inside_every_limit(arm, &runs, dir.path());
     }
+}
+
+/// Each of `runs` of `arm` (6 s demos) tracks to 1 mm RMS without a fault or a state or command
+/// outside a limit.
+fn tracks_inside_every_limit(arm: &Arm, runs: &[&[&str]], dir: &Path) {
+    runs_inside_every_limit(arm, runs, dir, 1e-3);
+}
+
+/// Each of `runs` of `arm` (6 s demos) exits 0 without a fault or a state or command outside a
+/// limit, tracking to `rms_max` (m).
+fn runs_inside_every_limit(arm: &Arm, runs: &[&[&str]], dir: &Path, rms_max: f64) {
+    let cfg = write(dir, "arm.toml", &arm_config(arm, arm.q0));
+    for args in runs {
+        let what = format!("{} {}", arm.file, args.join(" "));
+        let out = dir.join("out");
+        let _ = std::fs::remove_dir_all(&out);
+        let mut all_args = args.to_vec();
+        all_args.extend(["--duration", "6", "--details"]);
+        let o = demo(&cfg, &out, &all_args);
+        let all = text(&o);
+        assert!(o.status.success(), "{what}: {all}");
+        let s = read_json(&out.join("daemon-summary.json"));
+        assert_eq!(s["counters"]["faults"], 0, "{what}: {all}");
+        let rms = s["tracking_rms_m"].as_f64().unwrap();
+        let l = &s["joint_limits"];
+        eprintln!("{what}: tracking RMS {rms:.2e} m, {l}");
+        assert!(rms <= rms_max, "{what}: tracking RMS {rms} m\n{all}");
+        assert_eq!(
+            (l["states_outside"].as_u64(), l["commands_outside"].as_u64()),
+            (Some(0), Some(0)),
+            "{what}: {all}"
+        );
+    }
+}
+
+/// A mobile manipulator's torso and arm as one redundant chain of 8 joints (TIAGo's prismatic
+/// torso lift under its 7-joint arm, the same recipe as the arms above): it loads (its model is
+/// checked against pinocchio in `control/tests/model_pinocchio.rs`) and runs in every command
+/// interface inside every limit. It tracks to about 2 cm, not 1 mm: the minimum-norm
+/// pseudo-inverse gives the torso, whose lift is slow (0.07 m/s), a share of the circle's
+/// vertical motion, and the command limiter holds joint 1 back on most ticks, off the task.
+/// (Issue 43: a joint-space metric weighted by the speed limits is the fix.)
+#[test]
+fn a_torso_and_an_arm_eight_joints_run_in_every_mode_inside_every_limit() {
+    let _g = serial();
+    let dir = TempDir::new(&unique_namespace("eight-joints"));
+    let tiago = Arm {
+        file: "tiago_no_hand.urdf",
+        base: "base_link",
+        tip: "arm_7_link",
+        q0: "[0.15, 0.5, 0.0, -1.5, 1.5, 0.0, 0.0, 0.0]",
+    };
+    let runs: [&[&str]; 4] = [
+        &["--mode", "acceleration"],
+        &["--mode", "position"],
+        &["--mode", "velocity"],
+        &["--mode", "torque"],
+    ];
+    runs_inside_every_limit(&tiago, &runs, dir.path(), 0.05);
 }
 
 #[test]

@@ -4,7 +4,7 @@
 //! a model, a filter and a config can all name them without importing one another.
 
 /// Largest supported arm (also the size of the wire samples' arrays).
-pub const MAX_JOINTS: usize = 7;
+pub const MAX_JOINTS: usize = 12;
 /// Smallest supported arm.
 pub const MIN_JOINTS: usize = 2;
 
@@ -38,6 +38,26 @@ macro_rules! with_dof {
             }
             7 => {
                 const $N: usize = 7;
+                $body
+            }
+            8 => {
+                const $N: usize = 8;
+                $body
+            }
+            9 => {
+                const $N: usize = 9;
+                $body
+            }
+            10 => {
+                const $N: usize = 10;
+                $body
+            }
+            11 => {
+                const $N: usize = 11;
+                $body
+            }
+            12 => {
+                const $N: usize = 12;
                 $body
             }
             other => panic!("unsupported arm size {other}: validate the config first"),

@@ -795,21 +795,29 @@ mod tests {
     }
 
     #[test]
-    fn a_seven_link_arm_fits_and_an_eight_link_one_does_not() {
+    fn arms_of_up_to_twelve_links_fit_and_a_thirteen_link_one_does_not() {
         // A Panda's link lengths (m), with a circle it can reach.
         let seven = Config::parse(
             "[arm]\nlinks = [0.333, 0.316, 0.0825, 0.384, 0.088, 0.107, 0.1]\n\
              [task]\ncenter = [0.5, 0.6]\nradius = 0.2\n",
         )
         .unwrap();
-        assert_eq!(seven.n(), MAX_JOINTS);
+        assert_eq!(seven.n(), 7);
         seven.validate().unwrap();
         assert_eq!(crate::with_dof!(seven.n(), N => N), 7);
-        let e = Config::parse("[arm]\nlinks = [1, 1, 1, 1, 1, 1, 1, 1]\n")
+        let twelve = Config::parse(
+            "[arm]\nlinks = [0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2]\n\
+             [task]\ncenter = [0.5, 0.6]\nradius = 0.2\n",
+        )
+        .unwrap();
+        assert_eq!(twelve.n(), MAX_JOINTS);
+        twelve.validate().unwrap();
+        assert_eq!(crate::with_dof!(twelve.n(), N => N), 12);
+        let e = Config::parse("[arm]\nlinks = [1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n")
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("arm.links") && e.contains("must list 2 to 7 link lengths"),
+            e.contains("arm.links") && e.contains("must list 2 to 12 link lengths"),
             "{e}"
         );
     }

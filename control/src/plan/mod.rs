@@ -32,7 +32,7 @@ pub enum PlanError {
         links: usize,
         base: crate::config::ModelKind,
     },
-    #[error("the planner handles 2 to 7 joints (this arm has {0})")]
+    #[error("the planner handles 2 to 12 joints (this arm has {0})")]
     Joints(usize),
     #[error(transparent)]
     Config(#[from] crate::basics::ConfigError),

@@ -18,16 +18,16 @@
 //! One UDP datagram per message, fixed size, all integers and floats **little-endian**, floats
 //! IEEE-754 binary64. Arrays always have 7 entries (`MAX_JOINTS`); entries `n..` are zero and
 //! ignored. A receiver drops (and counts) every datagram whose length, magic, version, `n`
-//! (2..=7), mode, interface or used floats (finite) are wrong; it never trusts a field it has not
-//! checked. (Version 2 carried q̈ commands only: a 160-byte state and a 144-byte command; version
-//! 1 had arrays of 6 entries.)
+//! (2..=12), mode, interface or used floats (finite) are wrong; it never trusts a field it has not
+//! checked. (Version 3 had arrays of 7 entries: a 216-byte state and a 312-byte command; version 2
+//! carried q̈ commands only; version 1 had arrays of 6 entries.)
 //!
-//! **State** (device → bridge, 216 bytes, sent once per device cycle):
+//! **State** (device → bridge, 336 bytes, sent once per device cycle):
 //!
 //! | offset | type | field |
 //! |---|---|---|
 //! | 0 | `[u8; 4]` | magic `b"CDST"` |
-//! | 4 | u16 | version = 3 |
+//! | 4 | u16 | version = 4 |
 //! | 6 | u16 | `n`, joints in use |
 //! | 8 | u64 | `seq`: the device's cycle counter, +1 per cycle, 0 at each device start |
 //! | 16 | u64 | `session`: random per device start; a new value means the device restarted |
@@ -37,26 +37,26 @@
 //! | 40 | u32 | missed answers since start (saturating) |
 //! | 44 | u16 | status: why the device stopped (`protocol::DeviceStatus` code; 0 while it runs) |
 //! | 46 | u16 | the joint the status is about (1-based; 0: none) |
-//! | 48 | `[f64; 7]` | `q`, joint angles (rad) |
-//! | 104 | `[f64; 7]` | `qd`, joint rates (rad/s) |
-//! | 160 | `[f64; 7]` | `tau`, measured joint torques (N·m; zeros from an arm without sensors) |
+//! | 48 | `[f64; 12]` | `q`, joint angles (rad); entries from `n` on are zero |
+//! | 144 | `[f64; 12]` | `qd`, joint rates (rad/s) |
+//! | 240 | `[f64; 12]` | `tau`, measured joint torques (N·m; zeros from an arm without sensors) |
 //!
-//! **Command** (bridge → device, 312 bytes, at most one per state):
+//! **Command** (bridge → device, 512 bytes, at most one per state):
 //!
 //! | offset | type | field |
 //! |---|---|---|
 //! | 0 | `[u8; 4]` | magic `b"CDCM"` |
-//! | 4 | u16 | version = 3 |
+//! | 4 | u16 | version = 4 |
 //! | 6 | u16 | `n`, must equal the device's |
 //! | 8 | u64 | `seq` of the state this answers (echoed) |
 //! | 16 | u64 | `session` of that state (echoed) |
 //! | 24 | u32 | mode: 0 run, 1 hold (come to rest and stay; also clears a reflex stop), 2 brake |
 //! | 28 | u32 | interface: 0 acceleration (`qdd`, `qddd`), 1 velocity (`qd`), 2 position (`q`), 3 torque (`tau`) |
-//! | 32 | `[f64; 7]` | `qdd`: q̈ at the answered state (rad/s²) |
-//! | 88 | `[f64; 7]` | `qddd`: its rate (rad/s³); the device applies q̈ + q⃛·s, s from the answered state |
-//! | 144 | `[f64; 7]` | `q`: the reference position, reached one cycle after the answered state (rad) |
-//! | 200 | `[f64; 7]` | `qd`: the reference velocity (rad/s) |
-//! | 256 | `[f64; 7]` | `tau`: joint torques (N·m) |
+//! | 32 | `[f64; 12]` | `qdd`: q̈ at the answered state (rad/s²) |
+//! | 128 | `[f64; 12]` | `qddd`: its rate (rad/s³); the device applies q̈ + q⃛·s, s from the answered state |
+//! | 224 | `[f64; 12]` | `q`: the reference position, reached one cycle after the answered state (rad) |
+//! | 320 | `[f64; 12]` | `qd`: the reference velocity (rad/s) |
+//! | 416 | `[f64; 12]` | `tau`: joint torques (N·m) |
 //!
 //! **A robot's rules (the device's side, [`rules`]).** Each RUN command is judged as a robot's
 //! controller judges a stream: a position outside the joint's range; a velocity, acceleration

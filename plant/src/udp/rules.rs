@@ -168,7 +168,7 @@ mod tests {
     fn position(q: f64) -> DeviceCommand {
         let mut c = DeviceCommand::still(2, 0, 0, DeviceMode::Run);
         c.interface = interface::POSITION;
-        c.q = [q, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        c.q[0] = q;
         c
     }
 

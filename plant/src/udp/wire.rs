@@ -4,9 +4,10 @@
 
 use protocol::MAX_JOINTS;
 
-/// Protocol version carried in every packet. 3: command interfaces (position, velocity,
-/// torque), the device's status and measured torques; 2 had q̈ commands only.
-pub const VERSION: u16 = 3;
+/// Protocol version carried in every packet. 4: arrays of 12 joints (a torso and a 7-joint
+/// arm fit); 3 had 7, and brought the command interfaces (position, velocity, torque), the
+/// device's status and measured torques; 2 had q̈ commands only.
+pub const VERSION: u16 = 4;
 /// `b"CDST"`: a state packet (device → bridge).
 pub const STATE_MAGIC: [u8; 4] = *b"CDST";
 /// `b"CDCM"`: a command packet (bridge → device).
@@ -17,7 +18,7 @@ const ARRAY_BYTES: usize = 8 * MAX_JOINTS;
 const STATE_Q: usize = 48;
 const STATE_QD: usize = STATE_Q + ARRAY_BYTES;
 const STATE_TAU: usize = STATE_QD + ARRAY_BYTES;
-/// Size of a state packet (bytes): 216 for 7 joints.
+/// Size of a state packet (bytes): 336 for 12 joints.
 pub const STATE_LEN: usize = STATE_TAU + ARRAY_BYTES;
 /// Offsets of the command's arrays (after its fixed 32-byte header): `qdd`, `qddd`, `q`, `qd`,
 /// `tau`.
@@ -26,7 +27,7 @@ const COMMAND_QDDD: usize = COMMAND_QDD + ARRAY_BYTES;
 const COMMAND_Q: usize = COMMAND_QDDD + ARRAY_BYTES;
 const COMMAND_QD: usize = COMMAND_Q + ARRAY_BYTES;
 const COMMAND_TAU: usize = COMMAND_QD + ARRAY_BYTES;
-/// Size of a command packet (bytes): 312 for 7 joints.
+/// Size of a command packet (bytes): 512 for 12 joints.
 pub const COMMAND_LEN: usize = COMMAND_TAU + ARRAY_BYTES;
 
 /// Device state flag: the device is braking (too many missed answers, or told to).
@@ -280,6 +281,13 @@ impl DeviceCommand {
 mod tests {
     use super::*;
 
+    /// A per-joint array from its first entries (the rest zero).
+    fn j(v: &[f64]) -> [f64; MAX_JOINTS] {
+        let mut a = [0.0; MAX_JOINTS];
+        a[..v.len()].copy_from_slice(v);
+        a
+    }
+
     fn state() -> DeviceState {
         DeviceState {
             n: 3,
@@ -291,9 +299,9 @@ mod tests {
             missed_total: 9,
             status: 3,
             joint: 2,
-            q: [0.1, 0.2, 0.3, 0.0, 0.0, 0.0, 0.0],
-            qd: [-1.0, 2.0, -3.0, 0.0, 0.0, 0.0, 0.0],
-            tau: [5.0, -6.0, 7.0, 0.0, 0.0, 0.0, 0.0],
+            q: j(&[0.1, 0.2, 0.3]),
+            qd: j(&[-1.0, 2.0, -3.0]),
+            tau: j(&[5.0, -6.0, 7.0]),
         }
     }
 
@@ -301,44 +309,46 @@ mod tests {
     /// fails, the layout changed: bump `VERSION` and the table.
     #[test]
     fn the_layout_is_pinned() {
-        assert_eq!(MAX_JOINTS, 7);
+        assert_eq!(MAX_JOINTS, 12);
         assert_eq!(
             (STATE_Q, STATE_QD, STATE_TAU, STATE_LEN),
-            (48, 104, 160, 216)
+            (48, 144, 240, 336)
         );
-        assert_eq!((COMMAND_QDD, COMMAND_QDDD, COMMAND_Q), (32, 88, 144));
-        assert_eq!((COMMAND_QD, COMMAND_TAU, COMMAND_LEN), (200, 256, 312));
-        assert_eq!(VERSION, 3);
+        assert_eq!((COMMAND_QDD, COMMAND_QDDD, COMMAND_Q), (32, 128, 224));
+        assert_eq!((COMMAND_QD, COMMAND_TAU, COMMAND_LEN), (320, 416, 512));
+        assert_eq!(VERSION, 4);
     }
 
     #[test]
-    fn a_seven_joint_arm_round_trips() {
+    fn a_twelve_joint_arm_round_trips() {
+        let up = |k: f64| core::array::from_fn(|i| k * (i + 1) as f64);
         let s = DeviceState {
-            n: 7,
-            q: [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7],
-            qd: [-0.1, -0.2, -0.3, -0.4, -0.5, -0.6, -0.7],
+            n: 12,
+            q: up(0.1),
+            qd: up(-0.1),
             ..state()
         };
         let mut b = [0u8; STATE_LEN];
         s.encode(&mut b);
-        assert_eq!(f64::from_le_bytes(b[96..104].try_into().unwrap()), 0.7);
-        assert_eq!(f64::from_le_bytes(b[152..160].try_into().unwrap()), -0.7);
+        let at = |b: &[u8], o: usize| f64::from_le_bytes(b[o..o + 8].try_into().unwrap());
+        assert_eq!(at(&b, STATE_Q + 8 * 11), 0.1 * 12.0);
+        assert_eq!(at(&b, STATE_QD + 8 * 11), -0.1 * 12.0);
         assert_eq!(DeviceState::decode(&b), Ok(s));
         let c = DeviceCommand {
             interface: protocol::interface::TORQUE,
-            qdd: [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0],
-            qddd: [-1.0, -2.0, -3.0, -4.0, -5.0, -6.0, -7.0],
+            qdd: up(1.0),
+            qddd: up(-1.0),
             tau: [9.0; MAX_JOINTS],
-            ..DeviceCommand::still(7, 1, 2, DeviceMode::Run)
+            ..DeviceCommand::still(12, 1, 2, DeviceMode::Run)
         };
         let mut b = [0u8; COMMAND_LEN];
         c.encode(&mut b);
-        assert_eq!(f64::from_le_bytes(b[80..88].try_into().unwrap()), 7.0);
-        assert_eq!(f64::from_le_bytes(b[136..144].try_into().unwrap()), -7.0);
+        assert_eq!(at(&b, COMMAND_QDD + 8 * 11), 12.0);
+        assert_eq!(at(&b, COMMAND_QDDD + 8 * 11), -12.0);
         assert_eq!(DeviceCommand::decode(&b), Ok(c));
-        let mut eight = b;
-        eight[6..8].copy_from_slice(&8u16.to_le_bytes());
-        assert_eq!(DeviceCommand::decode(&eight), Err(WireError::Joints(8)));
+        let mut thirteen = b;
+        thirteen[6..8].copy_from_slice(&13u16.to_le_bytes());
+        assert_eq!(DeviceCommand::decode(&thirteen), Err(WireError::Joints(13)));
     }
 
     #[test]
@@ -347,20 +357,20 @@ mod tests {
         state().encode(&mut b);
         assert_eq!(&b[0..4], b"CDST");
         assert_eq!(u64_at(&b, 8), 42);
-        assert_eq!(f64::from_le_bytes(b[104..112].try_into().unwrap()), -1.0);
+        assert_eq!(f64::from_le_bytes(b[144..152].try_into().unwrap()), -1.0);
         assert_eq!(DeviceState::decode(&b), Ok(state()));
         let c = DeviceCommand {
             interface: protocol::interface::POSITION,
-            qdd: [1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 0.0],
-            qddd: [4.0, 5.0, 6.0, 0.0, 0.0, 0.0, 0.0],
-            q: [0.5, 0.25, 0.125, 0.0, 0.0, 0.0, 0.0],
+            qdd: j(&[1.0, 2.0, 3.0]),
+            qddd: j(&[4.0, 5.0, 6.0]),
+            q: j(&[0.5, 0.25, 0.125]),
             ..DeviceCommand::still(3, 42, 5, DeviceMode::Hold)
         };
         let mut b = [0u8; COMMAND_LEN];
         c.encode(&mut b);
         assert_eq!(&b[0..4], b"CDCM");
         assert_eq!(u32_at(&b, 24), 1);
-        assert_eq!(f64::from_le_bytes(b[88..96].try_into().unwrap()), 4.0);
+        assert_eq!(f64::from_le_bytes(b[128..136].try_into().unwrap()), 4.0);
         assert_eq!(DeviceCommand::decode(&b), Ok(c));
     }
 
@@ -404,8 +414,8 @@ mod tests {
         assert_eq!(DeviceCommand::decode(&c), Err(WireError::Interface(9)));
         // Random garbage of every length never panics.
         let mut x = 0x1234_5678_u64;
-        for len in 0..400 {
-            let mut g = [0u8; 400];
+        for len in 0..600 {
+            let mut g = [0u8; 600];
             for v in g.iter_mut().take(len) {
                 x ^= x << 13;
                 x ^= x >> 7;
