@@ -10,15 +10,14 @@
 //! never holds more than n independent rows, so its Gram matrix is at most n×n, on the stack.
 
 use crate::arm::VecN;
-use crate::basics::MAX_JOINTS;
 
 /// A row counts as met when it misses by at most this (relative to 1 + |h|).
 const TOL: f64 = 1e-9;
 
 /// The active rows and their multipliers.
 struct Active<const N: usize> {
-    idx: [usize; MAX_JOINTS],
-    u: [f64; MAX_JOINTS],
+    idx: [usize; N],
+    u: [f64; N],
     q: usize,
 }
 
@@ -33,10 +32,10 @@ impl<const N: usize> Active<N> {
 
     /// r = (NᵀN)⁻¹Nᵀv and z = v − N r for N = the active rows as columns; None if they are
     /// dependent (the Gram matrix is not positive definite).
-    fn split(&self, a: &[VecN<N>], v: &VecN<N>) -> Option<([f64; MAX_JOINTS], VecN<N>)> {
+    fn split(&self, a: &[VecN<N>], v: &VecN<N>) -> Option<([f64; N], VecN<N>)> {
         let q = self.q;
-        let mut g = [[0.0f64; MAX_JOINTS]; MAX_JOINTS];
-        let mut r = [0.0f64; MAX_JOINTS];
+        let mut g = [[0.0f64; N]; N];
+        let mut r = [0.0f64; N];
         for i in 0..q {
             for j in 0..=i {
                 g[i][j] = a[self.idx[i]].dot(&a[self.idx[j]]);
@@ -99,8 +98,8 @@ pub enum Outcome<const N: usize> {
 pub fn solve<const N: usize>(a: &[VecN<N>], h: &[f64]) -> Outcome<N> {
     let mut x = VecN::<N>::zeros();
     let mut act = Active::<N> {
-        idx: [0; MAX_JOINTS],
-        u: [0.0; MAX_JOINTS],
+        idx: [0; N],
+        u: [0.0; N],
         q: 0,
     };
     for _ in 0..4 * a.len() + 8 {
@@ -125,7 +124,7 @@ pub fn solve<const N: usize>(a: &[VecN<N>], h: &[f64]) -> Outcome<N> {
             return Outcome::Solved(x);
         };
         let mut up = 0.0;
-        for _ in 0..2 * MAX_JOINTS + 2 {
+        for _ in 0..2 * N + 2 {
             let Some((r, z)) = act.split(a, &a[p]) else {
                 return Outcome::Undecided;
             };
@@ -155,7 +154,7 @@ pub fn solve<const N: usize>(a: &[VecN<N>], h: &[f64]) -> Outcome<N> {
                 x += z * t;
             }
             if t == t2 {
-                if act.q == N.min(MAX_JOINTS) {
+                if act.q == N {
                     return Outcome::Undecided;
                 }
                 act.idx[act.q] = p;

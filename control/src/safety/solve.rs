@@ -17,8 +17,11 @@ use crate::basics::MAX_JOINTS;
 use crate::secondary::MAX_OBSTACLES;
 use nalgebra::SMatrix;
 
-/// Most rows one problem has: every link against every obstacle, plus 2 per joint (its box).
-pub const MAX_ROWS: usize = MAX_OBSTACLES * MAX_JOINTS + 2 * MAX_JOINTS;
+/// Most rows one problem of an N-joint arm has: every link (N of them) against every obstacle,
+/// plus 2 per joint (its box), stored as this many blocks of N rows.
+pub const ROW_BLOCKS: usize = MAX_OBSTACLES + 2;
+/// Most rows any problem has (the largest arm).
+pub const MAX_ROWS: usize = ROW_BLOCKS * MAX_JOINTS;
 /// Sweeps over all rows before Hildreth's method gives up.
 pub const MAX_SWEEPS: usize = 200;
 
@@ -143,26 +146,46 @@ pub fn smallest_change<const N: usize, const M: usize>(
 }
 
 /// Rows a·δ ≥ b − a·q̈_nom, stored on the stack for the QP.
+///
+/// The store is [`ROW_BLOCKS`] blocks of N rows, so an arm's buffer is sized by its own joint
+/// count: sized by the largest arm instead, a 7-joint arm zeroed 216 rows (17 KB) on every
+/// evaluation where the filter binds, which cost the Panda's tick about a microsecond.
 struct Rows<const N: usize> {
-    a: [VecN<N>; MAX_ROWS],
-    h: [f64; MAX_ROWS],
+    a: [[VecN<N>; N]; ROW_BLOCKS],
+    h: [[f64; N]; ROW_BLOCKS],
     m: usize,
 }
 
 impl<const N: usize> Rows<N> {
-    fn collect(visit: Visit<'_, N>, joint_box: JointBox<'_>, qdd: &VecN<N>) -> Self {
-        let mut r = Self {
-            a: [VecN::<N>::zeros(); MAX_ROWS],
-            h: [0.0; MAX_ROWS],
+    fn empty() -> Self {
+        Self {
+            a: [[VecN::<N>::zeros(); N]; ROW_BLOCKS],
+            h: [[0.0; N]; ROW_BLOCKS],
             m: 0,
-        };
-        let mut push = |a: &VecN<N>, b: f64| {
-            if r.m < MAX_ROWS {
-                r.a[r.m] = *a;
-                r.h[r.m] = b - a.dot(qdd);
-                r.m += 1;
-            }
-        };
+        }
+    }
+
+    /// The rows held.
+    fn a(&self) -> &[VecN<N>] {
+        &self.a.as_flattened()[..self.m]
+    }
+
+    fn h(&self) -> &[f64] {
+        &self.h.as_flattened()[..self.m]
+    }
+
+    fn push(&mut self, a: VecN<N>, h: f64) {
+        let k = self.m;
+        if k < ROW_BLOCKS * N {
+            self.a.as_flattened_mut()[k] = a;
+            self.h.as_flattened_mut()[k] = h;
+            self.m += 1;
+        }
+    }
+
+    fn collect(visit: Visit<'_, N>, joint_box: JointBox<'_>, qdd: &VecN<N>) -> Self {
+        let mut r = Self::empty();
+        let mut push = |a: &VecN<N>, b: f64| r.push(*a, b - a.dot(qdd));
         visit(&mut push);
         for i in 0..N {
             let e = VecN::<N>::from_fn(|k, _| if k == i { 1.0 } else { 0.0 });
@@ -185,17 +208,12 @@ impl<const N: usize> Rows<N> {
         if N <= M {
             return None;
         }
-        let mut projected = Self {
-            a: [VecN::<N>::zeros(); MAX_ROWS],
-            h: self.h,
-            m: self.m,
-        };
-        for k in 0..self.m {
-            let a = self.a[k];
-            projected.a[k] = a - j.transpose() * (jpinv.transpose() * a);
+        let mut projected = Self::empty();
+        for (a, &h) in self.a().iter().zip(self.h()) {
+            projected.push(a - j.transpose() * (jpinv.transpose() * a), h);
         }
         if M != 2 {
-            match dual_qp::solve(&projected.a[..self.m], &projected.h[..self.m]) {
+            match dual_qp::solve(projected.a(), projected.h()) {
                 Outcome::Solved(d) => return Some(d),
                 Outcome::Infeasible => return None,
                 Outcome::Undecided => {}
@@ -210,7 +228,7 @@ impl<const N: usize> Rows<N> {
     /// iterates, to which its published numbers are pinned.
     fn full_space<const M: usize>(&mut self) -> (VecN<N>, bool) {
         if M != 2 {
-            match dual_qp::solve(&self.a[..self.m], &self.h[..self.m]) {
+            match dual_qp::solve(self.a(), self.h()) {
                 Outcome::Solved(d) => return (d, true),
                 Outcome::Infeasible | Outcome::Undecided => {}
             }
@@ -220,17 +238,19 @@ impl<const N: usize> Rows<N> {
 
     /// min ½|δ|² subject to a_j·δ ≥ h_j, by dual coordinate ascent.
     fn hildreth(&self) -> (VecN<N>, bool) {
-        let mut lambda = [0.0f64; MAX_ROWS];
+        let (rows, hs) = (self.a(), self.h());
+        let mut lambda_store = [[0.0f64; N]; ROW_BLOCKS];
+        let lambda = lambda_store.as_flattened_mut();
         let mut d = VecN::<N>::zeros();
         for _ in 0..MAX_SWEEPS {
             let mut moved = 0.0f64;
             for k in 0..self.m {
-                let a = &self.a[k];
+                let a = &rows[k];
                 let aa = a.norm_squared();
                 if aa < 1e-24 {
                     continue;
                 }
-                let next = (lambda[k] + (self.h[k] - a.dot(&d)) / aa).max(0.0);
+                let next = (lambda[k] + (hs[k] - a.dot(&d)) / aa).max(0.0);
                 let step = next - lambda[k];
                 if step != 0.0 {
                     d += a * step;
@@ -242,8 +262,7 @@ impl<const N: usize> Rows<N> {
                 break;
             }
         }
-        let ok =
-            (0..self.m).all(|k| self.a[k].dot(&d) >= self.h[k] - 1e-7 * (1.0 + self.h[k].abs()));
+        let ok = (rows.iter().zip(hs)).all(|(a, &h)| a.dot(&d) >= h - 1e-7 * (1.0 + h.abs()));
         (d, ok)
     }
 }
