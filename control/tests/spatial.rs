@@ -220,6 +220,7 @@ fn panda_params(arm: &SpatialArm<7>, kind: TaskKind) -> (SpatialParams, V7) {
         weight: 2.0,
         null_damping: 0.0,
         null_speed: 0.0,
+        joint_weights: None,
         damping_threshold: 0.05,
         damping_max: 0.05,
         mu: 3.0,

@@ -15,7 +15,7 @@ use control::System;
 /// Keys `set` accepts on a spatial robot, for the error message.
 pub const KEYS: &str = "mu (a number, or auto), gamma, max_mu (auto's tuning), tau, t_on, feedback (on|off), projection (full|null-space), kp, kv, alpha, \
                         secondary (none|manipulability|centring|obstacles), obstacle_weight, null_damping, null_speed, \
-                        damping_threshold, damping_max, track_loss, task.center X Y Z, task.radius, task.period, \
+                        metric (auto|identity|speed), damping_threshold, damping_max, track_loss, task.center X Y Z, task.radius, task.period, \
                         safety (on|off), safety.clearance, safety.velocity_scale, safety.plan (auto|on|off), \
                         safety.plan_hz, safety.trap_time, safety.when_blocked (hold|best-effort)";
 
@@ -54,6 +54,7 @@ pub fn apply_set(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialS
             "obstacle_weight" => c.law.obstacle_weight = f!()?,
             "null_damping" => c.law.null_damping = f!()?,
             "null_speed" => c.law.null_speed = f!()?,
+            "metric" => c.law.metric = word(key, it.next(), &["auto", "identity", "speed"])?,
             "damping_threshold" => c.law.damping_threshold = f!()?,
             "damping_max" => c.law.damping_max = f!()?,
             "track_loss" => c.law.track_loss = f!()?,

@@ -112,6 +112,11 @@ pub struct LawSection {
     /// ([`crate::law::spatial::pull_scale`]). Needs `null_damping` > 0.
     #[serde(default, skip_serializing_if = "crate::config::is_zero")]
     pub null_speed: f64,
+    /// The joint-space metric of the pseudo-inverse: "identity", "speed" (each joint's motion
+    /// measured against its speed limit) or "auto" (speed where the limits differ by more than
+    /// [`crate::law::metric::AUTO_SPEED_RATIO`]×). See [`crate::law::metric`].
+    #[serde(default = "auto_metric", skip_serializing_if = "is_auto_metric")]
+    pub metric: String,
     pub damping_threshold: f64,
     pub damping_max: f64,
     pub track_loss: f64,
@@ -127,11 +132,20 @@ impl Default for LawSection {
             obstacle_weight: 2.0,
             null_damping: 0.0,
             null_speed: 0.0,
+            metric: auto_metric(),
             damping_threshold: 0.05,
             damping_max: 0.05,
             track_loss: 0.05,
         }
     }
+}
+
+fn auto_metric() -> String {
+    "auto".into()
+}
+
+fn is_auto_metric(m: &str) -> bool {
+    m == "auto"
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -661,6 +675,7 @@ impl SpatialConfig {
             weight: self.law.obstacle_weight,
             null_damping: self.law.null_damping,
             null_speed: self.law.null_speed,
+            joint_weights: crate::law::metric::weights(&self.law.metric, &safety, chain.dof())?,
             damping_threshold: self.law.damping_threshold,
             damping_max: self.law.damping_max,
             mu: self.feedback.mu,

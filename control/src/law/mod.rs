@@ -11,6 +11,7 @@
 //! evaluation so that the offline simulation, the analysis and the daemon all get the same
 //! filtered command, and a disabled filter costs one branch.
 
+pub mod metric;
 pub mod pipeline;
 pub mod spatial;
 

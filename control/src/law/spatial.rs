@@ -8,12 +8,14 @@
 //! (Hsu, Hauser & Sastry 1989); it is off (k_d = 0) unless configured, so that the study can
 //! compare it with the Pyragas term.
 
+use super::metric::damped_pinv_weighted;
 use super::pipeline::{gains_of, ArmSide, Gains, TaskRows};
 use super::Secondary;
 use crate::arm::spatial::Points;
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
+use crate::resolve::damped_pinv_m;
 use crate::resolve::ControlOutput;
 use crate::resolve::Projection;
 use crate::safety::{Filtered, SafetyParams};
@@ -40,6 +42,9 @@ pub struct SpatialParams {
     /// The largest joint speed (rad/s) the secondary task's pull may ask of the self-motion
     /// ([`pull_scale`]); 0: no cap.
     pub null_speed: f64,
+    /// The pseudo-inverse's joint weights D (metric D⁻²; [`crate::law::metric`]); None: the
+    /// identity, the minimum-norm pseudo-inverse.
+    pub joint_weights: Option<[f64; crate::basics::MAX_JOINTS]>,
     pub damping_threshold: f64,
     pub damping_max: f64,
     pub mu: f64,
@@ -120,6 +125,19 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
     }
 
     #[inline]
+    fn pinv(
+        &self,
+        j: &SMatrix<f64, M, N>,
+        threshold: f64,
+        lambda_max: f64,
+    ) -> (SMatrix<f64, N, M>, f64, f64) {
+        match &self.params.joint_weights {
+            None => damped_pinv_m(j, threshold, lambda_max),
+            Some(d) => damped_pinv_weighted(j, d, threshold, lambda_max),
+        }
+    }
+
+    #[inline]
     fn steering(&self) -> bool {
         self.params.steer.is_some()
     }
@@ -176,6 +194,15 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
     ) -> Filtered<N> {
         let p = self.params;
         let (arm, kin) = (self.arm, &*self.kin);
+        // The filter's corrections stay in J's null space only through the orthogonal projector.
+        let ortho;
+        let jpinv = match p.joint_weights {
+            None => jpinv,
+            Some(_) => {
+                ortho = damped_pinv_m(j, p.damping_threshold, p.damping_max).0;
+                &ortho
+            }
+        };
         crate::safety::capsules::filter(&p.safety, arm, &p.spheres, kin, q, qd, j, jpinv, qdd)
     }
 
