@@ -29,8 +29,9 @@ pub struct DaemonConfig {
     pub lock_memory: bool,
     /// Periods without a fresh state before the daemon enters HOLD.
     pub hold_after: u32,
-    /// A state older than this (ms) is stale and not used.
-    pub stale_ms: f64,
+    /// A state older than this (ms) is stale and not used; unset: [`Self::stale_ms`]'s default.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stale_ms: Option<f64>,
     /// Where histograms, the summary and recordings go.
     pub output_dir: PathBuf,
     /// Seconds between live status lines (0: none).
@@ -97,7 +98,7 @@ impl Default for DaemonConfig {
             priority: 50,
             lock_memory: true,
             hold_after: 20,
-            stale_ms: 5.0,
+            stale_ms: None,
             output_dir: PathBuf::from("out/chaosd"),
             report_every_s: 2.0,
             cleanup_every_s: 1.0,
@@ -126,6 +127,14 @@ fn invalid(field: &str, value: impl std::fmt::Debug, expected: &str) -> ConfigEr
 }
 
 impl DaemonConfig {
+    /// How old (ms) a state may be and still be used: the file's `stale_ms`, else 5 ms or five
+    /// periods, whichever is longer, so that a slower loop (`--rate 100`) does not refuse every
+    /// state as stale before it reads it.
+    pub fn stale_ms(&self) -> f64 {
+        self.stale_ms
+            .unwrap_or_else(|| (5e3 / self.rate_hz).max(5.0))
+    }
+
     pub fn validate(&self) -> Result<(), ConfigError> {
         protocol::validate_namespace(&self.namespace)
             .map_err(|e| invalid("namespace", &self.namespace, &e.to_string()))?;
@@ -157,12 +166,9 @@ impl DaemonConfig {
                 "must be between 1 and 100000 periods",
             ));
         }
-        if !(self.stale_ms.is_finite() && self.stale_ms > 0.0 && self.stale_ms <= 10_000.0) {
-            return Err(invalid(
-                "stale_ms",
-                self.stale_ms,
-                "must be > 0 and ≤ 10000 ms",
-            ));
+        let stale_ms = self.stale_ms();
+        if !(stale_ms.is_finite() && stale_ms > 0.0 && stale_ms <= 10_000.0) {
+            return Err(invalid("stale_ms", stale_ms, "must be > 0 and ≤ 10000 ms"));
         }
         if self.output_dir.as_os_str().is_empty() {
             return Err(invalid("output_dir", &self.output_dir, "must not be empty"));
@@ -354,10 +360,10 @@ impl DaemonSetup {
                 .unwrap_or(1000.0);
             // The newest state may be a whole plant period old when a tick reads it: older than
             // `stale_ms`, every state would be refused and the daemon would never leave HOLD.
-            if plant_rate > 0.0 && self.daemon.stale_ms <= 1e3 / plant_rate {
+            if plant_rate > 0.0 && self.daemon.stale_ms() <= 1e3 / plant_rate {
                 return Err(ConfigError::Invalid {
                     field: "daemon.stale_ms".into(),
-                    value: self.daemon.stale_ms.to_string(),
+                    value: self.daemon.stale_ms().to_string(),
                     expected: format!(
                         "must exceed one plant period ({:.3} ms at plant.rate_hz = {plant_rate}), or states are refused as stale before they are used",
                         1e3 / plant_rate
@@ -420,7 +426,7 @@ impl DaemonSetup {
             rate_hz: d.rate_hz,
             first_order_hold: d.hold == Hold::FirstOrder,
             hold_after: d.hold_after,
-            stale_ns: (d.stale_ms * 1e6) as u64,
+            stale_ns: (d.stale_ms() * 1e6) as u64,
             future_slack_ns: d.period_ns(),
             daemon_id,
             t_start: self.live.as_ref().map_or(0.0, |l| l.t),
@@ -466,14 +472,32 @@ mod tests {
             bad("[daemon]\nphase_offset_us = 100\ntrigger = \"state\"\n")
                 .contains("daemon.phase_offset_us")
         );
-        assert!(bad("[daemon]\nrate_hz = 100\n[plant]\nrate_hz = 100\n")
-            .contains("daemon.stale_ms = 5: must exceed one plant period (10.000 ms"));
+        assert!(
+            bad("[daemon]\nrate_hz = 100\nstale_ms = 5\n[plant]\nrate_hz = 100\n")
+                .contains("daemon.stale_ms = 5: must exceed one plant period (10.000 ms")
+        );
         assert!(bad(
             "[daemon]\ntrigger = \"state\"\nrate_hz = 100\n[plant]\ntrigger = \"state\"\n"
         )
         .contains("must equal plant.rate_hz = 1000"));
         let ok = "[daemon]\ntrigger = \"state\"\n[plant]\ntrigger = \"state\"\n";
         assert!(DaemonSetup::from_config(Config::parse(ok).unwrap()).is_ok());
+    }
+
+    #[test]
+    fn a_slower_loop_takes_a_longer_staleness_unless_the_file_sets_one() {
+        let at = |t: &str| DaemonSetup::from_config(Config::parse(t).unwrap());
+        let slow = at("[daemon]\nrate_hz = 100\n[plant]\nrate_hz = 100\n").unwrap();
+        assert_eq!(slow.daemon.stale_ms(), 50.0);
+        assert_eq!(at("").unwrap().daemon.stale_ms(), 5.0);
+        assert_eq!(
+            at("[daemon]\nrate_hz = 2000\n").unwrap().daemon.stale_ms(),
+            5.0
+        );
+        let set = at("[daemon]\nrate_hz = 100\nstale_ms = 30\n[plant]\nrate_hz = 100\n");
+        assert_eq!(set.unwrap().daemon.stale_ms(), 30.0);
+        // Not written back into the file the plant and the record get.
+        assert!(!slow.to_toml().contains("stale_ms"));
     }
 
     #[test]
