@@ -1,5 +1,6 @@
-//! `chaosctl export RECORDING.mcap`: what a recording holds (channels, messages, time span), and
-//! with `--csv` its per-tick rows in the columns of a `.csv` recording.
+//! `chaosctl export RECORDING.mcap`: what a recording holds (channels, messages, time span); with
+//! `--csv` its per-tick rows in the columns of a `.csv` recording; with `--ros2 OUT` the
+//! recording as a ROS 2 bag ([`daemon::ros2_bag`]).
 
 use anyhow::{bail, Context, Result};
 use std::path::PathBuf;
@@ -14,10 +15,17 @@ pub struct ExportArgs {
     /// Where the CSV goes (default: the recording's name with `.csv`); never over a file.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
+    /// Write the recording as a ROS 2 bag (an MCAP file with the `ros2` profile, every channel a
+    /// standard ROS 2 message in CDR) to this file, which must not exist yet.
+    #[arg(long, value_name = "OUT", conflicts_with_all = ["csv", "out"])]
+    pub ros2: Option<PathBuf>,
 }
 
 pub fn run(a: ExportArgs) -> Result<()> {
     let file = daemon::mcap_read::read(&a.recording).map_err(anyhow::Error::msg)?;
+    if let Some(out) = &a.ros2 {
+        return ros2(&file, out);
+    }
     if !a.csv {
         if a.out.is_some() {
             bail!("--out needs a format: add --csv");
@@ -40,14 +48,34 @@ pub fn run(a: ExportArgs) -> Result<()> {
         return Ok(());
     }
     let out = a.out.unwrap_or_else(|| a.recording.with_extension("csv"));
-    let f = std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&out)
-        .with_context(|| format!("cannot create {} (it must not exist yet)", out.display()))?;
+    let f = create_new(&out)?;
     let mut w = std::io::BufWriter::new(f);
     let rows = file.to_csv(&mut w).map_err(anyhow::Error::msg)?;
     std::io::Write::flush(&mut w).with_context(|| format!("cannot write {}", out.display()))?;
     println!("{rows} rows → {}", out.display());
+    Ok(())
+}
+
+fn create_new(out: &std::path::Path) -> Result<std::fs::File> {
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(out)
+        .with_context(|| format!("cannot create {} (it must not exist yet)", out.display()))
+}
+
+fn ros2(file: &daemon::mcap_read::McapFile, out: &std::path::Path) -> Result<()> {
+    let f = create_new(out)?;
+    let counts = match daemon::ros2_bag::write(file, std::io::BufWriter::new(f)) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = std::fs::remove_file(out);
+            bail!("cannot write {}: {e}", out.display());
+        }
+    };
+    println!("{} (ROS 2 bag: MCAP, profile ros2, CDR)", out.display());
+    for (topic, n) in counts {
+        println!("  {topic:<24} {n:>8} messages");
+    }
     Ok(())
 }

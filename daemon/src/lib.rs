@@ -32,6 +32,7 @@ mod replay_steer;
 pub mod reporter;
 pub mod requests;
 pub mod residual;
+pub mod ros2_bag;
 
 pub mod rotate;
 pub mod saturations;

@@ -106,6 +106,88 @@ fn check_file(path: &Path, stop: &serde_json::Value, joints: &[&str], link: &str
     );
     python_reads(path, stop);
     foxglove_reads(path, stop, &js);
+    ros2_bag_reads(path, stop);
+}
+
+/// `chaosctl export REC --ros2 BAG`: an MCAP file with the `ros2` profile, every channel CDR
+/// with a `ros2msg` schema, as many messages as the recording's channels they come from and the
+/// same joint states byte for byte; `rosbags` reads it when `CHAOSD_PYTHON` names a Python with
+/// it (scripts/ros2_readback.py).
+fn ros2_bag_reads(path: &Path, stop: &serde_json::Value) {
+    let bag = path.with_extension("ros2.mcap");
+    let o = std::process::Command::new(bin("chaosctl"))
+        .args([
+            "export",
+            path.to_str().unwrap(),
+            "--ros2",
+            bag.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let bytes = std::fs::read(&bag).unwrap();
+    let header = mcap::read::LinearReader::new(&bytes)
+        .unwrap()
+        .find_map(|r| match r.unwrap() {
+            mcap::records::Record::Header(h) => Some(h),
+            _ => None,
+        })
+        .unwrap();
+    assert_eq!(header.profile, "ros2");
+    let mut counts = std::collections::BTreeMap::<String, u64>::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        assert_eq!(m.channel.message_encoding, "cdr", "{}", m.channel.topic);
+        let schema = m.channel.schema.as_ref().unwrap();
+        assert_eq!(schema.encoding, "ros2msg", "{}", m.channel.topic);
+        *counts.entry(m.channel.topic.clone()).or_default() += 1;
+    }
+    let recorded = |t: Topic| stop["messages"][t.name()].as_u64().unwrap();
+    assert_eq!(counts["/joint_states"], recorded(Topic::JointStates));
+    assert_eq!(counts["/tf"], recorded(Topic::Transforms));
+    assert_eq!(counts["/chaosd/tip"], recorded(Topic::Tip));
+    assert_eq!(counts["/chaosd/period_residual"], recorded(Topic::Residual));
+    let rosout = counts.get("/rosout").copied().unwrap_or(0);
+    assert_eq!(rosout, recorded(Topic::Events));
+    let rec = mcap_read::read(path).unwrap();
+    let back = mcap_read::parse(&bytes).unwrap();
+    let states = |f: &mcap_read::McapFile| -> Vec<Vec<u8>> {
+        f.messages(Topic::JointStates)
+            .iter()
+            .map(|m| m.data.clone())
+            .collect()
+    };
+    assert!(states(&rec) == states(&back), "the joint states differ");
+    // Never over a file.
+    let o = std::process::Command::new(bin("chaosctl"))
+        .args([
+            "export",
+            path.to_str().unwrap(),
+            "--ros2",
+            bag.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&o.stderr).contains("must not exist"));
+    let Ok(python) = std::env::var("CHAOSD_PYTHON") else {
+        eprintln!("CHAOSD_PYTHON not set: rosbags not run on the ROS 2 bag (CI runs it)");
+        return;
+    };
+    let stop_file = bag.with_extension("stop.json");
+    std::fs::write(&stop_file, stop.to_string()).unwrap();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/ros2_readback.py");
+    let o = std::process::Command::new(python)
+        .arg(script)
+        .args([&bag, &stop_file])
+        .output()
+        .unwrap();
+    let (out, err) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert!(o.status.success(), "{out}\n{err}");
+    assert!(out.contains("bit for bit"), "{out}");
+    eprintln!("{out}");
 }
 
 /// Foxglove's own readers (scripts/foxglove-check): every message decoded with the decoder the

@@ -1,4 +1,4 @@
-//! The two ROS 2 messages chaosd writes, in CDR (little-endian XCDR1, as ROS 2 sends them), and
+//! The ROS 2 messages chaosd writes, in CDR (little-endian XCDR1, as ROS 2 sends them), and
 //! the reader for the one chaosd reads back.
 //!
 //! `sensor_msgs/msg/JointState` is what every robotics tool plots and what Foxglove's and
@@ -35,6 +35,15 @@ impl<'a> Cdr<'a> {
 
     pub fn i32(&mut self, v: i32) {
         self.align(4);
+        self.buf.extend_from_slice(&v.to_le_bytes());
+    }
+
+    pub fn u8(&mut self, v: u8) {
+        self.buf.push(v);
+    }
+
+    pub fn f64(&mut self, v: f64) {
+        self.align(8);
         self.buf.extend_from_slice(&v.to_le_bytes());
     }
 
