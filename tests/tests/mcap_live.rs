@@ -115,15 +115,14 @@ fn check_file(path: &Path, stop: &serde_json::Value, joints: &[&str], link: &str
 /// it (scripts/ros2_readback.py).
 fn ros2_bag_reads(path: &Path, stop: &serde_json::Value) {
     let bag = path.with_extension("ros2.mcap");
-    let o = std::process::Command::new(bin("chaosctl"))
-        .args([
-            "export",
-            path.to_str().unwrap(),
-            "--ros2",
-            bag.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let export = || {
+        let (rec, out) = (path.to_str().unwrap(), bag.to_str().unwrap());
+        std::process::Command::new(bin("chaosctl"))
+            .args(["export", rec, "--ros2", out])
+            .output()
+            .unwrap()
+    };
+    let o = export();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let bytes = std::fs::read(&bag).unwrap();
     let header = mcap::read::LinearReader::new(&bytes)
@@ -159,15 +158,7 @@ fn ros2_bag_reads(path: &Path, stop: &serde_json::Value) {
     };
     assert!(states(&rec) == states(&back), "the joint states differ");
     // Never over a file.
-    let o = std::process::Command::new(bin("chaosctl"))
-        .args([
-            "export",
-            path.to_str().unwrap(),
-            "--ros2",
-            bag.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let o = export();
     assert!(String::from_utf8_lossy(&o.stderr).contains("must not exist"));
     let Ok(python) = std::env::var("CHAOSD_PYTHON") else {
         eprintln!("CHAOSD_PYTHON not set: rosbags not run on the ROS 2 bag (CI runs it)");
