@@ -18,6 +18,7 @@
 //!
 //! `--book PATH` writes the tables of the run into a book page, between its markers (`book`).
 
+mod ab;
 mod book;
 mod child;
 mod commands;
@@ -121,6 +122,16 @@ enum Cmd {
     /// CPU hog, a rogue publisher, request bursts); prints a verdict table and exits non-zero if
     /// data was lost, a fault went unnoticed or unrecovered, or anything was left behind.
     Soak(SoakArgs),
+    /// This build's `compute` against another build's, interleaved round by round, as ratios:
+    /// what a change costs, measured side by side (`scripts/ab-build REV` builds the other).
+    Ab {
+        /// The other build's `chaosd-bench` binary.
+        #[arg(long, value_name = "BIN")]
+        against: PathBuf,
+        /// Rounds; each runs both builds once, in alternating order.
+        #[arg(long, default_value_t = 3)]
+        rounds: usize,
+    },
     /// The other end of `latency` (started by it).
     #[command(name = "__latency-peer", hide = true)]
     LatencyPeer(latency::PeerArgs),
@@ -400,6 +411,7 @@ fn main() -> ExitCode {
         Cmd::E2e(a) => e2e_opts(quick, a).and_then(|o| e2e::run(&o, out, &command)),
         Cmd::Compute { core, pinocchio } => compute::run(quick, *core, pinocchio, out, &command),
         Cmd::Device => device::run(quick, out, &command),
+        Cmd::Ab { against, rounds } => ab::run(against, *rounds, quick, out),
         Cmd::All { priority } => all(quick, out, *priority, &command, book.as_ref()),
         Cmd::Soak(a) => soak::run(
             &soak::schedule::Options {
