@@ -1,11 +1,12 @@
-//! `chaosd-bench ab --against OLD`: this build's `compute` against another build's, interleaved,
-//! so that a regression shows as a ratio measured side by side.
+//! `chaosd-bench ab --against OLD`: this build's `compute` (or `e2e`) against another build's,
+//! interleaved, so that a regression shows as a ratio measured side by side.
 //!
 //! Absolute times on a shared VM move by ±30 % from one boot (or one minute) to the next; two
 //! builds run one after the other, round after round, see the same machine. Each round runs
-//! OLD's `compute` then this binary's (the order alternates, so neither always runs warm), each
-//! writing its `compute.md`; every table row with a p50 that both reports carry is compared.
-//! OLD is any `chaosd-bench` binary: `scripts/ab-build REV` builds one from a git revision.
+//! OLD's benchmark then this binary's (the order alternates, so neither always runs warm), each
+//! writing its report; every p50 that both reports carry is compared, in a `p50` column or as
+//! the first of a `p50 / p99 / max` one. OLD is a `chaosd-bench` binary with its own `chaosd` and
+//! `chaosd-plant` beside it (`e2e` runs those): `scripts/ab-build REV` builds them at a revision.
 
 use crate::report::Output;
 use anyhow::{bail, Context, Result};
@@ -16,8 +17,25 @@ use std::process::Command;
 /// A row that is this much slower (or faster) in the median, and in every round, is named.
 const NOTABLE: f64 = 0.10;
 
-/// p50s per (table, row) of one `compute.md`, in nanoseconds.
+/// p50s per (table, row) of one report, in nanoseconds; the row names its column when the
+/// table has several p50s.
 pub type P50s = BTreeMap<(String, String), f64>;
+
+/// What is compared.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum What {
+    Compute,
+    E2e,
+}
+
+impl What {
+    fn name(self) -> &'static str {
+        match self {
+            What::Compute => "compute",
+            What::E2e => "e2e",
+        }
+    }
+}
 
 /// A time as `compute.md` prints it ("622 ns", "4.99 µs", "1.18 ms", "3.99 s"), in ns.
 pub fn parse_time(s: &str) -> Option<f64> {
@@ -38,10 +56,28 @@ fn cells(line: &str) -> Option<Vec<&str>> {
     Some(inner.split('|').map(str::trim).collect())
 }
 
-/// Every row of every table of `md` whose header has a `p50` column.
+/// A p50 column of a header: the column, the part of its " / " list that is the p50, its name.
+type P50Column = (usize, usize, String);
+
+fn p50_columns(header: &[&str]) -> Vec<P50Column> {
+    header
+        .iter()
+        .enumerate()
+        .filter_map(|(i, h)| {
+            let parts: Vec<&str> = h.split(" / ").collect();
+            let k = parts
+                .iter()
+                .position(|p| *p == "p50" || p.ends_with(" p50"))?;
+            let name = parts[k].trim_end_matches("p50").trim();
+            Some((i, k, name.to_string()))
+        })
+        .collect()
+}
+
+/// Every p50 of every table of `md` (see [`P50s`]).
 pub fn p50s(md: &str) -> P50s {
     let mut out = P50s::new();
-    let mut table: Option<(String, usize)> = None;
+    let mut table: Option<(String, Vec<P50Column>)> = None;
     for line in md.lines() {
         let Some(c) = cells(line) else {
             table = None;
@@ -52,21 +88,26 @@ pub fn p50s(md: &str) -> P50s {
         }
         match &table {
             None => {
-                table = c
-                    .iter()
-                    .position(|x| *x == "p50")
-                    .map(|i| (c[0].to_string(), i))
+                let cols = p50_columns(&c);
+                table = (!cols.is_empty()).then(|| (c[0].to_string(), cols));
             }
-            Some((name, i)) => {
-                // A row is named by the words before its p50 (the model table has an
+            Some((name, cols)) => {
+                // A row is named by the words before its first p50 (the model table has an
                 // operation and an implementation), not by counts, which vary from run to run.
-                if let Some(ns) = c.get(*i).and_then(|x| parse_time(x)) {
-                    let words: Vec<&str> = c[..*i]
-                        .iter()
-                        .copied()
-                        .filter(|x| x.parse::<f64>().is_err())
-                        .collect();
-                    out.insert((name.clone(), words.join(" / ")), ns);
+                let words: Vec<&str> = c[..cols[0].0.min(c.len())]
+                    .iter()
+                    .copied()
+                    .filter(|x| x.parse::<f64>().is_err())
+                    .collect();
+                for (i, k, col) in cols {
+                    let part = c.get(*i).and_then(|x| x.split(" / ").nth(*k));
+                    if let Some(ns) = part.and_then(parse_time) {
+                        let mut row = words.join(" / ");
+                        if !col.is_empty() {
+                            row = format!("{row}: {col}");
+                        }
+                        out.insert((name.clone(), row), ns);
+                    }
                 }
             }
         }
@@ -84,10 +125,10 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-/// One build's `compute` into `dir`; its `compute.md`.
-fn compute(bin: &Path, quick: bool, dir: &Path) -> Result<String> {
+/// One build's benchmark into `dir`, with `args` after the subcommand; its report.
+fn bench(bin: &Path, what: What, args: &[String], quick: bool, dir: &Path) -> Result<String> {
     let mut cmd = Command::new(bin);
-    cmd.arg("compute").arg("--out").arg(dir);
+    cmd.arg(what.name()).args(args).arg("--out").arg(dir);
     if quick {
         cmd.arg("--quick");
     }
@@ -96,19 +137,20 @@ fn compute(bin: &Path, quick: bool, dir: &Path) -> Result<String> {
         .with_context(|| format!("cannot run {}", bin.display()))?;
     if !o.status.success() {
         bail!(
-            "{} compute failed: {}",
+            "{} {} failed: {}",
             bin.display(),
+            what.name(),
             String::from_utf8_lossy(&o.stderr).trim()
         );
     }
-    let md = dir.join("compute").join("compute.md");
+    let md = dir.join(what.name()).join(format!("{}.md", what.name()));
     std::fs::read_to_string(&md).with_context(|| format!("cannot read {}", md.display()))
 }
 
 /// The comparison's text from each round's p50s of the two builds.
-pub fn compare(old: &[P50s], new: &[P50s], against: &str) -> String {
+pub fn compare(old: &[P50s], new: &[P50s], against: &str, what: &str) -> String {
     let mut text = format!(
-        "## A/B: this build against {against}\n\n{} interleaved rounds of `compute`; p50 per row, \
+        "## A/B: this build against {against}\n\n{} interleaved rounds of `{what}`; p50 per row, \
          the median over rounds, and new/old per round. A row is named when its median ratio is \
          beyond ±{:.0} % and every round agrees.\n\n\
          | table | row | old p50 | new p50 | new/old | per round |\n|---|---|---|---|---|---|\n",
@@ -156,8 +198,23 @@ pub fn compare(old: &[P50s], new: &[P50s], against: &str) -> String {
     text
 }
 
-/// Runs `rounds` interleaved rounds of OLD's and this binary's `compute` under `out/ab`.
-pub fn run(against: &Path, rounds: usize, quick: bool, out: &Path) -> Result<Output> {
+/// The comparison asked for.
+pub struct Ab<'a> {
+    pub against: &'a Path,
+    pub what: What,
+    /// Passed to both builds' benchmark (e2e's `--rates 1000 --modes state`, say).
+    pub args: &'a [String],
+    pub rounds: usize,
+}
+
+/// Runs the rounds of `ab` under `out/ab`.
+pub fn run(ab: &Ab<'_>, quick: bool, out: &Path) -> Result<Output> {
+    let Ab {
+        against,
+        what,
+        args,
+        rounds,
+    } = *ab;
     if rounds == 0 {
         bail!("--rounds must be at least 1");
     }
@@ -166,6 +223,18 @@ pub fn run(against: &Path, rounds: usize, quick: bool, out: &Path) -> Result<Out
             "--against {}: no such binary (scripts/ab-build REV builds one)",
             against.display()
         );
+    }
+    if what == What::E2e {
+        for sibling in ["chaosd", "chaosd-plant"] {
+            let p = against.with_file_name(sibling);
+            if !p.is_file() {
+                bail!(
+                    "e2e runs the daemon and plant beside --against, and {} is missing \
+                     (scripts/ab-build REV builds them)",
+                    p.display()
+                );
+            }
+        }
     }
     let me: PathBuf = std::env::current_exe().context("cannot find this binary")?;
     let dir = out.join("ab");
@@ -179,10 +248,10 @@ pub fn run(against: &Path, rounds: usize, quick: bool, out: &Path) -> Result<Out
         };
         for (bin, which) in order {
             eprintln!("chaosd-bench ab: round {}/{rounds}: {which}", k + 1);
-            let md = compute(bin, quick, &dir.join(format!("{which}-{k}")))?;
+            let md = bench(bin, what, args, quick, &dir.join(format!("{which}-{k}")))?;
             let p = p50s(&md);
             if p.is_empty() {
-                bail!("{}: its compute report has no p50 rows", bin.display());
+                bail!("{}: its {} report has no p50", bin.display(), what.name());
             }
             if *which == "old" {
                 old.push(p);
@@ -191,7 +260,7 @@ pub fn run(against: &Path, rounds: usize, quick: bool, out: &Path) -> Result<Out
             }
         }
     }
-    let text = compare(&old, &new, &against.display().to_string());
+    let text = compare(&old, &new, &against.display().to_string(), what.name());
     std::fs::write(dir.join("ab.md"), &text)?;
     Ok(Output {
         text,
@@ -225,6 +294,19 @@ mod tests {
     }
 
     #[test]
+    fn a_p50_first_in_a_list_of_percentiles_is_read_per_column() {
+        let md = "| rate | ticks | wake-up p50 / p99 / max | round trip p50 / p99 |\n|---|---|---|---|\n\
+                  | 1 kHz | 19999 | 70 ns / 16.12 µs / 506.11 µs | 3.5 µs / 20 µs |\n";
+        let p = p50s(md);
+        assert_eq!(p[&("rate".to_string(), "1 kHz: wake-up".to_string())], 70.0);
+        assert_eq!(
+            p[&("rate".to_string(), "1 kHz: round trip".to_string())],
+            3500.0
+        );
+        assert_eq!(p.len(), 2);
+    }
+
+    #[test]
     fn a_row_slower_in_every_round_is_named_and_noise_is_not() {
         let row = |t: f64, u: f64| {
             let mut p = P50s::new();
@@ -234,7 +316,7 @@ mod tests {
         };
         let old = [row(100.0, 100.0), row(100.0, 100.0), row(100.0, 100.0)];
         let new = [row(130.0, 95.0), row(125.0, 120.0), row(128.0, 90.0)];
-        let text = compare(&old, &new, "old");
+        let text = compare(&old, &new, "old", "compute");
         assert!(text.contains("- slower: tick (1.28×)"), "{text}");
         assert!(!text.contains("law ("), "{text}");
     }

@@ -122,15 +122,22 @@ enum Cmd {
     /// CPU hog, a rogue publisher, request bursts); prints a verdict table and exits non-zero if
     /// data was lost, a fault went unnoticed or unrecovered, or anything was left behind.
     Soak(SoakArgs),
-    /// This build's `compute` against another build's, interleaved round by round, as ratios:
-    /// what a change costs, measured side by side (`scripts/ab-build REV` builds the other).
+    /// This build's `compute` or `e2e` against another build's, interleaved round by round, as
+    /// ratios: what a change costs, measured side by side (`scripts/ab-build REV` builds the
+    /// other). Arguments after `--` go to both builds' benchmark.
     Ab {
-        /// The other build's `chaosd-bench` binary.
+        /// The other build's `chaosd-bench` binary (for e2e, its chaosd and chaosd-plant beside).
         #[arg(long, value_name = "BIN")]
         against: PathBuf,
+        /// The benchmark compared.
+        #[arg(long, value_enum, default_value = "compute")]
+        what: ab::What,
         /// Rounds; each runs both builds once, in alternating order.
         #[arg(long, default_value_t = 3)]
         rounds: usize,
+        /// Passed to both builds' benchmark (e.g. `-- --rates 1000 --modes state`).
+        #[arg(last = true)]
+        args: Vec<String>,
     },
     /// The other end of `latency` (started by it).
     #[command(name = "__latency-peer", hide = true)]
@@ -411,7 +418,21 @@ fn main() -> ExitCode {
         Cmd::E2e(a) => e2e_opts(quick, a).and_then(|o| e2e::run(&o, out, &command)),
         Cmd::Compute { core, pinocchio } => compute::run(quick, *core, pinocchio, out, &command),
         Cmd::Device => device::run(quick, out, &command),
-        Cmd::Ab { against, rounds } => ab::run(against, *rounds, quick, out),
+        Cmd::Ab {
+            against,
+            what,
+            rounds,
+            args,
+        } => ab::run(
+            &ab::Ab {
+                against,
+                what: *what,
+                args,
+                rounds: *rounds,
+            },
+            quick,
+            out,
+        ),
         Cmd::All { priority } => all(quick, out, *priority, &command, book.as_ref()),
         Cmd::Soak(a) => soak::run(
             &soak::schedule::Options {
