@@ -359,9 +359,15 @@ fn a_stalled_bridge_costs_the_device_a_miss_every_period_and_a_brake() {
     let c = &f["counters"];
     assert!(c["brakes"].as_u64().unwrap() >= 1, "{f}");
     // Stopped for 60 periods, the bridge left at least that many states unanswered, each a
-    // miss; the device's clock skipped none of them (a host stall of its own may skip a few).
-    assert!(c["missed"].as_u64().unwrap() >= 55, "{f}");
-    assert!(c["skipped"].as_u64().unwrap() <= 5, "{f}");
+    // miss. The device's clock skips a cycle only when the device itself is late: a host stall
+    // of its own may skip some (20 in one run on this VM, with 110 misses), but the old fault,
+    // a skip after every miss, made as many skips as misses.
+    let (missed, skipped) = (
+        c["missed"].as_u64().unwrap(),
+        c["skipped"].as_u64().unwrap(),
+    );
+    assert!(missed >= 55, "{f}");
+    assert!(skipped <= missed / 4, "{f}");
 }
 
 #[test]
