@@ -250,19 +250,21 @@ fn arm_config(arm: &Arm, q0: &str) -> String {
     )
 }
 
+/// Every command interface, and position mode through the UDP bridge.
+const EVERY_MODE: [&[&str]; 5] = [
+    &["--mode", "acceleration"],
+    &["--mode", "position"],
+    &["--mode", "velocity"],
+    &["--mode", "torque"],
+    &["--mode", "position", "--bridge", "udp"],
+];
+
 #[test]
 fn three_arms_nobody_tuned_for_track_in_every_mode_inside_every_limit() {
     let _g = serial();
     let dir = TempDir::new(&unique_namespace("own-arms"));
-    let runs: [&[&str]; 5] = [
-        &["--mode", "acceleration"],
-        &["--mode", "position"],
-        &["--mode", "velocity"],
-        &["--mode", "torque"],
-        &["--mode", "position", "--bridge", "udp"],
-    ];
     for arm in &ARMS {
-        tracks_inside_every_limit(arm, &runs, dir.path());
+        tracks_inside_every_limit(arm, &EVERY_MODE, dir.path());
     }
 }
 
@@ -311,14 +313,7 @@ fn a_torso_and_an_arm_eight_joints_track_in_every_mode_inside_every_limit() {
         tip: "arm_7_link",
         q0: "[0.15, 0.5, 0.0, -1.5, 1.5, 0.0, 0.0, 0.0]",
     };
-    let runs: [&[&str]; 5] = [
-        &["--mode", "acceleration"],
-        &["--mode", "position"],
-        &["--mode", "velocity"],
-        &["--mode", "torque"],
-        &["--mode", "position", "--bridge", "udp"],
-    ];
-    tracks_inside_every_limit(&tiago, &runs, dir.path());
+    tracks_inside_every_limit(&tiago, &EVERY_MODE, dir.path());
 }
 
 #[test]
