@@ -151,9 +151,16 @@ fn a_limit_breach_is_on_the_problems_line_with_its_count_and_worst_joint() {
         .lines()
         .find(|l| l.starts_with("problems"))
         .unwrap_or_else(|| panic!("no problems line: {all}"));
+    // The start is 138 % of the limit; a host stall while the law brakes (the plant holds the
+    // braking command longer) can only make the peak larger, so the bound is one-sided.
+    let speed = "states above a speed limit (worst joint 1, ";
+    let peak = problems
+        .find(speed)
+        .and_then(|i| problems[i + speed.len()..].split(" %").next())
+        .and_then(|p| p.parse::<f64>().ok())
+        .unwrap_or_else(|| panic!("no speed breach of joint 1: {problems}"));
     assert!(
-        problems.contains("states above a speed limit (worst joint 1, 1")
-            && problems.contains("commands above an acceleration limit (worst joint 1,"),
+        peak >= 130.0 && problems.contains("commands above an acceleration limit (worst joint 1,"),
         "{problems}"
     );
     let s = read_json(&out.join("daemon-summary.json"));
