@@ -138,6 +138,23 @@ impl<const N: usize> TickLaw<N> {
         }
     }
 
+    /// The gain and its adaptation's state: all that [`Self::adapt`] changes, for a caller that
+    /// runs a tick and undoes it ([`Self::set_gain`]).
+    pub fn gain(&self) -> (f64, Option<crate::adapt::AutoMu>) {
+        match self {
+            TickLaw::Planar { params: p, .. } => (p.mu, p.auto_mu),
+            TickLaw::Spatial { params: p, .. } => (p.mu, p.auto_mu),
+        }
+    }
+
+    /// Puts the gain back where [`Self::gain`] found it.
+    pub fn set_gain(&mut self, (mu, auto_mu): (f64, Option<crate::adapt::AutoMu>)) {
+        match self {
+            TickLaw::Planar { params: p, .. } => (p.mu, p.auto_mu) = (mu, auto_mu),
+            TickLaw::Spatial { params: p, .. } => (p.mu, p.auto_mu) = (mu, auto_mu),
+        }
+    }
+
     /// After a new parameter block: an adapting gain goes on from `mu` (the gain before the
     /// change) rather than from the block's start, so an edit does not throw the adaptation away;
     /// never past the block's `max_mu`, which the adaptation itself never passes.

@@ -69,6 +69,14 @@ impl<const N: usize> Command<N> {
     }
 }
 
+/// What a [`MotionGenerator`] remembers from tick to tick (see [`MotionGenerator::stream`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stream<const N: usize> {
+    reference: MotionState<N>,
+    last_tau: VecN<N>,
+    saturations: Saturations<N>,
+}
+
 /// The generator's state and settings.
 #[derive(Debug, Clone)]
 pub struct MotionGenerator<const N: usize> {
@@ -241,6 +249,23 @@ impl<const N: usize> MotionGenerator<N> {
         hits.iter_mut().zip(&c.hits).for_each(|(h, x)| *h |= x);
         c.hits = hits;
         c
+    }
+
+    /// Where the stream stands: all that [`Self::commit`] and [`Self::restart`] change, for a
+    /// caller that runs a tick and undoes it ([`Self::set_stream`]).
+    pub fn stream(&self) -> Stream<N> {
+        Stream {
+            reference: self.reference,
+            last_tau: self.last_tau,
+            saturations: self.saturations,
+        }
+    }
+
+    /// Puts the stream back where [`Self::stream`] found it.
+    pub fn set_stream(&mut self, s: Stream<N>) {
+        self.reference = s.reference;
+        self.last_tau = s.last_tau;
+        self.saturations = s.saturations;
     }
 
     /// Makes `c` (computed by [`Self::next`] this tick) the stream's last command.
