@@ -352,7 +352,7 @@ pub fn human_status(body: &str) -> String {
          recording {}{}{}",
         f("namespace"), f("pid"), f("mode"), v["t"].as_f64().unwrap_or(0.0), f("rate_hz"), f("wait"),
         v["arm"].as_str().unwrap_or("n/a"),
-        if v["feedback"].as_bool() == Some(true) { "on" } else { "off" }, f("feedback_active"), f("mu"), f("tau"), f("t_on"), f("max_tau"),
+        if v["feedback"].as_bool() == Some(true) { "on" } else { "off" }, f("feedback_active"), v["mu"].as_f64().map_or_else(|| f("mu"), daemon::number::short), f("tau"), f("t_on"), f("max_tau"),
         f("kp"), f("kv"), f("alpha"), f("secondary"), f("obstacles"),
         v["tracking_error_recent"].as_f64().map_or("n/a".into(), |x| format!("{x:.2e}")),
         us(&lat["p50_us"]), us(&lat["p99_us"]), us(&lat["max_us"]), c["overruns"],

@@ -65,12 +65,12 @@ impl ChaosWatch {
         }
         let auto = if mu_auto { " (auto)" } else { "" };
         tracing::info!(
-            "chaos: {} → {} at t = {:.1} s: {}; μ = {:.4}{auto}",
+            "chaos: {} → {} at t = {:.1} s: {}; μ = {}{auto}",
             e.from.name(),
             e.to.name(),
             e.t,
             describe(&e.evidence),
-            r.mu
+            crate::number::short(r.mu)
         );
     }
 

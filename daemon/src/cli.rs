@@ -569,7 +569,7 @@ fn resume_live_state(s: &mut DaemonSetup, fresh: bool) -> Result<()> {
     tracing::info!(
         "resuming the live state saved in {}: controller time {t:.3} s, μ = {}, {} obstacles{} (--fresh starts from the file)",
         crate::persist::path(&dir).display(),
-        s.system.feedback().mu,
+        crate::number::short(s.system.feedback().mu),
         s.system.safety().obstacles,
         fault.map_or(String::new(), |f| format!(", in FAULT ({f}): `chaosctl resume` to control again"))
     );

@@ -158,7 +158,7 @@ fn residual(r: &Run) -> String {
             "mean |q̇(t) − q̇(t−τ)|: {} rad/s before feedback → {} rad/s over the last 5 s with μ = {}{auto} ({})",
             sig(b),
             sig(a),
-            d.chaos.mu,
+            crate::number::short(d.chaos.mu),
             ratio(b, a)
         ),
         (None, Some(a)) if from_start && d.period_residual_start.is_some() => {
@@ -167,7 +167,7 @@ fn residual(r: &Run) -> String {
                 "mean |q̇(t) − q̇(t−τ)|: {} rad/s over 2-7 s → {} rad/s over the last 5 s, μ = {}{auto} from the start ({})",
                 sig(s),
                 sig(a),
-                d.chaos.mu,
+                crate::number::short(d.chaos.mu),
                 ratio(s, a)
             )
         }

@@ -22,6 +22,7 @@ pub mod ipc;
 pub mod limits;
 pub mod mcap_read;
 pub mod mcap_recording;
+pub mod number;
 pub mod persist;
 pub mod planner;
 pub mod record;
