@@ -304,7 +304,8 @@ fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<O
          hold, guard, command), timed alone per tick: warm, after its caches were evicted, and \
          evicted but rehearsed on the previous state, as the loop does after each sleep \
          (`Controller::rehearse`); and warm with `mu = \"auto\"`, the speed-gradient step on the \
-         tick (issue 27).\n\n",
+         tick (issue 27), against a fixed μ in the same run: the two controllers tick the same \
+         states one after the other, who goes first alternating (issue 44 asks ≤ 1.05×).\n\n",
     );
     report.table(names::COMPUTE_TICK, &crate::tick::table(quick)?)?;
     report.push(
