@@ -170,6 +170,30 @@ pub struct Controller<const N: usize> {
     dt: f64,
     delay: DelayLine<N>,
     scratch: LawScratch<N>,
+    /// `None`: every plant is controlled (tests, tools). `Some(id)`: only states of plant `id`,
+    /// the one the handshake agreed to (0: none yet). Set between ticks, never on the tick.
+    agreed_plant: Option<u64>,
+    /// The law's q̈ into the configured command interface, through the limiter.
+    generator: MotionGenerator<N>,
+    /// The planned cycle the self-motion is steered onto, kept across parameter
+    /// blocks: the control service's blocks carry none, the planner's handover sets it.
+    steer: Option<control::steer::Steering>,
+    /// Blocked, holding: fresh states are answered with HOLD (tracking paused) until cleared.
+    blocked_hold: bool,
+    /// What the tick remembers from one tick to the next: all a rehearsal puts back, with the
+    /// counters, the gain and the command stream. The other fields are set between ticks or are
+    /// scratch; a new field the tick changes belongs in here, or a rehearsal leaves its change
+    /// behind (`rehearsals_change_nothing_on_the_panda_in_any_interface` would see it).
+    memory: TickMemory<N>,
+    pub counters: Counters,
+    /// Inside [`Controller::rehearse`]: the tick runs but leaves the delay line unwritten.
+    rehearsing: bool,
+}
+
+/// The controller's memory from tick to tick: one `Copy` block, so that a rehearsal (the tick
+/// run and undone) restores it with one assignment.
+#[derive(Clone, Copy, Debug)]
+struct TickMemory<const N: usize> {
     /// Stamp of the first state ever accepted: controller time 0.
     t0_stamp: Option<u64>,
     /// Controller time of the newest accepted state (s).
@@ -189,11 +213,6 @@ pub struct Controller<const N: usize> {
     fault: Option<FaultReason>,
     /// Applied since the last tick.
     applied: Option<Applied>,
-    /// `None`: every plant is controlled (tests, tools). `Some(id)`: only states of plant `id`,
-    /// the one the handshake agreed to (0: none yet). Set between ticks, never on the tick.
-    agreed_plant: Option<u64>,
-    /// The law's q̈ into the configured command interface, through the limiter.
-    generator: MotionGenerator<N>,
     /// A device error already turned into a FAULT: not again until the device reports none.
     device_fault_latched: bool,
     /// Controller time of the last RUN command (the generator advances by the time since).
@@ -202,45 +221,19 @@ pub struct Controller<const N: usize> {
     last_run_device_ns: Option<u64>,
     /// When a gap last counted as a re-entry (controller time, s).
     last_gap_reentry: Option<f64>,
-    /// The planned cycle the self-motion is steered onto, kept across parameter
-    /// blocks: the control service's blocks carry none, the planner's handover sets it.
-    steer: Option<control::steer::Steering>,
-    /// Blocked, holding: fresh states are answered with HOLD (tracking paused) until cleared.
-    blocked_hold: bool,
     /// While blocked: the arm kept the filter's clearance and was at rest on the newest law
     /// run. A blocked hold hands the arm to the plant's HOLD only then (the filter brakes it
     /// and pushes it out first); nothing is judged on the tick otherwise.
     clear: bool,
-    pub counters: Counters,
-    /// Inside [`Controller::rehearse`]: the tick runs but leaves the delay line unwritten.
-    rehearsing: bool,
 }
 
 /// What a tick changes, but the delay line (a rehearsal does not write it) and the scratch: the
 /// copy [`Controller::rehearse`] puts back after its tick.
 struct Undo<const N: usize> {
+    memory: TickMemory<N>,
+    counters: Counters,
     gain: (f64, Option<control::adapt::AutoMu>),
     stream: control::command::Stream<N>,
-    t0_stamp: Option<u64>,
-    t: f64,
-    delay_origin: i64,
-    mode: Mode,
-    plant_id: u64,
-    last_seq: Option<u64>,
-    last_stamp: u64,
-    was_braked: bool,
-    last_qd: Option<VecN<N>>,
-    missed: u32,
-    next_command_seq: u64,
-    guard: Guard,
-    fault: Option<FaultReason>,
-    applied: Option<Applied>,
-    device_fault_latched: bool,
-    last_run_t: Option<f64>,
-    last_run_device_ns: Option<u64>,
-    last_gap_reentry: Option<f64>,
-    clear: bool,
-    counters: Counters,
 }
 
 impl<const N: usize> Controller<N> {
@@ -253,29 +246,31 @@ impl<const N: usize> Controller<N> {
             dt,
             delay: DelayLine::new(max_tau.max(law.tau()) / dt, VecN::<N>::zeros()),
             scratch: LawScratch::default(),
-            t0_stamp: None,
-            t: settings.t_start,
-            delay_origin: 0,
-            mode: Mode::Hold,
-            plant_id: 0,
-            last_seq: None,
-            last_stamp: 0,
-            was_braked: false,
-            last_qd: None,
-            missed: 0,
-            next_command_seq: 0,
-            guard: Guard::default(),
-            fault: None,
-            applied: None,
             agreed_plant: None,
             generator: MotionGenerator::passthrough(dt),
-            device_fault_latched: false,
-            last_run_t: None,
-            last_run_device_ns: None,
-            last_gap_reentry: None,
             steer: None,
             blocked_hold: false,
-            clear: false,
+            memory: TickMemory {
+                t0_stamp: None,
+                t: settings.t_start,
+                delay_origin: 0,
+                mode: Mode::Hold,
+                plant_id: 0,
+                last_seq: None,
+                last_stamp: 0,
+                was_braked: false,
+                last_qd: None,
+                missed: 0,
+                next_command_seq: 0,
+                guard: Guard::default(),
+                fault: None,
+                applied: None,
+                device_fault_latched: false,
+                last_run_t: None,
+                last_run_device_ns: None,
+                last_gap_reentry: None,
+                clear: false,
+            },
             counters: Counters::default(),
             rehearsing: false,
         }
@@ -314,7 +309,7 @@ impl<const N: usize> Controller<N> {
         self.law.carry_adapted_mu(mu);
         self.law.set_steer(self.steer);
         self.law.set_pause(self.blocked_hold);
-        self.applied = Some(Applied::Params);
+        self.memory.applied = Some(Applied::Params);
         self.counters.params_applied += 1;
         true
     }
@@ -325,7 +320,7 @@ impl<const N: usize> Controller<N> {
     pub fn set_steer(&mut self, steer: Option<control::steer::Steering>) {
         self.steer = steer;
         self.law.set_steer(steer);
-        self.applied = Some(Applied::Steer);
+        self.memory.applied = Some(Applied::Steer);
     }
 
     /// Blocked with the hold action (`true`): tracking pauses, and the law brakes the arm to
@@ -334,16 +329,16 @@ impl<const N: usize> Controller<N> {
     /// there. Or run again (`false`), starting over from the arm's state with a fresh history.
     pub fn set_blocked_hold(&mut self, hold: bool) {
         if self.blocked_hold && !hold {
-            self.last_qd = None; // the braking's rates are no history for the Pyragas term
+            self.memory.last_qd = None; // the braking's rates are no history for the Pyragas term
         }
         self.blocked_hold = hold;
-        self.clear = false; // judged afresh by the next law run, braking
+        self.memory.clear = false; // judged afresh by the next law run, braking
         self.law.set_pause(hold);
-        self.applied = Some(Applied::BlockedHold(hold));
+        self.memory.applied = Some(Applied::BlockedHold(hold));
     }
 
     pub fn mode(&self) -> Mode {
-        self.mode
+        self.memory.mode
     }
 
     /// From now on, only states of a plant the handshake agreed to are used: none until
@@ -355,7 +350,7 @@ impl<const N: usize> Controller<N> {
     /// The handshake's verdict on plant `plant_id` (between ticks; no allocation). A refused
     /// plant's states are ignored, so the daemon never sends it a RUN command.
     pub fn set_plant_verdict(&mut self, plant_id: u64, agreed: bool) {
-        self.applied = Some(Applied::Plant { plant_id, agreed });
+        self.memory.applied = Some(Applied::Plant { plant_id, agreed });
         match (&mut self.agreed_plant, agreed) {
             (Some(id), true) => *id = plant_id,
             (Some(id), false) if *id == plant_id => *id = 0,
@@ -365,27 +360,27 @@ impl<const N: usize> Controller<N> {
 
     /// Why the daemon is in FAULT, if it is.
     pub fn fault(&self) -> Option<FaultReason> {
-        self.fault
+        self.memory.fault
     }
 
     /// Starts in FAULT (a restarted daemon that had faulted): the plant is braked until resume.
     pub fn enter_fault(&mut self, reason: FaultReason) {
-        self.mode = Mode::Fault;
-        self.fault = Some(reason);
+        self.memory.mode = Mode::Fault;
+        self.memory.fault = Some(reason);
     }
 
     /// An operator's resume: FAULT → HOLD, so the next fresh state starts a new run (with a
     /// fresh delay-line history and a fresh guard). Returns false when not in FAULT.
     pub fn resume(&mut self) -> bool {
-        if self.mode != Mode::Fault {
+        if self.memory.mode != Mode::Fault {
             return false;
         }
-        self.mode = Mode::Hold;
-        self.fault = None;
-        self.guard.reset();
-        self.last_qd = None;
-        self.missed = 0;
-        self.applied = Some(Applied::Resume);
+        self.memory.mode = Mode::Hold;
+        self.memory.fault = None;
+        self.memory.guard.reset();
+        self.memory.last_qd = None;
+        self.memory.missed = 0;
+        self.memory.applied = Some(Applied::Resume);
         self.counters.resumes += 1;
         true
     }
@@ -395,7 +390,7 @@ impl<const N: usize> Controller<N> {
     /// evaluated for the instant the state describes, not for the instant the tick happens to run,
     /// and the circle's phase does not depend on which process started first.
     pub fn time(&self) -> f64 {
-        self.t
+        self.memory.t
     }
 
     /// Feeds the delay line up to grid index `g`, holding the previous value across gaps.
@@ -408,12 +403,12 @@ impl<const N: usize> Controller<N> {
             std::hint::black_box(self.delay.next_slot());
             return;
         }
-        let next = self.delay_origin + self.delay.len() as i64;
+        let next = self.memory.delay_origin + self.delay.len() as i64;
         if g < next {
             return; // two states in one grid slot: the first one stays
         }
         let gap = g - next;
-        match self.last_qd {
+        match self.memory.last_qd {
             Some(last) if (gap as f64) <= self.delay.max_delay_steps() => {
                 for i in 1..=gap {
                     let w = i as f64 / (gap + 1) as f64;
@@ -431,7 +426,7 @@ impl<const N: usize> Controller<N> {
             return;
         }
         self.delay.reset(qd);
-        self.delay_origin = g;
+        self.memory.delay_origin = g;
         self.delay.push(qd);
     }
 
@@ -454,10 +449,10 @@ impl<const N: usize> Controller<N> {
                 ahead_ns: s.stamp_ns - now_ns,
             });
         }
-        let restarted = s.plant_id != self.plant_id;
+        let restarted = s.plant_id != self.memory.plant_id;
         if !restarted {
-            if let Some(last) = self.last_seq {
-                if s.seq <= last || s.stamp_ns < self.last_stamp {
+            if let Some(last) = self.memory.last_seq {
+                if s.seq <= last || s.stamp_ns < self.memory.last_stamp {
                     return Err(Rejection::OutOfOrder { seq: s.seq, last });
                 }
             }
@@ -466,13 +461,13 @@ impl<const N: usize> Controller<N> {
         if age > self.settings.stale_ns {
             return Err(Rejection::Stale { age_ns: age });
         }
-        Ok(restarted && self.plant_id != 0)
+        Ok(restarted && self.memory.plant_id != 0)
     }
 
     /// One tick at time `now_ns` with the newest received state, if any.
     pub fn tick(&mut self, newest: Option<&StateSample>, now_ns: u64) -> TickOutcome<N> {
         let mut out = TickOutcome {
-            mode: self.mode,
+            mode: self.memory.mode,
             command: None,
             output: None,
             state_age_ns: None,
@@ -480,39 +475,46 @@ impl<const N: usize> Controller<N> {
             mode_changed: false,
             plant_restarted: false,
             fault: None,
-            applied: self.applied.take(),
+            applied: self.memory.applied.take(),
             limiter_hits: [0; protocol::MAX_JOINTS],
         };
         let mut fresh = None;
         if let Some(s) = newest {
             match self.accept(s, now_ns) {
                 Ok(restarted) => {
-                    let t0 = *self.t0_stamp.get_or_insert(s.stamp_ns);
+                    let t0 = *self.memory.t0_stamp.get_or_insert(s.stamp_ns);
                     // Controller time never runs backwards (a restarted plant's stamps may start
                     // a little behind the last one seen).
                     let t = (self.settings.t_start + s.stamp_ns.saturating_sub(t0) as f64 * 1e-9)
-                        .max(self.t);
+                        .max(self.memory.t);
                     let g = (t / self.dt).round() as i64;
                     // The plant braked on its own (no commands reached it, e.g. while this
                     // loop was stalled): it has not been following the last rates either.
                     let braked = s.has_flags(protocol::flags::COMMAND_TIMEOUT)
-                        && self.last_stamp != 0
-                        && !self.was_braked;
-                    self.was_braked = s.has_flags(protocol::flags::COMMAND_TIMEOUT);
-                    if restarted || self.last_qd.is_none() || self.mode == Mode::Hold || braked {
+                        && self.memory.last_stamp != 0
+                        && !self.memory.was_braked;
+                    self.memory.was_braked = s.has_flags(protocol::flags::COMMAND_TIMEOUT);
+                    if restarted
+                        || self.memory.last_qd.is_none()
+                        || self.memory.mode == Mode::Hold
+                        || braked
+                    {
                         // New history: after a restart, a HOLD or a plant-side brake (the plant
                         // was braking, not following the last rates) the old q̇ would feed the
                         // Pyragas term lies, and catching the circle again is a re-entry.
-                        self.last_qd = None;
+                        self.memory.last_qd = None;
                         self.restart_history(g, arm_state::<N>(s).qd);
-                        self.guard.reenter(t);
+                        self.memory.guard.reenter(t);
                     } else if self.unanswered_since_last_run(t) {
                         // The arm moved on without answers for a while (this loop or the plant
                         // was stalled): catching up is a re-entry too, not a runaway.
-                        self.last_gap_reentry = Some(t);
-                        self.guard.reenter(t);
+                        self.memory.last_gap_reentry = Some(t);
+                        self.memory.guard.reenter(t);
                     }
-                    if restarted || self.last_stamp == 0 || s.has_flags(protocol::flags::BRAKING) {
+                    if restarted
+                        || self.memory.last_stamp == 0
+                        || s.has_flags(protocol::flags::BRAKING)
+                    {
                         // The command stream starts again exactly when the arm's does: a new
                         // plant, or an arm braking or holding (by the device on its own, by a
                         // brake or a hold that reached it), which follows no stream; the first
@@ -524,14 +526,14 @@ impl<const N: usize> Controller<N> {
                         let x = arm_state::<N>(s);
                         self.restart_generator(&x);
                     }
-                    self.plant_id = s.plant_id;
-                    self.last_stamp = s.stamp_ns;
+                    self.memory.plant_id = s.plant_id;
+                    self.memory.last_stamp = s.stamp_ns;
                     if restarted {
                         self.counters.plant_restarts += 1;
                         out.plant_restarted = true;
                     }
-                    self.t = t;
-                    self.last_seq = Some(s.seq);
+                    self.memory.t = t;
+                    self.memory.last_seq = Some(s.seq);
                     self.counters.fresh_states += 1;
                     out.state_age_ns = Some(now_ns.saturating_sub(s.stamp_ns));
                     fresh = Some(s);
@@ -553,19 +555,21 @@ impl<const N: usize> Controller<N> {
             }
         }
 
-        let prev_mode = self.mode;
+        let prev_mode = self.memory.mode;
         match fresh {
-            Some(s) if self.mode == Mode::Fault => {
+            Some(s) if self.memory.mode == Mode::Fault => {
                 // Keep braking; answer the newest state so the plant sees the controller alive.
-                self.missed = 0;
+                self.memory.missed = 0;
                 out.command = Some(self.fault_command(s, now_ns));
             }
-            Some(s) if self.blocked_hold && self.clear => self.hold_blocked(s, now_ns, &mut out),
+            Some(s) if self.blocked_hold && self.memory.clear => {
+                self.hold_blocked(s, now_ns, &mut out)
+            }
             Some(s) => self.run_law(s, now_ns, &mut out),
             None => self.missed_state(now_ns, &mut out),
         }
-        out.mode = self.mode;
-        out.mode_changed = prev_mode != self.mode;
+        out.mode = self.memory.mode;
+        out.mode_changed = prev_mode != self.memory.mode;
         self.counters.ticks += 1;
         if out.command.is_some() {
             self.counters.commands += 1;
@@ -583,17 +587,17 @@ impl<const N: usize> Controller<N> {
         else {
             return;
         };
-        if self.device_fault_latched {
+        if self.memory.device_fault_latched {
             return;
         }
-        self.device_fault_latched = true;
+        self.memory.device_fault_latched = true;
         let reason = FaultReason::Device {
             status,
             joint: s.device_joint,
         };
-        if self.mode != Mode::Fault {
-            self.mode = Mode::Fault;
-            self.fault = Some(reason);
+        if self.memory.mode != Mode::Fault {
+            self.memory.mode = Mode::Fault;
+            self.memory.fault = Some(reason);
             self.counters.faults += 1;
             out.fault = Some(reason);
         }
@@ -611,7 +615,7 @@ impl<const N: usize> Controller<N> {
     /// twin controller's full tick, 1.3 µs). The result is bit-for-bit the same with or without
     /// rehearsals (tested).
     pub fn rehearse(&mut self, s: &StateSample) {
-        if self.mode != Mode::Run || s.n as usize != N {
+        if self.memory.mode != Mode::Run || s.n as usize != N {
             return;
         }
         let period = (self.dt * 1e9).round() as u64;
@@ -631,121 +635,28 @@ impl<const N: usize> Controller<N> {
         self.undo(undo);
     }
 
-    /// Everything [`Self::tick`] may change, but the delay line and the scratch. The pattern
-    /// names every field, so a new one is a compile error here until it is sorted in.
+    /// Everything [`Self::tick`] may change, but the delay line and the scratch.
     fn undo_point(&self) -> Undo<N> {
-        let Controller {
-            law,
-            settings: _,
-            dt: _,
-            delay: _,   // not written while rehearsing
-            scratch: _, // scratch
-            t0_stamp,
-            t,
-            delay_origin,
-            mode,
-            plant_id,
-            last_seq,
-            last_stamp,
-            was_braked,
-            last_qd,
-            missed,
-            next_command_seq,
-            guard,
-            fault,
-            applied,
-            agreed_plant: _, // set between ticks only
-            generator,
-            device_fault_latched,
-            last_run_t,
-            last_run_device_ns,
-            last_gap_reentry,
-            steer: _,        // set between ticks only
-            blocked_hold: _, // set between ticks only
-            clear,
-            counters,
-            rehearsing: _,
-        } = self;
         Undo {
-            gain: law.gain(),
-            stream: generator.stream(),
-            t0_stamp: *t0_stamp,
-            t: *t,
-            delay_origin: *delay_origin,
-            mode: *mode,
-            plant_id: *plant_id,
-            last_seq: *last_seq,
-            last_stamp: *last_stamp,
-            was_braked: *was_braked,
-            last_qd: *last_qd,
-            missed: *missed,
-            next_command_seq: *next_command_seq,
-            guard: *guard,
-            fault: *fault,
-            applied: *applied,
-            device_fault_latched: *device_fault_latched,
-            last_run_t: *last_run_t,
-            last_run_device_ns: *last_run_device_ns,
-            last_gap_reentry: *last_gap_reentry,
-            clear: *clear,
-            counters: *counters,
+            memory: self.memory,
+            counters: self.counters,
+            gain: self.law.gain(),
+            stream: self.generator.stream(),
         }
     }
 
     /// Puts back what [`Self::undo_point`] saved.
     fn undo(&mut self, u: Undo<N>) {
-        let Undo {
-            gain,
-            stream,
-            t0_stamp,
-            t,
-            delay_origin,
-            mode,
-            plant_id,
-            last_seq,
-            last_stamp,
-            was_braked,
-            last_qd,
-            missed,
-            next_command_seq,
-            guard,
-            fault,
-            applied,
-            device_fault_latched,
-            last_run_t,
-            last_run_device_ns,
-            last_gap_reentry,
-            clear,
-            counters,
-        } = u;
-        self.law.set_gain(gain);
-        self.generator.set_stream(stream);
-        self.t0_stamp = t0_stamp;
-        self.t = t;
-        self.delay_origin = delay_origin;
-        self.mode = mode;
-        self.plant_id = plant_id;
-        self.last_seq = last_seq;
-        self.last_stamp = last_stamp;
-        self.was_braked = was_braked;
-        self.last_qd = last_qd;
-        self.missed = missed;
-        self.next_command_seq = next_command_seq;
-        self.guard = guard;
-        self.fault = fault;
-        self.applied = applied;
-        self.device_fault_latched = device_fault_latched;
-        self.last_run_t = last_run_t;
-        self.last_run_device_ns = last_run_device_ns;
-        self.last_gap_reentry = last_gap_reentry;
-        self.clear = clear;
-        self.counters = counters;
+        self.memory = u.memory;
+        self.counters = u.counters;
+        self.law.set_gain(u.gain);
+        self.generator.set_stream(u.stream);
     }
 
     /// The law (and, for a first-order hold, its rate) at controller time `t` on `x`, reading
     /// the delay line: what both the tick and a rehearsal evaluate.
     fn hold_command(&mut self, t: f64, x: &ArmState<N>) -> hold::HeldCommand<N> {
-        let (delay, origin, dt) = (&self.delay, self.delay_origin as f64, self.dt);
+        let (delay, origin, dt) = (&self.delay, self.memory.delay_origin as f64, self.dt);
         hold::command(
             &self.law,
             t,
@@ -759,14 +670,14 @@ impl<const N: usize> Controller<N> {
 
     /// A fresh, accepted state: run the law, count what it reports, let the guard judge.
     fn run_law(&mut self, s: &StateSample, now_ns: u64, out: &mut TickOutcome<N>) {
-        self.missed = 0;
-        self.mode = Mode::Run;
-        self.device_fault_latched = false;
+        self.memory.missed = 0;
+        self.memory.mode = Mode::Run;
+        self.memory.device_fault_latched = false;
         let m = arm_state(s);
         let x = self.law_state(&m);
-        let t = self.t;
+        let t = self.memory.t;
         self.feed_delay((t / self.dt).round() as i64, x.qd);
-        self.last_qd = Some(x.qd);
+        self.memory.last_qd = Some(x.qd);
         let held = self.hold_command(t, &x);
         let mut o = held.output;
         self.law.adapt(&o, self.dt);
@@ -787,19 +698,24 @@ impl<const N: usize> Controller<N> {
         }
         if self.blocked_hold {
             judged.tracking_error = 0.0;
-            self.clear = o.clearance >= self.law.safety().clearance && x.qd.amax() <= REST_RATE;
+            self.memory.clear =
+                o.clearance >= self.law.safety().clearance && x.qd.amax() <= REST_RATE;
         }
-        if let Some(reason) = self.guard.check(t, self.law.safety(), &x.qd, &judged) {
-            self.mode = Mode::Fault;
-            self.fault = Some(reason);
+        if let Some(reason) = self
+            .memory
+            .guard
+            .check(t, self.law.safety(), &x.qd, &judged)
+        {
+            self.memory.mode = Mode::Fault;
+            self.memory.fault = Some(reason);
             self.counters.faults += 1;
             out.fault = Some(reason);
             out.command = Some(self.fault_command(s, now_ns));
             return;
         }
         let periods = self.periods_since_last_run(s, t);
-        self.last_run_t = Some(t);
-        self.last_run_device_ns = Some(s.device_time_ns);
+        self.memory.last_run_t = Some(t);
+        self.memory.last_run_device_ns = Some(s.device_time_ns);
         let c = self
             .generator
             .next_over(&m.q, &m.qd, &held.qdd, &held.qddd, periods);
@@ -811,8 +727,8 @@ impl<const N: usize> Controller<N> {
     /// Blocked, holding: the plant brings the arm to rest and keeps it there; the next RUN
     /// starts a fresh history (as after any HOLD).
     fn hold_blocked(&mut self, s: &StateSample, now_ns: u64, out: &mut TickOutcome<N>) {
-        self.missed = 0;
-        self.mode = Mode::Hold;
+        self.memory.missed = 0;
+        self.memory.mode = Mode::Hold;
         self.counters.blocked_holds += 1;
         out.command = Some(self.command(Mode::Hold, &self.still(), s, now_ns));
     }
@@ -820,8 +736,8 @@ impl<const N: usize> Controller<N> {
     /// The command stream starts again from the arm's measured state `x`.
     fn restart_generator(&mut self, x: &ArmState<N>) {
         self.generator.restart(&x.q, &x.qd);
-        self.last_run_t = None;
-        self.last_run_device_ns = None;
+        self.memory.last_run_t = None;
+        self.memory.last_run_device_ns = None;
     }
 
     /// The periods the device moved on by since the last command (1 unless states went
@@ -834,11 +750,12 @@ impl<const N: usize> Controller<N> {
     /// and says so, and the stream restarts; the cap bounds the catch-up's cost).
     fn periods_since_last_run(&self, s: &StateSample, t: f64) -> u32 {
         let by_device = self
+            .memory
             .last_run_device_ns
             .filter(|&last| s.device_time_ns > last)
             .map(|last| (s.device_time_ns - last) as f64 * 1e-9);
         by_device
-            .or_else(|| self.last_run_t.map(|last| t - last))
+            .or_else(|| self.memory.last_run_t.map(|last| t - last))
             .map_or(1, |e| {
                 (e / self.dt).round().clamp(1.0, MAX_GAP_PERIODS) as u32
             })
@@ -849,9 +766,11 @@ impl<const N: usize> Controller<N> {
     /// [`GAP_REENTRY_EVERY_S`].
     fn unanswered_since_last_run(&self, t: f64) -> bool {
         let gap = self
+            .memory
             .last_run_t
             .is_some_and(|last| t - last >= (REENTRY_GAP_PERIODS - 0.5) * self.dt);
         gap && self
+            .memory
             .last_gap_reentry
             .is_none_or(|last| t - last >= GAP_REENTRY_EVERY_S)
     }
@@ -882,18 +801,18 @@ impl<const N: usize> Controller<N> {
 
     /// No usable state this tick: HOLD after `hold_after` misses; keep telling the plant.
     fn missed_state(&mut self, now_ns: u64, out: &mut TickOutcome<N>) {
-        self.missed = self.missed.saturating_add(1);
-        if self.missed >= self.settings.hold_after && self.mode == Mode::Run {
-            self.mode = Mode::Hold;
+        self.memory.missed = self.memory.missed.saturating_add(1);
+        if self.memory.missed >= self.settings.hold_after && self.memory.mode == Mode::Run {
+            self.memory.mode = Mode::Hold;
             self.counters.holds_entered += 1;
         }
         let last = StateSample {
-            seq: self.last_seq.unwrap_or(0),
+            seq: self.memory.last_seq.unwrap_or(0),
             ..StateSample::default()
         };
-        if self.mode == Mode::Fault {
+        if self.memory.mode == Mode::Fault {
             out.command = Some(self.fault_command(&last, now_ns));
-        } else if self.mode == Mode::Hold && self.last_seq.is_some() {
+        } else if self.memory.mode == Mode::Hold && self.memory.last_seq.is_some() {
             // Tell the plant to hold while its states are missing or unusable.
             out.command = Some(self.command(Mode::Hold, &self.still(), &last, now_ns));
         }
@@ -906,7 +825,7 @@ impl<const N: usize> Controller<N> {
     /// A braking command for shutdown.
     pub fn brake_command(&mut self, now_ns: u64) -> CommandSample {
         let last = StateSample {
-            seq: self.last_seq.unwrap_or(0),
+            seq: self.memory.last_seq.unwrap_or(0),
             ..StateSample::default()
         };
         self.command(Mode::Brake, &self.still(), &last, now_ns)
@@ -920,7 +839,7 @@ impl<const N: usize> Controller<N> {
         now_ns: u64,
     ) -> CommandSample {
         let c = self.next_command(mode, cmd, answers, now_ns);
-        self.next_command_seq += 1;
+        self.memory.next_command_seq += 1;
         c
     }
 
@@ -933,7 +852,7 @@ impl<const N: usize> Controller<N> {
         now_ns: u64,
     ) -> CommandSample {
         let mut c = CommandSample {
-            seq: self.next_command_seq,
+            seq: self.memory.next_command_seq,
             state_seq: answers.seq,
             state_stamp_ns: answers.stamp_ns,
             stamp_ns: now_ns,
@@ -1067,10 +986,10 @@ mod tests {
         let mut c = controller();
         let mut s = state(1, 0);
         // No device clock: the controller's time (from the stamps) says how long it was.
-        c.last_run_t = Some(1.0);
+        c.memory.last_run_t = Some(1.0);
         assert_eq!(c.periods_since_last_run(&s, 1.0031), 3);
         // A device clock overrules jittery stamps: 1 ms on it is one period.
-        c.last_run_device_ns = Some(5_000_000);
+        c.memory.last_run_device_ns = Some(5_000_000);
         s.device_time_ns = 6_000_000;
         assert_eq!(c.periods_since_last_run(&s, 1.0031), 1);
         s.device_time_ns = 9_000_000;
@@ -1079,10 +998,10 @@ mod tests {
         s.device_time_ns = 1_000_000;
         assert_eq!(c.periods_since_last_run(&s, 1.0031), 3);
         // The first command of a stream covers one period; a long gap is capped.
-        c.last_run_t = None;
-        c.last_run_device_ns = None;
+        c.memory.last_run_t = None;
+        c.memory.last_run_device_ns = None;
         assert_eq!(c.periods_since_last_run(&s, 5.0), 1);
-        c.last_run_t = Some(1.0);
+        c.memory.last_run_t = Some(1.0);
         assert_eq!(c.periods_since_last_run(&s, 5.0), MAX_GAP_PERIODS as u32);
     }
 
@@ -1204,7 +1123,7 @@ mod tests {
                     }
                 }
             }
-            assert_eq!(plain.mode, Mode::Run, "{mode}");
+            assert_eq!(plain.memory.mode, Mode::Run, "{mode}");
             assert_eq!(
                 plain.generator.saturations, rehearsed.generator.saturations,
                 "{mode}"
@@ -1498,7 +1417,10 @@ mod tests {
         s.stamp_ns = t0 + 3_000_000;
         s.qd[0] = 3.0;
         c.tick(Some(&s), s.stamp_ns);
-        let d = |steps_back: f64| c.delay.sample(3.0 - steps_back - c.delay_origin as f64)[0];
+        let d = |steps_back: f64| {
+            c.delay
+                .sample(3.0 - steps_back - c.memory.delay_origin as f64)[0]
+        };
         assert_eq!((d(0.0), d(1.0), d(2.0), d(3.0)), (3.0, 2.0, 1.0, 0.0));
     }
 }
