@@ -277,29 +277,49 @@ fn three_arms_nobody_tuned_for_track_in_every_mode_inside_every_limit() {
 
 /// Each of `runs` of `arm` (6 s demos) tracks to 1 mm RMS without a fault or a state or command
 /// outside a limit.
+///
+/// A run whose loop the host stalled for 2 ms or more (a sleep that woke that late) and that
+/// missed the tracking bound runs once more, and must meet it then: through the UDP bridge such
+/// a stall makes the device miss cycles and brake, and each brake restarts the stream (seen
+/// once in a full run: 371 missed device cycles, 3 brakes, 1.2 cm; 0.33 mm alone). Limits and
+/// faults are judged on every run, stalled or not.
 fn tracks_inside_every_limit(arm: &Arm, runs: &[&[&str]], dir: &Path) {
     let rms_max = 1e-3;
     let cfg = write(dir, "arm.toml", &arm_config(arm, arm.q0));
     for args in runs {
         let what = format!("{} {}", arm.file, args.join(" "));
         let out = dir.join("out");
-        let _ = std::fs::remove_dir_all(&out);
         let mut all_args = args.to_vec();
         all_args.extend(["--duration", "6", "--details"]);
-        let o = demo(&cfg, &out, &all_args);
-        let all = text(&o);
-        assert!(o.status.success(), "{what}: {all}");
-        let s = read_json(&out.join("daemon-summary.json"));
-        assert_eq!(s["counters"]["faults"], 0, "{what}: {all}");
+        let mut attempt = 0;
+        let (s, all) = loop {
+            attempt += 1;
+            let _ = std::fs::remove_dir_all(&out);
+            let o = demo(&cfg, &out, &all_args);
+            let all = text(&o);
+            assert!(o.status.success(), "{what}: {all}");
+            let s = read_json(&out.join("daemon-summary.json"));
+            assert_eq!(s["counters"]["faults"], 0, "{what}: {all}");
+            let l = &s["joint_limits"];
+            assert_eq!(
+                (l["states_outside"].as_u64(), l["commands_outside"].as_u64()),
+                (Some(0), Some(0)),
+                "{what}: {all}"
+            );
+            let rms = s["tracking_rms_m"].as_f64().unwrap();
+            let stall_ns = s["counters"]["late_wakes"]["max_ns"].as_u64().unwrap_or(0);
+            if rms > rms_max && stall_ns >= 2_000_000 && attempt == 1 {
+                eprintln!(
+                    "{what}: tracking RMS {rms:.2e} m after a {stall_ns} ns host stall: once more"
+                );
+                continue;
+            }
+            break (s, all);
+        };
         let rms = s["tracking_rms_m"].as_f64().unwrap();
         let l = &s["joint_limits"];
         eprintln!("{what}: tracking RMS {rms:.2e} m, {l}");
         assert!(rms <= rms_max, "{what}: tracking RMS {rms} m\n{all}");
-        assert_eq!(
-            (l["states_outside"].as_u64(), l["commands_outside"].as_u64()),
-            (Some(0), Some(0)),
-            "{what}: {all}"
-        );
     }
 }
 
