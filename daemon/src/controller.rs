@@ -890,9 +890,9 @@ mod tests {
     use control::system::System;
     use control::Config;
 
-    fn controller() -> Controller<3> {
-        let cfg = Config::preset("paper").unwrap();
-        let settings = ControllerSettings {
+    /// The tests' loop: 1 kHz, first-order hold, HOLD after 5 missed states.
+    fn settings() -> ControllerSettings {
+        ControllerSettings {
             rate_hz: 1000.0,
             first_order_hold: true,
             hold_after: 5,
@@ -900,7 +900,12 @@ mod tests {
             future_slack_ns: 1_000_000,
             daemon_id: 9,
             t_start: 0.0,
-        };
+        }
+    }
+
+    fn controller() -> Controller<3> {
+        let cfg = Config::preset("paper").unwrap();
+        let settings = settings();
         Controller::new(cfg.tick_law::<3>(), 2.0, settings)
     }
 
@@ -1013,15 +1018,7 @@ mod tests {
         let mut cfg = Config::preset("demo").unwrap();
         cfg.feedback.t_on = 0.3;
         let make = || {
-            let settings = ControllerSettings {
-                rate_hz: 1000.0,
-                first_order_hold: true,
-                hold_after: 5,
-                stale_ns: 5_000_000,
-                future_slack_ns: 1_000_000,
-                daemon_id: 9,
-                t_start: 0.0,
-            };
+            let settings = settings();
             Controller::<3>::new(cfg.tick_law::<3>(), 2.0, settings)
         };
         let (mut plain, mut rehearsed) = (make(), make());
@@ -1071,15 +1068,7 @@ mod tests {
         for mode in ["acceleration", "position", "velocity", "torque"] {
             let text = format!("{base}\n[command]\nmode = \"{mode}\"\n");
             let sys = System::parse(&text, &control::system::builtin_robot).unwrap();
-            let settings = ControllerSettings {
-                rate_hz: 1000.0,
-                first_order_hold: true,
-                hold_after: 5,
-                stale_ns: 5_000_000,
-                future_slack_ns: 1_000_000,
-                daemon_id: 9,
-                t_start: 0.0,
-            };
+            let settings = settings();
             let make = || {
                 Controller::<7>::new(sys.tick_law::<7>(), 2.0, settings)
                     .with_generator(sys.generator::<7>(1e-3).unwrap())
