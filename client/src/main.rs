@@ -18,6 +18,7 @@ mod spatial_figure;
 mod spatial_sweep;
 mod traps;
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
 use client::online;
 use std::process::ExitCode;
@@ -85,10 +86,15 @@ enum Command {
     Export(export::ExportArgs),
     /// Robot models from URDF: `robot show ROBOT`, `robot eval ROBOT --q …`.
     Robot(robot::RobotCmd),
-    /// Print a preset as a TOML config file to start from.
+    /// Print a preset as a TOML config file to start from, or a file of yours checked and
+    /// written in today's form (a planar file in the older `[arm]`/`[control]` form comes out
+    /// with `[robot] description = "planar"`).
     Config {
-        #[arg(long, default_value = "paper")]
+        #[arg(long, default_value = "paper", conflicts_with = "config")]
         preset: String,
+        /// A config file to check and print in today's form.
+        #[arg(long)]
+        config: Option<std::path::PathBuf>,
     },
 }
 
@@ -195,7 +201,15 @@ fn main() -> ExitCode {
         Command::Exporter(a) => exporter::run(a),
         Command::Robot(a) => robot::run(a),
         Command::Export(a) => export::run(a),
-        Command::Config { preset } => {
+        Command::Config {
+            config: Some(path), ..
+        } => std::fs::read_to_string(&path)
+            .with_context(|| format!("cannot read config file {}", path.display()))
+            .and_then(|text| {
+                rt::robot::parse(&text).with_context(|| format!("in {}", path.display()))
+            })
+            .map(|s| print!("{}", s.to_toml())),
+        Command::Config { preset, .. } => {
             match control::config::spatial::SpatialConfig::preset(&preset) {
                 Some(c) => {
                     print!("{}", c.to_toml());

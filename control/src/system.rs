@@ -67,12 +67,11 @@ pub struct Identity {
 }
 
 impl System {
-    /// Parses a file's text (spatial when it has a `[robot]` table) and validates it.
+    /// Parses a file's text and validates it: the paper's planar arm when `[robot]` names
+    /// `"planar"` (or the file has the older planar form, without `[robot]`), else a chain.
     pub fn parse(text: &str, resolve: Resolve) -> Result<Self, ConfigError> {
         if !is_spatial(text) {
-            let c = Config::from_toml_str(text)?;
-            c.validate()?;
-            return Ok(System::Planar(c));
+            return Ok(System::Planar(Config::parse(text)?));
         }
         Self::spatial(SpatialConfig::from_toml(text)?, resolve)
     }

@@ -8,17 +8,17 @@ use proptest::strategy::ValueTree;
 
 /// Keys of every table, with values that are often out of range.
 const KEYS: &[&str] = &[
-    "arm.links",
-    "arm.model",
-    "arm.base_mass",
+    "robot.links",
+    "robot.model",
+    "robot.base_mass",
     "task.center",
     "task.radius",
     "task.period",
-    "control.kp",
-    "control.kv",
-    "control.alpha",
-    "control.secondary",
-    "control.damping_max",
+    "law.kp",
+    "law.kv",
+    "law.alpha",
+    "law.secondary",
+    "law.damping_max",
     "feedback.mu",
     "feedback.tau",
     "feedback.t_on",
@@ -60,11 +60,22 @@ fn value() -> impl Strategy<Value = String> {
     ]
 }
 
+/// A file in the shared form (`[robot] description = "planar"`) or, as often, in the older one
+/// (`[arm]`, `[control]`).
 fn toml_doc() -> impl Strategy<Value = String> {
-    prop::collection::vec((prop::sample::select(KEYS), value()), 0..10).prop_map(|kv| {
+    let keys = prop::collection::vec((prop::sample::select(KEYS), value()), 0..10);
+    (keys, any::<bool>()).prop_map(|(kv, older)| {
         let mut by_table: std::collections::BTreeMap<&str, Vec<String>> = Default::default();
+        if !older {
+            by_table.insert("robot", vec!["description = \"planar\"".into()]);
+        }
         for (k, v) in kv {
             let (t, key) = k.split_once('.').unwrap();
+            let t = match (older, t) {
+                (true, "robot") => "arm",
+                (true, "law") => "control",
+                _ => t,
+            };
             by_table.entry(t).or_default().push(format!("{key} = {v}"));
         }
         by_table

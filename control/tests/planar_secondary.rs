@@ -22,7 +22,7 @@ impl NullTask for TowardZero {
 
 static TOWARD_ZERO: TowardZero = TowardZero;
 
-/// The paper's set-up with `control.secondary = secondary`, as a file would say it.
+/// The paper's set-up with `law.secondary = secondary`, as a file would say it.
 fn paper(secondary: &str) -> Result<Config, control::ConfigError> {
     let text = Config::preset("paper").unwrap().to_toml_string();
     let key = "secondary = \"manipulability\"";
@@ -80,7 +80,7 @@ fn a_registered_task_and_centring_drive_the_planar_arm() {
 
     let e = paper("manipulabilty").unwrap_err().to_string();
     assert!(
-        e.contains("control.secondary") && e.contains("toward-zero"),
+        e.contains("law.secondary") && e.contains("toward-zero"),
         "{e}"
     );
 }

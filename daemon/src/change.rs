@@ -95,7 +95,7 @@ mod tests {
         assert!(text.contains("feedback.mu: "), "{text}");
         assert!(text.contains(" → 0.5"), "{text}");
         assert!(
-            text.contains("control.obstacles[1].radius: (none) → 0.15"),
+            text.contains("obstacles[1].radius: (none) → 0.15") && !text.contains("control."),
             "{text}"
         );
         assert!(!text.contains("feedback.tau"), "{text}");

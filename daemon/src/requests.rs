@@ -81,6 +81,7 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
     while let Some(key) = it.next() {
         let k = key
             .trim_start_matches("feedback.")
+            .trim_start_matches("law.")
             .trim_start_matches("control.");
         match k {
             "mu" | "gamma" | "max_mu" => {
@@ -393,7 +394,7 @@ mod tests {
         for (args, want) in [
             ("kv 3000", "K_v < 1000"),
             ("task.period 0.01", "≥ 0.05 s"),
-            ("kp 1000000 kv 1000000", "control.kv"),
+            ("kp 1000000 kv 1000000", "law.kv"),
             ("task.center 1e5 1e5", "reaches only"),
             ("safety.k1 5", "real roots"),
             ("safety.push_out_speed 0", "safety.push_out_speed"),
@@ -443,14 +444,16 @@ mod tests {
         assert_eq!(n.control.secondary, SecondaryKind::None);
         for (args, want) in [
             ("mu -1", "feedback.mu"),
-            ("mu 1 kp -5", "control.kp"),
+            ("mu 1 kp -5", "law.kp"),
+            ("mu 1 law.kp -5", "law.kp"),
+            ("mu 1 control.kp -5", "law.kp"),
             ("tau 3", "max_tau"),
             ("tau 0.0001", "control period"),
             ("bogus 1", "unknown key"),
             ("mu", "missing value"),
             ("mu abc", "not a number"),
             ("mu nan", "finite"),
-            ("secondary obstacles", "control.obstacles"),
+            ("secondary obstacles", "[[obstacles]]"),
             ("max_tau 5", "fixed at start-up"),
             ("", "KEY VALUE"),
         ] {

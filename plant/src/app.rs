@@ -39,7 +39,7 @@ use std::process::ExitCode;
 /// The flags every plant process takes; `#[command(flatten)]` them into a bridge's own `Args`.
 #[derive(clap::Args, Clone, Debug, Default)]
 pub struct PlantArgs {
-    /// TOML config file (the same file the daemon reads; a plant uses the arm ([arm] or [robot]), [sim], [command] and [plant]).
+    /// TOML config file (the same file the daemon reads; a plant uses the arm ([robot], or [arm] in the planar arm's older form), [sim], [command] and [plant]).
     #[arg(long, conflicts_with = "preset")]
     pub config: Option<PathBuf>,
     /// A built-in set-up instead of a file.

@@ -20,7 +20,7 @@ const POLL: Duration = Duration::from_millis(2);
 /// How long a refusing plant keeps its description up before it stops.
 const GRACE: Duration = Duration::from_millis(300);
 
-/// The description of the arm in `system` (the plant's `[arm]`, or its `[robot]`).
+/// The description of the arm in `system` (the file's `[robot]`).
 pub fn describe(system: &System) -> ArmInfo {
     rt::robot::arm_info(system, 0)
 }

@@ -24,7 +24,7 @@ fn accepted<T: DeserializeOwned + std::fmt::Debug>() -> BTreeSet<String> {
         .collect()
 }
 
-/// The book's sections: heading text between backticks (`[arm]`, `[plant.rigid_body]`) → the
+/// The book's sections: heading text between backticks (`[robot] (planar)`, `[plant.rigid_body]`) → the
 /// keys in the first column of its table.
 fn documented() -> BTreeMap<String, BTreeSet<String>> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -50,11 +50,22 @@ fn documented() -> BTreeMap<String, BTreeSet<String>> {
 fn the_reference_lists_every_key_of_every_section_and_no_other() {
     use control::config::spatial as sp;
     let code: Vec<(&str, BTreeSet<String>)> = vec![
-        ("[arm]", accepted::<control::config::ArmConfig>()),
+        // The planar arm's `[robot]` is its `ArmConfig` and the `description` that names it;
+        // its `[law]` is `ControlConfig` without `obstacles`, which are the top-level list
+        // (`control::config::planar_file`).
+        ("[robot] (planar)", {
+            let mut k = accepted::<control::config::ArmConfig>();
+            k.insert("description".into());
+            k
+        }),
         ("[task]", accepted::<control::config::TaskConfig>()),
-        ("[control]", accepted::<control::config::ControlConfig>()),
+        ("[law] (planar)", {
+            let mut k = accepted::<control::config::ControlConfig>();
+            assert!(k.remove("obstacles"));
+            k
+        }),
         (
-            "[[control.obstacles]]",
+            "[[obstacles]] (planar)",
             accepted::<control::config::ObstacleConfig>(),
         ),
         ("[feedback]", accepted::<control::config::FeedbackConfig>()),

@@ -214,7 +214,7 @@ fn base(args: &ObstaclesCmd) -> Result<Base> {
     let mut base = setup.load_with_mu(None)?;
     args.obstacles.apply(&mut base)?;
     if base.control.obstacles.is_empty() {
-        bail!("the configuration has no obstacles: use --preset paper-obstacle or a --config with [[control.obstacles]] entries");
+        bail!("the configuration has no obstacles: use --preset paper-obstacle or a --config with [[obstacles]] entries");
     }
     Ok(Base {
         obstacles: base

@@ -8,6 +8,7 @@
 //! Every default is docs/science.md's; the `paper*` presets reproduce the paper's set-ups.
 
 pub mod command;
+pub mod planar_file;
 pub mod rehearsal;
 pub mod spatial;
 pub mod stability;
@@ -155,6 +156,9 @@ pub struct ControlConfig {
     /// Null-space gain α.
     pub alpha: f64,
     pub secondary: SecondaryKind,
+    /// In the shared form the top-level `[[obstacles]]` ([`planar_file`]); `[[control.obstacles]]`
+    /// in the older one.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
     pub obstacles: Vec<ObstacleConfig>,
     pub w1: f64,
     pub w2: f64,
@@ -402,7 +406,9 @@ impl Config {
         Ok(c)
     }
 
-    /// Parses TOML text (no validation; call [`Config::validate`]).
+    /// Parses TOML text (no validation; call [`Config::validate`]): the shared form
+    /// (`[robot] description = "planar"`, [`planar_file`]) or the older one (`[arm]`,
+    /// `[control]`).
     pub fn from_toml_str(text: &str) -> Result<Self, ConfigError> {
         if text.len() > MAX_CONFIG_BYTES {
             return Err(ConfigError::Parse(format!(
@@ -410,20 +416,31 @@ impl Config {
                 text.len()
             )));
         }
-        if crate::config::spatial::is_spatial(text) {
-            return Err(ConfigError::Spatial("a config with a [robot] table".into()));
+        match text.parse::<toml::Table>() {
+            Ok(t) if planar_file::names_planar(&t) => planar_file::read(text),
+            Ok(t) if t.contains_key("robot") => {
+                Err(ConfigError::Spatial("a config with a [robot] table".into()))
+            }
+            _ => toml::from_str(text).map_err(|e| ConfigError::Parse(excerpt(&e.to_string()))),
         }
-        toml::from_str(text).map_err(|e| ConfigError::Parse(excerpt(&e.to_string())))
     }
 
+    /// The file in the shared form every arm's file has ([`planar_file`]).
     pub fn to_toml_string(&self) -> String {
-        toml::to_string_pretty(self).unwrap_or_default()
+        planar_file::write(self)
     }
 
-    /// Parses and validates.
+    /// Parses and validates; a refusal names the key as the text spells it (`law.kp` in the
+    /// shared form, `control.kp` in the older one).
     pub fn parse(text: &str) -> Result<Self, ConfigError> {
         let c = Self::from_toml_str(text)?;
-        c.validate()?;
+        c.validate().map_err(|e| {
+            if is_older_form(text) {
+                planar_file::in_legacy_terms(e)
+            } else {
+                e
+            }
+        })?;
         Ok(c)
     }
 
@@ -465,20 +482,20 @@ impl Config {
         let n = self.n();
         if !(MIN_JOINTS..=MAX_JOINTS).contains(&n) {
             return Err(invalid(
-                "arm.links",
+                "robot.links",
                 &self.arm.links,
                 &format!("must list {MIN_JOINTS} to {MAX_JOINTS} link lengths"),
             ));
         }
         for (i, l) in self.arm.links.iter().enumerate() {
-            positive(&format!("arm.links[{i}]"), *l, 100.0)?;
+            positive(&format!("robot.links[{i}]"), *l, 100.0)?;
         }
-        positive("arm.base_mass", self.arm.base_mass, 1e9)?;
-        positive("arm.base_inertia", self.arm.base_inertia, 1e9)?;
-        range("arm.base_offset", self.arm.base_offset, 0.0, 100.0)?;
+        positive("robot.base_mass", self.arm.base_mass, 1e9)?;
+        positive("robot.base_inertia", self.arm.base_inertia, 1e9)?;
+        range("robot.base_offset", self.arm.base_offset, 0.0, 100.0)?;
         for (name, v) in [
-            ("arm.link_masses", &self.arm.link_masses),
-            ("arm.link_inertias", &self.arm.link_inertias),
+            ("robot.link_masses", &self.arm.link_masses),
+            ("robot.link_inertias", &self.arm.link_inertias),
         ] {
             if let Some(v) = v {
                 same_len(name, v, n)?;
@@ -493,42 +510,42 @@ impl Config {
         check_ramp(self.task.ramp)?;
 
         let c = &self.control;
-        range("control.kp", c.kp, 0.0, 1e6)?;
-        range("control.kv", c.kv, 0.0, 1e6)?;
-        range("control.alpha", c.alpha, -1e3, 1e3)?;
-        range("control.w1", c.w1, 0.0, 1e6)?;
-        range("control.w2", c.w2, 0.0, 1e6)?;
-        positive("control.damping_threshold", c.damping_threshold, 10.0)?;
-        positive("control.damping_max", c.damping_max, 10.0)?;
-        positive("control.track_loss", c.track_loss, 100.0)?;
+        range("law.kp", c.kp, 0.0, 1e6)?;
+        range("law.kv", c.kv, 0.0, 1e6)?;
+        range("law.alpha", c.alpha, -1e3, 1e3)?;
+        range("law.w1", c.w1, 0.0, 1e6)?;
+        range("law.w2", c.w2, 0.0, 1e6)?;
+        positive("law.damping_threshold", c.damping_threshold, 10.0)?;
+        positive("law.damping_max", c.damping_max, 10.0)?;
+        positive("law.track_loss", c.track_loss, 100.0)?;
         if c.obstacles.len() > MAX_OBSTACLES {
             return Err(invalid(
-                "control.obstacles",
+                "obstacles",
                 format!("{} obstacles", c.obstacles.len()),
                 &format!("at most {MAX_OBSTACLES}"),
             ));
         }
         for (i, o) in c.obstacles.iter().enumerate() {
-            validate_obstacle(&format!("control.obstacles[{i}]"), o)?;
+            validate_obstacle(&format!("obstacles[{i}]"), o)?;
         }
         if let SecondaryKind::Custom(name) = &c.secondary {
             if Secondary::parse(name).is_none() {
-                return Err(invalid("control.secondary", name, &Secondary::names()));
+                return Err(invalid("law.secondary", name, &Secondary::names()));
             }
         }
         let limits = self.safety.q_min.is_some() && self.safety.q_max.is_some();
         if c.secondary == SecondaryKind::Centring && !limits {
             return Err(invalid(
-                "control.secondary",
+                "law.secondary",
                 "centring",
                 "centring pulls each joint to the middle of its range: give safety.q_min and safety.q_max",
             ));
         }
         if c.secondary == SecondaryKind::Obstacles && c.obstacles.is_empty() {
             return Err(invalid(
-                "control.obstacles",
+                "obstacles",
                 "[]",
-                "secondary = \"obstacles\" needs at least one [[control.obstacles]] entry",
+                "secondary = \"obstacles\" needs at least one [[obstacles]] entry",
             ));
         }
 
@@ -684,6 +701,13 @@ pub fn validate_obstacle(field: &str, o: &ObstacleConfig) -> Result<(), ConfigEr
     range(&format!("{field}.margin"), o.margin, 0.0, 100.0)
 }
 
+/// Whether a planar file is written in the older form (no `[robot]` table).
+fn is_older_form(text: &str) -> bool {
+    text.parse::<toml::Table>()
+        .map(|t| !t.contains_key("robot"))
+        .unwrap_or(true)
+}
+
 fn to_array<const N: usize>(v: &[f64]) -> [f64; N] {
     let mut a = [0.0; N];
     a.copy_from_slice(v);
@@ -716,7 +740,7 @@ fn same_len(field: &str, v: &[f64], n: usize) -> Result<(), ConfigError> {
         Err(invalid(
             field,
             v,
-            &format!("must have {n} entries, one per link (arm.links has {n})"),
+            &format!("must have {n} entries, one per link (robot.links has {n})"),
         ))
     }
 }

@@ -323,10 +323,11 @@ fn non_negative(field: &str, v: f64) -> Result<(), ConfigError> {
     }
 }
 
-/// Whether a TOML text is a spatial set-up (has a `[robot]` table).
+/// Whether a TOML text is a spatial set-up: a `[robot]` table that names a chain (not the
+/// paper's planar arm, [`crate::config::planar_file::PLANAR_ROBOT`]).
 pub fn is_spatial(text: &str) -> bool {
     text.parse::<toml::Table>()
-        .map(|t| t.contains_key("robot"))
+        .map(|t| t.contains_key("robot") && !crate::config::planar_file::names_planar(&t))
         .unwrap_or(false)
 }
 

@@ -44,7 +44,7 @@ pub fn check(cfg: &Config, dt: f64, step: &str) -> Result<(), ConfigError> {
     let barriers = [("safety.k1", s.k1), ("safety.k_rate", s.k_rate)];
     check_sampled(
         &Sampled {
-            prefix: "control",
+            prefix: "law",
             kp: c.kp,
             kv: c.kv,
             period: cfg.task.period,
@@ -135,7 +135,7 @@ fn check_reach(cfg: &Config) -> Result<(), ConfigError> {
             "task.center",
             [x, y],
             format!(
-                "the circle (radius {} m) spans {} … {} m from joint 1; the arm reaches only {inner:.3} … {reach:.3} m (arm.links)",
+                "the circle (radius {} m) spans {} … {} m from joint 1; the arm reaches only {inner:.3} … {reach:.3} m (robot.links)",
                 num(r),
                 num((d - r).max(0.0)),
                 num(d + r)
@@ -164,12 +164,12 @@ mod tests {
             check(&Config::preset(p).unwrap(), dt, "1 kHz").unwrap();
         }
         let e = refused(|c| c.control.kv = 3000.0, dt);
-        assert!(e.contains("control.kv") && e.contains("K_v < 1000"), "{e}");
+        assert!(e.contains("law.kv") && e.contains("K_v < 1000"), "{e}");
         let e = refused(|c| (c.control.kp, c.control.kv) = (1e6, 1e6), dt);
-        assert!(e.contains("control.kv"), "{e}");
+        assert!(e.contains("law.kv"), "{e}");
         let e = refused(|c| (c.control.kp, c.control.kv) = (1e5, 50.0), dt);
         assert!(
-            e.contains("control.kp") && e.contains("K_p < K_v/dt = 50000"),
+            e.contains("law.kp") && e.contains("K_p < K_v/dt = 50000"),
             "{e}"
         );
         let e = refused(|c| c.task.period = 0.01, dt);
@@ -183,7 +183,7 @@ mod tests {
             let e = refused(|c| c.task.center = [huge, huge], dt);
             assert!(e.len() < 400 && e.contains("reaches only"), "{e}");
             let e = refused(|c| c.control.kv = huge.abs(), dt);
-            assert!(e.len() < 400 && e.contains("control.kv"), "{e}");
+            assert!(e.len() < 400 && e.contains("law.kv"), "{e}");
         }
         let e = refused(|c| c.task.center = [0.1, 0.0], dt);
         assert!(e.contains("task.center"), "{e}");
