@@ -144,7 +144,7 @@ fn bad_requests_are_refused_and_the_loop_keeps_running_unchanged() {
     let before = status(&s.ns);
     for (args, want) in [
         (&["set", "mu", "-1"][..], "feedback.mu"),
-        (&["set", "kp", "1e9"], "control.kp"),
+        (&["set", "kp", "1e9"], "law.kp"),
         (&["set", "frobnicate", "2"], "unknown key"),
         (&["set", "tau", "2.5"], "max_tau"),
         (&["set", "mu", "1", "tau", "9"], "max_tau"),

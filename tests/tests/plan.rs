@@ -271,13 +271,13 @@ fn simulate_json(name: &str, text: &str, duration: &str, transient: &str) -> ser
 /// The demo set-up with `obstacles` (a TOML array) and `safety.plan = plan`, as a user writes
 /// it.
 fn demo_with(obstacles: &str, plan: &str) -> String {
-    let text = toml::to_string(&control::Config::preset("demo").unwrap()).unwrap();
+    let text = control::Config::preset("demo").unwrap().to_toml_string();
     assert!(
-        text.contains("obstacles = []") && text.contains("plan = \"auto\""),
+        !text.contains("obstacles") && text.contains("plan = \"auto\""),
         "the demo's obstacles or plan moved"
     );
-    text.replace("obstacles = []", &format!("obstacles = {obstacles}"))
-        .replace("plan = \"auto\"", &format!("plan = {plan}"))
+    // A top-level key comes before the first table.
+    format!("obstacles = {obstacles}\n{text}").replace("plan = \"auto\"", &format!("plan = {plan}"))
 }
 
 /// A planar `simulate --json` report that tracks to 1e-4 m (RMS after the transient) and never
