@@ -30,7 +30,7 @@ pub struct CommandSection {
     pub kp: Option<Vec<f64>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub kd: Option<Vec<f64>>,
-    /// Velocity mode's position correction (1/s): the rate sent is the reference's plus
+    /// Velocity mode's position correction (1/s): the rate sent is the reference's mean rate over the period plus
     /// `velocity_kp·(q_r − q)`, so the arm's position follows the reference and does not drift.
     /// 0 sends the reference's rate alone.
     pub velocity_kp: f64,
