@@ -12,7 +12,6 @@ use control::analysis::lyapunov::{Benettin, Growth};
 use control::config::spatial::is_spatial;
 use control::config::spatial::SpatialConfig;
 use control::config::spatial::SpatialSetup;
-use control::config::ProjectionKind;
 use control::sim::spatial::run;
 use control::sim::spatial::run_steering;
 use control::sim::spatial::SpatialSimulation;
@@ -68,10 +67,7 @@ pub fn load(setup: &SetupArgs, mu: Option<f64>) -> Result<Option<SpatialConfig>>
         cfg.safety.enabled = on;
     }
     if let Some(p) = setup.projection {
-        cfg.feedback.projection = match p {
-            ProjectionKind::Full => "full".into(),
-            ProjectionKind::NullSpace => "null-space".into(),
-        };
+        cfg.feedback.projection = p;
     }
     Ok(Some(cfg))
 }
@@ -221,7 +217,7 @@ fn report(
         mu: cfg.feedback.mu,
         tau: cfg.feedback.tau.unwrap_or(cfg.task.period),
         t_on: cfg.feedback.t_on,
-        projection: cfg.feedback.projection.clone(),
+        projection: cfg.feedback.projection.name().into(),
         secondary: cfg.law.secondary.clone(),
         steered: false,
         traps: Vec::new(),

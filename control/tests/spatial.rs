@@ -365,10 +365,14 @@ fn the_panda_preset_builds_and_bad_keys_are_named() {
     bad(&|c| c.task.normal = [0.0; 3], "task.normal");
     bad(&|c| c.sim.q0.pop().map(drop).unwrap_or(()), "sim.q0");
     bad(&|c| c.law.secondary = "curiosity".into(), "law.secondary");
-    bad(
-        &|c| c.feedback.projection = "sideways".into(),
-        "feedback.projection",
-    );
+    // A projection that is neither is refused where the file is read, as on the planar arm.
+    let key = format!("projection = \"{}\"", cfg.feedback.projection);
+    let text = cfg.to_toml();
+    assert!(text.contains(&key), "{text}");
+    let e = SpatialConfig::from_toml(&text.replace(&key, "projection = \"sideways\""))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("sideways") && e.contains("null-space"), "{e}");
     bad(&|c| c.safety.velocity_scale = 1.5, "safety.velocity_scale");
     bad(
         &|c| c.robot.link_radii = Some(vec![0.1; 3]),

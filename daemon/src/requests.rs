@@ -65,6 +65,15 @@ fn limit<'a>(
     Ok(control::safety::config::Limit::Each(v))
 }
 
+/// `projection full|null-space`, for every arm.
+pub(crate) fn projection(
+    key: &str,
+    v: Option<&str>,
+) -> Result<control::config::ProjectionKind, String> {
+    v.and_then(control::config::ProjectionKind::parse)
+        .ok_or_else(|| format!("{key}: {v:?} is not full or null-space"))
+}
+
 pub(crate) fn num(key: &str, v: Option<&str>) -> Result<f64, String> {
     control::basics::live_number(key, v).map_err(String::from)
 }
@@ -91,13 +100,7 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             "tau" => c.feedback.tau = num(key, it.next())?,
             "t_on" => c.feedback.t_on = num(key, it.next())?,
             "feedback" | "enabled" | "dfc" => c.feedback.enabled = on_off(key, it.next())?,
-            "projection" => {
-                c.feedback.projection = match it.next() {
-                    Some("full") => control::config::ProjectionKind::Full,
-                    Some("null-space") => control::config::ProjectionKind::NullSpace,
-                    other => return Err(format!("{key}: {other:?} is not full or null-space")),
-                }
-            }
+            "projection" => c.feedback.projection = projection(key, it.next())?,
             "safety" | "safety.enabled" => c.safety.enabled = on_off(key, it.next())?,
             "safety.clearance" => c.safety.clearance = num(key, it.next())?,
             "safety.qd_max" => c.safety.qd_max = limit(key, &mut it, cfg.n())?,

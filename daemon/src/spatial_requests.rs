@@ -43,7 +43,7 @@ pub fn apply_set(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialS
             "tau" => c.feedback.tau = Some(f!()?),
             "t_on" => c.feedback.t_on = f!()?,
             "feedback" | "enabled" | "dfc" => c.feedback.enabled = on_off(key, it.next())?,
-            "projection" => c.feedback.projection = word(key, it.next(), &["full", "null-space"])?,
+            "projection" => c.feedback.projection = crate::requests::projection(key, it.next())?,
             "kp" => c.law.kp = f!()?,
             "kv" => c.law.kv = f!()?,
             "alpha" => c.law.alpha = f!()?,
@@ -174,7 +174,10 @@ mod tests {
         let p = panda();
         let n = apply_set(&p, "mu 0.5 law.kp 30 projection full", 1e-3).unwrap();
         assert_eq!((n.config.feedback.mu, n.config.law.kp), (0.5, 30.0));
-        assert_eq!(n.config.feedback.projection, "full");
+        assert_eq!(
+            n.config.feedback.projection,
+            control::config::ProjectionKind::Full
+        );
         for (args, says) in [
             ("mu -1", "feedback.mu"),
             ("mu 1e9", "[0, 100]"),

@@ -264,12 +264,52 @@ impl From<FeedbackConfig> for FeedbackToml {
     }
 }
 
+/// `feedback.projection`, one type for every arm's file: where the delayed term acts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum ProjectionKind {
     #[default]
     Full,
     NullSpace,
+}
+
+impl ProjectionKind {
+    /// The name a file, `chaosctl set projection NAME` and a report use.
+    ///
+    /// ```
+    /// use control::config::ProjectionKind;
+    /// for p in [ProjectionKind::Full, ProjectionKind::NullSpace] {
+    ///     assert_eq!(ProjectionKind::parse(p.name()), Some(p));
+    /// }
+    /// assert_eq!(ProjectionKind::parse("sideways"), None);
+    /// ```
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Full => "full",
+            Self::NullSpace => "null-space",
+        }
+    }
+
+    pub fn parse(name: &str) -> Option<Self> {
+        [Self::Full, Self::NullSpace]
+            .into_iter()
+            .find(|p| p.name() == name)
+    }
+}
+
+impl std::fmt::Display for ProjectionKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl From<ProjectionKind> for Projection {
+    fn from(p: ProjectionKind) -> Self {
+        match p {
+            ProjectionKind::Full => Projection::Full,
+            ProjectionKind::NullSpace => Projection::NullSpace,
+        }
+    }
 }
 
 impl Default for FeedbackConfig {
@@ -629,10 +669,7 @@ impl Config {
             tau: self.feedback.tau,
             t_on: self.feedback.t_on,
             feedback: self.feedback.enabled,
-            projection: match self.feedback.projection {
-                ProjectionKind::Full => Projection::Full,
-                ProjectionKind::NullSpace => Projection::NullSpace,
-            },
+            projection: self.feedback.projection.into(),
             safety: self.safety.params(self.n()),
             track_loss: c.track_loss,
             steer: None,

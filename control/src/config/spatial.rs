@@ -16,7 +16,6 @@ use crate::command::{DEFAULT_QDD_MAX, PANDA_QDD_MAX};
 use crate::law::spatial::SpatialParams;
 use crate::law::Secondary;
 use crate::model::Chain;
-use crate::resolve::Projection;
 use crate::safety::SafetyParams;
 use crate::secondary::spatial::Sphere;
 use crate::secondary::spatial::SphereSet;
@@ -160,8 +159,8 @@ pub struct FeedbackSection {
     /// Default: the task's period.
     pub tau: Option<f64>,
     pub t_on: f64,
-    /// "full" or "null-space".
-    pub projection: String,
+    /// `"full"` or `"null-space"`, as on the planar arm.
+    pub projection: crate::config::ProjectionKind,
 }
 
 /// `[feedback]` as written: `mu` is a number or `"auto"`, and `gamma`/`max_mu` tune "auto".
@@ -177,7 +176,7 @@ struct FeedbackToml {
     #[serde(skip_serializing_if = "Option::is_none")]
     tau: Option<f64>,
     t_on: f64,
-    projection: String,
+    projection: crate::config::ProjectionKind,
 }
 
 impl Default for FeedbackToml {
@@ -225,7 +224,7 @@ impl Default for FeedbackSection {
             auto: None,
             tau: None,
             t_on: 0.0,
-            projection: "full".into(),
+            projection: crate::config::ProjectionKind::Full,
         }
     }
 }
@@ -519,18 +518,6 @@ impl SpatialConfig {
         Secondary::parse(s).ok_or_else(|| invalid("law.secondary", s, &Secondary::names()))
     }
 
-    fn projection(&self) -> Result<Projection, ConfigError> {
-        match self.feedback.projection.as_str() {
-            "full" => Ok(Projection::Full),
-            "null-space" => Ok(Projection::NullSpace),
-            p => Err(invalid(
-                "feedback.projection",
-                p,
-                "\"full\" or \"null-space\"",
-            )),
-        }
-    }
-
     /// The limits: the URDF's, the published acceleration limits, tightened by the file.
     fn limits(&self, chain: &Chain) -> Result<SafetyParams, ConfigError> {
         let n = chain.dof();
@@ -684,7 +671,7 @@ impl SpatialConfig {
             t_on: self.feedback.t_on,
             feedback: self.feedback.enabled,
             auto_mu: self.feedback.auto,
-            projection: self.projection()?,
+            projection: self.feedback.projection.into(),
             safety,
             track_loss: self.law.track_loss,
             pause: false,
