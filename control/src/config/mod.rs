@@ -738,6 +738,15 @@ pub fn validate_obstacle(field: &str, o: &ObstacleConfig) -> Result<(), ConfigEr
     range(&format!("{field}.margin"), o.margin, 0.0, 100.0)
 }
 
+/// A TOML parser's refusal with the line it points at, for every arm's file.
+pub(crate) fn parse_error(text: &str, e: &toml::de::Error) -> ConfigError {
+    let line = e
+        .span()
+        .map(|s| text.get(..s.start).unwrap_or(text).matches('\n').count() + 1);
+    let at = line.map(|l| format!("line {l}: ")).unwrap_or_default();
+    ConfigError::Parse(excerpt(&format!("{at}{}", e.message())))
+}
+
 /// Whether a planar file is written in the older form (no `[robot]` table).
 fn is_older_form(text: &str) -> bool {
     text.parse::<toml::Table>()

@@ -79,7 +79,17 @@ pub fn names_planar(file: &toml::Table) -> bool {
 
 /// Reads the shared form (the caller has seen `robot.description = "planar"`).
 pub(crate) fn read(text: &str) -> Result<Config, ConfigError> {
-    let f: FileIn = toml::from_str(text).map_err(|e| parse_error(text, &e))?;
+    if text
+        .parse::<toml::Table>()
+        .is_ok_and(|t| t.contains_key("command"))
+    {
+        return Err(invalid(
+            "command",
+            "a [command] table",
+            "the planar arm is commanded in acceleration only (it has no URDF limits or dynamics for the other interfaces): remove [command]",
+        ));
+    }
+    let f: FileIn = toml::from_str(text).map_err(|e| super::parse_error(text, &e))?;
     let mut robot = f.robot;
     robot.remove("description");
     let arm: ArmConfig = toml::Value::Table(robot)
@@ -127,15 +137,6 @@ pub(crate) fn write(c: &Config) -> String {
         plant: &c.plant,
     };
     toml::to_string(&file).unwrap_or_default()
-}
-
-/// A parser's refusal with the line it points at.
-fn parse_error(text: &str, e: &toml::de::Error) -> ConfigError {
-    let line = e
-        .span()
-        .map(|s| text.get(..s.start).unwrap_or(text).matches('\n').count() + 1);
-    let at = line.map(|l| format!("line {l}: ")).unwrap_or_default();
-    ConfigError::Parse(excerpt(&format!("{at}{}", e.message())))
 }
 
 /// The key a refusal names, as the older form spells it: `robot.links` → `arm.links`,
@@ -250,6 +251,11 @@ mod tests {
         );
         let e = err(&format!("{shared}[control]\nkp = 1.0\n"));
         assert!(e.contains("control") && e.contains("line 3"), "{e}");
+        let e = err(&format!("{shared}[command]\nmode = \"torque\"\n"));
+        assert!(
+            e.contains("command") && e.contains("acceleration only"),
+            "{e}"
+        );
         let e = err("[robot]\ndescription = \"panda\"\n");
         assert!(e.contains("spatial"), "{e}");
     }

@@ -378,13 +378,7 @@ impl SpatialConfig {
                 crate::basics::MAX_CONFIG_BYTES
             )));
         }
-        toml::from_str(text).map_err(|e: toml::de::Error| {
-            let line = e
-                .span()
-                .map(|s| text.get(..s.start).unwrap_or(text).matches('\n').count() + 1);
-            let at = line.map(|l| format!("line {l}: ")).unwrap_or_default();
-            ConfigError::Parse(crate::basics::excerpt(&format!("{at}{}", e.message())))
-        })
+        toml::from_str(text).map_err(|e| crate::config::parse_error(text, &e))
     }
 
     /// One line for titles: robot, task, secondary task, projection.
