@@ -78,8 +78,16 @@ enum Cmd {
         /// Drive the arm through a hardware bridge instead of the simulator: `udp` runs
         /// chaosd-fakebot (a device emulator that owns the clock) and chaosd-bridge over UDP on
         /// the loopback, with the state trigger.
-        #[arg(long, value_enum)]
+        #[arg(long, value_enum, conflicts_with = "plant")]
         bridge: Option<BridgeKind>,
+        /// The plant's physics: `mujoco` runs chaosd-plant-mujoco (MuJoCo's model of the robot,
+        /// its meshes judging contact; built by scripts/mujoco-setup, docs/mujoco.md).
+        #[arg(long, value_enum)]
+        plant: Option<PlantKind>,
+        /// With --plant mujoco: the robot's URDF or MJCF for MuJoCo (default: the set-up's own
+        /// robot, which for a built-in robot has no collision geometry).
+        #[arg(long = "mujoco-model", requires = "plant")]
+        mujoco_model: Option<PathBuf>,
         /// The command interface (a robot set-up only): acceleration, velocity, position or
         /// torque. Velocity, position and torque run the rigid-body plant (its joint servo, its
         /// masses) unless the config's [plant] names the dynamics.
@@ -100,6 +108,13 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
     },
+}
+
+/// The physics of a demo's plant, when it is not chaosd's own.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum PlantKind {
+    /// MuJoCo (chaosd-plant-mujoco).
+    Mujoco,
 }
 
 /// The plant side of a demo, when it is not the simulator.
@@ -326,7 +341,7 @@ fn demo(
     duration: Option<f64>,
     (mu, t_on): (Option<control::adapt::MuSetting>, Option<f64>),
     trigger: Option<rt::Trigger>,
-    bridge: Option<BridgeKind>,
+    (bridge, mujoco): (Option<BridgeKind>, Option<Option<PathBuf>>),
     (mode, limiter): CommandChoice,
     details: bool,
 ) -> Result<()> {
@@ -391,6 +406,9 @@ fn demo(
     s.system.schedule_feedback(mu, t_on);
     // The plant reads the same file: give it our namespace and output directory.
     let mut plant = s.system.tables().1.clone().unwrap_or_default();
+    if let Some(model) = mujoco {
+        use_mujoco(&s.system, &mut plant, model)?;
+    }
     choose_command(&mut s.system, &mut plant, mode, limiter)?;
     if let Some(t) = trigger {
         s.daemon.trigger = t;
@@ -467,6 +485,25 @@ fn demo(
             status.map_or("no status".into(), |s| s.to_string()),
             log_path.display()
         );
+    }
+    Ok(())
+}
+
+/// `--plant mujoco [--mujoco-model FILE]`: `[plant] dynamics = "mujoco"` and the model.
+fn use_mujoco(system: &control::System, plant: &mut toml::Table, model: Option<PathBuf>) -> Result<()> {
+    if let control::System::Planar(_) = system {
+        bail!("--plant mujoco simulates a robot's URDF; the paper's planar arm has no mass model: try --robot panda");
+    }
+    plant.insert("dynamics".into(), "mujoco".into());
+    if let Some(m) = model {
+        // The plant reads the config from the output directory: the path must not depend on
+        // where it was given from.
+        let abs = m
+            .canonicalize()
+            .with_context(|| format!("--mujoco-model {}", m.display()))?;
+        let mut t = toml::Table::new();
+        t.insert("model".into(), abs.display().to_string().into());
+        plant.insert("mujoco".into(), t.into());
     }
     Ok(())
 }
@@ -609,6 +646,8 @@ pub fn main() -> ExitCode {
             t_on,
             trigger,
             bridge,
+            plant,
+            mujoco_model,
             mode,
             no_limiter,
             details,
@@ -617,7 +656,7 @@ pub fn main() -> ExitCode {
             duration,
             (mu, t_on),
             trigger,
-            bridge,
+            (bridge, plant.map(|_| mujoco_model)),
             (mode, !no_limiter),
             details,
         ),

@@ -308,6 +308,7 @@ fn problems(r: &Run) -> String {
     let d = r.daemon;
     let c = &d.counters;
     let plant = |k: &str| r.plant.and_then(|p| p["counters"][k].as_u64()).unwrap_or(0);
+    let contact = |k: &str| r.plant.and_then(|p| p["contacts"][k].as_u64()).unwrap_or(0);
     let late = plant("late_cycles");
     let seen: Vec<String> = [
         (c.faults, "runaway-guard faults"),
@@ -325,6 +326,14 @@ fn problems(r: &Run) -> String {
         (
             plant("effort_clamps"),
             "plant substeps with a torque clamped at its effort limit",
+        ),
+        (
+            contact("obstacle_contact_periods"),
+            "periods in which MuJoCo saw a link touch an obstacle",
+        ),
+        (
+            contact("self_contact_periods"),
+            "periods in which MuJoCo saw the arm touch itself",
         ),
         (c.telemetry_dropped, "telemetry records dropped"),
         (c.nonfinite, "non-finite results"),
@@ -367,10 +376,40 @@ fn safety(r: &Run) -> Vec<Line> {
             ))
         ),
     )];
+    if let Some(c) = r.plant.map(|p| &p["contacts"]).filter(|c| c.is_object()) {
+        v.push(Line::brief("mujoco contact", mujoco_contact(c)));
+    }
     if let Some(line) = d.joint_limits.one_line() {
         v.push(Line::detail("joint limits", line));
     }
     v
+}
+
+/// MuJoCo's judgement of contact on its own geometry (a `--plant mujoco` run).
+fn mujoco_contact(c: &Value) -> String {
+    if c["judged"].as_bool() != Some(true) {
+        return "not judged: the model has no collision geometry on the arm (--mujoco-model \
+                names one with meshes)"
+            .into();
+    }
+    let n = |k: &str| c[k].as_u64().unwrap_or(0);
+    let first = |t: &str, p: &str| match (c[t].as_f64(), c[p].as_str()) {
+        (Some(t), Some(p)) => format!(" (first at {t:.2} s: {p})"),
+        _ => String::new(),
+    };
+    let distance = c["smallest_distance_m"]
+        .as_f64()
+        .map_or(String::new(), |d| format!("; smallest distance to an obstacle {d:.3} m"));
+    format!(
+        "{} periods touching an obstacle{}, {} touching itself{} ({} arm geoms, MuJoCo's own \
+         geometry; {} pairs touching at the start not counted){distance}",
+        n("obstacle_contact_periods"),
+        first("first_contact_s", "first_pair"),
+        n("self_contact_periods"),
+        first("first_self_contact_s", "first_self_pair"),
+        n("robot_geoms"),
+        n("overlapping_at_start"),
+    )
 }
 
 /// A robot set-up's command interface and the device's reflexes.

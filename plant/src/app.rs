@@ -56,6 +56,18 @@ pub struct PlantArgs {
     /// plant waits braked for a daemon to start again (a restarted daemon takes the arm over).
     #[arg(long)]
     pub duration: Option<f64>,
+    /// Overrides plant.dynamics: kinematic, rigid-body, or mujoco (MuJoCo's physics of the
+    /// robot's URDF or MJCF, by chaosd-plant-mujoco: docs/mujoco.md).
+    #[arg(long, value_parser = parse_engine)]
+    pub engine: Option<crate::config::Dynamics>,
+}
+
+fn parse_engine(name: &str) -> Result<crate::config::Dynamics, String> {
+    use crate::config::Dynamics;
+    [Dynamics::Kinematic, Dynamics::RigidBody, Dynamics::Mujoco]
+        .into_iter()
+        .find(|d| d.name() == name)
+        .ok_or_else(|| format!("{name:?}: the engines are kinematic, rigid-body and mujoco"))
 }
 
 /// A validated start: the whole system config, the `[plant]` table, and the run length.
@@ -93,6 +105,9 @@ pub fn load(args: &PlantArgs) -> Result<Launch> {
     }
     if let Some(o) = &args.output {
         plant.output_dir = o.clone();
+    }
+    if let Some(e) = args.engine {
+        plant.dynamics = e;
     }
     plant.validate()?;
     if let Some(d) = args.duration {

@@ -46,6 +46,27 @@ pub struct PlantConfig {
     pub dynamics: Dynamics,
     /// The rigid-body arm's physics.
     pub rigid_body: control::rigid_body::RigidBodyConfig,
+    /// `dynamics = "mujoco"`: the model MuJoCo simulates ([`MujocoConfig`]).
+    #[serde(skip_serializing_if = "MujocoConfig::is_default")]
+    pub mujoco: MujocoConfig,
+}
+
+/// `[plant.mujoco]`: the arm MuJoCo simulates (`chaosd-plant-mujoco`, docs/mujoco.md).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MujocoConfig {
+    /// A URDF or MJCF file (MuJoCo compiles both). Default: the set-up's own robot, which for
+    /// a built-in robot has no collision geometry (MuJoCo then judges no contact).
+    pub model: Option<PathBuf>,
+    /// Where a URDF's `package://NAME/` mesh paths point, by package name. Default: the
+    /// nearest folder above the URDF that is named NAME (how example-robot-data is laid out).
+    pub packages: std::collections::BTreeMap<String, PathBuf>,
+}
+
+impl MujocoConfig {
+    fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
 }
 
 /// How the simulated arm moves.
@@ -55,6 +76,19 @@ pub enum Dynamics {
     #[default]
     Kinematic,
     RigidBody,
+    /// MuJoCo's physics of the `[plant.mujoco]` model (`chaosd-plant-mujoco`).
+    Mujoco,
+}
+
+impl Dynamics {
+    /// The name a file and `--engine` use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Kinematic => "kinematic",
+            Self::RigidBody => "rigid-body",
+            Self::Mujoco => "mujoco",
+        }
+    }
 }
 
 impl Default for PlantConfig {
@@ -77,6 +111,7 @@ impl Default for PlantConfig {
             fast_lane: true,
             dynamics: Dynamics::Kinematic,
             rigid_body: Default::default(),
+            mujoco: MujocoConfig::default(),
         }
     }
 }
@@ -140,6 +175,11 @@ impl PlantConfig {
                 self.brake_gain,
                 "must be > 0 and ≤ 10000 1/s",
             ));
+        }
+        if let Some(m) = &self.mujoco.model {
+            if m.as_os_str().is_empty() {
+                return Err(invalid("mujoco.model", m, "a URDF or MJCF file's path"));
+            }
         }
         if self.output_dir.as_os_str().is_empty() {
             return Err(invalid("output_dir", &self.output_dir, "must not be empty"));

@@ -10,6 +10,8 @@ pub mod app;
 pub mod config;
 pub mod handshake;
 pub mod intake;
+#[cfg(feature = "mujoco")]
+pub mod mujoco;
 pub mod report;
 pub mod run;
 pub mod seam;

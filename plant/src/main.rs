@@ -20,10 +20,35 @@ struct Args {
     plant: PlantArgs,
 }
 
+/// `dynamics = "mujoco"`: this process becomes chaosd-plant-mujoco, beside it, with the same
+/// arguments (a parent's death signal and the pid stay, so a demo's clean-up still holds).
+/// Returns only if it cannot.
+fn hand_over_to_mujoco() -> anyhow::Error {
+    use std::os::unix::process::CommandExt;
+    let Ok(me) = std::env::current_exe() else {
+        return anyhow::anyhow!("cannot locate chaosd-plant to find chaosd-plant-mujoco beside it");
+    };
+    let exe = me.with_file_name("chaosd-plant-mujoco");
+    if !exe.exists() {
+        return anyhow::anyhow!(
+            "plant.dynamics = \"mujoco\" needs {}, which is not built: \
+             scripts/mujoco-setup installs MuJoCo and builds it (docs/mujoco.md)",
+            exe.display()
+        );
+    }
+    let err = std::process::Command::new(&exe)
+        .args(std::env::args_os().skip(1))
+        .exec();
+    anyhow::anyhow!("cannot start {}: {err}", exe.display())
+}
+
 fn main() -> ExitCode {
     let args = Args::parse();
     app::main_with("chaosd-plant", &args.plant, |l| {
         let (system, cfg) = (&l.system, &l.plant);
+        if cfg.dynamics == plant::config::Dynamics::Mujoco {
+            return Err(hand_over_to_mujoco());
+        }
         with_dof!(system.n(), N => {
             let mut sim = SimPlant::<N>::from_config(system, cfg)?;
             let summary = plant::run::run(&mut sim, cfg, &l.arm(), l.duration);

@@ -76,6 +76,29 @@ impl Default for Histograms {
     }
 }
 
+/// What a plant that judges contact on its own geometry saw (MuJoCo: [`crate::Plant::contacts`]).
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct ContactReport {
+    /// Whether the model has collision geometry on the arm (without it, nothing is judged).
+    pub judged: bool,
+    /// Geoms on the arm's moving links.
+    pub robot_geoms: usize,
+    /// Periods in which a link touched an obstacle.
+    pub obstacle_contact_periods: u64,
+    pub first_contact_s: Option<f64>,
+    /// The first such contact's geoms ("link / obstacle").
+    pub first_pair: Option<String>,
+    /// Periods in which the arm touched itself (body pairs touching at the start are excluded
+    /// from contact).
+    pub self_contact_periods: u64,
+    pub first_self_contact_s: Option<f64>,
+    pub first_self_pair: Option<String>,
+    /// Pairs of the arm's bodies that touch in the start pose (the model's own overlap).
+    pub overlapping_at_start: usize,
+    /// The smallest signed distance (m) between an arm geom and an obstacle; None: no obstacle.
+    pub smallest_distance_m: Option<f64>,
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct PlantSummary {
     pub namespace: String,
@@ -91,6 +114,9 @@ pub struct PlantSummary {
     /// State published → answering command picked up by the plant (the full round trip).
     pub round_trip: Percentiles,
     pub lateness: Percentiles,
+    /// The plant's own contact judgement (MuJoCo), if it makes one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contacts: Option<ContactReport>,
     pub files: Vec<PathBuf>,
 }
 
@@ -100,7 +126,7 @@ pub const SUMMARY_FILE: &str = "plant-summary.json";
 pub fn write(
     cfg: &PlantConfig,
     realtime: rt::setup::RtReport,
-    counters: PlantCounters,
+    (counters, contacts): (PlantCounters, Option<ContactReport>),
     h: &Histograms,
     start_ns: u64,
     wall_start: SystemTime,
@@ -135,6 +161,7 @@ pub fn write(
         state_to_command: Percentiles::of(&h.to_cmd),
         round_trip: Percentiles::of(&h.rtt),
         lateness: Percentiles::of(&h.lateness),
+        contacts,
         files,
     };
     rt::files::write(

@@ -192,7 +192,7 @@ pub fn run<P: Plant>(
     plant.deactivate();
     lp.c.effort_clamps = plant.effort_clamps();
     let refused = handshake.stop();
-    let summary = lp.finish(rt_report, start, wall_start)?;
+    let summary = lp.finish(rt_report, start, wall_start, plant.contacts())?;
     match (fault, refused) {
         (Some(e), _) => Err(anyhow::Error::new(e).context("the plant stopped")),
         (None, Some(why)) => Err(anyhow!(why)),
@@ -559,11 +559,12 @@ impl Loop<'_> {
         realtime: rt::setup::RtReport,
         start: u64,
         wall_start: SystemTime,
+        contacts: Option<crate::report::ContactReport>,
     ) -> Result<PlantSummary> {
         let mut c = self.c;
         c.commands_received = self.intake.counters.commands_received;
         c.commands_rejected = self.intake.counters.commands_rejected;
         c.daemon_restarts = self.intake.counters.daemon_restarts;
-        crate::report::write(self.cfg, realtime, c, &self.h, start, wall_start)
+        crate::report::write(self.cfg, realtime, (c, contacts), &self.h, start, wall_start)
     }
 }

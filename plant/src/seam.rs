@@ -200,6 +200,12 @@ pub trait Plant {
     fn effort_clamps(&self) -> u64 {
         0
     }
+
+    /// What the plant saw of contact on its own geometry (MuJoCo's meshes), read at exit; None
+    /// for a plant that does not judge it.
+    fn contacts(&self) -> Option<crate::report::ContactReport> {
+        None
+    }
 }
 
 /// The actuation a RUN command asks for, in its interface (`since`: how long ago the answered

@@ -112,6 +112,13 @@ impl<const N: usize> SimPlant<N> {
                     .into(),
             }),
             (Dynamics::Kinematic, _) => Ok(sim),
+            (Dynamics::Mujoco, _) => Err(ConfigError::Invalid {
+                field: "plant.dynamics".into(),
+                value: "\"mujoco\"".into(),
+                expected: "a program built with MuJoCo: chaosd-plant-mujoco (docs/mujoco.md); \
+                           chaosd-plant hands such a set-up over to it when it is installed"
+                    .into(),
+            }),
             (Dynamics::RigidBody, System::Planar(_)) => Err(ConfigError::Invalid {
                 field: "plant.dynamics".into(),
                 value: "\"rigid-body\"".into(),

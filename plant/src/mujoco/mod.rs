@@ -1,0 +1,380 @@
+//! MuJoCo as the plant: the arm simulated by a physics engine whose model is not chaosd's.
+//!
+//! Every other plant shares chaosd's own model of the arm, so a controller right only about
+//! that model cannot be caught, and "no link touched an obstacle" is judged by the very
+//! capsules the filter keeps apart. Here MuJoCo integrates the robot as its URDF (or MJCF)
+//! describes it, meshes and all, with its own inertials, joint damping and contact; chaosd's
+//! commands reach it as a robot's controller would apply them, and MuJoCo's collision
+//! detection is the judge ([`judge`]).
+//!
+//! How each interface maps onto MuJoCo (torques as `qfrc_applied`, recomputed every physics
+//! step from the state MuJoCo's first stage computed, `mj_step1`/`mj_step2`):
+//! * torque: as sent, clamped to the arm's effort limits;
+//! * acceleration: MuJoCo's own inverse dynamics, M(q)q̈ + bias − passive forces, for the
+//!   ramped q̈ + q⃛·s (a perfect inner loop on the true model);
+//! * position and velocity: a joint servo (PD on the reference plus MuJoCo's bias forces) at
+//!   `[plant.rigid_body]`'s bandwidth on MuJoCo's own joint inertia, the set-point moving on
+//!   as the rigid-body plant's does; velocity mode integrates its own set-point;
+//! * hold and brake: the servo holds the position reached.
+//!
+//! Joints of the model that are not chaosd's (a gripper's fingers) are welded where they stand,
+//! and pairs of the arm's bodies that touch in the start pose never collide ([`load`]).
+//! Only this module and `chaosd-plant-mujoco` link MuJoCo (feature `mujoco`).
+
+pub mod judge;
+pub mod load;
+mod servo;
+
+use crate::config::PlantConfig;
+use crate::report::ContactReport;
+use crate::seam::{Actuation, Plant, PlantError};
+use anyhow::{bail, Result};
+use control::System;
+use mujoco_rs::mujoco_c::{mjModel, mj_forward, mj_mulM, mj_step1, mj_step2};
+use mujoco_rs::prelude::*;
+use protocol::{flags, StateSample};
+
+/// The most simulated time one `read` integrates after a stall (s), as the built-in simulator.
+const MAX_CATCH_UP_S: f64 = crate::sim::MAX_CATCH_UP_S;
+
+/// What the joints are asked to do.
+#[derive(Clone, Copy, PartialEq)]
+enum Drive {
+    Torque,
+    Ramp,
+    Track,
+    Hold,
+}
+
+pub struct MujocoPlant {
+    data: MjData<Box<MjModel>>,
+    arm: Vec<(usize, usize)>,
+    /// Servo gains per joint.
+    kp: Vec<f64>,
+    kd: Vec<f64>,
+    tau_max: Vec<f64>,
+    drive: Drive,
+    /// Drive inputs: the torque, the ramp's q̈ and q⃛, or the tracked reference (q, q̇).
+    a: Vec<f64>,
+    b: Vec<f64>,
+    /// Velocity mode's own set-point.
+    set_point: Option<Vec<f64>>,
+    velocity_mode: bool,
+    /// Where the drive's reference is at the start of the current period (s after its start).
+    offset: f64,
+    hold_at: Vec<f64>,
+    holding: bool,
+    /// Scratch: per-dof acceleration in, M·q̈ out.
+    acc: Vec<f64>,
+    macc: Vec<f64>,
+    applied: Vec<f64>,
+    substeps: u32,
+    h: f64,
+    period: f64,
+    clamps: u64,
+    braking: bool,
+    /// The model's own joint damping, and whether the servo's K_d is added to it now.
+    damping: Vec<f64>,
+    servo_damped: bool,
+    judge: judge::Judge,
+}
+
+impl MujocoPlant {
+    /// The arm `launch` describes, in the model `[plant.mujoco]` names (default: the set-up's
+    /// own robot), at rest in the set-up's start pose.
+    pub fn from_launch(system: &System, cfg: &PlantConfig) -> Result<Self> {
+        let System::Spatial(s) = system else {
+            bail!(
+                "plant.dynamics = \"mujoco\" simulates a robot's URDF; the paper's planar arm has \
+                 no mass model (name robots/planar3.urdf in [robot] to run it as a chain)"
+            );
+        };
+        let chain = &s.chain;
+        let n = chain.dof();
+        let joints: Vec<String> = chain.joints.iter().map(|j| j.name.clone()).collect();
+        let spheres: Vec<([f64; 3], f64)> =
+            s.config.obstacles.iter().map(|o| (o.center, o.radius)).collect();
+        let period = cfg.period_ns() as f64 * 1e-9;
+        let h = period / f64::from(cfg.substeps);
+        let own;
+        let source = match &cfg.mujoco.model {
+            Some(p) => load::Source::File(p),
+            None => match control::model::builtin(&s.config.robot.description) {
+                Ok(text) => load::Source::Urdf(text),
+                Err(_) => {
+                    own = std::path::PathBuf::from(&s.config.robot.description);
+                    load::Source::File(&own)
+                }
+            },
+        };
+        let q0 = &s.config.sim.q0;
+        let built = load::build(source, &cfg.mujoco.packages, (&spheres, q0), &joints, h)?;
+        for name in &built.welded {
+            tracing::info!("MuJoCo: the model's joint {name:?} is not chaosd's: welded where it stands");
+        }
+        for (a, b) in &built.excluded {
+            tracing::info!("MuJoCo: {a} and {b} touch in the start pose: that pair is excluded from contact");
+        }
+        let limits = control::with_dof!(n, N => {
+            s.config.command.limits::<N>(chain, &s.config.robot.description)?.tau.to_vec()
+        });
+        let excluded = built.excluded.len();
+        let mut data = MjData::new(built.model);
+        let m: *const mjModel = data.model().ffi();
+        // SAFETY: the data owns the model, which outlives both references here; the addresses
+        // written come from the model's joint table.
+        let (m, d) = unsafe { (&*m, data.ffi_mut()) };
+        let nv = m.nv as usize;
+        for (i, &(qa, _)) in built.arm.iter().enumerate() {
+            unsafe { *d.qpos.add(qa) = q0[i] };
+        }
+        unsafe { mj_forward(m, d) };
+        let rb = &cfg.rigid_body;
+        let dofs: Vec<usize> = built.arm.iter().map(|a| a.1).collect();
+        let (kp_all, kd_all) = servo::gains(
+            &servo::inverse_inertia(m, d, &dofs),
+            std::f64::consts::TAU * rb.servo_bandwidth_hz,
+            rb.servo_damping,
+            h,
+        );
+        let pick = |given: &Option<Vec<f64>>, derived: &[f64]| given.clone().unwrap_or_else(|| derived[..n].to_vec());
+        let kp = pick(&rb.servo_kp, &kp_all);
+        let kd = pick(&rb.servo_kd, &kd_all);
+        let judge = judge::Judge::new(m, built.obstacles, excluded);
+        // SAFETY: dof_damping has nv entries; the arm's dofs are below nv.
+        let built_damping = built.arm.iter().map(|&(_, da)| unsafe { *m.dof_damping.add(da) }).collect();
+        Ok(Self {
+            arm: built.arm,
+            kp,
+            kd,
+            tau_max: limits,
+            drive: Drive::Hold,
+            a: vec![0.0; n],
+            b: vec![0.0; n],
+            set_point: None,
+            velocity_mode: false,
+            offset: 0.0,
+            hold_at: q0[..n].to_vec(),
+            holding: false,
+            acc: vec![0.0; nv],
+            macc: vec![0.0; nv],
+            applied: vec![0.0; n],
+            substeps: cfg.substeps,
+            h,
+            period,
+            clamps: 0,
+            braking: true,
+            damping: built_damping,
+            servo_damped: false,
+            judge,
+            data,
+        })
+    }
+
+    /// One physics step: MuJoCo's first stage, the torques, its second stage.
+    fn substep(&mut self, since: f64) {
+        let m: *const mjModel = self.data.model().ffi();
+        // SAFETY: the model outlives the data (it owns it), and nothing else touches either.
+        let (m, d) = unsafe { (&*m, self.data.ffi_mut()) };
+        unsafe { mj_step1(m, d) };
+        let n = self.arm.len();
+        let q = |qa: usize| unsafe { *d.qpos.add(qa) };
+        let v = |da: usize| unsafe { *d.qvel.add(da) };
+        let bias = |da: usize| unsafe { *d.qfrc_bias.add(da) };
+        if self.drive == Drive::Ramp {
+            self.acc.iter_mut().for_each(|x| *x = 0.0);
+            for i in 0..n {
+                self.acc[self.arm[i].1] = self.a[i] + self.b[i] * since.max(0.0);
+            }
+            // SAFETY: both buffers have nv entries; qM is current after mj_step1.
+            unsafe { mj_mulM(m, d, self.macc.as_mut_ptr(), self.acc.as_ptr()) };
+        }
+        if self.drive != Drive::Hold {
+            self.holding = false;
+        } else if !self.holding {
+            self.holding = true;
+            for i in 0..n {
+                self.hold_at[i] = q(self.arm[i].0);
+            }
+        }
+        let mut clamped = false;
+        for i in 0..n {
+            let (qa, da) = self.arm[i];
+            let wanted = match self.drive {
+                Drive::Torque => self.a[i],
+                Drive::Ramp => self.macc[da] + bias(da) - unsafe { *d.qfrc_passive.add(da) },
+                Drive::Track => {
+                    let at = self.a[i] + self.b[i] * since;
+                    bias(da) + self.kp[i] * (at - q(qa)) + self.kd[i] * (self.b[i] - v(da))
+                }
+                Drive::Hold => {
+                    bias(da) + self.kp[i] * (self.hold_at[i] - q(qa)) - self.kd[i] * v(da)
+                }
+            };
+            let tau = wanted.clamp(-self.tau_max[i], self.tau_max[i]);
+            clamped |= tau != wanted;
+            self.applied[i] = tau;
+            // The servo's −K_d·q̇ is MuJoCo's joint damping (integrated implicitly, so the
+            // servo holds at any pose); the force applied is the rest of the motor's torque.
+            let damped = if self.servo_damped { self.kd[i] * v(da) } else { 0.0 };
+            unsafe { *d.qfrc_applied.add(da) = tau + damped };
+        }
+        if clamped && self.drive != Drive::Hold {
+            self.clamps += 1;
+        }
+        unsafe { mj_step2(m, d) };
+    }
+
+    /// Puts the servo's K_d into MuJoCo's joint damping while the servo drives the arm (position,
+    /// velocity, hold), and takes it out while torques or accelerations do.
+    fn set_servo_damping(&mut self) {
+        let on = matches!(self.drive, Drive::Track | Drive::Hold);
+        if on == self.servo_damped {
+            return;
+        }
+        self.servo_damped = on;
+        // SAFETY: the data owns its model; only dof_damping of the arm's dofs changes, between
+        // steps (MuJoCo reads the model afresh each step).
+        let m = unsafe { self.data.model_mut().ffi_mut() };
+        for (i, &(_, da)) in self.arm.iter().enumerate() {
+            let extra = if on { self.kd[i] } else { 0.0 };
+            unsafe { *m.dof_damping.add(da) = self.damping[i] + extra };
+        }
+    }
+
+    /// Advances one period.
+    fn period_step(&mut self) {
+        self.set_servo_damping();
+        let k = self.h;
+        for s in 0..self.substeps {
+            self.substep(self.offset + k * f64::from(s));
+        }
+        if let (Some(sp), Drive::Track) = (&mut self.set_point, self.drive) {
+            for (p, r) in sp.iter_mut().zip(&self.b) {
+                *p += r * self.period;
+            }
+        }
+        self.offset += self.period;
+    }
+
+    fn arm_q(&self, i: usize) -> f64 {
+        // SAFETY: an address from the model's joint table.
+        unsafe { *self.data.ffi().qpos.add(self.arm[i].0) }
+    }
+
+    fn fits(&self, slices: &[&[f64]], since: f64) -> bool {
+        slices.iter().all(|s| s.len() == self.arm.len()) && since.is_finite()
+    }
+}
+
+
+impl Plant for MujocoPlant {
+    fn n(&self) -> usize {
+        self.arm.len()
+    }
+
+    fn flags(&self) -> u32 {
+        flags::SIMULATED | if self.braking { flags::BRAKING } else { 0 }
+    }
+
+    fn activate(&mut self) -> Result<(), PlantError> {
+        Ok(())
+    }
+
+    fn write(&mut self, actuation: Actuation<'_>) -> Result<(), PlantError> {
+        self.braking = false;
+        let velocity = matches!(actuation, Actuation::Velocity { .. });
+        if !velocity {
+            self.set_point = None;
+        }
+        self.velocity_mode = velocity;
+        match actuation {
+            Actuation::Torque { tau, since, .. } if self.fits(&[tau], since) => {
+                self.a.copy_from_slice(tau);
+                self.drive = Drive::Torque;
+                self.offset = since.max(0.0);
+            }
+            Actuation::Accelerate {
+                qdd, qddd, since, ..
+            } if self.fits(&[qdd, qddd], since) => {
+                self.a.copy_from_slice(qdd);
+                self.b.copy_from_slice(qddd);
+                self.drive = Drive::Ramp;
+                self.offset = since.max(0.0);
+            }
+            Actuation::Position { q, qd, since, .. } if self.fits(&[q, qd], since) => {
+                // Reached one period after the answered state: the reference runs from a
+                // period before that.
+                self.a.copy_from_slice(q);
+                self.b.copy_from_slice(qd);
+                self.drive = Drive::Track;
+                self.offset = since.max(0.0) - self.period;
+            }
+            Actuation::Velocity { qd, since, .. } if self.fits(&[qd], since) => {
+                if self.set_point.is_none() {
+                    let here = (0..self.arm.len()).map(|i| self.arm_q(i)).collect();
+                    self.set_point = Some(here);
+                }
+                if let Some(sp) = &self.set_point {
+                    self.a.copy_from_slice(sp);
+                }
+                self.b.copy_from_slice(qd);
+                self.drive = Drive::Track;
+                self.offset = 0.0;
+            }
+            _ => {
+                self.braking = true;
+                self.drive = Drive::Hold;
+                self.set_point = None;
+            }
+        }
+        Ok(())
+    }
+
+    fn read(&mut self, elapsed: f64, out: &mut StateSample) -> Result<(), PlantError> {
+        if elapsed > 0.0 {
+            let periods = (elapsed.min(MAX_CATCH_UP_S) / self.period).round().max(1.0) as u64;
+            for _ in 0..periods {
+                self.period_step();
+                let m: *const mjModel = self.data.model().ffi();
+                let t = self.data.ffi().time;
+                // SAFETY: the model outlives the data that owns it.
+                let (m, d) = unsafe { (&*m, self.data.ffi_mut()) };
+                self.judge.observe(m, d, t);
+            }
+        }
+        let d = self.data.ffi();
+        let n = self.arm.len();
+        out.n = n as u32;
+        for (i, &(qa, da)) in self.arm.iter().enumerate() {
+            // SAFETY: addresses from the model's joint table.
+            let (q, qd) = unsafe { (*d.qpos.add(qa), *d.qvel.add(da)) };
+            if !(q.is_finite() && qd.is_finite()) {
+                return Err(PlantError::Fault {
+                    what: "MuJoCo's state is not finite",
+                    source: None,
+                });
+            }
+            out.q[i] = q;
+            out.qd[i] = qd;
+            out.tau[i] = self.applied[i];
+        }
+        Ok(())
+    }
+
+    fn deactivate(&mut self) {
+        self.drive = Drive::Hold;
+    }
+
+    fn stamp(&self, nominal_ns: u64, _now_ns: u64) -> u64 {
+        nominal_ns
+    }
+
+    fn effort_clamps(&self) -> u64 {
+        self.clamps
+    }
+
+    fn contacts(&self) -> Option<ContactReport> {
+        Some(self.judge.report(self.data.model().ffi()))
+    }
+}
