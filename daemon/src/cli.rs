@@ -490,7 +490,11 @@ fn demo(
 }
 
 /// `--plant mujoco [--mujoco-model FILE]`: `[plant] dynamics = "mujoco"` and the model.
-fn use_mujoco(system: &control::System, plant: &mut toml::Table, model: Option<PathBuf>) -> Result<()> {
+fn use_mujoco(
+    system: &control::System,
+    plant: &mut toml::Table,
+    model: Option<PathBuf>,
+) -> Result<()> {
     if let control::System::Planar(_) = system {
         bail!("--plant mujoco simulates a robot's URDF; the paper's planar arm has no mass model: try --robot panda");
     }

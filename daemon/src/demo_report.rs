@@ -399,7 +399,9 @@ fn mujoco_contact(c: &Value) -> String {
     };
     let distance = c["smallest_distance_m"]
         .as_f64()
-        .map_or(String::new(), |d| format!("; smallest distance to an obstacle {d:.3} m"));
+        .map_or(String::new(), |d| {
+            format!("; smallest distance to an obstacle {d:.3} m")
+        });
     format!(
         "{} periods touching an obstacle{}, {} touching itself{} ({} arm geoms, MuJoCo's own \
          geometry; {} pairs touching at the start not counted){distance}",

@@ -565,6 +565,13 @@ impl Loop<'_> {
         c.commands_received = self.intake.counters.commands_received;
         c.commands_rejected = self.intake.counters.commands_rejected;
         c.daemon_restarts = self.intake.counters.daemon_restarts;
-        crate::report::write(self.cfg, realtime, (c, contacts), &self.h, start, wall_start)
+        crate::report::write(
+            self.cfg,
+            realtime,
+            (c, contacts),
+            &self.h,
+            start,
+            wall_start,
+        )
     }
 }

@@ -92,6 +92,7 @@ fn the_reference_lists_every_key_of_every_section_and_no_other() {
             "[plant.rigid_body]",
             accepted::<control::rigid_body::RigidBodyConfig>(),
         ),
+        ("[plant.mujoco]", accepted::<plant::config::MujocoConfig>()),
     ];
     let book = documented();
     let mut problems = Vec::new();

@@ -88,6 +88,11 @@ struct Args {
 /// The `wire::takes` flags of `--interfaces`; the default is every interface this arm can
 /// follow (torque only with rigid-body dynamics).
 fn interfaces(a: &Args, p: &PlantConfig) -> Result<u32> {
+    ensure!(
+        p.dynamics != plant::config::Dynamics::Mujoco,
+        "plant.dynamics = \"mujoco\": the fakebot simulates kinematic or rigid-body arms; MuJoCo \
+         is chaosd-plant-mujoco's (docs/mujoco.md)"
+    );
     let rigid = p.dynamics == plant::config::Dynamics::RigidBody;
     if a.interfaces.is_empty() {
         let all: &[u32] = if rigid { &[0, 1, 2, 3] } else { &[0, 1, 2] };

@@ -9,8 +9,8 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 use mujoco_rs::mujoco_c::{
-    mjModel, mj_forward, mj_id2name, mjs_delete, mjs_findElement, mjs_firstElement, mjs_nextElement,
-    mjtObj,
+    mjModel, mj_forward, mj_id2name, mjs_delete, mjs_findElement, mjs_firstElement,
+    mjs_nextElement, mjtObj,
 };
 use mujoco_rs::prelude::*;
 use std::collections::BTreeMap;
@@ -18,6 +18,9 @@ use std::path::{Path, PathBuf};
 
 /// The name prefix of the obstacle geoms this plant adds to the world.
 pub const OBSTACLE_PREFIX: &str = "chaosd_obstacle_";
+
+/// A joint's `qpos` and `qvel` addresses.
+pub type Address = (usize, usize);
 
 /// What the model is read from.
 pub enum Source<'a> {
@@ -31,7 +34,7 @@ pub enum Source<'a> {
 pub struct Built {
     pub model: Box<MjModel>,
     /// `qpos` and `qvel` addresses of chaosd's joints, in chaosd's order.
-    pub arm: Vec<(usize, usize)>,
+    pub arm: Vec<Address>,
     /// The model's other joints (a gripper's fingers), welded where they stand.
     pub welded: Vec<String>,
     /// Body pairs that touch in the start pose, excluded from contact.
@@ -157,7 +160,11 @@ fn compile(spec: &mut MjSpec) -> Result<MjModel> {
 }
 
 /// The pairs of the arm's bodies (by name) whose geoms touch with chaosd's joints at `q0`.
-fn overlapping_bodies(model: &MjModel, joints: &[String], q0: &[f64]) -> Result<Vec<(String, String)>> {
+fn overlapping_bodies(
+    model: &MjModel,
+    joints: &[String],
+    q0: &[f64],
+) -> Result<Vec<(String, String)>> {
     let (arm, _) = joint_map(model.ffi(), joints)?;
     let mut data = MjData::new(model);
     let m = model.ffi();
@@ -183,7 +190,10 @@ fn overlapping_bodies(model: &MjModel, joints: &[String], q0: &[f64]) -> Result<
         if b1 == 0 || b2 == 0 {
             continue; // an obstacle or the fixed base: not the arm's own overlap
         }
-        let pair = (name_of(m, mjtObj::mjOBJ_BODY, b1), name_of(m, mjtObj::mjOBJ_BODY, b2));
+        let pair = (
+            name_of(m, mjtObj::mjOBJ_BODY, b1),
+            name_of(m, mjtObj::mjOBJ_BODY, b2),
+        );
         if !pairs.contains(&pair) {
             pairs.push(pair);
         }
@@ -211,7 +221,7 @@ pub fn name_of(m: &mjModel, kind: mjtObj, id: usize) -> String {
 }
 
 /// chaosd's joints' (qpos, qvel) addresses by name, and the names of the model's other joints.
-fn joint_map(m: &mjModel, joints: &[String]) -> Result<(Vec<(usize, usize)>, Vec<String>)> {
+fn joint_map(m: &mjModel, joints: &[String]) -> Result<(Vec<Address>, Vec<String>)> {
     let n = m.njnt as usize;
     // SAFETY: MuJoCo's per-joint arrays have njnt entries.
     let (kind, qpos, dof) = unsafe {
@@ -320,15 +330,27 @@ mod tests {
         let text = r#"<robot name="a"><link name="l"><collision><geometry><mesh filename="package://example-robot-data/robots/arm/meshes/l.stl"/></geometry></collision></link></robot>"#;
         let out = prepare_urdf(text, &file, &BTreeMap::new()).unwrap();
         let root = dir.join("share/example-robot-data").canonicalize().unwrap();
-        assert!(out.contains(&format!("{}/robots/arm/meshes/l.stl", root.display())), "{out}");
+        assert!(
+            out.contains(&format!("{}/robots/arm/meshes/l.stl", root.display())),
+            "{out}"
+        );
         assert!(out.contains("<robot name=\"a\"><mujoco><compiler strippath=\"false\""));
-        let e = prepare_urdf(&text.replace("example-robot-data", "elsewhere"), &file, &BTreeMap::new())
-            .unwrap_err()
-            .to_string();
+        let e = prepare_urdf(
+            &text.replace("example-robot-data", "elsewhere"),
+            &file,
+            &BTreeMap::new(),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("packages = { \"elsewhere\""), "{e}");
         let mut given = BTreeMap::new();
         given.insert("elsewhere".to_string(), PathBuf::from("/opt/x"));
-        let out = prepare_urdf(&text.replace("example-robot-data", "elsewhere"), &file, &given).unwrap();
+        let out = prepare_urdf(
+            &text.replace("example-robot-data", "elsewhere"),
+            &file,
+            &given,
+        )
+        .unwrap();
         assert!(out.contains("/opt/x/robots/arm/meshes/l.stl"));
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -92,8 +92,12 @@ impl MujocoPlant {
         let chain = &s.chain;
         let n = chain.dof();
         let joints: Vec<String> = chain.joints.iter().map(|j| j.name.clone()).collect();
-        let spheres: Vec<([f64; 3], f64)> =
-            s.config.obstacles.iter().map(|o| (o.center, o.radius)).collect();
+        let spheres: Vec<([f64; 3], f64)> = s
+            .config
+            .obstacles
+            .iter()
+            .map(|o| (o.center, o.radius))
+            .collect();
         let period = cfg.period_ns() as f64 * 1e-9;
         let h = period / f64::from(cfg.substeps);
         let own;
@@ -110,10 +114,14 @@ impl MujocoPlant {
         let q0 = &s.config.sim.q0;
         let built = load::build(source, &cfg.mujoco.packages, (&spheres, q0), &joints, h)?;
         for name in &built.welded {
-            tracing::info!("MuJoCo: the model's joint {name:?} is not chaosd's: welded where it stands");
+            tracing::info!(
+                "MuJoCo: the model's joint {name:?} is not chaosd's: welded where it stands"
+            );
         }
         for (a, b) in &built.excluded {
-            tracing::info!("MuJoCo: {a} and {b} touch in the start pose: that pair is excluded from contact");
+            tracing::info!(
+                "MuJoCo: {a} and {b} touch in the start pose: that pair is excluded from contact"
+            );
         }
         let limits = control::with_dof!(n, N => {
             s.config.command.limits::<N>(chain, &s.config.robot.description)?.tau.to_vec()
@@ -137,12 +145,18 @@ impl MujocoPlant {
             rb.servo_damping,
             h,
         );
-        let pick = |given: &Option<Vec<f64>>, derived: &[f64]| given.clone().unwrap_or_else(|| derived[..n].to_vec());
+        let pick = |given: &Option<Vec<f64>>, derived: &[f64]| {
+            given.clone().unwrap_or_else(|| derived[..n].to_vec())
+        };
         let kp = pick(&rb.servo_kp, &kp_all);
         let kd = pick(&rb.servo_kd, &kd_all);
         let judge = judge::Judge::new(m, built.obstacles, excluded);
         // SAFETY: dof_damping has nv entries; the arm's dofs are below nv.
-        let built_damping = built.arm.iter().map(|&(_, da)| unsafe { *m.dof_damping.add(da) }).collect();
+        let built_damping = built
+            .arm
+            .iter()
+            .map(|&(_, da)| unsafe { *m.dof_damping.add(da) })
+            .collect();
         Ok(Self {
             arm: built.arm,
             kp,
@@ -216,7 +230,11 @@ impl MujocoPlant {
             self.applied[i] = tau;
             // The servo's −K_d·q̇ is MuJoCo's joint damping (integrated implicitly, so the
             // servo holds at any pose); the force applied is the rest of the motor's torque.
-            let damped = if self.servo_damped { self.kd[i] * v(da) } else { 0.0 };
+            let damped = if self.servo_damped {
+                self.kd[i] * v(da)
+            } else {
+                0.0
+            };
             unsafe { *d.qfrc_applied.add(da) = tau + damped };
         }
         if clamped && self.drive != Drive::Hold {
@@ -266,7 +284,6 @@ impl MujocoPlant {
         slices.iter().all(|s| s.len() == self.arm.len()) && since.is_finite()
     }
 }
-
 
 impl Plant for MujocoPlant {
     fn n(&self) -> usize {

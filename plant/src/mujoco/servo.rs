@@ -51,7 +51,8 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_coupled_light_joint_gets_the_gain_of_the_inertia_it_meets_and_no_more_than_the_step_holds() {
+    fn a_coupled_light_joint_gets_the_gain_of_the_inertia_it_meets_and_no_more_than_the_step_holds()
+    {
         // M = [[1, 0.9], [0.9, 1]]: each joint alone weighs 1, but moving with the other 0.19.
         let m = DMatrix::from_row_slice(2, 2, &[1.0, 0.9, 0.9, 1.0]);
         let minv = m.try_inverse().unwrap();
