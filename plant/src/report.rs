@@ -97,6 +97,10 @@ pub struct ContactReport {
     pub overlapping_at_start: usize,
     /// The smallest signed distance (m) between an arm geom and an obstacle; None: no obstacle.
     pub smallest_distance_m: Option<f64>,
+    /// Obstacles in MuJoCo's world at the end (the daemon's, followed live).
+    pub obstacles: usize,
+    /// Times a live edit of the daemon's obstacles moved MuJoCo's.
+    pub scene_updates: u64,
 }
 
 #[derive(Clone, Debug, Serialize)]

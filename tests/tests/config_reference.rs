@@ -18,8 +18,10 @@ fn accepted<T: DeserializeOwned + std::fmt::Debug>() -> BTreeSet<String> {
         .nth(1)
         .or_else(|| e.split("expected ").nth(1))
         .unwrap_or_else(|| panic!("no field list in {e:?}"));
-    list.split(',')
-        .filter_map(|w| w.split('`').nth(1))
+    // "`a`, `b`, `c`" or, for two fields, "`a` or `b`": every name between backticks.
+    list.split('`')
+        .skip(1)
+        .step_by(2)
         .map(str::to_string)
         .collect()
 }

@@ -133,6 +133,80 @@ fn velocity_and_position_modes_track_on_mujocos_panda_with_no_contact() {
     }
 }
 
+/// A live edit reaches MuJoCo: a sphere added with `chaosctl obstacle add` while the demo runs
+/// appears in MuJoCo's world within a fraction of a second, and leaves it with `obstacle rm`;
+/// the plant's summary counts both moves and ends with the set-up's one sphere.
+#[test]
+fn a_live_obstacle_edit_moves_mujocos_spheres() {
+    let Some(model) = mujoco() else { return };
+    let _g = serial();
+    let ns = unique_namespace("mujoco-scene");
+    let dir = TempDir::new(&ns);
+    let out = dir.path().join("out");
+    let cfg = panda_with_a_sphere(dir.path());
+    let demo = Proc::spawn(
+        "demo",
+        &bin("chaosd"),
+        &[
+            "demo",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--mode",
+            "torque",
+            "--plant",
+            "mujoco",
+            "--mujoco-model",
+            model.to_str().unwrap(),
+            "--duration",
+            "10",
+            "--namespace",
+            &ns,
+            "--output",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    let ctl = |args: &[&str]| {
+        let o = Command::new(bin("chaosctl"))
+            .args(args)
+            .args(["--namespace", &ns])
+            .output()
+            .unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+        )
+    };
+    // Once the daemon answers: a sphere well clear of the arm, then gone again.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(8);
+    while !ctl(&["status"]).0 && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    let (ok, err) = ctl(&["obstacle", "add", "0.5", "-0.45", "0.25", "0.05"]);
+    assert!(ok, "{err}\n{}", demo.log());
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    let (ok, err) = ctl(&["obstacle", "rm", "2"]);
+    assert!(ok, "{err}");
+    let mut demo = demo;
+    let status = demo.wait_exit(std::time::Duration::from_secs(30));
+    assert!(status.success(), "{}", demo.log());
+    let plant_log = std::fs::read_to_string(out.join("plant.log")).unwrap_or_default();
+    assert!(
+        plant_log.contains("2 sphere(s) in MuJoCo's world now")
+            && plant_log.contains("1 sphere(s) in MuJoCo's world now"),
+        "{plant_log}"
+    );
+    let p = read_json(&out.join("plant-summary.json"));
+    let c = &p["contacts"];
+    assert_eq!(
+        (c["scene_updates"].as_u64(), c["obstacles"].as_u64()),
+        (Some(2), Some(1)),
+        "{c}"
+    );
+    assert_eq!(c["obstacle_contact_periods"], 0, "{c}");
+}
+
 /// Refusals that need no MuJoCo: the planar arm has no mass model, and an engine's name is
 /// checked.
 #[test]

@@ -21,6 +21,8 @@ pub struct Judge {
     obstacles: Vec<usize>,
     report: ContactReport,
     periods: u64,
+    /// Obstacle slots in use (the first `active` of `obstacles`).
+    active: usize,
     /// The first obstacle and own contact's geoms (named only in the report: no allocation on
     /// the loop).
     first: Option<(usize, usize)>,
@@ -36,11 +38,13 @@ impl Judge {
         let robot: Vec<usize> = (0..n)
             .filter(|&g| body[g] > 0 && !obstacles.contains(&g))
             .collect();
+        // (The obstacles sit on mocap bodies of their own, so `body > 0` alone would count them.)
         let mut j = Self {
             robot,
             obstacles,
             report: ContactReport::default(),
             periods: 0,
+            active: 0,
             first: None,
             first_own: None,
         };
@@ -78,9 +82,20 @@ impl Judge {
         }
     }
 
-    /// The smallest signed distance between any arm geom and any obstacle.
+    /// How many obstacle slots are in use now.
+    pub fn set_active(&mut self, n: usize) {
+        self.active = n.min(self.obstacles.len());
+        self.report.obstacles = self.active;
+    }
+
+    /// A live edit moved the spheres.
+    pub fn scene_changed(&mut self) {
+        self.report.scene_updates += 1;
+    }
+
+    /// The smallest signed distance between any arm geom and any obstacle in use.
     fn sweep(&mut self, m: &mjModel, d: &mut mjData) {
-        for &o in &self.obstacles {
+        for &o in &self.obstacles[..self.active] {
             for &g in &self.robot {
                 // SAFETY: both ids are below ngeom; a null fromto is allowed.
                 let dist = unsafe {

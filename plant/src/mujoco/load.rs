@@ -16,6 +16,9 @@ use mujoco_rs::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+/// Where a sphere slot not in use waits, and its radius (m): far below the base.
+pub const PARKED: ([f64; 3], f64) = ([0.0, 0.0, -100.0], 0.01);
+
 /// The name prefix of the obstacle geoms this plant adds to the world.
 pub const OBSTACLE_PREFIX: &str = "chaosd_obstacle_";
 
@@ -39,7 +42,7 @@ pub struct Built {
     pub welded: Vec<String>,
     /// Body pairs that touch in the start pose, excluded from contact.
     pub excluded: Vec<(String, String)>,
-    /// Ids of the obstacle geoms, in the set-up's order.
+    /// Ids of the obstacle geoms, one per sphere slot ([`super::scene::MAX`]), the set-up's first.
     pub obstacles: Vec<usize>,
 }
 
@@ -69,13 +72,22 @@ pub fn build(
             .map_err(|e| anyhow!("MuJoCo cannot load the robot's URDF: {e:?}"))?,
     };
     spec.option_mut().timestep = h;
-    for (i, (c, r)) in spheres.iter().enumerate() {
-        spec.world_body_mut()
-            .add_geom()
+    // Every sphere the daemon may ever have, made now (a compiled model cannot grow): the
+    // set-up's, and the rest parked far below the base until a live edit places them. Each on
+    // a mocap body of its own: a geom of the world body never touches the first link (MuJoCo
+    // filters parent-child contacts), and a mocap body moves without a joint.
+    for i in 0..super::scene::MAX {
+        let (c, r) = spheres.get(i).copied().unwrap_or(PARKED);
+        let body = spec
+            .world_body_mut()
+            .add_body()
+            .with_name(&format!("{OBSTACLE_PREFIX}body_{i}"))
+            .with_mocap(true)
+            .with_pos(c);
+        body.add_geom()
             .with_name(&format!("{OBSTACLE_PREFIX}{i}"))
             .with_type(MjtGeomBase::mjGEOM_SPHERE)
-            .with_size([*r, 0.0, 0.0])
-            .with_pos(*c);
+            .with_size([r, 0.0, 0.0]);
     }
     // First pass: which joints are not chaosd's, and which of the arm's bodies touch in the
     // start pose. Those joints are welded where they are (a gripper stays as it is) and those
@@ -99,7 +111,7 @@ pub fn build(
     }
     let model = Box::new(compile(&mut spec)?);
     let (arm, _) = joint_map(model.ffi(), joints)?;
-    let obstacles = (0..spheres.len())
+    let obstacles = (0..super::scene::MAX)
         .map(|i| {
             model
                 .name_to_id(MjtObjBase::mjOBJ_GEOM, &format!("{OBSTACLE_PREFIX}{i}"))
@@ -187,13 +199,14 @@ fn overlapping_bodies(
                 *m.geom_bodyid.add(c.geom[1] as usize) as usize,
             )
         };
-        if b1 == 0 || b2 == 0 {
-            continue; // an obstacle or the fixed base: not the arm's own overlap
-        }
         let pair = (
             name_of(m, mjtObj::mjOBJ_BODY, b1),
             name_of(m, mjtObj::mjOBJ_BODY, b2),
         );
+        let obstacle = |n: &str| n.starts_with(OBSTACLE_PREFIX);
+        if b1 == 0 || b2 == 0 || obstacle(&pair.0) || obstacle(&pair.1) {
+            continue; // the fixed base or an obstacle: not the arm's own overlap
+        }
         if !pairs.contains(&pair) {
             pairs.push(pair);
         }

@@ -23,6 +23,7 @@
 
 pub mod judge;
 pub mod load;
+pub mod scene;
 mod servo;
 
 use crate::config::PlantConfig;
@@ -76,6 +77,13 @@ pub struct MujocoPlant {
     /// The model's own joint damping, and whether the servo's K_d is added to it now.
     damping: Vec<f64>,
     servo_damped: bool,
+    /// The obstacle geoms (one per sphere slot), the daemon's namespace, and the helper that
+    /// follows the daemon's list while the plant runs.
+    obstacles: Vec<usize>,
+    names: protocol::ServiceNames,
+    start_scene: scene::Spheres,
+    sync: Option<(scene::SceneSync, std::sync::mpsc::Receiver<scene::Spheres>)>,
+    avoid_core: Option<usize>,
     judge: judge::Judge,
 }
 
@@ -150,7 +158,9 @@ impl MujocoPlant {
         };
         let kp = pick(&rb.servo_kp, &kp_all);
         let kd = pick(&rb.servo_kd, &kd_all);
-        let judge = judge::Judge::new(m, built.obstacles, excluded);
+        let start_scene = scene::Spheres::of(&spheres);
+        let mut judge = judge::Judge::new(m, built.obstacles.clone(), excluded);
+        judge.set_active(start_scene.n);
         // SAFETY: dof_damping has nv entries; the arm's dofs are below nv.
         let built_damping = built
             .arm
@@ -180,6 +190,11 @@ impl MujocoPlant {
             braking: true,
             damping: built_damping,
             servo_damped: false,
+            obstacles: built.obstacles,
+            names: protocol::ServiceNames::new(&cfg.namespace)?,
+            start_scene,
+            sync: None,
+            avoid_core: cfg.core,
             judge,
             data,
         })
@@ -260,6 +275,31 @@ impl MujocoPlant {
         }
     }
 
+    /// Moves MuJoCo's spheres to the daemon's newest list, if it changed (between two periods).
+    fn follow_scene(&mut self) {
+        let Some(now) = self.sync.as_ref().and_then(|(_, rx)| rx.try_recv().ok()) else {
+            return;
+        };
+        // SAFETY: the data owns its model; geom and body ids are below ngeom and nbody, each
+        // obstacle geom's body is a mocap body, and MuJoCo reads these fields afresh every step.
+        let d: *mut mujoco_rs::mujoco_c::mjData = unsafe { self.data.ffi_mut() };
+        let m = unsafe { self.data.model_mut().ffi_mut() };
+        for (i, &g) in self.obstacles.iter().enumerate() {
+            let (c, r) = if i < now.n { now.s[i] } else { load::PARKED };
+            unsafe {
+                let mocap = *m.body_mocapid.add(*m.geom_bodyid.add(g) as usize) as usize;
+                for (k, x) in c.iter().enumerate() {
+                    *(*d).mocap_pos.add(3 * mocap + k) = *x;
+                    *m.geom_aabb.add(6 * g + 3 + k) = r;
+                }
+                *m.geom_size.add(3 * g) = r;
+                *m.geom_rbound.add(g) = r;
+            }
+        }
+        self.judge.set_active(now.n);
+        self.judge.scene_changed();
+    }
+
     /// Advances one period.
     fn period_step(&mut self) {
         self.set_servo_damping();
@@ -295,6 +335,12 @@ impl Plant for MujocoPlant {
     }
 
     fn activate(&mut self) -> Result<(), PlantError> {
+        let started =
+            scene::SceneSync::start(self.names.clone(), self.start_scene, self.avoid_core);
+        self.sync = Some(started.map_err(|e| PlantError::Activation {
+            what: "cannot start the thread that follows the daemon's obstacles",
+            source: Box::new(e),
+        })?);
         Ok(())
     }
 
@@ -349,6 +395,7 @@ impl Plant for MujocoPlant {
     }
 
     fn read(&mut self, elapsed: f64, out: &mut StateSample) -> Result<(), PlantError> {
+        self.follow_scene();
         if elapsed > 0.0 {
             let periods = (elapsed.min(MAX_CATCH_UP_S) / self.period).round().max(1.0) as u64;
             for _ in 0..periods {
@@ -381,6 +428,7 @@ impl Plant for MujocoPlant {
 
     fn deactivate(&mut self) {
         self.drive = Drive::Hold;
+        self.sync = None;
     }
 
     fn stamp(&self, nominal_ns: u64, _now_ns: u64) -> u64 {
