@@ -347,6 +347,7 @@ fn problems(r: &Run) -> String {
             .filter(|&m| m < 0.0)
             .map(|m| format!("a link {:.3} m inside an obstacle", -m)),
     )
+    .chain(short_of_clearance(r))
     .collect();
     let blocked = d
         .first_blocked
@@ -357,6 +358,19 @@ fn problems(r: &Run) -> String {
     } else {
         format!("{}{blocked}; see --details", seen.join(", "))
     }
+}
+
+/// A filter that is on promises its clearance; a run that came closer (by more than a
+/// millimetre, the filter's own tolerance on a VM's stalls) says so, though no link touched.
+fn short_of_clearance(r: &Run) -> Option<String> {
+    let sf = r.setup.system.safety();
+    let m = r.daemon.min_clearance_m?;
+    (sf.enabled && (0.0..sf.clearance - 1e-3).contains(&m)).then(|| {
+        format!(
+            "a link {m:.3} m from an obstacle (the filter keeps {} m)",
+            sf.clearance
+        )
+    })
 }
 
 fn safety(r: &Run) -> Vec<Line> {
