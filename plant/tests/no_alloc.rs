@@ -145,3 +145,59 @@ fn the_udp_bridge_and_the_wire_format_allocate_nothing() {
     );
     bridge.deactivate();
 }
+
+/// MuJoCo's plant (built with the `mujoco` feature; CI runs it): `write` in every interface and
+/// `read` (MuJoCo's steps, the torques, the contact judge, the check for a moved scene) allocate
+/// nothing on the loop's thread. The scene thread asks for the daemon's list on its own thread
+/// (no daemon answers here).
+#[cfg(feature = "mujoco")]
+#[test]
+fn the_mujoco_plant_allocates_nothing_in_any_interface() {
+    let system = rt::robot::preset("panda").unwrap();
+    let cfg = plant::PlantConfig {
+        dynamics: plant::config::Dynamics::Mujoco,
+        namespace: format!("noalloc-mujoco-{}", std::process::id()),
+        ..plant::PlantConfig::default()
+    };
+    let mut p = plant::mujoco::MujocoPlant::from_launch(&system, &cfg).unwrap();
+    p.activate().unwrap();
+    let mut out = StateSample::default();
+    p.read(0.0, &mut out).unwrap();
+    let q: Vec<f64> = out.q[..7].to_vec();
+    let zero = [0.0; 7];
+    let n = allocations(|| {
+        for k in 0..400u64 {
+            let a = match k / 80 {
+                0 => Actuation::Torque {
+                    tau: &zero,
+                    since: 0.0,
+                    answers: k,
+                },
+                1 => Actuation::Accelerate {
+                    qdd: &zero,
+                    qddd: &zero,
+                    since: 0.0,
+                    answers: k,
+                },
+                2 => Actuation::Position {
+                    q: &q,
+                    qd: &zero,
+                    since: 0.0,
+                    answers: k,
+                },
+                3 => Actuation::Velocity {
+                    qd: &zero,
+                    since: 0.0,
+                    answers: k,
+                },
+                _ => Actuation::Hold,
+            };
+            p.write(a).unwrap();
+            p.read(if k % 10 == 0 { 3e-3 } else { 1e-3 }, &mut out)
+                .unwrap();
+        }
+    });
+    p.deactivate();
+    assert_eq!(n, 0, "the MuJoCo plant allocated {n} times in 400 cycles");
+    assert!(out.q[..7].iter().all(|x| x.is_finite()));
+}

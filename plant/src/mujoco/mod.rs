@@ -59,8 +59,9 @@ pub struct MujocoPlant {
     a: Vec<f64>,
     b: Vec<f64>,
     /// Velocity mode's own set-point.
-    set_point: Option<Vec<f64>>,
-    velocity_mode: bool,
+    set_point: Vec<f64>,
+    /// Whether velocity mode's set-point is in use (sized at start: no allocation on a switch).
+    rate_set: bool,
     /// Where the drive's reference is at the start of the current period (s after its start).
     offset: f64,
     hold_at: Vec<f64>,
@@ -175,8 +176,8 @@ impl MujocoPlant {
             drive: Drive::Hold,
             a: vec![0.0; n],
             b: vec![0.0; n],
-            set_point: None,
-            velocity_mode: false,
+            set_point: vec![0.0; n],
+            rate_set: false,
             offset: 0.0,
             hold_at: q0[..n].to_vec(),
             holding: false,
@@ -307,8 +308,8 @@ impl MujocoPlant {
         for s in 0..self.substeps {
             self.substep(self.offset + k * f64::from(s));
         }
-        if let (Some(sp), Drive::Track) = (&mut self.set_point, self.drive) {
-            for (p, r) in sp.iter_mut().zip(&self.b) {
+        if self.rate_set && self.drive == Drive::Track {
+            for (p, r) in self.set_point.iter_mut().zip(&self.b) {
                 *p += r * self.period;
             }
         }
@@ -346,11 +347,9 @@ impl Plant for MujocoPlant {
 
     fn write(&mut self, actuation: Actuation<'_>) -> Result<(), PlantError> {
         self.braking = false;
-        let velocity = matches!(actuation, Actuation::Velocity { .. });
-        if !velocity {
-            self.set_point = None;
+        if !matches!(actuation, Actuation::Velocity { .. }) {
+            self.rate_set = false;
         }
-        self.velocity_mode = velocity;
         match actuation {
             Actuation::Torque { tau, since, .. } if self.fits(&[tau], since) => {
                 self.a.copy_from_slice(tau);
@@ -374,13 +373,13 @@ impl Plant for MujocoPlant {
                 self.offset = since.max(0.0) - self.period;
             }
             Actuation::Velocity { qd, since, .. } if self.fits(&[qd], since) => {
-                if self.set_point.is_none() {
-                    let here = (0..self.arm.len()).map(|i| self.arm_q(i)).collect();
-                    self.set_point = Some(here);
+                if !self.rate_set {
+                    for i in 0..self.arm.len() {
+                        self.set_point[i] = self.arm_q(i);
+                    }
+                    self.rate_set = true;
                 }
-                if let Some(sp) = &self.set_point {
-                    self.a.copy_from_slice(sp);
-                }
+                self.a.copy_from_slice(&self.set_point);
                 self.b.copy_from_slice(qd);
                 self.drive = Drive::Track;
                 self.offset = 0.0;
@@ -388,7 +387,6 @@ impl Plant for MujocoPlant {
             _ => {
                 self.braking = true;
                 self.drive = Drive::Hold;
-                self.set_point = None;
             }
         }
         Ok(())
