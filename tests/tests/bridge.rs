@@ -360,14 +360,15 @@ fn a_stalled_bridge_costs_the_device_a_miss_every_period_and_a_brake() {
     assert!(c["brakes"].as_u64().unwrap() >= 1, "{f}");
     // Stopped for 60 periods, the bridge left at least that many states unanswered, each a
     // miss. The device's clock skips a cycle only when the device itself is late: a host stall
-    // of its own may skip some (20 in one run on this VM, with 110 misses), but the old fault,
-    // a skip after every miss, made as many skips as misses.
+    // of its own may skip some (20 with 110 misses, 33 with 84, 55 with 193 in runs on this VM,
+    // the device sharing the stalled vCPU), but the old fault, a skip after every miss, made as
+    // many skips as misses: fewer than half is the line between the two.
     let (missed, skipped) = (
         c["missed"].as_u64().unwrap(),
         c["skipped"].as_u64().unwrap(),
     );
     assert!(missed >= 55, "{f}");
-    assert!(skipped <= missed / 4, "{f}");
+    assert!(2 * skipped < missed, "{f}");
 }
 
 #[test]
