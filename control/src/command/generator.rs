@@ -19,18 +19,25 @@ use crate::arm::VecN;
 use crate::model::Model;
 
 /// Torque mode's joint PD on (q_r − q, q̇_r − q̇), N·m/rad and N·m·s/rad, and velocity mode's
-/// position correction on q_r − q (1/s).
+/// position correction on q_r − q: proportional (1/s) and integral (1/s²).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CommandGains<const N: usize> {
     pub kp: VecN<N>,
     pub kd: VecN<N>,
     pub kv: VecN<N>,
+    pub ki: VecN<N>,
 }
 
 /// The most velocity mode's position correction adds to a joint's rate, as a share of its
 /// velocity limit: an arm held back (by a collision, a brake, a weak motor) gets a bounded
 /// push, not one that grows with its error.
 pub const CORRECTION_SHARE: f64 = 0.05;
+
+/// The most velocity mode's position correction changes in one period, as a share of the
+/// joint's acceleration limit times the period: after a stall of the controller the arm is off
+/// its reference by q̈·T²/2, and the pull's step would otherwise add that at once to the
+/// acceleration the device sees, past a strict device's rule.
+pub const PULL_SLEW_SHARE: f64 = 0.05;
 
 /// One tick's command in every interface's terms (the plant uses the one its mode names).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -46,6 +53,9 @@ pub struct Command<const N: usize> {
     pub qddd: VecN<N>,
     /// Torque mode's command (zero otherwise).
     pub tau: VecN<N>,
+    /// Velocity mode's position correction: the rate added to the reference's (zero otherwise),
+    /// and the integral of the reference error it has reached (rad·s).
+    pub pull: Pull<N>,
     /// Which limits clamped each joint this tick (bits of `LimitKind`).
     pub hits: [u8; N],
     /// Where the stream's reference is at the end of the period (its next tick starts here).
@@ -63,8 +73,27 @@ impl<const N: usize> Command<N> {
             qdd: zero,
             qddd: zero,
             tau: zero,
+            pull: Pull::default(),
             hits: [0; N],
             end: MotionState::at_rest(zero, zero),
+        }
+    }
+}
+
+/// Velocity mode's position correction as it stands after a tick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pull<const N: usize> {
+    /// The rate added to the reference's (rad/s).
+    pub rate: VecN<N>,
+    /// ∫(q_r − q)dt (rad·s), held while the pull is at its cap (no wind-up).
+    pub integral: VecN<N>,
+}
+
+impl<const N: usize> Default for Pull<N> {
+    fn default() -> Self {
+        Self {
+            rate: VecN::<N>::zeros(),
+            integral: VecN::<N>::zeros(),
         }
     }
 }
@@ -74,6 +103,7 @@ impl<const N: usize> Command<N> {
 pub struct Stream<const N: usize> {
     reference: MotionState<N>,
     last_tau: VecN<N>,
+    pull: Pull<N>,
     saturations: Saturations<N>,
 }
 
@@ -87,6 +117,7 @@ pub struct MotionGenerator<const N: usize> {
     model: Option<Model<N>>,
     reference: MotionState<N>,
     last_tau: VecN<N>,
+    pull: Pull<N>,
     pub saturations: Saturations<N>,
 }
 
@@ -108,6 +139,7 @@ impl<const N: usize> MotionGenerator<N> {
             model,
             reference: MotionState::at_rest(VecN::<N>::zeros(), VecN::<N>::zeros()),
             last_tau: VecN::<N>::zeros(),
+            pull: Pull::default(),
             saturations: Saturations::default(),
         })
     }
@@ -119,6 +151,7 @@ impl<const N: usize> MotionGenerator<N> {
             kp: VecN::<N>::zeros(),
             kd: VecN::<N>::zeros(),
             kv: VecN::<N>::zeros(),
+            ki: VecN::<N>::zeros(),
         };
         Self::new(CommandMode::Acceleration, limiter, gains, None).expect("no model needed")
     }
@@ -152,6 +185,7 @@ impl<const N: usize> MotionGenerator<N> {
     /// Starts the stream again from the measured state, at rest in acceleration.
     pub fn restart(&mut self, q: &VecN<N>, qd: &VecN<N>) {
         self.reference = MotionState::at_rest(*q, *qd);
+        self.pull = Pull::default();
         self.last_tau = match &self.model {
             Some(m) if self.mode == CommandMode::Torque => m.rnea(q, qd, &VecN::<N>::zeros()),
             _ => VecN::<N>::zeros(),
@@ -184,9 +218,12 @@ impl<const N: usize> MotionGenerator<N> {
             }
             _ => VecN::<N>::zeros(),
         };
-        let qd_sent = match self.mode {
-            CommandMode::Velocity => self.held_rate(&from, &end) + self.correction(&(from.q - q)),
-            _ => end.qd,
+        let (qd_sent, pull) = match self.mode {
+            CommandMode::Velocity => {
+                let pull = self.correction(&(from.q - q));
+                (self.held_rate(&from, &end) + pull.rate, pull)
+            }
+            _ => (end.qd, Pull::default()),
         };
         Command {
             mode: self.mode,
@@ -195,6 +232,7 @@ impl<const N: usize> MotionGenerator<N> {
             qdd: a,
             qddd: r,
             tau,
+            pull,
             hits,
             end,
         }
@@ -212,21 +250,38 @@ impl<const N: usize> MotionGenerator<N> {
 
     /// Velocity mode's pull back to the reference: a velocity interface integrates what it is
     /// sent, so whatever the arm loses (a late or dropped command, its servo's lag, its own
-    /// integration) would stay lost, and the tip would drift off the path. `kv·(q_r − q)` on
-    /// the measured state makes the arm's position, not only its rate, follow the reference
-    /// (the velocity feed-forward plus P of ros2_control's trajectory controller), each joint's
-    /// push capped at [`CORRECTION_SHARE`] of its velocity limit.
-    fn correction(&self, error: &VecN<N>) -> VecN<N> {
+    /// integration) would stay lost, and the tip would drift off the path.
+    /// `kv·(q_r − q) + ki·∫(q_r − q)dt` on the measured state makes the arm's position, not only
+    /// its rate, follow the reference (the velocity feed-forward plus PI of ros2_control's
+    /// trajectory controller). Each joint's pull is capped at [`CORRECTION_SHARE`] of its
+    /// velocity limit (the integral holds while it is: no wind-up), and changes by at most
+    /// [`PULL_SLEW_SHARE`] of its acceleration limit over a period.
+    fn correction(&self, error: &VecN<N>) -> Pull<N> {
         let l = self.limiter.limits();
-        VecN::<N>::from_fn(|i, _| {
-            let push = self.gains.kv[i] * error[i];
+        let dt = self.limiter_dt();
+        let last = &self.pull;
+        let mut next = *last;
+        for i in 0..N {
+            let (kv, ki) = (self.gains.kv[i], self.gains.ki[i]);
+            let integral = last.integral[i] + error[i] * dt;
+            let wanted = kv * error[i] + ki * integral;
             let cap = CORRECTION_SHARE * l.qd[i];
-            if cap.is_finite() {
-                push.clamp(-cap, cap)
+            let capped = if cap.is_finite() {
+                wanted.clamp(-cap, cap)
             } else {
-                push
+                wanted
+            };
+            if capped == wanted {
+                next.integral[i] = integral;
             }
-        })
+            let step = PULL_SLEW_SHARE * l.qdd[i] * dt;
+            next.rate[i] = if step.is_finite() {
+                capped.clamp(last.rate[i] - step, last.rate[i] + step)
+            } else {
+                capped
+            };
+        }
+        next
     }
 
     /// [`Self::next`] for a command that comes `periods` periods after the last one (states
@@ -267,6 +322,7 @@ impl<const N: usize> MotionGenerator<N> {
         Stream {
             reference: self.reference,
             last_tau: self.last_tau,
+            pull: self.pull,
             saturations: self.saturations,
         }
     }
@@ -275,6 +331,7 @@ impl<const N: usize> MotionGenerator<N> {
     pub fn set_stream(&mut self, s: Stream<N>) {
         self.reference = s.reference;
         self.last_tau = s.last_tau;
+        self.pull = s.pull;
         self.saturations = s.saturations;
     }
 
@@ -282,6 +339,7 @@ impl<const N: usize> MotionGenerator<N> {
     pub fn commit(&mut self, c: &Command<N>) {
         self.reference = c.end;
         self.last_tau = c.tau;
+        self.pull = c.pull;
         self.saturations.add(&c.hits);
     }
 
@@ -297,6 +355,11 @@ mod tests {
     use crate::model::{builtin, Chain};
 
     fn panda(mode: CommandMode) -> (MotionGenerator<7>, Model<7>) {
+        panda_with(mode, 0.0)
+    }
+
+    /// The Panda's generator with velocity mode's integral gain `ki`.
+    fn panda_with(mode: CommandMode, ki: f64) -> (MotionGenerator<7>, Model<7>) {
         let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
         let model = chain.model::<7>().unwrap();
         let limits = JointLimits::<7>::described(&chain, MakerTable::for_robot("panda", 7));
@@ -304,6 +367,7 @@ mod tests {
             kp: VecN::<7>::repeat(100.0),
             kd: VecN::<7>::repeat(10.0),
             kv: VecN::<7>::repeat(20.0),
+            ki: VecN::<7>::repeat(ki),
         };
         let g = MotionGenerator::new(
             mode,
@@ -366,20 +430,71 @@ mod tests {
             on.qd[0] > 0.0 && on.qd[0] < on.end.qd[0],
             "between the start's and the end's"
         );
-        // 1 mrad behind on joint 1: 20 /s × 1e-3 = 0.02 rad/s more, and the reference the
-        // stream reaches is the same (the push is the arm's, not the reference's).
+        // 1 mrad behind on joint 1, the reference at rest: the pull ramps at its slew to
+        // 20 /s × 1e-3 = 0.02 rad/s and stays there, and the reference is not moved by it (the
+        // push is the arm's, not the reference's).
+        g.restart(&q, &VecN::zeros());
+        let zero = VecN::<7>::zeros();
+        let l = *g.limiter().limits();
+        let step = PULL_SLEW_SHARE * l.qdd[0] * 1e-3;
         let mut behind = q;
         behind[0] -= 1e-3;
-        let c = g.next(&behind, &VecN::zeros(), &a, &VecN::zeros());
-        assert!((c.qd[0] - on.qd[0] - 0.02).abs() < 1e-12, "{}", c.qd[0]);
-        assert_eq!((c.end, c.qd[1]), (on.end, on.qd[1]));
+        let mut last = 0.0;
+        for k in 0..100 {
+            let c = g.next(&behind, &zero, &zero, &zero);
+            assert!(
+                c.qd[0] - last <= step + 1e-15,
+                "tick {k}: {} after {last}",
+                c.qd[0]
+            );
+            assert_eq!(c.qd[1], 0.0);
+            last = c.qd[0];
+            g.commit(&c);
+        }
+        assert!((last - 0.02).abs() < 1e-12, "{last}");
+        assert_eq!(g.reference().q, q);
         // Far behind: the push stops at its share of the velocity limit.
         behind[0] -= 1.0;
-        let c = g.next(&behind, &VecN::zeros(), &a, &VecN::zeros());
-        let cap = CORRECTION_SHARE * g.limiter().limits().qd[0];
-        assert!((c.qd[0] - on.qd[0] - cap).abs() < 1e-12);
-        g.commit(&c);
-        assert_eq!(*g.reference(), on.end);
+        let cap = CORRECTION_SHARE * l.qd[0];
+        for _ in 0..1000 {
+            let c = g.next(&behind, &zero, &zero, &zero);
+            last = c.qd[0];
+            g.commit(&c);
+        }
+        assert!((last - cap).abs() < 1e-12, "{last} against {cap}");
+    }
+
+    #[test]
+    fn velocity_modes_integral_takes_back_a_steady_lag_and_does_not_wind_up() {
+        let (mut g, _) = panda_with(CommandMode::Velocity, 100.0);
+        let limits = *g.limiter().limits();
+        let q = VecN::<7>::from_column_slice(&crate::config::spatial::PANDA_READY);
+        let zero = VecN::<7>::zeros();
+        g.restart(&q, &zero);
+        let run = |g: &mut MotionGenerator<7>, at: &VecN<7>, ticks: usize| {
+            let mut c = g.next(at, &zero, &zero, &zero);
+            for _ in 0..ticks {
+                c = g.next(at, &zero, &zero, &zero);
+                g.commit(&c);
+            }
+            c
+        };
+        // 0.1 mrad behind for 0.2 s: kv·e + ki·e·t = 2e-3 + 100·1e-4·0.2 = 4e-3 rad/s.
+        let mut behind = q;
+        behind[0] -= 1e-4;
+        let c = run(&mut g, &behind, 200);
+        assert!((c.qd[0] - 4e-3).abs() < 2e-5, "{}", c.qd[0]);
+        // Held far behind for 2 s (a collision, a brake): the pull sits at its cap and the
+        // integral stops growing there, so once the arm is back on its reference the pull is
+        // no more than the cap's worth, not two seconds of error.
+        g.restart(&q, &zero);
+        behind[0] -= 0.5;
+        let cap = CORRECTION_SHARE * limits.qd[0];
+        let c = run(&mut g, &behind, 2000);
+        assert!((c.qd[0] - cap).abs() < 1e-12, "{} against {cap}", c.qd[0]);
+        assert!(c.pull.integral[0] * 100.0 <= cap, "{}", c.pull.integral[0]);
+        let c = run(&mut g, &q, 200);
+        assert!(c.qd[0].abs() <= cap, "{}", c.qd[0]);
     }
 
     #[test]

@@ -19,7 +19,7 @@ mod limiter;
 mod limits;
 mod mode;
 
-pub use generator::{Command, CommandGains, MotionGenerator, Stream};
+pub use generator::{Command, CommandGains, MotionGenerator, Pull, Stream};
 pub use limiter::{LimitKind, Limiter, MotionState, Saturations, LIMIT_KINDS};
 pub use limits::{
     JointLimits, LimitOverrides, MakerTable, DEFAULT_JERK_PER_QDD, DEFAULT_QDD_MAX, PANDA,
