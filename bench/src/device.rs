@@ -132,12 +132,7 @@ fn one(row: &Row, dir: &Path, i: usize) -> Result<Outcome> {
             String::from_utf8_lossy(&o.stderr)
         );
     }
-    let read = |f: &str| -> Result<Value> {
-        let p = dir.join(f);
-        let text =
-            std::fs::read_to_string(&p).with_context(|| format!("cannot read {}", p.display()))?;
-        serde_json::from_str(&text).with_context(|| format!("{} is not JSON", p.display()))
-    };
+    let read = |f: &str| crate::e2e::read_json(&dir.join(f));
     let (d, f) = (read("daemon-summary.json")?, read("fakebot-summary.json")?);
     let n = |v: &Value| v.as_u64().unwrap_or(0);
     let before = d["period_residual_before"].as_f64();

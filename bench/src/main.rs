@@ -35,6 +35,7 @@ mod monitor_cost;
 mod naive;
 mod naive_model;
 mod plan;
+mod plants;
 mod plot;
 mod record_cost;
 mod report;
@@ -112,6 +113,14 @@ enum Cmd {
     /// on the demo's set-up (a minute; 20 s with --quick) and on one whose law asks more than the
     /// arm can do: the device's reflex stops, missed answers, tracking and residual.
     Device,
+    /// What each plant costs its core, side by side: the Panda at 1 kHz on the kinematic plant,
+    /// chaosd's rigid-body arm and MuJoCo (when chaosd-plant-mujoco is built): the plant's step
+    /// per cycle, its lateness, the daemon's, tracking and MuJoCo's contact count.
+    Plants {
+        /// The MuJoCo row with mesh collisions loads this model (skipped if absent).
+        #[arg(long, default_value = plants::DEFAULT_MESH_MODEL)]
+        mujoco_model: PathBuf,
+    },
     /// latency, jitter, e2e and compute in a row, with one summary file.
     All {
         /// SCHED_FIFO priority for latency and jitter, 1..=98 [default: the daemon's].
@@ -418,6 +427,7 @@ fn main() -> ExitCode {
         Cmd::E2e(a) => e2e_opts(quick, a).and_then(|o| e2e::run(&o, out, &command)),
         Cmd::Compute { core, pinocchio } => compute::run(quick, *core, pinocchio, out, &command),
         Cmd::Device => device::run(quick, out, &command),
+        Cmd::Plants { mujoco_model } => plants::run(quick, mujoco_model, out, &command),
         Cmd::Ab {
             against,
             what,

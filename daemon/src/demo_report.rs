@@ -235,6 +235,9 @@ fn timing(r: &Run) -> Vec<Line> {
     v.push(Line::detail("state age at tick", d.state_age.one_line()));
     if let Some(p) = r.plant {
         v.push(Line::detail("state → command", pct(p, "state_to_command")));
+        if p["step"].is_object() {
+            v.push(Line::detail("plant step", pct(p, "step")));
+        }
         v.extend(answers(s, p));
     }
     if s.daemon.trigger == rt::Trigger::State {
@@ -514,6 +517,7 @@ fn files(out: &Path) -> Vec<Line> {
                     "plant-round-trip.hgrm",
                     "plant-state-to-command.hgrm",
                     "plant-lateness.hgrm",
+                    "plant-step.hgrm",
                 ])
             ),
         ),

@@ -58,6 +58,9 @@ pub struct Histograms {
     /// State published → answering command picked up by the plant.
     pub rtt: Histogram<u64>,
     pub lateness: Histogram<u64>,
+    /// The plant's read of one cycle: the simulation's physics over the period (or a bridge's
+    /// read of its device), what a plant costs its core each cycle.
+    pub step: Histogram<u64>,
 }
 
 impl Histograms {
@@ -66,6 +69,7 @@ impl Histograms {
             to_cmd: hist::new_ns(),
             rtt: hist::new_ns(),
             lateness: hist::new_ns(),
+            step: hist::new_ns(),
         }
     }
 }
@@ -118,6 +122,8 @@ pub struct PlantSummary {
     /// State published → answering command picked up by the plant (the full round trip).
     pub round_trip: Percentiles,
     pub lateness: Percentiles,
+    /// The plant's read of one cycle (its physics over the period).
+    pub step: Percentiles,
     /// The plant's own contact judgement (MuJoCo), if it makes one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub contacts: Option<ContactReport>,
@@ -140,6 +146,7 @@ pub fn write(
         ("state-to-command", &h.to_cmd),
         ("round-trip", &h.rtt),
         ("lateness", &h.lateness),
+        ("step", &h.step),
     ];
     let mut files = Vec::new();
     for (name, hg) in named {
@@ -165,6 +172,7 @@ pub fn write(
         state_to_command: Percentiles::of(&h.to_cmd),
         round_trip: Percentiles::of(&h.rtt),
         lateness: Percentiles::of(&h.lateness),
+        step: Percentiles::of(&h.step),
         contacts,
         files,
     };

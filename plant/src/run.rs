@@ -371,7 +371,12 @@ impl Loop<'_> {
         deadline: u64,
     ) -> Result<bool, PlantError> {
         self.sample.seq = self.seq;
-        match plant.read(elapsed, &mut self.sample) {
+        let began = monotonic_ns();
+        let read = plant.read(elapsed, &mut self.sample);
+        self.h
+            .step
+            .saturating_record(monotonic_ns().saturating_sub(began).max(1));
+        match read {
             Ok(()) => {}
             Err(PlantError::Unavailable { .. }) => {
                 self.c.read_misses += 1;

@@ -359,6 +359,7 @@ fn shutdown_writes_readable_histogram_files() {
         "daemon-state-age.hgrm",
         "plant-round-trip.hgrm",
         "plant-lateness.hgrm",
+        "plant-step.hgrm",
     ] {
         let text = std::fs::read_to_string(out.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
         let rows: Vec<Vec<f64>> = text
@@ -409,6 +410,10 @@ fn shutdown_writes_readable_histogram_files() {
     }
     let d = read_json(&out.join("daemon-summary.json"));
     assert!(d["lateness"]["count"].as_u64().unwrap() > 400);
+    let p = read_json(&out.join("plant-summary.json"));
+    let step = &p["step"];
+    assert!(step["count"].as_u64().unwrap() > 400, "{p}");
+    assert!(step["p50_us"].as_f64().unwrap() > 0.0, "{p}");
 }
 
 #[test]

@@ -35,6 +35,7 @@ pub const COMPUTE_PLAN: &str = "compute-plan";
 pub const COMPUTE_PLAN_PANDA: &str = "compute-plan-panda";
 pub const COMPUTE_MODEL: &str = "compute-model";
 pub const DEVICE: &str = "device";
+pub const PLANTS: &str = "plants";
 pub const SOAK_FAULTS: &str = "soak-faults";
 pub const SOAK_PROCESSES: &str = "soak-processes";
 pub const SOAK_DATA: &str = "soak-data";
@@ -65,6 +66,7 @@ pub const ALL: &[Entry] = &[
     e(COMPUTE_PLAN_PANDA, None),
     e(COMPUTE_MODEL, None),
     e(DEVICE, None),
+    e(PLANTS, Some(PERFORMANCE)),
     e(SOAK_FAULTS, None),
     e(SOAK_PROCESSES, None),
     e(SOAK_DATA, None),
@@ -102,6 +104,6 @@ mod tests {
             );
         }
         assert!(known(E2E_REQUESTS) && !known("e2e-request"));
-        assert_eq!(carried_by(PERFORMANCE).count(), 5);
+        assert_eq!(carried_by(PERFORMANCE).count(), 6);
     }
 }
