@@ -1,4 +1,4 @@
-//! `chaosd-plant-mujoco` finds the MuJoCo library where it was linked from: the build records
+//! `chaosd-plant-mujoco` and `chaosd-mujoco-judge` find the MuJoCo library where they were linked from: the build records
 //! `MUJOCO_DYNAMIC_LINK_DIR` as the binary's run path, so no `LD_LIBRARY_PATH` is needed.
 
 fn main() {
@@ -7,6 +7,8 @@ fn main() {
         return;
     }
     if let Ok(dir) = std::env::var("MUJOCO_DYNAMIC_LINK_DIR") {
-        println!("cargo::rustc-link-arg-bin=chaosd-plant-mujoco=-Wl,-rpath,{dir}");
+        for bin in ["chaosd-plant-mujoco", "chaosd-mujoco-judge"] {
+            println!("cargo::rustc-link-arg-bin={bin}=-Wl,-rpath,{dir}");
+        }
     }
 }

@@ -5,6 +5,7 @@
 //! robot's spheres are compared the same way: the same `RunStats` counts contact, clearance and
 //! the filter's activity for both. Only the simulation differs, and it is chosen here.
 
+use super::mujoco_judge::{self, MujocoJudge, Verdict};
 use anyhow::Result;
 use control::analysis::{classify, ArmFlow, ClassifyConfig, Motion, Section, Trajectory};
 use control::config::spatial::SpatialConfig;
@@ -60,9 +61,38 @@ pub fn run(cell: &Cell, w: &Window) -> RunResult {
     match &cell.arm {
         Arm::Planar(c) => run_planar(c, w),
         Arm::Spatial(c, chain) => {
-            run_spatial(c, chain, w).unwrap_or_else(|e| Err(format!("{e:#}")))
+            run_spatial(c, chain, w, None).unwrap_or_else(|e| Err(format!("{e:#}")))
         }
     }
+}
+
+/// Runs one cell and has MuJoCo judge a robot's run over its own geometry, from the moment the
+/// capsules first got clear (a start inside an obstacle is the study's, not a motion's). The
+/// planar arm has no MuJoCo model: its verdict is `None`.
+pub fn run_judged(
+    cell: &Cell,
+    w: &Window,
+    judge: &MujocoJudge,
+) -> (RunResult, Option<Result<Verdict, String>>) {
+    let Arm::Spatial(c, chain) = &cell.arm else {
+        return (run(cell, w), None);
+    };
+    let mut samples = Vec::new();
+    let result =
+        run_spatial(c, chain, w, Some(&mut samples)).unwrap_or_else(|e| Err(format!("{e:#}")));
+    let Ok((summary, _, _)) = &result else {
+        return (result, None);
+    };
+    let from = summary.first_clear.unwrap_or(0.0);
+    let n = chain.dof() + 1;
+    let first = samples
+        .chunks_exact(n)
+        .position(|r| r[0] >= from - 1e-12)
+        .unwrap_or(samples.len() / n);
+    let verdict = judge
+        .judge(c, chain, &samples[first * n..])
+        .map_err(|e| format!("{e:#}"));
+    (result, Some(verdict))
 }
 
 /// Checks a robot's cell builds, as [`run`] will build it.
@@ -104,7 +134,13 @@ fn diverged(t: f64) -> String {
 
 /// A robot's run: the unplanned law (as the planar study runs it), strobed at t = kT as
 /// `chaosctl poincare` strobes it, every step recorded by the planar arm's `RunStats`.
-fn run_spatial(cfg: &SpatialConfig, chain: &Chain, w: &Window) -> Result<RunResult> {
+/// With `record`, appends `t, q1 … qN` every [`mujoco_judge::SAMPLE_S`].
+fn run_spatial(
+    cfg: &SpatialConfig,
+    chain: &Chain,
+    w: &Window,
+    mut record: Option<&mut Vec<f64>>,
+) -> Result<RunResult> {
     let kind = cfg.task_kind()?;
     Ok(with_dof!(chain.dof(), N => {
         let s = cfg.setup::<N>(chain)?;
@@ -117,9 +153,14 @@ fn run_spatial(cfg: &SpatialConfig, chain: &Chain, w: &Window) -> Result<RunResu
             let mut next = 0u64; // the next strobe's period index
             let strobe_step = |m: u64| (m as f64 * setup.period / s.dt).round() as u64;
             let mut result = None;
+            let every = ((mujoco_judge::SAMPLE_S / s.dt).round() as u64).max(1);
             for _ in 0..=steps {
                 let k = sim.step_index();
                 let x = *sim.state();
+                if let Some(r) = record.as_deref_mut().filter(|_| k % every == 0) {
+                    r.push(sim.time());
+                    r.extend(x.q.iter());
+                }
                 if k == strobe_step(next) {
                     let t = next as f64 * setup.period;
                     if t >= w.section_from - 1e-9 * setup.period {

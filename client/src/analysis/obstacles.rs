@@ -9,7 +9,9 @@
 //! some) is flagged, and its clearance is also measured from the moment it first got clear, so the
 //! filter's push-out is visible instead of hidden.
 
+use super::mujoco_judge::{MujocoJudge, Verdict};
 use super::obstacle_cells::{self, Arm, Cell, RunResult, Window};
+use super::obstacles_judged as judged;
 use super::parallel::{jobs, run_all};
 use super::shard::{self, Grid, Loaded, Shard};
 use super::{check_config, fmt_list, ClassifyArgs};
@@ -131,6 +133,12 @@ pub struct ObstaclesCmd {
     /// PREFIX.shard-I-of-N.json; `chaosctl merge` makes the CSV, table and plot from all N.
     #[arg(long, value_parser = shard::parse_shard, value_name = "I/N")]
     pub shard: Option<Shard>,
+    /// A robot's study only: MuJoCo judges every run a second time over this URDF's or MJCF's
+    /// own collision geometry (its meshes), and the study names each run where the filter kept
+    /// chaosd's capsules clear and MuJoCo saw a link touch; writes PREFIX-mujoco.csv. Needs
+    /// chaosd-mujoco-judge (scripts/mujoco-setup; docs/mujoco.md).
+    #[arg(long = "mujoco-judge", value_name = "MODEL")]
+    pub mujoco_judge: Option<PathBuf>,
 }
 
 /// One run of the study.
@@ -144,6 +152,8 @@ pub struct Row {
     pub motion: Option<Motion>,
     pub k01: Option<f64>,
     pub error: Option<String>,
+    /// MuJoCo's verdict on the run (with --mujoco-judge, a robot's run that finished).
+    pub verdict: Option<Result<Verdict, String>>,
 }
 
 /// The validated study: one cell per run, in the order μ → filter → start.
@@ -358,6 +368,9 @@ fn grid(plan: &Plan) -> Grid {
 pub fn run(args: ObstaclesCmd) -> Result<()> {
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
+    if let Some(model) = &args.mujoco_judge {
+        return run_judged(&args, &plan, model, threads);
+    }
     let work = |c: &Cell| obstacle_cells::run(c, &plan.window);
     if let Some(s) = args.shard {
         shard::run_shard(&grid(&plan), s, &plan.cells, &args.output, threads, work)?;
@@ -365,28 +378,59 @@ pub fn run(args: ObstaclesCmd) -> Result<()> {
     }
     let started = Instant::now();
     let results = run_all(&plan.cells, threads, "obstacles", work)?;
-    finish(&args, &plan, results, Some(started.elapsed().as_secs_f64()))
+    let verdicts = vec![None; results.len()];
+    finish(
+        &args,
+        &plan,
+        (results, verdicts),
+        Some(started.elapsed().as_secs_f64()),
+    )
+}
+
+/// The study with MuJoCo judging every robot run (not sharded: the verdicts are not in a
+/// shard file).
+fn run_judged(args: &ObstaclesCmd, plan: &Plan, model: &Path, threads: usize) -> Result<()> {
+    if args.shard.is_some() {
+        bail!("--mujoco-judge runs the whole study: it does not shard (drop --shard)");
+    }
+    if plan.cells.iter().any(|c| matches!(c.arm, Arm::Planar(_))) {
+        bail!("--mujoco-judge judges a robot's URDF: the paper's planar arm has no MuJoCo model");
+    }
+    let judge = MujocoJudge::new(model)?;
+    let started = Instant::now();
+    let work = |c: &Cell| obstacle_cells::run_judged(c, &plan.window, &judge);
+    let (results, verdicts) = run_all(&plan.cells, threads, "obstacles", work)?
+        .into_iter()
+        .unzip();
+    let wall = Some(started.elapsed().as_secs_f64());
+    finish(args, plan, (results, verdicts), wall)?;
+    Ok(())
 }
 
 /// `chaosctl merge` of obstacles shards: the same CSV, table and plot as the unsharded run.
 pub fn merge(args: ObstaclesCmd, files: Vec<Loaded>) -> Result<()> {
     let plan = plan(&args)?;
+    if args.mujoco_judge.is_some() {
+        bail!("--mujoco-judge runs the whole study: shards carry no verdicts (run it unsharded)");
+    }
     let results: Vec<RunResult> = shard::collect(&grid(&plan), files)?;
-    finish(&args, &plan, results, None)
+    let verdicts = vec![None; results.len()];
+    finish(&args, &plan, (results, verdicts), None)
 }
 
 /// Writes the CSV and plot and prints the table; `wall` is the time of a local run.
 fn finish(
     args: &ObstaclesCmd,
     plan: &Plan,
-    results: Vec<RunResult>,
+    (results, verdicts): (Vec<RunResult>, Vec<Option<Result<Verdict, String>>>),
     wall: Option<f64>,
 ) -> Result<()> {
     let rows: Vec<Row> = plan
         .cells
         .iter()
         .zip(results)
-        .map(|(c, r)| {
+        .zip(verdicts)
+        .map(|((c, r), verdict)| {
             let (summary, motion, k01, error) = match r {
                 Ok((s, m, k)) => (Some(s), Some(m), k, None),
                 Err(e) => (None, None, None, Some(e)),
@@ -399,16 +443,30 @@ fn finish(
                 motion,
                 k01,
                 error,
+                verdict,
             }
         })
         .collect();
     let csv = with_ext(&args.output, "csv");
     write_csv(&csv, &rows)?;
-    let files = plot(&args.output, plan, &rows)?;
+    let mut files = plot(&args.output, plan, &rows)?;
     print_header(plan, rows.len(), wall);
     print_table(plan, &rows, plan.clearance);
+    if let Some(model) = &args.mujoco_judge {
+        let path = suffixed(&args.output, "-mujoco.csv");
+        judged::write_csv(&path, &rows)?;
+        judged::print(model, plan.clearance, &rows, &plan.mus, &plan.filters);
+        files.push(path);
+    }
     super::print_written(&[std::slice::from_ref(&csv), &files[..]].concat());
     Ok(())
+}
+
+/// PREFIX + `tail` (PREFIX-mujoco.csv beside PREFIX.csv).
+fn suffixed(prefix: &Path, tail: &str) -> PathBuf {
+    let mut s = prefix.as_os_str().to_owned();
+    s.push(tail);
+    PathBuf::from(s)
 }
 
 fn print_header(plan: &Plan, runs: usize, wall: Option<f64>) {

@@ -23,6 +23,7 @@
 
 pub mod judge;
 pub mod load;
+pub mod replay;
 pub mod scene;
 mod servo;
 

@@ -1,0 +1,129 @@
+//! `chaosctl obstacles --mujoco-judge MODEL`: every robot run of the study judged a second time by
+//! MuJoCo over the model's own geometry (a robot's meshes), not by chaosd's capsules.
+//!
+//! The study's simulation and its filter see the links as capsules; whether the real links
+//! stayed clear is a question for geometry the controller never saw. Each run's joint
+//! trajectory (one sample every [`SAMPLE_S`]) goes to `chaosd-mujoco-judge` (built by
+//! `scripts/mujoco-setup` beside chaosctl), which poses it in MuJoCo and counts contacts. The
+//! study then names every run where the filter kept the capsules clear and MuJoCo saw a link
+//! touch: the disagreement issue 46 asked to find.
+
+use anyhow::{anyhow, bail, Context, Result};
+use control::config::spatial::SpatialConfig;
+use control::model::Chain;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// The judge's sampling of a trajectory (s): 5 ms, where the arm's links move a few mm.
+pub const SAMPLE_S: f64 = 0.005;
+
+/// The program that judges, and the model it judges by.
+#[derive(Clone, Debug)]
+pub struct MujocoJudge {
+    exe: PathBuf,
+    model: PathBuf,
+}
+
+/// MuJoCo's verdict on one run (the parts of the plant's `ContactReport` the study shows).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Verdict {
+    /// Whether the model had collision geometry on the arm to judge by.
+    pub judged: bool,
+    /// Samples with a link touching an obstacle, and with the arm touching itself.
+    pub contact_samples: u64,
+    pub self_samples: u64,
+    pub first_contact_s: Option<f64>,
+    pub first_pair: Option<String>,
+    /// The smallest signed distance between a link and an obstacle (m; < 0: penetration).
+    pub smallest_distance: Option<f64>,
+}
+
+impl MujocoJudge {
+    /// Finds `chaosd-mujoco-judge` beside this program and checks the model file.
+    pub fn new(model: &Path) -> Result<Self> {
+        if !model.is_file() {
+            bail!("--mujoco-judge {}: no such file", model.display());
+        }
+        let exe = std::env::current_exe()
+            .ok()
+            .and_then(|p| p.parent().map(|d| d.join("chaosd-mujoco-judge")))
+            .filter(|p| p.is_file())
+            .ok_or_else(|| {
+                anyhow!(
+                    "--mujoco-judge needs chaosd-mujoco-judge beside chaosctl: scripts/mujoco-setup \
+                     builds it (docs/mujoco.md)"
+                )
+            })?;
+        Ok(Self {
+            exe,
+            model: model.to_path_buf(),
+        })
+    }
+
+    /// Judges `samples` (each `t, q1 … qN`, flat) of a run of `cfg` on `chain`.
+    pub fn judge(&self, cfg: &SpatialConfig, chain: &Chain, samples: &[f64]) -> Result<Verdict> {
+        let n = chain.dof();
+        let mut cmd = Command::new(&self.exe);
+        cmd.arg("--model").arg(&self.model).arg("--joints").arg(
+            chain
+                .joints
+                .iter()
+                .map(|j| j.name.as_str())
+                .collect::<Vec<_>>()
+                .join(","),
+        );
+        for o in &cfg.obstacles {
+            let [x, y, z] = o.center;
+            cmd.arg("--sphere").arg(format!("{x},{y},{z},{}", o.radius));
+        }
+        // The trajectory goes in as a file, not a pipe: chaosctl keeps SIGPIPE's default (for
+        // `| head`), and a judge that fails early would otherwise end chaosctl with it.
+        let mut text = String::with_capacity(samples.len() * 12);
+        for row in samples.chunks_exact(n + 1) {
+            let line: Vec<String> = row.iter().map(|v| format!("{v:e}")).collect();
+            text.push_str(&line.join(" "));
+            text.push('\n');
+        }
+        let file = Scratch::new(&text)?;
+        let out = cmd
+            .stdin(std::fs::File::open(&file.0)?)
+            .output()
+            .with_context(|| format!("cannot run {}", self.exe.display()))?;
+        if !out.status.success() {
+            bail!("{}", String::from_utf8_lossy(&out.stderr).trim());
+        }
+        let v: Value = serde_json::from_slice(&out.stdout).context("the judge's answer")?;
+        Ok(Verdict {
+            judged: v["judged"].as_bool().unwrap_or(false),
+            contact_samples: v["obstacle_contact_periods"].as_u64().unwrap_or(0),
+            self_samples: v["self_contact_periods"].as_u64().unwrap_or(0),
+            first_contact_s: v["first_contact_s"].as_f64(),
+            first_pair: v["first_pair"].as_str().map(str::to_string),
+            smallest_distance: v["smallest_distance_m"].as_f64(),
+        })
+    }
+}
+
+/// A trajectory file of this process's, removed when dropped.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(text: &str) -> Result<Self> {
+        static NEXT: AtomicU64 = AtomicU64::new(0);
+        let path = std::env::temp_dir().join(format!(
+            "chaosctl-judge-{}-{}.txt",
+            std::process::id(),
+            NEXT.fetch_add(1, Ordering::Relaxed)
+        ));
+        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        Ok(Self(path))
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
