@@ -39,6 +39,9 @@ pub const CORRECTION_SHARE: f64 = 0.05;
 /// acceleration the device sees, past a strict device's rule.
 pub const PULL_SLEW_SHARE: f64 = 0.05;
 
+/// Periods the pull's integral holds after a gap in the stream, per period missed.
+pub const HOLD_OFF_PER_PERIOD: u32 = 10;
+
 /// One tick's command in every interface's terms (the plant uses the one its mode names).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Command<const N: usize> {
@@ -87,6 +90,10 @@ pub struct Pull<const N: usize> {
     pub rate: VecN<N>,
     /// ∫(q_r − q)dt (rad·s), held while the pull is at its cap (no wind-up).
     pub integral: VecN<N>,
+    /// Periods left during which the integral holds: a gap in the stream (a stall of the
+    /// controller) leaves an error that is the stall's, not the servo's lag, and integrating
+    /// it made the pull overshoot for a second after every long stall.
+    pub hold_off: u32,
 }
 
 impl<const N: usize> Default for Pull<N> {
@@ -94,6 +101,7 @@ impl<const N: usize> Default for Pull<N> {
         Self {
             rate: VecN::<N>::zeros(),
             integral: VecN::<N>::zeros(),
+            hold_off: 0,
         }
     }
 }
@@ -103,7 +111,8 @@ impl<const N: usize> Default for Pull<N> {
 pub struct Stream<const N: usize> {
     reference: MotionState<N>,
     last_tau: VecN<N>,
-    pull: Pull<N>,
+    /// Velocity mode's position correction.
+    pub pull: Pull<N>,
     saturations: Saturations<N>,
 }
 
@@ -261,6 +270,8 @@ impl<const N: usize> MotionGenerator<N> {
         let dt = self.limiter_dt();
         let last = &self.pull;
         let mut next = *last;
+        let integrate = last.hold_off == 0;
+        next.hold_off = last.hold_off.saturating_sub(1);
         for i in 0..N {
             let (kv, ki) = (self.gains.kv[i], self.gains.ki[i]);
             let integral = last.integral[i] + error[i] * dt;
@@ -271,7 +282,7 @@ impl<const N: usize> MotionGenerator<N> {
             } else {
                 wanted
             };
-            if capped == wanted {
+            if capped == wanted && integrate {
                 next.integral[i] = integral;
             }
             let step = PULL_SLEW_SHARE * l.qdd[i] * dt;
@@ -313,6 +324,10 @@ impl<const N: usize> MotionGenerator<N> {
         }
         hits.iter_mut().zip(&c.hits).for_each(|(h, x)| *h |= x);
         c.hits = hits;
+        if self.mode == CommandMode::Velocity {
+            c.pull.integral = self.pull.integral;
+            c.pull.hold_off = c.pull.hold_off.max(HOLD_OFF_PER_PERIOD * periods);
+        }
         c
     }
 
@@ -495,6 +510,35 @@ mod tests {
         assert!(c.pull.integral[0] * 100.0 <= cap, "{}", c.pull.integral[0]);
         let c = run(&mut g, &q, 200);
         assert!(c.qd[0].abs() <= cap, "{}", c.qd[0]);
+    }
+
+    #[test]
+    fn after_a_gap_the_integral_holds_while_the_stall_s_error_is_taken_back() {
+        let (mut g, _) = panda_with(CommandMode::Velocity, 100.0);
+        let q = VecN::<7>::from_column_slice(&crate::config::spatial::PANDA_READY);
+        let zero = VecN::<7>::zeros();
+        g.restart(&q, &zero);
+        let mut behind = q;
+        behind[0] -= 1e-4;
+        for _ in 0..10 {
+            let c = g.next(&behind, &zero, &zero, &zero);
+            g.commit(&c);
+        }
+        let before = g.stream().pull.integral[0];
+        assert!(before > 0.0);
+        // A command 20 periods late: the pull still pushes (P), the integral holds for
+        // 10 periods per period missed, then integrates again.
+        let c = g.next_over(&behind, &zero, &zero, &zero, 20);
+        assert_eq!(c.pull.hold_off, HOLD_OFF_PER_PERIOD * 20);
+        assert_eq!(c.pull.integral[0], before);
+        g.commit(&c);
+        for _ in 0..HOLD_OFF_PER_PERIOD * 20 {
+            let c = g.next(&behind, &zero, &zero, &zero);
+            g.commit(&c);
+        }
+        assert_eq!(g.stream().pull.integral[0], before);
+        let c = g.next(&behind, &zero, &zero, &zero);
+        assert!(c.pull.integral[0] > before);
     }
 
     #[test]
