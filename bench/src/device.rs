@@ -123,15 +123,7 @@ fn one(row: &Row, dir: &Path, i: usize) -> Result<Outcome> {
     if !row.limiter {
         cmd.arg("--no-limiter");
     }
-    crate::child::harden(&mut cmd);
-    let o = cmd.output().context("cannot run chaosd demo")?;
-    if !o.status.success() {
-        bail!(
-            "chaosd demo failed ({}): {}",
-            o.status,
-            String::from_utf8_lossy(&o.stderr)
-        );
-    }
+    crate::device::run_demo(cmd)?;
     let read = |f: &str| crate::e2e::read_json(&dir.join(f));
     let (d, f) = (read("daemon-summary.json")?, read("fakebot-summary.json")?);
     let n = |v: &Value| v.as_u64().unwrap_or(0);
@@ -161,4 +153,19 @@ fn one(row: &Row, dir: &Path, i: usize) -> Result<Outcome> {
             .map(n)
             .sum(),
     })
+}
+
+/// Runs a prepared `chaosd demo` to its end (hardened: it dies with the bench); its stderr in
+/// the error if it failed.
+pub fn run_demo(mut cmd: Command) -> Result<()> {
+    crate::child::harden(&mut cmd);
+    let o = cmd.output().context("cannot run chaosd demo")?;
+    if !o.status.success() {
+        bail!(
+            "chaosd demo failed ({}): {}",
+            o.status,
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    Ok(())
 }

@@ -11,7 +11,7 @@
 
 use crate::e2e::{read_json, sibling};
 use crate::report::{self, Report};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -117,15 +117,7 @@ fn one(row: &Row, seconds: f64, dir: &Path, i: usize) -> Result<(Value, Value)> 
             cmd.arg("--mujoco-model").arg(m);
         }
     }
-    crate::child::harden(&mut cmd);
-    let o = cmd.output().context("cannot run chaosd demo")?;
-    if !o.status.success() {
-        bail!(
-            "chaosd demo failed ({}): {}",
-            o.status,
-            String::from_utf8_lossy(&o.stderr)
-        );
-    }
+    crate::device::run_demo(cmd)?;
     Ok((
         read_json(&dir.join("daemon-summary.json"))?,
         read_json(&dir.join("plant-summary.json"))?,
