@@ -14,6 +14,21 @@ use control::sim::spatial::SpatialSimulation;
 use control::sim::{RunStats, StatsSetup};
 use control::{with_dof, with_task_rows, Config, Summary};
 
+/// One run of the study.
+#[derive(serde::Serialize, Clone, Debug)]
+pub struct Row {
+    pub mu: f64,
+    pub safety: bool,
+    pub q0: Vec<f64>,
+    /// Everything `simulate` reports (clearance, contact, filter activity, tracking).
+    pub summary: Option<Summary>,
+    pub motion: Option<Motion>,
+    pub k01: Option<f64>,
+    pub error: Option<String>,
+    /// MuJoCo's verdict on the run (with --mujoco-judge, a robot's run that finished).
+    pub verdict: Option<Result<Verdict, String>>,
+}
+
 /// One run's result, as a shard file carries it.
 pub type RunResult = Result<(Summary, Motion, Option<f64>), String>;
 

@@ -10,7 +10,7 @@
 //! filter's push-out is visible instead of hidden.
 
 use super::mujoco_judge::{MujocoJudge, Verdict};
-use super::obstacle_cells::{self, Arm, Cell, RunResult, Window};
+use super::obstacle_cells::{self, Arm, Cell, Row, RunResult, Window};
 use super::obstacles_judged as judged;
 use super::parallel::{jobs, run_all};
 use super::shard::{self, Grid, Loaded, Shard};
@@ -19,11 +19,9 @@ use crate::plot::{with_ext, Chart, Figure, Panel, Rule, Series, Style, DARK, GRE
 use crate::setup::{parse_list, FloatList, SetupArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use control::analysis::Motion;
 use control::config::spatial::{SpatialConfig, SphereEntry};
 use control::config::ObstacleConfig;
 use control::{Config, Summary};
-use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -139,21 +137,6 @@ pub struct ObstaclesCmd {
     /// chaosd-mujoco-judge (scripts/mujoco-setup; docs/mujoco.md).
     #[arg(long = "mujoco-judge", value_name = "MODEL")]
     pub mujoco_judge: Option<PathBuf>,
-}
-
-/// One run of the study.
-#[derive(Serialize, Clone, Debug)]
-pub struct Row {
-    pub mu: f64,
-    pub safety: bool,
-    pub q0: Vec<f64>,
-    /// Everything `simulate` reports (clearance, contact, filter activity, tracking).
-    pub summary: Option<Summary>,
-    pub motion: Option<Motion>,
-    pub k01: Option<f64>,
-    pub error: Option<String>,
-    /// MuJoCo's verdict on the run (with --mujoco-judge, a robot's run that finished).
-    pub verdict: Option<Result<Verdict, String>>,
 }
 
 /// The validated study: one cell per run, in the order μ → filter → start.

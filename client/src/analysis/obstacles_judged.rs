@@ -7,7 +7,7 @@
 //! touching, meshes clear) is the capsules' conservatism, counted but not listed.
 
 use super::mujoco_judge::{Verdict, SAMPLE_S};
-use super::obstacles::Row;
+use super::obstacle_cells::Row;
 use anyhow::{Context, Result};
 use std::io::Write;
 use std::path::Path;
