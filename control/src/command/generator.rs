@@ -111,8 +111,7 @@ impl<const N: usize> Default for Pull<N> {
 pub struct Stream<const N: usize> {
     reference: MotionState<N>,
     last_tau: VecN<N>,
-    /// Velocity mode's position correction.
-    pub pull: Pull<N>,
+    pull: Pull<N>,
     saturations: Saturations<N>,
 }
 
