@@ -101,12 +101,13 @@ fn filter_cost(
     for x in xs {
         let mut k = Kinematics::<3>::default();
         m.kinematics(x.phi, &x.q, &x.qd, &mut k);
-        let (jpinv, _, _) = control::resolve::damped_pinv(&k.j, p.damping_threshold, p.damping_max);
+        let (jpinv, _, _) =
+            control::resolve::damped_pinv(&k.j, p.core.damping_threshold, p.core.damping_max);
         let mut off = p;
-        off.safety.enabled = false;
+        off.core.safety.enabled = false;
         let qdd = evaluate(&off, &m, 0.0, x.phi, &x.q, &x.qd, &x.qd, &mut k.clone()).qdd;
         let f = control::safety::filter(
-            &p.safety,
+            &p.core.safety,
             &m,
             &p.obstacles,
             &k,
@@ -136,7 +137,7 @@ fn filter_cost(
     Ok(per_call(batches, batch, |i| {
         let (k, jpinv, x, qdd) = &cases[i % cases.len()];
         black_box(control::safety::filter(
-            &p.safety,
+            &p.core.safety,
             &m,
             &p.obstacles,
             k,

@@ -66,7 +66,7 @@ fn job(chain: &Chain, spheres: &[[f64; 4]], at: f64) -> Result<Job> {
         start.dt,
         start.q0,
         start.qd0,
-        start.params.tau,
+        start.params.core.tau,
     );
     while sim.time() < at {
         sim.step();

@@ -60,7 +60,7 @@ pub fn law<const N: usize>(
     let vd = DVector::from_column_slice(target.v.as_slice());
     let ad = DVector::from_column_slice(target.a.as_slice());
     let p = fk(&qv);
-    let acc = &ad + (&vd - &j * &qdv) * params.kv + (&pd - &p) * params.kp - &jdq;
+    let acc = &ad + (&vd - &j * &qdv) * params.core.kv + (&pd - &p) * params.core.kp - &jdq;
     // ∇w by the determinant formula with dynamic matrices.
     let a = &j * j.transpose();
     let w = a.determinant().max(0.0).sqrt();
@@ -86,7 +86,7 @@ pub fn law<const N: usize>(
         grad[k] = w * (&ainv * &h * j.transpose()).trace();
     }
     let eye = DMatrix::<f64>::identity(n, n);
-    &jpinv * acc + (eye - &jpinv * &j) * grad * params.alpha
+    &jpinv * acc + (eye - &jpinv * &j) * grad * params.core.alpha
 }
 
 #[cfg(test)]

@@ -154,7 +154,7 @@ pub fn section(quick: bool) -> Result<String> {
     row("spatial law, pose task (m = 6), filter on", &law6);
     // The filter alone, on the law's own unfiltered command at each state.
     let mut off = s.params;
-    off.safety.enabled = false;
+    off.core.safety.enabled = false;
     let (mut binding, mut left, mut infeasible) = (0usize, 0usize, 0usize);
     let cases: Vec<_> = xs
         .iter()
@@ -162,9 +162,13 @@ pub fn section(quick: bool) -> Result<String> {
             let mut kin = SpatialKinematics::<7>::default();
             let qdd = law::evaluate::<7, 3>(&off, &s.arm, 1.0, &x.q, &x.qd, &x.qd, &mut kin).qdd;
             let j = kin.jac.fixed_rows::<3>(0).into_owned();
-            let (jpinv, _, _) = damped_pinv_m(&j, s.params.damping_threshold, s.params.damping_max);
+            let (jpinv, _, _) = damped_pinv_m(
+                &j,
+                s.params.core.damping_threshold,
+                s.params.core.damping_max,
+            );
             let f = safety::filter(
-                &s.params.safety,
+                &s.params.core.safety,
                 &s.arm,
                 &s.params.spheres,
                 &kin,
@@ -183,7 +187,7 @@ pub fn section(quick: bool) -> Result<String> {
     let filter = crate::timing::per_call(batches, batch, |i| {
         let (kin, j, jpinv, x, qdd) = &cases[i % cases.len()];
         black_box(safety::filter(
-            &s.params.safety,
+            &s.params.core.safety,
             &s.arm,
             &s.params.spheres,
             kin,

@@ -15,7 +15,6 @@ use control::config::spatial::SpatialSetup;
 use control::config::spatial::SphereEntry;
 use control::plan::{PlanOutcome, PlanSettings};
 use control::sim::spatial::run as simulate;
-use control::sim::spatial::SpatialSimulation;
 use control::system::SpatialSystem;
 use control::task::spatial::Path as TaskPath;
 use control::task::spatial::Vec3;
@@ -85,7 +84,7 @@ fn path_and_posture(sys: &SpatialSystem, at: f64) -> Result<(TaskPath, Vec<f64>)
         if at > 0.0 {
             with_task_rows!(kind, |M| {
                 let mut sim =
-                    SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+                    s.simulation::<M>();
                 simulate(&mut sim, at, 0.0, |_, x, _| q = x.q.iter().copied().collect());
             });
         }

@@ -157,8 +157,7 @@ pub fn simulate(
             let qd: Vec<String> = (1..=N).map(|i| format!("qd{i}")).collect();
             writeln!(w, "t,{},{}", q.join(","), qd.join(","))?;
         }
-        let mut sim =
-            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        let mut sim = s.simulation::<M>();
         let mut err = None;
         let mut k = 0u64;
         let mut traps = OfflineTraps::new(system.clone(), s.params.steer.map(Steering::Spatial));
@@ -301,8 +300,7 @@ pub fn print(r: &SpatialReport) {
 /// One run of `cfg` to its duration: the summary alone.
 pub fn run_summary(cfg: &SpatialConfig) -> Result<Summary> {
     Ok(with_setup!(cfg, |s, N, M| {
-        let mut sim =
-            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        let mut sim = s.simulation::<M>();
         run(&mut sim, s.duration, s.transient, |_, _, _| {})
     }))
 }
@@ -318,8 +316,7 @@ pub fn section(
     control::analysis::Classification,
 )> {
     Ok(with_setup!(cfg, |s, N, M| {
-        let sim =
-            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        let sim = s.simulation::<M>();
         let mut flow = control::analysis::ArmFlow::of(sim);
         control::analysis::spatial::section(&mut flow, duration, transient, classify)
     }))
@@ -345,9 +342,10 @@ pub fn watch(
     settings: control::monitor::MonitorSettings,
 ) -> Result<control::monitor::run::Watched> {
     Ok(with_setup!(cfg, |s, N, M| {
-        let mut sim =
-            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
-        control::monitor::run::watch_sim(&mut sim, duration, settings, s.params.tau, |_, _| None)
+        let mut sim = s.simulation::<M>();
+        control::monitor::run::watch_sim(&mut sim, duration, settings, s.params.core.tau, |_, _| {
+            None
+        })
     }))
 }
 
@@ -363,8 +361,7 @@ pub fn lyapunov(
     let renorm = renorm.unwrap_or(cfg.task.period);
     let window = window.unwrap_or([duration / 3.0, duration]);
     let (e, growth) = with_setup!(cfg, |s, N, M| {
-        let sim =
-            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        let sim = s.simulation::<M>();
         let mut b = Benettin::new(control::analysis::ArmFlow::of(sim), d0, renorm)?;
         b.advance_to(duration)?;
         (
@@ -398,7 +395,7 @@ pub fn orbit_stability(
 ) -> Result<control::analysis::OrbitStability> {
     Ok(with_setup!(cfg, |s, N, M| {
         let mut p = s.params;
-        p.mu = mu;
+        p.core.mu = mu;
         control::analysis::spatial::orbit_stability::<N, M>(&s.arm, &p, s.dt, orbit, spec)?
     }))
 }
@@ -435,8 +432,9 @@ pub fn orbits(
         let found = with_setup!(cfg, |s, N, M| {
             let steps = control::analysis::period_steps(period, s.dt)?;
             let mut p = s.params;
-            p.mu = mu;
-            let mut sim = SpatialSimulation::<N, M>::spatial(s.arm, p, s.dt, s.q0, s.qd0, p.tau);
+            p.core.mu = mu;
+            let mut sim =
+                SpatialSimulation::<N, M>::spatial(s.arm, p, s.dt, s.q0, s.qd0, p.core.tau);
             for _ in 0..(duration / period).round() as u64 * steps {
                 sim.step();
             }
@@ -468,8 +466,7 @@ pub fn run_end(
     classify: &control::analysis::ClassifyConfig,
 ) -> Result<(control::analysis::Classification, f64, Vec<f64>)> {
     Ok(with_setup!(cfg, |s, N, M| {
-        let mut sim =
-            SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+        let mut sim = s.simulation::<M>();
         let period = s.params.task.path.period;
         let mut sec = control::analysis::Section::new(2 * N, N);
         let mut last = Vec::new();

@@ -9,7 +9,6 @@ use control::arm::spatial::SpatialKinematics;
 use control::config::spatial::SpatialConfig;
 use control::config::spatial::SpatialSetup;
 use control::sim::spatial::run;
-use control::sim::spatial::SpatialSimulation;
 use control::{with_dof, with_task_rows};
 use std::f64::consts::TAU;
 use std::path::Path;
@@ -37,7 +36,7 @@ fn simulate(cfg: &SpatialConfig, from: f64, span: f64, frames: usize) -> Result<
     with_dof!(chain.dof(), N => {
         let s: SpatialSetup<N> = cfg.setup::<N>(&chain)?;
         with_task_rows!(kind, |M| {
-            let mut sim = SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+            let mut sim = s.simulation::<M>();
             let stride = ((0.01 / s.dt).round() as u64).max(1);
             let every = (span / frames as f64 / s.dt).round().max(1.0) as u64;
             let start = (from / s.dt).round() as u64;

@@ -5,18 +5,18 @@
 //! ask which it is: both evaluate to the same [`ControlOutput`], read q̇(t − τ) from the same delay
 //! line and obey the same [`SafetyParams`] (the runaway guard's limits). One `match` per
 //! evaluation is the whole cost of the choice; the scratch for both lives side by side so a
-//! switch never allocates.
+//! switch never allocates. Gains, feedback, limits and pause are every arm's [`LawCore`]: read
+//! and changed through [`TickLaw::core`], with no per-arm code.
 
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::arm::{ArmModel, Kinematics, VecN};
 use crate::law::spatial as spatial_law;
 use crate::law::spatial::SpatialParams;
-use crate::law::{self, LawParams};
+use crate::law::{self, LawCore, LawParams};
 use crate::resolve::ControlOutput;
 use crate::safety::SafetyParams;
-use crate::sim::law::adapt_mu;
-use crate::sim::{ArmState, LoopFeedback};
+use crate::sim::ArmState;
 use crate::task::spatial::TaskKind;
 
 /// The arm model and the parameters of its law, as one `Copy` block.
@@ -45,12 +45,17 @@ pub enum ParamBlock {
 }
 
 impl ParamBlock {
+    /// The gains, feedback and limits of the block's law.
+    pub fn core(&self) -> &LawCore {
+        match self {
+            ParamBlock::Planar(p) => &p.core,
+            ParamBlock::Spatial(p) => &p.core,
+        }
+    }
+
     /// The limits the block's law obeys.
     pub fn safety(&self) -> &SafetyParams {
-        match self {
-            ParamBlock::Planar(p) => &p.safety,
-            ParamBlock::Spatial(p) => &p.safety,
-        }
+        &self.core().safety
     }
 }
 
@@ -108,19 +113,30 @@ impl<const N: usize> TickLaw<N> {
         }
     }
 
-    pub fn safety(&self) -> &SafetyParams {
+    /// The gains, feedback and limits every arm's law has: the one place that asks which arm
+    /// the law drives for them.
+    pub fn core(&self) -> &LawCore {
         match self {
-            TickLaw::Planar { params, .. } => &params.safety,
-            TickLaw::Spatial { params, .. } => &params.safety,
+            TickLaw::Planar { params, .. } => &params.core,
+            TickLaw::Spatial { params, .. } => &params.core,
         }
+    }
+
+    pub fn core_mut(&mut self) -> &mut LawCore {
+        match self {
+            TickLaw::Planar { params, .. } => &mut params.core,
+            TickLaw::Spatial { params, .. } => &mut params.core,
+        }
+    }
+
+    pub fn safety(&self) -> &SafetyParams {
+        &self.core().safety
     }
 
     /// (μ, τ, t_on, feedback switch).
     pub fn feedback(&self) -> (f64, f64, f64, bool) {
-        match self {
-            TickLaw::Planar { params: p, .. } => (p.mu, p.tau, p.t_on, p.feedback),
-            TickLaw::Spatial { params: p, .. } => (p.mu, p.tau, p.t_on, p.feedback),
-        }
+        let c = self.core();
+        (c.mu, c.tau, c.t_on, c.feedback)
     }
 
     /// Adapts μ after a law run whose output was `out`, `dt` after the last one (`feedback.mu =
@@ -128,49 +144,25 @@ impl<const N: usize> TickLaw<N> {
     /// tracking is paused: the braking arm's residual says nothing about the gain.
     #[inline]
     pub fn adapt(&mut self, out: &ControlOutput<N>, dt: f64) {
-        match self {
-            TickLaw::Planar { params: p, .. } => {
-                adapt_mu(&mut p.auto_mu, &mut p.mu, p.projection, p.pause, out, dt)
-            }
-            TickLaw::Spatial { params: p, .. } => {
-                adapt_mu(&mut p.auto_mu, &mut p.mu, p.projection, p.pause, out, dt)
-            }
-        }
+        self.core_mut().adapt(out, dt)
     }
 
     /// The gain and its adaptation's state: all that [`Self::adapt`] changes, for a caller that
     /// runs a tick and undoes it ([`Self::set_gain`]).
     pub fn gain(&self) -> (f64, Option<crate::adapt::AutoMu>) {
-        match self {
-            TickLaw::Planar { params: p, .. } => (p.mu, p.auto_mu),
-            TickLaw::Spatial { params: p, .. } => (p.mu, p.auto_mu),
-        }
+        (self.core().mu, self.core().auto_mu)
     }
 
     /// Puts the gain back where [`Self::gain`] found it.
     pub fn set_gain(&mut self, (mu, auto_mu): (f64, Option<crate::adapt::AutoMu>)) {
-        match self {
-            TickLaw::Planar { params: p, .. } => (p.mu, p.auto_mu) = (mu, auto_mu),
-            TickLaw::Spatial { params: p, .. } => (p.mu, p.auto_mu) = (mu, auto_mu),
-        }
+        let c = self.core_mut();
+        (c.mu, c.auto_mu) = (mu, auto_mu);
     }
 
-    /// After a new parameter block: an adapting gain goes on from `mu` (the gain before the
-    /// change) rather than from the block's start, so an edit does not throw the adaptation away;
-    /// never past the block's `max_mu`, which the adaptation itself never passes.
+    /// After a new parameter block: an adapting gain goes on from `mu`, the gain before the
+    /// change ([`LawCore::carry_adapted_mu`]).
     pub fn carry_adapted_mu(&mut self, mu: f64) {
-        match self {
-            TickLaw::Planar { params: p, .. } => {
-                if let Some(a) = p.auto_mu {
-                    p.mu = mu.min(a.max_mu);
-                }
-            }
-            TickLaw::Spatial { params: p, .. } => {
-                if let Some(a) = p.auto_mu {
-                    p.mu = mu.min(a.max_mu);
-                }
-            }
-        }
+        self.core_mut().carry_adapted_mu(mu)
     }
 
     pub fn tau(&self) -> f64 {
@@ -209,10 +201,7 @@ impl<const N: usize> TickLaw<N> {
 
     /// Pauses tracking (the arm brakes to rest under the filter), or resumes it.
     pub fn set_pause(&mut self, pause: bool) {
-        match self {
-            TickLaw::Planar { params, .. } => params.pause = pause,
-            TickLaw::Spatial { params, .. } => params.pause = pause,
-        }
+        self.core_mut().pause = pause
     }
 
     /// Where a spatial arm's tool point is at `q` (None for the planar arm, whose law always
@@ -248,18 +237,11 @@ impl<const N: usize> crate::sim::ClosedLoopLaw<N> for TickLaw<N> {
     ) -> ControlOutput<N> {
         TickLaw::evaluate(self, t, x, delayed, scratch)
     }
-    fn loop_feedback(&self) -> LoopFeedback {
-        match self {
-            TickLaw::Planar { params: p, .. } => {
-                LoopFeedback::of(p.mu, p.tau, p.projection, p.feedback)
-            }
-            TickLaw::Spatial { params: p, .. } => {
-                LoopFeedback::of(p.mu, p.tau, p.projection, p.feedback)
-            }
-        }
+    fn core(&self) -> &LawCore {
+        TickLaw::core(self)
     }
-    fn adapt(&mut self, out: &ControlOutput<N>, dt: f64) {
-        TickLaw::adapt(self, out, dt)
+    fn core_mut(&mut self) -> &mut LawCore {
+        TickLaw::core_mut(self)
     }
     fn is_floating(&self) -> bool {
         matches!(self, TickLaw::Planar { model, .. } if model.is_floating())

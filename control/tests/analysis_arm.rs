@@ -99,7 +99,7 @@ fn feedback_orbit_is_period_one_and_a_newton_fixed_point_with_the_tracking_multi
 
     // The task-space error obeys ë + K_v ė + K_p e = 0 exactly, so four multipliers are e^{sT} for
     // the roots s of s² + 15 s + 40, each twice (x and y).
-    let (kp, kv) = (params.kp, params.kv);
+    let (kp, kv) = (params.core.kp, params.core.kv);
     let disc = (kv * kv - 4.0 * kp).sqrt();
     for s in [(-kv + disc) / 2.0, (-kv - disc) / 2.0] {
         let want = (s * params.task.period).exp();
@@ -206,7 +206,7 @@ fn on_orbit_exponent_is_the_floquet_exponent_and_feedback_stabilises_the_ellipti
     )
     .unwrap();
     assert!(s0.lyapunov.lambda_max.abs() < 0.05, "{:?}", s0.lyapunov);
-    params.mu = 0.2;
+    params.core.mu = 0.2;
     let s1 = orbit_stability(
         &model,
         &params,
@@ -282,8 +282,8 @@ fn the_delayed_spectrum_converges_as_the_history_grid_is_refined() {
     let rate = |dt: f64| {
         let mut p = cfg.law_params();
         let orbit = find_orbit(&model, &p, dt, &seed, &NewtonConfig::default()).unwrap();
-        p.mu = 0.2;
-        p.t_on = p.task.period;
+        p.core.mu = 0.2;
+        p.core.t_on = p.task.period;
         let mut flow = ArmFlow::new(model, p, dt, orbit.state::<3>());
         flow.advance_to(p.task.period);
         let steps = (p.task.period / dt).round() as u64;

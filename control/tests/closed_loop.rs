@@ -179,7 +179,7 @@ fn pyragas_term_vanishes_on_a_period_tau_orbit() {
     );
     let x: ArmState<3> = *sim.state();
     let mut strong = sim.clone();
-    strong.law.params.mu = 3.0;
+    strong.law.params.core.mu = 3.0;
     for _ in 0..1000 {
         sim.step();
         strong.step();

@@ -110,7 +110,7 @@ fn auto_in_a_config_file_parses_round_trips_and_refuses_bad_gains() {
         })
     );
     assert_eq!(c.feedback.mu, 0.0);
-    assert!(c.law_params().feedback_active(c.feedback.t_on + 1.0));
+    assert!(c.law_params().core.feedback_active(c.feedback.t_on + 1.0));
     let again = Config::parse(&c.to_toml_string()).unwrap();
     assert_eq!(again.feedback, c.feedback);
     let plain = Config::parse("[feedback]\nmu = 0.2\n").unwrap();

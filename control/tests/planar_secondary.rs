@@ -51,7 +51,10 @@ fn a_registered_task_and_centring_drive_the_planar_arm() {
     custom::register(&[("toward-zero", &TOWARD_ZERO)]).unwrap();
 
     let own = paper("toward-zero").unwrap();
-    assert!(matches!(own.law_params().secondary, Secondary::Custom(_)));
+    assert!(matches!(
+        own.law_params().core.secondary,
+        Secondary::Custom(_)
+    ));
     let (value, q) = run(&own);
     let half_q2: f64 = q.iter().map(|v| 0.5 * v * v).sum();
     // The value is the task's at the last step's start, a millisecond before the final q.
@@ -70,7 +73,7 @@ fn a_registered_task_and_centring_drive_the_planar_arm() {
     cfg.safety.q_min = Some(vec![-3.0; 3]);
     cfg.safety.q_max = Some(vec![3.0; 3]);
     cfg.validate().unwrap();
-    assert_eq!(cfg.law_params().secondary, Secondary::Centring);
+    assert_eq!(cfg.law_params().core.secondary, Secondary::Centring);
     let (c, q) = run(&cfg);
     let expected: f64 = q.iter().map(|v| 0.5 * (v / 6.0) * (v / 6.0)).sum();
     assert!(

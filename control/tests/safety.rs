@@ -276,7 +276,7 @@ fn run<const N: usize>(cfg: &Config, duration: f64) -> Outcome {
         let x = *sim.state();
         let o = sim.step();
         stats.record(k, &x, &o);
-        clear_once |= o.clearance >= p.safety.clearance;
+        clear_once |= o.clearance >= p.core.safety.clearance;
         if clear_once {
             out.min_clearance = out.min_clearance.min(o.clearance);
             if o.clearance < 0.0 {
@@ -446,7 +446,7 @@ fn an_obstacle_that_appears_on_a_link_pushes_it_out_at_a_bounded_acceleration() 
         if let Some(t) = out_at {
             if k > t + 500 {
                 assert!(
-                    o.clearance >= p.safety.clearance - 1e-3,
+                    o.clearance >= p.core.safety.clearance - 1e-3,
                     "back inside at step {k}: {}",
                     o.clearance
                 );
@@ -455,7 +455,7 @@ fn an_obstacle_that_appears_on_a_link_pushes_it_out_at_a_bounded_acceleration() 
     }
     let out_at = out_at.expect("the link never left the obstacle");
     assert!(out_at < 1000, "took {out_at} ms to leave the obstacle");
-    let qdd_max = p.safety.qdd_max[0];
+    let qdd_max = p.core.safety.qdd_max[0];
     assert!(worst_acc <= qdd_max, "|q̈| {worst_acc} beyond {qdd_max}");
     assert!(
         worst_jump <= qdd_max * dt * 1.0001,

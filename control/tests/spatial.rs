@@ -207,31 +207,33 @@ fn panda_params(arm: &SpatialArm<7>, kind: TaskKind) -> (SpatialParams, V7) {
     ]);
     safety.q_max[..7].copy_from_slice(&[2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973]);
     let p = SpatialParams {
+        core: control::law::LawCore {
+            kp: 40.0,
+            kv: 15.0,
+            alpha: 20.0,
+            secondary: control::Secondary::Centring,
+            damping_threshold: 0.05,
+            damping_max: 0.05,
+            mu: 3.0,
+            tau: 2.0,
+            t_on: 0.0,
+            feedback: true,
+            projection: Projection::NullSpace,
+            auto_mu: None,
+            safety,
+            track_loss: 0.05,
+            pause: false,
+        },
         task: SpatialTask {
             kind,
             path,
             orientation: Rotation3::from_matrix_unchecked(k.rot),
         },
-        kp: 40.0,
-        kv: 15.0,
-        alpha: 20.0,
-        secondary: control::Secondary::Centring,
         spheres: SphereSet::default(),
         weight: 2.0,
         null_damping: 0.0,
         null_speed: 0.0,
         joint_weights: None,
-        damping_threshold: 0.05,
-        damping_max: 0.05,
-        mu: 3.0,
-        tau: 2.0,
-        t_on: 0.0,
-        feedback: true,
-        projection: Projection::NullSpace,
-        safety,
-        track_loss: 0.05,
-        pause: false,
-        auto_mu: None,
         steer: None,
     };
     (p, q0)
@@ -261,7 +263,7 @@ fn centring_with_projected_feedback_makes_the_self_motion_periodic() {
     (qd0[0], qd0[2]) = (0.1, -0.1);
     let summary = |alpha: f64, mu: f64| {
         let (mut p, q0) = panda_params(&arm, TaskKind::Position);
-        (p.alpha, p.mu) = (alpha, mu);
+        (p.core.alpha, p.core.mu) = (alpha, mu);
         let mut sim = SpatialSimulation::<7, 3>::spatial(arm, p, 0.001, q0, qd0, 2.0);
         run(&mut sim, 150.0, 5.0, |_, _, _| {})
     };
@@ -346,9 +348,9 @@ fn the_panda_preset_builds_and_bad_keys_are_named() {
     let cfg = SpatialConfig::preset("panda").unwrap();
     let s = cfg.setup::<7>(&chain).unwrap();
     // Limits from the URDF and Franka's acceleration table.
-    assert_eq!(s.params.safety.qd_max[4], 2.61);
-    assert_eq!(s.params.safety.qdd_max[1], 7.5);
-    assert_eq!(s.params.safety.q_max[3], -0.0698);
+    assert_eq!(s.params.core.safety.qd_max[4], 2.61);
+    assert_eq!(s.params.core.safety.qdd_max[1], 7.5);
+    assert_eq!(s.params.core.safety.q_max[3], -0.0698);
     // The tool starts on its path.
     let k = kin(&s.arm, &s.q0, &V7::zeros());
     assert!((s.params.task.path.position(0.0) - k.p).norm() < 1e-12);

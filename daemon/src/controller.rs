@@ -943,8 +943,8 @@ mod tests {
                     .unwrap();
                 p.obstacles = o;
                 // A tight growth guard: the pause's growing tracking error must not trip it.
-                p.safety.guard_tracking_error = 0.2;
-                p.safety.guard_growth_time = 0.1;
+                p.core.safety.guard_tracking_error = 0.2;
+                p.core.safety.guard_growth_time = 0.1;
                 assert!(c.set_params(ParamBlock::Planar(p)));
             }
             if k == 4510 {
@@ -1229,8 +1229,8 @@ mod tests {
     fn history_restarts_after_a_hold_and_long_gaps_are_not_filled_with_old_rates() {
         let mut c = controller();
         let mut p = *c.params().unwrap();
-        p.mu = 1.0;
-        p.t_on = 0.0;
+        p.core.mu = 1.0;
+        p.core.t_on = 0.0;
         c.set_params(ParamBlock::Planar(p));
         let t0 = 1_000_000_000u64;
         let mut s = state(0, t0);
@@ -1275,7 +1275,7 @@ mod tests {
             for k in 0..1500u64 {
                 if k == 700 {
                     let mut p = *c.params().unwrap();
-                    p.safety.qdd_max = [1e-6; control::MAX_JOINTS];
+                    p.core.safety.qdd_max = [1e-6; control::MAX_JOINTS];
                     c.set_params(ParamBlock::Planar(p));
                     if before == Before::Braked {
                         s.flags |= protocol::flags::COMMAND_TIMEOUT;
@@ -1323,7 +1323,7 @@ mod tests {
         let mut s = state(0, t0);
         s.qd[1] = 60.0;
         let mut p = *c.params().unwrap();
-        p.safety.qd_max = [20.0; control::MAX_JOINTS];
+        p.core.safety.qd_max = [20.0; control::MAX_JOINTS];
         c.set_params(ParamBlock::Planar(p));
         let mut tripped_at = None;
         for k in 0..100u64 {

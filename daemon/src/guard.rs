@@ -212,7 +212,7 @@ mod tests {
 
     #[test]
     fn trips_on_each_condition_after_its_time_and_not_before() {
-        let p = Config::preset("demo").unwrap().law_params().safety;
+        let p = Config::preset("demo").unwrap().law_params().core.safety;
         let calm = output(0.0, 0.5, 0);
         let slow = VecN::<3>::new(1.0, -2.0, 3.0);
         let fast = VecN::<3>::new(1.0, -25.0, 3.0);
@@ -284,7 +284,7 @@ mod tests {
 
     #[test]
     fn the_filter_leaving_the_null_space_opens_the_same_window_as_a_reentry() {
-        let p = Config::preset("demo").unwrap().law_params().safety;
+        let p = Config::preset("demo").unwrap().law_params().core.safety;
         let slow = VecN::<3>::new(1.0, -2.0, 3.0);
         let braked = output(0.0, 3.0, flags::SAFETY_LEFT_NULL_SPACE);
         let catching_up = output(0.0, 3.0, 0);
@@ -306,7 +306,7 @@ mod tests {
 
     #[test]
     fn after_a_reentry_only_the_demand_criterion_waits() {
-        let p = Config::preset("demo").unwrap().law_params().safety;
+        let p = Config::preset("demo").unwrap().law_params().core.safety;
         let slow = VecN::<3>::new(1.0, -2.0, 3.0);
         let fast = VecN::<3>::new(1.0, -25.0, 3.0);
         let greedy = output(0.0, 3.0, 0);
@@ -339,7 +339,7 @@ mod tests {
 
     #[test]
     fn a_large_but_shrinking_tracking_error_is_a_start_up_not_a_runaway() {
-        let p = Config::preset("demo").unwrap().law_params().safety;
+        let p = Config::preset("demo").unwrap().law_params().core.safety;
         let qd = VecN::<3>::zeros();
         let mut g = Guard::default();
         // 1.8 m off the circle and converging (the paper's start), with 0.1 s of growth first.

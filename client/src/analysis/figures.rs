@@ -187,7 +187,7 @@ pub fn spatial_trace(cfg: &SpatialConfig, stride: u64, transient: f64) -> Result
             dt,
             set.q0,
             set.qd0,
-            set.params.tau,
+            set.params.core.tau,
         );
         let cap = ((set.duration / dt) as u64 / stride + 2) as usize;
         let mut tr = Trace::with_capacity(N, cap, stride as f64 * dt);

@@ -251,7 +251,7 @@ fn auto_run(
     let radius = |p: &mut LawParams| p.task.radius *= 1.1;
     let period = |p: &mut LawParams| {
         p.task.period *= 1.1;
-        p.tau = p.task.period;
+        p.core.tau = p.task.period;
     };
     let obstacle = |p: &mut LawParams| {
         if let Some(mut o) = p.obstacles.remove(0) {

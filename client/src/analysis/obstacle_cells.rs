@@ -10,7 +10,6 @@ use anyhow::Result;
 use control::analysis::{classify, ArmFlow, ClassifyConfig, Motion, Section, Trajectory};
 use control::config::spatial::SpatialConfig;
 use control::model::Chain;
-use control::sim::spatial::SpatialSimulation;
 use control::sim::{RunStats, StatsSetup};
 use control::{with_dof, with_task_rows, Config, Summary};
 
@@ -160,7 +159,7 @@ fn run_spatial(
     Ok(with_dof!(chain.dof(), N => {
         let s = cfg.setup::<N>(chain)?;
         with_task_rows!(kind, |M| {
-            let mut sim = SpatialSimulation::<N, M>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+            let mut sim = s.simulation::<M>();
             let setup = StatsSetup::spatial(&s.params);
             let mut stats = RunStats::<N>::of(setup, s.dt, w.duration, w.rms_from, sim.state());
             let mut section = Section::new(2 * N, N);

@@ -320,7 +320,7 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
         "stability",
         |(i, mu)| {
             let mut p = base.law_params();
-            p.mu = *mu;
+            p.core.mu = *mu;
             with_dof!(n, N => {
                 orbit_stability(&base.model::<N>(), &p, base.sim.dt, &orbits[*i], &spec).map_err(|e| e.to_string())
             })

@@ -29,7 +29,7 @@ pub struct ArmFlow<const N: usize, L: ClosedLoopLaw<N> = PlanarLaw<N>> {
 impl<const N: usize> ArmFlow<N> {
     /// The planar arm from `initial` at t = 0. The delay line holds exactly τ (see the module docs).
     pub fn new(model: ArmModel<N>, params: LawParams, dt: f64, initial: ArmState<N>) -> Self {
-        let sim = Simulation::new(model, params, dt, initial, params.tau);
+        let sim = Simulation::new(model, params, dt, initial, params.core.tau);
         Self::of(sim)
     }
 }

@@ -143,8 +143,8 @@ pub fn stroboscopic_map<const N: usize>(
     x: &ArmState<N>,
 ) -> ArmState<N> {
     let mut p = *params;
-    p.feedback = false;
-    let mut sim = Simulation::new(*model, p, dt, *x, p.tau);
+    p.core.feedback = false;
+    let mut sim = Simulation::new(*model, p, dt, *x, p.core.tau);
     for _ in 0..steps {
         sim.step();
     }
@@ -416,13 +416,13 @@ pub fn orbit_stability<const N: usize>(
 ) -> Result<OrbitStability, OrbitError> {
     check_fixed(model)?;
     let period = params.task.period;
-    check_stability_run(period, params.tau, dt, spec)?;
+    check_stability_run(period, params.core.tau, dt, spec)?;
     let mut p = *params;
-    p.t_on = period;
-    p.auto_mu = None;
+    p.core.t_on = period;
+    p.core.auto_mu = None;
     let mut flow = ArmFlow::new(*model, p, dt, orbit.state::<N>());
     flow.advance_to(period);
-    stability_on_orbit(flow, orbit, period, params.mu, spec)
+    stability_on_orbit(flow, orbit, period, params.core.mu, spec)
 }
 
 /// The rules of a stability run: τ = T (so the feedback vanishes on a period-T orbit) and a

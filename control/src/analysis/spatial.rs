@@ -46,14 +46,14 @@ pub fn orbit_stability<const N: usize, const M: usize>(
     spec: &super::StabilitySpec,
 ) -> Result<super::OrbitStability, super::OrbitError> {
     let period = params.task.path.period;
-    super::orbits::check_stability_run(period, params.tau, dt, spec)?;
+    super::orbits::check_stability_run(period, params.core.tau, dt, spec)?;
     let mut p = *params;
-    p.t_on = period;
-    p.auto_mu = None;
+    p.core.t_on = period;
+    p.core.auto_mu = None;
     let x = orbit.state::<N>();
     let mut sim = ArmFlow::of(SpatialSimulation::<N, M>::spatial(
-        *arm, p, dt, x.q, x.qd, p.tau,
+        *arm, p, dt, x.q, x.qd, p.core.tau,
     ));
     sim.advance_to(period);
-    super::orbits::stability_on_orbit(sim, orbit, period, params.mu, spec)
+    super::orbits::stability_on_orbit(sim, orbit, period, params.core.mu, spec)
 }

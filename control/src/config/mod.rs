@@ -18,7 +18,7 @@ use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
 use crate::basics::{
     excerpt, invalid, range, ConfigError, MAX_CONFIG_BYTES, MAX_JOINTS, MIN_JOINTS,
 };
-use crate::law::{LawParams, Secondary};
+use crate::law::{LawCore, LawParams, Secondary};
 use crate::resolve::Projection;
 use crate::safety::SafetyConfig;
 use crate::secondary::{Obstacle, ObstacleSet, PotentialWeights, MAX_OBSTACLES};
@@ -640,22 +640,37 @@ impl Config {
     pub fn law_params(&self) -> LawParams {
         let c = &self.control;
         LawParams {
+            core: LawCore {
+                kp: c.kp,
+                kv: c.kv,
+                alpha: c.alpha,
+                secondary: match &c.secondary {
+                    SecondaryKind::None => Secondary::None,
+                    SecondaryKind::Manipulability => Secondary::Manipulability,
+                    SecondaryKind::Centring => Secondary::Centring,
+                    SecondaryKind::Obstacles => Secondary::Obstacles,
+                    // Validation refuses a name no program registered.
+                    SecondaryKind::Custom(name) => {
+                        Secondary::parse(name).unwrap_or(Secondary::None)
+                    }
+                },
+                damping_threshold: c.damping_threshold,
+                damping_max: c.damping_max,
+                mu: self.feedback.mu,
+                tau: self.feedback.tau,
+                t_on: self.feedback.t_on,
+                feedback: self.feedback.enabled,
+                projection: self.feedback.projection.into(),
+                auto_mu: self.feedback.auto,
+                safety: self.safety.params(self.n()),
+                track_loss: c.track_loss,
+                pause: false,
+            },
             task: Circle {
                 center: Vec2::new(self.task.center[0], self.task.center[1]),
                 radius: self.task.radius,
                 period: self.task.period,
                 ramp: self.task.ramp,
-            },
-            kp: c.kp,
-            kv: c.kv,
-            alpha: c.alpha,
-            secondary: match &c.secondary {
-                SecondaryKind::None => Secondary::None,
-                SecondaryKind::Manipulability => Secondary::Manipulability,
-                SecondaryKind::Centring => Secondary::Centring,
-                SecondaryKind::Obstacles => Secondary::Obstacles,
-                // Validation refuses a name no program registered.
-                SecondaryKind::Custom(name) => Secondary::parse(name).unwrap_or(Secondary::None),
             },
             obstacles: c
                 .obstacles
@@ -663,18 +678,7 @@ impl Config {
                 .map(ObstacleConfig::to_obstacle)
                 .collect::<ObstacleSet>(),
             weights: PotentialWeights { w1: c.w1, w2: c.w2 },
-            damping_threshold: c.damping_threshold,
-            damping_max: c.damping_max,
-            mu: self.feedback.mu,
-            tau: self.feedback.tau,
-            t_on: self.feedback.t_on,
-            feedback: self.feedback.enabled,
-            projection: self.feedback.projection.into(),
-            safety: self.safety.params(self.n()),
-            track_loss: c.track_loss,
             steer: None,
-            pause: false,
-            auto_mu: self.feedback.auto,
         }
     }
 

@@ -79,7 +79,7 @@ impl SpatialConfig {
         crate::with_task_rows!(self.task_kind()?, |M| {
             let p = setup.params;
             let mut sim = SpatialSimulation::<N, M>::spatial(
-                setup.arm, p, setup.dt, setup.q0, setup.qd0, p.tau,
+                setup.arm, p, setup.dt, setup.q0, setup.qd0, p.core.tau,
             );
             for _ in 0..steps {
                 let (t, x) = (sim.time(), *sim.state());

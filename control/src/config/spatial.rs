@@ -14,7 +14,7 @@ use crate::basics::ConfigError;
 use crate::basics::MAX_JOINTS;
 use crate::command::{DEFAULT_QDD_MAX, PANDA_QDD_MAX};
 use crate::law::spatial::SpatialParams;
-use crate::law::Secondary;
+use crate::law::{LawCore, Secondary};
 use crate::model::Chain;
 use crate::safety::SafetyParams;
 use crate::secondary::spatial::Sphere;
@@ -342,6 +342,17 @@ pub struct SpatialSetup<const N: usize> {
     pub transient: f64,
 }
 
+impl<const N: usize> SpatialSetup<N> {
+    /// The set-up's closed loop for a task of `M` rows (see [`crate::with_task_rows`]), from its
+    /// start, its delay line sized for its own τ.
+    pub fn simulation<const M: usize>(&self) -> crate::sim::spatial::SpatialSimulation<N, M> {
+        let p = self.params;
+        crate::sim::spatial::SpatialSimulation::<N, M>::spatial(
+            self.arm, p, self.dt, self.q0, self.qd0, p.core.tau,
+        )
+    }
+}
+
 impl SpatialConfig {
     /// The built-in spatial presets ([`SPATIAL_PRESETS`]): `panda`, the Panda's working set-up
     /// (docs/panda-study.md, "A set-up that is fast and robust": centring α = 160 with
@@ -643,32 +654,35 @@ impl SpatialConfig {
                 margin: o.margin,
             });
         }
+        let joint_weights = crate::law::metric::weights(&self.law.metric, &safety, chain.dof())?;
         let params = SpatialParams {
+            core: LawCore {
+                kp: self.law.kp,
+                kv: self.law.kv,
+                alpha: self.law.alpha,
+                secondary: self.secondary()?,
+                damping_threshold: self.law.damping_threshold,
+                damping_max: self.law.damping_max,
+                mu: self.feedback.mu,
+                tau: self.feedback.tau.unwrap_or(self.task.period),
+                t_on: self.feedback.t_on,
+                feedback: self.feedback.enabled,
+                projection: self.feedback.projection.into(),
+                auto_mu: self.feedback.auto,
+                safety,
+                track_loss: self.law.track_loss,
+                pause: false,
+            },
             task: SpatialTask {
                 kind: self.task_kind()?,
                 path,
                 orientation,
             },
-            kp: self.law.kp,
-            kv: self.law.kv,
-            alpha: self.law.alpha,
-            secondary: self.secondary()?,
             spheres,
             weight: self.law.obstacle_weight,
             null_damping: self.law.null_damping,
             null_speed: self.law.null_speed,
-            joint_weights: crate::law::metric::weights(&self.law.metric, &safety, chain.dof())?,
-            damping_threshold: self.law.damping_threshold,
-            damping_max: self.law.damping_max,
-            mu: self.feedback.mu,
-            tau: self.feedback.tau.unwrap_or(self.task.period),
-            t_on: self.feedback.t_on,
-            feedback: self.feedback.enabled,
-            auto_mu: self.feedback.auto,
-            projection: self.feedback.projection.into(),
-            safety,
-            track_loss: self.law.track_loss,
-            pause: false,
+            joint_weights,
             steer: None,
         };
         Ok(SpatialSetup {

@@ -11,19 +11,21 @@
 //! evaluation so that the offline simulation, the analysis and the daemon all get the same
 //! filtered command, and a disabled filter costs one branch.
 
+pub mod core;
 pub mod metric;
 pub mod pipeline;
 pub mod spatial;
 
+pub use self::core::{LawCore, LoopFeedback};
 use crate::arm::{ArmModel, Jac, Kinematics, VecN};
 use crate::basics::{flags, wrap_angle};
-use crate::resolve::{ControlOutput, Projection};
+use crate::resolve::ControlOutput;
 use crate::safety::{self, SafetyParams};
 use crate::secondary::{self, ObstacleSet, PotentialWeights};
 use crate::task::Circle;
 use nalgebra::SMatrix;
 use nalgebra::Vector3;
-use pipeline::{gains_of, ArmSide, Gains, TaskRows};
+use pipeline::{ArmSide, Gains, TaskRows};
 
 type Vec3 = Vector3<f64>;
 
@@ -103,53 +105,17 @@ pub(crate) fn custom_eta<const N: usize>(
     (value, Some(eta))
 }
 
-/// Every tunable of the control law.
+/// The planar arm's law: the [`LawCore`] every arm has, and the plane's circle, discs and
+/// steering.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LawParams {
+    pub core: LawCore,
     pub task: Circle,
-    /// Position-error gain K_p.
-    pub kp: f64,
-    /// Velocity-error gain K_v.
-    pub kv: f64,
-    /// Null-space gain α.
-    pub alpha: f64,
-    pub secondary: Secondary,
     pub obstacles: ObstacleSet,
     pub weights: PotentialWeights,
-    /// Damped least squares starts when σ_min(J) falls below this.
-    pub damping_threshold: f64,
-    /// λ at σ_min = 0.
-    pub damping_max: f64,
-    /// Pyragas gain μ ≥ 0.
-    pub mu: f64,
-    /// Pyragas delay τ (s).
-    pub tau: f64,
-    /// Feedback is active for t ≥ t_on.
-    pub t_on: f64,
-    /// Master switch for the delayed feedback (the daemon's `dfc on|off`).
-    pub feedback: bool,
-    /// Where the delayed term acts.
-    pub projection: Projection,
-    /// The safety filter applied to the result ([`crate::safety`]).
-    pub safety: SafetyParams,
-    /// Tracking error (m) above which tracking counts as lost.
-    pub track_loss: f64,
     /// A planned clean cycle to steer the self-motion onto ([`crate::plan`]); planar 3-link
     /// arm only. None: the law as the paper has it.
     pub steer: Option<crate::steer::Steer>,
-    /// Tracking paused (the daemon's blocked hold): the arm brakes to rest, the filter keeping
-    /// clearance as ever ([`crate::safety::pause_brake`]).
-    pub pause: bool,
-    /// `feedback.mu = "auto"`: the caller adapts `mu` after each step ([`crate::adapt`]).
-    pub auto_mu: Option<crate::adapt::AutoMu>,
-}
-
-impl LawParams {
-    /// Whether the delayed term applies at time t.
-    #[inline]
-    pub fn feedback_active(&self, t: f64) -> bool {
-        self.feedback && (self.mu != 0.0 || self.auto_mu.is_some()) && t >= self.t_on
-    }
 }
 
 /// The pull towards the planned cycle at `t`, in the null space: (I − J⁺J)(q̈* + K_p(q* − q) +
@@ -220,7 +186,7 @@ impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
 
     #[inline]
     fn gains(&self, t: f64) -> Gains<'_> {
-        gains_of!(self.params, t)
+        self.params.core.gains(t)
     }
 
     #[inline]
@@ -232,7 +198,7 @@ impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
         let j: Jac<N> = kin.j;
         let err = target.p - kin.p;
         TaskRows {
-            acc: target.a + (target.v - j * qd) * p.kv + err * p.kp - kin.jdot_qd,
+            acc: target.a + (target.v - j * qd) * p.core.kv + err * p.core.kp - kin.jdot_qd,
             j,
             position_error: err.norm(),
             orientation_error: 0.0,
@@ -255,14 +221,15 @@ impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
         j: &Jac<N>,
     ) -> (f64, Option<VecN<N>>) {
         let p = self.params;
-        match p.secondary {
+        match p.core.secondary {
             Secondary::None => (0.0, None),
             Secondary::Manipulability => {
                 let (w, g) = self.model.manipulability(q, self.kin);
                 (w, Some(g))
             }
             Secondary::Centring => {
-                let (c, g) = secondary::spatial::centring(q, &p.safety.q_min, &p.safety.q_max);
+                let (c, g) =
+                    secondary::spatial::centring(q, &p.core.safety.q_min, &p.core.safety.q_max);
                 (c, Some(-g))
             }
             Secondary::Obstacles => {
@@ -278,7 +245,7 @@ impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
                     _ => 0.0,
                 });
                 let tip = [self.kin.p.x, self.kin.p.y, 0.0];
-                custom_eta(index, t, q, qd, tip, &jac, &p.safety)
+                custom_eta(index, t, q, qd, tip, &jac, &p.core.safety)
             }
         }
     }
@@ -286,7 +253,7 @@ impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
     #[inline]
     fn feedback_held(&self, t: f64) -> bool {
         self.detour()
-            .is_some_and(|(_, d)| t < d.t_arrive + self.params.tau)
+            .is_some_and(|(_, d)| t < d.t_arrive + self.params.core.tau)
     }
 
     #[inline]
@@ -322,7 +289,7 @@ impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
         let p = self.params;
         let (model, kin) = (self.model, &*self.kin);
         safety::filter(
-            &p.safety,
+            &p.core.safety,
             model,
             &p.obstacles,
             kin,

@@ -44,25 +44,6 @@ pub struct Gains<'a> {
     pub safety: &'a SafetyParams,
 }
 
-/// The [`Gains`] of a parameter block at time `t`: every arm's block names its gains alike.
-macro_rules! gains_of {
-    ($p:expr, $t:expr) => {{
-        let p = $p;
-        $crate::law::pipeline::Gains {
-            alpha: p.alpha,
-            damping_threshold: p.damping_threshold,
-            damping_max: p.damping_max,
-            mu: p.mu,
-            feedback_on: p.feedback_active($t),
-            projection: p.projection,
-            pause: p.pause,
-            track_loss: p.track_loss,
-            safety: &p.safety,
-        }
-    }};
-}
-pub(crate) use gains_of;
-
 /// One arm's side of the law at one state: what the planar closed form and a URDF chain do
 /// differently. The pipeline calls [`Self::task`] first; the other methods read the
 /// kinematics it left behind, and [`Self::secondary`] before the others (it may keep scratch).

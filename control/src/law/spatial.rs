@@ -9,7 +9,8 @@
 //! compare it with the Pyragas term.
 
 use super::metric::damped_pinv_weighted;
-use super::pipeline::{gains_of, ArmSide, Gains, TaskRows};
+use super::pipeline::{ArmSide, Gains, TaskRows};
+use super::LawCore;
 use super::Secondary;
 use crate::arm::spatial::Points;
 use crate::arm::spatial::SpatialArm;
@@ -17,8 +18,7 @@ use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
 use crate::resolve::damped_pinv_m;
 use crate::resolve::ControlOutput;
-use crate::resolve::Projection;
-use crate::safety::{Filtered, SafetyParams};
+use crate::safety::Filtered;
 use crate::secondary::spatial as sec;
 use crate::secondary::spatial::SphereSet;
 use crate::task::spatial::orientation_error;
@@ -29,11 +29,8 @@ use nalgebra::{SMatrix, Vector6};
 /// Every tunable of the spatial law: a `Copy` block, like the planar [`crate::LawParams`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpatialParams {
+    pub core: LawCore,
     pub task: SpatialTask,
-    pub kp: f64,
-    pub kv: f64,
-    pub alpha: f64,
-    pub secondary: Secondary,
     pub spheres: SphereSet,
     /// The obstacle potential's weight W.
     pub weight: f64,
@@ -45,30 +42,9 @@ pub struct SpatialParams {
     /// The pseudo-inverse's joint weights D (metric D⁻²; [`crate::law::metric`]); None: the
     /// identity, the minimum-norm pseudo-inverse.
     pub joint_weights: Option<[f64; crate::basics::MAX_JOINTS]>,
-    pub damping_threshold: f64,
-    pub damping_max: f64,
-    pub mu: f64,
-    pub tau: f64,
-    pub t_on: f64,
-    pub feedback: bool,
-    pub projection: Projection,
-    pub safety: SafetyParams,
-    /// Position error (m) above which tracking counts as lost.
-    pub track_loss: f64,
-    /// Tracking paused (the daemon's blocked hold): the arm brakes to rest, the filter keeping
-    /// clearance as ever ([`crate::safety::pause_brake`]).
-    pub pause: bool,
-    /// `feedback.mu = "auto"`: the caller adapts `mu` after each step ([`crate::adapt`]).
-    pub auto_mu: Option<crate::adapt::AutoMu>,
     /// A planned clean cycle to steer the self-motion onto ([`crate::plan::spatial`]); it
     /// replaces the secondary task, as on the planar arm.
     pub steer: Option<crate::steer::SpatialSteer>,
-}
-
-impl SpatialParams {
-    pub fn feedback_active(&self, t: f64) -> bool {
-        self.feedback && (self.mu != 0.0 || self.auto_mu.is_some()) && t >= self.t_on
-    }
 }
 
 /// A URDF chain's side of the law: the chain's kinematics, a spatial path (position or pose),
@@ -84,7 +60,7 @@ struct SpatialSide<'a, const N: usize> {
 impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
     #[inline]
     fn gains(&self, t: f64) -> Gains<'_> {
-        gains_of!(self.params, t)
+        self.params.core.gains(t)
     }
 
     #[inline]
@@ -111,8 +87,8 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
         ) + (Vector6::new(
             target.v.x, target.v.y, target.v.z, target.w.x, target.w.y, target.w.z,
         ) - vel)
-            * p.kv
-            + Vector6::new(ep.x, ep.y, ep.z, eo.x, eo.y, eo.z) * p.kp
+            * p.core.kv
+            + Vector6::new(ep.x, ep.y, ep.z, eo.x, eo.y, eo.z) * p.core.kp
             - kin.jdot_qd;
         TaskRows {
             j: kin.jac.fixed_rows::<M>(0).into_owned(),
@@ -169,11 +145,11 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
     ) {
         let p = self.params;
         if let Some(s) = &p.steer {
-            *qdd += s.pull(t, q, qd, j, jpinv, qdd, &p.safety);
+            *qdd += s.pull(t, q, qd, j, jpinv, qdd, &p.core.safety);
         }
         if p.null_damping != 0.0 {
             if p.null_speed > 0.0 {
-                let pull = (self.eta - jpinv * (j * self.eta)) * p.alpha;
+                let pull = (self.eta - jpinv * (j * self.eta)) * p.core.alpha;
                 let s = pull_scale(pull.norm(), p.null_damping, p.null_speed);
                 if s < 1.0 {
                     *qdd -= pull * (1.0 - s);
@@ -199,11 +175,11 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
         let jpinv = match p.joint_weights {
             None => jpinv,
             Some(_) => {
-                ortho = damped_pinv_m(j, p.damping_threshold, p.damping_max).0;
+                ortho = damped_pinv_m(j, p.core.damping_threshold, p.core.damping_max).0;
                 &ortho
             }
         };
-        crate::safety::capsules::filter(&p.safety, arm, &p.spheres, kin, q, qd, j, jpinv, qdd)
+        crate::safety::capsules::filter(&p.core.safety, arm, &p.spheres, kin, q, qd, j, jpinv, qdd)
     }
 
     #[inline]
@@ -228,14 +204,14 @@ impl<const N: usize> SpatialSide<'_, N> {
         j: &SMatrix<f64, M, N>,
     ) -> (f64, Option<VecN<N>>) {
         let (p, arm, kin) = (self.params, self.arm, &*self.kin);
-        match p.secondary {
+        match p.core.secondary {
             Secondary::None => (0.0, None),
             Secondary::Manipulability => {
                 let (w, g) = sec::manipulability(arm, kin, j);
                 (w, Some(g))
             }
             Secondary::Centring => {
-                let (c, g) = sec::centring(q, &p.safety.q_min, &p.safety.q_max);
+                let (c, g) = sec::centring(q, &p.core.safety.q_min, &p.core.safety.q_max);
                 (c, Some(-g))
             }
             Secondary::Obstacles if !p.spheres.is_empty() => {
@@ -247,7 +223,7 @@ impl<const N: usize> SpatialSide<'_, N> {
             Secondary::Obstacles => (0.0, Some(VecN::<N>::zeros())),
             Secondary::Custom(index) => {
                 let tip = [kin.p.x, kin.p.y, kin.p.z];
-                super::custom_eta(index, t, q, qd, tip, &kin.jac, &p.safety)
+                super::custom_eta(index, t, q, qd, tip, &kin.jac, &p.core.safety)
             }
         }
     }

@@ -63,15 +63,15 @@ fn watch_n<const N: usize>(
         max_tau,
     );
     let mut pending = edits.iter().peekable();
-    watch_sim(&mut sim, duration, settings, params.tau, |t, sim| {
+    watch_sim(&mut sim, duration, settings, params.core.tau, |t, sim| {
         let mut edited = false;
         while let Some(e) = pending.next_if(|e| e.t <= t) {
             // As in the daemon: a new block adapts with the config's γ from the current μ.
-            sim.law.params.auto_mu = params.auto_mu;
+            sim.law.params.core.auto_mu = params.core.auto_mu;
             (e.apply)(&mut sim.law.params);
             edited = true;
         }
-        edited.then_some(sim.law.params.tau)
+        edited.then_some(sim.law.params.core.tau)
     })
 }
 

@@ -262,7 +262,7 @@ fn refined(
 ) -> Result<Cycle, Unusable> {
     match o {
         PlanOutcome::Found(c) => {
-            let safety = cfg.law_params().safety;
+            let safety = cfg.law_params().core.safety;
             let r = refine::refine(problem, &safety, &c, &refine::RefineSettings::default());
             if r.worst.value >= 0.0 {
                 Ok(r.cycle)
@@ -327,10 +327,22 @@ impl planar::PlanarProblem {
             links: [cfg.arm.links[0], cfg.arm.links[1], cfg.arm.links[2]],
             task: p.task,
             obstacles: p.obstacles,
-            clearance: p.safety.clearance,
-            q_min: [p.safety.q_min[0], p.safety.q_min[1], p.safety.q_min[2]],
-            q_max: [p.safety.q_max[0], p.safety.q_max[1], p.safety.q_max[2]],
-            qd_max: [p.safety.qd_max[0], p.safety.qd_max[1], p.safety.qd_max[2]],
+            clearance: p.core.safety.clearance,
+            q_min: [
+                p.core.safety.q_min[0],
+                p.core.safety.q_min[1],
+                p.core.safety.q_min[2],
+            ],
+            q_max: [
+                p.core.safety.q_max[0],
+                p.core.safety.q_max[1],
+                p.core.safety.q_max[2],
+            ],
+            qd_max: [
+                p.core.safety.qd_max[0],
+                p.core.safety.qd_max[1],
+                p.core.safety.qd_max[2],
+            ],
             t0,
             q_now,
         })

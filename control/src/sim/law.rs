@@ -8,12 +8,12 @@
 //! number that differs between two arms differs because of the arm, never because of the loop.
 
 use super::{ArmState, StatsSetup};
-use crate::adapt::{next_mu, AutoMu};
 use crate::arm::spatial::{SpatialArm, SpatialKinematics};
 use crate::arm::{ArmModel, Kinematics, VecN};
 use crate::law::spatial::SpatialParams;
-use crate::law::{self, LawParams};
-use crate::resolve::{ControlOutput, Projection};
+pub use crate::law::LoopFeedback;
+use crate::law::{self, LawCore, LawParams};
+use crate::resolve::ControlOutput;
 use crate::steer::Steering;
 
 /// A control law a closed loop can step: its evaluation and the few numbers the loop reads.
@@ -30,12 +30,21 @@ pub trait ClosedLoopLaw<const N: usize>: Clone {
         scratch: &mut Self::Scratch,
     ) -> ControlOutput<N>;
 
+    /// The gains, feedback and limits every arm's law has.
+    fn core(&self) -> &LawCore;
+    fn core_mut(&mut self) -> &mut LawCore;
+
     /// The gains the loop reads: μ now, τ, where the feedback acts, and whether the delayed
     /// history is part of the state (feedback on with μ ≠ 0).
-    fn loop_feedback(&self) -> LoopFeedback;
+    fn loop_feedback(&self) -> LoopFeedback {
+        self.core().loop_feedback()
+    }
 
     /// Adapts μ after a step whose output was `out` (`feedback.mu = "auto"`), `dt` after the last.
-    fn adapt(&mut self, out: &ControlOutput<N>, dt: f64);
+    #[inline]
+    fn adapt(&mut self, out: &ControlOutput<N>, dt: f64) {
+        self.core_mut().adapt(out, dt)
+    }
 
     /// Whether the base turns (the planar floating base): φ is then part of the state.
     fn is_floating(&self) -> bool {
@@ -48,43 +57,6 @@ pub trait ClosedLoopLaw<const N: usize>: Clone {
     /// Steers the self-motion onto a planned cycle, or stops (None). A cycle planned for
     /// another kind of arm stops the steering.
     fn set_steering(&mut self, steering: Option<Steering>);
-}
-
-/// The feedback numbers a closed loop reads from its law.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LoopFeedback {
-    pub mu: f64,
-    pub tau: f64,
-    pub projection: Projection,
-    /// Feedback switched on with μ ≠ 0: the q̇ history is part of the state.
-    pub delay_is_state: bool,
-}
-
-impl LoopFeedback {
-    /// From a parameter block's μ, τ, projection and feedback switch.
-    pub fn of(mu: f64, tau: f64, projection: Projection, on: bool) -> Self {
-        Self {
-            mu,
-            tau,
-            projection,
-            delay_is_state: on && mu != 0.0,
-        }
-    }
-}
-
-/// One adaptation step of μ, the same for every law: not while tracking is paused (the braking
-/// arm's residual says nothing about the gain).
-pub(crate) fn adapt_mu<const N: usize>(
-    auto_mu: &mut Option<AutoMu>,
-    mu: &mut f64,
-    projection: Projection,
-    pause: bool,
-    out: &ControlOutput<N>,
-    dt: f64,
-) {
-    if !pause {
-        *mu = next_mu(auto_mu, *mu, projection, out, dt);
-    }
 }
 
 /// The paper's planar arm (fixed or floating base) under [`crate::law::evaluate`].
@@ -108,13 +80,11 @@ impl<const N: usize> ClosedLoopLaw<N> for PlanarLaw<N> {
         let (m, p) = (&self.model, &self.params);
         law::evaluate(p, m, t, x.phi, &x.q, &x.qd, delayed, kin)
     }
-    fn loop_feedback(&self) -> LoopFeedback {
-        let p = &self.params;
-        LoopFeedback::of(p.mu, p.tau, p.projection, p.feedback)
+    fn core(&self) -> &LawCore {
+        &self.params.core
     }
-    fn adapt(&mut self, out: &ControlOutput<N>, dt: f64) {
-        let p = &mut self.params;
-        adapt_mu(&mut p.auto_mu, &mut p.mu, p.projection, p.pause, out, dt);
+    fn core_mut(&mut self) -> &mut LawCore {
+        &mut self.params.core
     }
     fn is_floating(&self) -> bool {
         self.model.is_floating()
@@ -152,13 +122,11 @@ impl<const N: usize, const M: usize> ClosedLoopLaw<N> for SpatialLaw<N, M> {
         let (arm, p) = (&self.arm, &self.params);
         law::spatial::evaluate::<N, M>(p, arm, t, &x.q, &x.qd, delayed, kin)
     }
-    fn loop_feedback(&self) -> LoopFeedback {
-        let p = &self.params;
-        LoopFeedback::of(p.mu, p.tau, p.projection, p.feedback)
+    fn core(&self) -> &LawCore {
+        &self.params.core
     }
-    fn adapt(&mut self, out: &ControlOutput<N>, dt: f64) {
-        let p = &mut self.params;
-        adapt_mu(&mut p.auto_mu, &mut p.mu, p.projection, p.pause, out, dt);
+    fn core_mut(&mut self) -> &mut LawCore {
+        &mut self.params.core
     }
     fn stats_setup(&self) -> StatsSetup {
         StatsSetup::spatial(&self.params)

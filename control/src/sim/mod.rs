@@ -378,16 +378,26 @@ pub struct StatsSetup {
 impl StatsSetup {
     /// The planar law's.
     pub fn planar(params: &LawParams) -> Self {
+        Self::of(
+            &params.core,
+            params.task.period,
+            !params.obstacles.is_empty(),
+        )
+    }
+
+    /// Any arm's: its law's core, its task's period, whether it has obstacles.
+    pub fn of(core: &crate::law::LawCore, period: f64, has_obstacles: bool) -> Self {
+        let s = &core.safety;
         Self {
-            period: params.task.period,
-            t_on: params.t_on,
-            feedback_used: params.feedback && params.mu != 0.0,
-            required_clearance: params.safety.clearance,
-            has_obstacles: !params.obstacles.is_empty(),
-            safety_enabled: params.safety.enabled,
-            qd_max: params.safety.qd_max,
-            qdd_max: params.safety.qdd_max,
-            jerk_max: params.safety.jerk_max,
+            period,
+            t_on: core.t_on,
+            feedback_used: core.feedback && core.mu != 0.0,
+            required_clearance: s.clearance,
+            has_obstacles,
+            safety_enabled: s.enabled,
+            qd_max: s.qd_max,
+            qdd_max: s.qdd_max,
+            jerk_max: s.jerk_max,
         }
     }
 }

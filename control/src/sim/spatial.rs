@@ -38,17 +38,7 @@ impl<const N: usize, const M: usize> Simulation<N, SpatialLaw<N, M>> {
 impl super::StatsSetup {
     /// A spatial law's: its path's period, its feedback, its spheres and its filter.
     pub fn spatial(p: &SpatialParams) -> Self {
-        Self {
-            period: p.task.path.period,
-            t_on: p.t_on,
-            feedback_used: p.feedback && p.mu != 0.0,
-            required_clearance: p.safety.clearance,
-            has_obstacles: !p.spheres.is_empty(),
-            safety_enabled: p.safety.enabled,
-            qd_max: p.safety.qd_max,
-            qdd_max: p.safety.qdd_max,
-            jerk_max: p.safety.jerk_max,
-        }
+        Self::of(&p.core, p.task.path.period, !p.spheres.is_empty())
     }
 }
 
@@ -65,8 +55,8 @@ pub fn stroboscopic_map<const N: usize, const M: usize>(
     x: &ArmState<N>,
 ) -> ArmState<N> {
     let mut p = *params;
-    p.feedback = false;
-    let mut sim = SpatialSimulation::<N, M>::spatial(*arm, p, dt, x.q, x.qd, p.tau);
+    p.core.feedback = false;
+    let mut sim = SpatialSimulation::<N, M>::spatial(*arm, p, dt, x.q, x.qd, p.core.tau);
     for _ in 0..steps {
         sim.step();
     }

@@ -4,7 +4,6 @@
 
 use control::config::spatial::SpatialConfig;
 use control::sim::spatial::run;
-use control::sim::spatial::SpatialSimulation;
 
 const CONFIG: &str = include_str!("../panda-posture.toml");
 
@@ -23,8 +22,7 @@ fn run_with(secondary: &str) -> (f64, f64) {
     cfg.law.secondary = secondary.into();
     let chain = rt::robot::load("panda", None, None).unwrap();
     let s = cfg.setup::<7>(&chain).unwrap();
-    let mut sim =
-        SpatialSimulation::<7, 3>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, s.params.tau);
+    let mut sim = s.simulation::<3>();
     let ready = nalgebra::SVector::<f64, 7>::from_column_slice(custom_task::PANDA_READY.q_ref);
     let (mut sum, mut n) = (0.0, 0u32);
     let summary = run(&mut sim, 40.0, 5.0, |t, x, _| {

@@ -69,7 +69,8 @@ impl Verdict {
 impl<const N: usize> SpatialProblem<N> {
     /// The rate bound a cycle keeps (rad/s): the settings' and a share of each joint's limit.
     pub(super) fn rate_bound(&self, s: &PlanSettings, i: usize) -> f64 {
-        s.max_rate.min(s.rate_share * self.law.safety.qd_max[i])
+        s.max_rate
+            .min(s.rate_share * self.law.core.safety.qd_max[i])
     }
 
     /// Judges the postures `cycle` (one per phase) and the spline through them.
@@ -82,7 +83,7 @@ impl<const N: usize> SpatialProblem<N> {
         };
         let n = cycle.len();
         let dt = self.law.task.path.period / n as f64;
-        let need = self.law.safety.clearance + s.margin;
+        let need = self.law.core.safety.clearance + s.margin;
         let mut kin = SpatialKinematics::<N>::default();
         for (k, q) in cycle.iter().enumerate() {
             let t = self.phase_time(k, n);
@@ -100,8 +101,8 @@ impl<const N: usize> SpatialProblem<N> {
             };
             v.note(fault, need - near.clearance, t);
             for i in 0..N {
-                let lo = self.law.safety.q_min[i] + s.joint_margin;
-                let hi = self.law.safety.q_max[i] - s.joint_margin;
+                let lo = self.law.core.safety.q_min[i] + s.joint_margin;
+                let hi = self.law.core.safety.q_max[i] - s.joint_margin;
                 v.note(Fault::Limit { joint: i }, (lo - q[i]).max(q[i] - hi), t);
                 let rate = (cycle[(k + 1) % n][i] - q[i]).abs() / dt;
                 v.note(Fault::Rate { joint: i }, rate - self.rate_bound(s, i), t);
@@ -134,14 +135,15 @@ impl<const N: usize> SpatialProblem<N> {
         };
         let mut law = self.law;
         law.steer = Some(steer);
-        law.feedback = false;
-        law.pause = false;
+        law.core.feedback = false;
+        law.core.pause = false;
         let s = steer.cycle.sample(0.0);
         let (q0, qd0) = (
             VecN::<N>::from_fn(|i, _| s.q[i]),
             VecN::<N>::from_fn(|i, _| s.qd[i]),
         );
-        let mut sim = SpatialSimulation::<N, M>::spatial(self.arm, law, self.dt, q0, qd0, law.tau);
+        let mut sim =
+            SpatialSimulation::<N, M>::spatial(self.arm, law, self.dt, q0, qd0, law.core.tau);
         let mut kin = SpatialKinematics::<N>::default();
         for _ in 0..(period / self.dt).ceil() as u64 {
             let t = sim.time();
@@ -164,7 +166,7 @@ impl<const N: usize> SpatialProblem<N> {
         let dt = table.period / (n * SAMPLES) as f64;
         let mut kin = SpatialKinematics::<N>::default();
         let mut points: Points<N> = [PointMotion::default(); crate::basics::MAX_JOINTS + 1];
-        let gains = self.law.safety.gains();
+        let gains = self.law.core.safety.gains();
         for k in 0..n * SAMPLES {
             let t = table.t0 + k as f64 * dt;
             let r = table.sample(t);
@@ -180,21 +182,22 @@ impl<const N: usize> SpatialProblem<N> {
                 sphere: near.sphere,
                 link: near.link,
             };
-            v.note(fault, self.law.safety.clearance - near.clearance, t);
+            v.note(fault, self.law.core.safety.clearance - near.clearance, t);
             for i in 0..N {
-                let out = (self.law.safety.q_min[i] - q[i]).max(q[i] - self.law.safety.q_max[i]);
+                let out = (self.law.core.safety.q_min[i] - q[i])
+                    .max(q[i] - self.law.core.safety.q_max[i]);
                 v.note(Fault::Limit { joint: i }, out, t);
                 v.max_rate = v.max_rate.max(qd[i].abs());
                 v.note(
                     Fault::Rate { joint: i },
-                    qd[i].abs() - self.law.safety.qd_max[i],
+                    qd[i].abs() - self.law.core.safety.qd_max[i],
                     t,
                 );
             }
             self.arm.capsule_points(&kin, &qd, &mut points);
             for sphere in self.law.spheres.as_slice() {
                 for j in 0..N {
-                    let reach = sphere.radius + self.arm.radii[j] + self.law.safety.clearance;
+                    let reach = sphere.radius + self.arm.radii[j] + self.law.core.safety.clearance;
                     let row = capsule_row(&points[j], &points[j + 1], sphere.center, reach, gains);
                     if let Some((_, a, b)) = row {
                         v.filter_margin = v.filter_margin.min(a.dot(&qdd) - b);

@@ -54,8 +54,8 @@ impl<const N: usize> SpatialProblem<N> {
             }
         }
         for i in 0..N {
-            let lo = self.law.safety.q_min[i] + joint_margin + JOINT_BUFFER;
-            let hi = self.law.safety.q_max[i] - joint_margin - JOINT_BUFFER;
+            let lo = self.law.core.safety.q_min[i] + joint_margin + JOINT_BUFFER;
+            let hi = self.law.core.safety.q_max[i] - joint_margin - JOINT_BUFFER;
             if q[i] < lo {
                 g[i] -= JOINT_WEIGHT * (lo - q[i]);
             } else if q[i] > hi {

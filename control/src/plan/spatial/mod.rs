@@ -74,8 +74,8 @@ fn spread<const N: usize>(p: &SpatialProblem<N>, count: usize) -> Vec<VecN<N>> {
         .map(|_| {
             VecN::<N>::from_fn(|i, _| {
                 let (lo, hi) = (
-                    p.law.safety.q_min[i].max(-3.0),
-                    p.law.safety.q_max[i].min(3.0),
+                    p.law.core.safety.q_min[i].max(-3.0),
+                    p.law.core.safety.q_max[i].min(3.0),
                 );
                 let mid = 0.5 * (lo + hi);
                 mid + (uniform() - 0.5) * 0.7 * (hi - lo)
@@ -108,7 +108,7 @@ impl<const N: usize> SpatialProblem<N> {
     /// No cycle at all: the path runs within the filter's clearance of a sphere.
     fn path_blocked(&self) -> Option<Blocked> {
         let (c, i, t) = self.path_clearance()?;
-        let need = self.law.safety.clearance;
+        let need = self.law.core.safety.clearance;
         (c < need).then(|| Blocked {
             reason: format!(
                 "the path runs through obstacle {}: at task time {t:.3} s the hand's link {} \
@@ -126,9 +126,9 @@ impl<const N: usize> SpatialProblem<N> {
     /// The settings' margin, less where the path itself leaves less (the hand cannot keep more
     /// than the path does: only the rest of the arm keeps the whole margin).
     fn margin_within_path(&self, s: &PlanSettings) -> PlanSettings {
-        let room = self
-            .path_clearance()
-            .map_or(f64::INFINITY, |(c, _, _)| c - self.law.safety.clearance);
+        let room = self.path_clearance().map_or(f64::INFINITY, |(c, _, _)| {
+            c - self.law.core.safety.clearance
+        });
         PlanSettings {
             margin: s.margin.min(0.9 * room).max(0.0),
             ..*s
@@ -373,7 +373,7 @@ impl<const N: usize> SpatialProblem<N> {
             return (PlanOutcome::Blocked(b), true);
         }
         let rate = (0..N)
-            .map(|i| self.law.safety.qd_max[i])
+            .map(|i| self.law.core.safety.qd_max[i])
             .fold(f64::INFINITY, f64::min);
         let loose = PlanSettings {
             candidates: s.candidates,

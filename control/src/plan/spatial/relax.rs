@@ -121,7 +121,7 @@ impl<const N: usize> SpatialProblem<N> {
     /// null-space part of the cost's gradient, then steps back onto the path.
     pub(super) fn sweep<const M: usize>(&self, cycle: &mut [VecN<N>], s: &PlanSettings) {
         let n = cycle.len();
-        let need = self.law.safety.clearance + s.margin;
+        let need = self.law.core.safety.clearance + s.margin;
         let dt = self.law.task.path.period / n as f64;
         let mut kin = SpatialKinematics::<N>::default();
         for k in 0..n {
