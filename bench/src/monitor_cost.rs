@@ -21,7 +21,7 @@ pub fn table(quick: bool) -> Result<String> {
         cfg.initial_state(),
         2.0,
     );
-    let mut monitor = ChaosMonitor::new(MonitorSettings::default(), cfg.feedback.tau);
+    let mut monitor = ChaosMonitor::new(MonitorSettings::default(), cfg.tau());
     let (mut ticks, mut returns) = (histogram(), histogram());
     let mut total_ns = 0u64;
     let steps = (seconds / 1e-3) as u64;

@@ -241,7 +241,7 @@ pub fn section(quick: bool) -> Result<String> {
         &tick_h,
     );
     let (cfg, pl) = planar_states(n)?;
-    let mut planar = Controller::<3>::new(cfg.tick_law::<3>(), cfg.feedback.max_tau, settings());
+    let mut planar = Controller::<3>::new(cfg.tick_law::<3>(), cfg.feedback.capacity(), settings());
     let planar_tick = summary(&tick_cost(&mut planar, &pl))[0] as f64;
     // 300 s of the preset's simulation, best of 3 (1 in --quick).
     let mut best = f64::INFINITY;

@@ -36,7 +36,7 @@ fn controller(cfg: &Config) -> Controller<3> {
         daemon_id: 1,
         t_start: 0.0,
     };
-    Controller::new(cfg.tick_law(), cfg.feedback.max_tau, settings)
+    Controller::new(cfg.tick_law(), cfg.feedback.capacity(), settings)
 }
 
 /// Per-tick cost over `ticks` ticks of the demo preset's run, with `before` done before each.

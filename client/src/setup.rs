@@ -125,9 +125,9 @@ impl SetupArgs {
             cfg.feedback.mu = v;
         }
         if let Some(v) = self.tau {
-            cfg.feedback.tau = v;
-            if v > cfg.feedback.max_tau && v.is_finite() {
-                cfg.feedback.max_tau = v;
+            cfg.feedback.tau = Some(v);
+            if v > cfg.feedback.capacity() && v.is_finite() {
+                cfg.feedback.max_tau = Some(v);
             }
         }
         if let Some(v) = self.t_on {

@@ -75,7 +75,7 @@ pub fn run_config(
             (None, None) => None,
         };
         let x0: ArmState<N> = cfg.initial_state();
-        let mut sim = Simulation::new(cfg.model::<N>(), params, cfg.sim.dt, x0, cfg.feedback.max_tau);
+        let mut sim = Simulation::new(cfg.model::<N>(), params, cfg.sim.dt, x0, cfg.feedback.capacity());
         let steps = (cfg.sim.duration / cfg.sim.dt).round() as u64;
         let mut traps = OfflineTraps::new(System::Planar(cfg.clone()), params.steer.map(Steering::Planar));
         if let Some(b) = &blocked {
@@ -102,7 +102,7 @@ pub fn run_config(
             model: cfg.arm.model,
             n,
             mu: cfg.feedback.mu,
-            tau: cfg.feedback.tau,
+            tau: cfg.tau(),
             t_on: cfg.feedback.t_on,
             dt: cfg.sim.dt,
             projection: cfg.feedback.projection,

@@ -12,7 +12,7 @@ use crate::basics::ConfigError;
 use crate::command::CommandMode;
 use crate::config::spatial::is_spatial;
 use crate::config::spatial::SpatialConfig;
-use crate::config::Config;
+use crate::config::{Config, FeedbackSection};
 use crate::model::Chain;
 use crate::sim::ArmState;
 use crate::tick_law::{ParamBlock, TickLaw};
@@ -219,48 +219,51 @@ impl System {
 
     /// The feedback settings every arm has.
     pub fn feedback(&self) -> Feedback {
-        match self {
-            System::Planar(c) => Feedback {
-                mu: c.feedback.mu,
-                auto: c.feedback.auto,
-                tau: c.feedback.tau,
-                t_on: c.feedback.t_on,
-                max_tau: c.feedback.max_tau,
-            },
-            System::Spatial(s) => {
-                let f = &s.config.feedback;
-                Feedback {
-                    mu: f.mu,
-                    auto: f.auto,
-                    tau: f.tau.unwrap_or(s.config.task.period),
-                    t_on: f.t_on,
-                    max_tau: crate::config::spatial::MAX_TAU,
-                }
-            }
+        let (f, period) = (self.feedback_section(), self.period());
+        Feedback {
+            mu: f.mu,
+            auto: f.auto,
+            tau: f.tau_for(period),
+            t_on: f.t_on,
+            max_tau: f.capacity(),
         }
     }
 
     /// Sets μ (a gain, or "auto" with its default tuning unless already adapting) and t_on,
     /// and switches the feedback on (the demo's schedule).
     pub fn schedule_feedback(&mut self, mu: crate::adapt::MuSetting, t_on: f64) {
-        let (gain, auto, enabled, on) = match self {
-            System::Planar(c) => {
-                let f = &mut c.feedback;
-                (&mut f.mu, &mut f.auto, &mut f.enabled, &mut f.t_on)
-            }
-            System::Spatial(s) => {
-                let f = &mut s.config.feedback;
-                (&mut f.mu, &mut f.auto, &mut f.enabled, &mut f.t_on)
-            }
-        };
-        *gain = mu.start();
+        let f = self.feedback_section_mut();
+        f.mu = mu.start();
         if mu.is_auto() {
-            auto.get_or_insert_with(Default::default);
+            f.auto.get_or_insert_with(Default::default);
         } else {
-            *auto = None;
+            f.auto = None;
         }
-        *on = t_on;
-        *enabled = true;
+        f.t_on = t_on;
+        f.enabled = true;
+    }
+
+    /// The file's `[feedback]`, one section for every arm.
+    pub fn feedback_section(&self) -> &FeedbackSection {
+        match self {
+            System::Planar(c) => &c.feedback,
+            System::Spatial(s) => &s.config.feedback,
+        }
+    }
+
+    pub fn feedback_section_mut(&mut self) -> &mut FeedbackSection {
+        match self {
+            System::Planar(c) => &mut c.feedback,
+            System::Spatial(s) => &mut s.config.feedback,
+        }
+    }
+
+    /// The task's period T (s).
+    pub fn period(&self) -> f64 {
+        match self {
+            System::Planar(c) => c.task.period,
+            System::Spatial(s) => s.config.task.period,
+        }
     }
 
     pub fn command_mode(&self) -> crate::command::CommandMode {

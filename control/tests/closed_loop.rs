@@ -12,7 +12,7 @@ fn sim3(cfg: &Config) -> Simulation<3> {
         cfg.law_params(),
         cfg.sim.dt,
         cfg.initial_state(),
-        cfg.feedback.max_tau,
+        cfg.feedback.capacity(),
     )
 }
 

@@ -28,7 +28,7 @@ fn control_step_and_rk4_step_allocate_nothing() {
         with_dof!(cfg.n(), N => {
             let params = cfg.law_params();
             let model = cfg.model::<N>();
-            let mut sim = Simulation::new(model, params, cfg.sim.dt, cfg.initial_state(), cfg.feedback.max_tau);
+            let mut sim = Simulation::new(model, params, cfg.sim.dt, cfg.initial_state(), cfg.feedback.capacity());
             let mut kin = Kinematics::<N>::default();
             let mut delay = DelayLine::<N>::new(1000.0, VecN::<N>::zeros());
             let n = allocations(|| {
@@ -86,7 +86,7 @@ fn the_safety_filter_allocates_nothing_on_any_path() {
         cfg.validate().unwrap();
         with_dof!(cfg.n(), N => {
             let params = cfg.law_params();
-            let mut sim = Simulation::new(cfg.model::<N>(), params, cfg.sim.dt, cfg.initial_state(), cfg.feedback.max_tau);
+            let mut sim = Simulation::new(cfg.model::<N>(), params, cfg.sim.dt, cfg.initial_state(), cfg.feedback.capacity());
             let mut flags = 0;
             let n = allocations(|| {
                 for _ in 0..3000 {
@@ -177,7 +177,7 @@ fn steering_along_a_detour_and_onto_the_cycle_allocates_nothing() {
         params,
         cfg.sim.dt,
         cfg.initial_state(),
-        cfg.feedback.max_tau,
+        cfg.feedback.capacity(),
     );
     let steps = ((d.t_arrive + 2.0) / cfg.sim.dt) as usize;
     let mut detoured = 0;

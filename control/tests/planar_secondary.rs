@@ -37,7 +37,7 @@ fn run(cfg: &Config) -> (f64, Vec<f64>) {
         cfg.law_params(),
         cfg.sim.dt,
         cfg.initial_state(),
-        cfg.feedback.max_tau,
+        cfg.feedback.capacity(),
     );
     let mut value = f64::NAN;
     for _ in 0..2000 {

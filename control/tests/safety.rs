@@ -261,7 +261,8 @@ struct Outcome {
 fn run<const N: usize>(cfg: &Config, duration: f64) -> Outcome {
     let x0 = cfg.initial_state::<N>();
     let p = cfg.law_params();
-    let mut sim = Simulation::<N>::new(cfg.model::<N>(), p, cfg.sim.dt, x0, cfg.feedback.max_tau);
+    let mut sim =
+        Simulation::<N>::new(cfg.model::<N>(), p, cfg.sim.dt, x0, cfg.feedback.capacity());
     let mut stats = RunStats::<N>::new(&p, cfg.sim.dt, duration, 20.0, &x0);
     let steps = (duration / cfg.sim.dt).round() as u64;
     let mut out = Outcome {

@@ -33,7 +33,7 @@ fn simulate(cfg: &Config) -> (Summary, bool, Option<control::steer::Blocked>) {
         params,
         cfg.sim.dt,
         x0,
-        cfg.feedback.max_tau,
+        cfg.feedback.capacity(),
     );
     let mut stats = RunStats::new(&params, cfg.sim.dt, duration, transient, &x0);
     for k in 0..(duration / cfg.sim.dt).round() as u64 {

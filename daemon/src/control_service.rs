@@ -77,19 +77,20 @@ impl Reporter {
     fn change(&self, op: Op, args: &str, now: f64) -> Result<System, String> {
         use crate::{requests as p, spatial_requests as s};
         let t = self.min_tau;
+        match op {
+            Op::DfcOn => return p::apply_dfc(&self.system, true, now, t),
+            Op::DfcOff => return p::apply_dfc(&self.system, false, now, t),
+            _ => {}
+        }
         match &self.system {
             System::Planar(c) => match op {
                 Op::Set => p::apply_set(c, args, t),
-                Op::DfcOn => p::apply_dfc(c, true, now),
-                Op::DfcOff => p::apply_dfc(c, false, now),
                 Op::ObstacleAdd => p::apply_obstacle_add(c, args),
                 _ => p::apply_obstacle_remove(c, args),
             }
             .map(System::Planar),
             System::Spatial(c) => match op {
                 Op::Set => s::apply_set(c, args, t),
-                Op::DfcOn => s::apply_dfc(c, true, now, t),
-                Op::DfcOff => s::apply_dfc(c, false, now, t),
                 Op::ObstacleAdd => s::apply_obstacle_add(c, args, t),
                 _ => s::apply_obstacle_remove(c, args, t),
             }

@@ -962,7 +962,8 @@ mod tests {
         let mut log = ReplayLog::create(dir, name, &system, &settings(), false, true)
             .unwrap()
             .with_max_bytes(max_bytes);
-        let mut ctl = Controller::<3>::new(cfg.tick_law::<3>(), cfg.feedback.max_tau, settings());
+        let mut ctl =
+            Controller::<3>::new(cfg.tick_law::<3>(), cfg.feedback.capacity(), settings());
         // As the daemon runs: no plant is controlled until the handshake agrees to it (tick 20),
         // and a refusal of the same plant later (tick 300) stops control again.
         ctl.require_handshake();

@@ -5,9 +5,9 @@
 //! a fully valid result leaves this module; the reporter then hands the loop a new `LawParams`
 //! block, which the loop swaps in at a tick boundary. These functions do no I/O.
 
-use control::config::{validate_obstacle, ObstacleConfig, SecondaryKind};
+use control::config::{validate_obstacle, FeedbackSection, ObstacleConfig, SecondaryKind};
 use control::safety::policy::PlanMode;
-use control::Config;
+use control::{Config, System};
 use std::path::{Component, Path, PathBuf};
 
 /// Keys `set` accepts (short and dotted forms), for the error message.
@@ -92,15 +92,10 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             .trim_start_matches("feedback.")
             .trim_start_matches("law.")
             .trim_start_matches("control.");
+        if feedback_key(&mut c.feedback, key, k, &mut it)? {
+            continue;
+        }
         match k {
-            "mu" | "gamma" | "max_mu" => {
-                let f = &mut c.feedback;
-                control::adapt::set_live(k, it.next(), &mut f.mu, &mut f.auto)?
-            }
-            "tau" => c.feedback.tau = num(key, it.next())?,
-            "t_on" => c.feedback.t_on = num(key, it.next())?,
-            "feedback" | "enabled" | "dfc" => c.feedback.enabled = on_off(key, it.next())?,
-            "projection" => c.feedback.projection = projection(key, it.next())?,
             "safety" | "safety.enabled" => c.safety.enabled = on_off(key, it.next())?,
             "safety.clearance" => c.safety.clearance = num(key, it.next())?,
             "safety.qd_max" => c.safety.qd_max = limit(key, &mut it, cfg.n())?,
@@ -148,27 +143,10 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             }
             "task.radius" | "radius" => c.task.radius = num(key, it.next())?,
             "task.period" | "period" => c.task.period = num(key, it.next())?,
-            "max_tau" => {
-                return Err(format!(
-                    "feedback.max_tau = {} s is the delay-line capacity, fixed at start-up",
-                    cfg.feedback.max_tau
-                ))
-            }
             _ => return Err(format!("unknown key {key:?}; keys: {KEYS}")),
         }
     }
-    if c.feedback.tau > cfg.feedback.max_tau {
-        return Err(format!(
-            "feedback.tau = {} s exceeds the delay-line capacity feedback.max_tau = {} s fixed at start-up",
-            c.feedback.tau, cfg.feedback.max_tau
-        ));
-    }
-    if c.feedback.tau < min_tau {
-        return Err(format!(
-            "feedback.tau = {} s is shorter than one control period ({min_tau} s)",
-            c.feedback.tau
-        ));
-    }
+    check_tau(c.tau(), cfg.feedback.capacity(), min_tau)?;
     c.validate().map_err(|e| e.to_string())?;
     // The loop's own step, not only the offline `sim.dt`.
     control::config::stability::check(
@@ -180,20 +158,65 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
     Ok(c)
 }
 
-/// Feedback on from controller time `now`, or off.
-pub fn apply_dfc(cfg: &Config, on: bool, now: f64) -> Result<Config, String> {
-    let mut c = cfg.clone();
-    c.feedback.enabled = on;
+/// Applies `key` (`k` without its section) to `[feedback]` if it is one of its keys, the same
+/// on every arm; false if it is not.
+pub(crate) fn feedback_key<'a>(
+    f: &mut FeedbackSection,
+    key: &str,
+    k: &str,
+    it: &mut impl Iterator<Item = &'a str>,
+) -> Result<bool, String> {
+    match k {
+        "mu" | "gamma" | "max_mu" => {
+            control::adapt::set_live(k, it.next(), &mut f.mu, &mut f.auto)?
+        }
+        "tau" => f.tau = Some(num(key, it.next())?),
+        "t_on" => f.t_on = num(key, it.next())?,
+        "feedback" | "enabled" | "dfc" => f.enabled = on_off(key, it.next())?,
+        "projection" => f.projection = projection(key, it.next())?,
+        "max_tau" => {
+            return Err(format!(
+                "feedback.max_tau = {} s is the delay-line capacity, fixed at start-up",
+                f.capacity()
+            ))
+        }
+        _ => return Ok(false),
+    }
+    Ok(true)
+}
+
+/// A new τ must fit the delay line the daemon sized at start-up and span a control period.
+pub(crate) fn check_tau(tau: f64, capacity: f64, min_tau: f64) -> Result<(), String> {
+    if tau > capacity {
+        return Err(format!(
+            "feedback.tau = {tau} s exceeds the delay-line capacity feedback.max_tau = {capacity} s fixed at start-up"
+        ));
+    }
+    if tau < min_tau {
+        return Err(format!(
+            "feedback.tau = {tau} s is shorter than one control period ({min_tau} s)"
+        ));
+    }
+    Ok(())
+}
+
+/// Feedback on from controller time `now`, or off, on any arm; `min_tau` is one control period.
+pub fn apply_dfc(system: &System, on: bool, now: f64, min_tau: f64) -> Result<System, String> {
+    let mut n = system.clone();
+    let f = n.feedback_section_mut();
+    f.enabled = on;
     if on {
-        c.feedback.t_on = now.max(0.0);
-        if c.feedback.mu == 0.0 && c.feedback.auto.is_none() {
+        f.t_on = now.max(0.0);
+        if f.mu == 0.0 && f.auto.is_none() {
             return Err(
                 "feedback.mu is 0: set a gain first (chaosctl set mu 0.2, or mu auto)".into(),
             );
         }
     }
-    c.validate().map_err(|e| e.to_string())?;
-    Ok(c)
+    n.validate().map_err(|e| e.to_string())?;
+    let step = format!("the daemon's {:.0} Hz", 1.0 / min_tau);
+    n.check_step(min_tau, &step).map_err(|e| e.to_string())?;
+    Ok(n)
 }
 
 /// An obstacle's positional numbers and its margin: `margin=M` anywhere, or one more number
@@ -440,7 +463,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(
-            (n.feedback.mu, n.feedback.tau, n.control.kp, n.task.center),
+            (n.feedback.mu, n.tau(), n.control.kp, n.task.center),
             (1.5, 1.2, 30.0, [1.0, 1.5])
         );
         assert!(!n.feedback.enabled);
@@ -488,11 +511,16 @@ mod tests {
             .control
             .obstacles
             .is_empty());
-        assert!(apply_dfc(&Config::default(), true, 3.0)
+        let system = |c: Config| System::Planar(c);
+        assert!(apply_dfc(&system(Config::default()), true, 3.0, 1e-3)
             .unwrap_err()
             .contains("mu is 0"));
-        let on = apply_dfc(&apply_set(&c, "mu 0.2", 1e-3).unwrap(), true, 3.0).unwrap();
-        assert_eq!((on.feedback.enabled, on.feedback.t_on), (true, 3.0));
+        let with_gain = system(apply_set(&c, "mu 0.2", 1e-3).unwrap());
+        let on = apply_dfc(&with_gain, true, 3.0, 1e-3).unwrap();
+        let f = on.feedback_section();
+        assert_eq!((f.enabled, f.t_on), (true, 3.0));
+        let off = apply_dfc(&on, false, 4.0, 1e-3).unwrap();
+        assert!(!off.feedback_section().enabled);
     }
 
     #[test]

@@ -35,15 +35,10 @@ pub fn apply_set(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialS
                 num(key, it.next())
             };
         }
+        if crate::requests::feedback_key(&mut c.feedback, key, k, &mut it)? {
+            continue;
+        }
         match k {
-            "mu" | "gamma" | "max_mu" => {
-                let f = &mut c.feedback;
-                control::adapt::set_live(k, it.next(), &mut f.mu, &mut f.auto)?
-            }
-            "tau" => c.feedback.tau = Some(f!()?),
-            "t_on" => c.feedback.t_on = f!()?,
-            "feedback" | "enabled" | "dfc" => c.feedback.enabled = on_off(key, it.next())?,
-            "projection" => c.feedback.projection = crate::requests::projection(key, it.next())?,
             "kp" => c.law.kp = f!()?,
             "kv" => c.law.kv = f!()?,
             "alpha" => c.law.alpha = f!()?,
@@ -78,6 +73,8 @@ pub fn apply_set(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialS
     if !any {
         return Err(format!("set needs KEY VALUE pairs; keys: {KEYS}"));
     }
+    let f = &n.config.feedback;
+    crate::requests::check_tau(f.tau_for(n.config.task.period), f.capacity(), min_tau)?;
     checked(n, min_tau)
 }
 
@@ -90,24 +87,6 @@ fn word(key: &str, v: Option<&str>, allowed: &[&str]) -> Result<String, String> 
             allowed.join(", ")
         )),
     }
-}
-
-/// Feedback on from controller time `now`, or off.
-pub fn apply_dfc(
-    s: &SpatialSystem,
-    on: bool,
-    now: f64,
-    min_tau: f64,
-) -> Result<SpatialSystem, String> {
-    let mut n = s.clone();
-    n.config.feedback.enabled = on;
-    if on {
-        n.config.feedback.t_on = now.max(0.0);
-        if n.config.feedback.mu == 0.0 && n.config.feedback.auto.is_none() {
-            return Err("feedback.mu is 0: set a gain first (chaosctl set mu 1)".into());
-        }
-    }
-    checked(n, min_tau)
 }
 
 /// `X Y Z RADIUS [MARGIN]` (m): a sphere.
@@ -215,20 +194,29 @@ mod tests {
 
     #[test]
     fn dfc_needs_a_gain() {
-        let mut p = panda();
+        use crate::requests::apply_dfc;
+        let mut p = System::Spatial(Box::new(panda()));
         let on = apply_dfc(&p, true, 12.0, 1e-3).unwrap();
-        assert_eq!(
-            (on.config.feedback.enabled, on.config.feedback.t_on),
-            (true, 12.0)
-        );
-        p.config.feedback.mu = 0.0;
+        let f = on.feedback_section();
+        assert_eq!((f.enabled, f.t_on), (true, 12.0));
+        p.feedback_section_mut().mu = 0.0;
         assert!(apply_dfc(&p, true, 1.0, 1e-3).unwrap_err().contains("mu"));
-        assert!(
-            !apply_dfc(&p, false, 1.0, 1e-3)
-                .unwrap()
-                .config
-                .feedback
-                .enabled
-        );
+        let off = apply_dfc(&p, false, 1.0, 1e-3).unwrap();
+        assert!(!off.feedback_section().enabled);
+    }
+
+    #[test]
+    fn tau_fits_the_delay_line_and_a_control_period() {
+        let p = panda();
+        let n = apply_set(&p, "tau 1.5", 1e-3).unwrap();
+        assert_eq!(n.config.feedback.tau, Some(1.5));
+        for (args, says) in [
+            ("tau 1e-4", "control period"),
+            ("tau 61", "feedback.max_tau = 60"),
+            ("max_tau 5", "fixed at start-up"),
+        ] {
+            let e = apply_set(&p, args, 1e-3).unwrap_err();
+            assert!(e.contains(says), "{args}: {e}");
+        }
     }
 }

@@ -155,7 +155,7 @@ pub fn merge(args: BasinsCmd, files: Vec<Loaded>) -> Result<()> {
 
 /// Newton-refines each settled orbit at μ = 0 (fixed base only), to tie the map to `orbits`.
 fn refine(base: &Config, points: &[Vec<f64>]) -> Vec<Option<String>> {
-    if base.arm.model != ModelKind::Fixed || (base.feedback.tau - base.task.period).abs() > 1e-9 {
+    if base.arm.model != ModelKind::Fixed || (base.tau() - base.task.period).abs() > 1e-9 {
         return vec![None; points.len()];
     }
     let n = base.n();

@@ -139,7 +139,7 @@ pub fn trace(cfg: &Config, stride: u64, transient: f64) -> Result<Trace> {
     with_dof!(n, N => {
         let params = cfg.law_params();
         let x0 = cfg.initial_state::<N>();
-        let mut sim = Simulation::new(cfg.model::<N>(), params, dt, x0, cfg.feedback.max_tau);
+        let mut sim = Simulation::new(cfg.model::<N>(), params, dt, x0, cfg.feedback.capacity());
         let mut stats = RunStats::new(&params, dt, cfg.sim.duration, transient, &x0);
         let cap = (steps / stride + 2) as usize;
         let mut tr = Trace::with_capacity(n, cap, stride as f64 * dt);

@@ -106,7 +106,7 @@ fn build_report(cfg: &Config, spec: &RunSpec, run: &RunAnalysis) -> Result<Lyapu
         d0: l.d0,
         renorm: l.renorm,
         mu: cfg.feedback.mu,
-        tau: cfg.feedback.tau,
+        tau: cfg.tau(),
         t_on: cfg.feedback.t_on,
         q0: cfg.q0(),
         qd0: cfg.qd0(),

@@ -106,7 +106,7 @@ pub fn run(args: MonitorCmd) -> Result<()> {
         }
     }
     let report = super::monitor_report::Report::new(
-        base.feedback.tau,
+        base.tau(),
         starts.iter().map(Config::q0).collect(),
         fixed_cells,
         auto_cells,
@@ -189,7 +189,7 @@ fn auto_settings(args: &MonitorCmd, base: &Config) -> Result<AutoMu> {
     let mut a = base.feedback.auto.unwrap_or_default();
     a.gamma = args.gamma.unwrap_or(a.gamma);
     a.max_mu = args.max_mu.unwrap_or(a.max_mu);
-    a.check(base.feedback.tau)?;
+    a.check(base.tau())?;
     Ok(a)
 }
 
@@ -204,7 +204,7 @@ fn fixed(
         .and_then(|a| a.lyapunov)
         .map(|l| (l.lambda_max, l.stderr));
     let w = watch(c, spec.duration, s, &[]);
-    fixed_cell(start, c.feedback.mu, c.feedback.tau, offline, &w)
+    fixed_cell(start, c.feedback.mu, c.tau(), offline, &w)
 }
 
 /// A fixed-μ cell from the offline (λ_max, standard error) and the watched run.

@@ -226,10 +226,10 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
     if base.arm.model != ModelKind::Fixed {
         bail!("orbits needs the fixed-base model (--model fixed): the floating base's attitude drifts, so its motion never closes after one period");
     }
-    if (base.feedback.tau - base.task.period).abs() > 1e-9 {
+    if (base.tau() - base.task.period).abs() > 1e-9 {
         bail!(
             "orbits needs τ = T (feedback.tau = {} s, task.period = {} s): only then does the feedback vanish on period-T orbits",
-            base.feedback.tau,
+            base.tau(),
             base.task.period
         );
     }

@@ -468,7 +468,10 @@ fn plot(
     let chart = Chart {
         title: format!(
             "λ_max averaged over {:.0}–{:.0} s, τ = {} s, feedback on at {} s",
-            w[0], w[1], base.feedback.tau, base.feedback.t_on
+            w[0],
+            w[1],
+            base.tau(),
+            base.feedback.t_on
         ),
         x_label: "Pyragas gain μ (1/s)".into(),
         y_label: "largest Lyapunov exponent λ_max (1/s)".into(),

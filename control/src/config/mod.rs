@@ -8,12 +8,14 @@
 //! Every default is docs/science.md's; the `paper*` presets reproduce the paper's set-ups.
 
 pub mod command;
+pub mod feedback;
 pub mod planar_file;
 pub mod rehearsal;
 pub mod spatial;
 pub mod stability;
 
-use crate::adapt::{AutoMu, MuSetting};
+pub use feedback::{FeedbackSection, MAX_TAU};
+
 use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
 use crate::basics::{
     excerpt, invalid, range, ConfigError, MAX_CONFIG_BYTES, MAX_JOINTS, MIN_JOINTS,
@@ -187,83 +189,6 @@ impl Default for ControlConfig {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "FeedbackToml", into = "FeedbackToml")]
-pub struct FeedbackConfig {
-    /// Pyragas gain μ (≥ 0; chaosd uses the stabilising sign −μ[q̇(t) − q̇(t−τ)]); with `auto`,
-    /// the gain the adaptation starts from (0).
-    pub mu: f64,
-    /// `mu = "auto"`: the speed-gradient law adapts μ ([`crate::adapt`]).
-    pub auto: Option<AutoMu>,
-    /// Delay τ (s).
-    pub tau: f64,
-    /// Switch-on time t_on (s).
-    pub t_on: f64,
-    /// Master switch.
-    pub enabled: bool,
-    /// Capacity of the delay line (s): the largest τ a running daemon accepts.
-    pub max_tau: f64,
-    /// Where the delayed term acts: "full" (every joint, the paper's form) or "null-space"
-    /// (projected by I − J⁺J onto the self-motion, so tracking is never disturbed).
-    pub projection: ProjectionKind,
-}
-
-/// `[feedback]` as written: `mu` is a number or `"auto"`, and `gamma`/`max_mu` tune "auto".
-#[derive(Clone, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-struct FeedbackToml {
-    mu: MuSetting,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    gamma: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    max_mu: Option<f64>,
-    tau: f64,
-    t_on: f64,
-    enabled: bool,
-    max_tau: f64,
-    projection: ProjectionKind,
-}
-
-impl Default for FeedbackToml {
-    fn default() -> Self {
-        FeedbackConfig::default().into()
-    }
-}
-
-impl TryFrom<FeedbackToml> for FeedbackConfig {
-    type Error = ConfigError;
-    fn try_from(f: FeedbackToml) -> Result<Self, ConfigError> {
-        Ok(Self {
-            mu: f.mu.start(),
-            auto: crate::adapt::auto_from_toml(f.mu, f.gamma, f.max_mu)?,
-            tau: f.tau,
-            t_on: f.t_on,
-            enabled: f.enabled,
-            max_tau: f.max_tau,
-            projection: f.projection,
-        })
-    }
-}
-
-impl From<FeedbackConfig> for FeedbackToml {
-    fn from(f: FeedbackConfig) -> Self {
-        Self {
-            mu: if f.auto.is_some() {
-                MuSetting::Auto
-            } else {
-                MuSetting::Fixed(f.mu)
-            },
-            gamma: f.auto.map(|a| a.gamma),
-            max_mu: f.auto.map(|a| a.max_mu),
-            tau: f.tau,
-            t_on: f.t_on,
-            enabled: f.enabled,
-            max_tau: f.max_tau,
-            projection: f.projection,
-        }
-    }
-}
-
 /// `feedback.projection`, one type for every arm's file: where the delayed term acts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -312,20 +237,6 @@ impl From<ProjectionKind> for Projection {
     }
 }
 
-impl Default for FeedbackConfig {
-    fn default() -> Self {
-        Self {
-            mu: 0.0,
-            auto: None,
-            tau: 1.0,
-            t_on: 5.0,
-            enabled: true,
-            max_tau: 2.0,
-            projection: ProjectionKind::Full,
-        }
-    }
-}
-
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SimConfig {
@@ -357,13 +268,13 @@ impl Default for SimConfig {
 }
 
 /// The whole file. `[daemon]` and `[plant]` are owned and validated by those programs.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Config {
     pub arm: ArmConfig,
     pub task: TaskConfig,
     pub control: ControlConfig,
-    pub feedback: FeedbackConfig,
+    pub feedback: FeedbackSection,
     pub sim: SimConfig,
     /// The safety filter and the runaway guard (see `control::safety::config`).
     pub safety: SafetyConfig,
@@ -371,6 +282,21 @@ pub struct Config {
     pub daemon: Option<toml::Table>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plant: Option<toml::Table>,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            arm: ArmConfig::default(),
+            task: TaskConfig::default(),
+            control: ControlConfig::default(),
+            feedback: FeedbackSection::planar(),
+            sim: SimConfig::default(),
+            safety: SafetyConfig::default(),
+            daemon: None,
+            plant: None,
+        }
+    }
 }
 
 /// Names accepted by [`Config::preset`].
@@ -456,13 +382,24 @@ impl Config {
                 text.len()
             )));
         }
-        match text.parse::<toml::Table>() {
-            Ok(t) if planar_file::names_planar(&t) => planar_file::read(text),
+        let table = text.parse::<toml::Table>();
+        let mut c = match &table {
+            Ok(t) if planar_file::names_planar(t) => planar_file::read(text),
             Ok(t) if t.contains_key("robot") => {
                 Err(ConfigError::Spatial("a config with a [robot] table".into()))
             }
             _ => toml::from_str(text).map_err(|e| ConfigError::Parse(excerpt(&e.to_string()))),
-        }
+        }?;
+        let given = table.ok();
+        let feedback = given.as_ref().and_then(|t| t.get("feedback"));
+        c.feedback
+            .fill_planar_defaults(feedback.and_then(toml::Value::as_table));
+        Ok(c)
+    }
+
+    /// τ (s): the file's, or the task's period.
+    pub fn tau(&self) -> f64 {
+        self.feedback.tau_for(self.task.period)
     }
 
     /// The file in the shared form every arm's file has ([`planar_file`]).
@@ -589,27 +526,11 @@ impl Config {
             ));
         }
 
-        let f = &self.feedback;
         let s = &self.sim;
         range("sim.dt", s.dt, 1e-5, 0.1)?;
         positive("sim.duration", s.duration, 1e7)?;
         range("sim.transient", s.transient, 0.0, s.duration)?;
-        range("feedback.mu", f.mu, 0.0, 100.0)?;
-        if let Some(a) = &f.auto {
-            a.check(f.tau)?;
-        }
-        range("feedback.max_tau", f.max_tau, s.dt, 60.0)?;
-        if !(f.tau.is_finite() && f.tau >= s.dt && f.tau <= f.max_tau) {
-            return Err(invalid(
-                "feedback.tau",
-                f.tau,
-                &format!(
-                    "must be between sim.dt = {} s and feedback.max_tau = {} s",
-                    s.dt, f.max_tau
-                ),
-            ));
-        }
-        range("feedback.t_on", f.t_on, 0.0, 1e9)?;
+        self.feedback.validate(s.dt, self.task.period)?;
         for (name, v) in [("sim.q0", &s.q0), ("sim.qd0", &s.qd0)] {
             if let Some(v) = v {
                 same_len(name, v, n)?;
@@ -657,7 +578,7 @@ impl Config {
                 damping_threshold: c.damping_threshold,
                 damping_max: c.damping_max,
                 mu: self.feedback.mu,
-                tau: self.feedback.tau,
+                tau: self.tau(),
                 t_on: self.feedback.t_on,
                 feedback: self.feedback.enabled,
                 projection: self.feedback.projection.into(),

@@ -13,7 +13,7 @@
 //! ([`to_legacy_key`]): `law.kp` in this form, `control.kp` in the older one.
 
 use super::{
-    ArmConfig, Config, ControlConfig, FeedbackConfig, ObstacleConfig, SafetyConfig, SimConfig,
+    ArmConfig, Config, ControlConfig, FeedbackSection, ObstacleConfig, SafetyConfig, SimConfig,
     TaskConfig,
 };
 use crate::basics::{excerpt, invalid, ConfigError};
@@ -34,7 +34,7 @@ struct FileIn {
     #[serde(default)]
     law: ControlConfig,
     #[serde(default)]
-    feedback: FeedbackConfig,
+    feedback: FeedbackSection,
     #[serde(default)]
     safety: SafetyConfig,
     #[serde(default)]
@@ -51,7 +51,7 @@ struct FileOut<'a> {
     robot: RobotOut<'a>,
     task: &'a TaskConfig,
     law: ControlConfig,
-    feedback: &'a FeedbackConfig,
+    feedback: &'a FeedbackSection,
     safety: &'a SafetyConfig,
     #[serde(skip_serializing_if = "<[_]>::is_empty")]
     obstacles: &'a [ObstacleConfig],

@@ -6,7 +6,7 @@
 //! or a URDF path): this crate does no I/O. Limits come from the URDF, and the file may only
 //! tighten them, so a typo cannot loosen what the arm's maker allows.
 
-use crate::adapt::{AutoMu, MuSetting};
+use super::FeedbackSection;
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::basics::invalid;
@@ -28,8 +28,6 @@ use crate::task::spatial::Vec3;
 use nalgebra::{Rotation3, SVector};
 use serde::{Deserialize, Serialize};
 
-/// The longest delay τ (s) a spatial set-up may ask for (the planar `feedback.max_tau` bound).
-pub const MAX_TAU: f64 = 60.0;
 /// The Panda's ready pose, a comfortable start in the middle of its workspace.
 pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
 
@@ -145,88 +143,6 @@ fn auto_metric() -> String {
 
 fn is_auto_metric(m: &str) -> bool {
     m == "auto"
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "FeedbackToml", into = "FeedbackToml")]
-pub struct FeedbackSection {
-    /// The switch (`chaosctl dfc on|off`); μ = 0 also leaves the law as the paper's.
-    pub enabled: bool,
-    /// The gain; with `auto`, the one the adaptation starts from (0).
-    pub mu: f64,
-    /// `mu = "auto"`: the speed-gradient law adapts μ ([`crate::adapt`]).
-    pub auto: Option<AutoMu>,
-    /// Default: the task's period.
-    pub tau: Option<f64>,
-    pub t_on: f64,
-    /// `"full"` or `"null-space"`, as on the planar arm.
-    pub projection: crate::config::ProjectionKind,
-}
-
-/// `[feedback]` as written: `mu` is a number or `"auto"`, and `gamma`/`max_mu` tune "auto".
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-struct FeedbackToml {
-    enabled: bool,
-    mu: MuSetting,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    gamma: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    max_mu: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    tau: Option<f64>,
-    t_on: f64,
-    projection: crate::config::ProjectionKind,
-}
-
-impl Default for FeedbackToml {
-    fn default() -> Self {
-        FeedbackSection::default().into()
-    }
-}
-
-impl TryFrom<FeedbackToml> for FeedbackSection {
-    type Error = ConfigError;
-    fn try_from(f: FeedbackToml) -> Result<Self, ConfigError> {
-        Ok(Self {
-            enabled: f.enabled,
-            mu: f.mu.start(),
-            auto: crate::adapt::auto_from_toml(f.mu, f.gamma, f.max_mu)?,
-            tau: f.tau,
-            t_on: f.t_on,
-            projection: f.projection,
-        })
-    }
-}
-
-impl From<FeedbackSection> for FeedbackToml {
-    fn from(f: FeedbackSection) -> Self {
-        Self {
-            enabled: f.enabled,
-            mu: match f.auto {
-                Some(_) => MuSetting::Auto,
-                None => MuSetting::Fixed(f.mu),
-            },
-            gamma: f.auto.map(|a| a.gamma),
-            max_mu: f.auto.map(|a| a.max_mu),
-            tau: f.tau,
-            t_on: f.t_on,
-            projection: f.projection,
-        }
-    }
-}
-
-impl Default for FeedbackSection {
-    fn default() -> Self {
-        Self {
-            enabled: true,
-            mu: 0.0,
-            auto: None,
-            tau: None,
-            t_on: 0.0,
-            projection: crate::config::ProjectionKind::Full,
-        }
-    }
 }
 
 /// The safety filter's switches and gains; the limits themselves come from the robot.
@@ -431,7 +347,6 @@ impl SpatialConfig {
             ("law.null_damping", self.law.null_damping),
             ("law.null_speed", self.law.null_speed),
             ("law.damping_max", self.law.damping_max),
-            ("feedback.t_on", self.feedback.t_on),
             ("safety.clearance", self.safety.clearance),
         ] {
             non_negative(f, v)?;
@@ -443,24 +358,10 @@ impl SpatialConfig {
                 "0 while law.null_damping = 0 (the cap acts on the velocity α∇/k_d that damping pulls the self-motion to)",
             ));
         }
-        // The planar bound: the same gain may not mean a runaway on one arm and not the other.
-        crate::basics::range("feedback.mu", self.feedback.mu, 0.0, 100.0)?;
-        if let Some(a) = &self.feedback.auto {
-            a.check(self.feedback.tau.unwrap_or(self.task.period))?;
-        }
+        // The planar arm's rules: the same gain may not mean a runaway on one arm and not the other.
+        self.feedback.validate(self.sim.dt, self.task.period)?;
         positive("law.damping_threshold", self.law.damping_threshold)?;
         positive("law.track_loss", self.law.track_loss)?;
-        let tau = self.feedback.tau.unwrap_or(self.task.period);
-        if !(tau.is_finite() && tau >= self.sim.dt && tau <= MAX_TAU) {
-            return Err(invalid(
-                "feedback.tau",
-                tau,
-                &format!(
-                    "must be between sim.dt = {} s and {MAX_TAU} s (the delay line holds τ/dt samples)",
-                    self.sim.dt
-                ),
-            ));
-        }
         let step = format!("sim.dt = {} s", self.sim.dt);
         crate::config::stability::check_sampled(
             &crate::config::stability::Sampled {
@@ -664,7 +565,7 @@ impl SpatialConfig {
                 damping_threshold: self.law.damping_threshold,
                 damping_max: self.law.damping_max,
                 mu: self.feedback.mu,
-                tau: self.feedback.tau.unwrap_or(self.task.period),
+                tau: self.feedback.tau_for(self.task.period),
                 t_on: self.feedback.t_on,
                 feedback: self.feedback.enabled,
                 projection: self.feedback.projection.into(),

@@ -54,7 +54,7 @@ fn watch_n<const N: usize>(
     edits: &[Edit],
 ) -> Watched {
     let params = cfg.law_params();
-    let max_tau = cfg.feedback.max_tau;
+    let max_tau = cfg.feedback.capacity();
     let mut sim = Simulation::new(
         cfg.model::<N>(),
         params,

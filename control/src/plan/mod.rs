@@ -244,7 +244,7 @@ pub fn posture_at(cfg: &crate::config::Config, at: f64) -> (f64, [f64; 3]) {
         cfg.law_params(),
         cfg.sim.dt,
         cfg.initial_state::<3>(),
-        cfg.feedback.max_tau,
+        cfg.feedback.capacity(),
     );
     while sim.time() < at {
         sim.step();
