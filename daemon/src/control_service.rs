@@ -77,24 +77,17 @@ impl Reporter {
     fn change(&self, op: Op, args: &str, now: f64) -> Result<System, String> {
         use crate::{requests as p, spatial_requests as s};
         let t = self.min_tau;
-        match op {
-            Op::DfcOn => return p::apply_dfc(&self.system, true, now, t),
-            Op::DfcOff => return p::apply_dfc(&self.system, false, now, t),
-            _ => {}
-        }
-        match &self.system {
-            System::Planar(c) => match op {
-                Op::Set => p::apply_set(c, args, t),
-                Op::ObstacleAdd => p::apply_obstacle_add(c, args),
-                _ => p::apply_obstacle_remove(c, args),
+        let system = &self.system;
+        match (op, system) {
+            (Op::DfcOn, _) => p::apply_dfc(system, true, now, t),
+            (Op::DfcOff, _) => p::apply_dfc(system, false, now, t),
+            (Op::ObstacleAdd, _) => p::apply_obstacle_add(system, args, t),
+            (Op::ObstacleRemove, _) => p::apply_obstacle_remove(system, args, t),
+            // `set` takes each arm's own [law], [task] and [safety] keys.
+            (_, System::Planar(c)) => p::apply_set(c, args, t).map(System::Planar),
+            (_, System::Spatial(c)) => {
+                s::apply_set(c, args, t).map(|n| System::Spatial(Box::new(n)))
             }
-            .map(System::Planar),
-            System::Spatial(c) => match op {
-                Op::Set => s::apply_set(c, args, t),
-                Op::ObstacleAdd => s::apply_obstacle_add(c, args, t),
-                _ => s::apply_obstacle_remove(c, args, t),
-            }
-            .map(|n| System::Spatial(Box::new(n))),
         }
     }
 
@@ -121,23 +114,13 @@ impl Reporter {
     /// The obstacles as `obstacle ls` lists them (2-D circles or 3-D spheres).
     fn obstacles(&self) -> serde_json::Value {
         // Numbered from 1, as `obstacle rm`, Blocked and every other message number them.
-        let row = |i: usize, c: &[f64], r: f64, m: f64| serde_json::json!({"number": i + 1, "center": c, "radius": r, "margin": m});
-        let rows: Vec<_> = match &self.system {
-            System::Planar(c) => c
-                .control
-                .obstacles
-                .iter()
-                .enumerate()
-                .map(|(i, o)| row(i, &o.center, o.radius, o.margin))
-                .collect(),
-            System::Spatial(s) => s
-                .config
-                .obstacles
-                .iter()
-                .enumerate()
-                .map(|(i, o)| row(i, &o.center, o.radius, o.margin))
-                .collect(),
-        };
+        let rows: Vec<_> = self
+            .system
+            .obstacle_rows()
+            .iter()
+            .enumerate()
+            .map(|(i, o)| serde_json::json!({"number": i + 1, "center": o.center, "radius": o.radius, "margin": o.margin}))
+            .collect();
         serde_json::json!(rows)
     }
 

@@ -5,7 +5,7 @@
 //! a fully valid result leaves this module; the reporter then hands the loop a new `LawParams`
 //! block, which the loop swaps in at a tick boundary. These functions do no I/O.
 
-use control::config::{validate_obstacle, FeedbackSection, ObstacleConfig, SecondaryKind};
+use control::config::{FeedbackSection, SecondaryKind};
 use control::safety::policy::PlanMode;
 use control::{Config, System};
 use std::path::{Component, Path, PathBuf};
@@ -213,10 +213,7 @@ pub fn apply_dfc(system: &System, on: bool, now: f64, min_tau: f64) -> Result<Sy
             );
         }
     }
-    n.validate().map_err(|e| e.to_string())?;
-    let step = format!("the daemon's {:.0} Hz", 1.0 / min_tau);
-    n.check_step(min_tau, &step).map_err(|e| e.to_string())?;
-    Ok(n)
+    checked(n, min_tau)
 }
 
 /// An obstacle's positional numbers and its margin: `margin=M` anywhere, or one more number
@@ -246,20 +243,24 @@ pub(crate) fn obstacle_args<'a>(
     Ok((v, margin.unwrap_or(0.1)))
 }
 
-/// `X Y RADIUS [MARGIN]`.
-pub fn apply_obstacle_add(cfg: &Config, args: &str) -> Result<Config, String> {
-    let usage = "X Y RADIUS [MARGIN] (m) for the planar arm";
-    let (v, margin) = obstacle_args(args, 3, usage)?;
-    let o = ObstacleConfig {
-        center: [num("x", Some(v[0]))?, num("y", Some(v[1]))?],
-        radius: num("radius", Some(v[2]))?,
-        margin,
+/// `X Y RADIUS [MARGIN]` on the planar arm, `X Y Z RADIUS [MARGIN]` on a robot (m).
+pub fn apply_obstacle_add(system: &System, args: &str, min_tau: f64) -> Result<System, String> {
+    let dims = system.obstacle_dims();
+    let usage = match dims {
+        2 => "X Y RADIUS [MARGIN] (m) for the planar arm",
+        _ => "X Y Z RADIUS [MARGIN] (m) on a spatial robot",
     };
-    validate_obstacle("obstacle", &o).map_err(|e| e.to_string())?;
-    let mut c = cfg.clone();
-    c.control.obstacles.push(o);
-    c.validate().map_err(|e| e.to_string())?;
-    Ok(c)
+    let (v, margin) = obstacle_args(args, dims + 1, usage)?;
+    let center = v[..dims]
+        .iter()
+        .zip(["x", "y", "z"])
+        .map(|(w, name)| num(name, Some(w)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let radius = num("radius", Some(v[dims]))?;
+    let mut n = system.clone();
+    n.add_obstacle(&center, radius, margin)
+        .map_err(|e| e.to_string())?;
+    checked(n, min_tau)
 }
 
 /// `obstacle rm N`: the obstacle's number as `obstacle ls`, status and every message give it,
@@ -279,14 +280,21 @@ pub(crate) fn obstacle_number(args: &str, count: usize) -> Result<usize, String>
 }
 
 /// `N`, as listed by `obstacle ls` (from 1).
-pub fn apply_obstacle_remove(cfg: &Config, args: &str) -> Result<Config, String> {
-    let mut c = cfg.clone();
-    let i = obstacle_number(args, c.control.obstacles.len())?;
-    c.control.obstacles.remove(i);
-    c.validate().map_err(|e| {
+pub fn apply_obstacle_remove(system: &System, args: &str, min_tau: f64) -> Result<System, String> {
+    let mut n = system.clone();
+    let i = obstacle_number(args, n.obstacle_rows().len())?;
+    n.remove_obstacle(i);
+    checked(n, min_tau).map_err(|e| {
         format!("{e} (set secondary to none or manipulability before removing the last obstacle)")
-    })?;
-    Ok(c)
+    })
+}
+
+/// A changed set-up, if it validates and runs at the daemon's step (`min_tau`, one period).
+pub(crate) fn checked(n: System, min_tau: f64) -> Result<System, String> {
+    n.validate().map_err(|e| e.to_string())?;
+    let step = format!("the daemon's {:.0} Hz", 1.0 / min_tau);
+    n.check_step(min_tau, &step).map_err(|e| e.to_string())?;
+    Ok(n)
 }
 
 /// Where a recording named by a client goes: inside `out_dir`, never outside it.
@@ -490,28 +498,31 @@ mod tests {
 
     #[test]
     fn obstacles_and_dfc() {
-        let c = apply_obstacle_add(&Config::default(), "0 1.6 0.25").unwrap();
+        let system = |c: Config| System::Planar(c);
+        let planar = |s: System| s.planar().unwrap().clone();
+        let one = apply_obstacle_add(&system(Config::default()), "0 1.6 0.25", 1e-3).unwrap();
+        let c = planar(one.clone());
         assert_eq!(c.control.obstacles.len(), 1);
-        assert!(apply_obstacle_add(&c, "0 1.6 -1")
+        assert!(apply_obstacle_add(&one, "0 1.6 -1", 1e-3)
             .unwrap_err()
             .contains("obstacle.radius"));
-        assert!(apply_obstacle_add(&c, "0 1.6").is_err());
-        let c2 = apply_set(&c, "secondary obstacles", 1e-3).unwrap();
-        assert!(apply_obstacle_remove(&c2, "1")
+        assert!(apply_obstacle_add(&one, "0 1.6", 1e-3)
+            .unwrap_err()
+            .contains("X Y RADIUS"));
+        let c2 = system(apply_set(&c, "secondary obstacles", 1e-3).unwrap());
+        assert!(apply_obstacle_remove(&c2, "1", 1e-3)
             .unwrap_err()
             .contains("secondary"));
-        assert!(apply_obstacle_remove(&c2, "3")
+        assert!(apply_obstacle_remove(&c2, "3", 1e-3)
             .unwrap_err()
             .contains("no obstacle 3"));
-        assert!(apply_obstacle_remove(&c, "0")
+        assert!(apply_obstacle_remove(&one, "0", 1e-3)
             .unwrap_err()
             .contains("numbered from 1"));
-        assert!(apply_obstacle_remove(&c, "1")
+        assert!(apply_obstacle_remove(&one, "1", 1e-3)
             .unwrap()
-            .control
-            .obstacles
+            .obstacle_rows()
             .is_empty());
-        let system = |c: Config| System::Planar(c);
         assert!(apply_dfc(&system(Config::default()), true, 3.0, 1e-3)
             .unwrap_err()
             .contains("mu is 0"));

@@ -8,7 +8,6 @@
 //! I/O.
 
 use crate::requests::{num, on_off};
-use control::config::spatial::SphereEntry;
 use control::system::SpatialSystem;
 use control::System;
 
@@ -89,49 +88,9 @@ fn word(key: &str, v: Option<&str>, allowed: &[&str]) -> Result<String, String> 
     }
 }
 
-/// `X Y Z RADIUS [MARGIN]` (m): a sphere.
-pub fn apply_obstacle_add(
-    s: &SpatialSystem,
-    args: &str,
-    min_tau: f64,
-) -> Result<SpatialSystem, String> {
-    let usage = "X Y Z RADIUS [MARGIN] (m) on a spatial robot";
-    let (v, margin) = crate::requests::obstacle_args(args, 4, usage)?;
-    let sphere = SphereEntry {
-        center: [
-            num("x", Some(v[0]))?,
-            num("y", Some(v[1]))?,
-            num("z", Some(v[2]))?,
-        ],
-        radius: num("radius", Some(v[3]))?,
-        margin,
-    };
-    let mut n = s.clone();
-    n.config.obstacles.push(sphere);
-    checked(n, min_tau)
-}
-
-/// `N`, as listed by `obstacle ls` (from 1).
-pub fn apply_obstacle_remove(
-    s: &SpatialSystem,
-    args: &str,
-    min_tau: f64,
-) -> Result<SpatialSystem, String> {
-    let mut n = s.clone();
-    let i = crate::requests::obstacle_number(args, n.config.obstacles.len())?;
-    n.config.obstacles.remove(i);
-    checked(n, min_tau)
-}
-
 /// The new set-up, if it validates against the chain and at the daemon's step.
 fn checked(n: SpatialSystem, min_tau: f64) -> Result<SpatialSystem, String> {
-    let system = System::Spatial(Box::new(n));
-    system.validate().map_err(|e| e.to_string())?;
-    let step = format!("the daemon's {:.0} Hz", 1.0 / min_tau);
-    system
-        .check_step(min_tau, &step)
-        .map_err(|e| e.to_string())?;
-    match system {
+    match crate::requests::checked(System::Spatial(Box::new(n)), min_tau)? {
         System::Spatial(s) => Ok(*s),
         System::Planar(_) => Err("not a spatial set-up".into()),
     }
@@ -174,22 +133,22 @@ mod tests {
 
     #[test]
     fn spheres_are_added_and_removed_in_3d() {
-        let p = panda();
-        let n = apply_obstacle_add(&p, "0.5 0.2 0.4 0.05", 1e-3).unwrap();
-        assert_eq!(n.config.obstacles.len(), 1);
-        assert_eq!(n.config.obstacles[0].center, [0.5, 0.2, 0.4]);
-        assert!(apply_obstacle_add(&p, "0.5 0.2 0.05 margin=0.1", 1e-3)
+        use crate::requests::{apply_obstacle_add as add, apply_obstacle_remove as remove};
+        let p = System::Spatial(Box::new(panda()));
+        let n = add(&p, "0.5 0.2 0.4 0.05", 1e-3).unwrap();
+        let rows = n.obstacle_rows();
+        assert_eq!(rows.len(), 1);
+        assert_eq!(rows[0].center, vec![0.5, 0.2, 0.4]);
+        assert!(add(&p, "0.5 0.2 0.05 margin=0.1", 1e-3)
             .unwrap_err()
             .contains("X Y Z RADIUS"));
-        let m = apply_obstacle_add(&p, "0.5 0.2 0.4 0.05 margin=0.2", 1e-3).unwrap();
-        assert_eq!(m.config.obstacles[0].margin, 0.2);
-        assert!(apply_obstacle_add(&p, "0.5 0.2 nan 0.05", 1e-3).is_err());
-        assert!(apply_obstacle_add(&p, "0.5 0.2 0.4 -1", 1e-3).is_err());
-        let back = apply_obstacle_remove(&n, "1", 1e-3).unwrap();
-        assert!(back.config.obstacles.is_empty());
-        assert!(apply_obstacle_remove(&n, "3", 1e-3)
-            .unwrap_err()
-            .contains("no obstacle 3"));
+        let m = add(&p, "0.5 0.2 0.4 0.05 margin=0.2", 1e-3).unwrap();
+        assert_eq!(m.obstacle_rows()[0].margin, 0.2);
+        assert!(add(&p, "0.5 0.2 nan 0.05", 1e-3).is_err());
+        assert!(add(&p, "0.5 0.2 0.4 -1", 1e-3).is_err());
+        let back = remove(&n, "1", 1e-3).unwrap();
+        assert!(back.obstacle_rows().is_empty());
+        assert!(remove(&n, "3", 1e-3).unwrap_err().contains("no obstacle 3"));
     }
 
     #[test]

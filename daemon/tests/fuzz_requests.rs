@@ -57,6 +57,17 @@ fn token() -> impl Strategy<Value = String> {
     ]
 }
 
+/// The planar demo and the Panda, loaded once.
+fn arms() -> &'static [control::System] {
+    static ARMS: std::sync::OnceLock<Vec<control::System>> = std::sync::OnceLock::new();
+    ARMS.get_or_init(|| {
+        vec![
+            control::System::Planar(Config::preset("demo").unwrap()),
+            rt::robot::preset("panda").unwrap(),
+        ]
+    })
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(3000))]
 
@@ -75,12 +86,13 @@ proptest! {
 
     #[test]
     fn obstacle_and_recording_arguments_never_panic(text in "\\PC{0,60}") {
-        let cfg = Config::preset("demo").unwrap();
-        if let Err(e) = apply_obstacle_add(&cfg, &text) {
-            prop_assert!(e.len() < 1024);
-        }
-        if let Err(e) = apply_obstacle_remove(&cfg, &text) {
-            prop_assert!(e.len() < 1024);
+        for system in arms() {
+            if let Err(e) = apply_obstacle_add(system, &text, 1e-3) {
+                prop_assert!(e.len() < 1024);
+            }
+            if let Err(e) = apply_obstacle_remove(system, &text, 1e-3) {
+                prop_assert!(e.len() < 1024);
+            }
         }
         let _ = recording_path(std::path::Path::new("/nonexistent-chaosd-out"), &text);
     }

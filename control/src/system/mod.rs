@@ -17,6 +17,9 @@ use crate::model::Chain;
 use crate::sim::ArmState;
 use crate::tick_law::{ParamBlock, TickLaw};
 
+mod obstacles;
+pub use obstacles::ObstacleRow;
+
 /// The spatial half: the file and the chain its `[robot]` names.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SpatialSystem {

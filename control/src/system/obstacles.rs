@@ -1,0 +1,109 @@
+//! The obstacles of either arm's set-up as a client edits and lists them (the daemon's
+//! `obstacle add|rm|ls`): a disc in the plane or a sphere in space, numbered from 1 everywhere.
+//!
+//! The daemon parses a request once for every arm and asks here how many numbers place a
+//! centre; which list of which file the obstacle goes into is this file's business.
+
+use super::System;
+use crate::basics::ConfigError;
+use crate::config::spatial::SphereEntry;
+use crate::config::{validate_obstacle, ObstacleConfig};
+
+/// One obstacle as listed: its centre (2 or 3 numbers), radius and margin (m).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObstacleRow {
+    pub center: Vec<f64>,
+    pub radius: f64,
+    pub margin: f64,
+}
+
+impl System {
+    /// How many numbers place an obstacle's centre: 2 (a disc in the plane) or 3 (a sphere).
+    pub fn obstacle_dims(&self) -> usize {
+        match self {
+            System::Planar(_) => 2,
+            System::Spatial(_) => 3,
+        }
+    }
+
+    /// The obstacles in the order `obstacle rm N` counts them (from 1).
+    pub fn obstacle_rows(&self) -> Vec<ObstacleRow> {
+        match self {
+            System::Planar(c) => c
+                .control
+                .obstacles
+                .iter()
+                .map(|o| ObstacleRow {
+                    center: o.center.to_vec(),
+                    radius: o.radius,
+                    margin: o.margin,
+                })
+                .collect(),
+            System::Spatial(s) => s
+                .config
+                .obstacles
+                .iter()
+                .map(|o| ObstacleRow {
+                    center: o.center.to_vec(),
+                    radius: o.radius,
+                    margin: o.margin,
+                })
+                .collect(),
+        }
+    }
+
+    /// Adds an obstacle whose centre has [`Self::obstacle_dims`] numbers; the caller validates
+    /// the whole set-up after.
+    ///
+    /// ```
+    /// let mut s = control::System::preset("demo", &control::system::builtin_robot).unwrap();
+    /// s.add_obstacle(&[0.0, 1.6], 0.25, 0.1).unwrap();
+    /// assert_eq!(s.obstacle_rows()[0].center, vec![0.0, 1.6]);
+    /// assert!(s.add_obstacle(&[0.0, 1.6, 0.2], 0.25, 0.1).is_err());
+    /// ```
+    pub fn add_obstacle(
+        &mut self,
+        center: &[f64],
+        radius: f64,
+        margin: f64,
+    ) -> Result<(), ConfigError> {
+        let dims = self.obstacle_dims();
+        if center.len() != dims {
+            return Err(crate::basics::invalid(
+                "obstacle.center",
+                center,
+                &format!("{dims} numbers on this arm"),
+            ));
+        }
+        match self {
+            System::Planar(c) => {
+                let o = ObstacleConfig {
+                    center: [center[0], center[1]],
+                    radius,
+                    margin,
+                };
+                validate_obstacle("obstacle", &o)?;
+                c.control.obstacles.push(o);
+            }
+            System::Spatial(s) => s.config.obstacles.push(SphereEntry {
+                center: [center[0], center[1], center[2]],
+                radius,
+                margin,
+            }),
+        }
+        Ok(())
+    }
+
+    /// Removes the obstacle at `index` (0-based; the caller has checked it against
+    /// [`Self::obstacle_rows`]).
+    pub fn remove_obstacle(&mut self, index: usize) {
+        match self {
+            System::Planar(c) => {
+                c.control.obstacles.remove(index);
+            }
+            System::Spatial(s) => {
+                s.config.obstacles.remove(index);
+            }
+        }
+    }
+}
