@@ -72,7 +72,7 @@ use std::time::Instant;
     about = "chaosd latency, jitter, end-to-end and compute benchmarks, side by side"
 )]
 struct Cli {
-    /// Short runs (the whole `all` in under 2 minutes), for a smoke test.
+    /// Short runs (the whole `all` in about 3 minutes on 2 vCPUs), for a smoke test.
     #[arg(long, global = true)]
     quick: bool,
     /// Where the reports, .hgrm files and plots go (one directory per subcommand).
