@@ -128,7 +128,7 @@ fn spatial(a: &PlanCmd, mut cfg: control::config::spatial::SpatialConfig) -> Res
         cfg.robot.base.as_deref(),
         cfg.robot.tip.as_deref(),
     )?;
-    let q0 = cfg.sim.q0.clone();
+    let q0 = cfg.sim.start().to_vec();
     let system = control::system::SpatialSystem { config: cfg, chain };
     // Checks the file against the robot (the spheres too) before planning.
     control::System::Spatial(Box::new(system.clone())).validate()?;

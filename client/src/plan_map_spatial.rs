@@ -231,7 +231,7 @@ mod tests {
         let sys = panda();
         let (_, q0) = path_and_posture(&sys, 0.0).unwrap();
         let (_, q1) = path_and_posture(&sys, 0.5).unwrap();
-        assert_eq!(q0, sys.config.sim.q0);
+        assert_eq!(q0, sys.config.sim.start());
         assert!(q0.iter().zip(&q1).any(|(a, b)| (a - b).abs() > 1e-3));
     }
 }

@@ -58,7 +58,7 @@ pub fn load(setup: &SetupArgs, mu: Option<f64>) -> Result<Option<SpatialConfig>>
         cfg.sim.dt = v;
     }
     if let Some(v) = &setup.q0 {
-        cfg.sim.q0 = v.0.clone();
+        cfg.sim.q0 = Some(v.0.clone());
     }
     if let Some(v) = &setup.qd0 {
         cfg.sim.qd0 = Some(v.0.clone());

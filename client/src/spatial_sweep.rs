@@ -70,7 +70,7 @@ pub fn row(cfg: &SpatialConfig, start: usize, mu: f64, spec: &Spec) -> SpatialRo
     let mut r = SpatialRow {
         mu,
         start,
-        q0: c.sim.q0.clone(),
+        q0: c.sim.start().to_vec(),
         lambda_max: None,
         stderr: None,
         residual_final: None,

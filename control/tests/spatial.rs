@@ -319,7 +319,9 @@ fn the_speed_cap_keeps_a_far_start_inside_the_acceleration_limits() {
         let mut cfg = SpatialConfig::preset("panda").unwrap();
         cfg.safety.enabled = false;
         cfg.law.null_speed = null_speed;
-        cfg.sim.q0 = vec![-0.9089, 0.9704, -0.3261, -0.4154, -2.0598, 0.9374, -1.1082];
+        cfg.sim.q0 = Some(vec![
+            -0.9089, 0.9704, -0.3261, -0.4154, -2.0598, 0.9374, -1.1082,
+        ]);
         cfg.sim.qd0 = Some(vec![
             -0.1563, 0.0009, -0.0341, -0.1401, -0.0457, -0.0637, -0.1334,
         ]);
@@ -365,7 +367,10 @@ fn the_panda_preset_builds_and_bad_keys_are_named() {
     bad(&|c| c.task.kind = "orbit".into(), "task.kind");
     bad(&|c| c.task.radius = f64::NAN, "task.radius");
     bad(&|c| c.task.normal = [0.0; 3], "task.normal");
-    bad(&|c| c.sim.q0.pop().map(drop).unwrap_or(()), "sim.q0");
+    bad(
+        &|c| c.sim.q0.as_mut().and_then(Vec::pop).map(drop).unwrap_or(()),
+        "sim.q0",
+    );
     bad(&|c| c.law.secondary = "curiosity".into(), "law.secondary");
     // A projection that is neither is refused where the file is read, as on the planar arm.
     let key = format!("projection = \"{}\"", cfg.feedback.projection);

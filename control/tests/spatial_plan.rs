@@ -25,8 +25,9 @@ fn config(spheres: &[[f64; 4]], mu: f64, kick: f64, plan: bool) -> SpatialConfig
     let mut c = SpatialConfig::preset("panda-paper").unwrap();
     c.feedback.mu = mu;
     c.feedback.t_on = 0.0;
-    c.sim.q0[0] += kick;
-    c.sim.q0[2] -= kick;
+    let q0 = c.sim.q0.as_mut().expect("the preset's start");
+    q0[0] += kick;
+    q0[2] -= kick;
     c.safety.plan = plan.into();
     c.obstacles = spheres.iter().copied().map(SphereEntry::of).collect();
     c
@@ -87,7 +88,7 @@ fn steering_onto_the_planned_cycle_tracks_where_the_filter_alone_traps_the_arm()
 
 fn plan(spheres: &[[f64; 4]]) -> PlanOutcome {
     let c = config(spheres, 1.0, 0.0, true);
-    let q0 = c.sim.q0.clone();
+    let q0 = c.sim.start().to_vec();
     let sys = SpatialSystem {
         config: c,
         chain: chain(),

@@ -1002,7 +1002,7 @@ mod tests {
             unreachable!()
         };
         s.config.command.mode = mode;
-        let q0 = s.config.sim.q0.clone();
+        let q0 = s.config.sim.start().to_vec();
         let mut log = ReplayLog::create(
             dir,
             &format!("{mode:?}.replay"),

@@ -71,7 +71,7 @@ fn the_reference_lists_every_key_of_every_section_and_no_other() {
             accepted::<control::config::ObstacleConfig>(),
         ),
         ("[feedback]", accepted::<control::config::FeedbackSection>()),
-        ("[sim]", accepted::<control::config::SimConfig>()),
+        ("[sim]", accepted::<control::config::SimSection>()),
         ("[safety]", accepted::<control::safety::SafetyConfig>()),
         ("[robot]", accepted::<sp::RobotSection>()),
         ("[task] (spatial)", accepted::<sp::TaskSection>()),
@@ -86,7 +86,6 @@ fn the_reference_lists_every_key_of_every_section_and_no_other() {
             "[command.limits]",
             accepted::<control::command::LimitOverrides>(),
         ),
-        ("[sim] (spatial)", accepted::<sp::SimSection>()),
         ("[daemon]", accepted::<daemon::config::DaemonConfig>()),
         ("[plant]", accepted::<plant::config::PlantConfig>()),
         (

@@ -30,14 +30,14 @@ fn plan<'a>(args: &BasinsCmd, cfg: &'a SpatialConfig) -> Result<Plan<'a>> {
         Some(r) => r.0.clone(),
         None => super::parse_range(DEFAULT_MU).map_err(anyhow::Error::msg)?,
     };
-    let n = cfg.sim.q0.len();
+    let n = cfg.sim.start().len();
     if args.vary.joint >= n {
         bail!("--vary: the arm has {n} joints, so the varied coordinate must be q1..q{n} or qd1..qd{n}");
     }
     let fixed = if args.vary.rate {
         cfg.sim.qd0.clone().unwrap_or_else(|| vec![0.0; n])
     } else {
-        cfg.sim.q0.clone()
+        cfg.sim.start().to_vec()
     };
     let (mut cells, mut at) = (Vec::new(), Vec::new());
     for &v in &args.vary.values {
@@ -49,7 +49,7 @@ fn plan<'a>(args: &BasinsCmd, cfg: &'a SpatialConfig) -> Result<Plan<'a>> {
             if args.vary.rate {
                 c.sim.qd0 = Some(x);
             } else {
-                c.sim.q0 = x;
+                c.sim.q0 = Some(x);
             }
             // Refused here, by name, rather than as a failed cell of the map.
             crate::spatial::check(&c)

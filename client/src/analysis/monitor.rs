@@ -160,7 +160,7 @@ fn spatial(args: &MonitorCmd, cfg: &control::config::spatial::SpatialConfig) -> 
             Done::Auto(a) => auto_cells.push(a),
         }
     }
-    let q0 = cfg.sim.q0.clone();
+    let q0 = cfg.sim.start().to_vec();
     let report = super::monitor_report::Report::new(
         tau,
         vec![q0],

@@ -200,7 +200,7 @@ fn base(args: &ObstaclesCmd) -> Result<Base> {
             obstacles,
             off: without_filter(c.law.secondary == "obstacles", &c.law.secondary),
             clearance: c.safety.clearance,
-            q0: c.sim.q0.clone(),
+            q0: c.sim.start().to_vec(),
             arm: Arm::Spatial(Box::new(c), std::sync::Arc::new(chain)),
         });
     }
@@ -244,7 +244,7 @@ fn cell(base: &Base, mu: f64, on: bool, q0: Vec<f64>, d: f64, rms_from: f64) -> 
             let mut c = b.clone();
             c.feedback.mu = mu;
             c.safety.enabled = on;
-            c.sim.q0 = q0.clone();
+            c.sim.q0 = Some(q0.clone());
             c.sim.duration = d;
             c.sim.transient = rms_from;
             obstacle_cells::check_spatial(&c, chain)

@@ -674,7 +674,7 @@ fn spatial_scan(
     mus: &[f64],
     spec: &StabilitySpec,
 ) -> Result<Vec<OrbitReport>> {
-    let n = cfg.sim.q0.len();
+    let n = cfg.sim.start().len();
     let mut catalog = OrbitCatalog::new(2 * n, n, 1e-6);
     let mut orbits: Vec<PeriodicOrbit> = Vec::new();
     for o in found.iter().filter_map(|o| o.orbit.as_ref().ok()) {

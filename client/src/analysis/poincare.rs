@@ -84,9 +84,9 @@ fn spatial(args: &PoincareCmd, cfg: &control::config::spatial::SpatialConfig) ->
     };
     let (sec, c) = crate::spatial::section(cfg, args.duration, args.transient, &spec.classify)?;
     let who = Run {
-        n: cfg.sim.q0.len(),
+        n: cfg.sim.start().len(),
         mu: cfg.feedback.mu,
-        q0: cfg.sim.q0.clone(),
+        q0: cfg.sim.start().to_vec(),
     };
     report(args, &spec, &who, &sec, &c)
 }

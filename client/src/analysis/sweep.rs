@@ -354,7 +354,7 @@ fn spatial_plan(args: &SweepCmd, cfg: &SpatialConfig) -> Result<SpatialPlan> {
             .iter()
             .map(|q0| {
                 let mut c = cfg.clone();
-                c.sim.q0 = q0.0.clone();
+                c.sim.q0 = Some(q0.0.clone());
                 c
             })
             .collect();

@@ -11,10 +11,12 @@ pub mod command;
 pub mod feedback;
 pub mod planar_file;
 pub mod rehearsal;
+pub mod sim;
 pub mod spatial;
 pub mod stability;
 
 pub use feedback::{FeedbackSection, MAX_TAU};
+pub use sim::SimSection;
 
 use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
 use crate::basics::{
@@ -237,36 +239,6 @@ impl From<ProjectionKind> for Projection {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct SimConfig {
-    /// Integration step (s).
-    pub dt: f64,
-    /// Simulated time (s).
-    pub duration: f64,
-    /// Statistics skip this initial transient (s).
-    pub transient: f64,
-    /// Initial joint angles (rad); default the paper's (0, π/2, π/2), cut or padded with zeros.
-    pub q0: Option<Vec<f64>>,
-    /// Initial joint rates (rad/s); default zero.
-    pub qd0: Option<Vec<f64>>,
-    /// Initial base attitude φ (rad), floating base only.
-    pub phi0: f64,
-}
-
-impl Default for SimConfig {
-    fn default() -> Self {
-        Self {
-            dt: 1e-3,
-            duration: 300.0,
-            transient: 20.0,
-            q0: None,
-            qd0: None,
-            phi0: 0.0,
-        }
-    }
-}
-
 /// The whole file. `[daemon]` and `[plant]` are owned and validated by those programs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -275,7 +247,7 @@ pub struct Config {
     pub task: TaskConfig,
     pub control: ControlConfig,
     pub feedback: FeedbackSection,
-    pub sim: SimConfig,
+    pub sim: SimSection,
     /// The safety filter and the runaway guard (see `control::safety::config`).
     pub safety: SafetyConfig,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -291,7 +263,7 @@ impl Default for Config {
             task: TaskConfig::default(),
             control: ControlConfig::default(),
             feedback: FeedbackSection::planar(),
-            sim: SimConfig::default(),
+            sim: SimSection::planar(),
             safety: SafetyConfig::default(),
             daemon: None,
             plant: None,
@@ -394,6 +366,9 @@ impl Config {
         let feedback = given.as_ref().and_then(|t| t.get("feedback"));
         c.feedback
             .fill_planar_defaults(feedback.and_then(toml::Value::as_table));
+        let sim = given.as_ref().and_then(|t| t.get("sim"));
+        c.sim
+            .fill_planar_defaults(sim.and_then(toml::Value::as_table));
         Ok(c)
     }
 

@@ -13,7 +13,7 @@
 //! ([`to_legacy_key`]): `law.kp` in this form, `control.kp` in the older one.
 
 use super::{
-    ArmConfig, Config, ControlConfig, FeedbackSection, ObstacleConfig, SafetyConfig, SimConfig,
+    ArmConfig, Config, ControlConfig, FeedbackSection, ObstacleConfig, SafetyConfig, SimSection,
     TaskConfig,
 };
 use crate::basics::{excerpt, invalid, ConfigError};
@@ -40,7 +40,7 @@ struct FileIn {
     #[serde(default)]
     obstacles: Vec<ObstacleConfig>,
     #[serde(default)]
-    sim: SimConfig,
+    sim: SimSection,
     daemon: Option<toml::Table>,
     plant: Option<toml::Table>,
 }
@@ -55,7 +55,7 @@ struct FileOut<'a> {
     safety: &'a SafetyConfig,
     #[serde(skip_serializing_if = "<[_]>::is_empty")]
     obstacles: &'a [ObstacleConfig],
-    sim: &'a SimConfig,
+    sim: &'a SimSection,
     #[serde(skip_serializing_if = "Option::is_none")]
     daemon: &'a Option<toml::Table>,
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -6,7 +6,7 @@
 //! or a URDF path): this crate does no I/O. Limits come from the URDF, and the file may only
 //! tighten them, so a typo cannot loosen what the arm's maker allows.
 
-use super::FeedbackSection;
+use super::{FeedbackSection, SimSection};
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::basics::invalid;
@@ -210,18 +210,6 @@ impl SphereEntry {
     }
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SimSection {
-    pub dt: f64,
-    pub duration: f64,
-    #[serde(default)]
-    pub transient: f64,
-    pub q0: Vec<f64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub qd0: Option<Vec<f64>>,
-}
-
 fn positive(field: &str, v: f64) -> Result<(), ConfigError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
@@ -339,6 +327,7 @@ impl SpatialConfig {
         positive("sim.dt", self.sim.dt)?;
         positive("sim.duration", self.sim.duration)?;
         non_negative("sim.transient", self.sim.transient)?;
+        self.sim.check_robot()?;
         for (f, v) in [
             ("law.kp", self.law.kp),
             ("law.kv", self.law.kv),
@@ -476,7 +465,7 @@ impl SpatialConfig {
         chain: &Chain,
         dt: f64,
     ) -> Result<crate::command::MotionGenerator<N>, ConfigError> {
-        let q0 = SVector::<f64, N>::from_fn(|i, _| self.sim.q0.get(i).copied().unwrap_or(0.0));
+        let q0 = SVector::<f64, N>::from_fn(|i, _| self.sim.start().get(i).copied().unwrap_or(0.0));
         self.command
             .generator::<N>(chain, &self.robot.description, &q0, dt)
     }
@@ -511,7 +500,7 @@ impl SpatialConfig {
         }
         arm.radii = std::array::from_fn(|i| radii[i]);
         let q0 = SVector::<f64, N>::from_column_slice(
-            Self::per_joint("sim.q0", &self.sim.q0, N)?
+            Self::per_joint("sim.q0", self.sim.start(), N)?
                 .as_slice()
                 .get(..N)
                 .unwrap_or(&[]),

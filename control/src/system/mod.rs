@@ -193,7 +193,7 @@ impl System {
         match self {
             System::Planar(c) => c.initial_state(),
             System::Spatial(s) => {
-                let q = &s.config.sim.q0;
+                let q = s.config.sim.start();
                 let qd = s.config.sim.qd0.clone().unwrap_or_else(|| vec![0.0; N]);
                 ArmState {
                     q: VecN::<N>::from_fn(|i, _| q.get(i).copied().unwrap_or(0.0)),
