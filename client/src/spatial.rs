@@ -217,7 +217,7 @@ fn report(
         tau: cfg.feedback.tau.unwrap_or(cfg.task.period),
         t_on: cfg.feedback.t_on,
         projection: cfg.feedback.projection.name().into(),
-        secondary: cfg.law.secondary.clone(),
+        secondary: cfg.law.secondary.name().into(),
         steered: false,
         traps: Vec::new(),
         alpha: cfg.law.alpha,

@@ -48,23 +48,22 @@ impl Reporter {
 
     /// The law's settings as `status` and a change's answer show them.
     fn law_settings(&self) -> serde_json::Value {
-        let fb = self.system.feedback();
-        let mut v = match &self.system {
-            System::Planar(c) => serde_json::json!({
-                "feedback": c.feedback.enabled,
-                "kp": c.control.kp, "kv": c.control.kv, "alpha": c.control.alpha,
-                "secondary": c.control.secondary, "task": c.task,
-            }),
+        let (fb, section, law) = (
+            self.system.feedback(),
+            self.system.feedback_section(),
+            self.system.law_section(),
+        );
+        let mut v = serde_json::json!({
+            "feedback": section.enabled, "projection": section.projection,
+            "kp": law.kp, "kv": law.kv, "alpha": law.alpha, "secondary": law.secondary,
+        });
+        match &self.system {
+            System::Planar(c) => v["task"] = serde_json::json!(c.task),
             System::Spatial(s) => {
-                let c = &s.config;
-                serde_json::json!({
-                    "robot": s.identity().name,
-                    "feedback": c.feedback.enabled, "projection": c.feedback.projection,
-                    "kp": c.law.kp, "kv": c.law.kv, "alpha": c.law.alpha,
-                    "secondary": c.law.secondary, "task": c.task,
-                })
+                v["task"] = serde_json::json!(s.config.task);
+                v["robot"] = s.identity().name.into();
             }
-        };
+        }
         v["mu"] = fb.mu.into();
         v["tau"] = fb.tau.into();
         v["t_on"] = fb.t_on.into();

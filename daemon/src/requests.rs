@@ -5,7 +5,7 @@
 //! a fully valid result leaves this module; the reporter then hands the loop a new `LawParams`
 //! block, which the loop swaps in at a tick boundary. These functions do no I/O.
 
-use control::config::{FeedbackSection, SecondaryKind};
+use control::config::{FeedbackSection, LawSection, SecondaryKind};
 use control::safety::policy::PlanMode;
 use control::{Config, System};
 use std::path::{Component, Path, PathBuf};
@@ -92,7 +92,9 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             .trim_start_matches("feedback.")
             .trim_start_matches("law.")
             .trim_start_matches("control.");
-        if feedback_key(&mut c.feedback, key, k, &mut it)? {
+        if feedback_key(&mut c.feedback, key, k, &mut it)?
+            || law_key(&mut c.control, key, k, &mut it)?
+        {
             continue;
         }
         match k {
@@ -114,29 +116,6 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             "safety.trap_time" => c.safety.trap_time = num(key, it.next())?,
             "safety.when_blocked" => {
                 c.safety.when_blocked = control::safety::policy::WhenBlocked::parse(key, it.next())?
-            }
-            "kp" => c.control.kp = num(key, it.next())?,
-            "kv" => c.control.kv = num(key, it.next())?,
-            "alpha" => c.control.alpha = num(key, it.next())?,
-            "w1" => c.control.w1 = num(key, it.next())?,
-            "w2" => c.control.w2 = num(key, it.next())?,
-            "damping_threshold" => c.control.damping_threshold = num(key, it.next())?,
-            "damping_max" => c.control.damping_max = num(key, it.next())?,
-            "track_loss" => c.control.track_loss = num(key, it.next())?,
-            "secondary" => {
-                c.control.secondary = match it.next() {
-                    Some("none") => SecondaryKind::None,
-                    Some("manipulability") => SecondaryKind::Manipulability,
-                    Some("centring") => SecondaryKind::Centring,
-                    Some("obstacles") => SecondaryKind::Obstacles,
-                    Some(name) if control::Secondary::parse(name).is_some() => {
-                        SecondaryKind::Custom(name.to_string())
-                    }
-                    other => {
-                        let names = control::Secondary::names();
-                        return Err(format!("{key}: {other:?} is not {names}"));
-                    }
-                }
             }
             "task.center" | "center" => {
                 c.task.center = [num(key, it.next())?, num(key, it.next())?]
@@ -183,6 +162,52 @@ pub(crate) fn feedback_key<'a>(
         _ => return Ok(false),
     }
     Ok(true)
+}
+
+/// Applies `key` to `[law]` if it is one of its keys, the same on every arm (a key of the other
+/// arm's law is refused when the set-up is validated); false if it is not.
+pub(crate) fn law_key<'a>(
+    l: &mut LawSection,
+    key: &str,
+    k: &str,
+    it: &mut impl Iterator<Item = &'a str>,
+) -> Result<bool, String> {
+    match k {
+        "kp" => l.kp = num(key, it.next())?,
+        "kv" => l.kv = num(key, it.next())?,
+        "alpha" => l.alpha = num(key, it.next())?,
+        "w1" => l.w1 = Some(num(key, it.next())?),
+        "w2" => l.w2 = Some(num(key, it.next())?),
+        "obstacle_weight" => l.obstacle_weight = Some(num(key, it.next())?),
+        "null_damping" => l.null_damping = num(key, it.next())?,
+        "null_speed" => l.null_speed = num(key, it.next())?,
+        "metric" => l.metric = word(key, it.next(), &["auto", "identity", "speed"])?,
+        "damping_threshold" => l.damping_threshold = num(key, it.next())?,
+        "damping_max" => l.damping_max = num(key, it.next())?,
+        "track_loss" => l.track_loss = num(key, it.next())?,
+        "secondary" => {
+            l.secondary = match it.next() {
+                Some(name) if SecondaryKind::from(name).task().is_some() => name.into(),
+                other => {
+                    let names = control::Secondary::names();
+                    return Err(format!("{key}: {other:?} is not {names}"));
+                }
+            }
+        }
+        _ => return Ok(false),
+    }
+    Ok(true)
+}
+
+/// A word out of `allowed` for `key`.
+pub(crate) fn word(key: &str, v: Option<&str>, allowed: &[&str]) -> Result<String, String> {
+    match v {
+        Some(w) if allowed.contains(&w) => Ok(w.to_string()),
+        other => Err(format!(
+            "{key}: {other:?} is not one of {}",
+            allowed.join(", ")
+        )),
+    }
 }
 
 /// A new τ must fit the delay line the daemon sized at start-up and span a control period.

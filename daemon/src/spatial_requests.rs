@@ -34,24 +34,12 @@ pub fn apply_set(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialS
                 num(key, it.next())
             };
         }
-        if crate::requests::feedback_key(&mut c.feedback, key, k, &mut it)? {
+        if crate::requests::feedback_key(&mut c.feedback, key, k, &mut it)?
+            || crate::requests::law_key(&mut c.law, key, k, &mut it)?
+        {
             continue;
         }
         match k {
-            "kp" => c.law.kp = f!()?,
-            "kv" => c.law.kv = f!()?,
-            "alpha" => c.law.alpha = f!()?,
-            "secondary" => {
-                let kinds = ["none", "manipulability", "centring", "obstacles"];
-                c.law.secondary = word(key, it.next(), &kinds)?
-            }
-            "obstacle_weight" => c.law.obstacle_weight = f!()?,
-            "null_damping" => c.law.null_damping = f!()?,
-            "null_speed" => c.law.null_speed = f!()?,
-            "metric" => c.law.metric = word(key, it.next(), &["auto", "identity", "speed"])?,
-            "damping_threshold" => c.law.damping_threshold = f!()?,
-            "damping_max" => c.law.damping_max = f!()?,
-            "track_loss" => c.law.track_loss = f!()?,
             "task.center" | "center" => c.task.center = Some([f!()?, f!()?, f!()?]),
             "task.radius" | "radius" => c.task.radius = f!()?,
             "task.period" | "period" => c.task.period = f!()?,
@@ -75,17 +63,6 @@ pub fn apply_set(s: &SpatialSystem, args: &str, min_tau: f64) -> Result<SpatialS
     let f = &n.config.feedback;
     crate::requests::check_tau(f.tau_for(n.config.task.period), f.capacity(), min_tau)?;
     checked(n, min_tau)
-}
-
-/// A word out of `allowed` for `key`.
-fn word(key: &str, v: Option<&str>, allowed: &[&str]) -> Result<String, String> {
-    match v {
-        Some(w) if allowed.contains(&w) => Ok(w.to_string()),
-        other => Err(format!(
-            "{key}: {other:?} is not one of {}",
-            allowed.join(", ")
-        )),
-    }
 }
 
 /// The new set-up, if it validates against the chain and at the daemon's step.

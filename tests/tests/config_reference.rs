@@ -53,7 +53,7 @@ fn the_reference_lists_every_key_of_every_section_and_no_other() {
     use control::config::spatial as sp;
     let code: Vec<(&str, BTreeSet<String>)> = vec![
         // The planar arm's `[robot]` is its `ArmConfig` and the `description` that names it;
-        // its `[law]` is `ControlConfig` without `obstacles`, which are the top-level list
+        // its `[law]` is every arm's `LawSection`, whose `obstacles` are the top-level list
         // (`control::config::planar_file`).
         ("[robot] (planar)", {
             let mut k = accepted::<control::config::ArmConfig>();
@@ -61,11 +61,6 @@ fn the_reference_lists_every_key_of_every_section_and_no_other() {
             k
         }),
         ("[task]", accepted::<control::config::TaskConfig>()),
-        ("[law] (planar)", {
-            let mut k = accepted::<control::config::ControlConfig>();
-            assert!(k.remove("obstacles"));
-            k
-        }),
         (
             "[[obstacles]] (planar)",
             accepted::<control::config::ObstacleConfig>(),
@@ -75,7 +70,12 @@ fn the_reference_lists_every_key_of_every_section_and_no_other() {
         ("[safety]", accepted::<control::safety::SafetyConfig>()),
         ("[robot]", accepted::<sp::RobotSection>()),
         ("[task] (spatial)", accepted::<sp::TaskSection>()),
-        ("[law]", accepted::<sp::LawSection>()),
+        // `obstacles` is the older planar form's `[[control.obstacles]]`.
+        ("[law]", {
+            let mut k = accepted::<control::config::LawSection>();
+            assert!(k.remove("obstacles"));
+            k
+        }),
         ("[safety] (spatial)", accepted::<sp::LimitsSection>()),
         ("[[obstacles]]", accepted::<sp::SphereEntry>()),
         (

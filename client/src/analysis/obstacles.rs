@@ -21,6 +21,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::config::spatial::{SpatialConfig, SphereEntry};
 use control::config::ObstacleConfig;
+use control::config::SecondaryKind;
 use control::{Config, Summary};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -198,7 +199,10 @@ fn base(args: &ObstaclesCmd) -> Result<Base> {
             .collect();
         return Ok(Base {
             obstacles,
-            off: without_filter(c.law.secondary == "obstacles", &c.law.secondary),
+            off: without_filter(
+                c.law.secondary == SecondaryKind::Obstacles,
+                c.law.secondary.name(),
+            ),
             clearance: c.safety.clearance,
             q0: c.sim.start().to_vec(),
             arm: Arm::Spatial(Box::new(c), std::sync::Arc::new(chain)),

@@ -9,6 +9,7 @@
 
 pub mod command;
 pub mod feedback;
+pub mod law;
 pub mod planar_file;
 pub mod rehearsal;
 pub mod sim;
@@ -16,6 +17,7 @@ pub mod spatial;
 pub mod stability;
 
 pub use feedback::{FeedbackSection, MAX_TAU};
+pub use law::LawSection;
 pub use sim::SimSection;
 
 use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
@@ -51,6 +53,49 @@ pub enum SecondaryKind {
     Obstacles,
     #[serde(untagged)]
     Custom(String),
+}
+
+impl SecondaryKind {
+    /// The task it names; None for a name no program registered.
+    pub fn task(&self) -> Option<Secondary> {
+        Some(match self {
+            SecondaryKind::None => Secondary::None,
+            SecondaryKind::Manipulability => Secondary::Manipulability,
+            SecondaryKind::Centring => Secondary::Centring,
+            SecondaryKind::Obstacles => Secondary::Obstacles,
+            SecondaryKind::Custom(name) => Secondary::parse(name)?,
+        })
+    }
+
+    /// The name a file and a report give it.
+    pub fn name(&self) -> &str {
+        match self {
+            SecondaryKind::None => "none",
+            SecondaryKind::Manipulability => "manipulability",
+            SecondaryKind::Centring => "centring",
+            SecondaryKind::Obstacles => "obstacles",
+            SecondaryKind::Custom(name) => name,
+        }
+    }
+}
+
+impl std::fmt::Display for SecondaryKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl From<&str> for SecondaryKind {
+    /// A name as a file gives it (built-in or registered).
+    fn from(name: &str) -> Self {
+        match name {
+            "none" => SecondaryKind::None,
+            "manipulability" => SecondaryKind::Manipulability,
+            "centring" => SecondaryKind::Centring,
+            "obstacles" => SecondaryKind::Obstacles,
+            other => SecondaryKind::Custom(other.to_string()),
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -150,47 +195,6 @@ fn default_margin() -> f64 {
     0.1
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ControlConfig {
-    /// Position gain K_p (eq. 1's text: 40; eq. 11 swaps K_p and K_v, see the `paper-eq11` preset).
-    pub kp: f64,
-    /// Velocity gain K_v.
-    pub kv: f64,
-    /// Null-space gain α.
-    pub alpha: f64,
-    pub secondary: SecondaryKind,
-    /// In the shared form the top-level `[[obstacles]]` ([`planar_file`]); `[[control.obstacles]]`
-    /// in the older one.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub obstacles: Vec<ObstacleConfig>,
-    pub w1: f64,
-    pub w2: f64,
-    /// σ_min below which damped least squares starts.
-    pub damping_threshold: f64,
-    /// Damping λ at σ_min = 0.
-    pub damping_max: f64,
-    /// Tracking error (m) above which tracking counts as lost.
-    pub track_loss: f64,
-}
-
-impl Default for ControlConfig {
-    fn default() -> Self {
-        Self {
-            kp: 40.0,
-            kv: 15.0,
-            alpha: 1.0,
-            secondary: SecondaryKind::Manipulability,
-            obstacles: Vec::new(),
-            w1: 2.0,
-            w2: 2.0,
-            damping_threshold: 0.05,
-            damping_max: 0.05,
-            track_loss: 0.05,
-        }
-    }
-}
-
 /// `feedback.projection`, one type for every arm's file: where the delayed term acts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -245,7 +249,7 @@ impl From<ProjectionKind> for Projection {
 pub struct Config {
     pub arm: ArmConfig,
     pub task: TaskConfig,
-    pub control: ControlConfig,
+    pub control: LawSection,
     pub feedback: FeedbackSection,
     pub sim: SimSection,
     /// The safety filter and the runaway guard (see `control::safety::config`).
@@ -261,7 +265,7 @@ impl Default for Config {
         Self {
             arm: ArmConfig::default(),
             task: TaskConfig::default(),
-            control: ControlConfig::default(),
+            control: LawSection::planar(),
             feedback: FeedbackSection::planar(),
             sim: SimSection::planar(),
             safety: SafetyConfig::default(),
@@ -362,13 +366,15 @@ impl Config {
             }
             _ => toml::from_str(text).map_err(|e| ConfigError::Parse(excerpt(&e.to_string()))),
         }?;
+        // Each shared section as the file gives it, for the planar form's own defaults.
         let given = table.ok();
-        let feedback = given.as_ref().and_then(|t| t.get("feedback"));
-        c.feedback
-            .fill_planar_defaults(feedback.and_then(toml::Value::as_table));
-        let sim = given.as_ref().and_then(|t| t.get("sim"));
-        c.sim
-            .fill_planar_defaults(sim.and_then(toml::Value::as_table));
+        let section = |names: &[&str]| {
+            let t = given.as_ref()?;
+            names.iter().find_map(|n| t.get(*n)?.as_table())
+        };
+        c.feedback.fill_planar_defaults(section(&["feedback"]));
+        c.sim.fill_planar_defaults(section(&["sim"]));
+        c.control.fill_planar_defaults(section(&["law", "control"]));
         Ok(c)
     }
 
@@ -462,11 +468,13 @@ impl Config {
         check_ramp(self.task.ramp)?;
 
         let c = &self.control;
+        c.check_planar()?;
         range("law.kp", c.kp, 0.0, 1e6)?;
         range("law.kv", c.kv, 0.0, 1e6)?;
         range("law.alpha", c.alpha, -1e3, 1e3)?;
-        range("law.w1", c.w1, 0.0, 1e6)?;
-        range("law.w2", c.w2, 0.0, 1e6)?;
+        let (w1, w2) = c.disc_weights();
+        range("law.w1", w1, 0.0, 1e6)?;
+        range("law.w2", w2, 0.0, 1e6)?;
         positive("law.damping_threshold", c.damping_threshold, 10.0)?;
         positive("law.damping_max", c.damping_max, 10.0)?;
         positive("law.track_loss", c.track_loss, 100.0)?;
@@ -540,16 +548,8 @@ impl Config {
                 kp: c.kp,
                 kv: c.kv,
                 alpha: c.alpha,
-                secondary: match &c.secondary {
-                    SecondaryKind::None => Secondary::None,
-                    SecondaryKind::Manipulability => Secondary::Manipulability,
-                    SecondaryKind::Centring => Secondary::Centring,
-                    SecondaryKind::Obstacles => Secondary::Obstacles,
-                    // Validation refuses a name no program registered.
-                    SecondaryKind::Custom(name) => {
-                        Secondary::parse(name).unwrap_or(Secondary::None)
-                    }
-                },
+                // Validation refuses a name no program registered.
+                secondary: c.secondary.task().unwrap_or(Secondary::None),
                 damping_threshold: c.damping_threshold,
                 damping_max: c.damping_max,
                 mu: self.feedback.mu,
@@ -573,7 +573,10 @@ impl Config {
                 .iter()
                 .map(ObstacleConfig::to_obstacle)
                 .collect::<ObstacleSet>(),
-            weights: PotentialWeights { w1: c.w1, w2: c.w2 },
+            weights: {
+                let (w1, w2) = c.disc_weights();
+                PotentialWeights { w1, w2 }
+            },
             steer: None,
         }
     }

@@ -3,7 +3,7 @@
 //! `[safety]`, `[[obstacles]]`, `[sim]`, `[daemon]`, `[plant]`, as a URDF robot's file is.
 //!
 //! Why a file layer and not a second config type: the sections are the planar arm's own
-//! ([`ArmConfig`], [`TaskConfig`], [`ControlConfig`], …), only where they sit in the file
+//! ([`ArmConfig`], [`TaskConfig`], [`LawSection`], …), only where they sit in the file
 //! changes. [`Config`] keeps its fields; this module moves `[arm]` into `[robot]`, `[control]`
 //! into `[law]` and `[[control.obstacles]]` to the top level on the way in, and back on the way
 //! out. The older form (`[arm]`, `[control]`) still loads unchanged, so recordings and files
@@ -13,7 +13,7 @@
 //! ([`to_legacy_key`]): `law.kp` in this form, `control.kp` in the older one.
 
 use super::{
-    ArmConfig, Config, ControlConfig, FeedbackSection, ObstacleConfig, SafetyConfig, SimSection,
+    ArmConfig, Config, FeedbackSection, LawSection, ObstacleConfig, SafetyConfig, SimSection,
     TaskConfig,
 };
 use crate::basics::{excerpt, invalid, ConfigError};
@@ -32,7 +32,7 @@ struct FileIn {
     #[serde(default)]
     task: TaskConfig,
     #[serde(default)]
-    law: ControlConfig,
+    law: LawSection,
     #[serde(default)]
     feedback: FeedbackSection,
     #[serde(default)]
@@ -50,7 +50,7 @@ struct FileIn {
 struct FileOut<'a> {
     robot: RobotOut<'a>,
     task: &'a TaskConfig,
-    law: ControlConfig,
+    law: LawSection,
     feedback: &'a FeedbackSection,
     safety: &'a SafetyConfig,
     #[serde(skip_serializing_if = "<[_]>::is_empty")]
@@ -118,7 +118,7 @@ pub(crate) fn read(text: &str) -> Result<Config, ConfigError> {
 
 /// Prints `c` in the shared form.
 pub(crate) fn write(c: &Config) -> String {
-    let law = ControlConfig {
+    let law = LawSection {
         obstacles: Vec::new(),
         ..c.control.clone()
     };

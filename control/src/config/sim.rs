@@ -24,12 +24,8 @@ pub struct SimSection {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub qd0: Option<Vec<f64>>,
     /// Initial base attitude φ (rad), the planar floating base only.
-    #[serde(skip_serializing_if = "is_zero")]
+    #[serde(skip_serializing_if = "super::is_zero")]
     pub phi0: f64,
-}
-
-fn is_zero(v: &f64) -> bool {
-    *v == 0.0
 }
 
 /// A robot's defaults (its `q0` must be given).

@@ -6,7 +6,7 @@
 //! or a URDF path): this crate does no I/O. Limits come from the URDF, and the file may only
 //! tighten them, so a typo cannot loosen what the arm's maker allows.
 
-use super::{FeedbackSection, SimSection};
+use super::{FeedbackSection, LawSection, SimSection};
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::basics::invalid;
@@ -93,56 +93,6 @@ pub struct TaskSection {
     /// Seconds over which the path speeds up from rest ([`crate::task::ramp`]); 0: full speed.
     #[serde(default, skip_serializing_if = "crate::config::is_zero")]
     pub ramp: f64,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct LawSection {
-    pub kp: f64,
-    pub kv: f64,
-    pub alpha: f64,
-    /// "none", "manipulability", "centring" or "obstacles".
-    pub secondary: String,
-    pub obstacle_weight: f64,
-    pub null_damping: f64,
-    /// The largest self-motion speed (rad/s) the secondary task may ask for; 0: no cap
-    /// ([`crate::law::spatial::pull_scale`]). Needs `null_damping` > 0.
-    #[serde(default, skip_serializing_if = "crate::config::is_zero")]
-    pub null_speed: f64,
-    /// The joint-space metric of the pseudo-inverse: "identity", "speed" (each joint's motion
-    /// measured against its speed limit) or "auto" (speed where the limits differ by more than
-    /// [`crate::law::metric::AUTO_SPEED_RATIO`]×). See [`crate::law::metric`].
-    #[serde(default = "auto_metric", skip_serializing_if = "is_auto_metric")]
-    pub metric: String,
-    pub damping_threshold: f64,
-    pub damping_max: f64,
-    pub track_loss: f64,
-}
-
-impl Default for LawSection {
-    fn default() -> Self {
-        Self {
-            kp: 40.0,
-            kv: 15.0,
-            alpha: 0.0,
-            secondary: "none".into(),
-            obstacle_weight: 2.0,
-            null_damping: 0.0,
-            null_speed: 0.0,
-            metric: auto_metric(),
-            damping_threshold: 0.05,
-            damping_max: 0.05,
-            track_loss: 0.05,
-        }
-    }
-}
-
-fn auto_metric() -> String {
-    "auto".into()
-}
-
-fn is_auto_metric(m: &str) -> bool {
-    m == "auto"
 }
 
 /// The safety filter's switches and gains; the limits themselves come from the robot.
@@ -328,11 +278,15 @@ impl SpatialConfig {
         positive("sim.duration", self.sim.duration)?;
         non_negative("sim.transient", self.sim.transient)?;
         self.sim.check_robot()?;
+        self.law.check_robot()?;
         for (f, v) in [
             ("law.kp", self.law.kp),
             ("law.kv", self.law.kv),
             ("law.alpha", self.law.alpha),
-            ("law.obstacle_weight", self.law.obstacle_weight),
+            (
+                "law.obstacle_weight",
+                self.law.obstacle_weight.unwrap_or(0.0),
+            ),
             ("law.null_damping", self.law.null_damping),
             ("law.null_speed", self.law.null_speed),
             ("law.damping_max", self.law.damping_max),
@@ -409,8 +363,9 @@ impl SpatialConfig {
     }
 
     fn secondary(&self) -> Result<Secondary, ConfigError> {
-        let s = self.law.secondary.as_str();
-        Secondary::parse(s).ok_or_else(|| invalid("law.secondary", s, &Secondary::names()))
+        let s = &self.law.secondary;
+        s.task()
+            .ok_or_else(|| invalid("law.secondary", s.name(), &Secondary::names()))
     }
 
     /// The limits: the URDF's, the published acceleration limits, tightened by the file.
@@ -569,7 +524,10 @@ impl SpatialConfig {
                 orientation,
             },
             spheres,
-            weight: self.law.obstacle_weight,
+            weight: self
+                .law
+                .obstacle_weight
+                .unwrap_or(super::law::DEFAULT_WEIGHT),
             null_damping: self.law.null_damping,
             null_speed: self.law.null_speed,
             joint_weights,

@@ -12,7 +12,7 @@ use crate::basics::ConfigError;
 use crate::command::CommandMode;
 use crate::config::spatial::is_spatial;
 use crate::config::spatial::SpatialConfig;
-use crate::config::{Config, FeedbackSection};
+use crate::config::{Config, FeedbackSection, LawSection};
 use crate::model::Chain;
 use crate::sim::ArmState;
 use crate::tick_law::{ParamBlock, TickLaw};
@@ -258,6 +258,14 @@ impl System {
         match self {
             System::Planar(c) => &mut c.feedback,
             System::Spatial(s) => &mut s.config.feedback,
+        }
+    }
+
+    /// The file's `[law]`, one section for every arm.
+    pub fn law_section(&self) -> &LawSection {
+        match self {
+            System::Planar(c) => &c.control,
+            System::Spatial(s) => &s.config.law,
         }
     }
 
