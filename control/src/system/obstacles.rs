@@ -28,26 +28,23 @@ impl System {
 
     /// The obstacles in the order `obstacle rm N` counts them (from 1).
     pub fn obstacle_rows(&self) -> Vec<ObstacleRow> {
+        let row = |center: &[f64], radius, margin| ObstacleRow {
+            center: center.to_vec(),
+            radius,
+            margin,
+        };
         match self {
             System::Planar(c) => c
                 .control
                 .obstacles
                 .iter()
-                .map(|o| ObstacleRow {
-                    center: o.center.to_vec(),
-                    radius: o.radius,
-                    margin: o.margin,
-                })
+                .map(|o| row(&o.center, o.radius, o.margin))
                 .collect(),
             System::Spatial(s) => s
                 .config
                 .obstacles
                 .iter()
-                .map(|o| ObstacleRow {
-                    center: o.center.to_vec(),
-                    radius: o.radius,
-                    margin: o.margin,
-                })
+                .map(|o| row(&o.center, o.radius, o.margin))
                 .collect(),
         }
     }
