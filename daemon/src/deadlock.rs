@@ -81,21 +81,10 @@ struct Layout {
 
 impl Layout {
     fn of(system: &System) -> Self {
-        let (obstacles, task, any) = match system {
-            System::Planar(c) => (
-                format!("{:?}", c.control.obstacles),
-                format!("{:?}", c.task),
-                !c.control.obstacles.is_empty(),
-            ),
-            System::Spatial(s) => (
-                format!("{:?}", s.config.obstacles),
-                format!("{:?}", s.config.task),
-                !s.config.obstacles.is_empty(),
-            ),
-        };
+        let rows = system.obstacle_rows();
         Self {
-            obstacles: any.then_some(obstacles),
-            task,
+            obstacles: (!rows.is_empty()).then(|| format!("{rows:?}")),
+            task: system.task_key(),
         }
     }
 }

@@ -269,6 +269,14 @@ impl System {
         }
     }
 
+    /// The task as text: two set-ups with the same key follow the same path.
+    pub fn task_key(&self) -> String {
+        match self {
+            System::Planar(c) => format!("{:?}", c.task),
+            System::Spatial(s) => format!("{:?}", s.config.task),
+        }
+    }
+
     /// The task's period T (s).
     pub fn period(&self) -> f64 {
         match self {
