@@ -88,13 +88,11 @@ impl std::fmt::Display for SecondaryKind {
 impl From<&str> for SecondaryKind {
     /// A name as a file gives it (built-in or registered).
     fn from(name: &str) -> Self {
-        match name {
-            "none" => SecondaryKind::None,
-            "manipulability" => SecondaryKind::Manipulability,
-            "centring" => SecondaryKind::Centring,
-            "obstacles" => SecondaryKind::Obstacles,
-            other => SecondaryKind::Custom(other.to_string()),
-        }
+        use SecondaryKind::{Centring, Manipulability, None, Obstacles};
+        [None, Manipulability, Centring, Obstacles]
+            .into_iter()
+            .find(|k| k.name() == name)
+            .unwrap_or_else(|| SecondaryKind::Custom(name.to_string()))
     }
 }
 

@@ -16,7 +16,7 @@ pub mod metric;
 pub mod pipeline;
 pub mod spatial;
 
-pub use self::core::{LawCore, LoopFeedback};
+pub use self::core::{LawCore, LoopFeedback, Secondary};
 use crate::arm::{ArmModel, Jac, Kinematics, VecN};
 use crate::basics::{flags, wrap_angle};
 use crate::resolve::ControlOutput;
@@ -28,56 +28,6 @@ use nalgebra::Vector3;
 use pipeline::{ArmSide, Gains, TaskRows};
 
 type Vec3 = Vector3<f64>;
-
-/// Which secondary task drives the null space: one set for every arm, each arm computing it
-/// on its own geometry.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Secondary {
-    None,
-    /// η = +∇w, w = √det(JJᵀ) of the task rows (eq. 1).
-    #[default]
-    Manipulability,
-    /// η = −∇c, c the joint-limit centring cost (joints without limits are left alone).
-    Centring,
-    /// η = −∇h, the obstacle potential (eqs. 7-10): discs on the planar arm, spheres against
-    /// capsules on a chain.
-    Obstacles,
-    /// A task the program registered ([`crate::secondary::custom`]), by its index there.
-    Custom(u8),
-}
-
-impl Secondary {
-    /// The task a config names: a built-in's name or a registered task's.
-    ///
-    /// ```
-    /// use control::Secondary;
-    /// assert_eq!(Secondary::parse("centring"), Some(Secondary::Centring));
-    /// assert_eq!(Secondary::parse("manipulabilty"), None);
-    /// ```
-    pub fn parse(name: &str) -> Option<Self> {
-        Some(match name {
-            "none" => Secondary::None,
-            "manipulability" => Secondary::Manipulability,
-            "centring" => Secondary::Centring,
-            "obstacles" => Secondary::Obstacles,
-            s => Secondary::Custom(crate::secondary::custom::lookup(s)?),
-        })
-    }
-
-    /// What [`Self::parse`] takes, for a refusal's message.
-    pub fn names() -> String {
-        let custom = crate::secondary::custom::names();
-        let built_in = "\"none\", \"manipulability\", \"centring\" or \"obstacles\"";
-        if custom.is_empty() {
-            format!("{built_in} (a task of your own runs in a program that registers it: examples/custom-task)")
-        } else {
-            format!(
-                "{built_in}, or a task this program registered: {}",
-                custom.join(", ")
-            )
-        }
-    }
-}
 
 /// A registered task's value and η at (t, q, q̇), given the tool point, its 6 × N Jacobian
 /// (column-major, rows 0-2 linear, 3-5 angular) and the joint limits.
