@@ -121,7 +121,7 @@ impl MujocoPlant {
                 }
             },
         };
-        let q0 = &s.config.sim.q0;
+        let q0 = s.config.sim.start();
         let built = load::build(source, &cfg.mujoco.packages, (&spheres, q0), &joints, h)?;
         for name in &built.welded {
             tracing::info!(
