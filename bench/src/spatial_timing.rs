@@ -14,7 +14,7 @@ use control::config::spatial::SphereEntry;
 use control::law::spatial as law;
 use control::model::{builtin, Chain};
 use control::resolve::damped_pinv_m;
-use control::safety::capsules as safety;
+use control::safety;
 use control::sim::spatial::SpatialSimulation;
 use control::tick_law::TickLaw;
 use control::{ArmState, Config};
@@ -167,7 +167,7 @@ pub fn section(quick: bool) -> Result<String> {
                 s.params.core.damping_threshold,
                 s.params.core.damping_max,
             );
-            let f = safety::filter(
+            let f = safety::filter_spatial(
                 &s.params.core.safety,
                 &s.arm,
                 &s.params.spheres,
@@ -186,7 +186,7 @@ pub fn section(quick: bool) -> Result<String> {
         .collect();
     let filter = crate::timing::per_call(batches, batch, |i| {
         let (kin, j, jpinv, x, qdd) = &cases[i % cases.len()];
-        black_box(safety::filter(
+        black_box(safety::filter_spatial(
             &s.params.core.safety,
             &s.arm,
             &s.params.spheres,

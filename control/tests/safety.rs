@@ -5,9 +5,7 @@ use control::arm::{ArmModel, Kinematics, Vec2, VecN};
 use control::basics::flags;
 use control::hold::integrate;
 use control::resolve::damped_pinv;
-use control::safety::rows::{
-    obstacle_row, point_motions, visit, BarrierGains, PointMotion, Points,
-};
+use control::safety::rows::{point_motions, segment_row, visit, BarrierGains, PointMotion, Points};
 use control::safety::{filter, SafetyParams};
 use control::secondary::{Obstacle, ObstacleSet};
 use control::sim::ArmState;
@@ -39,7 +37,7 @@ fn barrier<const N: usize>(
     reach: f64,
 ) -> f64 {
     let (pts, _) = points(model, x);
-    obstacle_row(&pts[j], &pts[j + 1], c, reach, gains(0.0, 0.0))
+    segment_row(&pts[j], &pts[j + 1], c, reach, gains(0.0, 0.0))
         .unwrap()
         .0
 }
@@ -74,8 +72,8 @@ fn check_barrier_derivatives<const N: usize>(
         let hdot_fd = (hp - hm) / (2.0 * eps);
         let hddot_fd = (hp - 2.0 * h0 + hm) / (eps * eps);
         // With k0 = 0: b = −k1 ḣ − drift, so k1 = 0 and k1 = 1 give −drift and −ḣ − drift.
-        let (h, a, b0) = obstacle_row(&pts[j], &pts[j + 1], c, reach, gains(0.0, 0.0)).unwrap();
-        let (_, _, b1) = obstacle_row(&pts[j], &pts[j + 1], c, reach, gains(0.0, 1.0)).unwrap();
+        let (h, a, b0) = segment_row(&pts[j], &pts[j + 1], c, reach, gains(0.0, 0.0)).unwrap();
+        let (_, _, b1) = segment_row(&pts[j], &pts[j + 1], c, reach, gains(0.0, 1.0)).unwrap();
         let hdot = b0 - b1;
         let hddot = a.dot(&qdd) - b0;
         assert!((h - h0).abs() < 1e-12, "link {j}: h {h} vs {h0}");

@@ -6,7 +6,7 @@ use control::law::spatial::*;
 use control::model::{builtin, Chain};
 use control::resolve::Projection;
 use control::resolve::{damped_pinv_m, min_eigenvalue};
-use control::safety::capsules::capsule_row;
+use control::safety::rows::segment_row;
 use control::safety::rows::BarrierGains;
 use control::safety::SafetyParams;
 use control::secondary::spatial::centring;
@@ -122,11 +122,13 @@ fn centring_and_potential_gradients_match_finite_differences() {
         // A sphere near the elbow, so some capsules are inside its zone.
         let p = points_at(&q);
         let mut spheres = SphereSet::default();
-        spheres.push(Sphere {
-            center: p[3].pos + Vec3::new(0.05, 0.03, -0.02),
-            radius: 0.05,
-            margin: 0.1,
-        });
+        spheres
+            .push(Sphere {
+                center: p[3].pos + Vec3::new(0.05, 0.03, -0.02),
+                radius: 0.05,
+                margin: 0.1,
+            })
+            .unwrap();
         let (h, g) = potential(&arm, &p, &spheres, 2.0);
         assert!(h > 0.0);
         let fd = fd_gradient(|q| potential(&arm, &points_at(q), &spheres, 2.0).0, &q);
@@ -146,7 +148,7 @@ fn capsule_rows_give_the_barrier_second_derivative() {
         let k = kin(&arm, q, qd);
         let mut p: Points<7> = [Default::default(); control::MAX_JOINTS + 1];
         arm.capsule_points(&k, qd, &mut p);
-        capsule_row(&p[j], &p[j + 1], c, 0.1, g).unwrap()
+        segment_row(&p[j], &p[j + 1], c, 0.1, g).unwrap()
     };
     let mut checked = 0;
     for seed in 0..8 {

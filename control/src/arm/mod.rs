@@ -9,6 +9,7 @@
 //!
 //! Everything here works on fixed-size nalgebra types and stack arrays: no call allocates.
 
+pub mod point;
 pub mod spatial;
 
 use crate::dual::{Dual, Real};

@@ -61,27 +61,10 @@ impl<const N: usize> Default for SpatialKinematics<N> {
 }
 
 /// Position, Jacobian, velocity and drift (J̇q̇) of one point of the arm.
-#[derive(Clone, Copy, Debug)]
-pub struct PointMotion<const N: usize> {
-    pub pos: Vec3,
-    pub jac: Jac3<N>,
-    pub vel: Vec3,
-    pub drift: Vec3,
-}
-
-impl<const N: usize> Default for PointMotion<N> {
-    fn default() -> Self {
-        Self {
-            pos: Vec3::zeros(),
-            jac: Jac3::zeros(),
-            vel: Vec3::zeros(),
-            drift: Vec3::zeros(),
-        }
-    }
-}
+pub type PointMotion<const N: usize> = super::point::PointMotion<N, 3>;
 
 /// The capsule end points P_0 … P_N (joint origins, then the tool point).
-pub type Points<const N: usize> = [PointMotion<N>; MAX_JOINTS + 1];
+pub type Points<const N: usize> = super::point::Points<N, 3>;
 
 impl<const N: usize> SpatialKinematics<N> {
     /// Joint i's axis and origin in the base frame.

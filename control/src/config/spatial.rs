@@ -491,14 +491,16 @@ impl SpatialConfig {
         check_reach(&arm, &path, chain.reach())?;
         let safety = self.limits(chain)?;
         self.check_step(chain, self.sim.dt, &format!("sim.dt = {} s", self.sim.dt))?;
-        let mut spheres = SphereSet::default();
-        for o in &self.obstacles {
-            spheres.push(Sphere {
+        // At most MAX_SPHERES: validated above.
+        let spheres: SphereSet = self
+            .obstacles
+            .iter()
+            .map(|o| Sphere {
                 center: Vec3::from(o.center),
                 radius: o.radius,
                 margin: o.margin,
-            });
-        }
+            })
+            .collect();
         let joint_weights = crate::law::metric::weights(&self.law.metric, &safety, chain.dof())?;
         let params = SpatialParams {
             core: LawCore {

@@ -179,7 +179,7 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
                 &ortho
             }
         };
-        crate::safety::capsules::filter(&p.core.safety, arm, &p.spheres, kin, q, qd, j, jpinv, qdd)
+        crate::safety::filter_spatial(&p.core.safety, arm, &p.spheres, kin, q, qd, j, jpinv, qdd)
     }
 
     #[inline]

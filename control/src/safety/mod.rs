@@ -18,16 +18,18 @@
 //! actuator's), so the command is always finite and bounded. Everything is on the stack: the
 //! filter never allocates.
 
-pub mod capsules;
 pub mod config;
 pub mod dual_qp;
 pub mod policy;
 pub mod rows;
 pub mod solve;
 
+use crate::arm::point::{PointMotion, Points as PointsOf};
+use crate::arm::spatial::{SpatialArm, SpatialKinematics};
 use crate::arm::{ArmModel, Kinematics, VecN};
 use crate::basics::MAX_JOINTS;
-use crate::secondary::ObstacleSet;
+use crate::secondary::spatial::SphereSet;
+use crate::secondary::{Balls, ObstacleSet};
 use nalgebra::SMatrix;
 
 pub use config::SafetyConfig;
@@ -164,17 +166,65 @@ pub fn filter<const N: usize>(
     jpinv: &SMatrix<f64, N, 2>,
     qdd: &VecN<N>,
 ) -> Filtered<N> {
+    let fill = |out: &mut rows::Points<N>| rows::point_motions(model, kin, phi, q, qd, out);
+    filter_with(
+        p,
+        obstacles,
+        &rows::SEGMENTS,
+        fill,
+        (q, qd),
+        (&kin.j, jpinv),
+        qdd,
+    )
+}
+
+/// Filters a spatial arm's `qdd` (its links capsules against spheres): `j` are the task rows
+/// and `jpinv` the pseudo-inverse the law used.
+#[allow(clippy::too_many_arguments)]
+pub fn filter_spatial<const N: usize, const M: usize>(
+    p: &SafetyParams,
+    arm: &SpatialArm<N>,
+    spheres: &SphereSet,
+    kin: &SpatialKinematics<N>,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+    j: &SMatrix<f64, M, N>,
+    jpinv: &SMatrix<f64, N, M>,
+    qdd: &VecN<N>,
+) -> Filtered<N> {
+    let fill = |out: &mut PointsOf<N, 3>| arm.capsule_points(kin, qd, out);
+    filter_with(p, spheres, &arm.radii, fill, (q, qd), (j, jpinv), qdd)
+}
+
+/// Either arm's filter once its points are known: the rows of every link against every ball
+/// ([`rows::visit_balls`]) and each joint's box, solved null space first ([`solve`]). The
+/// points are filled only when there is a ball.
+fn filter_with<const N: usize, const M: usize, const D: usize>(
+    p: &SafetyParams,
+    balls: &Balls<D>,
+    link_radii: &[f64],
+    fill: impl FnOnce(&mut PointsOf<N, D>),
+    (q, qd): (&VecN<N>, &VecN<N>),
+    (j, jpinv): (&SMatrix<f64, M, N>, &SMatrix<f64, N, M>),
+    qdd: &VecN<N>,
+) -> Filtered<N>
+where
+    rows::Geometry: rows::Interior<N, D>,
+{
     if !p.enabled {
         return Filtered {
             qdd: *qdd,
             flags: 0,
         };
     }
-    let mut points: rows::Points<N> = [rows::PointMotion::default(); MAX_JOINTS + 1];
-    if !obstacles.is_empty() {
-        rows::point_motions(model, kin, phi, q, qd, &mut points);
-    }
-    let visit = |f: &mut dyn FnMut(&VecN<N>, f64)| rows::visit_obstacles(p, obstacles, &points, f);
     let (lo, hi) = rows::joint_box(p, q, qd);
-    solve::smallest_change(&visit, (&lo, &hi), &kin.j, jpinv, qdd, &p.qdd_max)
+    if balls.is_empty() {
+        let none = |_: &mut dyn FnMut(&VecN<N>, f64)| {};
+        return solve::smallest_change(&none, (&lo, &hi), j, jpinv, qdd, &p.qdd_max);
+    }
+    let mut points: PointsOf<N, D> = [PointMotion::default(); MAX_JOINTS + 1];
+    fill(&mut points);
+    let visit =
+        |f: &mut dyn FnMut(&VecN<N>, f64)| rows::visit_balls(p, balls, link_radii, &points, f);
+    solve::smallest_change(&visit, (&lo, &hi), j, jpinv, qdd, &p.qdd_max)
 }

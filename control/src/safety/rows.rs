@@ -6,39 +6,31 @@
 //! produced by a visitor instead of being stored, so the common case (no row binds) costs one pass
 //! and no buffer.
 //!
-//! The obstacle distance d(q) from a centre to a link segment switches between "closest to an end
-//! point" and "closest to the interior". Both pieces are smooth and agree (with their gradients) at
-//! the switch, so the condition is written for whichever piece is active. For the interior piece
-//! the link length L is constant, so d = |σ|/L with σ = (B − A) × (c − A), and σ̈ follows from the
-//! end points' accelerations Ä = J_A q̈ + D_A (D = J̇ q̇, the drift).
+//! One builder serves every arm: a link is the segment between two points (with a radius: a
+//! capsule) and an obstacle a ball, in the plane (D = 2) or in space (D = 3). The distance from a
+//! centre to a segment switches between "closest to an end point" and "closest to the interior".
+//! Both pieces are smooth and agree (with their gradients) at the switch, so the condition is
+//! written for whichever piece is active. The end-point piece is the same in every dimension; the
+//! interior piece is written per dimension ([`Interior`]): in the plane the link length L is
+//! constant, so d = |σ|/L with σ = (B − A) × (c − A), and σ̈ follows from the end points'
+//! accelerations Ä = J_A q̈ + D_A (D = J̇ q̇, the drift); in space through the sliding foot point.
+//! Each is the formula its arm's reference numbers were computed with.
 
 use super::SafetyParams;
-use crate::arm::{ArmModel, Jac, Kinematics, Vec2, VecN};
+use crate::arm::point::{PointMotion as Pt, Points as PointsOf};
+use crate::arm::{ArmModel, Kinematics, Vec2, VecN};
 use crate::basics::MAX_JOINTS;
-use crate::secondary::ObstacleSet;
+use crate::secondary::{Balls, ObstacleSet};
+use nalgebra::{SVector, Vector3};
 
-/// Position, Jacobian, velocity and drift (J̇q̇) of one point of the arm.
-#[derive(Clone, Copy, Debug)]
-pub struct PointMotion<const N: usize> {
-    pub pos: Vec2,
-    pub jac: Jac<N>,
-    pub vel: Vec2,
-    pub drift: Vec2,
-}
-
-impl<const N: usize> Default for PointMotion<N> {
-    fn default() -> Self {
-        Self {
-            pos: Vec2::zeros(),
-            jac: Jac::zeros(),
-            vel: Vec2::zeros(),
-            drift: Vec2::zeros(),
-        }
-    }
-}
+/// Position, Jacobian, velocity and drift (J̇q̇) of one point of the planar arm.
+pub type PointMotion<const N: usize> = crate::arm::point::PointMotion<N, 2>;
 
 /// The arm's N + 1 points (joints 1 … n, then the end effector): P_k for k = 0 … N.
-pub type Points<const N: usize> = [PointMotion<N>; MAX_JOINTS + 1];
+pub type Points<const N: usize> = crate::arm::point::Points<N, 2>;
+
+/// A barrier value h with its row a·q̈ ≥ b: (h, a, b).
+pub type Row<const N: usize> = (f64, VecN<N>, f64);
 
 #[inline(always)]
 fn cross(a: Vec2, b: Vec2) -> f64 {
@@ -135,15 +127,20 @@ impl BarrierGains {
     }
 }
 
-/// The barrier value h = d − r − clearance of link `j` (from P_j to P_{j+1}) against an obstacle,
-/// with the row of its second-order condition: returns (h, a, b).
-pub fn obstacle_row<const N: usize>(
-    a_pt: &PointMotion<N>,
-    b_pt: &PointMotion<N>,
-    center: Vec2,
+/// The barrier h = d − reach of the segment [P_a, P_b] against a centre (reach: the obstacle's
+/// radius + the link's radius + the clearance) with its second-order row, in the plane or in
+/// space: returns (h, a, b) for a·q̈ ≥ b. Near an end point the distance is to that point; on
+/// the interior piece [`Geometry`] writes it out for the dimension.
+pub fn segment_row<const N: usize, const D: usize>(
+    a_pt: &Pt<N, D>,
+    b_pt: &Pt<N, D>,
+    center: SVector<f64, D>,
     reach: f64,
     g: BarrierGains,
-) -> Option<(f64, VecN<N>, f64)> {
+) -> Option<Row<N>>
+where
+    Geometry: Interior<N, D>,
+{
     let e = b_pt.pos - a_pt.pos;
     let l2 = e.norm_squared();
     let t = if l2 > 0.0 {
@@ -157,32 +154,95 @@ pub fn obstacle_row<const N: usize>(
     if t >= 1.0 {
         return point_row(b_pt, center, reach, g);
     }
-    let l = l2.sqrt();
-    let rel = center - a_pt.pos;
-    let sigma = cross(e, rel);
-    let side = if sigma >= 0.0 { 1.0 } else { -1.0 };
-    let s = side / l;
-    let h = s * sigma - reach;
-    let edot = b_pt.vel - a_pt.vel;
-    let hdot = s * (cross(edot, rel) - cross(e, a_pt.vel));
-    let je = b_pt.jac - a_pt.jac;
-    let a = VecN::<N>::from_fn(|k, _| {
-        s * (cross(je.column(k).into_owned(), rel) - cross(e, a_pt.jac.column(k).into_owned()))
-    });
-    let drift = s
-        * (cross(b_pt.drift - a_pt.drift, rel)
-            - 2.0 * cross(edot, a_pt.vel)
-            - cross(e, a_pt.drift));
-    Some((h, a, g.rhs(h, hdot) - drift))
+    Geometry::interior(a_pt, b_pt, center, reach, g, (e, l2, t))
+}
+
+/// The dimensions a segment's interior piece is written for.
+pub struct Geometry;
+
+/// The interior piece of a segment row: the foot of the perpendicular from the centre lies
+/// strictly inside the segment, at `a + t e` (`e = b − a`, `l2 = |e|²`).
+pub trait Interior<const N: usize, const D: usize> {
+    fn interior(
+        a_pt: &Pt<N, D>,
+        b_pt: &Pt<N, D>,
+        center: SVector<f64, D>,
+        reach: f64,
+        g: BarrierGains,
+        foot: (SVector<f64, D>, f64, f64),
+    ) -> Option<Row<N>>;
+}
+
+impl<const N: usize> Interior<N, 2> for Geometry {
+    /// In the plane the link length L is constant, so d = |σ|/L with σ = e × (c − A), and σ̈
+    /// follows from the end points' accelerations.
+    fn interior(
+        a_pt: &PointMotion<N>,
+        b_pt: &PointMotion<N>,
+        center: Vec2,
+        reach: f64,
+        g: BarrierGains,
+        (e, l2, _): (Vec2, f64, f64),
+    ) -> Option<Row<N>> {
+        let l = l2.sqrt();
+        let rel = center - a_pt.pos;
+        let sigma = cross(e, rel);
+        let side = if sigma >= 0.0 { 1.0 } else { -1.0 };
+        let s = side / l;
+        let h = s * sigma - reach;
+        let edot = b_pt.vel - a_pt.vel;
+        let hdot = s * (cross(edot, rel) - cross(e, a_pt.vel));
+        let je = b_pt.jac - a_pt.jac;
+        let a = VecN::<N>::from_fn(|k, _| {
+            s * (cross(je.column(k).into_owned(), rel) - cross(e, a_pt.jac.column(k).into_owned()))
+        });
+        let drift = s
+            * (cross(b_pt.drift - a_pt.drift, rel)
+                - 2.0 * cross(edot, a_pt.vel)
+                - cross(e, a_pt.drift));
+        Some((h, a, g.rhs(h, hdot) - drift))
+    }
+}
+
+impl<const N: usize> Interior<N, 3> for Geometry {
+    /// In space the foot x = a + t e slides as t moves, but u = (x − c)/d is normal to e there,
+    /// so ḣ = u·(ȧ + t ė) and the slide enters ḧ only through ṫ.
+    fn interior(
+        pa: &Pt<N, 3>,
+        pb: &Pt<N, 3>,
+        center: Vector3<f64>,
+        reach: f64,
+        g: BarrierGains,
+        (e, l2, t): (Vector3<f64>, f64, f64),
+    ) -> Option<Row<N>> {
+        let w = pa.pos + e * t - center;
+        let d = w.norm();
+        if d < 1e-12 {
+            return None;
+        }
+        let u = w / d;
+        let h = d - reach;
+        let edot = pb.vel - pa.vel;
+        let xdot = pa.vel + edot * t;
+        let tdot = ((center - pa.pos).dot(&edot) - pa.vel.dot(&e) - 2.0 * t * e.dot(&edot)) / l2;
+        let wdot = xdot + e * tdot;
+        let udot = (wdot - u * u.dot(&wdot)) / d;
+        let hdot = u.dot(&xdot);
+        let jx = pa.jac + (pb.jac - pa.jac) * t;
+        let a = jx.transpose() * u;
+        let drift_x = pa.drift + (pb.drift - pa.drift) * t;
+        let drift = u.dot(&drift_x) + udot.dot(&xdot) + tdot * u.dot(&edot);
+        Some((h, a, g.rhs(h, hdot) - drift))
+    }
 }
 
 /// The same for the distance to one point P: ḧ = u·P̈ + (|Ṗ|² − (u·Ṗ)²)/d.
-fn point_row<const N: usize>(
-    p: &PointMotion<N>,
-    center: Vec2,
+fn point_row<const N: usize, const D: usize>(
+    p: &Pt<N, D>,
+    center: SVector<f64, D>,
     reach: f64,
     g: BarrierGains,
-) -> Option<(f64, VecN<N>, f64)> {
+) -> Option<Row<N>> {
     let w = p.pos - center;
     let d = w.norm();
     if d < 1e-12 {
@@ -197,24 +257,31 @@ fn point_row<const N: usize>(
     Some((h, a, g.rhs(h, hdot) - u.dot(&p.drift) - curvature))
 }
 
-/// Calls `f(a, b)` for the row a·q̈ ≥ b of every link against every obstacle.
-pub fn visit_obstacles<const N: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
+/// Calls `f(a, b)` for the row a·q̈ ≥ b of every link against every ball; link j is a capsule
+/// of radius `link_radii[j]` (0: a segment).
+pub fn visit_balls<const N: usize, const D: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
     p: &SafetyParams,
-    obstacles: &ObstacleSet,
-    points: &Points<N>,
+    balls: &Balls<D>,
+    link_radii: &[f64],
+    points: &PointsOf<N, D>,
     f: &mut F,
-) {
-    for o in obstacles.as_slice() {
-        let reach = o.radius + p.clearance;
+) where
+    Geometry: Interior<N, D>,
+{
+    for o in balls.as_slice() {
         for j in 0..N {
+            let reach = o.radius + link_radii[j] + p.clearance;
             if let Some((_, a, b)) =
-                obstacle_row(&points[j], &points[j + 1], o.center, reach, p.gains())
+                segment_row(&points[j], &points[j + 1], o.center, reach, p.gains())
             {
                 f(&a, b);
             }
         }
     }
 }
+
+/// The planar arm's links are segments: no radius of their own.
+pub const SEGMENTS: [f64; MAX_JOINTS] = [0.0; MAX_JOINTS];
 
 /// Every joint's own rows folded into one box lo_i ≤ q̈_i ≤ hi_i: the position barriers
 /// (ḧ + k1 ḣ + k0 h ≥ 0 with h = q_max − q and q − q_min), the rate barriers (ḣ + k_rate h ≥ 0
@@ -254,7 +321,7 @@ pub fn visit<const N: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
     qd: &VecN<N>,
     f: &mut F,
 ) {
-    visit_obstacles(p, obstacles, points, f);
+    visit_balls(p, obstacles, &SEGMENTS, points, f);
     let (lo, hi) = joint_box(p, q, qd);
     for i in 0..N {
         let e = VecN::<N>::from_fn(|r, _| if r == i { 1.0 } else { 0.0 });
@@ -265,27 +332,4 @@ pub fn visit<const N: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
             f(&-e, -hi[i]);
         }
     }
-}
-
-/// Smallest barrier value over all link-obstacle pairs (m): the clearance beyond the required one.
-pub fn min_obstacle_barrier<const N: usize>(
-    p: &SafetyParams,
-    obstacles: &ObstacleSet,
-    points: &Points<N>,
-) -> f64 {
-    let mut min = f64::INFINITY;
-    for o in obstacles.as_slice() {
-        for j in 0..N {
-            if let Some((h, _, _)) = obstacle_row(
-                &points[j],
-                &points[j + 1],
-                o.center,
-                o.radius + p.clearance,
-                p.gains(),
-            ) {
-                min = min.min(h);
-            }
-        }
-    }
-    min
 }

@@ -5,86 +5,19 @@
 //! Obstacles live in a fixed-capacity array so a parameter block stays `Copy` and can be handed to
 //! the real-time loop without allocating.
 
+pub mod balls;
 pub mod custom;
 pub mod spatial;
 
 use crate::arm::{Jac, Kinematics, Vec2, VecN};
 
-/// The most obstacles one parameter block holds.
-pub const MAX_OBSTACLES: usize = 16;
+pub use balls::{Ball, Balls, ObstaclesFull, MAX_OBSTACLES};
 
 /// A circular obstacle O_i with radius r_i and safety margin s_i.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Obstacle {
-    pub center: Vec2,
-    pub radius: f64,
-    pub margin: f64,
-}
+pub type Obstacle = Ball<2>;
 
-impl Default for Obstacle {
-    fn default() -> Self {
-        Self {
-            center: Vec2::zeros(),
-            radius: 0.0,
-            margin: 0.0,
-        }
-    }
-}
-
-/// Up to [`MAX_OBSTACLES`] obstacles, stored inline.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct ObstacleSet {
-    items: [Obstacle; MAX_OBSTACLES],
-    len: usize,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("at most {MAX_OBSTACLES} obstacles are supported")]
-pub struct ObstaclesFull;
-
-impl ObstacleSet {
-    pub fn new() -> Self {
-        Self::default()
-    }
-    pub fn push(&mut self, o: Obstacle) -> Result<usize, ObstaclesFull> {
-        if self.len == MAX_OBSTACLES {
-            return Err(ObstaclesFull);
-        }
-        self.items[self.len] = o;
-        self.len += 1;
-        Ok(self.len - 1)
-    }
-    /// Removes obstacle `i`, keeping the order of the rest.
-    pub fn remove(&mut self, i: usize) -> Option<Obstacle> {
-        if i >= self.len {
-            return None;
-        }
-        let o = self.items[i];
-        self.items.copy_within(i + 1..self.len, i);
-        self.len -= 1;
-        Some(o)
-    }
-    pub fn as_slice(&self) -> &[Obstacle] {
-        &self.items[..self.len]
-    }
-    pub fn len(&self) -> usize {
-        self.len
-    }
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-}
-
-impl FromIterator<Obstacle> for ObstacleSet {
-    /// Collects up to [`MAX_OBSTACLES`]; callers validate the count first.
-    fn from_iter<I: IntoIterator<Item = Obstacle>>(iter: I) -> Self {
-        let mut s = Self::new();
-        for o in iter.into_iter().take(MAX_OBSTACLES) {
-            let _ = s.push(o);
-        }
-        s
-    }
-}
+/// Up to [`MAX_OBSTACLES`] discs.
+pub type ObstacleSet = Balls<2>;
 
 /// Weights W₁ (link-distance terms) and W₂ (joint-distance terms).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -17,49 +17,10 @@ use nalgebra::{SMatrix, SVector};
 pub const MAX_SPHERES: usize = crate::secondary::MAX_OBSTACLES;
 
 /// A spherical obstacle with the safety margin its potential starts at.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct Sphere {
-    pub center: Vec3,
-    pub radius: f64,
-    pub margin: f64,
-}
+pub type Sphere = crate::secondary::Ball<3>;
 
-/// Up to [`MAX_SPHERES`] spheres, inline, so a parameter block stays `Copy`.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct SphereSet {
-    items: [Sphere; MAX_SPHERES],
-    len: usize,
-}
-
-impl SphereSet {
-    /// Adds a sphere; `false` when the set is full.
-    pub fn push(&mut self, s: Sphere) -> bool {
-        if self.len == MAX_SPHERES {
-            return false;
-        }
-        self.items[self.len] = s;
-        self.len += 1;
-        true
-    }
-    pub fn remove(&mut self, i: usize) -> Option<Sphere> {
-        if i >= self.len {
-            return None;
-        }
-        let s = self.items[i];
-        self.items.copy_within(i + 1..self.len, i);
-        self.len -= 1;
-        Some(s)
-    }
-    pub fn as_slice(&self) -> &[Sphere] {
-        &self.items[..self.len]
-    }
-    pub fn len(&self) -> usize {
-        self.len
-    }
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-}
+/// Up to [`MAX_SPHERES`] spheres.
+pub type SphereSet = crate::secondary::Balls<3>;
 
 /// The first M rows of the tool Jacobian's column i.
 #[inline(always)]

@@ -11,7 +11,7 @@ use crate::arm::spatial::Points;
 use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
 use crate::plan::PlanSettings;
-use crate::safety::capsules::capsule_row;
+use crate::safety::rows::segment_row;
 use crate::sim::spatial::SpatialSimulation;
 use crate::steer::CycleTable;
 
@@ -198,7 +198,7 @@ impl<const N: usize> SpatialProblem<N> {
             for sphere in self.law.spheres.as_slice() {
                 for j in 0..N {
                     let reach = sphere.radius + self.arm.radii[j] + self.law.core.safety.clearance;
-                    let row = capsule_row(&points[j], &points[j + 1], sphere.center, reach, gains);
+                    let row = segment_row(&points[j], &points[j + 1], sphere.center, reach, gains);
                     if let Some((_, a, b)) = row {
                         v.filter_margin = v.filter_margin.min(a.dot(&qdd) - b);
                     }
