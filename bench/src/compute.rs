@@ -94,7 +94,7 @@ fn filter_cost(
     let mut cfg = Config::preset("paper-obstacle")?;
     cfg.safety.enabled = true;
     if case != FilterCase::Free {
-        cfg.safety.qd_max = control::safety::config::Limit::All(5.0);
+        cfg.safety.qd_max = Some(control::safety::config::Limit::All(5.0));
     }
     let (p, m) = (cfg.law_params(), cfg.model::<3>());
     let mut cases = Vec::new();

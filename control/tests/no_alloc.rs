@@ -80,7 +80,7 @@ fn the_safety_filter_allocates_nothing_on_any_path() {
     }
     for mut cfg in arms {
         cfg.safety.enabled = true;
-        cfg.safety.qd_max = control::safety::config::Limit::All(6.0);
+        cfg.safety.qd_max = Some(control::safety::config::Limit::All(6.0));
         cfg.safety.q_min = Some(vec![-1.5; cfg.n()]);
         cfg.safety.q_max = Some(vec![1.5; cfg.n()]);
         cfg.validate().unwrap();

@@ -373,7 +373,7 @@ fn joint_and_rate_limits_tighter_than_the_free_motion_hold() {
     cfg.safety.enabled = true;
     cfg.safety.q_min = Some(vec![f64::NEG_INFINITY, -2.0, -1.8]);
     cfg.safety.q_max = Some(vec![f64::INFINITY, 2.0, 1.9]);
-    cfg.safety.qd_max = control::safety::config::Limit::All(10.0);
+    cfg.safety.qd_max = Some(control::safety::config::Limit::All(10.0));
     cfg.validate().unwrap();
     let o = run::<3>(&cfg, 200.0);
     assert!(

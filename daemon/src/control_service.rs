@@ -1,8 +1,8 @@
 //! The control service: `chaosctl` requests, answered on the reporter thread.
 //!
-//! The reporter keeps the running [`System`]; a change is validated in [`crate::requests`] (or
-//! [`crate::spatial_requests`] for a URDF chain) and sent to the loop as a whole parameter block,
-//! which the loop swaps in between two ticks. A request can never stall the loop: the loop only
+//! The reporter keeps the running [`System`]; a change is validated in [`crate::requests`] (one
+//! path for every arm) and sent to the loop as a whole parameter block, which the loop swaps in
+//! between two ticks. A request can never stall the loop: the loop only
 //! ever does a `try_recv`.
 
 use crate::recording::Recording;
@@ -74,19 +74,15 @@ impl Reporter {
 
     /// Applies one change request to the running set-up (not yet committed).
     fn change(&self, op: Op, args: &str, now: f64) -> Result<System, String> {
-        use crate::{requests as p, spatial_requests as s};
+        use crate::requests as p;
         let t = self.min_tau;
         let system = &self.system;
-        match (op, system) {
-            (Op::DfcOn, _) => p::apply_dfc(system, true, now, t),
-            (Op::DfcOff, _) => p::apply_dfc(system, false, now, t),
-            (Op::ObstacleAdd, _) => p::apply_obstacle_add(system, args, t),
-            (Op::ObstacleRemove, _) => p::apply_obstacle_remove(system, args, t),
-            // `set` takes each arm's own [law], [task] and [safety] keys.
-            (_, System::Planar(c)) => p::apply_set(c, args, t).map(System::Planar),
-            (_, System::Spatial(c)) => {
-                s::apply_set(c, args, t).map(|n| System::Spatial(Box::new(n)))
-            }
+        match op {
+            Op::DfcOn => p::apply_dfc(system, true, now, t),
+            Op::DfcOff => p::apply_dfc(system, false, now, t),
+            Op::ObstacleAdd => p::apply_obstacle_add(system, args, t),
+            Op::ObstacleRemove => p::apply_obstacle_remove(system, args, t),
+            _ => p::apply_set(system, args, t),
         }
     }
 

@@ -38,7 +38,6 @@ pub mod ros2_bag;
 pub mod rotate;
 pub mod saturations;
 pub mod service;
-pub mod spatial_requests;
 pub mod telemetry;
 pub mod tick;
 pub mod tracking;

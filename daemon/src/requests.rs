@@ -6,16 +6,19 @@
 //! block, which the loop swaps in at a tick boundary. These functions do no I/O.
 
 use control::config::{FeedbackSection, LawSection, SecondaryKind};
-use control::safety::policy::PlanMode;
-use control::{Config, System};
+use control::safety::policy::{PlanMode, WhenBlocked};
+use control::safety::SafetySection;
+use control::System;
 use std::path::{Component, Path, PathBuf};
 
-/// Keys `set` accepts (short and dotted forms), for the error message.
+/// Keys `set` accepts (short and dotted forms), for the error message. A key of the other
+/// arm's file is refused by the validation, with the reason.
 pub const KEYS: &str = "mu (a number, or auto), gamma, max_mu (auto's tuning), tau, t_on, feedback (on|off), projection (full|null-space), kp, kv, alpha, \
-                        secondary (none|manipulability|obstacles), w1, w2, damping_threshold, damping_max, track_loss, \
-                        task.center X Y, task.radius, task.period, safety (on|off), safety.clearance, \
-                        safety.qd_max, safety.qdd_max (one value for all joints, or one per joint), \
-                        safety.q_min, safety.q_max (one per joint; inf = unlimited), safety.k0, safety.k1, \
+                        secondary (none|manipulability|centring|obstacles), damping_threshold, damping_max, track_loss, \
+                        w1, w2 (the planar arm), obstacle_weight, null_damping, null_speed, metric (auto|identity|speed) (a robot), \
+                        task.center X Y (the planar arm) or X Y Z (a robot), task.radius, task.period, safety (on|off), safety.clearance, \
+                        safety.qdd_max (one value for all joints, or one per joint), safety.velocity_scale, \
+                        safety.qd_max, safety.q_min, safety.q_max (the planar arm; one per joint, inf = unlimited), safety.k0, safety.k1, \
                         safety.push_out_speed, safety.k_rate, safety.guard_time, safety.guard_tracking_error, safety.guard_growth_time, \
                         safety.plan (auto|on|off), safety.plan_hz, safety.trap_time, safety.when_blocked (hold|best-effort)";
 
@@ -78,11 +81,14 @@ pub(crate) fn num(key: &str, v: Option<&str>) -> Result<f64, String> {
     control::basics::live_number(key, v).map_err(String::from)
 }
 
-/// Applies `KEY VALUE… [KEY VALUE…]` to a copy of `cfg` and validates the result.
-///
-/// `max_tau` is the delay-line capacity fixed at start-up; `min_tau` one control period.
-pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, String> {
-    let mut c = cfg.clone();
+/// Applies `KEY VALUE… [KEY VALUE…]` to a copy of the running set-up, on any arm, and
+/// validates the result: the same keys as the file's (`law.*`, `feedback.*`, `task.*`,
+/// `safety.*`; the short forms without the section), checked by the same validation that guards
+/// start-up and at the daemon's own step. `min_tau` is one control period; `feedback.max_tau`,
+/// the delay line's capacity, was fixed at start-up.
+pub fn apply_set(system: &System, args: &str, min_tau: f64) -> Result<System, String> {
+    let mut n = system.clone();
+    let joints = n.n();
     let mut it = args.split_whitespace().peekable();
     if it.peek().is_none() {
         return Err(format!("set needs KEY VALUE pairs; keys: {KEYS}"));
@@ -92,49 +98,58 @@ pub fn apply_set(cfg: &Config, args: &str, min_tau: f64) -> Result<Config, Strin
             .trim_start_matches("feedback.")
             .trim_start_matches("law.")
             .trim_start_matches("control.");
-        if feedback_key(&mut c.feedback, key, k, &mut it)?
-            || law_key(&mut c.control, key, k, &mut it)?
+        if feedback_key(n.feedback_section_mut(), key, k, &mut it)?
+            || law_key(n.law_section_mut(), key, k, &mut it)?
+            || safety_key(n.safety_section_mut(), key, &mut it, joints)?
         {
             continue;
         }
         match k {
-            "safety" | "safety.enabled" => c.safety.enabled = on_off(key, it.next())?,
-            "safety.clearance" => c.safety.clearance = num(key, it.next())?,
-            "safety.qd_max" => c.safety.qd_max = limit(key, &mut it, cfg.n())?,
-            "safety.qdd_max" => c.safety.qdd_max = limit(key, &mut it, cfg.n())?,
-            "safety.q_min" => c.safety.q_min = Some(nums(key, &mut it, cfg.n(), true)?),
-            "safety.q_max" => c.safety.q_max = Some(nums(key, &mut it, cfg.n(), true)?),
-            "safety.k0" => c.safety.k0 = num(key, it.next())?,
-            "safety.k1" => c.safety.k1 = num(key, it.next())?,
-            "safety.push_out_speed" => c.safety.push_out_speed = num(key, it.next())?,
-            "safety.k_rate" => c.safety.k_rate = num(key, it.next())?,
-            "safety.guard_time" => c.safety.guard_time = num(key, it.next())?,
-            "safety.guard_tracking_error" => c.safety.guard_tracking_error = num(key, it.next())?,
-            "safety.guard_growth_time" => c.safety.guard_growth_time = num(key, it.next())?,
-            "safety.plan" => c.safety.plan = PlanMode::parse(key, it.next())?,
-            "safety.plan_hz" => c.safety.plan_hz = num(key, it.next())?,
-            "safety.trap_time" => c.safety.trap_time = num(key, it.next())?,
-            "safety.when_blocked" => {
-                c.safety.when_blocked = control::safety::policy::WhenBlocked::parse(key, it.next())?
-            }
             "task.center" | "center" => {
-                c.task.center = [num(key, it.next())?, num(key, it.next())?]
+                let c = nums(key, &mut it, n.obstacle_dims(), false)
+                    .map_err(|_| format!("{key}: needs {} numbers", n.obstacle_dims()))?;
+                n.set_task_center(&c).map_err(|e| e.to_string())?
             }
-            "task.radius" | "radius" => c.task.radius = num(key, it.next())?,
-            "task.period" | "period" => c.task.period = num(key, it.next())?,
+            "task.radius" | "radius" => *n.task_circle_mut().0 = num(key, it.next())?,
+            "task.period" | "period" => *n.task_circle_mut().1 = num(key, it.next())?,
             _ => return Err(format!("unknown key {key:?}; keys: {KEYS}")),
         }
     }
-    check_tau(c.tau(), cfg.feedback.capacity(), min_tau)?;
-    c.validate().map_err(|e| e.to_string())?;
-    // The loop's own step, not only the offline `sim.dt`.
-    control::config::stability::check(
-        &c,
-        min_tau,
-        &format!("the daemon's {:.0} Hz", 1.0 / min_tau),
-    )
-    .map_err(|e| e.to_string())?;
-    Ok(c)
+    let f = n.feedback_section();
+    check_tau(f.tau_for(n.period()), f.capacity(), min_tau)?;
+    checked(n, min_tau)
+}
+
+/// Applies `key` to `[safety]` if it is one of its keys, the same on every arm (the planar
+/// arm's own limits are refused on a robot when the set-up is validated); false if it is not.
+fn safety_key<'a>(
+    s: &mut SafetySection,
+    key: &str,
+    it: &mut std::iter::Peekable<impl Iterator<Item = &'a str>>,
+    joints: usize,
+) -> Result<bool, String> {
+    match key {
+        "safety" | "safety.enabled" => s.enabled = on_off(key, it.next())?,
+        "safety.clearance" => s.clearance = num(key, it.next())?,
+        "safety.qd_max" => s.qd_max = Some(limit(key, it, joints)?),
+        "safety.qdd_max" => s.qdd_max = Some(limit(key, it, joints)?),
+        "safety.q_min" => s.q_min = Some(nums(key, it, joints, true)?),
+        "safety.q_max" => s.q_max = Some(nums(key, it, joints, true)?),
+        "safety.velocity_scale" => s.velocity_scale = num(key, it.next())?,
+        "safety.k0" => s.k0 = num(key, it.next())?,
+        "safety.k1" => s.k1 = num(key, it.next())?,
+        "safety.push_out_speed" => s.push_out_speed = num(key, it.next())?,
+        "safety.k_rate" => s.k_rate = num(key, it.next())?,
+        "safety.guard_time" => s.guard_time = num(key, it.next())?,
+        "safety.guard_tracking_error" => s.guard_tracking_error = num(key, it.next())?,
+        "safety.guard_growth_time" => s.guard_growth_time = num(key, it.next())?,
+        "safety.plan" => s.plan = PlanMode::parse(key, it.next())?,
+        "safety.plan_hz" => s.plan_hz = num(key, it.next())?,
+        "safety.trap_time" => s.trap_time = num(key, it.next())?,
+        "safety.when_blocked" => s.when_blocked = WhenBlocked::parse(key, it.next())?,
+        _ => return Ok(false),
+    }
+    Ok(true)
 }
 
 /// Applies `key` (`k` without its section) to `[feedback]` if it is one of its keys, the same
@@ -379,11 +394,17 @@ pub fn parse_stall(args: &str) -> Result<u64, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use control::Config;
+
+    /// `set` on the planar arm's `c`, at a step of `min_tau`.
+    fn set(c: &Config, args: &str, min_tau: f64) -> Result<Config, String> {
+        apply_set(&System::Planar(c.clone()), args, min_tau).map(|s| s.planar().unwrap().clone())
+    }
 
     #[test]
     fn the_deadlock_settings_are_set_live_and_checked() {
         let c = Config::preset("demo").unwrap();
-        let n = apply_set(
+        let n = set(
             &c,
             "safety.trap_time 3.5 safety.when_blocked best-effort",
             1e-3,
@@ -394,7 +415,7 @@ mod tests {
             n.safety.when_blocked,
             control::safety::policy::WhenBlocked::BestEffort
         );
-        let e = apply_set(&c, "safety.when_blocked later", 1e-3).unwrap_err();
+        let e = set(&c, "safety.when_blocked later", 1e-3).unwrap_err();
         assert!(e.contains("hold or best-effort"), "{e}");
         assert_eq!(c.safety.plan, PlanMode::Auto);
         for (v, mode) in [
@@ -402,13 +423,13 @@ mod tests {
             ("on", PlanMode::On),
             ("auto", PlanMode::Auto),
         ] {
-            let n = apply_set(&c, &format!("safety.plan {v}"), 1e-3).unwrap();
+            let n = set(&c, &format!("safety.plan {v}"), 1e-3).unwrap();
             assert_eq!(n.safety.plan, mode, "{v}");
         }
-        let e = apply_set(&c, "safety.plan sometimes", 1e-3).unwrap_err();
+        let e = set(&c, "safety.plan sometimes", 1e-3).unwrap_err();
         assert!(e.contains("auto, on or off"), "{e}");
         for bad in ["0", "0.05", "61", "nan"] {
-            let e = apply_set(&c, &format!("safety.trap_time {bad}"), 1e-3).unwrap_err();
+            let e = set(&c, &format!("safety.trap_time {bad}"), 1e-3).unwrap_err();
             assert!(e.contains("safety.trap_time"), "{bad}: {e}");
         }
     }
@@ -463,14 +484,14 @@ mod tests {
             ("safety.q_max 1 1 nan", "not a finite number"),
             ("projection sideways", "full or null-space"),
         ] {
-            let e = apply_set(&c, args, 1e-3).unwrap_err();
+            let e = set(&c, args, 1e-3).unwrap_err();
             assert!(e.contains(want), "{args}: {e}");
         }
         // At 10 kHz (and an offline step to match) the same kv is stable.
         let mut fast = c.clone();
         fast.sim.dt = 1e-4;
-        assert!(apply_set(&fast, "kv 3000", 1e-4).is_ok());
-        let n = apply_set(
+        assert!(set(&fast, "kv 3000", 1e-4).is_ok());
+        let n = set(
             &c,
             "safety off safety.qd_max 5 6 7 safety.q_max inf 2 2 projection null-space safety.push_out_speed 0.05",
             1e-3,
@@ -489,7 +510,7 @@ mod tests {
     #[test]
     fn set_is_all_or_nothing_and_validated() {
         let c = Config::default();
-        let n = apply_set(
+        let n = set(
             &c,
             "mu 1.5 tau 1.2 kp 30 task.center 1 1.5 secondary none feedback off",
             1e-3,
@@ -516,7 +537,7 @@ mod tests {
             ("max_tau 5", "fixed at start-up"),
             ("", "KEY VALUE"),
         ] {
-            let e = apply_set(&c, args, 1e-3).unwrap_err();
+            let e = set(&c, args, 1e-3).unwrap_err();
             assert!(e.contains(want), "{args:?} → {e}");
         }
     }
@@ -534,7 +555,7 @@ mod tests {
         assert!(apply_obstacle_add(&one, "0 1.6", 1e-3)
             .unwrap_err()
             .contains("X Y RADIUS"));
-        let c2 = system(apply_set(&c, "secondary obstacles", 1e-3).unwrap());
+        let c2 = system(set(&c, "secondary obstacles", 1e-3).unwrap());
         assert!(apply_obstacle_remove(&c2, "1", 1e-3)
             .unwrap_err()
             .contains("secondary"));
@@ -551,7 +572,7 @@ mod tests {
         assert!(apply_dfc(&system(Config::default()), true, 3.0, 1e-3)
             .unwrap_err()
             .contains("mu is 0"));
-        let with_gain = system(apply_set(&c, "mu 0.2", 1e-3).unwrap());
+        let with_gain = system(set(&c, "mu 0.2", 1e-3).unwrap());
         let on = apply_dfc(&with_gain, true, 3.0, 1e-3).unwrap();
         let f = on.feedback_section();
         assert_eq!((f.enabled, f.t_on), (true, 3.0));
@@ -572,6 +593,86 @@ mod tests {
         );
         for bad in ["../x.csv", "/etc/passwd", "a/../../x", "./x", "", "a\nb"] {
             assert!(recording_path(&out, bad).is_err(), "{bad:?} accepted");
+        }
+    }
+
+    fn panda() -> System {
+        rt::robot::preset("panda").unwrap()
+    }
+
+    /// The robot's file after a change.
+    fn robot(s: System) -> control::config::spatial::SpatialConfig {
+        match s {
+            System::Spatial(s) => s.config,
+            System::Planar(_) => panic!("the Panda is a robot"),
+        }
+    }
+
+    #[test]
+    fn set_changes_all_or_nothing() {
+        let p = panda();
+        let n = robot(apply_set(&p, "mu 0.5 law.kp 30 projection full", 1e-3).unwrap());
+        assert_eq!((n.feedback.mu, n.law.kp), (0.5, 30.0));
+        assert_eq!(n.feedback.projection, control::config::ProjectionKind::Full);
+        for (args, says) in [
+            ("mu -1", "feedback.mu"),
+            ("mu 1e9", "[0, 100]"),
+            ("kp", "missing value"),
+            ("bogus 1", "unknown key"),
+            ("secondary wobble", "centring"),
+            ("task.radius 5", "reach"),
+            ("", "KEY VALUE"),
+            ("kp 1e9", "law.kp"),
+        ] {
+            let e = apply_set(&p, args, 1e-3).unwrap_err();
+            assert!(e.contains(says), "{args}: {e}");
+        }
+    }
+
+    #[test]
+    fn spheres_are_added_and_removed_in_3d() {
+        let (add, remove) = (apply_obstacle_add, apply_obstacle_remove);
+        let p = panda();
+        let n = add(&p, "0.5 0.2 0.4 0.05", 1e-3).unwrap();
+        let rows = n.obstacle_rows();
+        assert_eq!(rows.len(), 1);
+        assert_eq!(rows[0].center, vec![0.5, 0.2, 0.4]);
+        assert!(add(&p, "0.5 0.2 0.05 margin=0.1", 1e-3)
+            .unwrap_err()
+            .contains("X Y Z RADIUS"));
+        let m = add(&p, "0.5 0.2 0.4 0.05 margin=0.2", 1e-3).unwrap();
+        assert_eq!(m.obstacle_rows()[0].margin, 0.2);
+        assert!(add(&p, "0.5 0.2 nan 0.05", 1e-3).is_err());
+        assert!(add(&p, "0.5 0.2 0.4 -1", 1e-3).is_err());
+        let back = remove(&n, "1", 1e-3).unwrap();
+        assert!(back.obstacle_rows().is_empty());
+        assert!(remove(&n, "3", 1e-3).unwrap_err().contains("no obstacle 3"));
+    }
+
+    #[test]
+    fn dfc_needs_a_gain() {
+        let mut p = panda();
+        let on = apply_dfc(&p, true, 12.0, 1e-3).unwrap();
+        let f = on.feedback_section();
+        assert_eq!((f.enabled, f.t_on), (true, 12.0));
+        p.feedback_section_mut().mu = 0.0;
+        assert!(apply_dfc(&p, true, 1.0, 1e-3).unwrap_err().contains("mu"));
+        let off = apply_dfc(&p, false, 1.0, 1e-3).unwrap();
+        assert!(!off.feedback_section().enabled);
+    }
+
+    #[test]
+    fn tau_fits_the_delay_line_and_a_control_period() {
+        let p = panda();
+        let n = robot(apply_set(&p, "tau 1.5", 1e-3).unwrap());
+        assert_eq!(n.feedback.tau, Some(1.5));
+        for (args, says) in [
+            ("tau 1e-4", "control period"),
+            ("tau 61", "feedback.max_tau = 60"),
+            ("max_tau 5", "fixed at start-up"),
+        ] {
+            let e = apply_set(&p, args, 1e-3).unwrap_err();
+            assert!(e.contains(says), "{args}: {e}");
         }
     }
 }

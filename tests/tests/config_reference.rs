@@ -67,7 +67,7 @@ fn the_reference_lists_every_key_of_every_section_and_no_other() {
         ),
         ("[feedback]", accepted::<control::config::FeedbackSection>()),
         ("[sim]", accepted::<control::config::SimSection>()),
-        ("[safety]", accepted::<control::safety::SafetyConfig>()),
+        ("[safety]", accepted::<control::safety::SafetySection>()),
         ("[robot]", accepted::<sp::RobotSection>()),
         ("[task] (spatial)", accepted::<sp::TaskSection>()),
         // `obstacles` is the older planar form's `[[control.obstacles]]`.
@@ -76,7 +76,6 @@ fn the_reference_lists_every_key_of_every_section_and_no_other() {
             assert!(k.remove("obstacles"));
             k
         }),
-        ("[safety] (spatial)", accepted::<sp::LimitsSection>()),
         ("[[obstacles]]", accepted::<sp::SphereEntry>()),
         (
             "[command]",
@@ -122,6 +121,7 @@ fn the_reference_lists_every_key_of_every_section_and_no_other() {
         }
     }
     assert!(problems.is_empty(), "{}", problems.join("\n"));
+    // The serde introspection saw the sections' keys (150 since `[safety]` is one section).
     let total: usize = code.iter().map(|(_, k)| k.len()).sum();
-    assert!(total > 150, "{total} keys");
+    assert!(total >= 150, "{total} keys");
 }

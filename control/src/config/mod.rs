@@ -26,7 +26,7 @@ use crate::basics::{
 };
 use crate::law::{LawCore, LawParams, Secondary};
 use crate::resolve::Projection;
-use crate::safety::SafetyConfig;
+use crate::safety::SafetySection;
 use crate::secondary::{Obstacle, ObstacleSet, PotentialWeights, MAX_OBSTACLES};
 use crate::sim::ArmState;
 use crate::task::Circle;
@@ -251,7 +251,7 @@ pub struct Config {
     pub feedback: FeedbackSection,
     pub sim: SimSection,
     /// The safety filter and the runaway guard (see `control::safety::config`).
-    pub safety: SafetyConfig,
+    pub safety: SafetySection,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub daemon: Option<toml::Table>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -266,7 +266,7 @@ impl Default for Config {
             control: LawSection::planar(),
             feedback: FeedbackSection::planar(),
             sim: SimSection::planar(),
-            safety: SafetyConfig::default(),
+            safety: SafetySection::planar(),
             daemon: None,
             plant: None,
         }
@@ -300,7 +300,7 @@ impl Config {
         let mut c = Config::default();
         if name.starts_with("paper") {
             // A faithful reproduction: the paper has no filter.
-            c.safety = SafetyConfig::paper();
+            c.safety = SafetySection::paper();
         }
         match name {
             "paper" => {}
@@ -373,6 +373,7 @@ impl Config {
         c.feedback.fill_planar_defaults(section(&["feedback"]));
         c.sim.fill_planar_defaults(section(&["sim"]));
         c.control.fill_planar_defaults(section(&["law", "control"]));
+        c.safety.fill_planar_defaults(section(&["safety"]));
         Ok(c)
     }
 

@@ -13,7 +13,7 @@
 //! ([`to_legacy_key`]): `law.kp` in this form, `control.kp` in the older one.
 
 use super::{
-    ArmConfig, Config, FeedbackSection, LawSection, ObstacleConfig, SafetyConfig, SimSection,
+    ArmConfig, Config, FeedbackSection, LawSection, ObstacleConfig, SafetySection, SimSection,
     TaskConfig,
 };
 use crate::basics::{excerpt, invalid, ConfigError};
@@ -36,7 +36,7 @@ struct FileIn {
     #[serde(default)]
     feedback: FeedbackSection,
     #[serde(default)]
-    safety: SafetyConfig,
+    safety: SafetySection,
     #[serde(default)]
     obstacles: Vec<ObstacleConfig>,
     #[serde(default)]
@@ -52,7 +52,7 @@ struct FileOut<'a> {
     task: &'a TaskConfig,
     law: LawSection,
     feedback: &'a FeedbackSection,
-    safety: &'a SafetyConfig,
+    safety: &'a SafetySection,
     #[serde(skip_serializing_if = "<[_]>::is_empty")]
     obstacles: &'a [ObstacleConfig],
     sim: &'a SimSection,

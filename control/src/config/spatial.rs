@@ -41,7 +41,7 @@ pub struct SpatialConfig {
     #[serde(default)]
     pub feedback: FeedbackSection,
     #[serde(default)]
-    pub safety: LimitsSection,
+    pub safety: crate::safety::SafetySection,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub obstacles: Vec<SphereEntry>,
     /// The interface the daemon sends and its limiter (docs/science.md, "Commanding real arms").
@@ -93,46 +93,6 @@ pub struct TaskSection {
     /// Seconds over which the path speeds up from rest ([`crate::task::ramp`]); 0: full speed.
     #[serde(default, skip_serializing_if = "crate::config::is_zero")]
     pub ramp: f64,
-}
-
-/// The safety filter's switches and gains; the limits themselves come from the robot.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct LimitsSection {
-    pub enabled: bool,
-    pub clearance: f64,
-    /// Scales every rate limit from the URDF (≤ 1: only tighter).
-    pub velocity_scale: f64,
-    /// Per-joint acceleration limits; default: the robot's published ones (Panda) or 10.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub qdd_max: Option<Vec<f64>>,
-    /// Steer the self-motion onto a planned clean cycle ([`crate::plan::spatial`]), so the
-    /// filter cannot hold the arm off its path: `auto` (the default) while there is a sphere,
-    /// `true` always, `false` never (the daemon then steers only after a trap).
-    pub plan: crate::safety::policy::PlanMode,
-    /// The pull's natural frequency (Hz), critically damped.
-    pub plan_hz: f64,
-    /// Daemon: tracking lost, or the filter acting outside the null space, for this long (s)
-    /// → the arm is trapped: the daemon steers onto a cycle planned from where the arm is, or
-    /// says `Blocked`.
-    pub trap_time: f64,
-    /// Daemon: what to do while blocked: `hold` or `best-effort`.
-    pub when_blocked: crate::safety::policy::WhenBlocked,
-}
-
-impl Default for LimitsSection {
-    fn default() -> Self {
-        Self {
-            enabled: false,
-            clearance: 0.02,
-            velocity_scale: 1.0,
-            qdd_max: None,
-            plan: crate::safety::policy::PlanMode::Auto,
-            plan_hz: 1.0,
-            trap_time: crate::safety::policy::DEFAULT_TRAP_TIME,
-            when_blocked: crate::safety::policy::WhenBlocked::Hold,
-        }
-    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -290,7 +250,6 @@ impl SpatialConfig {
             ("law.null_damping", self.law.null_damping),
             ("law.null_speed", self.law.null_speed),
             ("law.damping_max", self.law.damping_max),
-            ("safety.clearance", self.safety.clearance),
         ] {
             non_negative(f, v)?;
         }
@@ -317,15 +276,8 @@ impl SpatialConfig {
             self.sim.dt,
             &step,
         )?;
-        crate::safety::policy::check_trap_time(self.safety.trap_time)?;
-        let hz = self.safety.plan_hz;
-        if !(hz > 0.0 && hz <= 20.0) {
-            return Err(invalid("safety.plan_hz", hz, "a number in (0, 20]"));
-        }
-        let s = self.safety.velocity_scale;
-        if !(s > 0.0 && s <= 1.0) {
-            return Err(invalid("safety.velocity_scale", s, "a number in (0, 1]"));
-        }
+        self.safety.check_robot()?;
+        self.safety.validate_gains()?;
         if self.obstacles.len() > MAX_SPHERES {
             return Err(invalid(
                 "obstacles",
@@ -371,15 +323,14 @@ impl SpatialConfig {
     /// The limits: the URDF's, the published acceleration limits, tightened by the file.
     fn limits(&self, chain: &Chain) -> Result<SafetyParams, ConfigError> {
         let n = chain.dof();
-        let mut s = SafetyParams::off();
-        s.enabled = self.safety.enabled;
-        s.clearance = self.safety.clearance;
-        let qdd = match &self.safety.qdd_max {
-            Some(v) => Self::per_joint("safety.qdd_max", v, n)?,
+        self.safety.validate(n)?;
+        let mut s = self.safety.params(n);
+        let qdd: [f64; MAX_JOINTS] = match &self.safety.qdd_max {
+            Some(v) => v.resolve(n),
             None if self.robot.description == "panda" && n == 7 => {
-                SVector::from_fn(|i, _| PANDA_QDD_MAX.get(i).copied().unwrap_or(0.0))
+                std::array::from_fn(|i| PANDA_QDD_MAX.get(i).copied().unwrap_or(0.0))
             }
-            None => SVector::repeat(DEFAULT_QDD_MAX),
+            None => [DEFAULT_QDD_MAX; MAX_JOINTS],
         };
         for (i, j) in chain.joints.iter().enumerate() {
             s.q_min[i] = j.limits.lower;

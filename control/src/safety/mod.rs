@@ -32,7 +32,7 @@ use crate::secondary::spatial::SphereSet;
 use crate::secondary::{Balls, ObstacleSet};
 use nalgebra::SMatrix;
 
-pub use config::SafetyConfig;
+pub use config::SafetySection;
 
 /// The filter's parameters: a small `Copy` block, swapped with the law's parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]

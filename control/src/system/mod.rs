@@ -14,6 +14,7 @@ use crate::config::spatial::is_spatial;
 use crate::config::spatial::SpatialConfig;
 use crate::config::{Config, FeedbackSection, LawSection};
 use crate::model::Chain;
+use crate::safety::SafetySection;
 use crate::sim::ArmState;
 use crate::tick_law::{ParamBlock, TickLaw};
 
@@ -267,6 +268,47 @@ impl System {
             System::Planar(c) => &c.control,
             System::Spatial(s) => &s.config.law,
         }
+    }
+
+    pub fn law_section_mut(&mut self) -> &mut LawSection {
+        match self {
+            System::Planar(c) => &mut c.control,
+            System::Spatial(s) => &mut s.config.law,
+        }
+    }
+
+    /// The file's `[safety]`, one section for every arm.
+    pub fn safety_section(&self) -> &SafetySection {
+        match self {
+            System::Planar(c) => &c.safety,
+            System::Spatial(s) => &s.config.safety,
+        }
+    }
+
+    pub fn safety_section_mut(&mut self) -> &mut SafetySection {
+        match self {
+            System::Planar(c) => &mut c.safety,
+            System::Spatial(s) => &mut s.config.safety,
+        }
+    }
+
+    /// The task circle's radius and period T (m, s), to change in place.
+    pub fn task_circle_mut(&mut self) -> (&mut f64, &mut f64) {
+        match self {
+            System::Planar(c) => (&mut c.task.radius, &mut c.task.period),
+            System::Spatial(s) => (&mut s.config.task.radius, &mut s.config.task.period),
+        }
+    }
+
+    /// Moves the task's centre: [`Self::obstacle_dims`] numbers (x, y on the planar arm; x, y,
+    /// z in a robot's base frame).
+    pub fn set_task_center(&mut self, c: &[f64]) -> Result<(), ConfigError> {
+        let wrong = |d: usize| crate::basics::invalid("task.center", c, &format!("{d} numbers"));
+        match self {
+            System::Planar(p) => p.task.center = c.try_into().map_err(|_| wrong(2))?,
+            System::Spatial(s) => s.config.task.center = Some(c.try_into().map_err(|_| wrong(3))?),
+        }
+        Ok(())
     }
 
     /// The task as text: two set-ups with the same key follow the same path.
