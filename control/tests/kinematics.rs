@@ -115,9 +115,15 @@ proptest! {
             let (hp, _) = potential(&kin(&m, 0.2, &(q + e), &z), &obs, w);
             let (hm, _) = potential(&kin(&m, 0.2, &(q - e), &z), &obs, w);
             let fd = (hp - hm) / (2.0 * H);
-            // The link terms switch on and off where the perpendicular's foot leaves the link;
-            // a difference straddling that switch is not a derivative, so allow those rare points.
-            prop_assume!((fd - g[i]).abs() < 1e-5 || (fd - g[i]).abs() > 1e-2);
+            // The link terms switch on and off where the perpendicular's foot leaves the link,
+            // so h jumps there (by ½w·e², small near the zone's edge): a difference straddling
+            // the jump is not a derivative. A smooth h gives the same difference at half the
+            // step (to O(H²)); a jump J gives J/2H more at one of the two, so those rare points
+            // are set aside by comparing them, whatever the size of the jump.
+            let (hp2, _) = potential(&kin(&m, 0.2, &(q + e / 2.0), &z), &obs, w);
+            let (hm2, _) = potential(&kin(&m, 0.2, &(q - e / 2.0), &z), &obs, w);
+            let fd_half = (hp2 - hm2) / H;
+            prop_assume!((fd - fd_half).abs() < 1e-6);
             prop_assert!((fd - g[i]).abs() < 1e-5, "i={} fd={} an={}", i, fd, g[i]);
         }
     }
