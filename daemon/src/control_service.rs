@@ -57,12 +57,9 @@ impl Reporter {
             "feedback": section.enabled, "projection": section.projection,
             "kp": law.kp, "kv": law.kv, "alpha": law.alpha, "secondary": law.secondary,
         });
-        match &self.system {
-            System::Planar(c) => v["task"] = serde_json::json!(c.task),
-            System::Spatial(s) => {
-                v["task"] = serde_json::json!(s.config.task);
-                v["robot"] = s.identity().name.into();
-            }
+        v["task"] = serde_json::json!(self.system.task());
+        if let Some(id) = self.system.identity() {
+            v["robot"] = id.name.into();
         }
         v["mu"] = fb.mu.into();
         v["tau"] = fb.tau.into();

@@ -810,10 +810,7 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
         h.settings,
     )
     .with_generator(generator);
-    let chain = match &h.system {
-        System::Spatial(s) => Some(s.chain.clone()),
-        System::Planar(_) => None,
-    };
+    let chain = h.system.chain().cloned();
     if h.start_in_fault {
         ctl.enter_fault(crate::guard::FaultReason::Restored);
     }

@@ -98,22 +98,6 @@ pub fn potential<const N: usize>(
 /// Smallest distance from an obstacle's surface to the arm (negative: penetration), and
 /// whether any part of the arm is inside an obstacle's safety zone r_i + s_i.
 pub fn clearance<const N: usize>(kin: &Kinematics<N>, obstacles: &ObstacleSet) -> (f64, bool) {
-    let mut min = f64::INFINITY;
-    let mut in_zone = false;
-    for o in obstacles.as_slice() {
-        for j in 0..N {
-            let (a, b, _, _) = link(kin, j);
-            let d = b - a;
-            let l2 = d.norm_squared();
-            let t = if l2 > 0.0 {
-                ((o.center - a).dot(&d) / l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            let dist = (a + d * t - o.center).norm();
-            min = min.min(dist - o.radius);
-            in_zone |= dist < o.radius + o.margin;
-        }
-    }
-    (min, in_zone)
+    let point = |k: usize| if k < N { kin.points[k] } else { kin.p };
+    balls::clearance(obstacles, N, point, &[0.0; N])
 }

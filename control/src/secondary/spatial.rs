@@ -141,18 +141,7 @@ pub fn clearance<const N: usize>(
     points: &[Vec3],
     spheres: &SphereSet,
 ) -> (f64, bool) {
-    let mut min = f64::INFINITY;
-    let mut in_zone = false;
-    for s in spheres.as_slice() {
-        for j in 0..N {
-            let t = segment_parameter(&points[j], &points[j + 1], &s.center);
-            let x = points[j] + (points[j + 1] - points[j]) * t;
-            let d = (x - s.center).norm() - arm.radii[j];
-            min = min.min(d - s.radius);
-            in_zone |= d < s.radius + s.margin;
-        }
-    }
-    (min, in_zone)
+    crate::secondary::balls::clearance(spheres, N, |k| points[k], &arm.radii)
 }
 
 /// Selects the task rows: the first M of a 6-vector.

@@ -451,6 +451,22 @@ impl System {
         }
     }
 
+    /// The file's `[task]`, to print or serialise as the file has it.
+    pub fn task(&self) -> TaskRef<'_> {
+        match self {
+            System::Planar(c) => TaskRef::Planar(&c.task),
+            System::Spatial(s) => TaskRef::Spatial(&s.config.task),
+        }
+    }
+
+    /// A robot's kinematic chain; the planar arm has its closed form instead.
+    pub fn chain(&self) -> Option<&Chain> {
+        match self {
+            System::Planar(_) => None,
+            System::Spatial(s) => Some(&s.chain),
+        }
+    }
+
     /// A spatial arm's identity (a planar arm's is its link lengths, in the handshake itself).
     pub fn identity(&self) -> Option<Identity> {
         match self {
@@ -458,6 +474,14 @@ impl System {
             System::Spatial(s) => Some(s.identity()),
         }
     }
+}
+
+/// Either arm's `[task]` section ([`System::task`]); serialises as the section itself.
+#[derive(Debug, serde::Serialize)]
+#[serde(untagged)]
+pub enum TaskRef<'a> {
+    Planar(&'a crate::config::TaskConfig),
+    Spatial(&'a crate::config::spatial::TaskSection),
 }
 
 impl SpatialSystem {
