@@ -15,7 +15,7 @@ mod setup;
 mod simulate;
 mod spatial;
 mod spatial_figure;
-mod spatial_sweep;
+mod subject;
 mod traps;
 
 use anyhow::Context;

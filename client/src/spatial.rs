@@ -1,5 +1,6 @@
-//! The offline commands on a spatial robot: `simulate`, `lyapunov` and `sweep` with
-//! `--preset panda` or a config file that has a `[robot]` table.
+//! The offline commands that still run a robot their own way (`simulate`, `lyapunov`,
+//! `poincare`, `orbits`, `monitor`) with `--preset panda` or a config file that has a `[robot]`
+//! table; `sweep` and `basins` run every arm through [`crate::subject::Subject`].
 //!
 //! The flags mean what they mean for the planar arm and are applied to the spatial file the same
 //! way; the run itself is [`control::law::spatial`], and the CSV keeps the planar columns
@@ -12,7 +13,6 @@ use control::analysis::lyapunov::{Benettin, Growth};
 use control::config::spatial::is_spatial;
 use control::config::spatial::SpatialConfig;
 use control::config::spatial::SpatialSetup;
-use control::sim::spatial::run;
 use control::sim::spatial::run_steering;
 use control::sim::spatial::SpatialSimulation;
 use control::sim::Summary;
@@ -297,14 +297,6 @@ pub fn print(r: &SpatialReport) {
     );
 }
 
-/// One run of `cfg` to its duration: the summary alone.
-pub fn run_summary(cfg: &SpatialConfig) -> Result<Summary> {
-    Ok(with_setup!(cfg, |s, N, M| {
-        let mut sim = s.simulation::<M>();
-        run(&mut sim, s.duration, s.transient, |_, _, _| {})
-    }))
-}
-
 /// The stroboscopic section of a spatial run and its classification.
 pub fn section(
     cfg: &SpatialConfig,
@@ -455,37 +447,6 @@ pub fn orbits(
         });
     }
     Ok(out)
-}
-
-/// One spatial run for `basins`: the classification of its section, its RMS tracking error and
-/// its last section point (to tell orbits apart).
-pub fn run_end(
-    cfg: &SpatialConfig,
-    duration: f64,
-    transient: f64,
-    classify: &control::analysis::ClassifyConfig,
-) -> Result<(control::analysis::Classification, f64, Vec<f64>)> {
-    Ok(with_setup!(cfg, |s, N, M| {
-        let mut sim = s.simulation::<M>();
-        let period = s.params.task.path.period;
-        let mut sec = control::analysis::Section::new(2 * N, N);
-        let mut last = Vec::new();
-        let summary = run(&mut sim, duration, transient, |t, x, _| {
-            let k = (t / period).round();
-            if (t - k * period).abs() < 0.5 * s.dt && t >= transient - 1e-9 && x.is_finite() {
-                last = x.q.iter().chain(x.qd.iter()).copied().collect();
-                sec.push(t, &last);
-            }
-        });
-        let class = control::analysis::classify(&sec, classify);
-        (class, summary.rms_tracking_error, last)
-    }))
-}
-
-/// Checks a spatial set-up against its robot (loads the chain), without running it.
-pub fn check(cfg: &SpatialConfig) -> Result<()> {
-    with_setup!(cfg, |_s, N, M| ());
-    Ok(())
 }
 
 /// Newton's method at μ = 0 from a section point (q, q̇) of a run of `cfg`: one line on the

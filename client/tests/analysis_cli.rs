@@ -154,6 +154,13 @@ fn small_sweep_writes_csv_and_plots_quietly() {
     let csv = std::fs::read_to_string(dir.join("s.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 3 * 3, "{csv}");
     assert!(csv.lines().nth(1).unwrap().starts_with("0,0,"));
+    // A robot's sweep writes the same columns (spatial_cli.rs): how each run ended, too.
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let residual = header.iter().position(|h| *h == "residual_final").unwrap();
+    for line in csv.lines().skip(1) {
+        let v: f64 = line.split(',').nth(residual).unwrap().parse().unwrap();
+        assert!(v.is_finite() && v >= 0.0, "{line}");
+    }
     let png = std::fs::read(dir.join("s.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
     assert!(std::fs::read_to_string(dir.join("s.svg"))

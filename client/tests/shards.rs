@@ -235,14 +235,19 @@ fn panda_basins_shards_merge_to_the_unsharded_csv() {
         "--mu",
         "0:1:1",
         "--duration",
-        "30",
+        "90",
         "--transient",
         "10",
     ];
+    // The planar arm's rule holds for a robot's map too: a section too short to classify
+    // (the Panda's T = 2 s: 11 points from 10 to 30 s) is refused, not mapped as chaos.
+    let mut short = scan;
+    short[8] = "30";
+    refused(&short, &["11 points", "at least 40"]);
     let files = merged_equals_unsharded(&dir, &scan, 4, 6);
     // A shard whose recorded run window was edited is of another grid.
     let text = std::fs::read_to_string(&files[0]).unwrap();
-    let edited = text.replacen("\"30\"", "\"31\"", 1);
+    let edited = text.replacen("\"90\"", "\"91\"", 1);
     assert_ne!(edited, text);
     let forged = dir.join("forged.shard-0-of-4.json");
     std::fs::write(&forged, edited).unwrap();

@@ -107,6 +107,18 @@ fn lyapunov_sweep_and_arm_figure_run_on_the_panda() {
     ]));
     let rows: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(rows.as_array().unwrap().len(), 2);
+    // The planar arm's row, filled from the same run: tracking, section class, how it ended.
+    for r in rows.as_array().unwrap() {
+        for key in [
+            "lambda_max",
+            "rms_tracking_error",
+            "residual_final",
+            "max_joint_speed",
+        ] {
+            assert!(r[key].as_f64().unwrap().is_finite(), "{key}: {r}");
+        }
+        assert!(r["motion"]["class"].is_string(), "{r}");
+    }
     for ext in ["csv", "png", "svg"] {
         assert!(prefix.with_extension(ext).exists(), "{ext}");
     }

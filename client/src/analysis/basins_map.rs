@@ -1,5 +1,5 @@
 //! The basins command's flags and the map it makes of the runs' ends (orbit names, CSV, printed
-//! map, figure), shared by the planar runs (`basins`) and the spatial ones (`basins_spatial`).
+//! map, figure); `basins` makes the runs, on any arm.
 
 use super::orbits::orbit_name;
 use super::shard::{self, Shard};

@@ -74,7 +74,9 @@ pub fn run(args: LyapunovCmd) -> Result<()> {
     }
     let cfg = args.model.load()?;
     check_config(&cfg)?;
-    let spec = args.lyapunov.spec(&cfg, args.classify.config()?)?;
+    let spec = args
+        .lyapunov
+        .spec(cfg.task.period, cfg.sim.dt, args.classify.config()?)?;
     let run = analyse_config(&cfg, &spec)?;
     let report = build_report(&cfg, &spec, &run)?;
     if let Some(path) = &args.csv {

@@ -9,7 +9,6 @@
 pub mod arm_figure;
 pub mod basins;
 pub mod basins_map;
-pub mod basins_spatial;
 pub mod figures;
 pub mod lyapunov;
 pub mod monitor;
@@ -26,7 +25,8 @@ pub mod shard;
 pub mod sweep;
 
 use crate::setup::{parse_list, FloatList, SetupArgs};
-use anyhow::{bail, Result};
+use crate::subject::Subject;
+use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::analysis::{
     analyse, check_reachable, period_steps, ClassifyConfig, LyapunovSpec, RunAnalysis, RunSpec,
@@ -53,12 +53,17 @@ pub struct ScanModelArgs {
 }
 
 impl ScanModelArgs {
+    /// The μ values to scan: `--mu`, else `default_mu`.
+    pub fn mus(&self, default_mu: &str) -> Result<Vec<f64>> {
+        match &self.mu {
+            Some(r) => Ok(r.0.clone()),
+            None => parse_range(default_mu).map_err(anyhow::Error::msg),
+        }
+    }
+
     /// The validated base config (μ = 0 unless the file sets it) and the μ values to scan.
     pub fn load(&self, default_mu: &str) -> Result<(Config, Vec<f64>)> {
-        let mus = match &self.mu {
-            Some(r) => r.0.clone(),
-            None => parse_range(default_mu).map_err(anyhow::Error::msg)?,
-        };
+        let mus = self.mus(default_mu)?;
         let cfg = self.setup.load_with_mu(None)?;
         for &mu in &mus {
             let mut c = cfg.clone();
@@ -184,8 +189,9 @@ impl ClassifyArgs {
 }
 
 impl LyapunovArgs {
-    /// The run spec for `cfg`, validated (window inside the duration, renorm, d0, blocks).
-    pub fn spec(&self, cfg: &Config, classify: ClassifyConfig) -> Result<RunSpec> {
+    /// The run spec for a task of `period` integrated at `dt`, validated (window inside the
+    /// duration, renorm, d0, blocks).
+    pub fn spec(&self, period: f64, dt: f64, classify: ClassifyConfig) -> Result<RunSpec> {
         let d = self.duration;
         if !(d.is_finite() && d > 0.0) {
             bail!("--duration {d}: must be a finite number of seconds > 0");
@@ -203,13 +209,13 @@ impl LyapunovArgs {
             transient: window[0],
             lyapunov: Some(LyapunovSpec {
                 d0: self.d0,
-                renorm: self.renorm.unwrap_or(cfg.task.period),
+                renorm: self.renorm.unwrap_or(period),
                 window,
                 blocks: self.blocks,
             }),
             classify,
         };
-        spec.validate(cfg.task.period, cfg.sim.dt)?;
+        spec.validate(period, dt)?;
         Ok(spec)
     }
 }
@@ -231,16 +237,21 @@ pub struct StartArgs {
 }
 
 impl StartArgs {
-    /// One validated config per start (`base` already carries the model flags).
-    pub fn configs(&self, base: &Config, q0_given: bool) -> Result<Vec<Config>> {
-        let starts: Vec<Vec<f64>> = if !self.starts.is_empty() {
+    /// The start postures: `--start` as given, else the set-up's own (`--q0` or the file's), else
+    /// for a 3-link planar arm the paper's three.
+    fn postures(&self, base_q0: Vec<f64>, default_three: bool) -> Vec<Vec<f64>> {
+        if !self.starts.is_empty() {
             self.starts.iter().map(|s| s.0.clone()).collect()
-        } else if q0_given || base.n() != 3 {
-            vec![base.q0()]
-        } else {
+        } else if default_three {
             DEFAULT_STARTS.iter().map(|s| s.to_vec()).collect()
-        };
-        starts
+        } else {
+            vec![base_q0]
+        }
+    }
+
+    /// One validated planar config per start (`base` already carries the model flags).
+    pub fn configs(&self, base: &Config, q0_given: bool) -> Result<Vec<Config>> {
+        self.postures(base.q0(), !q0_given && base.n() == 3)
             .into_iter()
             .map(|q0| {
                 let mut c = base.clone();
@@ -248,6 +259,19 @@ impl StartArgs {
                 c.validate()?;
                 check_config(&c)?;
                 Ok(c)
+            })
+            .collect()
+    }
+
+    /// One checked set-up per start, on any arm; a bad one is named by its number.
+    pub fn subjects(&self, base: &Subject, q0_given: bool) -> Result<Vec<Subject>> {
+        let three = !q0_given && base.is_planar_3_link();
+        self.postures(base.q0(), three)
+            .into_iter()
+            .enumerate()
+            .map(|(i, q0)| {
+                base.with_start(q0)
+                    .with_context(|| format!("start {}", i + 1))
             })
             .collect()
     }

@@ -67,7 +67,9 @@ pub fn run(args: MonitorCmd) -> Result<()> {
     }
     let (base, mus) = args.model.load("0:0.5:0.05")?;
     let starts = args.starts.configs(&base, args.model.setup.q0.is_some())?;
-    let spec = args.lyapunov.spec(&base, args.classify.config()?)?;
+    let spec = args
+        .lyapunov
+        .spec(base.task.period, base.sim.dt, args.classify.config()?)?;
     let settings = settings(&args)?;
     let auto = auto_settings(&args, &base)?;
     let mut work = Vec::new();

@@ -1,15 +1,18 @@
 //! `chaosctl sweep`: λ_max and the Poincaré classification over a μ range and several initial
-//! states, in parallel; writes CSV and the λ_max-versus-μ plot (the paper's Fig. 6).
+//! states, in parallel, on any arm; writes CSV and the λ_max-versus-μ plot (the paper's Fig. 6)
+//! beside the final period residual.
+//!
+//! Every cell is one [`Subject::analyse`] run, so the planar arm and a robot fill the same row
+//! from the same statistics, and a sharded sweep of either merges the same way.
 
 use super::parallel::{jobs, run_all};
 use super::shard::{self, Grid, Loaded, Shard};
-use super::{analyse_config, fmt_list, ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
+use super::{fmt_list, ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
 use crate::plot::{Chart, Figure, Panel, Series, Style, DARK, PALETTE};
+use crate::subject::Subject;
 use anyhow::{Context, Result};
 use clap::Args;
 use control::analysis::{Motion, RunSpec};
-use control::config::spatial::SpatialConfig;
-use control::Config;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -40,8 +43,8 @@ pub struct SweepCmd {
     pub shard: Option<Shard>,
 }
 
-/// One (start, μ) cell of the sweep.
-#[derive(Serialize, Deserialize, Clone, Debug)]
+/// One (start, μ) cell of the sweep; a shard file carries exactly this per grid point.
+#[derive(Serialize, Deserialize, Clone, Debug, Default)]
 pub struct Row {
     pub mu: f64,
     pub start: usize,
@@ -57,30 +60,39 @@ pub struct Row {
     pub track_lost_fraction: Option<f64>,
     pub min_clearance: Option<f64>,
     pub time_in_safety_zone: Option<f64>,
+    /// |q̇(t) − q̇(t − T)| over the last periods (rad/s): how periodic the run ended.
+    pub residual_final: Option<f64>,
+    /// How far the joints moved from one period to the next at the end (rad).
+    pub drift_per_period: Option<f64>,
+    pub max_joint_speed: Option<f64>,
+    /// The smallest distance to a joint's position limit (rad; none without limits).
+    pub min_joint_margin: Option<f64>,
     /// Why the run has no result (e.g. it diverged).
     pub error: Option<String>,
 }
 
-/// The validated sweep: its grid points (start index, config) in CSV row order.
+/// The validated sweep: its grid points (start index, set-up) in CSV row order.
 struct Plan {
-    base: Config,
+    base: Subject,
     mus: Vec<f64>,
-    starts: Vec<Config>,
+    starts: Vec<Subject>,
     spec: RunSpec,
-    items: Vec<(usize, Config)>,
+    items: Vec<(usize, Subject)>,
 }
 
 fn plan(args: &SweepCmd) -> Result<Plan> {
-    let (base, mus) = args.model.load("0:3:0.1")?;
-    let starts = args.starts.configs(&base, args.model.setup.q0.is_some())?;
+    let mus = args.model.mus("0:3:0.1")?;
+    let base = Subject::load(&args.model.setup, None)?;
+    let starts = args.starts.subjects(&base, args.model.setup.q0.is_some())?;
     let classify = args.classify.config()?;
-    let spec = args.lyapunov.spec(&base, classify)?;
-    let mut items: Vec<(usize, Config)> = Vec::new();
+    let spec = args.lyapunov.spec(base.period(), base.dt(), classify)?;
+    let mut items = Vec::new();
     for &mu in &mus {
         for (i, s) in starts.iter().enumerate() {
             let mut c = s.clone();
-            c.feedback.mu = mu;
-            c.validate()?;
+            c.set_mu(mu);
+            c.check()
+                .with_context(|| format!("μ = {mu}, start {}", i + 1))?;
             items.push((i, c));
         }
     }
@@ -95,22 +107,19 @@ fn plan(args: &SweepCmd) -> Result<Plan> {
 
 fn grid(plan: &Plan) -> Grid {
     let parts = std::iter::once(format!("{:?}", plan.spec))
-        .chain(plan.items.iter().map(|(i, c)| format!("{i} {c:?}")));
+        .chain(plan.items.iter().map(|(i, c)| format!("{i} {c}")));
     let labels = plan
         .items
         .iter()
-        .map(|(i, c)| format!("μ = {}, start {}", c.feedback.mu, i + 1))
+        .map(|(i, c)| format!("μ = {}, start {}", c.mu(), i + 1))
         .collect();
     Grid::new("sweep", parts, labels)
 }
 
 pub fn run(args: SweepCmd) -> Result<()> {
-    if let Some(cfg) = crate::spatial::load(&args.model.setup, None)? {
-        return spatial(&args, &cfg);
-    }
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
-    let work = |(i, c): &(usize, Config)| row(*i, c, &plan.spec);
+    let work = |(i, c): &(usize, Subject)| row(*i, c, &plan.spec);
     if let Some(s) = args.shard {
         shard::run_shard(&grid(&plan), s, &plan.items, &args.output, threads, work)?;
         return Ok(());
@@ -127,9 +136,6 @@ pub fn run(args: SweepCmd) -> Result<()> {
 
 /// `chaosctl merge` of sweep shards: the same CSV, plot and table as the unsharded run.
 pub fn merge(args: SweepCmd, files: Vec<Loaded>) -> Result<()> {
-    if let Some(cfg) = crate::spatial::load(&args.model.setup, None)? {
-        return spatial_merge(&args, &cfg, files);
-    }
     let plan = plan(&args)?;
     let rows: Vec<Row> = shard::collect(&grid(&plan), files)?;
     finish(&args, &plan, &rows, None)
@@ -137,17 +143,43 @@ pub fn merge(args: SweepCmd, files: Vec<Loaded>) -> Result<()> {
 
 /// Writes the CSV and plot and prints the table; `timing` is (wall s, threads) of a local run.
 fn finish(args: &SweepCmd, plan: &Plan, rows: &[Row], timing: Option<(f64, usize)>) -> Result<()> {
-    let (base, mus, starts, spec) = (&plan.base, &plan.mus, &plan.starts, &plan.spec);
+    let (mus, starts, spec) = (&plan.mus, &plan.starts, &plan.spec);
     let csv = crate::plot::with_ext(&args.output, "csv");
     write_csv(&csv, rows)?;
-    let files = plot(&args.output, rows, starts, base, spec)?;
+    let files = plot(&args.output, rows, plan)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&rows)?);
         return Ok(());
     }
-    print_table(rows, starts, mus);
+    println!("λ_max (1/s) ± standard error, and the Poincaré section's class, per initial state:");
+    for (i, s) in starts.iter().enumerate() {
+        println!("  start {}: q0 = ({})", i + 1, fmt_list(&s.q0()));
+    }
+    print_grid(rows, starts.len(), mus, 34, |r| {
+        match (&r.error, r.lambda_max, r.stderr, r.motion) {
+            (Some(e), ..) => format!("error: {}", e.chars().take(26).collect::<String>()),
+            (None, Some(l), Some(se), Some(m)) => format!("{l:+.3} ± {se:.3}  {}", m.label()),
+            _ => "n/a".into(),
+        }
+    });
+    println!("\nhow the run ended: period residual |q̇(t) − q̇(t − T)| (rad/s), fastest joint (rad/s), smallest margin to a joint limit (rad):");
+    print_grid(rows, starts.len(), mus, 34, |r| {
+        let f = |v: Option<f64>| v.map_or("—".into(), |x| format!("{x:.2e}"));
+        format!(
+            "{}  {}  {}",
+            f(r.residual_final),
+            f(r.max_joint_speed),
+            r.min_joint_margin.map_or("—".into(), |x| format!("{x:.3}"))
+        )
+    });
     if rows.iter().any(|r| r.min_clearance.is_some()) {
-        print_obstacles(rows, starts, mus);
+        println!("\nobstacle: smallest clearance (m, < 0: a link crosses the obstacle) and time inside the safety zone (s, over the whole run):");
+        print_grid(rows, starts.len(), mus, 26, |r| {
+            match (r.min_clearance, r.time_in_safety_zone) {
+                (Some(c), Some(z)) => format!("{c:+.3} m, {z:6.1} s in zone"),
+                _ => "n/a".into(),
+            }
+        });
     }
     let runs = rows.len();
     let sim = runs as f64 * spec.duration;
@@ -176,24 +208,14 @@ fn finish(args: &SweepCmd, plan: &Plan, rows: &[Row], timing: Option<(f64, usize
     Ok(())
 }
 
-fn row(start: usize, cfg: &Config, spec: &RunSpec) -> Row {
+fn row(start: usize, s: &Subject, spec: &RunSpec) -> Row {
     let mut r = Row {
-        mu: cfg.feedback.mu,
+        mu: s.mu(),
         start,
-        q0: cfg.q0(),
-        lambda_max: None,
-        stderr: None,
-        motion: None,
-        return1: None,
-        k01: None,
-        rms_tracking_error: None,
-        max_tracking_error: None,
-        track_lost_fraction: None,
-        min_clearance: None,
-        time_in_safety_zone: None,
-        error: None,
+        q0: s.q0(),
+        ..Row::default()
     };
-    match analyse_config(cfg, spec) {
+    match s.analyse(spec) {
         Ok(a) => {
             if let Some(l) = &a.lyapunov {
                 r.lambda_max = Some(l.lambda_max);
@@ -202,14 +224,16 @@ fn row(start: usize, cfg: &Config, spec: &RunSpec) -> Row {
             r.motion = Some(a.classification.motion);
             r.return1 = a.classification.returns.first().copied();
             r.k01 = a.classification.k;
-            r.rms_tracking_error = Some(a.summary.rms_tracking_error);
-            r.max_tracking_error = Some(a.summary.max_tracking_error);
-            r.track_lost_fraction = Some(a.summary.track_lost_fraction);
-            r.min_clearance = a.summary.min_clearance;
-            r.time_in_safety_zone = a
-                .summary
-                .min_clearance
-                .map(|_| a.summary.time_in_safety_zone);
+            let m = &a.summary;
+            r.rms_tracking_error = Some(m.rms_tracking_error);
+            r.max_tracking_error = Some(m.max_tracking_error);
+            r.track_lost_fraction = Some(m.track_lost_fraction);
+            r.min_clearance = m.min_clearance;
+            r.time_in_safety_zone = m.min_clearance.map(|_| m.time_in_safety_zone);
+            r.residual_final = m.period_residual_final;
+            r.drift_per_period = m.drift_per_period;
+            r.max_joint_speed = Some(m.max_joint_speed);
+            r.min_joint_margin = m.min_joint_margin;
         }
         Err(e) => r.error = Some(format!("{e:#}")),
     }
@@ -227,7 +251,8 @@ fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
     writeln!(
         w,
         "mu,start,q0,lambda_max,stderr,motion,period,return1,k01,rms_tracking_error,max_tracking_error,\
-         track_lost_fraction,min_clearance,time_in_safety_zone,error"
+         track_lost_fraction,min_clearance,time_in_safety_zone,residual_final,drift_per_period,\
+         max_joint_speed,min_joint_margin,error"
     )?;
     for r in rows {
         let q0 =
@@ -235,9 +260,24 @@ fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
                 .map(|v| format!("{v}"))
                 .collect::<Vec<_>>()
                 .join(" ");
+        let numbers = [
+            r.return1,
+            r.k01,
+            r.rms_tracking_error,
+            r.max_tracking_error,
+            r.track_lost_fraction,
+            r.min_clearance,
+            r.time_in_safety_zone,
+            r.residual_final,
+            r.drift_per_period,
+            r.max_joint_speed,
+            r.min_joint_margin,
+        ];
+        let mut cells: Vec<String> = numbers.iter().map(|v| opt(*v)).collect();
+        cells[1] = r.k01.map(|k| format!("{k:.4}")).unwrap_or_default();
         writeln!(
             w,
-            "{},{},{q0},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{q0},{},{},{},{},{},{}",
             r.mu,
             r.start,
             opt(r.lambda_max),
@@ -249,13 +289,7 @@ fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
                 .and_then(|m| m.period())
                 .map(|p| p.to_string())
                 .unwrap_or_default(),
-            opt(r.return1),
-            r.k01.map(|k| format!("{k:.4}")).unwrap_or_default(),
-            opt(r.rms_tracking_error),
-            opt(r.max_tracking_error),
-            opt(r.track_lost_fraction),
-            opt(r.min_clearance),
-            opt(r.time_in_safety_zone),
+            cells.join(","),
             r.error.as_deref().unwrap_or("").replace(',', ";")
         )?;
     }
@@ -263,178 +297,92 @@ fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
     Ok(())
 }
 
-fn print_table(rows: &[Row], starts: &[Config], mus: &[f64]) {
-    println!("λ_max (1/s) ± standard error, and the Poincaré section's class, per initial state:");
-    for (i, s) in starts.iter().enumerate() {
-        println!("  start {}: q0 = ({})", i + 1, fmt_list(&s.q0()));
-    }
-    print!("{:>6}", "μ");
-    for i in 0..starts.len() {
-        print!("  {:<34}", format!("start {}", i + 1));
-    }
-    println!();
-    for &mu in mus {
-        print!("{mu:>6.2}");
-        for r in rows.iter().filter(|r| r.mu == mu) {
-            let cell = match (&r.error, r.lambda_max, r.stderr, r.motion) {
-                (Some(e), ..) => format!("error: {}", e.chars().take(26).collect::<String>()),
-                (None, Some(l), Some(se), Some(m)) => format!("{l:+.3} ± {se:.3}  {}", m.label()),
-                _ => "n/a".into(),
-            };
-            print!("  {cell:<34}");
-        }
-        println!();
-    }
-}
-
-fn print_obstacles(rows: &[Row], starts: &[Config], mus: &[f64]) {
-    println!("\nobstacle: smallest clearance (m, < 0: a link crosses the obstacle) and time inside the safety zone (s, over the whole run):");
-    print!("{:>6}", "μ");
-    for i in 0..starts.len() {
-        print!("  {:<26}", format!("start {}", i + 1));
-    }
-    println!();
-    for &mu in mus {
-        print!("{mu:>6.2}");
-        for r in rows.iter().filter(|r| r.mu == mu) {
-            let cell = match (r.min_clearance, r.time_in_safety_zone) {
-                (Some(c), Some(z)) => format!("{c:+.3} m, {z:6.1} s in zone"),
-                _ => "n/a".into(),
-            };
-            print!("  {cell:<26}");
-        }
-        println!();
-    }
-}
-
-/// The sweep on a spatial robot: one start (the config's), λ_max and the run's summary per μ;
-/// sharded over μ like the planar grid.
-fn spatial(args: &SweepCmd, cfg: &SpatialConfig) -> Result<()> {
-    let plan = spatial_plan(args, cfg)?;
-    let threads = jobs(args.jobs);
-    let work =
-        |&(i, mu): &(usize, f64)| crate::spatial_sweep::row(&plan.starts[i], i, mu, &plan.spec);
-    if let Some(s) = args.shard {
-        let grid = spatial_grid(&plan);
-        shard::run_shard(&grid, s, &plan.items, &args.output, threads, work)?;
-        return Ok(());
-    }
-    let t0 = Instant::now();
-    let rows = run_all(&plan.items, threads, "sweep", work)?;
-    spatial_finish(
-        args,
-        cfg,
-        &plan.spec,
-        &rows,
-        Some(t0.elapsed().as_secs_f64()),
-    )
-}
-
-/// A spatial robot's sweep: one config per start, and the grid points (start, μ) in CSV row
-/// order (μ outer, as for the planar arm).
-struct SpatialPlan {
-    spec: crate::spatial_sweep::Spec,
-    starts: Vec<SpatialConfig>,
-    items: Vec<(usize, f64)>,
-}
-
-/// The μ values, the starts (`--start`, repeated, or the config's `sim.q0`) and the run of each.
-fn spatial_plan(args: &SweepCmd, cfg: &SpatialConfig) -> Result<SpatialPlan> {
-    let mus = match &args.model.mu {
-        Some(r) => r.0.clone(),
-        None => super::parse_range("0:3:0.25").map_err(anyhow::Error::msg)?,
-    };
-    let l = &args.lyapunov;
-    let spec = crate::spatial_sweep::Spec::new(l.duration, l.window, l.d0, l.blocks);
-    let mut starts = vec![cfg.clone()];
-    if !args.starts.starts.is_empty() {
-        starts = args
-            .starts
-            .starts
-            .iter()
-            .map(|q0| {
-                let mut c = cfg.clone();
-                c.sim.q0 = Some(q0.0.clone());
-                c
-            })
-            .collect();
-    }
-    for (i, c) in starts.iter().enumerate() {
-        // Fail early, once a start, on one that cannot run.
-        crate::spatial_sweep::check(c).with_context(|| format!("start {}", i + 1))?;
-    }
-    let items = mus
-        .iter()
-        .flat_map(|&mu| (0..starts.len()).map(move |i| (i, mu)))
-        .collect();
-    Ok(SpatialPlan {
-        spec,
-        starts,
-        items,
-    })
-}
-
-fn spatial_grid(plan: &SpatialPlan) -> Grid {
-    let parts = [format!("spatial {:?}", plan.spec)]
-        .into_iter()
-        .chain(plan.starts.iter().map(|c| format!("{c:?}")))
-        .chain(plan.items.iter().map(|(i, mu)| format!("{i} {mu:?}")));
-    let labels = plan
-        .items
-        .iter()
-        .map(|(i, mu)| format!("μ = {mu}, start {}", i + 1))
-        .collect();
-    Grid::new("sweep", parts, labels)
-}
-
-/// `chaosctl merge` of a spatial robot's sweep shards.
-fn spatial_merge(args: &SweepCmd, cfg: &SpatialConfig, files: Vec<Loaded>) -> Result<()> {
-    let plan = spatial_plan(args, cfg)?;
-    let rows: Vec<crate::spatial_sweep::SpatialRow> = shard::collect(&spatial_grid(&plan), files)?;
-    spatial_finish(args, cfg, &plan.spec, &rows, None)
-}
-
-/// Writes the CSV and figure and prints the table; `wall` is a local run's time.
-fn spatial_finish(
-    args: &SweepCmd,
-    cfg: &SpatialConfig,
-    spec: &crate::spatial_sweep::Spec,
-    rows: &[crate::spatial_sweep::SpatialRow],
-    wall: Option<f64>,
-) -> Result<()> {
-    crate::spatial_sweep::write(&args.output, rows, cfg, spec)?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&rows)?);
-        return Ok(());
-    }
-    crate::spatial_sweep::print(rows);
-    let took = wall.map_or(String::new(), |w| format!(" in {w:.1} s"));
-    println!(
-        "{} runs{took}; wrote {} and its .png/.svg",
-        rows.len(),
-        crate::plot::with_ext(&args.output, "csv").display()
-    );
-    Ok(())
-}
-
-fn plot(
-    prefix: &Path,
+/// A table with a row per μ and a column per start, each cell `cell(row)` padded to `width`.
+fn print_grid(
     rows: &[Row],
-    starts: &[Config],
-    base: &Config,
-    spec: &RunSpec,
-) -> Result<Vec<PathBuf>> {
+    starts: usize,
+    mus: &[f64],
+    width: usize,
+    cell: impl Fn(&Row) -> String,
+) {
+    print!("{:>6}", "μ");
+    for i in 0..starts {
+        print!("  {:<width$}", format!("start {}", i + 1));
+    }
+    println!();
+    for &mu in mus {
+        print!("{mu:>6.2}");
+        for r in rows.iter().filter(|r| r.mu == mu) {
+            print!("  {:<width$}", cell(r));
+        }
+        println!();
+    }
+}
+
+fn plot(prefix: &Path, rows: &[Row], plan: &Plan) -> Result<Vec<PathBuf>> {
+    let (lambda, residual) = (
+        lambda_series(rows, &plan.starts),
+        residual_series(rows, &plan.starts),
+    );
+    let w = plan
+        .spec
+        .lyapunov
+        .map(|l| l.window)
+        .unwrap_or([0.0, plan.spec.duration]);
+    let mu_max = rows.iter().map(|r| r.mu).fold(0.0, f64::max);
+    // The paper's claimed window is the paper's arm's.
+    let marks = super::lambda_plot_marks(if plan.base.is_planar_3_link() {
+        mu_max
+    } else {
+        0.0
+    });
+    let (tau, t_on) = plan.base.tau_and_t_on();
+    let chart = Chart {
+        title: format!(
+            "λ_max averaged over {:.0}–{:.0} s, τ = {tau} s, feedback on at {t_on} s",
+            w[0], w[1],
+        ),
+        x_label: "Pyragas gain μ (1/s)".into(),
+        y_label: "largest Lyapunov exponent λ_max (1/s)".into(),
+        series: lambda,
+        bands: marks.0,
+        rules: marks.1,
+        legend: true,
+        ..Default::default()
+    };
+    let residual = Chart {
+        title: "period residual over the last periods".into(),
+        x_label: "Pyragas gain μ (1/s)".into(),
+        y_label: "log₁₀ |q̇(t) − q̇(t − T)| (rad/s)".into(),
+        series: residual,
+        legend: true,
+        ..Default::default()
+    };
+    Figure {
+        title: Some(format!(
+            "Largest Lyapunov exponent vs delayed-feedback gain (cf. the paper's Fig. 6): {}",
+            plan.base.describe()
+        )),
+        panels: vec![Panel::Chart(chart), Panel::Chart(residual)],
+        cols: 2,
+        panel_size: (800, 520),
+    }
+    .save(prefix)
+}
+
+/// λ_max ± its standard error per start, and the periodic cells marked.
+fn lambda_series(rows: &[Row], starts: &[Subject]) -> Vec<Series> {
     let mut series = Vec::new();
     for (i, s) in starts.iter().enumerate() {
         let mine: Vec<&Row> = rows
             .iter()
             .filter(|r| r.start == i && r.lambda_max.is_some())
             .collect();
-        let pts: Vec<(f64, f64)> = mine
+        let pts = mine
             .iter()
             .map(|r| (r.mu, r.lambda_max.unwrap_or(f64::NAN)))
             .collect();
-        let err: Vec<f64> = mine.iter().map(|r| r.stderr.unwrap_or(0.0)).collect();
+        let err = mine.iter().map(|r| r.stderr.unwrap_or(0.0)).collect();
         series.push(
             Series::new(
                 Some(format!("q0 = ({})", fmt_list(&s.q0()))),
@@ -459,35 +407,28 @@ fn plot(
         },
         periodic,
     ));
-    let w = spec
-        .lyapunov
-        .map(|l| l.window)
-        .unwrap_or([0.0, spec.duration]);
-    let mu_max = rows.iter().map(|r| r.mu).fold(0.0, f64::max);
-    let marks = super::lambda_plot_marks(mu_max);
-    let chart = Chart {
-        title: format!(
-            "λ_max averaged over {:.0}–{:.0} s, τ = {} s, feedback on at {} s",
-            w[0],
-            w[1],
-            base.tau(),
-            base.feedback.t_on
-        ),
-        x_label: "Pyragas gain μ (1/s)".into(),
-        y_label: "largest Lyapunov exponent λ_max (1/s)".into(),
-        series,
-        bands: marks.0,
-        rules: marks.1,
-        legend: true,
-        ..Default::default()
-    };
-    Figure {
-        title: Some(
-            "Largest Lyapunov exponent vs delayed-feedback gain (cf. the paper's Fig. 6)".into(),
-        ),
-        panels: vec![Panel::Chart(chart)],
-        cols: 1,
-        panel_size: (1000, 560),
-    }
-    .save(prefix)
+    series
+}
+
+/// log₁₀ of the final period residual per start.
+fn residual_series(rows: &[Row], starts: &[Subject]) -> Vec<Series> {
+    (0..starts.len())
+        .map(|i| {
+            let pts = rows
+                .iter()
+                .filter(|r| r.start == i)
+                .filter_map(|r| {
+                    r.residual_final
+                        .filter(|v| *v > 0.0)
+                        .map(|v| (r.mu, v.log10()))
+                })
+                .collect();
+            Series::new(
+                Some(format!("start {}", i + 1)),
+                PALETTE[i % PALETTE.len()],
+                Style::LineMarkers { width: 2, size: 3 },
+                pts,
+            )
+        })
+        .collect()
 }

@@ -34,5 +34,6 @@ pub use orbits::{
 };
 pub use poincare::{classify, zero_one_k, Classification, ClassifyConfig, Motion, Section};
 pub use run::{
-    analyse, check_reachable, period_steps, AnalysisError, LyapunovSpec, RunAnalysis, RunSpec,
+    analyse, analyse_flow, check_reachable, period_steps, AnalysisError, LyapunovSpec, RunAnalysis,
+    RunSpec,
 };

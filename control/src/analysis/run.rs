@@ -9,7 +9,7 @@ use super::lyapunov::{Benettin, Growth, LyapunovError, LyapunovEstimate, Traject
 use super::poincare::{classify, Classification, ClassifyConfig, Section};
 use crate::arm::{ArmModel, Kinematics};
 use crate::law::LawParams;
-use crate::sim::{ArmState, Summary};
+use crate::sim::{ArmState, ClosedLoopLaw, Summary};
 use serde::Serialize;
 
 /// Why an analysis could not run.
@@ -162,7 +162,7 @@ impl RunSpec {
     }
 }
 
-/// Runs one analysed trajectory from `initial` at t = 0.
+/// Runs one analysed trajectory of the planar arm from `initial` at t = 0.
 pub fn analyse<const N: usize>(
     model: ArmModel<N>,
     params: LawParams,
@@ -170,13 +170,23 @@ pub fn analyse<const N: usize>(
     initial: ArmState<N>,
     spec: &RunSpec,
 ) -> Result<RunAnalysis, AnalysisError> {
-    let period = params.task.period;
-    spec.validate(period, dt)?;
-    let flow = ArmFlow::new(model, params, dt, initial).with_stats(spec.duration, spec.transient);
+    analyse_flow(ArmFlow::new(model, params, dt, initial), spec)
+}
+
+/// Runs one analysed trajectory of any arm's closed loop, `flow` standing at t = 0: the planar
+/// arm's [`analyse`] and a robot's are this one run, so a sweep cell, a basin cell and a λ_max
+/// estimate mean the same on every arm.
+pub fn analyse_flow<const N: usize, L: ClosedLoopLaw<N>>(
+    flow: ArmFlow<N, L>,
+    spec: &RunSpec,
+) -> Result<RunAnalysis, AnalysisError> {
+    let period = flow.sim().law.stats_setup().period;
+    spec.validate(period, flow.sim().dt())?;
+    let flow = flow.with_stats(spec.duration, spec.transient);
     let mut section = Section::new(flow.coords().len(), flow.angle_coords());
     let periods = (spec.duration / period + 1e-9).floor() as u64;
     let eps = 1e-9 * period;
-    let mut record = |k: u64, f: &ArmFlow<N>| {
+    let mut record = |k: u64, f: &ArmFlow<N, L>| {
         let t = k as f64 * period;
         if t >= spec.transient - eps {
             section.push(t, &f.coords());

@@ -1,0 +1,227 @@
+//! The arm an offline command studies, whichever arm it is.
+//!
+//! A command that scans μ or starts (`sweep` today) is written once against [`Subject`]: it sets
+//! the gain and the start, checks the set-up once, and runs [`Subject::analyse`], which is
+//! `control::analysis::analyse_flow` on the planar arm's law or a robot's. Only this file tells
+//! the two apart, so a new command does not fork on the arm.
+
+use crate::setup::SetupArgs;
+use anyhow::Result;
+use control::analysis::{analyse_flow, find_orbit, ArmFlow, NewtonConfig, RunAnalysis, RunSpec};
+use control::config::spatial::SpatialConfig;
+use control::config::ModelKind;
+use control::model::Chain;
+use control::{with_dof, with_task_rows, ArmState, Config, VecN};
+use std::sync::Arc;
+
+/// The planar arm's config, or a robot's with its chain (loaded once, shared by every copy).
+// A few hundred copies at most, built once per study: their size does not matter.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+pub enum Subject {
+    Planar(Config),
+    Robot(Box<SpatialConfig>, Arc<Chain>),
+}
+
+impl Subject {
+    /// The set-up the flags name (`--preset`, `--config` and the model flags), `mu` over the
+    /// file's when given. A robot's chain is loaded here, once.
+    pub fn load(setup: &SetupArgs, mu: Option<f64>) -> Result<Self> {
+        match crate::spatial::load(setup, mu)? {
+            Some(cfg) => Self::robot(cfg),
+            None => Ok(Self::Planar(setup.load_with_mu(mu)?)),
+        }
+    }
+
+    /// A robot's set-up with its chain loaded.
+    pub fn robot(cfg: SpatialConfig) -> Result<Self> {
+        let r = &cfg.robot;
+        let chain = rt::robot::load(&r.description, r.base.as_deref(), r.tip.as_deref())?;
+        Ok(Self::Robot(Box::new(cfg), Arc::new(chain)))
+    }
+
+    /// The Pyragas gain μ (1/s).
+    pub fn mu(&self) -> f64 {
+        self.feedback().mu
+    }
+
+    pub fn set_mu(&mut self, mu: f64) {
+        match self {
+            Self::Planar(c) => c.feedback.mu = mu,
+            Self::Robot(c, _) => c.feedback.mu = mu,
+        }
+    }
+
+    fn feedback(&self) -> &control::config::FeedbackSection {
+        match self {
+            Self::Planar(c) => &c.feedback,
+            Self::Robot(c, _) => &c.feedback,
+        }
+    }
+
+    /// The start posture q(0).
+    pub fn q0(&self) -> Vec<f64> {
+        self.start_coords(false)
+    }
+
+    /// The start's angles q(0), or with `rate` its rates q̇(0).
+    pub fn start_coords(&self, rate: bool) -> Vec<f64> {
+        match (self, rate) {
+            (Self::Planar(c), false) => c.q0(),
+            (Self::Planar(c), true) => c.qd0(),
+            (Self::Robot(c, _), false) => c.sim.start().to_vec(),
+            (Self::Robot(c, chain), true) => {
+                c.sim.qd0.clone().unwrap_or_else(|| vec![0.0; chain.dof()])
+            }
+        }
+    }
+
+    /// This set-up from another start posture, checked.
+    pub fn with_start(&self, q0: Vec<f64>) -> Result<Self> {
+        self.with_start_coords(false, q0)
+    }
+
+    /// This set-up from other start angles (or, with `rate`, rates), checked.
+    pub fn with_start_coords(&self, rate: bool, x: Vec<f64>) -> Result<Self> {
+        let mut s = self.clone();
+        let sim = match &mut s {
+            Self::Planar(c) => &mut c.sim,
+            Self::Robot(c, _) => &mut c.sim,
+        };
+        match rate {
+            false => sim.q0 = Some(x),
+            true => sim.qd0 = Some(x),
+        }
+        s.check()?;
+        Ok(s)
+    }
+
+    /// The joint count.
+    pub fn n(&self) -> usize {
+        match self {
+            Self::Planar(c) => c.n(),
+            Self::Robot(_, chain) => chain.dof(),
+        }
+    }
+
+    /// Whether the base turns (the planar floating base): its attitude is then a coordinate.
+    pub fn floating(&self) -> bool {
+        matches!(self, Self::Planar(c) if c.arm.model == ModelKind::Floating)
+    }
+
+    /// The task period T (s).
+    pub fn period(&self) -> f64 {
+        match self {
+            Self::Planar(c) => c.task.period,
+            Self::Robot(c, _) => c.task.period,
+        }
+    }
+
+    /// The integration step (s).
+    pub fn dt(&self) -> f64 {
+        match self {
+            Self::Planar(c) => c.sim.dt,
+            Self::Robot(c, _) => c.sim.dt,
+        }
+    }
+
+    /// The delay τ (s) and the time the feedback comes on (s).
+    pub fn tau_and_t_on(&self) -> (f64, f64) {
+        let f = self.feedback();
+        (f.tau_for(self.period()), f.t_on)
+    }
+
+    /// Whether this is the paper's 3-link planar arm (whose sweep has the paper's three starts).
+    pub fn is_planar_3_link(&self) -> bool {
+        matches!(self, Self::Planar(c) if c.n() == 3)
+    }
+
+    /// One line for a figure's title.
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Planar(c) => format!(
+                "planar {}-link arm, {:?} secondary task",
+                c.n(),
+                c.control.secondary
+            ),
+            Self::Robot(c, _) => c.describe(),
+        }
+    }
+
+    /// Checks what a run needs beyond a valid file: the planar circle reachable from the start,
+    /// a robot's start one angle per joint, and the period a whole number of steps.
+    pub fn check(&self) -> Result<()> {
+        match self {
+            Self::Planar(c) => {
+                c.validate()?;
+                crate::analysis::check_config(c)
+            }
+            Self::Robot(c, chain) => {
+                with_dof!(chain.dof(), N => c.setup::<N>(chain).map(|_| ()))?;
+                c.task_kind()?;
+                control::analysis::period_steps(c.task.period, c.sim.dt)?;
+                Ok(())
+            }
+        }
+    }
+
+    /// One analysed run (λ_max with `spec.lyapunov`, the section's class, the run's summary).
+    /// A robot runs as the daemon would: steered onto a planned cycle when `safety.plan` asks.
+    pub fn analyse(&self, spec: &RunSpec) -> Result<RunAnalysis> {
+        match self {
+            Self::Planar(c) => crate::analysis::analyse_config(c, spec),
+            Self::Robot(c, chain) => {
+                let kind = c.task_kind()?;
+                with_dof!(chain.dof(), N => {
+                    let (s, blocked) = control::plan::setup_planned::<N>(c, chain)?;
+                    if let Some(b) = &blocked {
+                        eprintln!("safety.plan: no clean cycle, running without steering: {}", b.reason);
+                    }
+                    with_task_rows!(kind, |M| {
+                        let flow = ArmFlow::of(s.simulation::<M>());
+                        Ok(analyse_flow(flow, spec)?)
+                    })
+                })
+            }
+        }
+    }
+
+    /// Newton's method at μ = 0 from a section point (q, q̇) of a run: one line on the period-T
+    /// orbit there, or None (none found; the planar arm refines on a fixed base with τ = T only).
+    pub fn refine(&self, point: &[f64]) -> Option<String> {
+        match self {
+            Self::Robot(c, _) => crate::spatial::refine(c, point),
+            Self::Planar(c) => {
+                if c.arm.model != ModelKind::Fixed || (c.tau() - c.task.period).abs() > 1e-9 {
+                    return None;
+                }
+                with_dof!(c.n(), N => {
+                    if point.len() != 2 * N {
+                        return None;
+                    }
+                    let seed = ArmState::<N> {
+                        q: VecN::<N>::from_fn(|i, _| point[i]),
+                        qd: VecN::<N>::from_fn(|i, _| point[N + i]),
+                        phi: 0.0,
+                    };
+                    let o = find_orbit(&c.model::<N>(), &c.law_params(), c.sim.dt, &seed, &NewtonConfig::default()).ok()?;
+                    Some(format!(
+                        "the μ = 0 orbit through q = ({}), leading Floquet multiplier {}",
+                        crate::analysis::fmt_list(&o.q),
+                        crate::analysis::orbits::kind(&o)
+                    ))
+                })
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for Subject {
+    /// The fingerprint text of a shard's grid: the whole configuration (a chain's numbers too).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Planar(c) => write!(f, "{c:?}"),
+            Self::Robot(c, chain) => write!(f, "{c:?} {chain:?}"),
+        }
+    }
+}
