@@ -1,6 +1,6 @@
-//! The offline commands that still run a robot their own way (`simulate`, `lyapunov`,
-//! `poincare`, `orbits`, `monitor`) with `--preset panda` or a config file that has a `[robot]`
-//! table; `sweep` and `basins` run every arm through [`crate::subject::Subject`].
+//! The offline commands that still run a robot their own way (`simulate`, `orbits`, `monitor`'s
+//! watched runs) with `--preset panda` or a config file that has a `[robot]`
+//! table; `sweep`, `basins`, `lyapunov` and `poincare` run every arm through [`crate::subject::Subject`].
 //!
 //! The flags mean what they mean for the planar arm and are applied to the spatial file the same
 //! way; the run itself is [`control::law::spatial`], and the CSV keeps the planar columns
@@ -9,7 +9,6 @@
 use crate::setup::SetupArgs;
 use crate::traps::{OfflineTraps, TrapEvent};
 use anyhow::{bail, Context, Result};
-use control::analysis::lyapunov::{Benettin, Growth};
 use control::config::spatial::is_spatial;
 use control::config::spatial::SpatialConfig;
 use control::config::spatial::SpatialSetup;
@@ -297,36 +296,6 @@ pub fn print(r: &SpatialReport) {
     );
 }
 
-/// The stroboscopic section of a spatial run and its classification.
-pub fn section(
-    cfg: &SpatialConfig,
-    duration: f64,
-    transient: f64,
-    classify: &control::analysis::ClassifyConfig,
-) -> Result<(
-    control::analysis::Section,
-    control::analysis::Classification,
-)> {
-    Ok(with_setup!(cfg, |s, N, M| {
-        let sim = s.simulation::<M>();
-        let mut flow = control::analysis::ArmFlow::of(sim);
-        control::analysis::spatial::section(&mut flow, duration, transient, classify)
-    }))
-}
-
-/// λ_max of a spatial run: the same Benettin driver and norm as the planar arm's.
-#[derive(Serialize)]
-pub struct SpatialLyapunov {
-    pub lambda_max: f64,
-    pub stderr: f64,
-    pub window: [f64; 2],
-    pub intervals: usize,
-    pub d0: f64,
-    pub renorm: f64,
-    pub mu: f64,
-    pub verdict: &'static str,
-}
-
 /// A run of `duration` s with the daemon's chaos monitor watching (`chaosctl monitor`).
 pub fn watch(
     cfg: &SpatialConfig,
@@ -339,42 +308,6 @@ pub fn watch(
             None
         })
     }))
-}
-
-/// `chaosctl lyapunov` on a spatial robot.
-pub fn lyapunov(
-    cfg: &SpatialConfig,
-    duration: f64,
-    window: Option<[f64; 2]>,
-    d0: f64,
-    renorm: Option<f64>,
-    blocks: usize,
-) -> Result<(SpatialLyapunov, Vec<Growth>)> {
-    let renorm = renorm.unwrap_or(cfg.task.period);
-    let window = window.unwrap_or([duration / 3.0, duration]);
-    let (e, growth) = with_setup!(cfg, |s, N, M| {
-        let sim = s.simulation::<M>();
-        let mut b = Benettin::new(control::analysis::ArmFlow::of(sim), d0, renorm)?;
-        b.advance_to(duration)?;
-        (
-            b.estimate(window[0], window[1], blocks)?,
-            b.growth().to_vec(),
-        )
-    });
-    let verdict = crate::analysis::verdict(&e);
-    Ok((
-        SpatialLyapunov {
-            lambda_max: e.lambda_max,
-            stderr: e.stderr,
-            window: e.window,
-            intervals: e.intervals,
-            d0,
-            renorm,
-            mu: cfg.feedback.mu,
-            verdict,
-        },
-        growth,
-    ))
 }
 
 /// λ_max of the loop of `cfg` at gain `mu`, starting on `orbit` with its own history (the

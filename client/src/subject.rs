@@ -52,7 +52,8 @@ impl Subject {
         }
     }
 
-    fn feedback(&self) -> &control::config::FeedbackSection {
+    /// The `[feedback]` section (one type for every arm).
+    pub fn feedback(&self) -> &control::config::FeedbackSection {
         match self {
             Self::Planar(c) => &c.feedback,
             Self::Robot(c, _) => &c.feedback,

@@ -1,11 +1,14 @@
-//! `chaosctl lyapunov`: λ_max of one closed-loop run by Benettin's method, with its standard error.
+//! `chaosctl lyapunov`: λ_max of one closed-loop run by Benettin's method, with its standard error,
+//! on any arm (one [`Subject::analyse`] run with a partner: the section and the run's summary
+//! come with it).
 
-use super::{analyse_config, check_config, fmt_list, verdict, ClassifyArgs, LyapunovArgs};
+use super::{fmt_list, verdict, ClassifyArgs, LyapunovArgs};
 use crate::setup::ModelArgs;
+use crate::subject::Subject;
 use anyhow::{Context, Result};
 use clap::Args;
 use control::analysis::{Classification, Growth, RunAnalysis, RunSpec};
-use control::{Config, Summary};
+use control::Summary;
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
@@ -49,36 +52,13 @@ pub struct LyapunovReport {
 }
 
 pub fn run(args: LyapunovCmd) -> Result<()> {
-    if let Some(cfg) = crate::spatial::load(&args.model.setup, args.model.mu)? {
-        let l = &args.lyapunov;
-        let (report, growth) =
-            crate::spatial::lyapunov(&cfg, l.duration, l.window, l.d0, l.renorm, l.blocks)?;
-        if let Some(path) = &args.csv {
-            write_growth(path, &growth)?;
-        }
-        if args.json {
-            println!("{}", serde_json::to_string_pretty(&report)?);
-        } else {
-            println!(
-                "λ_max = {:+.4} ± {:.4} 1/s over {:.0}..{:.0} s ({} intervals, μ = {}): {}",
-                report.lambda_max,
-                report.stderr,
-                report.window[0],
-                report.window[1],
-                report.intervals,
-                report.mu,
-                report.verdict
-            );
-        }
-        return Ok(());
-    }
-    let cfg = args.model.load()?;
-    check_config(&cfg)?;
+    let subject = Subject::load(&args.model.setup, args.model.mu)?;
+    subject.check()?;
     let spec = args
         .lyapunov
-        .spec(cfg.task.period, cfg.sim.dt, args.classify.config()?)?;
-    let run = analyse_config(&cfg, &spec)?;
-    let report = build_report(&cfg, &spec, &run)?;
+        .spec(subject.period(), subject.dt(), args.classify.config()?)?;
+    let run = subject.analyse(&spec)?;
+    let report = build_report(&subject, &spec, &run)?;
     if let Some(path) = &args.csv {
         write_growth(path, &run.growth)?;
     }
@@ -93,12 +73,13 @@ pub fn run(args: LyapunovCmd) -> Result<()> {
     Ok(())
 }
 
-fn build_report(cfg: &Config, spec: &RunSpec, run: &RunAnalysis) -> Result<LyapunovReport> {
+fn build_report(s: &Subject, spec: &RunSpec, run: &RunAnalysis) -> Result<LyapunovReport> {
     let l = spec.lyapunov.context("no Lyapunov spec")?;
     let e = run
         .lyapunov
         .as_ref()
         .context("the run produced no exponent")?;
+    let (tau, t_on) = s.tau_and_t_on();
     Ok(LyapunovReport {
         lambda_max: e.lambda_max,
         stderr: e.stderr,
@@ -107,12 +88,12 @@ fn build_report(cfg: &Config, spec: &RunSpec, run: &RunAnalysis) -> Result<Lyapu
         blocks: e.blocks.clone(),
         d0: l.d0,
         renorm: l.renorm,
-        mu: cfg.feedback.mu,
-        tau: cfg.tau(),
-        t_on: cfg.feedback.t_on,
-        q0: cfg.q0(),
-        qd0: cfg.qd0(),
-        history_in_norm: cfg.feedback.enabled && cfg.feedback.mu != 0.0,
+        mu: s.mu(),
+        tau,
+        t_on,
+        q0: s.q0(),
+        qd0: s.start_coords(true),
+        history_in_norm: s.feedback().enabled && s.mu() != 0.0,
         verdict: verdict(e),
         section: run.classification.clone(),
         run: run.summary.clone(),

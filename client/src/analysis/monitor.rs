@@ -12,7 +12,8 @@
 use super::monitor_cells::{AutoCell, EditKind, FixedCell, Offline};
 use super::parallel::{jobs, run_all};
 use super::{analyse_config, ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
-use anyhow::Result;
+use crate::subject::Subject;
+use anyhow::{Context, Result};
 use clap::Args;
 use control::adapt::AutoMu;
 use control::law::LawParams;
@@ -138,6 +139,13 @@ fn spatial(args: &MonitorCmd, cfg: &control::config::spatial::SpatialConfig) -> 
     auto.max_mu = args.max_mu.unwrap_or(auto.max_mu);
     auto.check(tau)?;
     let l = &args.lyapunov;
+    let spec = l.spec(cfg.task.period, cfg.sim.dt, args.classify.config()?)?;
+    let r = &cfg.robot;
+    let chain = std::sync::Arc::new(rt::robot::load(
+        &r.description,
+        r.base.as_deref(),
+        r.tip.as_deref(),
+    )?);
     let mut work: Vec<Option<f64>> = mus.iter().copied().map(Some).collect();
     work.push(None); // the auto run
     let t0 = std::time::Instant::now();
@@ -149,10 +157,10 @@ fn spatial(args: &MonitorCmd, cfg: &control::config::spatial::SpatialConfig) -> 
             let w = crate::spatial::watch(&c, 2.0 * l.duration, settings)?;
             return Ok(Done::Auto(auto_cell(0, EditKind::None, None, w)));
         };
-        let (rep, _) =
-            crate::spatial::lyapunov(&c, l.duration, l.window, l.d0, l.renorm, l.blocks)?;
+        let run = Subject::Robot(Box::new(c.clone()), chain.clone()).analyse(&spec)?;
+        let e = run.lyapunov.context("the run produced no exponent")?;
         let w = crate::spatial::watch(&c, l.duration, settings)?;
-        let offline = Some((rep.lambda_max, rep.stderr));
+        let offline = Some((e.lambda_max, e.stderr));
         Ok(Done::Fixed(fixed_cell(0, mu, tau, offline, &w)))
     })?;
     let (mut fixed_cells, mut auto_cells) = (Vec::new(), Vec::new());

@@ -1,11 +1,12 @@
 //! `chaosctl poincare`: the stroboscopic section at t = kT of one run, its classification
 //! (period-p, converging, quasi-periodic, irregular; the rule is in `control::analysis::poincare`),
-//! the evidence behind the verdict, a CSV of the points and a plot.
+//! the evidence behind the verdict, a CSV of the points and a plot, on any arm.
 
 use super::figures::section_panels;
-use super::{analyse_config, check_config, fmt_list, ClassifyArgs};
+use super::{fmt_list, ClassifyArgs};
 use crate::plot::{with_ext, Chart, Figure, Panel, Series, Style, PALETTE};
 use crate::setup::ModelArgs;
+use crate::subject::Subject;
 use anyhow::{Context, Result};
 use clap::Args;
 use control::analysis::{Classification, RunSpec};
@@ -45,11 +46,8 @@ struct Report<'a> {
 }
 
 pub fn run(args: PoincareCmd) -> Result<()> {
-    if let Some(cfg) = crate::spatial::load(&args.model.setup, args.model.mu)? {
-        return spatial(&args, &cfg);
-    }
-    let cfg = args.model.load()?;
-    check_config(&cfg)?;
+    let subject = Subject::load(&args.model.setup, args.model.mu)?;
+    subject.check()?;
     super::check_run_window(args.duration, args.transient)?;
     let spec = RunSpec {
         duration: args.duration,
@@ -57,11 +55,11 @@ pub fn run(args: PoincareCmd) -> Result<()> {
         lyapunov: None,
         classify: args.classify.config()?,
     };
-    let run = analyse_config(&cfg, &spec)?;
+    let run = subject.analyse(&spec)?;
     let who = Run {
-        n: cfg.n(),
-        mu: cfg.feedback.mu,
-        q0: cfg.q0(),
+        n: subject.n(),
+        mu: subject.mu(),
+        q0: subject.q0(),
     };
     report(&args, &spec, &who, &run.section, &run.classification)
 }
@@ -71,24 +69,6 @@ pub struct Run {
     pub n: usize,
     pub mu: f64,
     pub q0: Vec<f64>,
-}
-
-/// `poincare` on a spatial robot: the same section, rule, files and report.
-fn spatial(args: &PoincareCmd, cfg: &control::config::spatial::SpatialConfig) -> Result<()> {
-    super::check_run_window(args.duration, args.transient)?;
-    let spec = RunSpec {
-        duration: args.duration,
-        transient: args.transient,
-        lyapunov: None,
-        classify: args.classify.config()?,
-    };
-    let (sec, c) = crate::spatial::section(cfg, args.duration, args.transient, &spec.classify)?;
-    let who = Run {
-        n: cfg.sim.start().len(),
-        mu: cfg.feedback.mu,
-        q0: cfg.sim.start().to_vec(),
-    };
-    report(args, &spec, &who, &sec, &c)
 }
 
 /// Writes the CSV and the figure, and prints (or prints as JSON) the verdict.

@@ -1,39 +1,11 @@
-//! The chaos analysis of a spatial closed loop: the stroboscopic section and the stability of an
-//! orbit. The trajectory is the planar arm's [`ArmFlow`] on a [`SpatialLaw`], so λ_max and the
-//! Poincaré class of a URDF arm come from the same code and the same norm (q, q̇ and, with
-//! feedback, the stored q̇ history) as the planar arm's.
+//! The stability of an orbit of a spatial closed loop. The trajectory is the planar arm's
+//! [`ArmFlow`] on a [`crate::sim::SpatialLaw`] (λ_max, the section and its class of a URDF arm come from
+//! [`super::analyse_flow`], the same code and norm as the planar arm's); what is spatial here is
+//! starting on an orbit of the chain's own stroboscopic map.
 
 use super::closed_loop::ArmFlow;
 use super::lyapunov::Trajectory;
 use crate::sim::spatial::SpatialSimulation;
-use crate::sim::SpatialLaw;
-
-/// The stroboscopic section x(kT) = (q, q̇) of `sim` from `transient` to `duration` (q compared
-/// modulo 2π, as for the planar arm), and its classification by the planar arm's rule.
-pub fn section<const N: usize, const M: usize>(
-    sim: &mut ArmFlow<N, SpatialLaw<N, M>>,
-    duration: f64,
-    transient: f64,
-    cfg: &super::ClassifyConfig,
-) -> (super::Section, super::Classification) {
-    let period = sim.sim().law.params.task.path.period;
-    let mut sec = super::Section::new(2 * N, N);
-    let periods = (duration / period + 1e-9).floor() as u64;
-    for k in 0..=periods {
-        let t = k as f64 * period;
-        sim.advance_to(t);
-        if !sim.state().is_finite() {
-            break;
-        }
-        if t >= transient - 1e-9 * period {
-            let x = sim.state();
-            let coords: Vec<f64> = x.q.iter().chain(x.qd.iter()).copied().collect();
-            sec.push(t, &coords);
-        }
-    }
-    let class = super::classify(&sec, cfg);
-    (sec, class)
-}
 
 /// λ_max of a spatial loop at `params.mu`, starting on `orbit` (a period-T orbit of the loop
 /// without feedback, found by `newton_orbit` on [`crate::sim::spatial::stroboscopic_map`]) with its
