@@ -95,7 +95,6 @@ macro_rules! with_setup {
         })
     }};
 }
-pub(crate) use with_setup;
 
 /// What `simulate --json` prints for a spatial robot.
 #[derive(Serialize)]

@@ -1,9 +1,9 @@
 //! The arm an offline command studies, whichever arm it is.
 //!
-//! A command that scans μ or starts (`sweep` today) is written once against [`Subject`]: it sets
-//! the gain and the start, checks the set-up once, and runs [`Subject::analyse`], which is
-//! `control::analysis::analyse_flow` on the planar arm's law or a robot's. Only this file tells
-//! the two apart, so a new command does not fork on the arm.
+//! A command is written once against [`Subject`]: it sets the gain and the start, checks the
+//! set-up once, and runs [`Subject::analyse`] (`control::analysis::analyse_flow` on the planar
+//! arm's law or a robot's) or its own [`LoopVisitor`] on the arm's simulation. Only this file
+//! tells the arms apart, so a new command does not fork on the arm.
 
 use crate::setup::SetupArgs;
 use anyhow::Result;
@@ -11,7 +11,8 @@ use control::analysis::{analyse_flow, find_orbit, ArmFlow, NewtonConfig, RunAnal
 use control::config::spatial::SpatialConfig;
 use control::config::ModelKind;
 use control::model::Chain;
-use control::{with_dof, with_task_rows, ArmState, Config, VecN};
+use control::sim::ClosedLoopLaw;
+use control::{with_dof, with_task_rows, ArmState, Config, Simulation, VecN};
 use std::sync::Arc;
 
 /// The planar arm's config, or a robot's with its chain (loaded once, shared by every copy).
@@ -167,10 +168,20 @@ impl Subject {
     }
 
     /// One analysed run (λ_max with `spec.lyapunov`, the section's class, the run's summary).
-    /// A robot runs as the daemon would: steered onto a planned cycle when `safety.plan` asks.
     pub fn analyse(&self, spec: &RunSpec) -> Result<RunAnalysis> {
+        self.run_loop(Analyse(spec))
+    }
+
+    /// Hands `visitor` this arm's closed loop at t = 0, its delay line holding exactly τ (as the
+    /// Lyapunov pair needs). A robot runs as the daemon would: steered onto a planned cycle
+    /// when `safety.plan` asks.
+    pub fn run_loop<V: LoopVisitor>(&self, visitor: V) -> Result<V::Out> {
         match self {
-            Self::Planar(c) => crate::analysis::analyse_config(c, spec),
+            Self::Planar(c) => with_dof!(c.n(), N => {
+                let p = c.law_params();
+                let x0 = c.initial_state::<N>();
+                visitor.visit(Simulation::new(c.model::<N>(), p, c.sim.dt, x0, p.core.tau))
+            }),
             Self::Robot(c, chain) => {
                 let kind = c.task_kind()?;
                 with_dof!(chain.dof(), N => {
@@ -178,13 +189,19 @@ impl Subject {
                     if let Some(b) = &blocked {
                         eprintln!("safety.plan: no clean cycle, running without steering: {}", b.reason);
                     }
-                    with_task_rows!(kind, |M| {
-                        let flow = ArmFlow::of(s.simulation::<M>());
-                        Ok(analyse_flow(flow, spec)?)
-                    })
+                    with_task_rows!(kind, |M| visitor.visit(s.simulation::<M>()))
                 })
             }
         }
+    }
+
+    /// The smallest margin of the obstacles' safety zones (m; +∞ without obstacles).
+    pub fn obstacle_margin(&self) -> f64 {
+        let margins: Vec<f64> = match self {
+            Self::Planar(c) => c.control.obstacles.iter().map(|o| o.margin).collect(),
+            Self::Robot(c, _) => c.obstacles.iter().map(|o| o.margin).collect(),
+        };
+        margins.into_iter().fold(f64::INFINITY, f64::min)
     }
 
     /// Newton's method at μ = 0 from a section point (q, q̇) of a run: one line on the period-T
@@ -214,6 +231,27 @@ impl Subject {
                 })
             }
         }
+    }
+}
+
+/// What a command does with an arm's closed loop, written once for every arm
+/// ([`Subject::run_loop`] calls it with the planar arm's law or a robot's).
+pub trait LoopVisitor {
+    type Out;
+    fn visit<const N: usize, L: ClosedLoopLaw<N>>(self, sim: Simulation<N, L>)
+        -> Result<Self::Out>;
+}
+
+/// [`Subject::analyse`]: `control::analysis::analyse_flow` on the loop.
+struct Analyse<'a>(&'a RunSpec);
+
+impl LoopVisitor for Analyse<'_> {
+    type Out = RunAnalysis;
+    fn visit<const N: usize, L: ClosedLoopLaw<N>>(
+        self,
+        sim: Simulation<N, L>,
+    ) -> Result<RunAnalysis> {
+        Ok(analyse_flow(ArmFlow::of(sim), self.0)?)
     }
 }
 

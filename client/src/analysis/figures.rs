@@ -4,19 +4,19 @@
 //! when the motion became periodic, and, with obstacles, the clearance over time.
 //!
 //! Run it once with `--mu 0` (before control) and once with the feedback on (after control).
-//! Every arm gets the same pictures: the planar arm's run and a URDF robot's (`--preset panda`,
-//! or a file with a `[robot]` table) each fill one [`Trace`], and one drawing code reads it.
+//! Every arm gets the same pictures: one run ([`TraceRun`], a [`LoopVisitor`] on the planar arm's
+//! loop or a URDF robot's: `--preset panda`, or a file with a `[robot]` table) fills one
+//! [`Trace`], and one drawing code reads it.
 
-use super::{check_config, fmt_list, fmt_num, ClassifyArgs};
+use super::{fmt_list, fmt_num, ClassifyArgs};
 use crate::plot::{Chart, Figure, Panel, Rule, Series, Style, GREY, PALETTE};
-use crate::setup::{set_duration, ModelArgs};
+use crate::setup::ModelArgs;
+use crate::subject::{LoopVisitor, Subject};
 use anyhow::{bail, Result};
 use clap::Args;
 use control::analysis::{classify, Classification, ClassifyConfig, Section};
-use control::basics::flags;
-use control::config::spatial::{SpatialConfig, SpatialSetup};
-use control::sim::spatial::SpatialSimulation;
-use control::{with_dof, with_task_rows, Config, RunStats, Simulation};
+use control::sim::ClosedLoopLaw;
+use control::{RunStats, Simulation};
 use plotters::style::RGBColor;
 use std::path::PathBuf;
 
@@ -128,25 +128,35 @@ impl Trace {
     }
 }
 
-/// Simulates `cfg` for its duration, keeping every `stride`-th step and the section at t = kT ≥
-/// `transient`.
-pub fn trace(cfg: &Config, stride: u64, transient: f64) -> Result<Trace> {
-    let n = cfg.n();
-    let dt = cfg.sim.dt;
-    let period = cfg.task.period;
-    let steps = (cfg.sim.duration / dt).round() as u64;
-    let per = control::analysis::period_steps(period, dt)?;
-    with_dof!(n, N => {
-        let params = cfg.law_params();
-        let x0 = cfg.initial_state::<N>();
-        let mut sim = Simulation::new(cfg.model::<N>(), params, dt, x0, cfg.feedback.capacity());
-        let mut stats = RunStats::new(&params, dt, cfg.sim.duration, transient, &x0);
+/// The run the figures draw: `duration` s, every `stride`-th step kept, the section at t = kT ≥
+/// `transient` (the end included).
+struct TraceRun {
+    duration: f64,
+    stride: u64,
+    transient: f64,
+}
+
+impl LoopVisitor for TraceRun {
+    type Out = Trace;
+    fn visit<const N: usize, L: ClosedLoopLaw<N>>(
+        self,
+        mut sim: Simulation<N, L>,
+    ) -> Result<Trace> {
+        let (dt, stride, transient) = (sim.dt(), self.stride, self.transient);
+        let setup = sim.law.stats_setup();
+        let per = control::analysis::period_steps(setup.period, dt)?;
+        let steps = (self.duration / dt).round() as u64;
+        let x0 = *sim.state();
+        let mut stats = RunStats::of(setup, dt, self.duration, transient, &x0);
         let cap = (steps / stride + 2) as usize;
-        let mut tr = Trace::with_capacity(n, cap, stride as f64 * dt);
+        let mut tr = Trace::with_capacity(N, cap, stride as f64 * dt);
         for k in 0..=steps {
             let x = *sim.state();
             if !x.is_finite() {
-                bail!("the simulation diverged (non-finite state at t = {} s)", k as f64 * dt);
+                bail!(
+                    "the simulation diverged (non-finite state at t = {} s)",
+                    k as f64 * dt
+                );
             }
             let t = k as f64 * dt;
             if k % per == 0 && t >= transient - 1e-9 {
@@ -159,7 +169,13 @@ pub fn trace(cfg: &Config, stride: u64, transient: f64) -> Result<Trace> {
             let out = sim.step();
             stats.record(k, &x, &out);
             if k % stride == 0 {
-                tr.keep(t, x.q.as_slice(), x.qd.as_slice(), out.period_residual, out.clearance);
+                tr.keep(
+                    t,
+                    x.q.as_slice(),
+                    x.qd.as_slice(),
+                    out.period_residual,
+                    out.clearance,
+                );
             }
         }
         let s = stats.summary();
@@ -172,56 +188,7 @@ pub fn trace(cfg: &Config, stride: u64, transient: f64) -> Result<Trace> {
             time_in_safety_zone: s.time_in_safety_zone,
         };
         Ok(tr)
-    })
-}
-
-/// [`trace`] for a URDF robot: its law on the kinematic plant, steered onto a planned cycle when
-/// `safety.plan` asks for it, as `chaosctl simulate` runs it.
-pub fn spatial_trace(cfg: &SpatialConfig, stride: u64, transient: f64) -> Result<Trace> {
-    crate::spatial::with_setup!(cfg, |set, _blocked, N, M| {
-        let dt = set.dt;
-        let per = control::analysis::period_steps(set.params.task.path.period, dt)?;
-        let mut sim = SpatialSimulation::<N, M>::spatial(
-            set.arm,
-            set.params,
-            dt,
-            set.q0,
-            set.qd0,
-            set.params.core.tau,
-        );
-        let cap = ((set.duration / dt) as u64 / stride + 2) as usize;
-        let mut tr = Trace::with_capacity(N, cap, stride as f64 * dt);
-        let mut in_zone = 0u64;
-        let s = control::sim::spatial::run(&mut sim, set.duration, transient, |t, x, out| {
-            let k = (t / dt).round() as u64;
-            if k.is_multiple_of(per) && t >= transient - 1e-9 {
-                let coords: Vec<f64> = x.q.iter().chain(x.qd.iter()).copied().collect();
-                tr.section.push(t, &coords);
-            }
-            in_zone += u64::from(out.flags & flags::IN_SAFETY_ZONE != 0);
-            if k.is_multiple_of(stride) {
-                tr.keep(
-                    t,
-                    x.q.as_slice(),
-                    x.qd.as_slice(),
-                    out.period_residual,
-                    out.clearance,
-                );
-            }
-        });
-        if !s.finite {
-            bail!("the simulation diverged (non-finite state)");
-        }
-        tr.numbers = Numbers {
-            period_residual_before: s.period_residual_before,
-            period_residual_final: s.period_residual_final,
-            rms_tracking_error: s.rms_tracking_error,
-            max_tracking_error: s.max_tracking_error,
-            min_clearance: s.min_clearance,
-            time_in_safety_zone: in_zone as f64 * dt,
-        };
-        Ok(tr)
-    })
+    }
 }
 
 /// Panels of the section: q̇_i against q_i at t = kT. Samples from `highlight_from` on are drawn
@@ -287,9 +254,23 @@ fn describe(c: &Classification) -> String {
 
 pub fn run(args: FiguresCmd) -> Result<()> {
     check_transient(&args)?;
-    let (labels, tr) = match crate::spatial::load(&args.model.setup, args.model.mu)? {
-        Some(mut cfg) => spatial_run(&args, &mut cfg)?,
-        None => planar_run(&args)?,
+    let subject = Subject::load(&args.model.setup, args.model.mu)?;
+    subject.check()?;
+    let run = TraceRun {
+        duration: args.duration,
+        stride: stride(subject.dt()),
+        transient: args.transient,
+    };
+    let tr = subject.run_loop(run)?;
+    let f = subject.feedback();
+    let labels = Labels {
+        mu: f.mu,
+        on: f.enabled && f.mu != 0.0,
+        t_on: f.t_on,
+        q0: subject.q0(),
+        period: subject.period(),
+        duration: args.duration,
+        margin: subject.obstacle_margin(),
     };
     let phase = args
         .phase_window
@@ -337,58 +318,6 @@ fn check_transient(args: &FiguresCmd) -> Result<()> {
 /// Every 10 ms of the run, at least every step.
 fn stride(dt: f64) -> u64 {
     ((0.01 / dt).round() as u64).max(1)
-}
-
-/// The planar arm's run and its labels.
-fn planar_run(args: &FiguresCmd) -> Result<(Labels, Trace)> {
-    let mut cfg = args.model.load()?;
-    set_duration(
-        &mut cfg,
-        Some(args.duration),
-        Some(args.transient.min(args.duration)),
-    )?;
-    check_config(&cfg)?;
-    let tr = trace(&cfg, stride(cfg.sim.dt), args.transient)?;
-    let labels = Labels {
-        mu: cfg.feedback.mu,
-        on: cfg.feedback.enabled && cfg.feedback.mu != 0.0,
-        t_on: cfg.feedback.t_on,
-        q0: cfg.q0(),
-        period: cfg.task.period,
-        duration: cfg.sim.duration,
-        margin: cfg
-            .control
-            .obstacles
-            .iter()
-            .map(|o| o.margin)
-            .fold(f64::INFINITY, f64::min),
-    };
-    Ok((labels, tr))
-}
-
-/// A URDF robot's run and its labels.
-fn spatial_run(args: &FiguresCmd, cfg: &mut SpatialConfig) -> Result<(Labels, Trace)> {
-    cfg.sim.duration = args.duration;
-    cfg.sim.transient = args.transient.min(args.duration);
-    let tr = spatial_trace(cfg, stride(cfg.sim.dt), args.transient)?;
-    let labels = Labels {
-        mu: cfg.feedback.mu,
-        on: cfg.feedback.enabled && cfg.feedback.mu != 0.0,
-        t_on: cfg.feedback.t_on,
-        q0: tr
-            .q
-            .iter()
-            .map(|q| q.first().copied().unwrap_or(0.0))
-            .collect(),
-        period: cfg.task.period,
-        duration: cfg.sim.duration,
-        margin: cfg
-            .obstacles
-            .iter()
-            .map(|o| o.margin)
-            .fold(f64::INFINITY, f64::min),
-    };
-    Ok((labels, tr))
 }
 
 /// The four figures of one run, and the summary printed after them.
