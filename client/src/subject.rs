@@ -5,8 +5,9 @@
 //! arm's law or a robot's) or its own [`LoopVisitor`] on the arm's simulation. Only this file
 //! tells the arms apart, so a new command does not fork on the arm.
 
+use crate::analysis::StartArgs;
 use crate::setup::SetupArgs;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use control::analysis::{analyse_flow, find_orbit, ArmFlow, NewtonConfig, RunAnalysis, RunSpec};
 use control::config::spatial::SpatialConfig;
 use control::config::ModelKind;
@@ -76,6 +77,20 @@ impl Subject {
                 c.sim.qd0.clone().unwrap_or_else(|| vec![0.0; chain.dof()])
             }
         }
+    }
+
+    /// One checked set-up per start of `args` (the paper's three on a 3-link planar arm unless
+    /// `q0_given`); a bad one is named by its number.
+    pub fn starts(&self, args: &StartArgs, q0_given: bool) -> Result<Vec<Subject>> {
+        let three = !q0_given && self.is_planar_3_link();
+        args.postures(self.q0(), three)
+            .into_iter()
+            .enumerate()
+            .map(|(i, q0)| {
+                self.with_start(q0)
+                    .with_context(|| format!("start {}", i + 1))
+            })
+            .collect()
     }
 
     /// This set-up from another start posture, checked.

@@ -25,8 +25,7 @@ pub mod shard;
 pub mod sweep;
 
 use crate::setup::{parse_list, FloatList, SetupArgs};
-use crate::subject::Subject;
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::Args;
 use control::analysis::{
     analyse, check_reachable, period_steps, ClassifyConfig, LyapunovSpec, RunAnalysis, RunSpec,
@@ -239,7 +238,7 @@ pub struct StartArgs {
 impl StartArgs {
     /// The start postures: `--start` as given, else the set-up's own (`--q0` or the file's), else
     /// for a 3-link planar arm the paper's three.
-    fn postures(&self, base_q0: Vec<f64>, default_three: bool) -> Vec<Vec<f64>> {
+    pub fn postures(&self, base_q0: Vec<f64>, default_three: bool) -> Vec<Vec<f64>> {
         if !self.starts.is_empty() {
             self.starts.iter().map(|s| s.0.clone()).collect()
         } else if default_three {
@@ -259,19 +258,6 @@ impl StartArgs {
                 c.validate()?;
                 check_config(&c)?;
                 Ok(c)
-            })
-            .collect()
-    }
-
-    /// One checked set-up per start, on any arm; a bad one is named by its number.
-    pub fn subjects(&self, base: &Subject, q0_given: bool) -> Result<Vec<Subject>> {
-        let three = !q0_given && base.is_planar_3_link();
-        self.postures(base.q0(), three)
-            .into_iter()
-            .enumerate()
-            .map(|(i, q0)| {
-                base.with_start(q0)
-                    .with_context(|| format!("start {}", i + 1))
             })
             .collect()
     }

@@ -83,7 +83,7 @@ struct Plan {
 fn plan(args: &SweepCmd) -> Result<Plan> {
     let mus = args.model.mus("0:3:0.1")?;
     let base = Subject::load(&args.model.setup, None)?;
-    let starts = args.starts.subjects(&base, args.model.setup.q0.is_some())?;
+    let starts = base.starts(&args.starts, args.model.setup.q0.is_some())?;
     let classify = args.classify.config()?;
     let spec = args.lyapunov.spec(base.period(), base.dt(), classify)?;
     let mut items = Vec::new();
