@@ -61,7 +61,7 @@ pub fn run(a: &PlanCmd) -> Result<()> {
             bail!("--obstacle {:?}: expected X,Y,RADIUS (three numbers)", o.0);
         };
         let entry = ObstacleConfig::disc(x, y, r);
-        control::config::validate_obstacle(&format!("--obstacle #{}", i + 1), &entry)?;
+        entry.validate(&format!("--obstacle #{}", i + 1))?;
         cfg.control.obstacles.push(entry);
     }
     cfg.validate()?;

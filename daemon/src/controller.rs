@@ -939,7 +939,7 @@ mod tests {
             if k == 4470 {
                 let mut p = *c.params().unwrap();
                 let mut o = control::secondary::ObstacleSet::new();
-                o.push(control::config::ObstacleConfig::disc(1.5, 2.0, 0.2).to_obstacle())
+                o.push(control::config::ObstacleConfig::disc(1.5, 2.0, 0.2).to_ball())
                     .unwrap();
                 p.obstacles = o;
                 // A tight growth guard: the pause's growing tracking error must not trip it.

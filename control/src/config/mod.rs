@@ -10,6 +10,7 @@
 pub mod command;
 pub mod feedback;
 pub mod law;
+pub mod obstacles;
 pub mod planar_file;
 pub mod rehearsal;
 pub mod sim;
@@ -18,6 +19,7 @@ pub mod stability;
 
 pub use feedback::{FeedbackSection, MAX_TAU};
 pub use law::LawSection;
+pub use obstacles::{ObstacleConfig, ObstacleEntry, SphereEntry};
 pub use sim::SimSection;
 
 use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
@@ -27,7 +29,7 @@ use crate::basics::{
 use crate::law::{LawCore, LawParams, Secondary};
 use crate::resolve::Projection;
 use crate::safety::SafetySection;
-use crate::secondary::{Obstacle, ObstacleSet, PotentialWeights, MAX_OBSTACLES};
+use crate::secondary::{ObstacleSet, PotentialWeights, MAX_OBSTACLES};
 use crate::sim::ArmState;
 use crate::task::Circle;
 use serde::{Deserialize, Serialize};
@@ -167,30 +169,6 @@ impl Default for TaskConfig {
             ramp: 0.0,
         }
     }
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ObstacleConfig {
-    pub center: [f64; 2],
-    pub radius: f64,
-    #[serde(default = "default_margin")]
-    pub margin: f64,
-}
-
-impl ObstacleConfig {
-    /// A disc at (x, y) of radius r (m), with the potential's default margin.
-    pub fn disc(x: f64, y: f64, r: f64) -> Self {
-        Self {
-            center: [x, y],
-            radius: r,
-            margin: default_margin(),
-        }
-    }
-}
-
-fn default_margin() -> f64 {
-    0.1
 }
 
 /// `feedback.projection`, one type for every arm's file: where the delayed term acts.
@@ -485,7 +463,7 @@ impl Config {
             ));
         }
         for (i, o) in c.obstacles.iter().enumerate() {
-            validate_obstacle(&format!("obstacles[{i}]"), o)?;
+            o.validate(&format!("obstacles[{i}]"))?;
         }
         if let SecondaryKind::Custom(name) = &c.secondary {
             if Secondary::parse(name).is_none() {
@@ -570,7 +548,7 @@ impl Config {
             obstacles: c
                 .obstacles
                 .iter()
-                .map(ObstacleConfig::to_obstacle)
+                .map(ObstacleConfig::to_ball)
                 .collect::<ObstacleSet>(),
             weights: {
                 let (w1, w2) = c.disc_weights();
@@ -621,23 +599,6 @@ impl Config {
             },
         }
     }
-}
-
-impl ObstacleConfig {
-    pub fn to_obstacle(&self) -> Obstacle {
-        Obstacle {
-            center: Vec2::new(self.center[0], self.center[1]),
-            radius: self.radius,
-            margin: self.margin,
-        }
-    }
-}
-
-/// Checks one obstacle (also used for obstacles added to a running daemon).
-pub fn validate_obstacle(field: &str, o: &ObstacleConfig) -> Result<(), ConfigError> {
-    finite_vec(&format!("{field}.center"), &o.center)?;
-    positive(&format!("{field}.radius"), o.radius, 100.0)?;
-    range(&format!("{field}.margin"), o.margin, 0.0, 100.0)
 }
 
 /// A TOML parser's refusal with the line it points at, for every arm's file.

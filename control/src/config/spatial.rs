@@ -17,7 +17,6 @@ use crate::law::spatial::SpatialParams;
 use crate::law::{LawCore, Secondary};
 use crate::model::Chain;
 use crate::safety::SafetyParams;
-use crate::secondary::spatial::Sphere;
 use crate::secondary::spatial::SphereSet;
 use crate::secondary::spatial::MAX_SPHERES;
 use crate::task::spatial::Path;
@@ -95,30 +94,7 @@ pub struct TaskSection {
     pub ramp: f64,
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SphereEntry {
-    pub center: [f64; 3],
-    pub radius: f64,
-    #[serde(default = "default_margin")]
-    pub margin: f64,
-}
-
-fn default_margin() -> f64 {
-    0.1
-}
-
-impl SphereEntry {
-    /// A sphere `[x, y, z, radius]` (m) with the default potential margin, as a file's
-    /// `[[obstacles]]` entry without `margin` reads.
-    pub fn of([x, y, z, radius]: [f64; 4]) -> Self {
-        Self {
-            center: [x, y, z],
-            radius,
-            margin: default_margin(),
-        }
-    }
-}
+pub use super::obstacles::SphereEntry;
 
 fn positive(field: &str, v: f64) -> Result<(), ConfigError> {
     if v.is_finite() && v > 0.0 {
@@ -286,15 +262,7 @@ impl SpatialConfig {
             ));
         }
         for (i, o) in self.obstacles.iter().enumerate() {
-            positive(&format!("obstacles[{i}].radius"), o.radius)?;
-            non_negative(&format!("obstacles[{i}].margin"), o.margin)?;
-            if !o.center.iter().all(|v| v.is_finite()) {
-                return Err(invalid(
-                    &format!("obstacles[{i}].center"),
-                    o.center,
-                    "finite",
-                ));
-            }
+            o.validate(&format!("obstacles[{i}]"))?;
         }
         Ok(())
     }
@@ -443,15 +411,7 @@ impl SpatialConfig {
         let safety = self.limits(chain)?;
         self.check_step(chain, self.sim.dt, &format!("sim.dt = {} s", self.sim.dt))?;
         // At most MAX_SPHERES: validated above.
-        let spheres: SphereSet = self
-            .obstacles
-            .iter()
-            .map(|o| Sphere {
-                center: Vec3::from(o.center),
-                radius: o.radius,
-                margin: o.margin,
-            })
-            .collect();
+        let spheres: SphereSet = self.obstacles.iter().map(SphereEntry::to_ball).collect();
         let joint_weights = crate::law::metric::weights(&self.law.metric, &safety, chain.dof())?;
         let params = SpatialParams {
             core: LawCore {

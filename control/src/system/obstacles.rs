@@ -7,7 +7,7 @@
 use super::System;
 use crate::basics::ConfigError;
 use crate::config::spatial::SphereEntry;
-use crate::config::{validate_obstacle, ObstacleConfig};
+use crate::config::ObstacleConfig;
 
 /// One obstacle as listed: its centre (2 or 3 numbers), radius and margin (m).
 #[derive(Clone, Debug, PartialEq)]
@@ -79,14 +79,18 @@ impl System {
                     radius,
                     margin,
                 };
-                validate_obstacle("obstacle", &o)?;
+                o.validate("obstacle")?;
                 c.control.obstacles.push(o);
             }
-            System::Spatial(s) => s.config.obstacles.push(SphereEntry {
-                center: [center[0], center[1], center[2]],
-                radius,
-                margin,
-            }),
+            System::Spatial(s) => {
+                let o = SphereEntry {
+                    center: [center[0], center[1], center[2]],
+                    radius,
+                    margin,
+                };
+                o.validate("obstacle")?;
+                s.config.obstacles.push(o);
+            }
         }
         Ok(())
     }
