@@ -62,6 +62,14 @@ impl Subject {
         }
     }
 
+    /// Turns the safety filter on or off.
+    pub fn set_safety(&mut self, on: bool) {
+        match self {
+            Self::Planar(c) => c.safety.enabled = on,
+            Self::Robot(c, _) => c.safety.enabled = on,
+        }
+    }
+
     /// The start posture q(0).
     pub fn q0(&self) -> Vec<f64> {
         self.start_coords(false)
@@ -191,6 +199,16 @@ impl Subject {
     /// Lyapunov pair needs). A robot runs as the daemon would: steered onto a planned cycle
     /// when `safety.plan` asks.
     pub fn run_loop<V: LoopVisitor>(&self, visitor: V) -> Result<V::Out> {
+        self.run_with(visitor, true)
+    }
+
+    /// [`Self::run_loop`] with the law alone, never steered onto a planned cycle (the obstacle
+    /// study compares the law's own avoidance with the filter's).
+    pub fn run_law<V: LoopVisitor>(&self, visitor: V) -> Result<V::Out> {
+        self.run_with(visitor, false)
+    }
+
+    fn run_with<V: LoopVisitor>(&self, visitor: V, planned: bool) -> Result<V::Out> {
         match self {
             Self::Planar(c) => with_dof!(c.n(), N => {
                 let p = c.law_params();
@@ -200,10 +218,15 @@ impl Subject {
             Self::Robot(c, chain) => {
                 let kind = c.task_kind()?;
                 with_dof!(chain.dof(), N => {
-                    let (s, blocked) = control::plan::setup_planned::<N>(c, chain)?;
-                    if let Some(b) = &blocked {
-                        eprintln!("safety.plan: no clean cycle, running without steering: {}", b.reason);
-                    }
+                    let s = if planned {
+                        let (s, blocked) = control::plan::setup_planned::<N>(c, chain)?;
+                        if let Some(b) = &blocked {
+                            eprintln!("safety.plan: no clean cycle, running without steering: {}", b.reason);
+                        }
+                        s
+                    } else {
+                        c.setup::<N>(chain)?
+                    };
                     with_task_rows!(kind, |M| visitor.visit(s.simulation::<M>()))
                 })
             }

@@ -10,13 +10,14 @@
 //! filter's push-out is visible instead of hidden.
 
 use super::mujoco_judge::{MujocoJudge, Verdict};
-use super::obstacle_cells::{self, Arm, Cell, Row, RunResult, Window};
+use super::obstacle_cells::{self, Cell, Row, RunResult, Window};
 use super::obstacles_judged as judged;
 use super::parallel::{jobs, run_all};
 use super::shard::{self, Grid, Loaded, Shard};
-use super::{check_config, fmt_list, ClassifyArgs};
+use super::{fmt_list, ClassifyArgs};
 use crate::plot::{with_ext, Chart, Figure, Panel, Rule, Series, Style, DARK, GREY, PALETTE};
 use crate::setup::{parse_list, FloatList, SetupArgs};
+use crate::subject::Subject;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::config::spatial::{SpatialConfig, SphereEntry};
@@ -158,7 +159,7 @@ struct Plan {
 
 /// The study's base set-up, for either arm.
 struct Base {
-    arm: Arm,
+    arm: Subject,
     obstacles: Vec<String>,
     clearance: f64,
     q0: Vec<f64>,
@@ -184,9 +185,6 @@ fn base(args: &ObstaclesCmd) -> Result<Base> {
         if c.obstacles.is_empty() {
             bail!("the configuration has no obstacles: give spheres with --obstacle X,Y,Z,R (repeat for several) or [[obstacles]] entries in the --config");
         }
-        let r = &c.robot;
-        let chain = rt::robot::load(&r.description, r.base.as_deref(), r.tip.as_deref())?;
-        obstacle_cells::check_spatial(&c, &chain)?;
         let obstacles = c
             .obstacles
             .iter()
@@ -205,7 +203,7 @@ fn base(args: &ObstaclesCmd) -> Result<Base> {
             ),
             clearance: c.safety.clearance,
             q0: c.sim.start().to_vec(),
-            arm: Arm::Spatial(Box::new(c), std::sync::Arc::new(chain)),
+            arm: Subject::robot(c)?,
         });
     }
     let mut base = setup.load_with_mu(None)?;
@@ -226,36 +224,18 @@ fn base(args: &ObstaclesCmd) -> Result<Base> {
             base.control.secondary == control::config::SecondaryKind::Obstacles,
             &format!("{:?}", base.control.secondary).to_lowercase(),
         ),
-        arm: Arm::Planar(base),
+        arm: Subject::Planar(base),
     })
 }
 
-/// The cell of `base` at gain `mu`, filter `on`, start `q0`, run for `d` s.
-fn cell(base: &Base, mu: f64, on: bool, q0: Vec<f64>, d: f64, rms_from: f64) -> Result<Cell> {
-    let arm = match &base.arm {
-        Arm::Planar(b) => {
-            let mut c = b.clone();
-            c.feedback.mu = mu;
-            c.safety.enabled = on;
-            c.sim.q0 = Some(q0.clone());
-            c.sim.duration = d;
-            c.sim.transient = rms_from;
-            c.validate()?;
-            check_config(&c).with_context(|| format!("start with q1 = {}", q0[0]))?;
-            Arm::Planar(c)
-        }
-        Arm::Spatial(b, chain) => {
-            let mut c = b.clone();
-            c.feedback.mu = mu;
-            c.safety.enabled = on;
-            c.sim.q0 = Some(q0.clone());
-            c.sim.duration = d;
-            c.sim.transient = rms_from;
-            obstacle_cells::check_spatial(&c, chain)
-                .with_context(|| format!("start with q1 = {}", q0[0]))?;
-            Arm::Spatial(c, chain.clone())
-        }
-    };
+/// The cell of `base` at gain `mu`, filter `on`, start `q0`.
+fn cell(base: &Base, mu: f64, on: bool, q0: Vec<f64>) -> Result<Cell> {
+    let mut arm = base.arm.clone();
+    arm.set_mu(mu);
+    arm.set_safety(on);
+    let arm = arm
+        .with_start(q0.clone())
+        .with_context(|| format!("start with q1 = {}", q0[0]))?;
     Ok(Cell {
         mu,
         safety: on,
@@ -308,7 +288,7 @@ fn plan(args: &ObstaclesCmd) -> Result<Plan> {
             for &q1 in &q1s {
                 let mut q = q0.clone();
                 q[0] = q1;
-                cells.push(cell(&base, mu, on, q, d, args.rms_from)?);
+                cells.push(cell(&base, mu, on, q)?);
             }
         }
     }
@@ -380,7 +360,11 @@ fn run_judged(args: &ObstaclesCmd, plan: &Plan, model: &Path, threads: usize) ->
     if args.shard.is_some() {
         bail!("--mujoco-judge runs the whole study: it does not shard (drop --shard)");
     }
-    if plan.cells.iter().any(|c| matches!(c.arm, Arm::Planar(_))) {
+    if plan
+        .cells
+        .iter()
+        .any(|c| matches!(c.arm, Subject::Planar(_)))
+    {
         bail!("--mujoco-judge judges a robot's URDF: the paper's planar arm has no MuJoCo model");
     }
     let judge = MujocoJudge::new(model)?;
