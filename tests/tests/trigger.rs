@@ -280,19 +280,21 @@ fn a_pair_with_the_fast_lane_on_one_side_only_still_answers_in_the_same_cycle() 
         assert!(s.daemon.terminate(Duration::from_secs(10)).success());
         assert!(s.plant.terminate(Duration::from_secs(10)).success());
         let p = read_json(&s.dir.path().join("out/plant-summary.json"));
+        let d = read_json(&s.dir.path().join("out/daemon-summary.json"));
         let c = &p["counters"];
         let (in_time, late) = (
             c["answered_in_time"].as_u64().unwrap(),
             c["late_cycles"].as_u64().unwrap(),
         );
         // The deadline is half a period (500 µs): on this shared host a few answers miss it,
-        // a pair that waits for each other's pub-sub copy misses all of them.
+        // a pair that waits for each other's pub-sub copy misses all of them. A run the host
+        // stalled misses them in bursts, so there the bar is most of them.
+        let share = if disturbed(&[&d, &p]) { 2 } else { 10 };
         assert!(
-            in_time >= 1000 && late * 10 < in_time,
+            in_time >= 1000 && late * share < in_time,
             "daemon {daemon:?}, plant {plant:?}: {p}"
         );
         assert_eq!(c["commands_rejected"], 0, "{p}");
-        let d = read_json(&s.dir.path().join("out/daemon-summary.json"));
         assert_eq!(d["counters"]["rejected_out_of_order"], 0, "{d}");
     }
 }
