@@ -57,6 +57,10 @@ impl System {
     /// s.add_obstacle(&[0.0, 1.6], 0.25, 0.1).unwrap();
     /// assert_eq!(s.obstacle_rows()[0].center, vec![0.0, 1.6]);
     /// assert!(s.add_obstacle(&[0.0, 1.6, 0.2], 0.25, 0.1).is_err());
+    /// // A robot's sphere meets the same check as a file's entry, named as the request says it.
+    /// let mut p = control::System::preset("panda", &control::system::builtin_robot).unwrap();
+    /// let e = p.add_obstacle(&[0.3, 0.0, 0.5], -0.1, 0.1).unwrap_err();
+    /// assert!(e.to_string().contains("obstacle.radius"), "{e}");
     /// ```
     pub fn add_obstacle(
         &mut self,
