@@ -192,6 +192,22 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
     }
     let o = chaosctl(&["simulate", "--preset", "panda", "--model", "floating"]);
     assert_eq!(o.status.code(), Some(2));
+    // A bad sphere given to a robot's obstacle study: the sphere is named, not a start.
+    let o = chaosctl(&[
+        "obstacles",
+        "--preset",
+        "panda",
+        "--obstacle",
+        "0.3,0,0.5,-1",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("obstacles[0].radius")
+            && !err.contains("start")
+            && err.trim().lines().count() == 1,
+        "{err}"
+    );
     // A start of the planar arm's size given to a robot's sweep: named, with the rule.
     std::fs::write(&cfg, &base).unwrap();
     let o = chaosctl(&[

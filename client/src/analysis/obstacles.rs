@@ -195,6 +195,9 @@ fn base(args: &ObstaclesCmd) -> Result<Base> {
                 )
             })
             .collect();
+        // The set-up itself is checked once, before any start is (a bad sphere is not a start's).
+        let robot = Subject::robot(c.clone())?;
+        robot.check()?;
         return Ok(Base {
             obstacles,
             off: without_filter(
@@ -203,7 +206,7 @@ fn base(args: &ObstaclesCmd) -> Result<Base> {
             ),
             clearance: c.safety.clearance,
             q0: c.sim.start().to_vec(),
-            arm: Subject::robot(c)?,
+            arm: robot,
         });
     }
     let mut base = setup.load_with_mu(None)?;
