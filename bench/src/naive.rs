@@ -55,10 +55,10 @@ pub fn law<const N: usize>(
         jdq[0] -= links[m] * th.cos() * thd * thd;
         jdq[1] -= links[m] * th.sin() * thd * thd;
     }
-    let target = params.task.at(t);
-    let pd = DVector::from_column_slice(target.p.as_slice());
-    let vd = DVector::from_column_slice(target.v.as_slice());
-    let ad = DVector::from_column_slice(target.a.as_slice());
+    let (tp, tv, ta) = params.task.at_xy(t);
+    let pd = DVector::from_column_slice(tp.as_slice());
+    let vd = DVector::from_column_slice(tv.as_slice());
+    let ad = DVector::from_column_slice(ta.as_slice());
     let p = fk(&qv);
     let acc = &ad + (&vd - &j * &qdv) * params.core.kv + (&pd - &p) * params.core.kp - &jdq;
     // ∇w by the determinant formula with dynamic matrices.

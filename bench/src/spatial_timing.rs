@@ -137,7 +137,7 @@ pub fn section(quick: bool) -> Result<String> {
     };
     let mut k = SpatialKinematics::<7>::default();
     let mut pose = s.params;
-    pose.task.kind = control::task::spatial::TaskKind::Pose;
+    pose.task.kind = control::task::pose::TaskKind::Pose;
     let law3 = crate::timing::per_call(batches, batch, |i| {
         let x = &xs[i % xs.len()];
         black_box(law::evaluate::<7, 3>(

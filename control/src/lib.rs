@@ -41,4 +41,4 @@ pub use law::{LawParams, Secondary};
 pub use resolve::ControlOutput;
 pub use sim::{ArmState, RunStats, Simulation, Summary};
 pub use system::System;
-pub use task::Circle;
+pub use task::Path;

@@ -17,7 +17,7 @@ use crate::law::{self, LawCore, LawParams};
 use crate::resolve::ControlOutput;
 use crate::safety::SafetyParams;
 use crate::sim::ArmState;
-use crate::task::spatial::TaskKind;
+use crate::task::pose::TaskKind;
 
 /// The arm model and the parameters of its law, as one `Copy` block.
 // The spatial variant is the larger by far (a URDF model, spheres); boxing it would put the
@@ -206,7 +206,7 @@ impl<const N: usize> TickLaw<N> {
 
     /// Where a spatial arm's tool point is at `q` (None for the planar arm, whose law always
     /// runs on the measured state).
-    pub fn tool_position(&self, q: &VecN<N>) -> Option<crate::task::spatial::Vec3> {
+    pub fn tool_position(&self, q: &VecN<N>) -> Option<crate::task::Vec3> {
         match self {
             TickLaw::Planar { .. } => None,
             TickLaw::Spatial { arm, .. } => Some(arm.tool_position(q)),

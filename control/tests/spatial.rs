@@ -15,7 +15,8 @@ use control::secondary::spatial::potential;
 use control::secondary::spatial::*;
 use control::sim::spatial::run;
 use control::sim::spatial::*;
-use control::task::spatial::*;
+use control::task::pose::*;
+use control::task::{Path, Shape, Vec3};
 use nalgebra::{Rotation3, SMatrix, SVector};
 
 type V7 = SVector<f64, 7>;

@@ -104,7 +104,7 @@ pub fn check_reachable<const N: usize>(
 ) -> Result<(), AnalysisError> {
     let mut kin = Kinematics::default();
     model.kinematics(initial.phi, &initial.q, &initial.qd, &mut kin);
-    let d = (params.task.center - kin.points[0]).norm();
+    let d = (params.task.center.xy() - kin.points[0]).norm();
     let (near, far) = ((d - params.task.radius).max(0.0), d + params.task.radius);
     let (inner, outer) = (model.inner_reach(), model.reach());
     if far < outer && near > inner {

@@ -22,7 +22,7 @@ pub use law::LawSection;
 pub use obstacles::{ObstacleConfig, ObstacleEntry, SphereEntry};
 pub use sim::SimSection;
 
-use crate::arm::{ArmModel, FixedArm, FloatingArm, Vec2, VecN};
+use crate::arm::{ArmModel, FixedArm, FloatingArm, VecN};
 use crate::basics::{
     excerpt, invalid, range, ConfigError, MAX_CONFIG_BYTES, MAX_JOINTS, MIN_JOINTS,
 };
@@ -31,7 +31,7 @@ use crate::resolve::Projection;
 use crate::safety::SafetySection;
 use crate::secondary::{ObstacleSet, PotentialWeights, MAX_OBSTACLES};
 use crate::sim::ArmState;
-use crate::task::Circle;
+use crate::task::{Path, Shape};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
 
@@ -539,12 +539,13 @@ impl Config {
                 track_loss: c.track_loss,
                 pause: false,
             },
-            task: Circle {
-                center: Vec2::new(self.task.center[0], self.task.center[1]),
-                radius: self.task.radius,
-                period: self.task.period,
-                ramp: self.task.ramp,
-            },
+            task: Path::in_the_plane(
+                Shape::Circle,
+                self.task.center,
+                self.task.radius,
+                self.task.period,
+            )
+            .with_ramp(self.task.ramp),
             obstacles: c
                 .obstacles
                 .iter()

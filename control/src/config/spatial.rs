@@ -19,11 +19,11 @@ use crate::model::Chain;
 use crate::safety::SafetyParams;
 use crate::secondary::spatial::SphereSet;
 use crate::secondary::spatial::MAX_SPHERES;
-use crate::task::spatial::Path;
-use crate::task::spatial::Shape;
-use crate::task::spatial::SpatialTask;
-use crate::task::spatial::TaskKind;
-use crate::task::spatial::Vec3;
+use crate::task::pose::SpatialTask;
+use crate::task::pose::TaskKind;
+use crate::task::Path;
+use crate::task::Shape;
+use crate::task::Vec3;
 use nalgebra::{Rotation3, SVector};
 use serde::{Deserialize, Serialize};
 

@@ -22,7 +22,7 @@ use crate::basics::{flags, wrap_angle};
 use crate::resolve::ControlOutput;
 use crate::safety::{self, SafetyParams};
 use crate::secondary::{self, ObstacleSet, PotentialWeights};
-use crate::task::Circle;
+use crate::task::Path;
 use nalgebra::SMatrix;
 use nalgebra::Vector3;
 use pipeline::{ArmSide, Gains, TaskRows};
@@ -60,7 +60,8 @@ pub(crate) fn custom_eta<const N: usize>(
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LawParams {
     pub core: LawCore,
-    pub task: Circle,
+    /// The path in the arm's plane ([`Path::in_the_plane`]).
+    pub task: Path,
     pub obstacles: ObstacleSet,
     pub weights: PotentialWeights,
     /// A planned clean cycle to steer the self-motion onto ([`crate::plan`]); planar 3-link
@@ -144,16 +145,16 @@ impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
         let p = self.params;
         self.model.kinematics(self.phi, q, qd, self.kin);
         let kin = &*self.kin;
-        let target = p.task.at(t);
+        let (tp, tv, ta) = p.task.at_xy(t);
         let j: Jac<N> = kin.j;
-        let err = target.p - kin.p;
+        let err = tp - kin.p;
         TaskRows {
-            acc: target.a + (target.v - j * qd) * p.core.kv + err * p.core.kp - kin.jdot_qd,
+            acc: ta + (tv - j * qd) * p.core.kv + err * p.core.kp - kin.jdot_qd,
             j,
             position_error: err.norm(),
             orientation_error: 0.0,
             p: Vec3::new(kin.p.x, kin.p.y, 0.0),
-            p_desired: Vec3::new(target.p.x, target.p.y, 0.0),
+            p_desired: Vec3::new(tp.x, tp.y, 0.0),
         }
     }
 

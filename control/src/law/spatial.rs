@@ -21,9 +21,9 @@ use crate::resolve::ControlOutput;
 use crate::safety::Filtered;
 use crate::secondary::spatial as sec;
 use crate::secondary::spatial::SphereSet;
-use crate::task::spatial::orientation_error;
-use crate::task::spatial::SpatialTask;
-use crate::task::spatial::Vec3;
+use crate::task::pose::orientation_error;
+use crate::task::pose::SpatialTask;
+use crate::task::Vec3;
 use nalgebra::{SMatrix, Vector6};
 
 /// Every tunable of the spatial law: a `Copy` block, like the planar [`crate::LawParams`].

@@ -20,14 +20,14 @@ use super::{Blocked, Cycle, PlanOutcome, PlanSettings};
 use crate::arm::Vec2;
 use crate::basics::wrap_angle;
 use crate::secondary::ObstacleSet;
-use crate::task::Circle;
+use crate::task::Path;
 use std::f64::consts::TAU;
 
 /// What the planar planner needs: the arm, the task, the obstacles and the limits.
 #[derive(Clone, Debug)]
 pub struct PlanarProblem {
     pub links: [f64; 3],
-    pub task: Circle,
+    pub task: Path,
     pub obstacles: ObstacleSet,
     /// Required distance (m) from every link to every obstacle's surface.
     pub clearance: f64,
@@ -131,7 +131,7 @@ fn build(p: &PlanarProblem, s: &PlanSettings) -> Grid {
     let dt = p.task.period / s.phases as f64;
     let layers: Vec<Vec<Option<Node>>> = (0..s.phases)
         .map(|k| {
-            let hand = p.task.at(p.t0 + k as f64 * dt).p;
+            let hand = p.task.at_xy(p.t0 + k as f64 * dt).0;
             (0..2 * s.angles)
                 .map(|n| {
                     let psi = TAU * (n % s.angles) as f64 / s.angles as f64;
@@ -426,7 +426,7 @@ fn blocked(p: &PlanarProblem, s: &PlanSettings, grid: &Grid) -> Blocked {
         .unwrap_or(0);
     let t = p.t0 + k as f64 * grid.dt;
     // Every posture at that phase, clean or not: the roomiest one says how close it came.
-    let hand = p.task.at(t).p;
+    let hand = p.task.at_xy(t).0;
     let roomiest = (0..2 * s.angles)
         .filter_map(|n| {
             let psi = TAU * (n % s.angles) as f64 / s.angles as f64;
@@ -480,12 +480,7 @@ mod tests {
         }
         PlanarProblem {
             links: [1.0; 3],
-            task: Circle {
-                center: Vec2::new(1.0, 2.0),
-                radius: 0.5,
-                period: 1.0,
-                ramp: 0.0,
-            },
+            task: Path::in_the_plane(crate::task::Shape::Circle, [1.0, 2.0], 0.5, 1.0),
             obstacles: set,
             clearance: 0.05,
             q_min: [f64::NEG_INFINITY; 3],
@@ -514,7 +509,7 @@ mod tests {
         let n = c.q.len();
         let dt = c.period / n as f64;
         for (k, q) in c.q.iter().enumerate() {
-            let want = p.task.at(c.t0 + k as f64 * dt).p;
+            let want = p.task.at_xy(c.t0 + k as f64 * dt).0;
             assert!((hand(&p.links, q) - want).norm() < 1e-9, "phase {k}");
             let qa: [f64; 3] = [q[0], q[1], q[2]];
             assert!(p.clearance_of(&qa).0 >= p.clearance + s.margin, "phase {k}");
@@ -532,7 +527,7 @@ mod tests {
     fn without_obstacles_a_cycle_near_the_arm_is_found() {
         let (mut p, s) = (paper(&[]), PlanSettings::default());
         // An arm on the path at t = 0, its last link at 1.3 rad, elbow right.
-        let now = p.posture(p.task.at(0.0).p, 1.3, -1.0).unwrap();
+        let now = p.posture(p.task.at_xy(0.0).0, 1.3, -1.0).unwrap();
         p.q_now = Some(now);
         let PlanOutcome::Found(c) = plan(&p, &s) else {
             panic!("no cycle without obstacles")

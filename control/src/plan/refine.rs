@@ -107,7 +107,9 @@ impl<'a> Refiner<'a> {
         let model = ArmModel::Fixed(FixedArm::new(p.links));
         let n = c.q.len();
         let dt = c.period / n as f64;
-        let hands = (0..n).map(|k| p.task.at(c.t0 + k as f64 * dt).p).collect();
+        let hands = (0..n)
+            .map(|k| p.task.at_xy(c.t0 + k as f64 * dt).0)
+            .collect();
         let base: Vec<[f64; 3]> = c.q.iter().map(|q| [q[0], q[1], q[2]]).collect();
         let mut r = Self {
             p,

@@ -10,7 +10,7 @@ use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
 use crate::arm::MANIPULABILITY_FLOOR;
-use crate::task::spatial::Vec3;
+use crate::task::Vec3;
 use nalgebra::{SMatrix, SVector};
 
 /// The most spheres one parameter block holds.

@@ -8,6 +8,7 @@
 //! i−1's, as `robot_state_publisher` does, so the transforms agree with the URDF's tree.
 
 use control::model::Pose;
+use control::task::Path;
 use control::System;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
@@ -31,7 +32,6 @@ pub struct Posed {
 /// Kinematics of one arm type, behind a runtime joint count.
 trait Geometry: Send {
     fn posed(&self, phi: f64, q: &[f64]) -> Posed;
-    fn target(&self, t: f64) -> [f64; 3];
 }
 
 /// The scene of one configuration.
@@ -46,6 +46,8 @@ pub struct Scene {
     /// One period of the path, closed.
     pub path: Vec<[f64; 3]>,
     geometry: Box<dyn Geometry>,
+    /// The tool's path (every arm's one type); None for a chain whose set-up does not build.
+    task: Option<Path>,
 }
 
 /// Points per period in [`Scene::path`].
@@ -56,13 +58,11 @@ impl Scene {
     pub fn of(system: &System) -> Scene {
         // One period once the path is up to speed: the start-up ramp (`task.ramp`) is not part
         // of the loop the tool goes round.
-        let (base, joints, links, urdf, obstacles, (ramp, period), geometry) = match system {
+        let (base, joints, links, urdf, obstacles, task, geometry) = match system {
             System::Planar(c) => {
                 let n = c.n();
-                let geometry: Box<dyn Geometry> = control::with_dof!(n, N => Box::new(Planar::<N> {
-                    model: c.model::<N>(),
-                    task: c.law_params().task,
-                }));
+                let geometry: Box<dyn Geometry> =
+                    control::with_dof!(n, N => Box::new(Planar::<N> { model: c.model::<N>() }));
                 let obstacles = c.control.obstacles.iter();
                 let obstacles = obstacles.map(|o| ([o.center[0], o.center[1], 0.0], o.radius));
                 (
@@ -71,15 +71,15 @@ impl Scene {
                     (1..=n).map(|i| format!("link{i}")).collect(),
                     Some(planar_urdf(&c.arm.links)),
                     obstacles.collect(),
-                    (c.task.ramp, c.task.period),
+                    Some(c.law_params().task),
                     geometry,
                 )
             }
             System::Spatial(s) => {
                 let chain = &s.chain;
-                let geometry: Box<dyn Geometry> = control::with_dof!(chain.dof(), N => match s.config.setup::<N>(chain) {
-                    Ok(setup) => Box::new(Spatial::<N> { arm: setup.arm, task: setup.params.task }),
-                    Err(_) => Box::new(Nothing(N)),
+                let (geometry, task): (Box<dyn Geometry>, _) = control::with_dof!(chain.dof(), N => match s.config.setup::<N>(chain) {
+                    Ok(setup) => (Box::new(Spatial::<N> { arm: setup.arm }), Some(setup.params.task.path)),
+                    Err(_) => (Box::new(Nothing(N)), None),
                 });
                 let obstacles = s.config.obstacles.iter().map(|o| (o.center, o.radius));
                 (
@@ -88,14 +88,17 @@ impl Scene {
                     chain.joints.iter().map(|j| j.links[0].clone()).collect(),
                     rt::robot::text(&s.config.robot.description).ok(),
                     obstacles.collect(),
-                    (s.config.task.ramp, s.config.task.period),
+                    task,
                     geometry,
                 )
             }
         };
-        let path = (0..=PATH_POINTS)
-            .map(|k| geometry.target(ramp + period * k as f64 / PATH_POINTS as f64))
-            .collect();
+        let path = match &task {
+            Some(p) => (0..=PATH_POINTS)
+                .map(|k| position(p, p.ramp + p.period * k as f64 / PATH_POINTS as f64))
+                .collect(),
+            None => vec![[0.0; 3]; PATH_POINTS + 1],
+        };
         Scene {
             base,
             joints,
@@ -104,6 +107,7 @@ impl Scene {
             obstacles,
             path,
             geometry,
+            task,
         }
     }
 
@@ -114,7 +118,7 @@ impl Scene {
 
     /// Where the tool should be at controller time `t`.
     pub fn target(&self, t: f64) -> [f64; 3] {
-        self.geometry.target(t)
+        self.task.as_ref().map_or([0.0; 3], |p| position(p, t))
     }
 
     /// Each joint's (parent frame, child frame, child in parent): the base in the world, then
@@ -145,9 +149,13 @@ pub fn quaternion(rot: &Matrix3<f64>) -> [f64; 4] {
     [q.i, q.j, q.k, q.w]
 }
 
+/// Where a path puts the tool at `t`.
+fn position(path: &Path, t: f64) -> [f64; 3] {
+    path.position(t).into()
+}
+
 struct Planar<const N: usize> {
     model: control::arm::ArmModel<N>,
-    task: control::task::Circle,
 }
 
 impl<const N: usize> Geometry for Planar<N> {
@@ -177,16 +185,10 @@ impl<const N: usize> Geometry for Planar<N> {
             tip: [kin.p.x, kin.p.y, 0.0],
         }
     }
-
-    fn target(&self, t: f64) -> [f64; 3] {
-        let p = self.task.at(t).p;
-        [p.x, p.y, 0.0]
-    }
 }
 
 struct Spatial<const N: usize> {
     arm: control::arm::spatial::SpatialArm<N>,
-    task: control::task::spatial::SpatialTask,
 }
 
 impl<const N: usize> Geometry for Spatial<N> {
@@ -206,11 +208,6 @@ impl<const N: usize> Geometry for Spatial<N> {
             tip: [kin.p.x, kin.p.y, kin.p.z],
         }
     }
-
-    fn target(&self, t: f64) -> [f64; 3] {
-        let p = self.task.at(t).p;
-        [p.x, p.y, p.z]
-    }
 }
 
 /// A chain whose set-up does not build (never for a validated system): drawn folded at the base.
@@ -224,10 +221,6 @@ impl Geometry for Nothing {
             points: vec![[0.0; 3]],
             tip: [0.0; 3],
         }
-    }
-
-    fn target(&self, _t: f64) -> [f64; 3] {
-        [0.0; 3]
     }
 }
 

@@ -13,8 +13,8 @@ use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
 use crate::plan::PlanSettings;
 use crate::resolve::damped_pinv_m;
-use crate::task::spatial::orientation_error;
-use crate::task::spatial::Vec3;
+use crate::task::pose::orientation_error;
+use crate::task::Vec3;
 use nalgebra::{SMatrix, SVector};
 
 /// Gradient step per unit cost, and the longest slide a phase makes in one sweep (rad).
