@@ -190,3 +190,35 @@ fn pyragas_term_vanishes_on_a_period_tau_orbit() {
         x.q
     );
 }
+
+/// Every arm takes every path shape: a planar file names `path = "eight"` as a robot's does,
+/// prints it back (a circle, the default, is left out as before), and the law holds the hand on
+/// the eight once the start's error has died away. A shape no arm has is refused by its key.
+#[test]
+fn the_planar_arm_traces_a_figure_eight_named_in_its_file() {
+    use control::task::Shape;
+    let text = Config::preset("paper").unwrap().to_toml_string();
+    assert!(!text.contains("path ="), "{text}");
+    let eight = text.replacen("[task]\n", "[task]\npath = \"eight\"\n", 1);
+    let cfg = Config::parse(&eight).unwrap();
+    assert_eq!(cfg.task.path, Shape::Eight);
+    assert!(cfg.to_toml_string().contains("path = \"eight\""));
+    let mut sim = sim3(&cfg);
+    let (mut worst, mut far) = (0.0f64, 0.0f64);
+    for k in 0..20_000 {
+        let out = sim.step();
+        if k >= 10_000 {
+            worst = worst.max(out.tracking_error);
+            // The eight's lobes reach r/2 across the centre's line, where a circle reaches r.
+            far = far.max((out.p.y - cfg.task.center[1]).abs());
+        }
+    }
+    assert!(worst < 1e-6, "tracking error {worst} m after 10 s");
+    assert!(
+        (far - 0.25).abs() < 1e-3,
+        "the hand reached {far} m off the centre line"
+    );
+    let square = text.replacen("[task]\n", "[task]\npath = \"square\"\n", 1);
+    let e = Config::parse(&square).unwrap_err().to_string();
+    assert!(e.contains("path") && e.contains("eight"), "{e}");
+}

@@ -1,10 +1,10 @@
 //! `chaosctl arm-figure`: the arm itself, drawn at several instants of one period late in a run,
-//! with the task circle, the obstacles and the clearance the safety filter keeps, filter off and
+//! with the task's path, the obstacles and the clearance the safety filter keeps, filter off and
 //! on side by side.
 //!
 //! Numbers say how much contact there was; this picture says what it looks like: with the paper's
 //! potential alone the links sweep through the obstacle, with the filter they bend round it while
-//! the end effector stays on the circle.
+//! the end effector stays on its path.
 
 use crate::plot::{Chart, Figure, Panel, Series, Style, DARK, GREY, PALETTE};
 use crate::setup::ModelArgs;
@@ -96,6 +96,7 @@ fn simulate_window(cfg: &Config, from: f64, span: f64, frames: usize) -> Result<
         rms: 0.0,
     };
     let (mut sq, mut count) = (0.0, 0u64);
+    let path = cfg.law_params().task;
     run_config(cfg, |k, t, q, _qd, phi| {
         if k < first {
             return Ok(());
@@ -107,12 +108,8 @@ fn simulate_window(cfg: &Config, from: f64, span: f64, frames: usize) -> Result<
             w.contact += dt;
         }
         let p = pts[pts.len() - 1];
-        let theta = TAU * t / cfg.task.period;
-        let pd = (
-            cfg.task.center[0] + cfg.task.radius * theta.cos(),
-            cfg.task.center[1] + cfg.task.radius * theta.sin(),
-        );
-        sq += (p.0 - pd.0).powi(2) + (p.1 - pd.1).powi(2);
+        let pd = path.at_xy(t).0;
+        sq += (p.0 - pd.x).powi(2) + (p.1 - pd.y).powi(2);
         count += 1;
         if k % 5 == 0 {
             w.path.push(p);
@@ -124,6 +121,17 @@ fn simulate_window(cfg: &Config, from: f64, span: f64, frames: usize) -> Result<
     })?;
     w.rms = (sq / count.max(1) as f64).sqrt();
     Ok(w)
+}
+
+/// One round of the task's path once it is up to speed.
+fn task_path(cfg: &Config) -> Vec<(f64, f64)> {
+    let path = cfg.law_params().task;
+    (0..=180)
+        .map(|i| {
+            let p = path.at_xy(path.ramp + path.period * i as f64 / 180.0).0;
+            (p.x, p.y)
+        })
+        .collect()
 }
 
 fn circle(c: [f64; 2], r: f64) -> Vec<(f64, f64)> {
@@ -227,7 +235,7 @@ fn draw(args: &ArmFigureCmd, cfg: &Config, span: f64, windows: &[Window]) -> Res
         .iter()
         .flat_map(|w| w.frames.iter().flat_map(|f| f.1.iter().copied()))
         .collect();
-    all.extend(circle(cfg.task.center, cfg.task.radius));
+    all.extend(task_path(cfg));
     for o in &cfg.control.obstacles {
         all.extend(circle(o.center, o.radius + cfg.safety.clearance));
     }
@@ -236,10 +244,10 @@ fn draw(args: &ArmFigureCmd, cfg: &Config, span: f64, windows: &[Window]) -> Res
         .iter()
         .map(|w| {
             let mut series = vec![Series::new(
-                Some("task circle".into()),
+                Some("task path".into()),
                 GREY,
                 Style::Line(1),
-                circle(cfg.task.center, cfg.task.radius),
+                task_path(cfg),
             )];
             for (i, o) in cfg.control.obstacles.iter().enumerate() {
                 let first = i == 0;

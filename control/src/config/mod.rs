@@ -134,6 +134,9 @@ impl Default for ArmConfig {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TaskConfig {
+    /// The path's shape, as on every arm (in the arm's plane: u = x, v = y).
+    #[serde(skip_serializing_if = "Shape::is_circle")]
+    pub path: Shape,
     pub center: [f64; 2],
     pub radius: f64,
     pub period: f64,
@@ -163,6 +166,7 @@ pub(crate) fn check_ramp(seconds: f64) -> Result<(), ConfigError> {
 impl Default for TaskConfig {
     fn default() -> Self {
         Self {
+            path: Shape::Circle,
             center: [1.0, 2.0],
             radius: 0.5,
             period: 1.0,
@@ -540,7 +544,7 @@ impl Config {
                 pause: false,
             },
             task: Path::in_the_plane(
-                Shape::Circle,
+                self.task.path,
                 self.task.center,
                 self.task.radius,
                 self.task.period,
@@ -607,7 +611,16 @@ pub(crate) fn parse_error(text: &str, e: &toml::de::Error) -> ConfigError {
     let line = e
         .span()
         .map(|s| text.get(..s.start).unwrap_or(text).matches('\n').count() + 1);
-    let at = line.map(|l| format!("line {l}: ")).unwrap_or_default();
+    // The line itself names the key, which a refused value's message (an unknown shape, a
+    // string where a number goes) does not.
+    let at = line
+        .map(|l| match text.lines().nth(l - 1).map(str::trim) {
+            Some(src) if !src.is_empty() && src.chars().count() <= 60 => {
+                format!("line {l} ({src}): ")
+            }
+            _ => format!("line {l}: "),
+        })
+        .unwrap_or_default();
     ConfigError::Parse(excerpt(&format!("{at}{}", e.message())))
 }
 

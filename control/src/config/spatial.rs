@@ -77,8 +77,8 @@ pub struct RobotSection {
 pub struct TaskSection {
     /// "position" (m = 3) or "pose" (m = 6).
     pub kind: String,
-    /// "circle" or "eight".
-    pub path: String,
+    /// The path's shape, as on every arm.
+    pub path: Shape,
     /// Centre (m, base frame); default: where the tool starts, so the path's start point
     /// (c + r·u) is one radius above it along u.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -387,11 +387,7 @@ impl SpatialConfig {
         };
         let mut kin = SpatialKinematics::default();
         arm.kinematics(&q0, &qd0, &mut kin);
-        let shape = match self.task.path.as_str() {
-            "circle" => Shape::Circle,
-            "eight" => Shape::Eight,
-            p => return Err(invalid("task.path", p, "\"circle\" or \"eight\"")),
-        };
+        let shape = self.task.path;
         let normal = Vec3::from(self.task.normal);
         let probe = Path::new(shape, Vec3::zeros(), normal, 1.0, 1.0)
             .ok_or_else(|| invalid("task.normal", self.task.normal, "a non-zero vector"))?;

@@ -10,6 +10,7 @@
 pub mod pose;
 
 use nalgebra::{Vector2, Vector3};
+use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
 
 pub type Vec3 = Vector3<f64>;
@@ -52,14 +53,32 @@ pub fn ramp(t: f64, t_r: f64) -> (f64, f64, f64) {
     )
 }
 
-/// The closed curve the tool point follows; both have period T = 2π/ω.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+/// The closed curve the tool point follows; both have period T = 2π/ω. A file names it in
+/// `task.path` (`"circle"`, `"eight"`), the same on every arm.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Shape {
     /// c + r(cos ωt·u + sin ωt·v).
     #[default]
     Circle,
     /// c + r(sin ωt·u + ½ sin 2ωt·v).
     Eight,
+}
+
+impl Shape {
+    /// Whether this is the default shape (a file that leaves `task.path` out means it).
+    pub fn is_circle(&self) -> bool {
+        *self == Shape::Circle
+    }
+}
+
+impl std::fmt::Display for Shape {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Shape::Circle => "circle",
+            Shape::Eight => "eight",
+        })
+    }
 }
 
 /// A path in the plane through `center` normal to `normal`.
