@@ -162,20 +162,23 @@ impl ModelArgs {
     }
 }
 
-/// Rejects a duration the config cannot run.
-pub fn set_duration(cfg: &mut Config, duration: Option<f64>, transient: Option<f64>) -> Result<()> {
+/// `--duration` and `--transient` on any arm's `[sim]` (the caller checks the whole set-up).
+pub fn set_sim_duration(
+    sim: &mut control::config::SimSection,
+    duration: Option<f64>,
+    transient: Option<f64>,
+) -> Result<()> {
     if let Some(d) = duration {
         if !(d.is_finite() && d > 0.0) {
             bail!("--duration {d}: must be a finite number of seconds > 0");
         }
-        cfg.sim.duration = d;
-        if transient.is_none() && cfg.sim.transient > d {
-            cfg.sim.transient = d / 2.0;
+        sim.duration = d;
+        if transient.is_none() && sim.transient > d {
+            sim.transient = d / 2.0;
         }
     }
     if let Some(t) = transient {
-        cfg.sim.transient = t;
+        sim.transient = t;
     }
-    cfg.validate()?;
     Ok(())
 }

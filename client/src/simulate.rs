@@ -1,13 +1,13 @@
 //! `chaosctl simulate`: one deterministic closed-loop run, summarised for a person or as JSON.
 
-use crate::setup::{set_duration, ModelArgs};
+use crate::setup::ModelArgs;
+use crate::subject::{LoopVisitor, Start, Subject};
 use crate::traps::{OfflineTraps, TrapEvent};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::config::{ModelKind, ProjectionKind};
-use control::sim::run_steering;
-use control::steer::Steering;
-use control::{with_dof, ArmState, Config, Simulation, Summary, System};
+use control::sim::{run_steering, ClosedLoopLaw};
+use control::{Simulation, Summary};
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
@@ -33,10 +33,19 @@ pub struct SimulateArgs {
     pub json: bool,
 }
 
+/// What `simulate` prints, for every arm.
 #[derive(Serialize)]
 pub struct Report {
-    pub model: ModelKind,
+    /// `"planar"`, or the robot's description (a built-in name or a URDF path).
+    pub robot: String,
+    /// The planar arm's base: fixed or floating (a robot's is fixed; not printed).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model: Option<ModelKind>,
     pub n: usize,
+    /// Which rows the law tracks and along which path (`position circle`, `pose eight`).
+    pub task: String,
+    pub secondary: String,
+    pub alpha: f64,
     pub mu: f64,
     pub tau: f64,
     pub t_on: f64,
@@ -48,6 +57,9 @@ pub struct Report {
     pub final_q: Vec<f64>,
     pub final_qd: Vec<f64>,
     pub final_phi: Option<f64>,
+    /// Steered onto a planned clean cycle from the start (`safety.plan`), which replaces the
+    /// secondary task.
+    pub steered: bool,
     /// With `safety.plan`: the steering onto a planned clean cycle, or why there is none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plan: Option<String>,
@@ -57,34 +69,51 @@ pub struct Report {
     pub summary: Summary,
 }
 
-/// Runs the config to its duration, calling `each(k, t, q, qd, phi)` on every grid state
-/// k = 0 … steps, the final state at t = duration included.
-pub fn run_config(
-    cfg: &Config,
-    mut each: impl FnMut(u64, f64, &[f64], &[f64], f64) -> Result<()>,
+/// Runs the set-up to its `[sim]` duration as the daemon runs it (steered onto a planned cycle
+/// when `safety.plan` asks, the trap watch answering), calling `each(k, t, q, qd, phi)` on
+/// every grid state k = 0 … steps, the final state at t = duration included.
+pub fn run_subject(
+    subject: &Subject,
+    each: impl FnMut(u64, f64, &[f64], &[f64], f64) -> Result<()>,
 ) -> Result<Report> {
-    let n = cfg.n();
-    with_dof!(n, N => {
-        let (params, blocked) = control::plan::law_params_planned(cfg);
-        let plan = match (&params.steer, &blocked) {
+    subject.run_as_daemon(SimulateRun { each })
+}
+
+/// [`run_subject`]'s visitor: the run, the trap watch and the report.
+struct SimulateRun<F> {
+    each: F,
+}
+
+impl<F: FnMut(u64, f64, &[f64], &[f64], f64) -> Result<()>> LoopVisitor for SimulateRun<F> {
+    type Out = Report;
+    fn visit<const N: usize, L: ClosedLoopLaw<N>>(
+        mut self,
+        mut sim: Simulation<N, L>,
+        start: Start<'_>,
+    ) -> Result<Report> {
+        let subject = start.subject;
+        let (duration, transient) = subject.duration();
+        let steps = (duration / sim.dt()).round() as u64;
+        let steering = sim.law.steering();
+        let plan = match (&steering, &start.blocked) {
             (Some(_), _) => Some(format!(
                 "steering onto a planned clean cycle (pull at {} Hz)",
-                cfg.safety.plan_hz
+                subject.plan_hz()
             )),
-            (None, Some(b)) => Some(format!("no clean cycle, running without steering: {}", b.reason)),
+            (None, Some(b)) => Some(format!(
+                "no clean cycle, running without steering: {}",
+                b.reason
+            )),
             (None, None) => None,
         };
-        let x0: ArmState<N> = cfg.initial_state();
-        let mut sim = Simulation::new(cfg.model::<N>(), params, cfg.sim.dt, x0, cfg.feedback.capacity());
-        let steps = (cfg.sim.duration / cfg.sim.dt).round() as u64;
-        let mut traps = OfflineTraps::new(System::Planar(cfg.clone()), params.steer.map(Steering::Planar));
-        if let Some(b) = &blocked {
+        let mut traps = OfflineTraps::new(subject.system(), steering);
+        if let Some(b) = &start.blocked {
             traps.blocked_at_start(b);
         }
         let (mut k, mut failed) = (0u64, None);
-        let summary = run_steering(&mut sim, cfg.sim.duration, cfg.sim.transient, |t, x, out| {
+        let summary = run_steering(&mut sim, duration, transient, |t, x, out| {
             if failed.is_none() {
-                failed = each(k, t, x.q.as_slice(), x.qd.as_slice(), x.phi).err();
+                failed = (self.each)(k, t, x.q.as_slice(), x.qd.as_slice(), x.phi).err();
             }
             k += 1;
             traps.observe(t, out.flags, out.tracking_error, x.q.as_slice())
@@ -94,51 +123,48 @@ pub fn run_config(
         }
         let x = *sim.state();
         if !x.is_finite() {
-            bail!("the simulation diverged (non-finite state at t = {} s)", sim.time());
+            bail!(
+                "the simulation diverged (non-finite state at t = {} s)",
+                sim.time()
+            );
         }
         // The final state too, at t = duration.
-        each(steps, sim.time(), x.q.as_slice(), x.qd.as_slice(), x.phi)?;
+        (self.each)(steps, sim.time(), x.q.as_slice(), x.qd.as_slice(), x.phi)?;
+        let (tau, t_on) = subject.tau_and_t_on();
+        let law = subject.law();
         Ok(Report {
-            model: cfg.arm.model,
-            n,
-            mu: cfg.feedback.mu,
-            tau: cfg.tau(),
-            t_on: cfg.feedback.t_on,
-            dt: cfg.sim.dt,
-            projection: cfg.feedback.projection,
+            robot: subject.name(),
+            model: subject.base_model(),
+            n: N,
+            task: subject.task_name(),
+            secondary: law.secondary.name().into(),
+            alpha: law.alpha,
+            mu: subject.mu(),
+            tau,
+            t_on,
+            dt: sim.dt(),
+            projection: subject.feedback().projection,
             steps,
             final_time: sim.time(),
             final_q: x.q.as_slice().to_vec(),
             final_qd: x.qd.as_slice().to_vec(),
-            final_phi: (cfg.arm.model == ModelKind::Floating).then_some(x.phi),
+            final_phi: subject.floating().then_some(x.phi),
+            steered: steering.is_some(),
             plan,
             traps: traps.events,
             summary,
         })
-    })
+    }
 }
 
 pub fn run(args: SimulateArgs) -> Result<()> {
     if args.stride == 0 {
         bail!("--stride 0: must be at least 1");
     }
-    if let Some(mut cfg) = crate::spatial::load(&args.model.setup, args.model.mu)? {
-        return crate::spatial::simulate(
-            &mut cfg,
-            args.duration,
-            args.transient,
-            args.csv.as_deref(),
-            args.stride,
-            args.json,
-        );
-    }
-    let mut cfg = args.model.load()?;
-    set_duration(&mut cfg, args.duration, args.transient)?;
-    if args.stride == 0 {
-        bail!("--stride 0: must be at least 1");
-    }
-    let floating = cfg.arm.model == ModelKind::Floating;
-    let n = cfg.n();
+    let mut subject = Subject::load(&args.model.setup, args.model.mu)?;
+    subject.set_duration(args.duration, args.transient)?;
+    let floating = subject.floating();
+    let n = subject.n();
     let mut csv = match &args.csv {
         Some(path) => {
             let f = std::fs::File::create(path)
@@ -160,8 +186,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         None => None,
     };
     let stride = args.stride;
-    let last = (cfg.sim.duration / cfg.sim.dt).round() as u64;
-    let report = run_config(&cfg, |k, t, q, qd, phi| {
+    let (duration, _) = subject.duration();
+    let last = (duration / subject.dt()).round() as u64;
+    let report = run_subject(&subject, |k, t, q, qd, phi| {
         if let Some(w) = csv.as_mut() {
             if k % stride == 0 || k == last {
                 write!(w, "{t:.6}")?;
@@ -208,13 +235,19 @@ fn opt(v: Option<f64>, unit: &str) -> String {
 
 pub fn print_report(r: &Report) {
     let s = &r.summary;
-    let model = match r.model {
-        ModelKind::Fixed => "fixed base",
-        ModelKind::Floating => "floating base",
+    let arm = match r.model {
+        Some(ModelKind::Fixed) => format!("{}-link planar arm, fixed base", r.n),
+        Some(ModelKind::Floating) => format!("{}-link planar arm, floating base", r.n),
+        None => format!("{} ({} joints)", r.robot, r.n),
+    };
+    let secondary = if r.steered {
+        "none: steered onto a planned clean cycle (safety.plan)".to_string()
+    } else {
+        format!("{} (α = {})", r.secondary, r.alpha)
     };
     println!(
-        "chaosd simulation: {}-link arm, {model}, μ = {}, τ = {} s, t_on = {} s, dt = {} s{}",
-        r.n,
+        "chaosd simulation: {arm}, {} task, secondary {secondary}, μ = {}, τ = {} s, t_on = {} s, dt = {} s{}",
+        r.task,
         r.mu,
         r.tau,
         r.t_on,
@@ -242,6 +275,9 @@ pub fn print_report(r: &Report) {
         "  tracking (t ≥ {:.1} s)  RMS {:.3e} m, max {:.3e} m",
         s.transient, s.rms_tracking_error, s.max_tracking_error
     );
+    if s.max_orientation_error > 0.0 {
+        println!("  orientation err  max {:.3e} rad", s.max_orientation_error);
+    }
     if s.track_lost_fraction > 0.0 {
         println!(
             "  TRACKING LOST    {:.1}% of the time after the transient (first at t = {:.2} s); singular {:.1}%, target out of reach {:.1}%",
@@ -259,6 +295,10 @@ pub fn print_report(r: &Report) {
     println!(
         "  stroboscopic     |x(kT) − x((k−1)T)| at the end: {}",
         opt(s.strobe_return, "")
+    );
+    println!(
+        "  joint drift      {} per period (last two periods)",
+        opt(s.drift_per_period, "rad")
     );
     let verdict = match s.period_residual_final {
         Some(v) if v < 1e-6 => "periodic with period T (residual < 1e-6)",
@@ -292,6 +332,24 @@ pub fn print_report(r: &Report) {
     }
     if let Some(m) = s.min_joint_margin {
         println!("  joint limits     min margin {m:+.4} rad (negative: beyond a limit)");
+    }
+    if s.max_speed_ratio > 0.0 {
+        println!(
+            "  joint speeds     fastest {:.3} rad/s (joint {}); closest to its limit: joint {} at {:.0}%",
+            s.max_joint_speed,
+            s.max_joint_speed_joint,
+            s.max_speed_ratio_joint,
+            100.0 * s.max_speed_ratio
+        );
+        let jerk = if s.max_jerk_ratio > 0.0 {
+            format!(", {:.0}% of the jerk limit", 100.0 * s.max_jerk_ratio)
+        } else {
+            String::new()
+        };
+        println!(
+            "  joint commands   max {:.0}% of the acceleration limit{jerk}",
+            100.0 * s.max_accel_ratio
+        );
     }
     if s.safety_enabled {
         println!(

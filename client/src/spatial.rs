@@ -1,26 +1,20 @@
-//! The offline commands that still run a robot their own way (`simulate`, `orbits`, `monitor`'s
-//! watched runs) with `--preset panda` or a config file that has a `[robot]`
-//! table; `sweep`, `basins`, `lyapunov` and `poincare` run every arm through [`crate::subject::Subject`].
+//! The offline commands that still run a robot their own way (`orbits`, `monitor`'s watched
+//! runs) with `--preset panda` or a config file that has a `[robot]` table; `simulate`, `sweep`,
+//! `basins`, `lyapunov`, `poincare`, `figures` and `obstacles` run every arm through
+//! [`crate::subject::Subject`].
 //!
 //! The flags mean what they mean for the planar arm and are applied to the spatial file the same
 //! way; the run itself is [`control::law::spatial`], and the CSV keeps the planar columns
 //! (t,q1..qn,qd1..qdn) so scripts that read one read the other.
 
 use crate::setup::SetupArgs;
-use crate::traps::{OfflineTraps, TrapEvent};
 use anyhow::{bail, Context, Result};
 use control::config::spatial::is_spatial;
 use control::config::spatial::SpatialConfig;
 use control::config::spatial::SpatialSetup;
-use control::sim::spatial::run_steering;
 use control::sim::spatial::SpatialSimulation;
-use control::sim::Summary;
-use control::steer::Steering;
-use control::system::SpatialSystem;
-use control::{with_dof, with_task_rows, ArmState, System};
+use control::{with_dof, with_task_rows, ArmState};
 use serde::Serialize;
-use std::io::Write;
-use std::path::Path;
 
 /// The spatial set-up named by the flags, or None for a planar one.
 pub fn load(setup: &SetupArgs, mu: Option<f64>) -> Result<Option<SpatialConfig>> {
@@ -94,205 +88,6 @@ macro_rules! with_setup {
             with_task_rows!(kind, |$m| $body)
         })
     }};
-}
-
-/// What `simulate --json` prints for a spatial robot.
-#[derive(Serialize)]
-pub struct SpatialReport {
-    pub robot: String,
-    pub n: usize,
-    pub task: String,
-    pub mu: f64,
-    pub tau: f64,
-    pub t_on: f64,
-    pub projection: String,
-    pub secondary: String,
-    /// Steered onto a planned clean cycle (`safety.plan`), which replaces the secondary task.
-    pub steered: bool,
-    /// The trap watch's answers, as the daemon would give them (safety on).
-    pub traps: Vec<TrapEvent>,
-    pub alpha: f64,
-    pub dt: f64,
-    pub final_q: Vec<f64>,
-    pub final_qd: Vec<f64>,
-    #[serde(flatten)]
-    pub summary: Summary,
-}
-
-/// `chaosctl simulate` on a spatial robot.
-pub fn simulate(
-    cfg: &mut SpatialConfig,
-    duration: Option<f64>,
-    transient: Option<f64>,
-    csv: Option<&Path>,
-    stride: u64,
-    json: bool,
-) -> Result<()> {
-    if let Some(d) = duration {
-        cfg.sim.duration = d;
-    }
-    if let Some(t) = transient {
-        cfg.sim.transient = t;
-    }
-    let mut out = match csv {
-        Some(p) => Some(std::io::BufWriter::new(
-            std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
-        )),
-        None => None,
-    };
-    // The trap watch plans for the whole set-up, as the daemon's does.
-    let system = System::Spatial(Box::new(SpatialSystem {
-        config: cfg.clone(),
-        chain: rt::robot::load(
-            &cfg.robot.description,
-            cfg.robot.base.as_deref(),
-            cfg.robot.tip.as_deref(),
-        )?,
-    }));
-    let report = with_setup!(cfg, |s, blocked, N, M| {
-        if let Some(w) = out.as_mut() {
-            let q: Vec<String> = (1..=N).map(|i| format!("q{i}")).collect();
-            let qd: Vec<String> = (1..=N).map(|i| format!("qd{i}")).collect();
-            writeln!(w, "t,{},{}", q.join(","), qd.join(","))?;
-        }
-        let mut sim = s.simulation::<M>();
-        let mut err = None;
-        let mut k = 0u64;
-        let mut traps = OfflineTraps::new(system.clone(), s.params.steer.map(Steering::Spatial));
-        if let Some(b) = &blocked {
-            traps.blocked_at_start(b);
-        }
-        let summary = run_steering(&mut sim, s.duration, s.transient, |t, x, o| {
-            if let Some(w) = out.as_mut() {
-                if k.is_multiple_of(stride) && err.is_none() {
-                    let row: Vec<String> =
-                        x.q.iter()
-                            .chain(x.qd.iter())
-                            .map(|v| format!("{v:.9}"))
-                            .collect();
-                    err = writeln!(w, "{t:.6},{}", row.join(",")).err();
-                }
-            }
-            k += 1;
-            traps.observe(t, o.flags, o.tracking_error, x.q.as_slice())
-        });
-        if let Some(e) = err {
-            return Err(e.into());
-        }
-        let x = sim.state();
-        let mut r = report(cfg, N, s.dt, x.q.as_slice(), x.qd.as_slice(), summary);
-        r.steered = s.params.steer.is_some();
-        r.traps = traps.events;
-        r
-    });
-    if let Some(mut w) = out {
-        w.flush()?;
-    }
-    if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print(&report);
-        if let Some(p) = csv {
-            println!("  trajectory       {} (every {stride} steps)", p.display());
-        }
-    }
-    Ok(())
-}
-
-fn report(
-    cfg: &SpatialConfig,
-    n: usize,
-    dt: f64,
-    q: &[f64],
-    qd: &[f64],
-    summary: Summary,
-) -> SpatialReport {
-    SpatialReport {
-        robot: cfg.robot.description.clone(),
-        n,
-        task: format!("{} {}", cfg.task.kind, cfg.task.path),
-        mu: cfg.feedback.mu,
-        tau: cfg.feedback.tau.unwrap_or(cfg.task.period),
-        t_on: cfg.feedback.t_on,
-        projection: cfg.feedback.projection.name().into(),
-        secondary: cfg.law.secondary.name().into(),
-        steered: false,
-        traps: Vec::new(),
-        alpha: cfg.law.alpha,
-        dt,
-        final_q: q.to_vec(),
-        final_qd: qd.to_vec(),
-        summary,
-    }
-}
-
-fn opt(v: Option<f64>, unit: &str) -> String {
-    v.map(|x| format!("{x:.3e} {unit}"))
-        .unwrap_or_else(|| "n/a".into())
-}
-
-/// The human report.
-pub fn print(r: &SpatialReport) {
-    let s = &r.summary;
-    let secondary = if r.steered {
-        "none: steered onto a planned clean cycle (safety.plan)".to_string()
-    } else {
-        format!("{} (α = {})", r.secondary, r.alpha)
-    };
-    println!(
-        "{} ({} joints), {} task, {} s: secondary {secondary}, feedback μ = {} τ = {} s from t = {} s ({})",
-        r.robot, r.n, r.task, s.duration, r.mu, r.tau, r.t_on, r.projection
-    );
-    println!(
-        "  tracking error   rms {:.3e} m, max {:.3e} m",
-        s.rms_tracking_error, s.max_tracking_error
-    );
-    if s.max_orientation_error > 0.0 {
-        println!("  orientation err  max {:.3e} rad", s.max_orientation_error);
-    }
-    println!(
-        "  period residual  before {} → final {}",
-        opt(s.period_residual_before, "rad/s"),
-        opt(s.period_residual_final, "rad/s")
-    );
-    println!(
-        "  joint drift      {} per period (last two periods)",
-        opt(s.drift_per_period, "rad")
-    );
-    println!(
-        "  joint speeds     fastest {:.3} rad/s (joint {}); closest to its limit: joint {} at {:.0}%",
-        s.max_joint_speed,
-        s.max_joint_speed_joint,
-        s.max_speed_ratio_joint,
-        100.0 * s.max_speed_ratio
-    );
-    println!(
-        "  joint commands   max {:.0}% of the acceleration limit, {:.0}% of the jerk limit",
-        100.0 * s.max_accel_ratio,
-        100.0 * s.max_jerk_ratio
-    );
-    println!(
-        "  joint margin     min {} to a position limit",
-        opt(s.min_joint_margin, "rad")
-    );
-    if let Some(c) = s.min_clearance {
-        println!("  clearance        min {c:.3} m");
-    }
-    println!(
-        "  safety filter    active {:.2} s, left the null space {} steps, infeasible {} steps",
-        s.safety_active_time, s.safety_left_null_space_steps, s.safety_infeasible_steps
-    );
-    crate::traps::print(&r.traps);
-    if !s.finite {
-        println!("  the state became non-finite: the run stopped early");
-    }
-    println!(
-        "  final q          {:?}",
-        r.final_q
-            .iter()
-            .map(|v| (v * 1e4).round() / 1e4)
-            .collect::<Vec<_>>()
-    );
 }
 
 /// A run of `duration` s with the daemon's chaos monitor watching (`chaosctl monitor`).

@@ -10,10 +10,12 @@ use crate::setup::SetupArgs;
 use anyhow::{Context, Result};
 use control::analysis::{analyse_flow, find_orbit, ArmFlow, NewtonConfig, RunAnalysis, RunSpec};
 use control::config::spatial::SpatialConfig;
-use control::config::ModelKind;
+use control::config::{LawSection, ModelKind, SimSection};
 use control::model::Chain;
 use control::sim::ClosedLoopLaw;
-use control::{with_dof, with_task_rows, ArmState, Config, Simulation, VecN};
+use control::steer::Blocked;
+use control::system::SpatialSystem;
+use control::{with_dof, with_task_rows, ArmState, Config, Simulation, System, VecN};
 use std::sync::Arc;
 
 /// The planar arm's config, or a robot's with its chain (loaded once, shared by every copy).
@@ -109,16 +111,91 @@ impl Subject {
     /// This set-up from other start angles (or, with `rate`, rates), checked.
     pub fn with_start_coords(&self, rate: bool, x: Vec<f64>) -> Result<Self> {
         let mut s = self.clone();
-        let sim = match &mut s {
-            Self::Planar(c) => &mut c.sim,
-            Self::Robot(c, _) => &mut c.sim,
-        };
+        let sim = s.sim_mut();
         match rate {
             false => sim.q0 = Some(x),
             true => sim.qd0 = Some(x),
         }
         s.check()?;
         Ok(s)
+    }
+
+    /// The `[sim]` section (one type for every arm).
+    fn sim_mut(&mut self) -> &mut SimSection {
+        match self {
+            Self::Planar(c) => &mut c.sim,
+            Self::Robot(c, _) => &mut c.sim,
+        }
+    }
+
+    /// The `[law]` section (one type for every arm).
+    pub fn law(&self) -> &LawSection {
+        match self {
+            Self::Planar(c) => &c.control,
+            Self::Robot(c, _) => &c.law,
+        }
+    }
+
+    /// `--duration` and `--transient` (s), checked as every command checks them; a transient
+    /// left out is at most half the run. (A robot's whole set-up is checked when it is built.)
+    pub fn set_duration(&mut self, duration: Option<f64>, transient: Option<f64>) -> Result<()> {
+        crate::setup::set_sim_duration(self.sim_mut(), duration, transient)?;
+        if let Self::Planar(c) = self {
+            c.validate()?;
+        }
+        Ok(())
+    }
+
+    /// The `[sim]` run's duration and the transient its statistics skip (s).
+    pub fn duration(&self) -> (f64, f64) {
+        let sim = match self {
+            Self::Planar(c) => &c.sim,
+            Self::Robot(c, _) => &c.sim,
+        };
+        (sim.duration, sim.transient)
+    }
+
+    /// The rate of the pull onto a planned cycle (`safety.plan_hz`).
+    pub fn plan_hz(&self) -> f64 {
+        match self {
+            Self::Planar(c) => c.safety.plan_hz,
+            Self::Robot(c, _) => c.safety.plan_hz,
+        }
+    }
+
+    /// `"planar"`, or the robot's description.
+    pub fn name(&self) -> String {
+        match self {
+            Self::Planar(_) => control::config::planar_file::PLANAR_ROBOT.into(),
+            Self::Robot(c, _) => c.robot.description.clone(),
+        }
+    }
+
+    /// The planar arm's base model; None for a robot.
+    pub fn base_model(&self) -> Option<ModelKind> {
+        match self {
+            Self::Planar(c) => Some(c.arm.model),
+            Self::Robot(..) => None,
+        }
+    }
+
+    /// The task's rows and path: `position circle` (the planar arm's is always a position).
+    pub fn task_name(&self) -> String {
+        match self {
+            Self::Planar(c) => format!("position {}", c.task.path),
+            Self::Robot(c, _) => format!("{} {}", c.task.kind, c.task.path),
+        }
+    }
+
+    /// The whole set-up as the daemon holds it (what a trap watch plans for).
+    pub fn system(&self) -> System {
+        match self {
+            Self::Planar(c) => System::Planar(c.clone()),
+            Self::Robot(c, chain) => System::Spatial(Box::new(SpatialSystem {
+                config: (**c).clone(),
+                chain: (**chain).clone(),
+            })),
+        }
     }
 
     /// The joint count.
@@ -199,35 +276,53 @@ impl Subject {
     /// Lyapunov pair needs). A robot runs as the daemon would: steered onto a planned cycle
     /// when `safety.plan` asks.
     pub fn run_loop<V: LoopVisitor>(&self, visitor: V) -> Result<V::Out> {
-        self.run_with(visitor, true)
+        self.run_with(visitor, Plan::Robot)
     }
 
     /// [`Self::run_loop`] with the law alone, never steered onto a planned cycle (the obstacle
     /// study compares the law's own avoidance with the filter's).
     pub fn run_law<V: LoopVisitor>(&self, visitor: V) -> Result<V::Out> {
-        self.run_with(visitor, false)
+        self.run_with(visitor, Plan::Never)
     }
 
-    fn run_with<V: LoopVisitor>(&self, visitor: V, planned: bool) -> Result<V::Out> {
+    /// [`Self::run_loop`] as the daemon runs either arm: steered onto a planned cycle when
+    /// `safety.plan` asks, the delay line sized for the longest τ the file allows.
+    pub fn run_as_daemon<V: LoopVisitor>(&self, visitor: V) -> Result<V::Out> {
+        self.run_with(visitor, Plan::Every)
+    }
+
+    fn run_with<V: LoopVisitor>(&self, visitor: V, plan: Plan) -> Result<V::Out> {
+        let start = |blocked| Start {
+            subject: self,
+            blocked,
+        };
         match self {
             Self::Planar(c) => with_dof!(c.n(), N => {
-                let p = c.law_params();
                 let x0 = c.initial_state::<N>();
-                visitor.visit(Simulation::new(c.model::<N>(), p, c.sim.dt, x0, p.core.tau))
+                let (p, blocked, capacity) = match plan {
+                    Plan::Every => {
+                        let (p, blocked) = control::plan::law_params_planned(c);
+                        (p, blocked, c.feedback.capacity())
+                    }
+                    _ => {
+                        let p = c.law_params();
+                        (p, None, p.core.tau)
+                    }
+                };
+                let sim = Simulation::new(c.model::<N>(), p, c.sim.dt, x0, capacity);
+                visitor.visit(sim, start(blocked))
             }),
             Self::Robot(c, chain) => {
                 let kind = c.task_kind()?;
                 with_dof!(chain.dof(), N => {
-                    let s = if planned {
-                        let (s, blocked) = control::plan::setup_planned::<N>(c, chain)?;
-                        if let Some(b) = &blocked {
-                            eprintln!("safety.plan: no clean cycle, running without steering: {}", b.reason);
-                        }
-                        s
-                    } else {
-                        c.setup::<N>(chain)?
+                    let (s, blocked) = match plan {
+                        Plan::Never => (c.setup::<N>(chain)?, None),
+                        _ => control::plan::setup_planned::<N>(c, chain)?,
                     };
-                    with_task_rows!(kind, |M| visitor.visit(s.simulation::<M>()))
+                    if let Some(b) = &blocked {
+                        eprintln!("safety.plan: no clean cycle, running without steering: {}", b.reason);
+                    }
+                    with_task_rows!(kind, |M| visitor.visit(s.simulation::<M>(), start(blocked)))
                 })
             }
         }
@@ -272,12 +367,34 @@ impl Subject {
     }
 }
 
+/// Which arms a run steers onto a planned cycle when `safety.plan` asks.
+#[derive(Clone, Copy)]
+enum Plan {
+    /// Neither: the law alone.
+    Never,
+    /// A robot (the offline analyses; the planar arm's are the law's own).
+    Robot,
+    /// Either, as the daemon does.
+    Every,
+}
+
+/// How a run starts, beside its loop.
+pub struct Start<'a> {
+    /// The set-up the loop was built from.
+    pub subject: &'a Subject,
+    /// `safety.plan` asked for a clean cycle and none was found: the law runs unsteered.
+    pub blocked: Option<Blocked>,
+}
+
 /// What a command does with an arm's closed loop, written once for every arm
 /// ([`Subject::run_loop`] calls it with the planar arm's law or a robot's).
 pub trait LoopVisitor {
     type Out;
-    fn visit<const N: usize, L: ClosedLoopLaw<N>>(self, sim: Simulation<N, L>)
-        -> Result<Self::Out>;
+    fn visit<const N: usize, L: ClosedLoopLaw<N>>(
+        self,
+        sim: Simulation<N, L>,
+        start: Start<'_>,
+    ) -> Result<Self::Out>;
 }
 
 /// [`Subject::analyse`]: `control::analysis::analyse_flow` on the loop.
@@ -288,6 +405,7 @@ impl LoopVisitor for Analyse<'_> {
     fn visit<const N: usize, L: ClosedLoopLaw<N>>(
         self,
         sim: Simulation<N, L>,
+        _: Start<'_>,
     ) -> Result<RunAnalysis> {
         Ok(analyse_flow(ArmFlow::of(sim), self.0)?)
     }

@@ -56,7 +56,11 @@ fn the_panda_preset_prints_runs_and_keeps_the_csv_columns() {
         .chain((1..=7).map(|i| format!("qd{i}")))
         .collect();
     assert_eq!(header, want);
-    assert_eq!(lines.count(), 40);
+    // Every 100th of 4000 steps, and the end state at t = 4 s (as the planar arm's CSV has it).
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), 41);
+    assert!(rows[40].starts_with("4.000000,"), "{}", rows[40]);
+    assert_eq!(r["steps"], 4000);
     // Flags apply as for the planar arm: without feedback the residual stays large.
     let off: Value = serde_json::from_str(&ok(&chaosctl(&[
         "simulate",

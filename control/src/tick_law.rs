@@ -249,6 +249,13 @@ impl<const N: usize> crate::sim::ClosedLoopLaw<N> for TickLaw<N> {
     fn set_steering(&mut self, steering: Option<crate::steer::Steering>) {
         self.set_steer(steering)
     }
+    fn steering(&self) -> Option<crate::steer::Steering> {
+        use crate::steer::Steering;
+        match self {
+            TickLaw::Planar { params, .. } => params.steer.map(Steering::Planar),
+            TickLaw::Spatial { params, .. } => params.steer.map(Steering::Spatial),
+        }
+    }
     fn stats_setup(&self) -> crate::sim::StatsSetup {
         match self {
             TickLaw::Planar { params, .. } => crate::sim::StatsSetup::planar(params),

@@ -8,7 +8,8 @@
 
 use crate::plot::{Chart, Figure, Panel, Series, Style, DARK, GREY, PALETTE};
 use crate::setup::ModelArgs;
-use crate::simulate::run_config;
+use crate::simulate::run_subject;
+use crate::subject::Subject;
 use anyhow::{bail, Result};
 use clap::Args;
 use control::{with_dof, Config, Kinematics, VecN};
@@ -97,7 +98,7 @@ fn simulate_window(cfg: &Config, from: f64, span: f64, frames: usize) -> Result<
     };
     let (mut sq, mut count) = (0.0, 0u64);
     let path = cfg.law_params().task;
-    run_config(cfg, |k, t, q, _qd, phi| {
+    run_subject(&Subject::Planar(cfg.clone()), |k, t, q, _qd, phi| {
         if k < first {
             return Ok(());
         }

@@ -11,7 +11,7 @@
 use super::{fmt_list, fmt_num, ClassifyArgs};
 use crate::plot::{Chart, Figure, Panel, Rule, Series, Style, GREY, PALETTE};
 use crate::setup::ModelArgs;
-use crate::subject::{LoopVisitor, Subject};
+use crate::subject::{LoopVisitor, Start, Subject};
 use anyhow::{bail, Result};
 use clap::Args;
 use control::analysis::{classify, Classification, ClassifyConfig, Section};
@@ -141,6 +141,7 @@ impl LoopVisitor for TraceRun {
     fn visit<const N: usize, L: ClosedLoopLaw<N>>(
         self,
         mut sim: Simulation<N, L>,
+        _: Start<'_>,
     ) -> Result<Trace> {
         let (dt, stride, transient) = (sim.dt(), self.stride, self.transient);
         let setup = sim.law.stats_setup();

@@ -6,7 +6,7 @@
 //! the filter's activity for both. Only the simulation differs, and it is chosen here.
 
 use super::mujoco_judge::{self, MujocoJudge, Verdict};
-use crate::subject::{LoopVisitor, Subject};
+use crate::subject::{LoopVisitor, Start, Subject};
 use anyhow::Result;
 use control::analysis::{classify, ClassifyConfig, Motion, Section};
 use control::sim::{ClosedLoopLaw, RunStats};
@@ -113,6 +113,7 @@ impl LoopVisitor for CellRun<'_> {
     fn visit<const N: usize, L: ClosedLoopLaw<N>>(
         mut self,
         mut sim: Simulation<N, L>,
+        _: Start<'_>,
     ) -> Result<RunResult> {
         let (w, dt) = (self.w, sim.dt());
         let setup = sim.law.stats_setup();

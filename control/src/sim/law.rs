@@ -57,6 +57,8 @@ pub trait ClosedLoopLaw<const N: usize>: Clone {
     /// Steers the self-motion onto a planned cycle, or stops (None). A cycle planned for
     /// another kind of arm stops the steering.
     fn set_steering(&mut self, steering: Option<Steering>);
+    /// The planned cycle the law steers onto, if any (what a trap watch follows).
+    fn steering(&self) -> Option<Steering>;
 }
 
 /// The paper's planar arm (fixed or floating base) under [`crate::law::evaluate`].
@@ -98,6 +100,9 @@ impl<const N: usize> ClosedLoopLaw<N> for PlanarLaw<N> {
             _ => None,
         };
     }
+    fn steering(&self) -> Option<Steering> {
+        self.params.steer.map(Steering::Planar)
+    }
 }
 
 /// A URDF chain under [`crate::law::spatial::evaluate`] for a task of `M` rows (3: position, 6:
@@ -136,5 +141,8 @@ impl<const N: usize, const M: usize> ClosedLoopLaw<N> for SpatialLaw<N, M> {
             Some(Steering::Spatial(s)) => Some(s),
             _ => None,
         };
+    }
+    fn steering(&self) -> Option<Steering> {
+        self.params.steer.map(Steering::Spatial)
     }
 }
