@@ -13,6 +13,7 @@ use control::config::spatial::is_spatial;
 use control::config::spatial::SpatialConfig;
 use control::config::spatial::SpatialSetup;
 use control::sim::spatial::SpatialSimulation;
+use control::sim::SpatialLaw;
 use control::{with_dof, with_task_rows, ArmState};
 use serde::Serialize;
 
@@ -113,9 +114,10 @@ pub fn orbit_stability(
     spec: &control::analysis::StabilitySpec,
 ) -> Result<control::analysis::OrbitStability> {
     Ok(with_setup!(cfg, |s, N, M| {
-        let mut p = s.params;
-        p.core.mu = mu;
-        control::analysis::spatial::orbit_stability::<N, M>(&s.arm, &p, s.dt, orbit, spec)?
+        let mut params = s.params;
+        params.core.mu = mu;
+        let law = SpatialLaw::<N, M> { arm: s.arm, params };
+        control::analysis::orbit_stability_of(&law, cfg.task.period, s.dt, orbit, spec)?
     }))
 }
 
@@ -141,7 +143,7 @@ pub fn orbits(
     newton: &control::analysis::NewtonConfig,
 ) -> Result<Vec<SpatialOrbit>> {
     use control::analysis::newton_orbit;
-    use control::sim::spatial::stroboscopic_map;
+    use control::analysis::stroboscopic_map;
     let period = cfg.task.period;
     if cfg.feedback.tau.is_some_and(|t| (t - period).abs() > 1e-9) {
         bail!("orbits needs τ = T (feedback.tau = {:?} s, task.period = {period} s): only then does the feedback vanish on period-T orbits", cfg.feedback.tau);
@@ -158,7 +160,11 @@ pub fn orbits(
                 sim.step();
             }
             let seed = *sim.state();
-            let map = |x: &ArmState<N>| stroboscopic_map::<N, M>(&s.arm, &s.params, s.dt, steps, x);
+            let law = SpatialLaw::<N, M> {
+                arm: s.arm,
+                params: s.params,
+            };
+            let map = |x: &ArmState<N>| stroboscopic_map(&law, s.dt, steps, x);
             let y = map(&seed);
             let seed_residual =
                 ((y.q - seed.q).norm_squared() + (y.qd - seed.qd).norm_squared()).sqrt();
@@ -186,9 +192,11 @@ pub fn refine(cfg: &SpatialConfig, point: &[f64]) -> Option<String> {
                 bail!("a section point of {} numbers for {N} joints", point.len());
             }
             let steps = control::analysis::period_steps(s.params.task.path.period, s.dt)?;
-            let map = |x: &ArmState<N>| {
-                control::sim::spatial::stroboscopic_map::<N, M>(&s.arm, &s.params, s.dt, steps, x)
+            let law = SpatialLaw::<N, M> {
+                arm: s.arm,
+                params: s.params,
             };
+            let map = |x: &ArmState<N>| control::analysis::stroboscopic_map(&law, s.dt, steps, x);
             let seed = ArmState::<N> {
                 q: control::VecN::<N>::from_fn(|i, _| point[i]),
                 qd: control::VecN::<N>::from_fn(|i, _| point[N + i]),

@@ -23,14 +23,14 @@ pub mod lyapunov;
 pub mod orbits;
 pub mod poincare;
 pub mod run;
-pub mod spatial;
 
 pub use closed_loop::ArmFlow;
 pub use floquet::{delay_multipliers, DelayMultipliers, FloquetError, FloquetSpec};
 pub use lyapunov::{Benettin, Growth, LyapunovError, LyapunovEstimate, Trajectory};
 pub use orbits::{
-    close_returns, find_orbit, newton_orbit, orbit_stability, NewtonConfig, OrbitCatalog,
-    OrbitError, OrbitStability, PeriodicOrbit, StabilitySpec, Verdict,
+    close_returns, find_orbit, find_orbit_of, newton_orbit, orbit_stability, orbit_stability_of,
+    stroboscopic_map, NewtonConfig, OrbitCatalog, OrbitError, OrbitStability, PeriodicOrbit,
+    StabilitySpec, Verdict,
 };
 pub use poincare::{classify, zero_one_k, Classification, ClassifyConfig, Motion, Section};
 pub use run::{

@@ -33,7 +33,7 @@ use super::run::period_steps;
 use crate::arm::{ArmModel, VecN};
 use crate::basics::wrap_angle;
 use crate::law::LawParams;
-use crate::sim::{ArmState, ClosedLoopLaw, Simulation};
+use crate::sim::{ArmState, ClosedLoopLaw, PlanarLaw, Simulation};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -115,8 +115,8 @@ impl PeriodicOrbit {
     }
 }
 
-fn check_fixed<const N: usize>(model: &ArmModel<N>) -> Result<(), OrbitError> {
-    if model.is_floating() {
+fn check_fixed<const N: usize, L: ClosedLoopLaw<N>>(law: &L) -> Result<(), OrbitError> {
+    if law.is_floating() {
         return Err(OrbitError::Invalid(
             "period-T orbits need the fixed-base model: the floating base's attitude drifts, so its \
              motion does not close after one period"
@@ -134,25 +134,26 @@ fn to_state<const N: usize>(x: &DVector<f64>) -> ArmState<N> {
     }
 }
 
-/// The stroboscopic map of the uncontrolled loop: one period from t = 0.
-pub fn stroboscopic_map<const N: usize>(
-    model: &ArmModel<N>,
-    params: &LawParams,
+/// The stroboscopic map of any arm's loop without feedback: `steps` steps (one task period)
+/// from t = 0 and state `x`. On a period-T orbit the Pyragas term vanishes, so the orbits the
+/// feedback can stabilise are this map's fixed points ([`newton_orbit`]).
+pub fn stroboscopic_map<const N: usize, L: ClosedLoopLaw<N> + Clone>(
+    law: &L,
     dt: f64,
     steps: u64,
     x: &ArmState<N>,
 ) -> ArmState<N> {
-    let mut p = *params;
-    p.core.feedback = false;
-    let mut sim = Simulation::new(*model, p, dt, *x, p.core.tau);
+    let mut law = law.clone();
+    law.core_mut().feedback = false;
+    let tau = law.core().tau;
+    let mut sim = Simulation::of(law, dt, *x, tau);
     for _ in 0..steps {
         sim.step();
     }
     *sim.state()
 }
 
-/// A stroboscopic map Φ_T of some arm's loop (the planar arm's [`stroboscopic_map`], or a
-/// spatial one's `control::sim::spatial::stroboscopic_map`).
+/// A stroboscopic map Φ_T of some arm's loop ([`stroboscopic_map`] of its law).
 pub type PeriodMap<'a, const N: usize> = &'a dyn Fn(&ArmState<N>) -> ArmState<N>;
 
 /// F(x) = Φ_T(x) − x with angle differences wrapped.
@@ -176,7 +177,11 @@ pub fn monodromy<const N: usize>(
     x: &ArmState<N>,
     h: f64,
 ) -> DMatrix<f64> {
-    monodromy_of(&|y| stroboscopic_map(model, params, dt, steps, y), x, h)
+    let law = PlanarLaw {
+        model: *model,
+        params: *params,
+    };
+    monodromy_of(&|y| stroboscopic_map(&law, dt, steps, y), x, h)
 }
 
 /// DΦ_T of any period map at `x` by central differences.
@@ -197,7 +202,8 @@ pub fn monodromy_of<const N: usize>(map: PeriodMap<N>, x: &ArmState<N>, h: f64) 
     m
 }
 
-/// Newton's method on Φ_T(x) − x from `seed` (μ = 0; the fixed-base model only).
+/// Newton's method on Φ_T(x) − x from `seed` for the planar arm (μ = 0; the fixed-base model
+/// only): [`find_orbit_of`] its law.
 pub fn find_orbit<const N: usize>(
     model: &ArmModel<N>,
     params: &LawParams,
@@ -205,14 +211,24 @@ pub fn find_orbit<const N: usize>(
     seed: &ArmState<N>,
     cfg: &NewtonConfig,
 ) -> Result<PeriodicOrbit, OrbitError> {
-    check_fixed(model)?;
-    let steps =
-        period_steps(params.task.period, dt).map_err(|e| OrbitError::Invalid(e.to_string()))?;
-    newton_orbit(
-        &|y| stroboscopic_map(model, params, dt, steps, y),
-        seed,
-        cfg,
-    )
+    let law = PlanarLaw {
+        model: *model,
+        params: *params,
+    };
+    find_orbit_of(&law, params.task.period, dt, seed, cfg)
+}
+
+/// Newton's method on Φ_T(x) − x from `seed` for any arm's law (a fixed base), T = `period`.
+pub fn find_orbit_of<const N: usize, L: ClosedLoopLaw<N> + Clone>(
+    law: &L,
+    period: f64,
+    dt: f64,
+    seed: &ArmState<N>,
+    cfg: &NewtonConfig,
+) -> Result<PeriodicOrbit, OrbitError> {
+    check_fixed(law)?;
+    let steps = period_steps(period, dt).map_err(|e| OrbitError::Invalid(e.to_string()))?;
+    newton_orbit(&|y| stroboscopic_map(law, dt, steps, y), seed, cfg)
 }
 
 /// Newton's method on Φ_T(x) − x from `seed`, for any arm's period map. Joint differences are
@@ -406,7 +422,8 @@ impl Verdict {
     }
 }
 
-/// λ_max of the closed loop at `params.mu`, starting on `orbit` with its own history.
+/// λ_max of the planar arm's loop at `params.mu`, starting on `orbit` with its own history:
+/// [`orbit_stability_of`] its law.
 pub fn orbit_stability<const N: usize>(
     model: &ArmModel<N>,
     params: &LawParams,
@@ -414,15 +431,32 @@ pub fn orbit_stability<const N: usize>(
     orbit: &PeriodicOrbit,
     spec: &StabilitySpec,
 ) -> Result<OrbitStability, OrbitError> {
-    check_fixed(model)?;
-    let period = params.task.period;
-    check_stability_run(period, params.core.tau, dt, spec)?;
-    let mut p = *params;
-    p.core.t_on = period;
-    p.core.auto_mu = None;
-    let mut flow = ArmFlow::new(*model, p, dt, orbit.state::<N>());
+    let law = PlanarLaw {
+        model: *model,
+        params: *params,
+    };
+    orbit_stability_of(&law, params.task.period, dt, orbit, spec)
+}
+
+/// λ_max of any arm's loop at its own μ, starting on `orbit` (a period-T orbit of the loop
+/// without feedback, T = `period`) with its own history: one period along the orbit with the
+/// feedback off, so the delay line holds the orbit's past, then [`stability_on_orbit`].
+pub fn orbit_stability_of<const N: usize, L: ClosedLoopLaw<N> + Clone>(
+    law: &L,
+    period: f64,
+    dt: f64,
+    orbit: &PeriodicOrbit,
+    spec: &StabilitySpec,
+) -> Result<OrbitStability, OrbitError> {
+    check_fixed(law)?;
+    let (tau, mu) = (law.core().tau, law.core().mu);
+    check_stability_run(period, tau, dt, spec)?;
+    let mut law = law.clone();
+    law.core_mut().t_on = period;
+    law.core_mut().auto_mu = None;
+    let mut flow = ArmFlow::of(Simulation::of(law, dt, orbit.state::<N>(), tau));
     flow.advance_to(period);
-    stability_on_orbit(flow, orbit, period, params.core.mu, spec)
+    stability_on_orbit(flow, orbit, period, mu, spec)
 }
 
 /// The rules of a stability run: τ = T (so the feedback vanishes on a period-T orbit) and a
@@ -453,8 +487,7 @@ pub fn check_stability_run(
 /// the feedback off (so its delay line holds the orbit's own history) and switches the feedback
 /// on now. Three measures that must agree: the leading Floquet multipliers of the delayed loop
 /// ([`super::floquet`]), λ_max by Benettin's method, and the contraction rate of the section.
-/// Any arm's loop: the planar [`orbit_stability`] and a spatial robot's
-/// (`analysis::spatial::orbit_stability`).
+/// Any arm's loop ([`orbit_stability_of`]).
 pub fn stability_on_orbit<const N: usize, L: ClosedLoopLaw<N>>(
     flow: ArmFlow<N, L>,
     orbit: &PeriodicOrbit,

@@ -3,7 +3,8 @@
 //! from the delay line, time = step · dt).
 //!
 //! The loop itself is the one [`Simulation`] and a run the one [`run`]; what is spatial here is
-//! the constructor and the stroboscopic map the orbit search iterates.
+//! the constructor (the orbit search's period map is every arm's,
+//! [`crate::analysis::stroboscopic_map`]).
 
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::VecN;
@@ -43,22 +44,3 @@ impl super::StatsSetup {
 }
 
 pub use super::{run, run_steering};
-
-/// The stroboscopic map of the loop without feedback: `steps` steps (one task period) from t = 0
-/// and state `x`. On a period-T orbit the Pyragas term vanishes, so the orbits the feedback can
-/// stabilise are this map's fixed points (`control::analysis::newton_orbit`).
-pub fn stroboscopic_map<const N: usize, const M: usize>(
-    arm: &SpatialArm<N>,
-    params: &SpatialParams,
-    dt: f64,
-    steps: u64,
-    x: &ArmState<N>,
-) -> ArmState<N> {
-    let mut p = *params;
-    p.core.feedback = false;
-    let mut sim = SpatialSimulation::<N, M>::spatial(*arm, p, dt, x.q, x.qd, p.core.tau);
-    for _ in 0..steps {
-        sim.step();
-    }
-    *sim.state()
-}
