@@ -8,7 +8,7 @@
 use crate::analysis::StartArgs;
 use crate::setup::SetupArgs;
 use anyhow::{Context, Result};
-use control::analysis::{analyse_flow, find_orbit, ArmFlow, NewtonConfig, RunAnalysis, RunSpec};
+use control::analysis::{analyse_flow, find_orbit_of, ArmFlow, NewtonConfig, RunAnalysis, RunSpec};
 use control::config::spatial::SpatialConfig;
 use control::config::{LawSection, ModelKind, SimSection};
 use control::model::Chain;
@@ -338,32 +338,18 @@ impl Subject {
     }
 
     /// Newton's method at μ = 0 from a section point (q, q̇) of a run: one line on the period-T
-    /// orbit there, or None (none found; the planar arm refines on a fixed base with τ = T only).
+    /// orbit there, or None (none found; orbits are refined on a fixed base with τ = T only,
+    /// where the feedback vanishes on them).
     pub fn refine(&self, point: &[f64]) -> Option<String> {
-        match self {
-            Self::Robot(c, _) => crate::spatial::refine(c, point),
-            Self::Planar(c) => {
-                if c.arm.model != ModelKind::Fixed || (c.tau() - c.task.period).abs() > 1e-9 {
-                    return None;
-                }
-                with_dof!(c.n(), N => {
-                    if point.len() != 2 * N {
-                        return None;
-                    }
-                    let seed = ArmState::<N> {
-                        q: VecN::<N>::from_fn(|i, _| point[i]),
-                        qd: VecN::<N>::from_fn(|i, _| point[N + i]),
-                        phi: 0.0,
-                    };
-                    let o = find_orbit(&c.model::<N>(), &c.law_params(), c.sim.dt, &seed, &NewtonConfig::default()).ok()?;
-                    Some(format!(
-                        "the μ = 0 orbit through q = ({}), leading Floquet multiplier {}",
-                        crate::analysis::fmt_list(&o.q),
-                        crate::analysis::orbits::kind(&o)
-                    ))
-                })
-            }
+        let (tau, _) = self.tau_and_t_on();
+        if self.floating() || (tau - self.period()).abs() > 1e-9 || point.len() != 2 * self.n() {
+            return None;
         }
+        let refine = Refine {
+            point,
+            period: self.period(),
+        };
+        self.run_law(refine).ok()
     }
 }
 
@@ -395,6 +381,43 @@ pub trait LoopVisitor {
         sim: Simulation<N, L>,
         start: Start<'_>,
     ) -> Result<Self::Out>;
+}
+
+/// [`Subject::refine`]: Newton's method on the loop's period map from a section point.
+struct Refine<'a> {
+    point: &'a [f64],
+    period: f64,
+}
+
+impl LoopVisitor for Refine<'_> {
+    type Out = String;
+    fn visit<const N: usize, L: ClosedLoopLaw<N>>(
+        self,
+        sim: Simulation<N, L>,
+        _: Start<'_>,
+    ) -> Result<String> {
+        let p = self.point;
+        let seed = ArmState::<N> {
+            q: VecN::<N>::from_fn(|i, _| p[i]),
+            qd: VecN::<N>::from_fn(|i, _| p[N + i]),
+            phi: 0.0,
+        };
+        let newton = NewtonConfig::default();
+        let o = find_orbit_of(&sim.law, self.period, sim.dt(), &seed, &newton)?;
+        let on_circle = o
+            .multipliers
+            .iter()
+            .filter(|m| (m[0].hypot(m[1]) - 1.0).abs() < 1e-3)
+            .count();
+        Ok(format!(
+            "the μ = 0 orbit through q = ({}) (Newton residual {:.1e}): {}, largest |ρ| = {:.4}, {on_circle} of {} multipliers on the unit circle",
+            crate::analysis::fmt_list(&o.q),
+            o.residual,
+            crate::analysis::orbits::kind(&o),
+            o.max_multiplier(),
+            o.multipliers.len()
+        ))
+    }
 }
 
 /// [`Subject::analyse`]: `control::analysis::analyse_flow` on the loop.

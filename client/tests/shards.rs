@@ -245,6 +245,17 @@ fn panda_basins_shards_merge_to_the_unsharded_csv() {
     short[8] = "30";
     refused(&short, &["11 points", "at least 40"]);
     let files = merged_equals_unsharded(&dir, &scan, 4, 6);
+    // The orbits the runs settled on are refined by Newton at μ = 0 as the planar arm's are.
+    let m2 = dir.join("m2");
+    let mut args = vec!["merge", "--out", s(&m2)];
+    args.extend(files.iter().map(|f| s(f)));
+    let map = ok(&args);
+    assert!(
+        map.contains("orbit A:")
+            && map.contains("the μ = 0 orbit through q = (")
+            && map.contains("of 14 multipliers on the unit circle"),
+        "{map}"
+    );
     // A shard whose recorded run window was edited is of another grid.
     let text = std::fs::read_to_string(&files[0]).unwrap();
     let edited = text.replacen("\"90\"", "\"91\"", 1);
