@@ -1,5 +1,4 @@
-//! The offline commands that still run a robot their own way (`orbits`, `monitor`'s watched
-//! runs) with `--preset panda` or a config file that has a `[robot]` table; `simulate`, `sweep`,
+//! The offline command that still runs a robot its own way (`orbits`) with `--preset panda` or a config file that has a `[robot]` table; `simulate`, `sweep`,
 //! `basins`, `lyapunov`, `poincare`, `figures` and `obstacles` run every arm through
 //! [`crate::subject::Subject`].
 //!
@@ -89,20 +88,6 @@ macro_rules! with_setup {
             with_task_rows!(kind, |$m| $body)
         })
     }};
-}
-
-/// A run of `duration` s with the daemon's chaos monitor watching (`chaosctl monitor`).
-pub fn watch(
-    cfg: &SpatialConfig,
-    duration: f64,
-    settings: control::monitor::MonitorSettings,
-) -> Result<control::monitor::run::Watched> {
-    Ok(with_setup!(cfg, |s, N, M| {
-        let mut sim = s.simulation::<M>();
-        control::monitor::run::watch_sim(&mut sim, duration, settings, s.params.core.tau, |_, _| {
-            None
-        })
-    }))
 }
 
 /// λ_max of the loop of `cfg` at gain `mu`, starting on `orbit` with its own history (the

@@ -12,6 +12,8 @@ use control::analysis::{analyse_flow, find_orbit_of, ArmFlow, NewtonConfig, RunA
 use control::config::spatial::SpatialConfig;
 use control::config::{LawSection, ModelKind, SimSection};
 use control::model::Chain;
+use control::monitor::run::{watch_sim, Watched};
+use control::monitor::MonitorSettings;
 use control::sim::ClosedLoopLaw;
 use control::steer::Blocked;
 use control::system::SpatialSystem;
@@ -272,6 +274,12 @@ impl Subject {
         self.run_loop(Analyse(spec))
     }
 
+    /// A run of `duration` s with the daemon's chaos monitor watching (`chaosctl monitor`'s
+    /// runs without edits).
+    pub fn watch(&self, duration: f64, settings: MonitorSettings) -> Result<Watched> {
+        self.run_loop(Watch { duration, settings })
+    }
+
     /// Hands `visitor` this arm's closed loop at t = 0, its delay line holding exactly τ (as the
     /// Lyapunov pair needs). A robot runs as the daemon would: steered onto a planned cycle
     /// when `safety.plan` asks.
@@ -416,6 +424,30 @@ impl LoopVisitor for Refine<'_> {
             crate::analysis::orbits::kind(&o),
             o.max_multiplier(),
             o.multipliers.len()
+        ))
+    }
+}
+
+/// [`Subject::watch`]: the chaos monitor on the loop.
+struct Watch {
+    duration: f64,
+    settings: MonitorSettings,
+}
+
+impl LoopVisitor for Watch {
+    type Out = Watched;
+    fn visit<const N: usize, L: ClosedLoopLaw<N>>(
+        self,
+        mut sim: Simulation<N, L>,
+        _: Start<'_>,
+    ) -> Result<Watched> {
+        let tau = sim.law.core().tau;
+        Ok(watch_sim(
+            &mut sim,
+            self.duration,
+            self.settings,
+            tau,
+            |_, _| None,
         ))
     }
 }

@@ -153,13 +153,14 @@ fn spatial(args: &MonitorCmd, cfg: &control::config::spatial::SpatialConfig) -> 
         let mut c = cfg.clone();
         c.feedback.auto = mu.is_none().then_some(auto);
         c.feedback.mu = mu.unwrap_or(0.0); // checked when the run sets the robot up
+        let subject = Subject::Robot(Box::new(c), chain.clone());
         let Some(mu) = *mu else {
-            let w = crate::spatial::watch(&c, 2.0 * l.duration, settings)?;
+            let w = subject.watch(2.0 * l.duration, settings)?;
             return Ok(Done::Auto(auto_cell(0, EditKind::None, None, w)));
         };
-        let run = Subject::Robot(Box::new(c.clone()), chain.clone()).analyse(&spec)?;
+        let run = subject.analyse(&spec)?;
         let e = run.lyapunov.context("the run produced no exponent")?;
-        let w = crate::spatial::watch(&c, l.duration, settings)?;
+        let w = subject.watch(l.duration, settings)?;
         let offline = Some((e.lambda_max, e.stderr));
         Ok(Done::Fixed(fixed_cell(0, mu, tau, offline, &w)))
     })?;
