@@ -123,6 +123,13 @@ impl Subject {
     }
 
     /// The `[sim]` section (one type for every arm).
+    fn sim(&self) -> &SimSection {
+        match self {
+            Self::Planar(c) => &c.sim,
+            Self::Robot(c, _) => &c.sim,
+        }
+    }
+
     fn sim_mut(&mut self) -> &mut SimSection {
         match self {
             Self::Planar(c) => &mut c.sim,
@@ -150,11 +157,7 @@ impl Subject {
 
     /// The `[sim]` run's duration and the transient its statistics skip (s).
     pub fn duration(&self) -> (f64, f64) {
-        let sim = match self {
-            Self::Planar(c) => &c.sim,
-            Self::Robot(c, _) => &c.sim,
-        };
-        (sim.duration, sim.transient)
+        (self.sim().duration, self.sim().transient)
     }
 
     /// The rate of the pull onto a planned cycle (`safety.plan_hz`).
@@ -223,10 +226,7 @@ impl Subject {
 
     /// The integration step (s).
     pub fn dt(&self) -> f64 {
-        match self {
-            Self::Planar(c) => c.sim.dt,
-            Self::Robot(c, _) => c.sim.dt,
-        }
+        self.sim().dt
     }
 
     /// The delay τ (s) and the time the feedback comes on (s).

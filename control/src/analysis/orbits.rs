@@ -137,7 +137,7 @@ fn to_state<const N: usize>(x: &DVector<f64>) -> ArmState<N> {
 /// The stroboscopic map of any arm's loop without feedback: `steps` steps (one task period)
 /// from t = 0 and state `x`. On a period-T orbit the Pyragas term vanishes, so the orbits the
 /// feedback can stabilise are this map's fixed points ([`newton_orbit`]).
-pub fn stroboscopic_map<const N: usize, L: ClosedLoopLaw<N> + Clone>(
+pub fn stroboscopic_map<const N: usize, L: ClosedLoopLaw<N>>(
     law: &L,
     dt: f64,
     steps: u64,
@@ -219,7 +219,7 @@ pub fn find_orbit<const N: usize>(
 }
 
 /// Newton's method on Φ_T(x) − x from `seed` for any arm's law (a fixed base), T = `period`.
-pub fn find_orbit_of<const N: usize, L: ClosedLoopLaw<N> + Clone>(
+pub fn find_orbit_of<const N: usize, L: ClosedLoopLaw<N>>(
     law: &L,
     period: f64,
     dt: f64,
@@ -441,7 +441,7 @@ pub fn orbit_stability<const N: usize>(
 /// λ_max of any arm's loop at its own μ, starting on `orbit` (a period-T orbit of the loop
 /// without feedback, T = `period`) with its own history: one period along the orbit with the
 /// feedback off, so the delay line holds the orbit's past, then [`stability_on_orbit`].
-pub fn orbit_stability_of<const N: usize, L: ClosedLoopLaw<N> + Clone>(
+pub fn orbit_stability_of<const N: usize, L: ClosedLoopLaw<N>>(
     law: &L,
     period: f64,
     dt: f64,
