@@ -325,10 +325,17 @@ const DISTURBED_P99_US: f64 = 1000.0;
 const STALL_NS: u64 = 5_000_000;
 
 /// Whether the host disturbed a run, from the summaries its processes wrote (the daemon's,
-/// the plant's): more than 1 % of one's wake-ups over a period late, or one stall of
-/// [`STALL_NS`] (a wake-up that late, or the daemon waiting that long for a state).
+/// the plant's): more than 1 % of one's wake-ups over a period late, one stall of
+/// [`STALL_NS`] (a wake-up that late, or the daemon waiting that long for a state), or a
+/// plant whose states stopped coming (the daemon dropped one as stale or went to HOLD: it
+/// does so only when the plant's process misses its periods, which a stalled vCPU does
+/// without the daemon's own clock showing it).
 pub fn disturbed(summaries: &[&serde_json::Value]) -> bool {
     summaries.iter().any(|s| {
+        let c = &s["counters"];
+        let plant_stalled = ["holds_entered", "rejected_stale"]
+            .iter()
+            .any(|k| c[k].as_u64().unwrap_or(0) > 0);
         let late = &s["lateness"];
         let longest = ["late_wakes", "wait_gaps"]
             .map(|k| s["counters"][k]["max_ns"].as_u64().unwrap_or(0))
@@ -336,7 +343,9 @@ pub fn disturbed(summaries: &[&serde_json::Value]) -> bool {
             .chain([(late["max_us"].as_f64().unwrap_or(0.0) * 1e3) as u64])
             .max()
             .unwrap_or(0);
-        late["p99_us"].as_f64().unwrap_or(0.0) > DISTURBED_P99_US || longest >= STALL_NS
+        plant_stalled
+            || late["p99_us"].as_f64().unwrap_or(0.0) > DISTURBED_P99_US
+            || longest >= STALL_NS
     })
 }
 
