@@ -14,7 +14,6 @@ mod robot;
 mod setup;
 mod simulate;
 mod spatial;
-mod spatial_figure;
 mod subject;
 mod traps;
 
@@ -60,8 +59,9 @@ enum Command {
     /// Obstacle avoidance over starts × μ: the paper's potential vs the safety filter (contact,
     /// clearance, tracking, Poincaré class), CSV + plot.
     Obstacles(analysis::obstacles::ObstaclesCmd),
-    /// The arm itself at several instants of one period, filter off and on side by side, with
-    /// the circle, the obstacles and their clearance rings (PNG + SVG).
+    /// The arm itself at several instants of one period (from above, or in space from the side
+    /// and the front) with its path, the obstacles and their clearance rings, and its joint
+    /// angles over its last periods; filter off and on where there are obstacles (PNG + SVG).
     ArmFigure(analysis::arm_figure::ArmFigureCmd),
     /// Whether a clean periodic posture cycle exists for a set-up (the planar arm: a grid search;
     /// a URDF robot: cycles relaxed from several starts): its smallest clearance and the planning

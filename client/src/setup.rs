@@ -156,12 +156,6 @@ impl SetupArgs {
     }
 }
 
-impl ModelArgs {
-    pub fn load(&self) -> Result<Config> {
-        self.setup.load_with_mu(self.mu)
-    }
-}
-
 /// `--duration` and `--transient` on any arm's `[sim]` (the caller checks the whole set-up).
 pub fn set_sim_duration(
     sim: &mut control::config::SimSection,

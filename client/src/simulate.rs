@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::config::{ModelKind, ProjectionKind};
 use control::sim::{run_steering, ClosedLoopLaw};
-use control::{Simulation, Summary};
+use control::{ArmState, Simulation, Summary};
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
@@ -69,12 +69,36 @@ pub struct Report {
     pub summary: Summary,
 }
 
+/// One state of a run as [`run_subject`] hands it out.
+pub struct Visited<'a> {
+    /// The grid step (t = k·dt) and its time (s).
+    pub k: u64,
+    pub t: f64,
+    pub q: &'a [f64],
+    pub qd: &'a [f64],
+    /// The planar floating base's attitude (0 for every other arm).
+    pub phi: f64,
+    /// What the law made of this state; None for the final one, from which no step is taken.
+    pub law: Option<LawView>,
+}
+
+/// What the law saw at one state: the tool, how far it is from its target, the clearance.
+#[derive(Clone, Copy, Debug)]
+pub struct LawView {
+    /// The tool point in the base frame (z = 0 in the plane).
+    pub p: control::task::Vec3,
+    /// |p_d − p| (m).
+    pub tracking_error: f64,
+    /// To the nearest obstacle's surface (m; negative: a link inside; +∞ without obstacles).
+    pub clearance: f64,
+}
+
 /// Runs the set-up to its `[sim]` duration as the daemon runs it (steered onto a planned cycle
-/// when `safety.plan` asks, the trap watch answering), calling `each(k, t, q, qd, phi)` on
-/// every grid state k = 0 … steps, the final state at t = duration included.
+/// when `safety.plan` asks, the trap watch answering), handing `each` every grid state
+/// k = 0 … steps, the final state at t = duration included.
 pub fn run_subject(
     subject: &Subject,
-    each: impl FnMut(u64, f64, &[f64], &[f64], f64) -> Result<()>,
+    each: impl FnMut(&Visited<'_>) -> Result<()>,
 ) -> Result<Report> {
     subject.run_as_daemon(SimulateRun { each })
 }
@@ -84,7 +108,7 @@ struct SimulateRun<F> {
     each: F,
 }
 
-impl<F: FnMut(u64, f64, &[f64], &[f64], f64) -> Result<()>> LoopVisitor for SimulateRun<F> {
+impl<F: FnMut(&Visited<'_>) -> Result<()>> LoopVisitor for SimulateRun<F> {
     type Out = Report;
     fn visit<const N: usize, L: ClosedLoopLaw<N>>(
         mut self,
@@ -113,7 +137,12 @@ impl<F: FnMut(u64, f64, &[f64], &[f64], f64) -> Result<()>> LoopVisitor for Simu
         let (mut k, mut failed) = (0u64, None);
         let summary = run_steering(&mut sim, duration, transient, |t, x, out| {
             if failed.is_none() {
-                failed = (self.each)(k, t, x.q.as_slice(), x.qd.as_slice(), x.phi).err();
+                let law = LawView {
+                    p: out.p,
+                    tracking_error: out.tracking_error,
+                    clearance: out.clearance,
+                };
+                failed = (self.each)(&visited(k, t, x, Some(law))).err();
             }
             k += 1;
             traps.observe(t, out.flags, out.tracking_error, x.q.as_slice())
@@ -129,7 +158,7 @@ impl<F: FnMut(u64, f64, &[f64], &[f64], f64) -> Result<()>> LoopVisitor for Simu
             );
         }
         // The final state too, at t = duration.
-        (self.each)(steps, sim.time(), x.q.as_slice(), x.qd.as_slice(), x.phi)?;
+        (self.each)(&visited(steps, sim.time(), &x, None))?;
         let (tau, t_on) = subject.tau_and_t_on();
         let law = subject.law();
         Ok(Report {
@@ -188,14 +217,14 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     let stride = args.stride;
     let (duration, _) = subject.duration();
     let last = (duration / subject.dt()).round() as u64;
-    let report = run_subject(&subject, |k, t, q, qd, phi| {
+    let report = run_subject(&subject, |v| {
         if let Some(w) = csv.as_mut() {
-            if k % stride == 0 || k == last {
-                write!(w, "{t:.6}")?;
+            if v.k % stride == 0 || v.k == last {
+                write!(w, "{:.6}", v.t)?;
                 if floating {
-                    write!(w, ",{phi:.9}")?;
+                    write!(w, ",{:.9}", v.phi)?;
                 }
-                for v in q.iter().chain(qd) {
+                for v in v.q.iter().chain(v.qd) {
                     write!(w, ",{v:.9}")?;
                 }
                 writeln!(w)?;
@@ -219,6 +248,17 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+fn visited<const N: usize>(k: u64, t: f64, x: &ArmState<N>, law: Option<LawView>) -> Visited<'_> {
+    Visited {
+        k,
+        t,
+        q: x.q.as_slice(),
+        qd: x.qd.as_slice(),
+        phi: x.phi,
+        law,
+    }
 }
 
 fn fmt_vec(v: &[f64]) -> String {

@@ -235,6 +235,23 @@ impl Subject {
         (f.tau_for(self.period()), f.t_on)
     }
 
+    /// The space the arm moves in: 2 (a planar arm, seen from above) or 3.
+    pub fn dims(&self) -> usize {
+        match self {
+            Self::Planar(_) => 2,
+            Self::Robot(..) => 3,
+        }
+    }
+
+    /// Replaces the file's obstacles by the `--obstacle` flags, when there are any (discs
+    /// X,Y,R on a planar arm, spheres X,Y,Z,R on a robot), checked against the set-up.
+    pub fn set_obstacles(&mut self, args: &crate::analysis::obstacles::ObstacleArgs) -> Result<()> {
+        match self {
+            Self::Planar(c) => args.apply(c),
+            Self::Robot(c, _) => args.apply_spatial(c),
+        }
+    }
+
     /// Whether this is the paper's 3-link planar arm (whose sweep has the paper's three starts).
     pub fn is_planar_3_link(&self) -> bool {
         matches!(self, Self::Planar(c) if c.n() == 3)

@@ -146,7 +146,7 @@ fn lyapunov_sweep_and_arm_figure_run_on_the_panda() {
     assert_eq!(p["points"], 46);
     assert!(tmp("poincare").with_extension("csv").exists());
     let fig = tmp("arm");
-    ok(&chaosctl(&[
+    let out = ok(&chaosctl(&[
         "arm-figure",
         "--preset",
         "panda",
@@ -158,6 +158,30 @@ fn lyapunov_sweep_and_arm_figure_run_on_the_panda() {
         fig.to_str().unwrap(),
     ]));
     assert!(fig.with_extension("png").exists());
+    assert!(out.contains("filter on : t = 2…4 s, no obstacles"), "{out}");
+    // A sphere the links sweep through: drawn twice, and only the filter keeps them out.
+    let out = ok(&chaosctl(&[
+        "arm-figure",
+        "--preset",
+        "panda",
+        "--obstacle",
+        "0.5,0.2,0.5,0.1",
+        "--from",
+        "2",
+        "--frames",
+        "3",
+        "--output",
+        fig.to_str().unwrap(),
+    ]));
+    let clearance = |filter: &str| -> f64 {
+        let line = out.lines().find(|l| l.starts_with(filter)).unwrap();
+        let v = line.split("min clearance ").nth(1).unwrap();
+        v.split(' ').next().unwrap().parse().unwrap()
+    };
+    assert!(clearance("filter off") < 0.0, "{out}");
+    assert!(clearance("filter on ") > 0.0, "{out}");
+    let svg = std::fs::read_to_string(fig.with_extension("svg")).unwrap();
+    assert!(svg.contains("side (x–z), filter on") && svg.contains("front (y–z)"));
 }
 
 #[test]

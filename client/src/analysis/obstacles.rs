@@ -167,11 +167,12 @@ struct Base {
 }
 
 /// What the law does about obstacles with the filter off, for secondary task `secondary`.
-fn without_filter(potential: bool, secondary: &str) -> String {
-    if potential {
-        "the paper's potential".into()
-    } else {
-        format!("the law alone (secondary task {secondary})")
+/// What keeps the arm off an obstacle when the filter is off: the paper's potential, or
+/// nothing but the law's own secondary task.
+pub fn without_filter(secondary: &SecondaryKind) -> String {
+    match secondary {
+        SecondaryKind::Obstacles => "the paper's potential".into(),
+        other => format!("the law alone (secondary task {other})"),
     }
 }
 
@@ -200,10 +201,7 @@ fn base(args: &ObstaclesCmd) -> Result<Base> {
         robot.check()?;
         return Ok(Base {
             obstacles,
-            off: without_filter(
-                c.law.secondary == SecondaryKind::Obstacles,
-                c.law.secondary.name(),
-            ),
+            off: without_filter(&c.law.secondary),
             clearance: c.safety.clearance,
             q0: c.sim.start().to_vec(),
             arm: robot,
@@ -223,10 +221,7 @@ fn base(args: &ObstaclesCmd) -> Result<Base> {
             .collect(),
         clearance: base.safety.clearance,
         q0: base.q0(),
-        off: without_filter(
-            base.control.secondary == control::config::SecondaryKind::Obstacles,
-            &format!("{:?}", base.control.secondary).to_lowercase(),
-        ),
+        off: without_filter(&base.control.secondary),
         arm: Subject::Planar(base),
     })
 }

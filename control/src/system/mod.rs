@@ -18,6 +18,7 @@ use crate::safety::SafetySection;
 use crate::sim::ArmState;
 use crate::tick_law::{ParamBlock, TickLaw};
 
+mod figure;
 mod obstacles;
 pub use obstacles::ObstacleRow;
 

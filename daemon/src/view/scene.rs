@@ -58,7 +58,7 @@ impl Scene {
     pub fn of(system: &System) -> Scene {
         // One period once the path is up to speed: the start-up ramp (`task.ramp`) is not part
         // of the loop the tool goes round.
-        let (base, joints, links, urdf, obstacles, task, geometry) = match system {
+        let (base, joints, links, urdf, obstacles, geometry) = match system {
             System::Planar(c) => {
                 let n = c.n();
                 let geometry: Box<dyn Geometry> =
@@ -71,15 +71,14 @@ impl Scene {
                     (1..=n).map(|i| format!("link{i}")).collect(),
                     Some(planar_urdf(&c.arm.links)),
                     obstacles.collect(),
-                    Some(c.law_params().task),
                     geometry,
                 )
             }
             System::Spatial(s) => {
                 let chain = &s.chain;
-                let (geometry, task): (Box<dyn Geometry>, _) = control::with_dof!(chain.dof(), N => match s.config.setup::<N>(chain) {
-                    Ok(setup) => (Box::new(Spatial::<N> { arm: setup.arm }), Some(setup.params.task.path)),
-                    Err(_) => (Box::new(Nothing(N)), None),
+                let geometry: Box<dyn Geometry> = control::with_dof!(chain.dof(), N => match s.config.setup::<N>(chain) {
+                    Ok(setup) => Box::new(Spatial::<N> { arm: setup.arm }),
+                    Err(_) => Box::new(Nothing(N)),
                 });
                 let obstacles = s.config.obstacles.iter().map(|o| (o.center, o.radius));
                 (
@@ -88,11 +87,11 @@ impl Scene {
                     chain.joints.iter().map(|j| j.links[0].clone()).collect(),
                     rt::robot::text(&s.config.robot.description).ok(),
                     obstacles.collect(),
-                    task,
                     geometry,
                 )
             }
         };
+        let task = system.path().ok();
         let path = match &task {
             Some(p) => (0..=PATH_POINTS)
                 .map(|k| position(p, p.ramp + p.period * k as f64 / PATH_POINTS as f64))
