@@ -8,7 +8,10 @@
 use crate::analysis::StartArgs;
 use crate::setup::SetupArgs;
 use anyhow::{Context, Result};
-use control::analysis::{analyse_flow, find_orbit_of, ArmFlow, NewtonConfig, RunAnalysis, RunSpec};
+use control::analysis::{
+    analyse_flow, find_orbit_of, orbit_stability_of, stroboscopic_map, ArmFlow, NewtonConfig,
+    OrbitStability, PeriodicOrbit, RunAnalysis, RunSpec, StabilitySpec,
+};
 use control::config::spatial::SpatialConfig;
 use control::config::{LawSection, ModelKind, SimSection};
 use control::model::Chain;
@@ -370,11 +373,55 @@ impl Subject {
         if self.floating() || (tau - self.period()).abs() > 1e-9 || point.len() != 2 * self.n() {
             return None;
         }
-        let refine = Refine {
-            point,
+        let o = self.find_orbit(point).ok()?;
+        let on_circle = o
+            .multipliers
+            .iter()
+            .filter(|m| (m[0].hypot(m[1]) - 1.0).abs() < 1e-3)
+            .count();
+        Some(format!(
+            "the μ = 0 orbit through q = ({}) (Newton residual {:.1e}): {}, largest |ρ| = {:.4}, {on_circle} of {} multipliers on the unit circle",
+            crate::analysis::fmt_list(&o.q),
+            o.residual,
+            crate::analysis::orbits::kind(&o),
+            o.max_multiplier(),
+            o.multipliers.len()
+        ))
+    }
+
+    /// The state (q, q̇) after `periods` task periods of the loop from its start, at its own
+    /// μ (steered onto a planned cycle where a robot's `safety.plan` asks, as every analysis).
+    pub fn end_state(&self, periods: u64) -> Result<Vec<f64>> {
+        let period = self.period();
+        self.run_loop(EndState { periods, period })
+    }
+
+    /// Newton's method on the law's period map Φ_T (the feedback off: with τ = T it vanishes
+    /// on a period-T orbit) from the state `point` = (q, q̇); the law alone, never steered.
+    pub fn find_orbit(&self, point: &[f64]) -> Result<PeriodicOrbit> {
+        let period = self.period();
+        self.run_law(FindOrbit { point, period })?
+            .map_err(anyhow::Error::msg)
+    }
+
+    /// |Φ_T(x) − x| at the state `point` = (q, q̇): how far it is from a period-T orbit.
+    pub fn period_map_residual(&self, point: &[f64]) -> Result<f64> {
+        let period = self.period();
+        self.run_law(MapResidual { point, period })
+    }
+
+    /// λ_max of the loop at its own μ, starting on `orbit` (a period-T orbit of the loop
+    /// without feedback) with the orbit's own history; the law alone, never steered.
+    pub fn orbit_stability(
+        &self,
+        orbit: &PeriodicOrbit,
+        spec: &StabilitySpec,
+    ) -> Result<OrbitStability> {
+        self.run_law(OnOrbit {
+            orbit,
+            spec,
             period: self.period(),
-        };
-        self.run_law(refine).ok()
+        })
     }
 }
 
@@ -408,40 +455,107 @@ pub trait LoopVisitor {
     ) -> Result<Self::Out>;
 }
 
-/// [`Subject::refine`]: Newton's method on the loop's period map from a section point.
-struct Refine<'a> {
+/// The arm's state (q, q̇) from `point`, refused when it has the wrong length.
+fn state_of<const N: usize>(point: &[f64]) -> Result<ArmState<N>> {
+    if point.len() != 2 * N {
+        anyhow::bail!(
+            "a state of this arm has {} numbers, not {}",
+            2 * N,
+            point.len()
+        );
+    }
+    Ok(ArmState::<N> {
+        q: VecN::<N>::from_fn(|i, _| point[i]),
+        qd: VecN::<N>::from_fn(|i, _| point[N + i]),
+        phi: 0.0,
+    })
+}
+
+/// [`Subject::find_orbit`]: a found orbit, or Newton's failure as text (the caller decides
+/// whether that is an error).
+struct FindOrbit<'a> {
     point: &'a [f64],
     period: f64,
 }
 
-impl LoopVisitor for Refine<'_> {
-    type Out = String;
+impl LoopVisitor for FindOrbit<'_> {
+    type Out = Result<PeriodicOrbit, String>;
     fn visit<const N: usize, L: ClosedLoopLaw<N>>(
         self,
         sim: Simulation<N, L>,
         _: Start<'_>,
-    ) -> Result<String> {
-        let p = self.point;
-        let seed = ArmState::<N> {
-            q: VecN::<N>::from_fn(|i, _| p[i]),
-            qd: VecN::<N>::from_fn(|i, _| p[N + i]),
-            phi: 0.0,
-        };
+    ) -> Result<Self::Out> {
+        let seed = state_of::<N>(self.point)?;
         let newton = NewtonConfig::default();
-        let o = find_orbit_of(&sim.law, self.period, sim.dt(), &seed, &newton)?;
-        let on_circle = o
-            .multipliers
-            .iter()
-            .filter(|m| (m[0].hypot(m[1]) - 1.0).abs() < 1e-3)
-            .count();
-        Ok(format!(
-            "the μ = 0 orbit through q = ({}) (Newton residual {:.1e}): {}, largest |ρ| = {:.4}, {on_circle} of {} multipliers on the unit circle",
-            crate::analysis::fmt_list(&o.q),
-            o.residual,
-            crate::analysis::orbits::kind(&o),
-            o.max_multiplier(),
-            o.multipliers.len()
-        ))
+        let found = find_orbit_of(&sim.law, self.period, sim.dt(), &seed, &newton);
+        Ok(found.map_err(|e| e.to_string()))
+    }
+}
+
+/// [`Subject::period_map_residual`].
+struct MapResidual<'a> {
+    point: &'a [f64],
+    period: f64,
+}
+
+impl LoopVisitor for MapResidual<'_> {
+    type Out = f64;
+    fn visit<const N: usize, L: ClosedLoopLaw<N>>(
+        self,
+        sim: Simulation<N, L>,
+        _: Start<'_>,
+    ) -> Result<f64> {
+        let x = state_of::<N>(self.point)?;
+        let steps = control::analysis::period_steps(self.period, sim.dt())?;
+        let y = stroboscopic_map(&sim.law, sim.dt(), steps, &x);
+        Ok(((y.q - x.q).norm_squared() + (y.qd - x.qd).norm_squared()).sqrt())
+    }
+}
+
+/// [`Subject::end_state`].
+struct EndState {
+    periods: u64,
+    period: f64,
+}
+
+impl LoopVisitor for EndState {
+    type Out = Vec<f64>;
+    fn visit<const N: usize, L: ClosedLoopLaw<N>>(
+        self,
+        mut sim: Simulation<N, L>,
+        _: Start<'_>,
+    ) -> Result<Vec<f64>> {
+        let steps = control::analysis::period_steps(self.period, sim.dt())?;
+        for _ in 0..self.periods * steps {
+            sim.step();
+        }
+        let x = sim.state();
+        Ok(x.q.iter().chain(x.qd.iter()).copied().collect())
+    }
+}
+
+/// [`Subject::orbit_stability`].
+struct OnOrbit<'a> {
+    orbit: &'a PeriodicOrbit,
+    spec: &'a StabilitySpec,
+    period: f64,
+}
+
+impl LoopVisitor for OnOrbit<'_> {
+    type Out = OrbitStability;
+    fn visit<const N: usize, L: ClosedLoopLaw<N>>(
+        self,
+        sim: Simulation<N, L>,
+        _: Start<'_>,
+    ) -> Result<OrbitStability> {
+        let (law, dt) = (&sim.law, sim.dt());
+        Ok(orbit_stability_of(
+            law,
+            self.period,
+            dt,
+            self.orbit,
+            self.spec,
+        )?)
     }
 }
 

@@ -8,17 +8,17 @@
 //! are orbits of the μ = 0 loop up to the discretisation error, and Newton polishes them).
 
 use super::parallel::{jobs, run_all};
-use super::{analyse_config, fmt_list, ScanModelArgs, StartArgs};
+use super::{fmt_list, ScanModelArgs, StartArgs};
 use crate::plot::{Chart, Figure, Panel, Series, Style, PALETTE};
 use crate::setup::{parse_list, FloatList};
+use crate::subject::Subject;
 use anyhow::{bail, Result};
 use clap::Args;
 use control::analysis::{
-    close_returns, find_orbit, orbit_stability, ClassifyConfig, NewtonConfig, OrbitCatalog,
-    OrbitStability, PeriodicOrbit, RunSpec, StabilitySpec, Verdict,
+    close_returns, ClassifyConfig, OrbitCatalog, OrbitStability, PeriodicOrbit, RunSpec,
+    StabilitySpec, Verdict,
 };
 use control::config::ModelKind;
-use control::{with_dof, ArmState, Config, VecN};
 use plotters::style::RGBColor;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -211,15 +211,16 @@ fn fmt_windows(w: &[[f64; 2]]) -> String {
         .join(", ")
 }
 
+/// A seeding run: the closest returns of a μ = 0 run, or where a feedback run settled.
 enum Seeding {
-    CloseReturns(Config),
-    Settled(Config),
+    CloseReturns(Subject),
+    Settled(Subject),
 }
 
 pub fn run(args: OrbitsCmd) -> Result<()> {
     if let Some(mut cfg) = crate::spatial::load(&args.model.setup, None)? {
         cfg.task.ramp = periodic_path(cfg.task.ramp);
-        return spatial(&args, &cfg);
+        return spatial(&args, &Subject::robot(cfg)?);
     }
     let (mut base, mus) = args.model.load("0:3:0.1")?;
     base.task.ramp = periodic_path(base.task.ramp);
@@ -256,12 +257,12 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
     for s in &starts {
         let mut c = s.clone();
         c.feedback.mu = 0.0;
-        seeding.push(Seeding::CloseReturns(c));
+        seeding.push(Seeding::CloseReturns(Subject::Planar(c)));
         for &m in &args.seed_mu.0 {
             let mut c = s.clone();
             c.feedback.mu = m;
             c.validate()?;
-            seeding.push(Seeding::Settled(c));
+            seeding.push(Seeding::Settled(Subject::Planar(c)));
         }
     }
     let run_spec = RunSpec {
@@ -272,7 +273,8 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
     };
     let nseeds = args.seeds;
     let seeds: Vec<Vec<Vec<f64>>> = run_all(&seeding, threads, "seeding runs", |s| match s {
-        Seeding::CloseReturns(c) => analyse_config(c, &run_spec)
+        Seeding::CloseReturns(arm) => arm
+            .analyse(&run_spec)
             .map(|a| {
                 close_returns(&a.section, nseeds)
                     .into_iter()
@@ -280,7 +282,8 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
                     .collect()
             })
             .unwrap_or_default(),
-        Seeding::Settled(c) => analyse_config(c, &run_spec)
+        Seeding::Settled(arm) => arm
+            .analyse(&run_spec)
             .ok()
             .filter(|a| a.classification.motion.period() == Some(1))
             .map(|a| vec![a.final_coords])
@@ -290,17 +293,9 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
 
     // 2. Newton from every seed; 3. distinct orbits in seed order.
     let n = base.n();
-    let newton = NewtonConfig::default();
-    let found: Vec<Option<PeriodicOrbit>> = run_all(&seeds, threads, "Newton", |x| {
-        with_dof!(n, N => {
-            let seed = ArmState::<N> {
-                q: VecN::<N>::from_fn(|i, _| x[i]),
-                qd: VecN::<N>::from_fn(|i, _| x[N + i]),
-                phi: 0.0,
-            };
-            find_orbit(&base.model::<N>(), &base.law_params(), base.sim.dt, &seed, &newton).ok()
-        })
-    })?;
+    let arm = Subject::Planar(base.clone());
+    let found: Vec<Option<PeriodicOrbit>> =
+        run_all(&seeds, threads, "Newton", |x| arm.find_orbit(x).ok())?;
     let converged = found.iter().filter(|o| o.is_some()).count();
     let mut catalog = OrbitCatalog::new(2 * n, n, 1e-6);
     let mut orbits: Vec<PeriodicOrbit> = Vec::new();
@@ -314,18 +309,7 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
     let cells: Vec<(usize, f64)> = (0..orbits.len())
         .flat_map(|i| mus.iter().map(move |m| (i, *m)))
         .collect();
-    let stab: Vec<Result<OrbitStability, String>> = run_all(
-        &cells,
-        threads,
-        "stability",
-        |(i, mu)| {
-            let mut p = base.law_params();
-            p.core.mu = *mu;
-            with_dof!(n, N => {
-                orbit_stability(&base.model::<N>(), &p, base.sim.dt, &orbits[*i], &spec).map_err(|e| e.to_string())
-            })
-        },
-    )?;
+    let stab = stability(&arm, &orbits, &cells, threads, &spec)?;
     let reports = reports(orbits, &mus, stab, base.task.period);
     let files = plot(&args.output, &reports, &mus, &spec, true)?;
     if args.json {
@@ -581,33 +565,86 @@ fn plot(
 /// monodromy is good to about 1e-6).
 const UNIT_CIRCLE: f64 = 1e-3;
 
+/// λ_max of each (orbit, μ) cell on `arm`, in parallel.
+fn stability(
+    arm: &Subject,
+    orbits: &[PeriodicOrbit],
+    cells: &[(usize, f64)],
+    threads: usize,
+    spec: &StabilitySpec,
+) -> Result<Vec<Result<OrbitStability, String>>> {
+    run_all(cells, threads, "stability", |(i, mu)| {
+        let mut a = arm.clone();
+        a.set_mu(*mu);
+        a.orbit_stability(&orbits[*i], spec)
+            .map_err(|e| format!("{e:#}"))
+    })
+}
+
+/// One seed of `orbits` on a robot: where the loop with feedback gain `seed_mu` ended (at a
+/// multiple of T), and the μ = 0 period-T orbit Newton's method found from there.
+#[derive(Serialize)]
+pub struct SeededOrbit {
+    pub seed_mu: f64,
+    /// |Φ_T(x) − x| at the seed, with the feedback off: how far the seed already was from a
+    /// period-T orbit.
+    pub seed_residual: f64,
+    pub orbit: Result<PeriodicOrbit, String>,
+    /// ln|largest multiplier| / T at μ = 0 (1/s): > 0, unstable without the feedback.
+    pub floquet_exponent: Option<f64>,
+}
+
+/// For each gain, the loop run `duration` s (rounded to whole periods), then the μ = 0
+/// loop's period-T orbit from the end state.
+fn settled_orbits(arm: &Subject, gains: &[f64], duration: f64) -> Result<Vec<SeededOrbit>> {
+    let period = arm.period();
+    let (tau, _) = arm.tau_and_t_on();
+    if (tau - period).abs() > 1e-9 {
+        bail!("orbits needs τ = T (feedback.tau = {tau} s, task.period = {period} s): only then does the feedback vanish on period-T orbits");
+    }
+    let mut out = Vec::new();
+    for &mu in gains {
+        let mut a = arm.clone();
+        a.set_mu(mu);
+        let seed = a.end_state((duration / period).round() as u64)?;
+        let orbit = arm.find_orbit(&seed).map_err(|e| format!("{e:#}"));
+        out.push(SeededOrbit {
+            seed_mu: mu,
+            seed_residual: arm.period_map_residual(&seed)?,
+            floquet_exponent: orbit.as_ref().ok().map(|o| o.floquet_exponent(period)),
+            orbit,
+        });
+    }
+    Ok(out)
+}
+
 /// A spatial robot: the orbit each seeding gain's run settles on, found again at μ = 0, and its
 /// Floquet multipliers there; with `--mu`, each distinct orbit's λ_max over μ as for the planar
 /// arm (the same stability run, table and figure).
-fn spatial(args: &OrbitsCmd, cfg: &control::config::spatial::SpatialConfig) -> Result<()> {
+fn spatial(args: &OrbitsCmd, arm: &Subject) -> Result<()> {
+    let period = arm.period();
     let scan = match &args.model.mu {
-        Some(m) => Some((m.0.clone(), stability_spec(args, cfg.task.period)?)),
+        Some(m) => Some((m.0.clone(), stability_spec(args, period)?)),
         None => None,
     };
-    if !(args.seed_duration.is_finite() && args.seed_duration >= cfg.task.period) {
+    if !(args.seed_duration.is_finite() && args.seed_duration >= period) {
         bail!(
-            "--seed-duration {}: must be at least one period ({} s)",
+            "--seed-duration {}: must be at least one period ({period} s)",
             args.seed_duration,
-            cfg.task.period
         );
     }
     let mut gains = args.seed_mu.0.clone();
-    if cfg.feedback.mu > 0.0 && !gains.contains(&cfg.feedback.mu) {
-        gains.insert(0, cfg.feedback.mu);
+    if arm.mu() > 0.0 && !gains.contains(&arm.mu()) {
+        gains.insert(0, arm.mu());
     }
     for &m in &gains {
         if !(m.is_finite() && (0.0..=100.0).contains(&m)) {
             bail!("--seed-mu {m}: each gain must be in [0, 100]");
         }
     }
-    let found = crate::spatial::orbits(cfg, &gains, args.seed_duration, &NewtonConfig::default())?;
+    let found = settled_orbits(arm, &gains, args.seed_duration)?;
     let reports = match &scan {
-        Some((mus, spec)) => Some(spatial_scan(args, cfg, &found, mus, spec)?),
+        Some((mus, spec)) => Some(spatial_scan(args, arm, &found, mus, spec)?),
         None => None,
     };
     let files = match (&reports, &scan) {
@@ -622,11 +659,10 @@ fn spatial(args: &OrbitsCmd, cfg: &control::config::spatial::SpatialConfig) -> R
         return Ok(());
     }
     println!(
-        "period-T orbits of {} at μ = 0 (T = {} s), seeded by {} s runs with feedback from t = {} s:",
-        cfg.describe(),
-        cfg.task.period,
+        "period-T orbits of {} at μ = 0 (T = {period} s), seeded by {} s runs with feedback from t = {} s:",
+        arm.describe(),
         args.seed_duration,
-        cfg.feedback.t_on
+        arm.tau_and_t_on().1
     );
     for o in &found {
         let what = match &o.orbit {
@@ -669,12 +705,12 @@ fn spatial(args: &OrbitsCmd, cfg: &control::config::spatial::SpatialConfig) -> R
 /// The distinct orbits the seeds found, each with its λ_max at every μ of `mus` (in parallel).
 fn spatial_scan(
     args: &OrbitsCmd,
-    cfg: &control::config::spatial::SpatialConfig,
-    found: &[crate::spatial::SpatialOrbit],
+    arm: &Subject,
+    found: &[SeededOrbit],
     mus: &[f64],
     spec: &StabilitySpec,
 ) -> Result<Vec<OrbitReport>> {
-    let n = cfg.sim.start().len();
+    let n = arm.n();
     let mut catalog = OrbitCatalog::new(2 * n, n, 1e-6);
     let mut orbits: Vec<PeriodicOrbit> = Vec::new();
     for o in found.iter().filter_map(|o| o.orbit.as_ref().ok()) {
@@ -685,10 +721,8 @@ fn spatial_scan(
     let cells: Vec<(usize, f64)> = (0..orbits.len())
         .flat_map(|i| mus.iter().map(move |m| (i, *m)))
         .collect();
-    let stab = run_all(&cells, jobs(args.jobs), "stability", |(i, mu)| {
-        crate::spatial::orbit_stability(cfg, &orbits[*i], *mu, spec).map_err(|e| format!("{e:#}"))
-    })?;
-    Ok(reports(orbits, mus, stab, cfg.task.period))
+    let stab = stability(arm, &orbits, &cells, jobs(args.jobs), spec)?;
+    Ok(reports(orbits, mus, stab, arm.period()))
 }
 
 /// Each orbit with its stability at every μ (`stab`: orbit-major, μ inner) and its name.
