@@ -8,7 +8,6 @@ mod export;
 mod exporter;
 mod plan;
 mod plan_map;
-mod plan_map_spatial;
 mod plot;
 mod robot;
 mod setup;

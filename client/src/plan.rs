@@ -75,9 +75,10 @@ pub fn run(a: &PlanCmd) -> Result<()> {
             radii: &radii,
             cells: a.map_cells.unwrap_or(25),
             at: a.map_at,
+            offset: a.map_offset,
             threads: a.jobs,
         };
-        let line = crate::plan_map::run(&cfg, &settings, &spec, prefix)?;
+        let line = crate::plan_map::planar(&cfg, &settings, &spec, prefix)?;
         println!("{line}");
         return Ok(());
     }
@@ -137,7 +138,7 @@ fn spatial(a: &PlanCmd, mut cfg: control::config::spatial::SpatialConfig) -> Res
             .map_radii
             .as_ref()
             .map_or(vec![0.06, 0.1], |r| r.0.clone());
-        let spec = crate::plan_map_spatial::SpatialMapSpec {
+        let spec = crate::plan_map::MapSpec {
             radii: &radii,
             cells: a.map_cells.unwrap_or(13),
             at: a.map_at,
@@ -146,7 +147,7 @@ fn spatial(a: &PlanCmd, mut cfg: control::config::spatial::SpatialConfig) -> Res
         };
         println!(
             "{}",
-            crate::plan_map_spatial::run(&system, &settings, &spec, prefix)?
+            crate::plan_map::spatial(&system, &settings, &spec, prefix)?
         );
         return Ok(());
     }
