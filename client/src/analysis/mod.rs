@@ -27,9 +27,7 @@ pub mod sweep;
 use crate::setup::{parse_list, FloatList, SetupArgs};
 use anyhow::{bail, Result};
 use clap::Args;
-use control::analysis::{
-    analyse, check_reachable, period_steps, ClassifyConfig, LyapunovSpec, RunAnalysis, RunSpec,
-};
+use control::analysis::{check_reachable, period_steps, ClassifyConfig, LyapunovSpec, RunSpec};
 use control::{with_dof, Config};
 use std::f64::consts::FRAC_PI_2;
 
@@ -271,13 +269,6 @@ pub fn check_config(cfg: &Config) -> Result<()> {
         check_reachable(&cfg.model::<N>(), &cfg.law_params(), &cfg.initial_state::<N>())?;
     });
     Ok(())
-}
-
-/// Runs one analysed trajectory for a validated config.
-pub fn analyse_config(cfg: &Config, spec: &RunSpec) -> Result<RunAnalysis> {
-    with_dof!(cfg.n(), N => {
-        Ok(analyse(cfg.model::<N>(), cfg.law_params(), cfg.sim.dt, cfg.initial_state::<N>(), spec)?)
-    })
 }
 
 /// "a, b, c" with 3 decimals.

@@ -11,7 +11,7 @@
 
 use super::monitor_cells::{AutoCell, EditKind, FixedCell, Offline};
 use super::parallel::{jobs, run_all};
-use super::{analyse_config, ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
+use super::{ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
 use crate::subject::Subject;
 use anyhow::{Context, Result};
 use clap::Args;
@@ -210,7 +210,8 @@ fn fixed(
     spec: &control::analysis::RunSpec,
     s: MonitorSettings,
 ) -> FixedCell {
-    let offline = analyse_config(c, spec)
+    let offline = Subject::Planar(c.clone())
+        .analyse(spec)
         .ok()
         .and_then(|a| a.lyapunov)
         .map(|l| (l.lambda_max, l.stderr));
