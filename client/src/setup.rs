@@ -6,7 +6,8 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use control::config::{ModelKind, ProjectionKind};
+use control::config::spatial::{SpatialConfig, SphereEntry};
+use control::config::{ModelKind, ObstacleConfig, ProjectionKind};
 use control::Config;
 use std::path::PathBuf;
 
@@ -175,4 +176,70 @@ pub fn set_sim_duration(
         sim.transient = t;
     }
     Ok(())
+}
+
+/// `--obstacle X,Y,R[,MARGIN]` (a sphere X,Y,Z,R[,MARGIN] for a robot), repeated: replaces the
+/// configuration's obstacles.
+#[derive(Args, Debug, Clone)]
+pub struct ObstacleArgs {
+    /// An obstacle at (X, Y) with radius R (m) and the paper's potential margin (default 0.1 m);
+    /// for a URDF robot a sphere X,Y,Z,R[,MARGIN]. Repeat for several. Replaces the obstacles of
+    /// the config file or preset.
+    #[arg(long = "obstacle", value_parser = parse_list, allow_hyphen_values = true, value_name = "X,Y,R[,MARGIN]")]
+    pub obstacles: Vec<FloatList>,
+}
+
+impl ObstacleArgs {
+    /// Puts the given obstacles into `cfg` (validated by the caller's `Config::validate`).
+    pub fn apply(&self, cfg: &mut Config) -> Result<()> {
+        if self.obstacles.is_empty() {
+            return Ok(());
+        }
+        cfg.control.obstacles = self
+            .obstacles
+            .iter()
+            .map(|o| match o.0.as_slice() {
+                &[x, y, r] => Ok(ObstacleConfig {
+                    center: [x, y],
+                    radius: r,
+                    margin: 0.1,
+                }),
+                &[x, y, r, m] => Ok(ObstacleConfig {
+                    center: [x, y],
+                    radius: r,
+                    margin: m,
+                }),
+                v => bail!("--obstacle {v:?}: expected X,Y,R or X,Y,R,MARGIN"),
+            })
+            .collect::<Result<_>>()?;
+        cfg.validate()?;
+        Ok(())
+    }
+
+    /// Puts the given spheres into a robot's `cfg` (checked against its chain by the caller).
+    pub fn apply_spatial(&self, cfg: &mut SpatialConfig) -> Result<()> {
+        if self.obstacles.is_empty() {
+            return Ok(());
+        }
+        cfg.obstacles = self
+            .obstacles
+            .iter()
+            .map(|o| match o.0.as_slice() {
+                &[x, y, z, r] => Ok(SphereEntry {
+                    center: [x, y, z],
+                    radius: r,
+                    margin: 0.1,
+                }),
+                &[x, y, z, r, m] => Ok(SphereEntry {
+                    center: [x, y, z],
+                    radius: r,
+                    margin: m,
+                }),
+                v => bail!(
+                    "--obstacle {v:?}: a robot's obstacle is a sphere X,Y,Z,R or X,Y,Z,R,MARGIN"
+                ),
+            })
+            .collect::<Result<_>>()?;
+        Ok(())
+    }
 }

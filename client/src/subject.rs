@@ -248,7 +248,7 @@ impl Subject {
 
     /// Replaces the file's obstacles by the `--obstacle` flags, when there are any (discs
     /// X,Y,R on a planar arm, spheres X,Y,Z,R on a robot), checked against the set-up.
-    pub fn set_obstacles(&mut self, args: &crate::analysis::obstacles::ObstacleArgs) -> Result<()> {
+    pub fn set_obstacles(&mut self, args: &crate::setup::ObstacleArgs) -> Result<()> {
         match self {
             Self::Planar(c) => args.apply(c),
             Self::Robot(c, _) => args.apply_spatial(c),
@@ -383,7 +383,7 @@ impl Subject {
             "the μ = 0 orbit through q = ({}) (Newton residual {:.1e}): {}, largest |ρ| = {:.4}, {on_circle} of {} multipliers on the unit circle",
             crate::analysis::fmt_list(&o.q),
             o.residual,
-            crate::analysis::orbits::kind(&o),
+            o.kind(),
             o.max_multiplier(),
             o.multipliers.len()
         ))

@@ -16,86 +16,19 @@ use super::parallel::{jobs, run_all};
 use super::shard::{self, Grid, Loaded, Shard};
 use super::{fmt_list, ClassifyArgs};
 use crate::plot::{with_ext, Chart, Figure, Panel, Rule, Series, Style, DARK, GREY, PALETTE};
+pub use crate::setup::ObstacleArgs;
 use crate::setup::{parse_list, FloatList, SetupArgs};
 use crate::subject::Subject;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use control::config::spatial::{SpatialConfig, SphereEntry};
-use control::config::ObstacleConfig;
 use control::config::SecondaryKind;
-use control::{Config, Summary};
+use control::Summary;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// The basin grid's range of the first joint angle (rad): `basins`' default `q1=-1.5:1.5:0.125`.
 const Q1_RANGE: (f64, f64) = (-1.5, 1.5);
-
-/// `--obstacle X,Y,R[,MARGIN]` (a sphere X,Y,Z,R[,MARGIN] for a robot), repeated: replaces the
-/// configuration's obstacles.
-#[derive(Args, Debug, Clone)]
-pub struct ObstacleArgs {
-    /// An obstacle at (X, Y) with radius R (m) and the paper's potential margin (default 0.1 m);
-    /// for a URDF robot a sphere X,Y,Z,R[,MARGIN]. Repeat for several. Replaces the obstacles of
-    /// the config file or preset.
-    #[arg(long = "obstacle", value_parser = parse_list, allow_hyphen_values = true, value_name = "X,Y,R[,MARGIN]")]
-    pub obstacles: Vec<FloatList>,
-}
-
-impl ObstacleArgs {
-    /// Puts the given obstacles into `cfg` (validated by the caller's `Config::validate`).
-    pub fn apply(&self, cfg: &mut Config) -> Result<()> {
-        if self.obstacles.is_empty() {
-            return Ok(());
-        }
-        cfg.control.obstacles = self
-            .obstacles
-            .iter()
-            .map(|o| match o.0.as_slice() {
-                &[x, y, r] => Ok(ObstacleConfig {
-                    center: [x, y],
-                    radius: r,
-                    margin: 0.1,
-                }),
-                &[x, y, r, m] => Ok(ObstacleConfig {
-                    center: [x, y],
-                    radius: r,
-                    margin: m,
-                }),
-                v => bail!("--obstacle {v:?}: expected X,Y,R or X,Y,R,MARGIN"),
-            })
-            .collect::<Result<_>>()?;
-        cfg.validate()?;
-        Ok(())
-    }
-
-    /// Puts the given spheres into a robot's `cfg` (checked against its chain by the caller).
-    pub fn apply_spatial(&self, cfg: &mut SpatialConfig) -> Result<()> {
-        if self.obstacles.is_empty() {
-            return Ok(());
-        }
-        cfg.obstacles = self
-            .obstacles
-            .iter()
-            .map(|o| match o.0.as_slice() {
-                &[x, y, z, r] => Ok(SphereEntry {
-                    center: [x, y, z],
-                    radius: r,
-                    margin: 0.1,
-                }),
-                &[x, y, z, r, m] => Ok(SphereEntry {
-                    center: [x, y, z],
-                    radius: r,
-                    margin: m,
-                }),
-                v => bail!(
-                    "--obstacle {v:?}: a robot's obstacle is a sphere X,Y,Z,R or X,Y,Z,R,MARGIN"
-                ),
-            })
-            .collect::<Result<_>>()?;
-        Ok(())
-    }
-}
 
 #[derive(Args, Debug)]
 pub struct ObstaclesCmd {

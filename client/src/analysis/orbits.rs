@@ -95,42 +95,6 @@ pub fn orbit_name(i: usize) -> String {
     s
 }
 
-/// What the leading Floquet multiplier says about an orbit at μ = 0.
-pub fn kind(o: &PeriodicOrbit) -> String {
-    let Some(&[re, im]) = o.multipliers.first() else {
-        return "unknown".into();
-    };
-    let m = re.hypot(im);
-    let odd = o
-        .multipliers
-        .iter()
-        .filter(|z| z[1].abs() < 1e-9 && z[0] > 1.0)
-        .count()
-        % 2
-        == 1;
-    if im.abs() > 1e-9 && (m - 1.0).abs() < 1e-4 {
-        format!(
-            "elliptic (|ρ| = 1, rotation {:.3} rad per period)",
-            im.atan2(re).abs()
-        )
-    } else if m < 1.0 - 1e-4 {
-        "stable".into()
-    } else if im.abs() > 1e-9 {
-        format!("unstable focus (|ρ| = {m:.3})")
-    } else if re > 0.0 {
-        format!(
-            "hyperbolic (ρ = {re:.3}){}",
-            if odd {
-                ", odd number of real ρ > 1: Pyragas control cannot stabilise it"
-            } else {
-                ""
-            }
-        )
-    } else {
-        format!("hyperbolic with reflection (ρ = {re:.3})")
-    }
-}
-
 fn windows(mus: &[f64], stab: &[Result<OrbitStability, String>]) -> Vec<[f64; 2]> {
     let mut out: Vec<[f64; 2]> = Vec::new();
     let mut open: Option<[f64; 2]> = None;
@@ -743,7 +707,7 @@ fn reports(
                 floquet_windows: floquet_windows(&rates),
                 fastest: rates.into_iter().min_by(|a, b| a[1].total_cmp(&b[1])),
                 id: orbit_name(i),
-                kind: kind(&o),
+                kind: o.kind(),
                 floquet_exponent: o.floquet_exponent(period),
                 stable_windows: windows(mus, &s),
                 stability: s,

@@ -103,6 +103,43 @@ impl PeriodicOrbit {
     pub fn floquet_exponent(&self, period: f64) -> f64 {
         self.max_multiplier().ln() / period
     }
+    /// What the leading Floquet multiplier says about the orbit at μ = 0: stable, elliptic,
+    /// an unstable focus, hyperbolic (with the odd-number limitation of Pyragas control named).
+    pub fn kind(&self) -> String {
+        let Some(&[re, im]) = self.multipliers.first() else {
+            return "unknown".into();
+        };
+        let m = re.hypot(im);
+        let odd = self
+            .multipliers
+            .iter()
+            .filter(|z| z[1].abs() < 1e-9 && z[0] > 1.0)
+            .count()
+            % 2
+            == 1;
+        if im.abs() > 1e-9 && (m - 1.0).abs() < 1e-4 {
+            format!(
+                "elliptic (|ρ| = 1, rotation {:.3} rad per period)",
+                im.atan2(re).abs()
+            )
+        } else if m < 1.0 - 1e-4 {
+            "stable".into()
+        } else if im.abs() > 1e-9 {
+            format!("unstable focus (|ρ| = {m:.3})")
+        } else if re > 0.0 {
+            format!(
+                "hyperbolic (ρ = {re:.3}){}",
+                if odd {
+                    ", odd number of real ρ > 1: Pyragas control cannot stabilise it"
+                } else {
+                    ""
+                }
+            )
+        } else {
+            format!("hyperbolic with reflection (ρ = {re:.3})")
+        }
+    }
+
     pub fn coords(&self) -> Vec<f64> {
         self.q.iter().chain(&self.qd).copied().collect()
     }
@@ -542,4 +579,45 @@ pub fn stability_on_orbit<const N: usize, L: ClosedLoopLaw<N>>(
         max_distance,
         verdict,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::PeriodicOrbit;
+
+    fn orbit(multipliers: &[[f64; 2]]) -> PeriodicOrbit {
+        PeriodicOrbit {
+            q: vec![0.0; 3],
+            qd: vec![0.0; 3],
+            residual: 0.0,
+            iterations: 1,
+            multipliers: multipliers.to_vec(),
+        }
+    }
+
+    #[test]
+    fn an_orbit_is_named_by_its_leading_multipliers() {
+        assert_eq!(orbit(&[]).kind(), "unknown");
+        assert_eq!(orbit(&[[0.5, 0.0]]).kind(), "stable");
+        let (c, s) = (1.24f64.cos(), 1.24f64.sin());
+        assert_eq!(
+            orbit(&[[c, s], [c, -s]]).kind(),
+            "elliptic (|ρ| = 1, rotation 1.240 rad per period)"
+        );
+        assert_eq!(
+            orbit(&[[1.2, 0.9], [1.2, -0.9]]).kind(),
+            "unstable focus (|ρ| = 1.500)"
+        );
+        // One real multiplier above 1: Pyragas control cannot stabilise it (odd-number rule);
+        // two can be.
+        assert!(orbit(&[[2.0, 0.0]]).kind().contains("cannot stabilise"));
+        assert_eq!(
+            orbit(&[[2.0, 0.0], [1.5, 0.0]]).kind(),
+            "hyperbolic (ρ = 2.000)"
+        );
+        assert_eq!(
+            orbit(&[[-2.0, 0.0]]).kind(),
+            "hyperbolic with reflection (ρ = -2.000)"
+        );
+    }
 }
