@@ -392,22 +392,19 @@ impl Subject {
     /// The state (q, q̇) after `periods` task periods of the loop from its start, at its own
     /// μ (steered onto a planned cycle where a robot's `safety.plan` asks, as every analysis).
     pub fn end_state(&self, periods: u64) -> Result<Vec<f64>> {
-        let period = self.period();
-        self.run_loop(EndState { periods, period })
+        self.run_loop(EndState { periods })
     }
 
     /// Newton's method on the law's period map Φ_T (the feedback off: with τ = T it vanishes
     /// on a period-T orbit) from the state `point` = (q, q̇); the law alone, never steered.
     pub fn find_orbit(&self, point: &[f64]) -> Result<PeriodicOrbit> {
-        let period = self.period();
-        self.run_law(FindOrbit { point, period })?
+        self.run_law(FindOrbit { point })?
             .map_err(anyhow::Error::msg)
     }
 
     /// |Φ_T(x) − x| at the state `point` = (q, q̇): how far it is from a period-T orbit.
     pub fn period_map_residual(&self, point: &[f64]) -> Result<f64> {
-        let period = self.period();
-        self.run_law(MapResidual { point, period })
+        self.run_law(MapResidual { point })
     }
 
     /// λ_max of the loop at its own μ, starting on `orbit` (a period-T orbit of the loop
@@ -417,11 +414,7 @@ impl Subject {
         orbit: &PeriodicOrbit,
         spec: &StabilitySpec,
     ) -> Result<OrbitStability> {
-        self.run_law(OnOrbit {
-            orbit,
-            spec,
-            period: self.period(),
-        })
+        self.run_law(OnOrbit { orbit, spec })
     }
 }
 
@@ -475,7 +468,6 @@ fn state_of<const N: usize>(point: &[f64]) -> Result<ArmState<N>> {
 /// whether that is an error).
 struct FindOrbit<'a> {
     point: &'a [f64],
-    period: f64,
 }
 
 impl LoopVisitor for FindOrbit<'_> {
@@ -483,11 +475,11 @@ impl LoopVisitor for FindOrbit<'_> {
     fn visit<const N: usize, L: ClosedLoopLaw<N>>(
         self,
         sim: Simulation<N, L>,
-        _: Start<'_>,
+        start: Start<'_>,
     ) -> Result<Self::Out> {
         let seed = state_of::<N>(self.point)?;
         let newton = NewtonConfig::default();
-        let found = find_orbit_of(&sim.law, self.period, sim.dt(), &seed, &newton);
+        let found = find_orbit_of(&sim.law, start.subject.period(), sim.dt(), &seed, &newton);
         Ok(found.map_err(|e| e.to_string()))
     }
 }
@@ -495,7 +487,6 @@ impl LoopVisitor for FindOrbit<'_> {
 /// [`Subject::period_map_residual`].
 struct MapResidual<'a> {
     point: &'a [f64],
-    period: f64,
 }
 
 impl LoopVisitor for MapResidual<'_> {
@@ -503,10 +494,10 @@ impl LoopVisitor for MapResidual<'_> {
     fn visit<const N: usize, L: ClosedLoopLaw<N>>(
         self,
         sim: Simulation<N, L>,
-        _: Start<'_>,
+        start: Start<'_>,
     ) -> Result<f64> {
         let x = state_of::<N>(self.point)?;
-        let steps = control::analysis::period_steps(self.period, sim.dt())?;
+        let steps = control::analysis::period_steps(start.subject.period(), sim.dt())?;
         let y = stroboscopic_map(&sim.law, sim.dt(), steps, &x);
         Ok(((y.q - x.q).norm_squared() + (y.qd - x.qd).norm_squared()).sqrt())
     }
@@ -515,7 +506,6 @@ impl LoopVisitor for MapResidual<'_> {
 /// [`Subject::end_state`].
 struct EndState {
     periods: u64,
-    period: f64,
 }
 
 impl LoopVisitor for EndState {
@@ -523,9 +513,9 @@ impl LoopVisitor for EndState {
     fn visit<const N: usize, L: ClosedLoopLaw<N>>(
         self,
         mut sim: Simulation<N, L>,
-        _: Start<'_>,
+        start: Start<'_>,
     ) -> Result<Vec<f64>> {
-        let steps = control::analysis::period_steps(self.period, sim.dt())?;
+        let steps = control::analysis::period_steps(start.subject.period(), sim.dt())?;
         for _ in 0..self.periods * steps {
             sim.step();
         }
@@ -538,7 +528,6 @@ impl LoopVisitor for EndState {
 struct OnOrbit<'a> {
     orbit: &'a PeriodicOrbit,
     spec: &'a StabilitySpec,
-    period: f64,
 }
 
 impl LoopVisitor for OnOrbit<'_> {
@@ -546,12 +535,12 @@ impl LoopVisitor for OnOrbit<'_> {
     fn visit<const N: usize, L: ClosedLoopLaw<N>>(
         self,
         sim: Simulation<N, L>,
-        _: Start<'_>,
+        start: Start<'_>,
     ) -> Result<OrbitStability> {
         let (law, dt) = (&sim.law, sim.dt());
         Ok(orbit_stability_of(
             law,
-            self.period,
+            start.subject.period(),
             dt,
             self.orbit,
             self.spec,
