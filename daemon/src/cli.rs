@@ -363,9 +363,10 @@ fn demo(
     };
     // The Panda's self-motion settles over tens of periods (docs/panda-study.md): a planar
     // demo's 25 s would end before the feedback had shown anything.
-    let duration = duration.unwrap_or(match s.system {
-        control::System::Planar(_) => 25.0,
-        control::System::Spatial(_) => 60.0,
+    let duration = duration.unwrap_or(if s.system.robot().is_some() {
+        60.0
+    } else {
+        25.0
     });
     check_duration(duration)?;
     // Same-cycle is the better default wherever the set-up does not say otherwise (a built-in
@@ -495,7 +496,7 @@ fn use_mujoco(
     plant: &mut toml::Table,
     model: Option<PathBuf>,
 ) -> Result<()> {
-    if let control::System::Planar(_) = system {
+    if system.robot().is_none() {
         bail!("--plant mujoco simulates a robot's URDF; the paper's planar arm has no mass model: try --robot panda");
     }
     plant.insert("dynamics".into(), "mujoco".into());
@@ -521,7 +522,7 @@ fn choose_command(
     limiter: bool,
 ) -> Result<()> {
     use control::command::CommandMode;
-    let control::System::Spatial(sp) = system else {
+    let Some(r) = system.robot_mut() else {
         if let Some(m) = mode.filter(|&m| m != CommandMode::Acceleration) {
             bail!("--mode {m}: the paper's planar arm has no mass model and takes accelerations only; try --robot panda");
         }
@@ -532,11 +533,12 @@ fn choose_command(
         }
         return Ok(());
     };
+    let command = &mut r.config.command;
     if let Some(m) = mode {
-        sp.config.command.mode = m;
+        command.mode = m;
     }
-    sp.config.command.limiter = limiter;
-    if sp.config.command.mode != CommandMode::Acceleration && !plant.contains_key("dynamics") {
+    command.limiter = limiter;
+    if command.mode != CommandMode::Acceleration && !plant.contains_key("dynamics") {
         plant.insert("dynamics".into(), "rigid-body".into());
     }
     Ok(())

@@ -95,9 +95,9 @@ pub const FAKEBOT_SUMMARY: &str = "fakebot-summary.json";
 
 fn arm(r: &Run) -> String {
     let s = r.setup;
-    let mode = match &s.system {
-        control::System::Spatial(sp) => format!(", {} mode", sp.config.command.mode),
-        control::System::Planar(_) => String::new(),
+    let mode = match s.system.robot() {
+        Some(r) => format!(", {} mode", r.config.command.mode),
+        None => String::new(),
     };
     format!(
         "{}{mode}, {} Hz, {}; {}",
@@ -434,9 +434,9 @@ fn mujoco_contact(c: &Value) -> String {
 /// A robot set-up's command interface and the device's reflexes.
 fn robot(r: &Run) -> Vec<Line> {
     let d = r.daemon;
-    let control::System::Spatial(_) = r.setup.system else {
+    if r.setup.system.robot().is_none() {
         return vec![];
-    };
+    }
     vec![
         Line::detail(
             "command",

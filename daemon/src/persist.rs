@@ -10,8 +10,7 @@
 //! Not kept: the delay-line history (a restarted daemon starts a fresh one, as after HOLD), the
 //! histograms and counters (each run writes its own files).
 
-use control::config::spatial::SpatialConfig;
-use control::{Config, ConfigError, System};
+use control::{ConfigError, System};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -38,50 +37,45 @@ pub struct LiveState {
     pub file: Option<String>,
 }
 
-/// The saved set-up: a planar file's tables, or a spatial one's (told apart by its `[robot]`).
+/// The saved set-up: the config file's text as [`System::to_toml`] writes it, without its
+/// `[daemon]` and `[plant]` tables, kept as a TOML table (so the state file nests it). Read back
+/// through [`System::parse`], as any config file: the planar arm in either of its forms or a
+/// robot, whose description is read anew.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
-// Built when the live state is saved or loaded, never on the loop: size does not matter.
-#[allow(clippy::large_enum_variant)]
-pub enum SavedSystem {
-    Spatial(SpatialConfig),
-    Planar(Config),
-}
+#[serde(transparent)]
+pub struct SavedSystem(toml::Table);
 
 impl SavedSystem {
     /// `system` without its `[daemon]` and `[plant]` tables.
     pub fn of(system: &System) -> Self {
-        let mut s = system.clone();
-        let (d, p) = s.tables_mut();
-        (*d, *p) = (None, None);
-        match s {
-            System::Planar(c) => SavedSystem::Planar(c),
-            System::Spatial(b) => SavedSystem::Spatial(b.config),
-        }
+        let text = settings_text(system);
+        // The text is TOML that System::to_toml wrote from a valid set-up: it reads back.
+        SavedSystem(toml::from_str(&text).unwrap_or_default())
     }
 
-    /// The set-up again (a spatial one's robot description is read anew), validated.
+    /// The set-up again (a robot's description is read anew), validated.
     pub fn to_system(&self) -> Result<System, ConfigError> {
-        match self {
-            SavedSystem::Planar(c) => {
-                c.validate()?;
-                Ok(System::Planar(c.clone()))
-            }
-            SavedSystem::Spatial(c) => System::spatial(c.clone(), &rt::robot::resolve),
-        }
+        let text = toml::to_string(&self.0).map_err(|e| ConfigError::Parse(e.to_string()))?;
+        System::parse(&text, &rt::robot::resolve)
     }
+}
+
+/// A config's settings as TOML, without its `[daemon]` and `[plant]` tables.
+fn settings_text(system: &System) -> String {
+    let mut s = system.clone();
+    let (d, p) = s.tables_mut();
+    (*d, *p) = (None, None);
+    s.to_toml()
 }
 
 /// A stable fingerprint of a config's settings (without `[daemon]` and `[plant]`): FNV-1a 64
 /// of their TOML.
 pub fn fingerprint(system: &System) -> String {
-    let text = match SavedSystem::of(system) {
-        SavedSystem::Planar(c) => c.to_toml_string(),
-        SavedSystem::Spatial(c) => c.to_toml(),
-    };
-    let h = text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-    });
+    let h = settings_text(system)
+        .bytes()
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+        });
     format!("{h:016x}")
 }
 
@@ -164,6 +158,7 @@ pub fn clear(output_dir: &Path) -> std::io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use control::Config;
 
     #[test]
     fn a_saved_state_reads_back_and_bad_ones_are_refused_by_name() {
@@ -184,7 +179,7 @@ mod tests {
             t: 123.5,
             saved_unix_s: unix_now() + 1e3, // in the future: no time added
             fault: Some("joint 2 rate".into()),
-            system: SavedSystem::Planar(system),
+            system: SavedSystem::of(&System::Planar(system)),
             file: Some("0123456789abcdef".into()),
         };
         save(&dir, &s).unwrap();
@@ -215,7 +210,7 @@ mod tests {
             t: 50.0,
             saved_unix_s: unix_now(),
             fault: Some("joint 2 rate".into()),
-            system: SavedSystem::Planar(live.clone()),
+            system: SavedSystem::of(&System::Planar(live.clone())),
             file: Some(fingerprint(&file)),
         };
         // The same file: the live change is resumed.
@@ -238,6 +233,29 @@ mod tests {
             ..saved
         };
         assert_eq!(mu_kv(&adopt(old, &edited).0).0, 1.3);
+    }
+
+    /// States saved by the daemon of November 2026, when the planar set-up was kept in its
+    /// older table form: a restart after an upgrade resumes them.
+    #[test]
+    fn states_saved_by_an_older_daemon_still_load() {
+        let planar: LiveState = toml::from_str(include_str!(
+            "../tests/fixtures/live-state-planar-2026-11.toml"
+        ))
+        .unwrap();
+        let mut want = Config::preset("demo").unwrap();
+        want.feedback.mu = 1.3;
+        assert_eq!(planar.system.to_system().unwrap(), System::Planar(want));
+        let panda: LiveState = toml::from_str(include_str!(
+            "../tests/fixtures/live-state-panda-2026-11.toml"
+        ))
+        .unwrap();
+        let want = rt::robot::preset("panda").unwrap();
+        assert_eq!(panda.system.to_system().unwrap(), want);
+        assert_eq!(
+            fingerprint(&panda.system.to_system().unwrap()),
+            fingerprint(&want)
+        );
     }
 
     #[test]

@@ -14,11 +14,11 @@
 use crate::config::{Dynamics, PlantConfig};
 use crate::seam::{Actuation, Plant, PlantError};
 use control::command::Command;
-use control::command::{CommandMode, JointLimits};
+use control::command::CommandMode;
 use control::hold;
 use control::rigid_body::Device;
 use control::sim::{plant_derivative, rk4_step};
-use control::{ArmModel, ArmState, ConfigError, FixedArm, System, VecN};
+use control::{ArmModel, ArmState, ConfigError, System, VecN};
 use protocol::{flags, StateSample};
 
 /// How the arm moves between two reads.
@@ -87,13 +87,13 @@ impl<const N: usize> SimPlant<N> {
     /// The kinematic arm a config describes: the planar arm's model (a floating base turns), or
     /// a URDF chain on its fixed base. `N` must be `system.n()`.
     pub fn for_system(system: &System, period: f64, substeps: u32, brake_gain: f64) -> Self {
-        let model = match system {
-            System::Planar(c) => c.model::<N>(),
-            // The kinematic plant integrates q̈ alone: a fixed base has φ̇ = 0 and the link
-            // lengths are never read.
-            System::Spatial(_) => ArmModel::Fixed(FixedArm::new([0.0; N])),
-        };
-        Self::new(model, system.initial_state(), period, substeps, brake_gain)
+        Self::new(
+            system.kinematic_model::<N>(),
+            system.initial_state(),
+            period,
+            substeps,
+            brake_gain,
+        )
     }
 
     /// The arm `[plant]` asks for: kinematic, or the rigid-body arm of `[plant.rigid_body]`.
@@ -103,7 +103,7 @@ impl<const N: usize> SimPlant<N> {
         let period = cfg.period_ns() as f64 * 1e-9;
         let mut sim = Self::for_system(system, period, cfg.substeps, cfg.brake_gain);
         let mode = system.command_mode();
-        match (cfg.dynamics, system) {
+        match (cfg.dynamics, system.robot()) {
             (Dynamics::Kinematic, _) if mode == CommandMode::Torque => Err(ConfigError::Invalid {
                 field: "plant.dynamics".into(),
                 value: "\"kinematic\"".into(),
@@ -119,14 +119,14 @@ impl<const N: usize> SimPlant<N> {
                            chaosd-plant hands such a set-up over to it when it is installed"
                     .into(),
             }),
-            (Dynamics::RigidBody, System::Planar(_)) => Err(ConfigError::Invalid {
+            (Dynamics::RigidBody, None) => Err(ConfigError::Invalid {
                 field: "plant.dynamics".into(),
                 value: "\"rigid-body\"".into(),
                 expected: "\"kinematic\" for the paper's planar arm, which has no mass model; \
                            name a robot in [robot] for rigid-body dynamics"
                     .into(),
             }),
-            (Dynamics::RigidBody, System::Spatial(s)) => {
+            (Dynamics::RigidBody, Some(s)) => {
                 let x = sim.state;
                 let limits = s
                     .config
@@ -346,17 +346,6 @@ impl<const N: usize> Plant for SimPlant<N> {
             Physics::RigidBody(d) => d.arm.torque_saturations,
             Physics::Kinematic(_) => 0,
         }
-    }
-}
-
-/// The limits a device of this set-up enforces (the description's, undated).
-pub fn device_limits<const N: usize>(system: &System) -> Result<JointLimits<N>, ConfigError> {
-    match system {
-        System::Planar(_) => Ok(JointLimits::NONE),
-        System::Spatial(s) => s
-            .config
-            .command
-            .limits::<N>(&s.chain, &s.config.robot.description),
     }
 }
 

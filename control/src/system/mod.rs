@@ -20,6 +20,7 @@ use crate::tick_law::{ParamBlock, TickLaw};
 
 mod figure;
 mod obstacles;
+mod robot;
 pub use obstacles::ObstacleRow;
 
 /// The spatial half: the file and the chain its `[robot]` names.
@@ -360,14 +361,11 @@ impl System {
     /// none) and past [`System::n`].
     pub fn effort_limits(&self) -> [f64; crate::basics::MAX_JOINTS] {
         let mut out = [f64::INFINITY; crate::basics::MAX_JOINTS];
-        if let System::Spatial(s) = self {
-            let c = &s.config;
-            crate::with_dof!(s.chain.dof(), N => {
-                if let Ok(l) = c.command.limits::<N>(&s.chain, &c.robot.description) {
-                    out[..N].copy_from_slice(&l.tau);
-                }
-            });
-        }
+        crate::with_dof!(self.n(), N => {
+            if let Ok(l) = self.device_limits::<N>() {
+                out[..N].copy_from_slice(&l.tau);
+            }
+        });
         out
     }
 

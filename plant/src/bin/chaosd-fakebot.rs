@@ -225,7 +225,7 @@ fn run(a: &Args) -> Result<FakebotSummary> {
     let c = with_dof!(s.n(), N => {
         // Built once here so a bad [plant] is one error at start-up, then again on each restart.
         SimPlant::<N>::from_config(s, p)?;
-        let limits = plant::sim::device_limits::<N>(s)?;
+        let limits = s.device_limits::<N>()?;
         // A robot powers up at rest; chaosd's own acceleration-level emulator keeps the
         // set-up's q̇0, as every planar result was measured with it.
         let rest = s.command_mode() != control::command::CommandMode::Acceleration;

@@ -93,7 +93,7 @@ impl MujocoPlant {
     /// The arm `launch` describes, in the model `[plant.mujoco]` names (default: the set-up's
     /// own robot), at rest in the set-up's start pose.
     pub fn from_launch(system: &System, cfg: &PlantConfig) -> Result<Self> {
-        let System::Spatial(s) = system else {
+        let Some(s) = system.robot() else {
             bail!(
                 "plant.dynamics = \"mujoco\" simulates a robot's URDF; the paper's planar arm has \
                  no mass model (name robots/planar3.urdf in [robot] to run it as a chain)"
