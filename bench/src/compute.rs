@@ -324,11 +324,9 @@ fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<O
         &crate::commands::section(quick)?,
         &[names::COMPUTE_COMMANDS, names::COMPUTE_COMMANDS_COST],
     )?;
-    report.push_tables(&crate::cycle_plan::section(quick)?, &[names::COMPUTE_PLAN])?;
-    report.push_tables(
-        &crate::cycle_plan_spatial::section(quick)?,
-        &[names::COMPUTE_PLAN_PANDA],
-    )?;
+    use crate::cycle_plan::{section as plan_section, PANDA, PLANAR};
+    report.push_tables(&plan_section(&PLANAR, quick)?, &[names::COMPUTE_PLAN])?;
+    report.push_tables(&plan_section(&PANDA, quick)?, &[names::COMPUTE_PLAN_PANDA])?;
     report.push_tables(&model, &[names::COMPUTE_MODEL])?;
     report.push(&format!(
         "\n300 s simulation (RK4, dt = 1 ms, fixed base, manipulability): {:.3} s wall, {:.0} simulated s per wall s \

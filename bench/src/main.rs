@@ -24,7 +24,6 @@ mod child;
 mod commands;
 mod compute;
 mod cycle_plan;
-mod cycle_plan_spatial;
 mod cyclictest;
 mod device;
 mod e2e;
