@@ -18,9 +18,11 @@ use crate::safety::SafetySection;
 use crate::sim::ArmState;
 use crate::tick_law::{ParamBlock, TickLaw};
 
+mod drawing;
 mod figure;
 mod obstacles;
 mod robot;
+pub use drawing::{Drawing, Posed};
 pub use obstacles::ObstacleRow;
 
 /// The spatial half: the file and the chain its `[robot]` names.

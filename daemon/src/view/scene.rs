@@ -2,37 +2,18 @@
 //! its target, the path and the obstacles, in a `world` frame.
 //!
 //! Built from the running [`System`] off the loop (at a recording's start and after every edit),
-//! so the picture always matches what the law is doing. The planar arm gets a generated URDF of
-//! its own links (with visuals, so Foxglove's URDF layer has something to show); a URDF chain's
-//! description is the file it was loaded from. Joint i's child link is placed relative to joint
-//! i−1's, as `robot_state_publisher` does, so the transforms agree with the URDF's tree.
+//! so the picture always matches what the law is doing. The arm itself is the set-up's
+//! [`Drawing`] (its frames' names, posed at each drawn state); the URDF a viewer loads is a
+//! robot's description file, read here, or the one the drawing generates for the planar arm.
 
 use control::model::Pose;
+pub use control::system::{Drawing, Posed};
 use control::task::Path;
 use control::System;
-use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 
 /// The root frame every scene entity and the base's transform hang from.
 pub const WORLD: &str = "world";
-
-/// The arm at one state.
-#[derive(Clone, Debug, Default)]
-pub struct Posed {
-    /// The base link's frame in the world (moves only with a floating base).
-    pub base: Pose,
-    /// Each joint's child link frame (the URDF frame) in the world.
-    pub links: Vec<Pose>,
-    /// The polyline the arm is drawn as: the base, each joint's origin after the first, the
-    /// tool point.
-    pub points: Vec<[f64; 3]>,
-    /// The tool point.
-    pub tip: [f64; 3],
-}
-
-/// Kinematics of one arm type, behind a runtime joint count.
-trait Geometry: Send {
-    fn posed(&self, phi: f64, q: &[f64]) -> Posed;
-}
 
 /// The scene of one configuration.
 pub struct Scene {
@@ -45,7 +26,7 @@ pub struct Scene {
     pub obstacles: Vec<([f64; 3], f64)>,
     /// One period of the path, closed.
     pub path: Vec<[f64; 3]>,
-    geometry: Box<dyn Geometry>,
+    drawing: Drawing,
     /// The tool's path (every arm's one type); None for a chain whose set-up does not build.
     task: Option<Path>,
 }
@@ -58,39 +39,15 @@ impl Scene {
     pub fn of(system: &System) -> Scene {
         // One period once the path is up to speed: the start-up ramp (`task.ramp`) is not part
         // of the loop the tool goes round.
-        let (base, joints, links, urdf, obstacles, geometry) = match system {
-            System::Planar(c) => {
-                let n = c.n();
-                let geometry: Box<dyn Geometry> =
-                    control::with_dof!(n, N => Box::new(Planar::<N> { model: c.model::<N>() }));
-                let obstacles = c.control.obstacles.iter();
-                let obstacles = obstacles.map(|o| ([o.center[0], o.center[1], 0.0], o.radius));
-                (
-                    "base".to_string(),
-                    (1..=n).map(|i| format!("joint{i}")).collect(),
-                    (1..=n).map(|i| format!("link{i}")).collect(),
-                    Some(planar_urdf(&c.arm.links)),
-                    obstacles.collect(),
-                    geometry,
-                )
-            }
-            System::Spatial(s) => {
-                let chain = &s.chain;
-                let geometry: Box<dyn Geometry> = control::with_dof!(chain.dof(), N => match s.config.setup::<N>(chain) {
-                    Ok(setup) => Box::new(Spatial::<N> { arm: setup.arm }),
-                    Err(_) => Box::new(Nothing(N)),
-                });
-                let obstacles = s.config.obstacles.iter().map(|o| (o.center, o.radius));
-                (
-                    chain.base.clone(),
-                    chain.joints.iter().map(|j| j.name.clone()).collect(),
-                    chain.joints.iter().map(|j| j.links[0].clone()).collect(),
-                    rt::robot::text(&s.config.robot.description).ok(),
-                    obstacles.collect(),
-                    geometry,
-                )
-            }
-        };
+        let drawing = system.drawing();
+        let urdf = drawing.generated_urdf.clone().or_else(|| {
+            let r = system.robot()?;
+            rt::robot::text(&r.config.robot.description).ok()
+        });
+        let obstacles = system.obstacle_rows().into_iter().map(|o| {
+            let z = o.center.get(2).copied().unwrap_or(0.0);
+            ([o.center[0], o.center[1], z], o.radius)
+        });
         let task = system.path().ok();
         let path = match &task {
             Some(p) => (0..=PATH_POINTS)
@@ -99,20 +56,20 @@ impl Scene {
             None => vec![[0.0; 3]; PATH_POINTS + 1],
         };
         Scene {
-            base,
-            joints,
-            links,
+            base: drawing.base.clone(),
+            joints: drawing.joints.clone(),
+            links: drawing.links.clone(),
             urdf,
-            obstacles,
+            obstacles: obstacles.collect(),
             path,
-            geometry,
+            drawing,
             task,
         }
     }
 
     /// The arm at base angle `phi` (planar floating base; 0 otherwise) and joint positions `q`.
     pub fn posed(&self, phi: f64, q: &[f64]) -> Posed {
-        self.geometry.posed(phi, q)
+        self.drawing.posed(phi, q)
     }
 
     /// Where the tool should be at controller time `t`.
@@ -153,98 +110,10 @@ fn position(path: &Path, t: f64) -> [f64; 3] {
     path.position(t).into()
 }
 
-struct Planar<const N: usize> {
-    model: control::arm::ArmModel<N>,
-}
-
-impl<const N: usize> Geometry for Planar<N> {
-    fn posed(&self, phi: f64, q: &[f64]) -> Posed {
-        let qv = control::VecN::<N>::from_fn(|i, _| q.get(i).copied().unwrap_or(0.0));
-        let mut kin = control::arm::Kinematics::<N>::default();
-        self.model
-            .kinematics(phi, &qv, &control::VecN::<N>::zeros(), &mut kin);
-        let at = |x: f64, y: f64, angle: f64| Pose {
-            rot: *Rotation3::from_axis_angle(&Vector3::z_axis(), angle).matrix(),
-            pos: Vector3::new(x, y, 0.0),
-        };
-        let p0 = kin.points[0];
-        let mut angle = phi;
-        let links = (0..N)
-            .map(|i| {
-                angle += qv[i];
-                at(kin.points[i].x, kin.points[i].y, angle)
-            })
-            .collect();
-        let mut points: Vec<[f64; 3]> = kin.points.iter().map(|p| [p.x, p.y, 0.0]).collect();
-        points.push([kin.p.x, kin.p.y, 0.0]);
-        Posed {
-            base: at(p0.x, p0.y, phi),
-            links,
-            points,
-            tip: [kin.p.x, kin.p.y, 0.0],
-        }
-    }
-}
-
-struct Spatial<const N: usize> {
-    arm: control::arm::spatial::SpatialArm<N>,
-}
-
-impl<const N: usize> Geometry for Spatial<N> {
-    fn posed(&self, _phi: f64, q: &[f64]) -> Posed {
-        let qv = control::VecN::<N>::from_fn(|i, _| q.get(i).copied().unwrap_or(0.0));
-        let mut kin = control::arm::spatial::SpatialKinematics::<N>::default();
-        self.arm
-            .kinematics(&qv, &control::VecN::<N>::zeros(), &mut kin);
-        let f = &kin.frames;
-        let mut points = vec![[0.0; 3]];
-        points.extend(f.body.iter().skip(1).map(|b| [b.pos.x, b.pos.y, b.pos.z]));
-        points.push([kin.p.x, kin.p.y, kin.p.z]);
-        Posed {
-            base: Pose::IDENTITY,
-            links: (0..N).map(|i| f.link(&self.arm.model, i)).collect(),
-            points,
-            tip: [kin.p.x, kin.p.y, kin.p.z],
-        }
-    }
-}
-
-/// A chain whose set-up does not build (never for a validated system): drawn folded at the base.
-struct Nothing(usize);
-
-impl Geometry for Nothing {
-    fn posed(&self, _phi: f64, _q: &[f64]) -> Posed {
-        Posed {
-            base: Pose::IDENTITY,
-            links: vec![Pose::IDENTITY; self.0],
-            points: vec![[0.0; 3]],
-            tip: [0.0; 3],
-        }
-    }
-}
-
-/// The planar arm as a URDF: revolute joints about z, link j a thin box of its length.
-pub fn planar_urdf(links: &[f64]) -> String {
-    let mut s = String::from(
-        "<?xml version=\"1.0\"?>\n<robot name=\"chaosd_planar\">\n  <link name=\"base\"/>\n",
-    );
-    for (i, l) in links.iter().enumerate() {
-        let j = i + 1;
-        let (parent, x) = match i {
-            0 => ("base".to_string(), 0.0),
-            _ => (format!("link{i}"), links[i - 1]),
-        };
-        s += &format!(
-            "  <joint name=\"joint{j}\" type=\"continuous\">\n    <parent link=\"{parent}\"/>\n    <child link=\"link{j}\"/>\n    <origin xyz=\"{x} 0 0\" rpy=\"0 0 0\"/>\n    <axis xyz=\"0 0 1\"/>\n  </joint>\n  <link name=\"link{j}\">\n    <visual>\n      <origin xyz=\"{} 0 0\" rpy=\"0 0 0\"/>\n      <geometry><box size=\"{l} 0.04 0.04\"/></geometry>\n    </visual>\n  </link>\n",
-            l / 2.0
-        );
-    }
-    s + "</robot>\n"
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Vector3;
 
     #[test]
     fn the_planar_scene_puts_the_tip_at_the_sum_of_the_links_and_agrees_with_its_urdf() {
