@@ -856,7 +856,7 @@ fn replay_n<const N: usize, R: BufRead>(h: Header, lines: &mut Lines<R>) -> Resu
             "P" => {
                 let k = int::<usize>(parts.next().unwrap_or(""), "config line count").map_err(at)?;
                 let system = parse_system(&lines.block(k)?, chain.as_ref()).map_err(at)?;
-                if system.n() != N || system.planar().is_some() != chain.is_none() {
+                if system.n() != N || system.chain().is_some() != chain.is_some() {
                     bail!(
                         "line {no}: a parameter change for another arm ({})",
                         system.describe_arm()
