@@ -47,12 +47,12 @@ fn states(n: usize) -> Vec<ArmState<3>> {
 pub fn run(
     quick: bool,
     core: usize,
-    pinocchio: &Path,
+    pinocchio: &crate::pinocchio_run::Source,
     out: &Path,
     command: &str,
 ) -> Result<Output> {
     let (out, command) = (out.to_path_buf(), command.to_string());
-    let pinocchio = pinocchio.to_path_buf();
+    let pinocchio = pinocchio.clone();
     std::thread::Builder::new()
         .name("compute".into())
         .spawn(move || {
@@ -64,6 +64,9 @@ pub fn run(
             for w in &rt.warnings {
                 eprintln!("chaosd-bench: compute: warning: {w}; timings will be noisier");
             }
+            let dir = out.join("compute");
+            rt::files::create_dir_all(&dir)?;
+            let pinocchio = crate::pinocchio_run::obtain(&pinocchio, quick, core, &dir);
             measure(quick, &pinocchio, &out, &command)
         })?
         .join()
@@ -150,7 +153,12 @@ fn filter_cost(
     }))
 }
 
-fn measure(quick: bool, pinocchio: &Path, out: &Path, command: &str) -> Result<Output> {
+fn measure(
+    quick: bool,
+    pinocchio: &crate::pinocchio_run::Timings,
+    out: &Path,
+    command: &str,
+) -> Result<Output> {
     let mut report = Report::new(out, "compute")?;
     // First, in a process that has done nothing else yet (as pinocchio's harness runs); its
     // text goes after the tick table.

@@ -33,6 +33,7 @@ mod model_timing;
 mod monitor_cost;
 mod naive;
 mod naive_model;
+mod pinocchio_run;
 mod plan;
 mod plants;
 mod plot;
@@ -103,10 +104,17 @@ enum Cmd {
         /// Core to pin to.
         #[arg(long, default_value_t = 0)]
         core: usize,
-        /// pinocchio's timings (scripts/pinocchio-timings/run.sh writes them); absent → the
-        /// table says "not built".
-        #[arg(long, default_value = model_timing::DEFAULT_PINOCCHIO)]
-        pinocchio: PathBuf,
+        /// Read pinocchio's timings from this file (another run of
+        /// scripts/pinocchio-timings/run.sh) instead of timing pinocchio in this run.
+        #[arg(long, conflicts_with = "no_pinocchio")]
+        pinocchio: Option<PathBuf>,
+        /// The Python venv with pinocchio's wheel that timing it in this run uses (made and
+        /// filled by scripts/pinocchio-timings/run.sh when absent).
+        #[arg(long = "pinocchio-venv", default_value = pinocchio_run::DEFAULT_VENV)]
+        pinocchio_venv: PathBuf,
+        /// Leave pinocchio out (its rows then say so).
+        #[arg(long = "no-pinocchio")]
+        no_pinocchio: bool,
     },
     /// The Panda in position mode through chaosd-bridge and chaosd-fakebot, limiter on and off,
     /// on the demo's set-up (a minute; 20 s with --quick) and on one whose law asks more than the
@@ -343,7 +351,9 @@ fn all(
             compute::run(
                 quick,
                 0,
-                Path::new(model_timing::DEFAULT_PINOCCHIO),
+                &pinocchio_run::Source::Now {
+                    venv: pinocchio_run::DEFAULT_VENV.into(),
+                },
                 out,
                 command,
             ),
@@ -424,7 +434,21 @@ fn main() -> ExitCode {
         Cmd::Latency(a) => latency_opts(quick, a).and_then(|o| latency::run(&o, out, &command)),
         Cmd::Jitter(a) => jitter_opts(quick, a).and_then(|o| jitter::run(&o, out, &command)),
         Cmd::E2e(a) => e2e_opts(quick, a).and_then(|o| e2e::run(&o, out, &command)),
-        Cmd::Compute { core, pinocchio } => compute::run(quick, *core, pinocchio, out, &command),
+        Cmd::Compute {
+            core,
+            pinocchio,
+            pinocchio_venv,
+            no_pinocchio,
+        } => {
+            let source = match (pinocchio, no_pinocchio) {
+                (_, true) => pinocchio_run::Source::Off,
+                (Some(f), false) => pinocchio_run::Source::File(f.clone()),
+                (None, false) => pinocchio_run::Source::Now {
+                    venv: pinocchio_venv.clone(),
+                },
+            };
+            compute::run(quick, *core, &source, out, &command)
+        }
         Cmd::Device => device::run(quick, out, &command),
         Cmd::Plants { mujoco_model } => plants::run(quick, mujoco_model, out, &command),
         Cmd::Ab {

@@ -20,9 +20,6 @@ use std::hint::black_box;
 use std::path::Path;
 use std::time::Instant;
 
-/// Where `scripts/pinocchio-timings/run.sh` writes by default, relative to the repository.
-pub const DEFAULT_PINOCCHIO: &str = "out/pinocchio-timings.json";
-
 /// The robot: the Panda.
 const ROBOT: &str = "panda";
 const N: usize = 7;
@@ -319,7 +316,11 @@ fn fmt_allocs(a: Option<f64>) -> String {
 }
 
 /// Times the model, writes its `.hgrm` files and returns its table and notes.
-pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<String> {
+pub fn section(
+    quick: bool,
+    pinocchio: &crate::pinocchio_run::Timings,
+    report: &mut Report,
+) -> Result<String> {
     let mut text = String::new();
     let chain = panda()?;
     let model: Model<N> = chain.model::<N>()?;
@@ -327,7 +328,10 @@ pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<Str
     let xs = states(&chain, STATES, 2026);
     #[cfg(feature = "k-crate")]
     let karm = kchain::KArm::new(builtin(ROBOT)?, &chain.tip)?;
-    let pin = read_pinocchio(pinocchio)?;
+    let pin = match &pinocchio.path {
+        Some(p) => read_pinocchio(p)?,
+        None => None,
+    };
 
     // (rounds, chaosd batches per round, naive batches per round); 100 calls per chaosd batch.
     let (rounds, fast, slow) = if quick { (2, 100, 10) } else { (10, 1000, 100) };
@@ -611,7 +615,7 @@ pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<Str
                 ]),
                 None if *key == pin_rows[0].0 => table.row(vec![
                     title.to_string(),
-                    "pinocchio: not built (scripts/pinocchio-timings/run.sh)".into(),
+                    format!("pinocchio: {}", pinocchio.why_not),
                     String::new(),
                     String::new(),
                     String::new(),
@@ -638,7 +642,7 @@ pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<Str
     text.push_str(&table.render());
     match &pin {
         Some(p) => text.push_str(&format!(
-            "\npinocchio {} ({}{}) on {}, from {}, measured by its own run \
+            "\npinocchio {} ({}{}) on {}, {}, by its own harness \
              (scripts/pinocchio-timings/run.sh) with the same method; its CRBA fills the upper \
              triangle only, chaosd's the whole matrix.\n",
             p.version,
@@ -649,12 +653,19 @@ pub fn section(quick: bool, pinocchio: &Path, report: &mut Report) -> Result<Str
                 ", compiled from its headers"
             },
             p.cpu,
-            pinocchio.display()
+            match (&pinocchio.path, pinocchio.this_run) {
+                (Some(f), true) => format!(
+                    "timed in this run just before chaosd's rows, on the same core ({})",
+                    f.display()
+                ),
+                (Some(f), false) => format!("read from {} (another run)", f.display()),
+                (None, _) => String::new(),
+            }
         )),
         None => text.push_str(&format!(
-            "\npinocchio: no timings at {} (scripts/pinocchio-timings/run.sh writes them; \
-             `chaosd-bench compute --pinocchio FILE` reads another file).\n",
-            pinocchio.display()
+            "\npinocchio: {} (`compute` times it with scripts/pinocchio-timings/run.sh when \
+             Python and a C++ compiler are here; `--pinocchio FILE` reads another run's).\n",
+            pinocchio.why_not
         )),
     }
     let spread: Vec<String> = series
