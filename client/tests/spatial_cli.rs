@@ -521,3 +521,52 @@ fn basins_on_the_panda_chaotic_without_feedback_and_settling_with_it() {
     assert!(dir.join("b.csv").exists() && dir.join("b.png").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `monitor` on the Panda from two starts: a fixed-μ cell and an auto-μ comparison per start,
+/// each with its own posture; a start of the wrong length is named by its number.
+#[test]
+fn monitor_runs_a_robot_from_each_start_given() {
+    let out = tmp("monitor");
+    let prefix = out.to_str().unwrap();
+    let second = "--start=0.1,-0.7,0,-2.3,0,1.6,0.8";
+    let text = ok(&chaosctl(&[
+        "monitor",
+        "--preset",
+        "panda",
+        "--json",
+        "--duration",
+        "12",
+        "--mu",
+        "0.5",
+        "--start=0,-0.785,0,-2.356,0,1.571,0.785",
+        second,
+        "--output",
+        prefix,
+    ]));
+    let r: Value = serde_json::from_str(&text).unwrap();
+    let starts: Vec<u64> = r["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["start"].as_u64().unwrap())
+        .collect();
+    assert_eq!(starts, [0, 1], "{r}");
+    let comparisons = r["comparisons"].as_array().unwrap();
+    assert_eq!(comparisons.len(), 2, "{r}");
+    assert_eq!(comparisons[1]["q0"][0].as_f64(), Some(0.1), "{r}");
+    assert!(
+        comparisons.iter().all(|c| c["auto_verdict"].is_string()),
+        "{r}"
+    );
+    let bad = chaosctl(&[
+        "monitor",
+        "--preset",
+        "panda",
+        "--start=0,1",
+        "--output",
+        prefix,
+    ]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(2), "{err}");
+    assert!(err.contains("start 1") && err.contains("sim.q0"), "{err}");
+}

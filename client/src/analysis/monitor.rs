@@ -121,13 +121,9 @@ pub fn run(args: MonitorCmd) -> Result<()> {
     report.write(&args.output, args.json)
 }
 
-/// A spatial robot: its config's start, the μ sweep, and one auto run (no edits).
+/// A spatial robot: each start (`--start`, else its config's), the μ sweep, and one auto run
+/// per start (no edits: they act on the planar arm's parameter block).
 fn spatial(args: &MonitorCmd, cfg: &control::config::spatial::SpatialConfig) -> Result<()> {
-    if !args.starts.starts.is_empty() {
-        anyhow::bail!(
-            "--start applies to the planar arm; a spatial study runs its config's start (sim.q0)"
-        );
-    }
     let mus = match &args.model.mu {
         Some(r) => r.0.clone(),
         None => super::parse_range("0:3:0.5").map_err(anyhow::Error::msg)?,
@@ -146,24 +142,37 @@ fn spatial(args: &MonitorCmd, cfg: &control::config::spatial::SpatialConfig) -> 
         r.base.as_deref(),
         r.tip.as_deref(),
     )?);
-    let mut work: Vec<Option<f64>> = mus.iter().copied().map(Some).collect();
-    work.push(None); // the auto run
+    // Each start checked against the robot once, named by its number.
+    let starts =
+        Subject::Robot(Box::new(cfg.clone()), chain.clone()).starts(&args.starts, false)?;
+    let q0s: Vec<Vec<f64>> = starts.iter().map(Subject::q0).collect();
+    let mut work: Vec<(usize, Option<f64>)> = Vec::new();
+    for i in 0..q0s.len() {
+        work.extend(mus.iter().map(|&mu| (i, Some(mu))));
+        work.push((i, None)); // the auto run
+    }
     let t0 = std::time::Instant::now();
-    let done = run_all(&work, jobs(args.jobs), "monitor", |mu| -> Result<Done> {
-        let mut c = cfg.clone();
-        c.feedback.auto = mu.is_none().then_some(auto);
-        c.feedback.mu = mu.unwrap_or(0.0); // checked when the run sets the robot up
-        let subject = Subject::Robot(Box::new(c), chain.clone());
-        let Some(mu) = *mu else {
-            let w = subject.watch(2.0 * l.duration, settings)?;
-            return Ok(Done::Auto(auto_cell(0, EditKind::None, None, w)));
-        };
-        let run = subject.analyse(&spec)?;
-        let e = run.lyapunov.context("the run produced no exponent")?;
-        let w = subject.watch(l.duration, settings)?;
-        let offline = Some((e.lambda_max, e.stderr));
-        Ok(Done::Fixed(fixed_cell(0, mu, tau, offline, &w)))
-    })?;
+    let done = run_all(
+        &work,
+        jobs(args.jobs),
+        "monitor",
+        |&(i, mu)| -> Result<Done> {
+            let mut c = cfg.clone();
+            c.sim.q0 = Some(q0s[i].clone());
+            c.feedback.auto = mu.is_none().then_some(auto);
+            c.feedback.mu = mu.unwrap_or(0.0); // checked when the run sets the robot up
+            let subject = Subject::Robot(Box::new(c), chain.clone());
+            let Some(mu) = mu else {
+                let w = subject.watch(2.0 * l.duration, settings)?;
+                return Ok(Done::Auto(auto_cell(i, EditKind::None, None, w)));
+            };
+            let run = subject.analyse(&spec)?;
+            let e = run.lyapunov.context("the run produced no exponent")?;
+            let w = subject.watch(l.duration, settings)?;
+            let offline = Some((e.lambda_max, e.stderr));
+            Ok(Done::Fixed(fixed_cell(i, mu, tau, offline, &w)))
+        },
+    )?;
     let (mut fixed_cells, mut auto_cells) = (Vec::new(), Vec::new());
     for d in done {
         match d? {
@@ -171,10 +180,9 @@ fn spatial(args: &MonitorCmd, cfg: &control::config::spatial::SpatialConfig) -> 
             Done::Auto(a) => auto_cells.push(a),
         }
     }
-    let q0 = cfg.sim.start().to_vec();
     let report = super::monitor_report::Report::new(
         tau,
-        vec![q0],
+        q0s,
         fixed_cells,
         auto_cells,
         auto,
