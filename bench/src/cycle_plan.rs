@@ -139,9 +139,8 @@ fn panda_job(spheres: Balls, at: f64) -> Result<Job> {
     let resolve = &control::system::builtin_robot;
     let mut cfg = SpatialConfig::preset("panda").expect("the panda preset");
     cfg.safety.plan = control::safety::policy::PlanMode::On;
-    let system = System::spatial(cfg.clone(), resolve)?;
-    let chain = system.chain().expect("a robot's chain");
-    let (start, _) = control::plan::setup_planned::<7>(&cfg, chain)?;
+    let chain = resolve("panda", None, None)?;
+    let (start, _) = control::plan::setup_planned::<7>(&cfg, &chain)?;
     let mut sim = control::sim::spatial::SpatialSimulation::<7, 3>::spatial(
         start.arm,
         start.params,
