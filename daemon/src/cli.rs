@@ -601,7 +601,12 @@ fn resume_live_state(s: &mut DaemonSetup, fresh: bool) -> Result<()> {
     let Some(saved) = crate::persist::load(&dir, s.system.n())? else {
         return Ok(());
     };
-    let (live, edited) = crate::persist::adopt(saved, &s.system);
+    let (live, edited) = crate::persist::adopt(saved, &s.system).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: {e} (start with --fresh to ignore it)",
+            crate::persist::path(&dir).display()
+        )
+    })?;
     if let Some(why) = edited {
         tracing::warn!("{why}");
     }

@@ -46,11 +46,14 @@ pub struct LiveState {
 pub struct SavedSystem(toml::Table);
 
 impl SavedSystem {
-    /// `system` without its `[daemon]` and `[plant]` tables.
-    pub fn of(system: &System) -> Self {
+    /// `system` without its `[daemon]` and `[plant]` tables. An error only if
+    /// [`System::to_toml`] wrote text that does not read back as TOML (a bug, which the caller
+    /// reports rather than saving an empty set-up a restart would refuse).
+    pub fn of(system: &System) -> Result<Self, ConfigError> {
         let text = settings_text(system);
-        // The text is TOML that System::to_toml wrote from a valid set-up: it reads back.
-        SavedSystem(toml::from_str(&text).unwrap_or_default())
+        toml::from_str(&text)
+            .map(SavedSystem)
+            .map_err(|e| ConfigError::Parse(format!("the running set-up as TOML: {e}")))
     }
 
     /// The set-up again (a robot's description is read anew), validated.
@@ -83,17 +86,25 @@ pub fn fingerprint(system: &System) -> String {
 /// If the file was edited since the state was saved (its fingerprint changed), the file's
 /// settings win and the live changes are dropped (`Some(why)` says so); controller time and a
 /// FAULT are kept either way, since neither is the file's to decide.
-pub fn adopt(mut saved: LiveState, file: &System) -> (LiveState, Option<String>) {
+pub fn adopt(
+    mut saved: LiveState,
+    file: &System,
+) -> Result<(LiveState, Option<String>), ConfigError> {
     let now = fingerprint(file);
     let edited = saved.file.as_ref().is_some_and(|f| *f != now);
-    let why = edited.then(|| {
-        saved.system = SavedSystem::of(file);
-        "the config file's settings changed since the live state was saved: starting from the \
-         file (live changes made with chaosctl are dropped; controller time and any FAULT are kept)"
-            .to_string()
-    });
+    let why = if edited {
+        saved.system = SavedSystem::of(file)?;
+        Some(
+            "the config file's settings changed since the live state was saved: starting from \
+             the file (live changes made with chaosctl are dropped; controller time and any FAULT \
+             are kept)"
+                .to_string(),
+        )
+    } else {
+        None
+    };
     saved.file = Some(now);
-    (saved, why)
+    Ok((saved, why))
 }
 
 pub fn path(output_dir: &Path) -> PathBuf {
@@ -179,7 +190,7 @@ mod tests {
             t: 123.5,
             saved_unix_s: unix_now() + 1e3, // in the future: no time added
             fault: Some("joint 2 rate".into()),
-            system: SavedSystem::of(&System::Planar(system)),
+            system: SavedSystem::of(&System::Planar(system)).unwrap(),
             file: Some("0123456789abcdef".into()),
         };
         save(&dir, &s).unwrap();
@@ -210,11 +221,11 @@ mod tests {
             t: 50.0,
             saved_unix_s: unix_now(),
             fault: Some("joint 2 rate".into()),
-            system: SavedSystem::of(&System::Planar(live.clone())),
+            system: SavedSystem::of(&System::Planar(live.clone())).unwrap(),
             file: Some(fingerprint(&file)),
         };
         // The same file: the live change is resumed.
-        let (s, why) = adopt(saved.clone(), &file);
+        let (s, why) = adopt(saved.clone(), &file).unwrap();
         assert_eq!((mu_kv(&s).0, why), (1.3, None));
         // The file edited since (another kv): its settings win, time and FAULT stay.
         let mut edited = file.clone();
@@ -222,7 +233,7 @@ mod tests {
             unreachable!()
         };
         c.control.kv = 30.0;
-        let (s, why) = adopt(saved.clone(), &edited);
+        let (s, why) = adopt(saved.clone(), &edited).unwrap();
         assert!(why.unwrap().contains("changed since"));
         assert_eq!(mu_kv(&s), (file.feedback().mu, 30.0));
         assert_eq!((s.t, s.fault.as_deref()), (50.0, Some("joint 2 rate")));
@@ -232,7 +243,7 @@ mod tests {
             file: None,
             ..saved
         };
-        assert_eq!(mu_kv(&adopt(old, &edited).0).0, 1.3);
+        assert_eq!(mu_kv(&adopt(old, &edited).unwrap().0).0, 1.3);
     }
 
     /// States saved by the daemon of November 2026, when the planar set-up was kept in its
@@ -271,7 +282,7 @@ mod tests {
             t: 9.0,
             saved_unix_s: unix_now() + 1e3,
             fault: None,
-            system: SavedSystem::of(&panda),
+            system: SavedSystem::of(&panda).unwrap(),
             file: Some(fingerprint(&panda)),
         };
         save(&dir, &s).unwrap();

@@ -204,7 +204,11 @@ impl Reporter {
 
     /// Saves the live configuration, controller time and FAULT for a restart (see `persist`).
     pub(crate) fn save_live_state(&mut self) {
-        let system = crate::persist::SavedSystem::of(&self.system);
+        self.saved_at = Some(Instant::now());
+        let system = match crate::persist::SavedSystem::of(&self.system) {
+            Ok(s) => s,
+            Err(e) => return self.save_failed(&e),
+        };
         let state = crate::persist::LiveState {
             t: self.last.map_or(self.t_start, |r| r.t),
             saved_unix_s: crate::persist::unix_now(),
@@ -212,17 +216,20 @@ impl Reporter {
             system,
             file: self.file_fingerprint.clone(),
         };
-        self.saved_at = Some(Instant::now());
         match crate::persist::save(&self.daemon.output_dir, &state) {
             Ok(()) => self.save_error_said = false,
-            Err(e) if !self.save_error_said => {
-                self.save_error_said = true;
-                tracing::warn!(
-                    "cannot save the live state to {}: {e} (a restart would lose live changes)",
-                    crate::persist::path(&self.daemon.output_dir).display()
-                );
-            }
-            Err(_) => {}
+            Err(e) => self.save_failed(&e),
+        }
+    }
+
+    /// Says once (until a save succeeds again) that the live state could not be saved.
+    fn save_failed(&mut self, e: &dyn std::fmt::Display) {
+        if !self.save_error_said {
+            self.save_error_said = true;
+            tracing::warn!(
+                "cannot save the live state to {}: {e} (a restart would lose live changes)",
+                crate::persist::path(&self.daemon.output_dir).display()
+            );
         }
     }
 
