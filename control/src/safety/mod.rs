@@ -134,6 +134,16 @@ pub struct Filtered<const N: usize> {
     pub flags: u32,
 }
 
+impl<const N: usize> Filtered<N> {
+    /// The command as the law gave it: nothing bound.
+    pub fn unchanged(qdd: &VecN<N>) -> Self {
+        Self {
+            qdd: *qdd,
+            flags: 0,
+        }
+    }
+}
+
 /// Filters the law's `qdd` at state (φ, q, q̇). `kin` holds the kinematics at that state and
 /// `jpinv` the (damped) pseudo-inverse the law used.
 ///
@@ -192,12 +202,27 @@ pub fn filter_spatial<const N: usize, const M: usize>(
     jpinv: &SMatrix<f64, N, M>,
     qdd: &VecN<N>,
 ) -> Filtered<N> {
-    let fill = |out: &mut PointsOf<N, 3>| arm.capsule_points(kin, qd, out);
-    filter_with(p, spheres, &arm.radii, fill, (q, qd), (j, jpinv), qdd)
+    if !p.enabled {
+        return Filtered::unchanged(qdd);
+    }
+    let (lo, hi) = rows::joint_box(p, q, qd);
+    let mut points: PointsOf<N, 3> = [PointMotion::default(); MAX_JOINTS + 1];
+    if !spheres.is_empty() {
+        arm.capsule_points(kin, qd, &mut points);
+    }
+    // Nothing binds (the common case): one pass over the barriers without their rows.
+    if !solve::box_missed((&lo, &hi), qdd)
+        && !rows::any_ball_missed(p, spheres, &arm.radii, &points, qdd, solve::misses)
+    {
+        return Filtered::unchanged(qdd);
+    }
+    let visit =
+        |f: &mut dyn FnMut(&VecN<N>, f64)| rows::visit_balls(p, spheres, &arm.radii, &points, f);
+    solve::smallest_change(&visit, (&lo, &hi), j, jpinv, qdd, &p.qdd_max)
 }
 
-/// Either arm's filter once its points are known: the rows of every link against every ball
-/// ([`rows::visit_balls`]) and each joint's box, solved null space first ([`solve`]). The
+/// The planar arm's filter once its points are known: the rows of every link against every
+/// ball ([`rows::visit_balls`]) and each joint's box, solved null space first ([`solve`]). The
 /// points are filled only when there is a ball.
 fn filter_with<const N: usize, const M: usize, const D: usize>(
     p: &SafetyParams,
@@ -212,10 +237,7 @@ where
     rows::Geometry: rows::Interior<N, D>,
 {
     if !p.enabled {
-        return Filtered {
-            qdd: *qdd,
-            flags: 0,
-        };
+        return Filtered::unchanged(qdd);
     }
     let (lo, hi) = rows::joint_box(p, q, qd);
     if balls.is_empty() {

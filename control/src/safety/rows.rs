@@ -4,7 +4,8 @@
 //! ḧ + k₁ḣ + k₀h ≥ 0 for positions (obstacle distance, joint angle) and ḣ + k h ≥ 0 for rates.
 //! ḧ = a·q̈ + (the part that does not depend on q̈), so every condition is one row. The rows are
 //! produced by a visitor instead of being stored, so the common case (no row binds) costs one pass
-//! and no buffer.
+//! and no buffer; in space that pass does not even build the rows' normals
+//! ([`any_ball_missed`]).
 //!
 //! One builder serves every arm: a link is the segment between two points (with a radius: a
 //! capsule) and an obstacle a ball, in the plane (D = 2) or in space (D = 3). The distance from a
@@ -205,35 +206,118 @@ impl<const N: usize> Interior<N, 2> for Geometry {
 }
 
 impl<const N: usize> Interior<N, 3> for Geometry {
-    /// In space the foot x = a + t e slides as t moves, but u = (x − c)/d is normal to e there,
-    /// so ḣ = u·(ȧ + t ė) and the slide enters ḧ only through ṫ.
     fn interior(
         pa: &Pt<N, 3>,
         pb: &Pt<N, 3>,
         center: Vector3<f64>,
         reach: f64,
         g: BarrierGains,
-        (e, l2, t): (Vector3<f64>, f64, f64),
+        foot: (Vector3<f64>, f64, f64),
     ) -> Option<Row<N>> {
-        let w = pa.pos + e * t - center;
-        let d = w.norm();
-        if d < 1e-12 {
-            return None;
-        }
-        let u = w / d;
-        let h = d - reach;
-        let edot = pb.vel - pa.vel;
-        let xdot = pa.vel + edot * t;
-        let tdot = ((center - pa.pos).dot(&edot) - pa.vel.dot(&e) - 2.0 * t * e.dot(&edot)) / l2;
-        let wdot = xdot + e * tdot;
-        let udot = (wdot - u * u.dot(&wdot)) / d;
-        let hdot = u.dot(&xdot);
-        let jx = pa.jac + (pb.jac - pa.jac) * t;
-        let a = jx.transpose() * u;
-        let drift_x = pa.drift + (pb.drift - pa.drift) * t;
-        let drift = u.dot(&drift_x) + udot.dot(&xdot) + tdot * u.dot(&edot);
-        Some((h, a, g.rhs(h, hdot) - drift))
+        let f = interior_foot(pa, pb, center, reach, g, foot)?;
+        Some((f.h, f.normal(pa, pb), f.b))
     }
+}
+
+/// A barrier whose row's normal is a = J_xᵀ u: u the unit direction from the obstacle's centre
+/// to the closest point x of the link, J_x that point's Jacobian. So a·v = u·(J_x v), which a
+/// check can take from the end points' J v without building a.
+#[derive(Clone, Copy, Debug)]
+pub struct Foot<const D: usize> {
+    pub h: f64,
+    /// The row's right-hand side: a·q̈ ≥ b.
+    pub b: f64,
+    u: SVector<f64, D>,
+    at: At,
+}
+
+/// Where on the segment the closest point x lies.
+#[derive(Clone, Copy, Debug)]
+enum At {
+    /// An end point: A (false) or B (true).
+    End(bool),
+    /// Strictly inside, at A + t (B − A).
+    Interior(f64),
+}
+
+impl<const D: usize> Foot<D> {
+    /// The row's normal a = J_xᵀ u.
+    #[inline(always)]
+    pub fn normal<const N: usize>(&self, pa: &Pt<N, D>, pb: &Pt<N, D>) -> VecN<N> {
+        match self.at {
+            At::End(false) => pa.jac.transpose() * self.u,
+            At::End(true) => pb.jac.transpose() * self.u,
+            At::Interior(t) => (pa.jac + (pb.jac - pa.jac) * t).transpose() * self.u,
+        }
+    }
+
+    /// a·v from J_A v and J_B v (equal to `normal(..).dot(v)` up to rounding).
+    #[inline(always)]
+    pub fn applied(&self, ja_v: &SVector<f64, D>, jb_v: &SVector<f64, D>) -> f64 {
+        match self.at {
+            At::End(false) => self.u.dot(ja_v),
+            At::End(true) => self.u.dot(jb_v),
+            At::Interior(t) => self.u.dot(&(ja_v + (jb_v - ja_v) * t)),
+        }
+    }
+}
+
+/// In space the foot x = a + t e slides as t moves, but u = (x − c)/d is normal to e there, so
+/// ḣ = u·(ȧ + t ė) and the slide enters ḧ only through ṫ.
+#[inline(always)]
+fn interior_foot<const N: usize>(
+    pa: &Pt<N, 3>,
+    pb: &Pt<N, 3>,
+    center: Vector3<f64>,
+    reach: f64,
+    g: BarrierGains,
+    (e, l2, t): (Vector3<f64>, f64, f64),
+) -> Option<Foot<3>> {
+    let w = pa.pos + e * t - center;
+    let d = w.norm();
+    if d < 1e-12 {
+        return None;
+    }
+    let u = w / d;
+    let h = d - reach;
+    let edot = pb.vel - pa.vel;
+    let xdot = pa.vel + edot * t;
+    let tdot = ((center - pa.pos).dot(&edot) - pa.vel.dot(&e) - 2.0 * t * e.dot(&edot)) / l2;
+    let wdot = xdot + e * tdot;
+    let udot = (wdot - u * u.dot(&wdot)) / d;
+    let hdot = u.dot(&xdot);
+    let drift_x = pa.drift + (pb.drift - pa.drift) * t;
+    let drift = u.dot(&drift_x) + udot.dot(&xdot) + tdot * u.dot(&edot);
+    Some(Foot {
+        h,
+        b: g.rhs(h, hdot) - drift,
+        u,
+        at: At::Interior(t),
+    })
+}
+
+/// The barrier of a link in space, [`segment_row`] without its normal.
+pub fn segment_foot<const N: usize>(
+    pa: &Pt<N, 3>,
+    pb: &Pt<N, 3>,
+    center: Vector3<f64>,
+    reach: f64,
+    g: BarrierGains,
+) -> Option<Foot<3>> {
+    let e = pb.pos - pa.pos;
+    let l2 = e.norm_squared();
+    let t = if l2 > 0.0 {
+        (center - pa.pos).dot(&e) / l2
+    } else {
+        0.0
+    };
+    if t <= 0.0 {
+        return point_foot(pa, center, reach, g, false);
+    }
+    if t >= 1.0 {
+        return point_foot(pb, center, reach, g, true);
+    }
+    interior_foot(pa, pb, center, reach, g, (e, l2, t))
 }
 
 /// The same for the distance to one point P: ḧ = u·P̈ + (|Ṗ|² − (u·Ṗ)²)/d.
@@ -243,6 +327,19 @@ fn point_row<const N: usize, const D: usize>(
     reach: f64,
     g: BarrierGains,
 ) -> Option<Row<N>> {
+    let f = point_foot(p, center, reach, g, false)?;
+    Some((f.h, f.normal(p, p), f.b))
+}
+
+/// [`point_row`] without its normal; `end` says which end point P is.
+#[inline(always)]
+fn point_foot<const N: usize, const D: usize>(
+    p: &Pt<N, D>,
+    center: SVector<f64, D>,
+    reach: f64,
+    g: BarrierGains,
+    end: bool,
+) -> Option<Foot<D>> {
     let w = p.pos - center;
     let d = w.norm();
     if d < 1e-12 {
@@ -253,8 +350,12 @@ fn point_row<const N: usize, const D: usize>(
     let un = u.dot(&p.vel);
     let hdot = un;
     let curvature = (p.vel.norm_squared() - un * un) / d;
-    let a = p.jac.transpose() * u;
-    Some((h, a, g.rhs(h, hdot) - u.dot(&p.drift) - curvature))
+    Some(Foot {
+        h,
+        b: g.rhs(h, hdot) - u.dot(&p.drift) - curvature,
+        u,
+        at: At::End(end),
+    })
 }
 
 /// Calls `f(a, b)` for the row a·q̈ ≥ b of every link against every ball; link j is a capsule
@@ -278,6 +379,36 @@ pub fn visit_balls<const N: usize, const D: usize, F: FnMut(&VecN<N>, f64) + ?Si
             }
         }
     }
+}
+
+/// Whether q̈ misses the row of any link against any ball in space (`misses(b, a·q̈)`), from the
+/// end points' J q̈ alone: no row's normal is built. The common case, nothing binds, costs this
+/// pass and no buffer; the rows themselves are built only when something binds.
+pub fn any_ball_missed<const N: usize>(
+    p: &SafetyParams,
+    balls: &Balls<3>,
+    link_radii: &[f64],
+    points: &PointsOf<N, 3>,
+    qdd: &VecN<N>,
+    misses: impl Fn(f64, f64) -> bool,
+) -> bool {
+    if balls.is_empty() {
+        return false;
+    }
+    let mut image = [Vector3::zeros(); MAX_JOINTS + 1];
+    for (im, pt) in image.iter_mut().zip(points).take(N + 1) {
+        *im = pt.jac * qdd;
+    }
+    for o in balls.as_slice() {
+        for j in 0..N {
+            let reach = o.radius + link_radii[j] + p.clearance;
+            let foot = segment_foot(&points[j], &points[j + 1], o.center, reach, p.gains());
+            if foot.is_some_and(|f| misses(f.b, f.applied(&image[j], &image[j + 1]))) {
+                return true;
+            }
+        }
+    }
+    false
 }
 
 /// The planar arm's links are segments: no radius of their own.
@@ -330,6 +461,52 @@ pub fn visit<const N: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
         }
         if hi[i].is_finite() {
             f(&-e, -hi[i]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::SMatrix;
+
+    /// The check's a·v from the end points' J v is the row's own a·v, on every piece of the
+    /// segment (end A, interior, end B), so the check and the rows judge alike.
+    #[test]
+    fn a_foot_applied_to_images_is_its_normal_applied() {
+        let mut seed = 7u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let g = BarrierGains {
+            k0: 100.0,
+            k1: 20.0,
+            push_out_speed: 0.5,
+        };
+        let mut point = |x: f64| Pt::<7, 3> {
+            pos: Vector3::new(x, 0.1 * rnd(), 0.1 * rnd()),
+            jac: SMatrix::<f64, 3, 7>::from_fn(|_, _| rnd()),
+            vel: Vector3::new(rnd(), rnd(), rnd()),
+            drift: Vector3::new(rnd(), rnd(), rnd()),
+        };
+        let (pa, pb) = (point(0.0), point(1.0));
+        let v = VecN::<7>::from_fn(|_, _| 10.0 * rnd());
+        let (ia, ib) = (pa.jac * v, pb.jac * v);
+        for cx in [-0.5, 0.3, 0.7, 1.5] {
+            let c = Vector3::new(cx, 0.4, -0.3);
+            let f = segment_foot(&pa, &pb, c, 0.1, g).expect("a foot");
+            let row = segment_row(&pa, &pb, c, 0.1, g).expect("a row");
+            assert_eq!(
+                (f.h, f.b),
+                (row.0, row.2),
+                "the check's barrier is the row's"
+            );
+            let (cheap, exact) = (f.applied(&ia, &ib), row.1.dot(&v));
+            assert!(
+                (cheap - exact).abs() <= 1e-12 * (1.0 + exact.abs()),
+                "{cheap} vs {exact}"
+            );
         }
     }
 }

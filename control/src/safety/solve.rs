@@ -42,6 +42,20 @@ fn tol(b: f64) -> f64 {
     TOL * (1.0 + b.abs())
 }
 
+/// Whether a row a·q̈ ≥ b is missed, given a·q̈.
+#[inline(always)]
+pub fn misses(b: f64, a_qdd: f64) -> bool {
+    b - a_qdd > tol(b)
+}
+
+/// Whether q̈ leaves a joint's box, judged as the box's rows are.
+pub fn box_missed<const N: usize>(joint_box: JointBox<'_>, qdd: &VecN<N>) -> bool {
+    (0..N).any(|i| {
+        let (lo, hi) = (joint_box.0[i], joint_box.1[i]);
+        (lo.is_finite() && misses(lo, qdd[i])) || (hi.is_finite() && misses(-hi, -qdd[i]))
+    })
+}
+
 /// The unit vector spanning J's null space for n = 3 and a 2-row task (None if J has rank < 2,
 /// n ≠ 3 or m ≠ 2).
 pub fn null_vector<const N: usize, const M: usize>(j: &SMatrix<f64, M, N>) -> Option<VecN<N>> {
@@ -108,7 +122,7 @@ fn on_the_line<const N: usize>(
         }
     }
     if !violated {
-        return unchanged(qdd);
+        return Filtered::unchanged(qdd);
     }
     if line_ok && lo <= hi + 1e-12 * (1.0 + lo.abs()) {
         return clamped(
@@ -135,7 +149,7 @@ fn in_stored_rows<const N: usize, const M: usize>(
 ) -> Filtered<N> {
     let mut rows = Rows::<N>::empty();
     if !rows.collect(visit, joint_box, qdd) {
-        return unchanged(qdd);
+        return Filtered::unchanged(qdd);
     }
     match rows.null_space(j, jpinv) {
         Some(d) => clamped(qdd + d, qdd_max, flags::SAFETY_ACTIVE),
@@ -156,13 +170,6 @@ fn full_space<const N: usize, const M: usize>(
         flag |= flags::SAFETY_INFEASIBLE;
     }
     clamped(qdd + d, qdd_max, flag)
-}
-
-fn unchanged<const N: usize>(qdd: &VecN<N>) -> Filtered<N> {
-    Filtered {
-        qdd: *qdd,
-        flags: 0,
-    }
 }
 
 /// `out` held within the acceleration limits.
