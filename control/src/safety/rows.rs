@@ -142,13 +142,7 @@ pub fn segment_row<const N: usize, const D: usize>(
 where
     Geometry: Interior<N, D>,
 {
-    let e = b_pt.pos - a_pt.pos;
-    let l2 = e.norm_squared();
-    let t = if l2 > 0.0 {
-        (center - a_pt.pos).dot(&e) / l2
-    } else {
-        0.0
-    };
+    let (e, l2, t) = foot_on_line(a_pt, b_pt, center);
     if t <= 0.0 {
         return point_row(a_pt, center, reach, g);
     }
@@ -156,6 +150,24 @@ where
         return point_row(b_pt, center, reach, g);
     }
     Geometry::interior(a_pt, b_pt, center, reach, g, (e, l2, t))
+}
+
+/// Where the perpendicular from `center` meets the segment's line: (e = B − A, |e|², t) with the
+/// foot at A + t e (t = 0 for a segment of no length).
+#[inline(always)]
+fn foot_on_line<const N: usize, const D: usize>(
+    a_pt: &Pt<N, D>,
+    b_pt: &Pt<N, D>,
+    center: SVector<f64, D>,
+) -> (SVector<f64, D>, f64, f64) {
+    let e = b_pt.pos - a_pt.pos;
+    let l2 = e.norm_squared();
+    let t = if l2 > 0.0 {
+        (center - a_pt.pos).dot(&e) / l2
+    } else {
+        0.0
+    };
+    (e, l2, t)
 }
 
 /// The dimensions a segment's interior piece is written for.
@@ -304,13 +316,7 @@ pub fn segment_foot<const N: usize>(
     reach: f64,
     g: BarrierGains,
 ) -> Option<Foot<3>> {
-    let e = pb.pos - pa.pos;
-    let l2 = e.norm_squared();
-    let t = if l2 > 0.0 {
-        (center - pa.pos).dot(&e) / l2
-    } else {
-        0.0
-    };
+    let (e, l2, t) = foot_on_line(pa, pb, center);
     if t <= 0.0 {
         return point_foot(pa, center, reach, g, false);
     }
