@@ -233,9 +233,9 @@ impl<const N: usize> Rows<N> {
         let r = self;
         let mut violated = false;
         let mut push = |a: &VecN<N>, b: f64| {
-            let h = b - a.dot(qdd);
-            violated |= h > tol(b);
-            r.push(*a, h);
+            let a_qdd = a.dot(qdd);
+            violated |= misses(b, a_qdd);
+            r.push(*a, b - a_qdd);
         };
         visit(&mut push);
         for i in 0..N {
