@@ -15,7 +15,7 @@ use control::analysis::{
 use control::config::spatial::SpatialConfig;
 use control::config::{LawSection, ModelKind, SimSection};
 use control::model::Chain;
-use control::monitor::run::{watch_sim, Watched};
+use control::monitor::run::{watch_sim, Edit, Watched};
 use control::monitor::MonitorSettings;
 use control::sim::ClosedLoopLaw;
 use control::steer::Blocked;
@@ -55,10 +55,7 @@ impl Subject {
     }
 
     pub fn set_mu(&mut self, mu: f64) {
-        match self {
-            Self::Planar(c) => c.feedback.mu = mu,
-            Self::Robot(c, _) => c.feedback.mu = mu,
-        }
+        self.feedback_mut().mu = mu;
     }
 
     /// The `[feedback]` section (one type for every arm).
@@ -66,6 +63,14 @@ impl Subject {
         match self {
             Self::Planar(c) => &c.feedback,
             Self::Robot(c, _) => &c.feedback,
+        }
+    }
+
+    /// The `[feedback]` section, to change.
+    pub fn feedback_mut(&mut self) -> &mut control::config::FeedbackSection {
+        match self {
+            Self::Planar(c) => &mut c.feedback,
+            Self::Robot(c, _) => &mut c.feedback,
         }
     }
 
@@ -294,10 +299,19 @@ impl Subject {
         self.run_loop(Analyse(spec))
     }
 
-    /// A run of `duration` s with the daemon's chaos monitor watching (`chaosctl monitor`'s
-    /// runs without edits).
-    pub fn watch(&self, duration: f64, settings: MonitorSettings) -> Result<Watched> {
-        self.run_loop(Watch { duration, settings })
+    /// A run of `duration` s with the daemon's chaos monitor watching, each of `edits` (sorted
+    /// by time) swapped in at its time as the daemon swaps a live change (`chaosctl monitor`).
+    pub fn watch(
+        &self,
+        duration: f64,
+        settings: MonitorSettings,
+        edits: &[Edit],
+    ) -> Result<Watched> {
+        self.run_loop(Watch {
+            duration,
+            settings,
+            edits,
+        })
     }
 
     /// Hands `visitor` this arm's closed loop at t = 0, its delay line holding exactly τ (as the
@@ -549,25 +563,24 @@ impl LoopVisitor for OnOrbit<'_> {
 }
 
 /// [`Subject::watch`]: the chaos monitor on the loop.
-struct Watch {
+struct Watch<'a> {
     duration: f64,
     settings: MonitorSettings,
+    edits: &'a [Edit],
 }
 
-impl LoopVisitor for Watch {
+impl LoopVisitor for Watch<'_> {
     type Out = Watched;
     fn visit<const N: usize, L: ClosedLoopLaw<N>>(
         self,
         mut sim: Simulation<N, L>,
         _: Start<'_>,
     ) -> Result<Watched> {
-        let tau = sim.law.core().tau;
         Ok(watch_sim(
             &mut sim,
             self.duration,
             self.settings,
-            tau,
-            |_, _| None,
+            self.edits,
         ))
     }
 }

@@ -523,7 +523,8 @@ fn basins_on_the_panda_chaotic_without_feedback_and_settling_with_it() {
 }
 
 /// `monitor` on the Panda from two starts: a fixed-μ cell and an auto-μ comparison per start,
-/// each with its own posture; a start of the wrong length is named by its number.
+/// each with its own posture, and the auto runs with a task edit half-way (the radius, the
+/// period), as the planar arm's; a start of the wrong length is named by its number.
 #[test]
 fn monitor_runs_a_robot_from_each_start_given() {
     let out = tmp("monitor");
@@ -556,6 +557,17 @@ fn monitor_runs_a_robot_from_each_start_given() {
     assert_eq!(comparisons[1]["q0"][0].as_f64(), Some(0.1), "{r}");
     assert!(
         comparisons.iter().all(|c| c["auto_verdict"].is_string()),
+        "{r}"
+    );
+    let edits: Vec<(u64, &str)> = r["edits"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| (e["start"].as_u64().unwrap(), e["edit"].as_str().unwrap()))
+        .collect();
+    assert_eq!(
+        edits,
+        [(0, "radius"), (0, "period"), (1, "radius"), (1, "period")],
         "{r}"
     );
     let bad = chaosctl(&[

@@ -13,6 +13,7 @@ use crate::arm::spatial::SpatialKinematics;
 use crate::arm::{ArmModel, Kinematics, VecN};
 use crate::law::spatial as spatial_law;
 use crate::law::spatial::SpatialParams;
+pub use crate::law::ParamBlock;
 use crate::law::{self, LawCore, LawParams};
 use crate::resolve::ControlOutput;
 use crate::safety::SafetyParams;
@@ -33,30 +34,6 @@ pub enum TickLaw<const N: usize> {
         arm: SpatialArm<N>,
         params: SpatialParams,
     },
-}
-
-/// A new parameter block for a running [`TickLaw`] (the daemon's live changes).
-// Not boxed: it crosses to the loop by value, and the loop frees nothing.
-#[allow(clippy::large_enum_variant)]
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ParamBlock {
-    Planar(LawParams),
-    Spatial(SpatialParams),
-}
-
-impl ParamBlock {
-    /// The gains, feedback and limits of the block's law.
-    pub fn core(&self) -> &LawCore {
-        match self {
-            ParamBlock::Planar(p) => &p.core,
-            ParamBlock::Spatial(p) => &p.core,
-        }
-    }
-
-    /// The limits the block's law obeys.
-    pub fn safety(&self) -> &SafetyParams {
-        &self.core().safety
-    }
 }
 
 /// Kinematics scratch for either law.
@@ -159,12 +136,6 @@ impl<const N: usize> TickLaw<N> {
         (c.mu, c.auto_mu) = (mu, auto_mu);
     }
 
-    /// After a new parameter block: an adapting gain goes on from `mu`, the gain before the
-    /// change ([`LawCore::carry_adapted_mu`]).
-    pub fn carry_adapted_mu(&mut self, mu: f64) {
-        self.core_mut().carry_adapted_mu(mu)
-    }
-
     pub fn tau(&self) -> f64 {
         self.feedback().1
     }
@@ -261,5 +232,8 @@ impl<const N: usize> crate::sim::ClosedLoopLaw<N> for TickLaw<N> {
             TickLaw::Planar { params, .. } => crate::sim::StatsSetup::planar(params),
             TickLaw::Spatial { params, .. } => crate::sim::StatsSetup::spatial(params),
         }
+    }
+    fn set_block(&mut self, block: ParamBlock) -> bool {
+        self.set(block)
     }
 }

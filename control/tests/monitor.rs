@@ -2,16 +2,16 @@
 //! simulation, the monitor the daemon runs (what `chaosctl monitor` measures at scale).
 
 use control::adapt::AutoMu;
-use control::monitor::run::{watch, Edit};
+use control::monitor::run::{watch, Edit, PeriodPoint};
 use control::monitor::{MonitorSettings, Verdict};
-use control::Config;
+use control::{Config, System};
 
-fn paper(q0: [f64; 3], mu: f64) -> Config {
+fn paper(q0: [f64; 3], mu: f64) -> System {
     let mut cfg = Config::preset("paper").unwrap();
     cfg.sim.q0 = Some(q0.to_vec());
     cfg.feedback.mu = mu;
     cfg.validate().unwrap();
-    cfg
+    System::Planar(cfg)
 }
 
 #[test]
@@ -57,15 +57,15 @@ fn a_stabilising_gain_is_called_periodic_and_a_torus_regular() {
 #[test]
 fn auto_mu_finds_a_stabilising_gain_from_every_start_and_after_an_edit() {
     for q0 in [[0.6, 1.0, 2.2], [-0.5, 2.0, 1.0], [-0.8, 2.3, 1.2]] {
-        let mut cfg = paper(q0, 0.0);
-        cfg.feedback.auto = Some(AutoMu::default());
-        cfg.validate().unwrap();
-        let radius = |p: &mut control::LawParams| p.task.radius *= 1.1;
-        let edit = [Edit {
-            t: 300.0,
-            apply: &radius,
-        }];
-        let w = watch(&cfg, 600.0, MonitorSettings::default(), &edit);
+        let mut system = paper(q0, 0.0);
+        system.feedback_section_mut().auto = Some(AutoMu::default());
+        system.validate().unwrap();
+        let radius = |s: &mut System| {
+            *s.task_circle_mut().0 *= 1.1;
+            Ok(())
+        };
+        let edit = [Edit::of(&system, 300.0, radius).unwrap()];
+        let w = watch(&system, 600.0, MonitorSettings::default(), &edit);
         let max = AutoMu::default().max_mu;
         assert!(
             w.trace.iter().all(|p| p.mu <= max),
@@ -143,8 +143,8 @@ fn the_spatial_feedback_section_takes_auto_too() {
 #[test]
 fn the_tick_adapts_mu_only_while_tracking() {
     let mut cfg = paper([0.3, 1.2, 1.9], 0.0);
-    cfg.feedback.auto = Some(AutoMu::default());
-    cfg.feedback.t_on = 0.0;
+    cfg.feedback_section_mut().auto = Some(AutoMu::default());
+    cfg.feedback_section_mut().t_on = 0.0;
     let mut law = cfg.tick_law::<3>();
     let x = cfg.initial_state::<3>();
     let delayed = control::VecN::<3>::new(1.0, -1.0, 0.5);
@@ -160,4 +160,29 @@ fn the_tick_adapts_mu_only_while_tracking() {
     law.set_pause(false);
     law.adapt(&out, 1e-3);
     assert!(law.feedback().0 > 0.0);
+}
+
+/// An edit reaches a robot's law as the daemon's live change does: the new block from its time
+/// on, and a block made for another kind of arm not at all.
+#[test]
+fn an_edit_reaches_a_robots_law_and_a_block_for_another_arm_does_not() {
+    let robots = &control::system::builtin_robot;
+    let panda = System::preset("panda", robots).unwrap();
+    let before = panda.feedback().mu;
+    let raise = |s: &mut System| {
+        s.feedback_section_mut().mu = 0.5;
+        Ok(())
+    };
+    let edit = Edit::of(&panda, 6.0, raise).unwrap();
+    let w = watch(&panda, 12.0, MonitorSettings::default(), &[edit]);
+    assert!(!w.diverged);
+    let (early, late): (Vec<PeriodPoint>, Vec<PeriodPoint>) =
+        w.trace.iter().partition(|p| p.t < 6.0);
+    assert!(!early.is_empty() && !late.is_empty(), "{:?}", w.trace);
+    assert!(early.iter().all(|p| p.mu == before), "{early:?}");
+    assert!(late.iter().all(|p| p.mu == 0.5), "{late:?}");
+    let paper = System::preset("paper", robots).unwrap();
+    let foreign = Edit::of(&paper, 6.0, raise).unwrap();
+    let w = watch(&panda, 12.0, MonitorSettings::default(), &[foreign]);
+    assert!(w.trace.iter().all(|p| p.mu == before), "{:?}", w.trace);
 }

@@ -302,11 +302,9 @@ impl<const N: usize> Controller<N> {
     /// another kind of arm is refused (false) and changes nothing: the control service builds
     /// blocks from the same set-up the loop runs, so it never sends one.
     pub fn set_params(&mut self, p: ParamBlock) -> bool {
-        let mu = self.law.feedback().0;
-        if !self.law.set(p) {
+        if !control::sim::ClosedLoopLaw::take_block(&mut self.law, p) {
             return false;
         }
-        self.law.carry_adapted_mu(mu);
         self.law.set_steer(self.steer);
         self.law.set_pause(self.blocked_hold);
         self.memory.applied = Some(Applied::Params);

@@ -16,10 +16,8 @@ use crate::subject::Subject;
 use anyhow::{Context, Result};
 use clap::Args;
 use control::adapt::AutoMu;
-use control::law::LawParams;
-use control::monitor::run::{watch, Edit, Watched};
+use control::monitor::run::{Edit, Watched};
 use control::monitor::{MonitorSettings, Verdict};
-use control::Config;
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -53,8 +51,8 @@ pub struct MonitorCmd {
 }
 
 enum Job {
-    Fixed(usize, Config),
-    Auto(usize, Config, EditKind),
+    Fixed(usize, Subject),
+    Auto(usize, Subject, EditKind, Vec<Edit>),
 }
 
 enum Done {
@@ -63,54 +61,57 @@ enum Done {
 }
 
 pub fn run(args: MonitorCmd) -> Result<()> {
-    if let Some(cfg) = crate::spatial::load(&args.model.setup, None)? {
-        return spatial(&args, &cfg);
-    }
-    let (base, mus) = args.model.load("0:0.5:0.05")?;
-    let starts = args.starts.configs(&base, args.model.setup.q0.is_some())?;
+    let base = Subject::load(&args.model.setup, None)?;
+    let mus = args.model.mus(default_mus(&base))?;
+    let starts = base.starts(&args.starts, args.model.setup.q0.is_some())?;
     let spec = args
         .lyapunov
-        .spec(base.task.period, base.sim.dt, args.classify.config()?)?;
+        .spec(base.period(), base.dt(), args.classify.config()?)?;
     let settings = settings(&args)?;
-    let auto = auto_settings(&args, &base)?;
+    let tau = base.tau_and_t_on().0;
+    let auto = auto_settings(&args, &base, tau)?;
+    let duration = spec.duration;
     let mut work = Vec::new();
     for (i, s) in starts.iter().enumerate() {
         for &mu in &mus {
             let mut c = s.clone();
-            c.feedback.mu = mu;
-            c.feedback.auto = None;
+            c.set_mu(mu);
+            c.feedback_mut().auto = None;
+            c.check()
+                .with_context(|| format!("μ = {mu}, start {}", i + 1))?;
             work.push(Job::Fixed(i, c));
         }
+        // `mu = "auto"` starts from 0, as in a file.
         let mut c = s.clone();
-        c.feedback.auto = Some(auto);
-        c.validate()?;
-        for edit in [
-            EditKind::None,
-            EditKind::Radius,
-            EditKind::Period,
-            EditKind::Obstacle,
-        ] {
-            if edit != EditKind::Obstacle || !c.control.obstacles.is_empty() {
-                work.push(Job::Auto(i, c.clone(), edit));
+        c.set_mu(0.0);
+        c.feedback_mut().auto = Some(auto);
+        c.check().with_context(|| format!("start {}", i + 1))?;
+        for edit in EditKind::ALL {
+            match edits(&c, edit, duration) {
+                Ok(Some(e)) => work.push(Job::Auto(i, c.clone(), edit, e)),
+                Ok(None) => {}
+                Err(e) => eprintln!("monitor: start {}: no {edit:?} edit run: {e:#}", i + 1),
             }
         }
     }
-    let duration = spec.duration;
     let t0 = std::time::Instant::now();
     let done = run_all(&work, jobs(args.jobs), "monitor", |j| match j {
-        Job::Fixed(i, c) => Done::Fixed(fixed(*i, c, &spec, settings)),
-        Job::Auto(i, c, e) => Done::Auto(auto_run(*i, c, *e, 2.0 * duration, settings)),
+        Job::Fixed(i, c) => fixed(*i, c, &spec, settings).map(Done::Fixed),
+        Job::Auto(i, c, kind, e) => {
+            let w = c.watch(2.0 * duration, settings, e)?;
+            Ok(Done::Auto(auto_cell(*i, *kind, e.first().map(|e| e.t), w)))
+        }
     })?;
     let (mut fixed_cells, mut auto_cells) = (Vec::new(), Vec::new());
     for d in done {
-        match d {
+        match d? {
             Done::Fixed(f) => fixed_cells.push(f),
             Done::Auto(a) => auto_cells.push(a),
         }
     }
     let report = super::monitor_report::Report::new(
-        base.tau(),
-        starts.iter().map(Config::q0).collect(),
+        tau,
+        starts.iter().map(Subject::q0).collect(),
         fixed_cells,
         auto_cells,
         auto,
@@ -121,76 +122,45 @@ pub fn run(args: MonitorCmd) -> Result<()> {
     report.write(&args.output, args.json)
 }
 
-/// A spatial robot: each start (`--start`, else its config's), the μ sweep, and one auto run
-/// per start (no edits: they act on the planar arm's parameter block).
-fn spatial(args: &MonitorCmd, cfg: &control::config::spatial::SpatialConfig) -> Result<()> {
-    let mus = match &args.model.mu {
-        Some(r) => r.0.clone(),
-        None => super::parse_range("0:3:0.5").map_err(anyhow::Error::msg)?,
+/// The μ range a sweep covers unless `--mu` says: the paper's planar arm is captured below
+/// μ = 0.5 and quasi-periodic above; a robot's gains are larger (docs/panda-study.md).
+fn default_mus(s: &Subject) -> &'static str {
+    if s.dims() == 2 {
+        "0:0.5:0.05"
+    } else {
+        "0:3:0.5"
+    }
+}
+
+/// The edits of an auto run of `c` that makes `kind` half-way through a run of `2 × duration`
+/// s, as a live `chaosctl set` (or `obstacle`) would: none for [`EditKind::None`], and no run
+/// at all (None) for an obstacle edit without obstacles. An edit the set-up refuses (a radius
+/// out of reach) is an error.
+fn edits(c: &Subject, kind: EditKind, duration: f64) -> Result<Option<Vec<Edit>>> {
+    let system = c.system();
+    let at = duration;
+    let edit = match kind {
+        EditKind::None => return Ok(Some(Vec::new())),
+        EditKind::Obstacle if system.obstacle_rows().is_empty() => return Ok(None),
+        EditKind::Radius => Edit::of(&system, at, |s| {
+            *s.task_circle_mut().0 *= 1.1;
+            Ok(())
+        }),
+        EditKind::Period => Edit::of(&system, at, |s| {
+            let period = s.task_circle_mut().1;
+            *period *= 1.1;
+            let tau = *period;
+            s.feedback_section_mut().tau = Some(tau);
+            Ok(())
+        }),
+        EditKind::Obstacle => Edit::of(&system, at, |s| {
+            let mut o = s.obstacle_rows().remove(0);
+            s.remove_obstacle(0);
+            o.center[0] += 0.05;
+            s.add_obstacle(&o.center, o.radius, o.margin)
+        }),
     };
-    let settings = settings(args)?;
-    let tau = cfg.feedback.tau.unwrap_or(cfg.task.period);
-    let mut auto = cfg.feedback.auto.unwrap_or_default();
-    auto.gamma = args.gamma.unwrap_or(auto.gamma);
-    auto.max_mu = args.max_mu.unwrap_or(auto.max_mu);
-    auto.check(tau)?;
-    let l = &args.lyapunov;
-    let spec = l.spec(cfg.task.period, cfg.sim.dt, args.classify.config()?)?;
-    let r = &cfg.robot;
-    let chain = std::sync::Arc::new(rt::robot::load(
-        &r.description,
-        r.base.as_deref(),
-        r.tip.as_deref(),
-    )?);
-    // Each start checked against the robot once, named by its number.
-    let starts =
-        Subject::Robot(Box::new(cfg.clone()), chain.clone()).starts(&args.starts, false)?;
-    let q0s: Vec<Vec<f64>> = starts.iter().map(Subject::q0).collect();
-    let mut work: Vec<(usize, Option<f64>)> = Vec::new();
-    for i in 0..q0s.len() {
-        work.extend(mus.iter().map(|&mu| (i, Some(mu))));
-        work.push((i, None)); // the auto run
-    }
-    let t0 = std::time::Instant::now();
-    let done = run_all(
-        &work,
-        jobs(args.jobs),
-        "monitor",
-        |&(i, mu)| -> Result<Done> {
-            let mut c = cfg.clone();
-            c.sim.q0 = Some(q0s[i].clone());
-            c.feedback.auto = mu.is_none().then_some(auto);
-            c.feedback.mu = mu.unwrap_or(0.0); // checked when the run sets the robot up
-            let subject = Subject::Robot(Box::new(c), chain.clone());
-            let Some(mu) = mu else {
-                let w = subject.watch(2.0 * l.duration, settings)?;
-                return Ok(Done::Auto(auto_cell(i, EditKind::None, None, w)));
-            };
-            let run = subject.analyse(&spec)?;
-            let e = run.lyapunov.context("the run produced no exponent")?;
-            let w = subject.watch(l.duration, settings)?;
-            let offline = Some((e.lambda_max, e.stderr));
-            Ok(Done::Fixed(fixed_cell(i, mu, tau, offline, &w)))
-        },
-    )?;
-    let (mut fixed_cells, mut auto_cells) = (Vec::new(), Vec::new());
-    for d in done {
-        match d? {
-            Done::Fixed(f) => fixed_cells.push(f),
-            Done::Auto(a) => auto_cells.push(a),
-        }
-    }
-    let report = super::monitor_report::Report::new(
-        tau,
-        q0s,
-        fixed_cells,
-        auto_cells,
-        auto,
-        settings,
-        l.duration,
-        t0.elapsed().as_secs_f64(),
-    );
-    report.write(&args.output, args.json)
+    Ok(Some(vec![edit?]))
 }
 
 fn settings(args: &MonitorCmd) -> Result<MonitorSettings> {
@@ -204,27 +174,30 @@ fn settings(args: &MonitorCmd) -> Result<MonitorSettings> {
     Ok(s)
 }
 
-fn auto_settings(args: &MonitorCmd, base: &Config) -> Result<AutoMu> {
-    let mut a = base.feedback.auto.unwrap_or_default();
+fn auto_settings(args: &MonitorCmd, base: &Subject, tau: f64) -> Result<AutoMu> {
+    let mut a = base.feedback().auto.unwrap_or_default();
     a.gamma = args.gamma.unwrap_or(a.gamma);
     a.max_mu = args.max_mu.unwrap_or(a.max_mu);
-    a.check(base.tau())?;
+    a.check(tau)?;
     Ok(a)
 }
 
+/// A fixed-μ run of `c`: the offline λ_max (a run that yields none is labelled failed) and the
+/// monitor's verdict on the same loop.
 fn fixed(
     start: usize,
-    c: &Config,
+    c: &Subject,
     spec: &control::analysis::RunSpec,
     s: MonitorSettings,
-) -> FixedCell {
-    let offline = Subject::Planar(c.clone())
+) -> Result<FixedCell> {
+    let offline = c
         .analyse(spec)
         .ok()
         .and_then(|a| a.lyapunov)
         .map(|l| (l.lambda_max, l.stderr));
-    let w = watch(c, spec.duration, s, &[]);
-    fixed_cell(start, c.feedback.mu, c.tau(), offline, &w)
+    let w = c.watch(spec.duration, s, &[])?;
+    let tau = c.tau_and_t_on().0;
+    Ok(fixed_cell(start, c.mu(), tau, offline, &w))
 }
 
 /// A fixed-μ cell from the offline (λ_max, standard error) and the watched run.
@@ -258,39 +231,6 @@ fn fixed_cell(
 /// Periods from the start until the final verdict was reached (None if it never was one).
 fn settled(w: &Watched, tau: f64) -> Option<f64> {
     (w.last.verdict != Verdict::Unknown).then(|| w.last.since / tau)
-}
-
-fn auto_run(
-    start: usize,
-    c: &Config,
-    edit: EditKind,
-    duration: f64,
-    s: MonitorSettings,
-) -> AutoCell {
-    let at = duration / 2.0;
-    let radius = |p: &mut LawParams| p.task.radius *= 1.1;
-    let period = |p: &mut LawParams| {
-        p.task.period *= 1.1;
-        p.core.tau = p.task.period;
-    };
-    let obstacle = |p: &mut LawParams| {
-        if let Some(mut o) = p.obstacles.remove(0) {
-            o.center.x += 0.05;
-            let _ = p.obstacles.push(o);
-        }
-    };
-    let apply: Option<&dyn Fn(&mut LawParams)> = match edit {
-        EditKind::None => None,
-        EditKind::Radius => Some(&radius),
-        EditKind::Period => Some(&period),
-        EditKind::Obstacle => Some(&obstacle),
-    };
-    let edits: Vec<Edit> = apply
-        .map(|apply| Edit { t: at, apply })
-        .into_iter()
-        .collect();
-    let w = watch(c, duration, s, &edits);
-    auto_cell(start, edit, (edit != EditKind::None).then_some(at), w)
 }
 
 fn auto_cell(start: usize, edit: EditKind, edit_at: Option<f64>, w: Watched) -> AutoCell {

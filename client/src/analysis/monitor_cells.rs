@@ -46,6 +46,16 @@ pub enum EditKind {
     Obstacle,
 }
 
+impl EditKind {
+    /// Every kind, in the order the report lists them.
+    pub const ALL: [EditKind; 4] = [
+        EditKind::None,
+        EditKind::Radius,
+        EditKind::Period,
+        EditKind::Obstacle,
+    ];
+}
+
 /// One `mu = "auto"` run of one start.
 #[derive(Clone, Debug, Serialize)]
 pub struct AutoCell {

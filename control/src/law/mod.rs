@@ -11,11 +11,13 @@
 //! evaluation so that the offline simulation, the analysis and the daemon all get the same
 //! filtered command, and a disabled filter costs one branch.
 
+pub mod block;
 pub mod core;
 pub mod metric;
 pub mod pipeline;
 pub mod spatial;
 
+pub use self::block::ParamBlock;
 pub use self::core::{LawCore, LoopFeedback, Secondary};
 use crate::arm::{ArmModel, Jac, Kinematics, VecN};
 use crate::basics::{flags, wrap_angle};

@@ -6,16 +6,52 @@
 //! does, and restart the monitor's window, as the daemon does.
 
 use super::{ChaosMonitor, Edge, Evidence, MonitorSettings, Verdict};
-use crate::config::Config;
-use crate::law::LawParams;
+use crate::basics::ConfigError;
+use crate::law::ParamBlock;
 use crate::sim::{ClosedLoopLaw, LoopFeedback, Simulation};
+use crate::system::System;
 use crate::with_dof;
 use serde::Serialize;
 
-/// A change to the law at a time, as a live `chaosctl set` would make it.
-pub struct Edit<'a> {
+/// A change to the law at a time, as a live `chaosctl set` would make it: the whole parameter
+/// block of the edited set-up, swapped in as the daemon swaps one.
+#[derive(Clone, Copy, Debug)]
+pub struct Edit {
     pub t: f64,
-    pub apply: &'a dyn Fn(&mut LawParams),
+    pub block: ParamBlock,
+}
+
+impl Edit {
+    /// `system` changed by `change` and validated, as the daemon validates a `set`, at time `t`.
+    ///
+    /// ```
+    /// use control::monitor::run::Edit;
+    /// let s = control::System::preset("paper", &control::system::builtin_robot).unwrap();
+    /// let wider = |s: &mut control::System| {
+    ///     *s.task_circle_mut().0 *= 1.1;
+    ///     Ok(())
+    /// };
+    /// let e = Edit::of(&s, 30.0, wider).unwrap();
+    /// assert_eq!(e.t, 30.0);
+    /// let far = |s: &mut control::System| {
+    ///     *s.task_circle_mut().0 = 9.0;
+    ///     Ok(())
+    /// };
+    /// assert!(Edit::of(&s, 30.0, far).is_err());
+    /// ```
+    pub fn of(
+        system: &System,
+        t: f64,
+        change: impl FnOnce(&mut System) -> Result<(), ConfigError>,
+    ) -> Result<Self, ConfigError> {
+        let mut s = system.clone();
+        change(&mut s)?;
+        s.validate()?;
+        Ok(Self {
+            t,
+            block: s.param_block(),
+        })
+    }
 }
 
 /// One period of a watched run.
@@ -42,56 +78,41 @@ pub struct Watched {
     pub diverged: bool,
 }
 
-/// Runs `cfg` (planar) for `duration` s with the monitor watching; `edits` sorted by time.
-pub fn watch(cfg: &Config, duration: f64, settings: MonitorSettings, edits: &[Edit]) -> Watched {
-    with_dof!(cfg.n(), N => watch_n::<N>(cfg, duration, settings, edits))
-}
-
-fn watch_n<const N: usize>(
-    cfg: &Config,
-    duration: f64,
-    settings: MonitorSettings,
-    edits: &[Edit],
-) -> Watched {
-    let params = cfg.law_params();
-    let max_tau = cfg.feedback.capacity();
-    let mut sim = Simulation::new(
-        cfg.model::<N>(),
-        params,
-        cfg.sim.dt,
-        cfg.initial_state::<N>(),
-        max_tau,
-    );
-    let mut pending = edits.iter().peekable();
-    watch_sim(&mut sim, duration, settings, params.core.tau, |t, sim| {
-        let mut edited = false;
-        while let Some(e) = pending.next_if(|e| e.t <= t) {
-            // As in the daemon: a new block adapts with the config's γ from the current μ.
-            sim.law.params.core.auto_mu = params.core.auto_mu;
-            (e.apply)(&mut sim.law.params);
-            edited = true;
-        }
-        edited.then_some(sim.law.params.core.tau)
+/// Runs `system` as the daemon's law for `duration` s with the monitor watching; `edits`
+/// sorted by time.
+pub fn watch(system: &System, duration: f64, settings: MonitorSettings, edits: &[Edit]) -> Watched {
+    with_dof!(system.n(), N => {
+        let law = system.tick_law::<N>();
+        let (dt, x0) = (system.sim_section().dt, system.initial_state::<N>());
+        let mut sim = Simulation::of(law, dt, x0, system.feedback().max_tau);
+        watch_sim(&mut sim, duration, settings, edits)
     })
 }
 
-/// Runs `sim` for `duration` s with a monitor for period `tau` watching. Before each step,
-/// `edit(t, sim)` may change the simulation; it returns the new τ when it did (the monitor's
-/// window then restarts, as the daemon's does after an edit).
+/// Runs `sim` (not yet stepped) for `duration` s with the monitor watching. Each edit's block
+/// is swapped in before the first step at or after its time, as the daemon swaps one
+/// ([`ClosedLoopLaw::take_block`]), and the monitor's window restarts with the block's τ, as
+/// the daemon's does. An edit whose block is for another arm is not made.
 pub fn watch_sim<const N: usize, L: ClosedLoopLaw<N>>(
     sim: &mut Simulation<N, L>,
     duration: f64,
     settings: MonitorSettings,
-    tau: f64,
-    mut edit: impl FnMut(f64, &mut Simulation<N, L>) -> Option<f64>,
+    edits: &[Edit],
 ) -> Watched {
-    let mut monitor = ChaosMonitor::new(settings, tau);
+    let longest = edits.iter().map(|e| e.block.core().tau).fold(0.0, f64::max);
+    sim.reserve_delay(longest);
+    let mut monitor = ChaosMonitor::new(settings, sim.law.core().tau);
+    let mut pending = edits.iter().peekable();
     let (mut edges, mut trace, mut effort, mut diverged) = (Vec::new(), Vec::new(), 0.0, false);
     let (dt, steps) = (sim.dt(), (duration / sim.dt()).round() as u64);
     for _ in 0..steps {
         let t = sim.time();
-        if let Some(tau) = edit(t, sim) {
-            monitor.restart(t, tau);
+        let mut edited = false;
+        while let Some(e) = pending.next_if(|e| e.t <= t) {
+            edited |= sim.law.take_block(e.block);
+        }
+        if edited {
+            monitor.restart(t, sim.law.core().tau);
         }
         let LoopFeedback { mu, projection, .. } = sim.law.loop_feedback();
         let x = *sim.state();

@@ -12,7 +12,7 @@ use crate::arm::spatial::{SpatialArm, SpatialKinematics};
 use crate::arm::{ArmModel, Kinematics, VecN};
 use crate::law::spatial::SpatialParams;
 pub use crate::law::LoopFeedback;
-use crate::law::{self, LawCore, LawParams};
+use crate::law::{self, LawCore, LawParams, ParamBlock};
 use crate::resolve::ControlOutput;
 use crate::steer::Steering;
 
@@ -59,6 +59,23 @@ pub trait ClosedLoopLaw<const N: usize>: Clone {
     fn set_steering(&mut self, steering: Option<Steering>);
     /// The planned cycle the law steers onto, if any (what a trap watch follows).
     fn steering(&self) -> Option<Steering>;
+
+    /// Replaces the whole parameter block; false (and unchanged) when the block is for
+    /// another kind of arm or task.
+    fn set_block(&mut self, block: ParamBlock) -> bool;
+
+    /// A live change, as the daemon makes it: the new block in, an adapting gain going on from
+    /// where it stood ([`LawCore::carry_adapted_mu`]), the planned cycle kept. False (and
+    /// unchanged) for a block of another kind of arm or task.
+    fn take_block(&mut self, block: ParamBlock) -> bool {
+        let (mu, steering) = (self.core().mu, self.steering());
+        if !self.set_block(block) {
+            return false;
+        }
+        self.core_mut().carry_adapted_mu(mu);
+        self.set_steering(steering);
+        true
+    }
 }
 
 /// The paper's planar arm (fixed or floating base) under [`crate::law::evaluate`].
@@ -103,6 +120,13 @@ impl<const N: usize> ClosedLoopLaw<N> for PlanarLaw<N> {
     fn steering(&self) -> Option<Steering> {
         self.params.steer.map(Steering::Planar)
     }
+    fn set_block(&mut self, block: ParamBlock) -> bool {
+        match block {
+            ParamBlock::Planar(p) => self.params = p,
+            ParamBlock::Spatial(_) => return false,
+        }
+        true
+    }
 }
 
 /// A URDF chain under [`crate::law::spatial::evaluate`] for a task of `M` rows (3: position, 6:
@@ -144,5 +168,12 @@ impl<const N: usize, const M: usize> ClosedLoopLaw<N> for SpatialLaw<N, M> {
     }
     fn steering(&self) -> Option<Steering> {
         self.params.steer.map(Steering::Spatial)
+    }
+    fn set_block(&mut self, block: ParamBlock) -> bool {
+        match block {
+            ParamBlock::Spatial(p) if p.task.kind.rows() == M => self.params = p,
+            _ => return false,
+        }
+        true
     }
 }

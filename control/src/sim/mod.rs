@@ -141,6 +141,19 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Simulation<N, L> {
         &mut self.delay
     }
 
+    /// Makes the delay line hold `max_tau` (s) before the first step, for a run whose τ will
+    /// grow mid-way (an edit): its history is still the start's alone, so a longer line changes
+    /// nothing else. False once the run has stepped (the line keeps its size).
+    pub fn reserve_delay(&mut self, max_tau: f64) -> bool {
+        if self.step_index != 0 {
+            return false;
+        }
+        if max_tau / self.dt > self.delay.max_delay_steps() {
+            self.delay = DelayLine::new(max_tau / self.dt, self.state.qd);
+        }
+        true
+    }
+
     /// Advances one step of dt. Returns the control output at the start of the step (time t_k).
     pub fn step(&mut self) -> ControlOutput<N> {
         let k = self.step_index as f64;

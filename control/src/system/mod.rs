@@ -266,6 +266,21 @@ impl System {
         }
     }
 
+    /// The file's `[sim]`, one section for every arm.
+    pub fn sim_section(&self) -> &crate::config::SimSection {
+        match self {
+            System::Planar(c) => &c.sim,
+            System::Spatial(s) => &s.config.sim,
+        }
+    }
+
+    pub fn sim_section_mut(&mut self) -> &mut crate::config::SimSection {
+        match self {
+            System::Planar(c) => &mut c.sim,
+            System::Spatial(s) => &mut s.config.sim,
+        }
+    }
+
     /// The file's `[law]`, one section for every arm.
     pub fn law_section(&self) -> &LawSection {
         match self {
