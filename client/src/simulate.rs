@@ -130,7 +130,7 @@ impl<F: FnMut(&Visited<'_>) -> Result<()>> LoopVisitor for SimulateRun<F> {
             )),
             (None, None) => None,
         };
-        let mut traps = OfflineTraps::new(subject.system(), steering);
+        let mut traps = OfflineTraps::new(subject.system().clone(), steering);
         if let Some(b) = &start.blocked {
             traps.blocked_at_start(b);
         }

@@ -13,23 +13,19 @@ use control::analysis::{
     OrbitStability, PeriodicOrbit, RunAnalysis, RunSpec, StabilitySpec,
 };
 use control::config::spatial::SpatialConfig;
-use control::config::{LawSection, ModelKind, SimSection};
-use control::model::Chain;
+use control::config::{LawSection, ModelKind};
 use control::monitor::run::{watch_sim, Edit, Watched};
 use control::monitor::MonitorSettings;
 use control::sim::ClosedLoopLaw;
 use control::steer::Blocked;
 use control::system::SpatialSystem;
 use control::{with_dof, with_task_rows, ArmState, Config, Simulation, System, VecN};
-use std::sync::Arc;
 
-/// The planar arm's config, or a robot's with its chain (loaded once, shared by every copy).
-// A few hundred copies at most, built once per study: their size does not matter.
-#[allow(clippy::large_enum_variant)]
+/// The set-up an offline command studies: the daemon's own [`System`], with the offline
+/// commands' runs and checks. A few hundred copies at most, built once per study.
 #[derive(Clone, Debug)]
-pub enum Subject {
-    Planar(Config),
-    Robot(Box<SpatialConfig>, Arc<Chain>),
+pub struct Subject {
+    system: System,
 }
 
 impl Subject {
@@ -38,15 +34,29 @@ impl Subject {
     pub fn load(setup: &SetupArgs, mu: Option<f64>) -> Result<Self> {
         match crate::spatial::load(setup, mu)? {
             Some(cfg) => Self::robot(cfg),
-            None => Ok(Self::Planar(setup.load_with_mu(mu)?)),
+            None => Ok(Self::planar(setup.load_with_mu(mu)?)),
         }
     }
 
-    /// A robot's set-up with its chain loaded.
-    pub fn robot(cfg: SpatialConfig) -> Result<Self> {
-        let r = &cfg.robot;
+    /// The paper's planar arm from its config.
+    pub fn planar(cfg: Config) -> Self {
+        Self {
+            system: System::Planar(cfg),
+        }
+    }
+
+    /// A robot's set-up with its chain loaded (checked by [`Self::check`], not here).
+    pub fn robot(config: SpatialConfig) -> Result<Self> {
+        let r = &config.robot;
         let chain = rt::robot::load(&r.description, r.base.as_deref(), r.tip.as_deref())?;
-        Ok(Self::Robot(Box::new(cfg), Arc::new(chain)))
+        Ok(Self {
+            system: System::Spatial(Box::new(SpatialSystem { config, chain })),
+        })
+    }
+
+    /// The whole set-up as the daemon holds it.
+    pub fn system(&self) -> &System {
+        &self.system
     }
 
     /// The Pyragas gain μ (1/s).
@@ -60,26 +70,17 @@ impl Subject {
 
     /// The `[feedback]` section (one type for every arm).
     pub fn feedback(&self) -> &control::config::FeedbackSection {
-        match self {
-            Self::Planar(c) => &c.feedback,
-            Self::Robot(c, _) => &c.feedback,
-        }
+        self.system.feedback_section()
     }
 
     /// The `[feedback]` section, to change.
     pub fn feedback_mut(&mut self) -> &mut control::config::FeedbackSection {
-        match self {
-            Self::Planar(c) => &mut c.feedback,
-            Self::Robot(c, _) => &mut c.feedback,
-        }
+        self.system.feedback_section_mut()
     }
 
     /// Turns the safety filter on or off.
     pub fn set_safety(&mut self, on: bool) {
-        match self {
-            Self::Planar(c) => c.safety.enabled = on,
-            Self::Robot(c, _) => c.safety.enabled = on,
-        }
+        self.system.safety_section_mut().enabled = on;
     }
 
     /// The start posture q(0).
@@ -89,13 +90,16 @@ impl Subject {
 
     /// The start's angles q(0), or with `rate` its rates q̇(0).
     pub fn start_coords(&self, rate: bool) -> Vec<f64> {
-        match (self, rate) {
-            (Self::Planar(c), false) => c.q0(),
-            (Self::Planar(c), true) => c.qd0(),
-            (Self::Robot(c, _), false) => c.sim.start().to_vec(),
-            (Self::Robot(c, chain), true) => {
-                c.sim.qd0.clone().unwrap_or_else(|| vec![0.0; chain.dof()])
-            }
+        match (&self.system, rate) {
+            (System::Planar(c), false) => c.q0(),
+            (System::Planar(c), true) => c.qd0(),
+            (System::Spatial(s), false) => s.config.sim.start().to_vec(),
+            (System::Spatial(s), true) => s
+                .config
+                .sim
+                .qd0
+                .clone()
+                .unwrap_or_else(|| vec![0.0; s.chain.dof()]),
         }
     }
 
@@ -121,7 +125,7 @@ impl Subject {
     /// This set-up from other start angles (or, with `rate`, rates), checked.
     pub fn with_start_coords(&self, rate: bool, x: Vec<f64>) -> Result<Self> {
         let mut s = self.clone();
-        let sim = s.sim_mut();
+        let sim = s.system.sim_section_mut();
         match rate {
             false => sim.q0 = Some(x),
             true => sim.qd0 = Some(x),
@@ -130,34 +134,16 @@ impl Subject {
         Ok(s)
     }
 
-    /// The `[sim]` section (one type for every arm).
-    fn sim(&self) -> &SimSection {
-        match self {
-            Self::Planar(c) => &c.sim,
-            Self::Robot(c, _) => &c.sim,
-        }
-    }
-
-    fn sim_mut(&mut self) -> &mut SimSection {
-        match self {
-            Self::Planar(c) => &mut c.sim,
-            Self::Robot(c, _) => &mut c.sim,
-        }
-    }
-
     /// The `[law]` section (one type for every arm).
     pub fn law(&self) -> &LawSection {
-        match self {
-            Self::Planar(c) => &c.control,
-            Self::Robot(c, _) => &c.law,
-        }
+        self.system.law_section()
     }
 
     /// `--duration` and `--transient` (s), checked as every command checks them; a transient
     /// left out is at most half the run. (A robot's whole set-up is checked when it is built.)
     pub fn set_duration(&mut self, duration: Option<f64>, transient: Option<f64>) -> Result<()> {
-        crate::setup::set_sim_duration(self.sim_mut(), duration, transient)?;
-        if let Self::Planar(c) = self {
+        crate::setup::set_sim_duration(self.system.sim_section_mut(), duration, transient)?;
+        if let System::Planar(c) = &self.system {
             c.validate()?;
         }
         Ok(())
@@ -165,76 +151,54 @@ impl Subject {
 
     /// The `[sim]` run's duration and the transient its statistics skip (s).
     pub fn duration(&self) -> (f64, f64) {
-        (self.sim().duration, self.sim().transient)
+        let sim = self.system.sim_section();
+        (sim.duration, sim.transient)
     }
 
     /// The rate of the pull onto a planned cycle (`safety.plan_hz`).
     pub fn plan_hz(&self) -> f64 {
-        match self {
-            Self::Planar(c) => c.safety.plan_hz,
-            Self::Robot(c, _) => c.safety.plan_hz,
-        }
+        self.system.safety_section().plan_hz
     }
 
     /// `"planar"`, or the robot's description.
     pub fn name(&self) -> String {
-        match self {
-            Self::Planar(_) => control::config::planar_file::PLANAR_ROBOT.into(),
-            Self::Robot(c, _) => c.robot.description.clone(),
+        match &self.system {
+            System::Planar(_) => control::config::planar_file::PLANAR_ROBOT.into(),
+            System::Spatial(s) => s.config.robot.description.clone(),
         }
     }
 
     /// The planar arm's base model; None for a robot.
     pub fn base_model(&self) -> Option<ModelKind> {
-        match self {
-            Self::Planar(c) => Some(c.arm.model),
-            Self::Robot(..) => None,
-        }
+        self.system.planar().map(|c| c.arm.model)
     }
 
     /// The task's rows and path: `position circle` (the planar arm's is always a position).
     pub fn task_name(&self) -> String {
-        match self {
-            Self::Planar(c) => format!("position {}", c.task.path),
-            Self::Robot(c, _) => format!("{} {}", c.task.kind, c.task.path),
-        }
-    }
-
-    /// The whole set-up as the daemon holds it (what a trap watch plans for).
-    pub fn system(&self) -> System {
-        match self {
-            Self::Planar(c) => System::Planar(c.clone()),
-            Self::Robot(c, chain) => System::Spatial(Box::new(SpatialSystem {
-                config: (**c).clone(),
-                chain: (**chain).clone(),
-            })),
+        match &self.system {
+            System::Planar(c) => format!("position {}", c.task.path),
+            System::Spatial(s) => format!("{} {}", s.config.task.kind, s.config.task.path),
         }
     }
 
     /// The joint count.
     pub fn n(&self) -> usize {
-        match self {
-            Self::Planar(c) => c.n(),
-            Self::Robot(_, chain) => chain.dof(),
-        }
+        self.system.n()
     }
 
     /// Whether the base turns (the planar floating base): its attitude is then a coordinate.
     pub fn floating(&self) -> bool {
-        matches!(self, Self::Planar(c) if c.arm.model == ModelKind::Floating)
+        self.base_model() == Some(ModelKind::Floating)
     }
 
     /// The task period T (s).
     pub fn period(&self) -> f64 {
-        match self {
-            Self::Planar(c) => c.task.period,
-            Self::Robot(c, _) => c.task.period,
-        }
+        self.system.period()
     }
 
     /// The integration step (s).
     pub fn dt(&self) -> f64 {
-        self.sim().dt
+        self.system.sim_section().dt
     }
 
     /// The delay τ (s) and the time the feedback comes on (s).
@@ -245,47 +209,45 @@ impl Subject {
 
     /// The space the arm moves in: 2 (a planar arm, seen from above) or 3.
     pub fn dims(&self) -> usize {
-        match self {
-            Self::Planar(_) => 2,
-            Self::Robot(..) => 3,
-        }
+        self.system.obstacle_dims()
     }
 
     /// Replaces the file's obstacles by the `--obstacle` flags, when there are any (discs
     /// X,Y,R on a planar arm, spheres X,Y,Z,R on a robot), checked against the set-up.
     pub fn set_obstacles(&mut self, args: &crate::setup::ObstacleArgs) -> Result<()> {
-        match self {
-            Self::Planar(c) => args.apply(c),
-            Self::Robot(c, _) => args.apply_spatial(c),
+        match &mut self.system {
+            System::Planar(c) => args.apply(c),
+            System::Spatial(s) => args.apply_spatial(&mut s.config),
         }
     }
 
     /// Whether this is the paper's 3-link planar arm (whose sweep has the paper's three starts).
     pub fn is_planar_3_link(&self) -> bool {
-        matches!(self, Self::Planar(c) if c.n() == 3)
+        self.system.planar().is_some_and(|c| c.n() == 3)
     }
 
     /// One line for a figure's title.
     pub fn describe(&self) -> String {
-        match self {
-            Self::Planar(c) => format!(
+        match &self.system {
+            System::Planar(c) => format!(
                 "planar {}-link arm, {:?} secondary task",
                 c.n(),
                 c.control.secondary
             ),
-            Self::Robot(c, _) => c.describe(),
+            System::Spatial(s) => s.config.describe(),
         }
     }
 
     /// Checks what a run needs beyond a valid file: the planar circle reachable from the start,
     /// a robot's start one angle per joint, and the period a whole number of steps.
     pub fn check(&self) -> Result<()> {
-        match self {
-            Self::Planar(c) => {
+        match &self.system {
+            System::Planar(c) => {
                 c.validate()?;
                 crate::analysis::check_config(c)
             }
-            Self::Robot(c, chain) => {
+            System::Spatial(s) => {
+                let (c, chain) = (&s.config, &s.chain);
                 with_dof!(chain.dof(), N => c.setup::<N>(chain).map(|_| ()))?;
                 c.task_kind()?;
                 control::analysis::period_steps(c.task.period, c.sim.dt)?;
@@ -338,8 +300,8 @@ impl Subject {
             subject: self,
             blocked,
         };
-        match self {
-            Self::Planar(c) => with_dof!(c.n(), N => {
+        match &self.system {
+            System::Planar(c) => with_dof!(c.n(), N => {
                 let x0 = c.initial_state::<N>();
                 let (p, blocked, capacity) = match plan {
                     Plan::Every => {
@@ -354,7 +316,8 @@ impl Subject {
                 let sim = Simulation::new(c.model::<N>(), p, c.sim.dt, x0, capacity);
                 visitor.visit(sim, start(blocked))
             }),
-            Self::Robot(c, chain) => {
+            System::Spatial(s) => {
+                let (c, chain) = (&s.config, &s.chain);
                 let kind = c.task_kind()?;
                 with_dof!(chain.dof(), N => {
                     let (s, blocked) = match plan {
@@ -372,11 +335,8 @@ impl Subject {
 
     /// The smallest margin of the obstacles' safety zones (m; +∞ without obstacles).
     pub fn obstacle_margin(&self) -> f64 {
-        let margins: Vec<f64> = match self {
-            Self::Planar(c) => c.control.obstacles.iter().map(|o| o.margin).collect(),
-            Self::Robot(c, _) => c.obstacles.iter().map(|o| o.margin).collect(),
-        };
-        margins.into_iter().fold(f64::INFINITY, f64::min)
+        let rows = self.system.obstacle_rows();
+        rows.iter().map(|o| o.margin).fold(f64::INFINITY, f64::min)
     }
 
     /// Newton's method at μ = 0 from a section point (q, q̇) of a run: one line on the period-T
@@ -602,9 +562,9 @@ impl LoopVisitor for Analyse<'_> {
 impl std::fmt::Display for Subject {
     /// The fingerprint text of a shard's grid: the whole configuration (a chain's numbers too).
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Planar(c) => write!(f, "{c:?}"),
-            Self::Robot(c, chain) => write!(f, "{c:?} {chain:?}"),
+        match &self.system {
+            System::Planar(c) => write!(f, "{c:?}"),
+            System::Spatial(s) => write!(f, "{:?} {:?}", s.config, s.chain),
         }
     }
 }

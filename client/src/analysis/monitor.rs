@@ -142,18 +142,18 @@ fn edits(c: &Subject, kind: EditKind, duration: f64) -> Result<Option<Vec<Edit>>
     let edit = match kind {
         EditKind::None => return Ok(Some(Vec::new())),
         EditKind::Obstacle if system.obstacle_rows().is_empty() => return Ok(None),
-        EditKind::Radius => Edit::of(&system, at, |s| {
+        EditKind::Radius => Edit::of(system, at, |s| {
             *s.task_circle_mut().0 *= 1.1;
             Ok(())
         }),
-        EditKind::Period => Edit::of(&system, at, |s| {
+        EditKind::Period => Edit::of(system, at, |s| {
             let period = s.task_circle_mut().1;
             *period *= 1.1;
             let tau = *period;
             s.feedback_section_mut().tau = Some(tau);
             Ok(())
         }),
-        EditKind::Obstacle => Edit::of(&system, at, |s| {
+        EditKind::Obstacle => Edit::of(system, at, |s| {
             let mut o = s.obstacle_rows().remove(0);
             s.remove_obstacle(0);
             o.center[0] += 0.05;

@@ -74,9 +74,10 @@ pub fn run_judged(
     w: &Window,
     judge: &MujocoJudge,
 ) -> (RunResult, Option<Result<Verdict, String>>) {
-    let Subject::Robot(c, chain) = &cell.arm else {
+    let control::System::Spatial(robot) = cell.arm.system() else {
         return (run(cell, w), None);
     };
+    let (c, chain) = (&robot.config, &robot.chain);
     let mut samples = Vec::new();
     let run = CellRun {
         w,

@@ -114,48 +114,31 @@ fn base(args: &ObstaclesCmd) -> Result<Base> {
     if setup.config.is_none() && setup.preset.is_none() {
         setup.preset = Some("paper-obstacle".into());
     }
-    if let Some(mut c) = crate::spatial::load(&setup, None)? {
-        args.obstacles.apply_spatial(&mut c)?;
-        if c.obstacles.is_empty() {
-            bail!("the configuration has no obstacles: give spheres with --obstacle X,Y,Z,R (repeat for several) or [[obstacles]] entries in the --config");
-        }
-        let obstacles = c
-            .obstacles
-            .iter()
-            .map(|o| {
-                format!(
-                    "({}, {}, {}) r {}",
-                    o.center[0], o.center[1], o.center[2], o.radius
-                )
-            })
-            .collect();
-        // The set-up itself is checked once, before any start is (a bad sphere is not a start's).
-        let robot = Subject::robot(c.clone())?;
-        robot.check()?;
-        return Ok(Base {
-            obstacles,
-            off: without_filter(&c.law.secondary),
-            clearance: c.safety.clearance,
-            q0: c.sim.start().to_vec(),
-            arm: robot,
-        });
+    let mut arm = Subject::load(&setup, None)?;
+    arm.set_obstacles(&args.obstacles)?;
+    let rows = arm.system().obstacle_rows();
+    if rows.is_empty() {
+        let how = match arm.dims() {
+            2 => "--obstacle X,Y,R (a disc; repeat for several), [[obstacles]] entries in the --config, or --preset paper-obstacle",
+            _ => "--obstacle X,Y,Z,R (a sphere; repeat for several) or [[obstacles]] entries in the --config",
+        };
+        bail!("the configuration has no obstacles: give them with {how}");
     }
-    let mut base = setup.load_with_mu(None)?;
-    args.obstacles.apply(&mut base)?;
-    if base.control.obstacles.is_empty() {
-        bail!("the configuration has no obstacles: use --preset paper-obstacle or a --config with [[obstacles]] entries");
-    }
+    // The set-up itself is checked once, before any start is (a bad obstacle is not a start's).
+    arm.check()?;
+    let obstacles = rows
+        .iter()
+        .map(|o| {
+            let c: Vec<String> = o.center.iter().map(f64::to_string).collect();
+            format!("({}) r {}", c.join(", "), o.radius)
+        })
+        .collect();
     Ok(Base {
-        obstacles: base
-            .control
-            .obstacles
-            .iter()
-            .map(|o| format!("({}, {}) r {}", o.center[0], o.center[1], o.radius))
-            .collect(),
-        clearance: base.safety.clearance,
-        q0: base.q0(),
-        off: without_filter(&base.control.secondary),
-        arm: Subject::Planar(base),
+        obstacles,
+        off: without_filter(&arm.law().secondary),
+        clearance: arm.system().safety_section().clearance,
+        q0: arm.q0(),
+        arm,
     })
 }
 
@@ -291,11 +274,7 @@ fn run_judged(args: &ObstaclesCmd, plan: &Plan, model: &Path, threads: usize) ->
     if args.shard.is_some() {
         bail!("--mujoco-judge runs the whole study: it does not shard (drop --shard)");
     }
-    if plan
-        .cells
-        .iter()
-        .any(|c| matches!(c.arm, Subject::Planar(_)))
-    {
+    if plan.cells.iter().any(|c| c.arm.system().planar().is_some()) {
         bail!("--mujoco-judge judges a robot's URDF: the paper's planar arm has no MuJoCo model");
     }
     let judge = MujocoJudge::new(model)?;

@@ -221,12 +221,12 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
     for s in &starts {
         let mut c = s.clone();
         c.feedback.mu = 0.0;
-        seeding.push(Seeding::CloseReturns(Subject::Planar(c)));
+        seeding.push(Seeding::CloseReturns(Subject::planar(c)));
         for &m in &args.seed_mu.0 {
             let mut c = s.clone();
             c.feedback.mu = m;
             c.validate()?;
-            seeding.push(Seeding::Settled(Subject::Planar(c)));
+            seeding.push(Seeding::Settled(Subject::planar(c)));
         }
     }
     let run_spec = RunSpec {
@@ -257,7 +257,7 @@ pub fn run(args: OrbitsCmd) -> Result<()> {
 
     // 2. Newton from every seed; 3. distinct orbits in seed order.
     let n = base.n();
-    let arm = Subject::Planar(base.clone());
+    let arm = Subject::planar(base.clone());
     let found: Vec<Option<PeriodicOrbit>> =
         run_all(&seeds, threads, "Newton", |x| arm.find_orbit(x).ok())?;
     let converged = found.iter().filter(|o| o.is_some()).count();
