@@ -82,6 +82,7 @@ fn views(arm: &Subject) -> &'static [View] {
 fn simulate_window(arm: &Subject, from: f64, span: f64, frames: usize) -> Result<Window> {
     let dt = arm.dt();
     let system = arm.system();
+    let drawing = system.drawing();
     let first = (from / dt).round() as u64;
     let frame_steps: Vec<u64> = (0..frames)
         .map(|i| first + (i as f64 * span / frames as f64 / dt).round() as u64)
@@ -119,7 +120,9 @@ fn simulate_window(arm: &Subject, from: f64, span: f64, frames: usize) -> Result
             w.path.push(law.p);
         }
         if frame_steps.contains(&v.k) {
-            w.frames.push((v.t, system.links_at(v.phi, v.q)?));
+            let points = drawing.posed(v.phi, v.q).points;
+            w.frames
+                .push((v.t, points.into_iter().map(Vec3::from).collect()));
         }
         Ok(())
     })?;

@@ -4,12 +4,14 @@
 //! the telemetry rate never rebuilds the arm. Joint i's child link is placed as the URDF's
 //! tree places it (`robot_state_publisher`'s convention), so the frames agree with the URDF a
 //! viewer loads: a robot's own description, or for the paper's planar arm the one
-//! [`Drawing::generated_urdf`] writes.
+//! [`Drawing::generated_urdf`] writes. Figures draw the same polyline, and the path the tool
+//! goes round ([`System::path`]).
 
 use super::System;
 use crate::arm::spatial::{SpatialArm, SpatialKinematics};
 use crate::arm::{ArmModel, Kinematics, VecN};
 use crate::model::Pose;
+use crate::task::Vec3;
 use nalgebra::{Rotation3, Vector3};
 
 /// The arm at one state.
@@ -19,8 +21,8 @@ pub struct Posed {
     pub base: Pose,
     /// Each joint's child link frame (the URDF frame) in the world.
     pub links: Vec<Pose>,
-    /// The polyline the arm is drawn as: the base, each joint's origin after the first, the
-    /// tool point.
+    /// The polyline the arm is drawn as, in figures and viewers alike: the base, each joint's
+    /// origin, the tool point (a robot's links are the safety filter's capsules between them).
     pub points: Vec<[f64; 3]>,
     /// The tool point.
     pub tip: [f64; 3],
@@ -52,7 +54,7 @@ impl Drawing {
     /// let s = control::System::preset("panda", &control::system::builtin_robot).unwrap();
     /// let d = s.drawing();
     /// assert_eq!((d.links.len(), d.links[0].as_str()), (7, "panda_link1"));
-    /// assert_eq!(d.posed(0.0, &[0.0; 7]).points.len(), 8);
+    /// assert_eq!(d.posed(0.0, &[0.0; 7]).points.len(), 9); // the base, 7 joints, the tool
     /// ```
     pub fn posed(&self, phi: f64, q: &[f64]) -> Posed {
         self.geometry.posed(phi, q)
@@ -90,6 +92,22 @@ impl System {
                     geometry,
                 }
             }
+        }
+    }
+
+    /// The path the tool goes round (a robot's centred where its file or its start puts it).
+    ///
+    /// ```
+    /// let s = control::System::preset("panda", &control::system::builtin_robot).unwrap();
+    /// let path = s.path().unwrap();
+    /// assert!(path.period > 0.0);
+    /// ```
+    pub fn path(&self) -> Result<crate::task::Path, crate::basics::ConfigError> {
+        match self {
+            System::Planar(c) => Ok(c.law_params().task),
+            System::Spatial(s) => crate::with_dof!(s.chain.dof(), N => {
+                Ok(s.config.setup::<N>(&s.chain)?.params.task.path)
+            }),
         }
     }
 }
@@ -142,9 +160,12 @@ impl<const N: usize> Geometry for Spatial<N> {
         let mut kin = SpatialKinematics::<N>::default();
         self.arm.kinematics(&qv, &VecN::<N>::zeros(), &mut kin);
         let f = &kin.frames;
-        let mut points = vec![[0.0; 3]];
-        points.extend(f.body.iter().skip(1).map(|b| [b.pos.x, b.pos.y, b.pos.z]));
-        points.push([kin.p.x, kin.p.y, kin.p.z]);
+        // The base, then the safety capsules' end points: what the filter keeps clear.
+        let capsules = self.arm.capsule_positions(&kin);
+        let points = std::iter::once(Vec3::zeros())
+            .chain(capsules[..=N].iter().copied())
+            .map(|p| [p.x, p.y, p.z])
+            .collect();
         Posed {
             base: Pose::IDENTITY,
             links: (0..N).map(|i| f.link(&self.arm.model, i)).collect(),
@@ -185,4 +206,24 @@ fn planar_urdf(links: &[f64]) -> String {
         );
     }
     s + "</robot>\n"
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::system::builtin_robot;
+    use crate::System;
+
+    /// A robot's path is centred so that it starts where the tool is at q(0): the polyline
+    /// (base, 7 joint origins, tool) ends where the path begins.
+    #[test]
+    fn the_pandas_tool_at_the_start_is_where_its_path_begins() {
+        let s = System::preset("panda", &builtin_robot).unwrap();
+        let q0 = s.initial_state::<7>().q;
+        let pts = s.drawing().posed(0.0, q0.as_slice()).points;
+        assert_eq!(pts.len(), 9);
+        assert_eq!(pts[0], [0.0; 3], "the base");
+        let start = s.path().unwrap().position(0.0);
+        let off = (crate::task::Vec3::from(pts[8]) - start).norm();
+        assert!(off < 1e-12, "the tool is {off} m from the path's start");
+    }
 }

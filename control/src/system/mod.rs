@@ -19,7 +19,6 @@ use crate::sim::ArmState;
 use crate::tick_law::{ParamBlock, TickLaw};
 
 mod drawing;
-mod figure;
 mod obstacles;
 mod robot;
 pub use drawing::{Drawing, Posed};

@@ -157,7 +157,7 @@ mod tests {
         let (a, b) = (scene.path[0], scene.path[scene.path.len() - 1]);
         assert!((0..3).all(|k| (a[k] - b[k]).abs() < 1e-9), "{a:?} {b:?}");
         let p = scene.posed(0.0, &[0.0; 7]);
-        assert_eq!(p.points.len(), 8);
+        assert_eq!(p.points.len(), 9);
         assert_eq!(quaternion(&Matrix3::identity()), [0.0, 0.0, 0.0, 1.0]);
     }
 }
