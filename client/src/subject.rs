@@ -78,6 +78,20 @@ impl Subject {
         self.system.feedback_section_mut()
     }
 
+    /// The path at full speed from t = 0 (`task.ramp = 0`), said on stderr when the file had
+    /// a ramp: a period map from t = 0 through the ramp has fixed points that are not the
+    /// periodic loop's.
+    pub fn full_speed_path(&mut self) {
+        let ramp = self.system.task_ramp_mut();
+        if *ramp > 0.0 {
+            eprintln!(
+                "task.ramp = {} s is left out: the orbits are those of the full-speed path",
+                *ramp
+            );
+            *ramp = 0.0;
+        }
+    }
+
     /// Turns the safety filter on or off.
     pub fn set_safety(&mut self, on: bool) {
         self.system.safety_section_mut().enabled = on;
@@ -363,12 +377,6 @@ impl Subject {
         ))
     }
 
-    /// The state (q, q̇) after `periods` task periods of the loop from its start, at its own
-    /// μ (steered onto a planned cycle where a robot's `safety.plan` asks, as every analysis).
-    pub fn end_state(&self, periods: u64) -> Result<Vec<f64>> {
-        self.run_loop(EndState { periods })
-    }
-
     /// Newton's method on the law's period map Φ_T (the feedback off: with τ = T it vanishes
     /// on a period-T orbit) from the state `point` = (q, q̇); the law alone, never steered.
     pub fn find_orbit(&self, point: &[f64]) -> Result<PeriodicOrbit> {
@@ -474,27 +482,6 @@ impl LoopVisitor for MapResidual<'_> {
         let steps = control::analysis::period_steps(start.subject.period(), sim.dt())?;
         let y = stroboscopic_map(&sim.law, sim.dt(), steps, &x);
         Ok(((y.q - x.q).norm_squared() + (y.qd - x.qd).norm_squared()).sqrt())
-    }
-}
-
-/// [`Subject::end_state`].
-struct EndState {
-    periods: u64,
-}
-
-impl LoopVisitor for EndState {
-    type Out = Vec<f64>;
-    fn visit<const N: usize, L: ClosedLoopLaw<N>>(
-        self,
-        mut sim: Simulation<N, L>,
-        start: Start<'_>,
-    ) -> Result<Vec<f64>> {
-        let steps = control::analysis::period_steps(start.subject.period(), sim.dt())?;
-        for _ in 0..self.periods * steps {
-            sim.step();
-        }
-        let x = sim.state();
-        Ok(x.q.iter().chain(x.qd.iter()).copied().collect())
     }
 }
 

@@ -390,3 +390,54 @@ fn monitor_validates_the_chaos_monitor_end_to_end_and_refuses_bad_settings() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `orbits` on the paper's arm: the close returns of each start's μ = 0 run and each start's
+/// run at a seeding gain seed Newton; every such seed is named by the orbit it led to, which is
+/// in the catalog, and where the run settled (period-1) μ = 0.1 holds that orbit.
+#[test]
+fn orbits_names_the_orbit_each_settled_run_led_to() {
+    let dir = scratch("orbits");
+    let out = chaosctl(&[
+        "orbits",
+        "--seeds",
+        "2",
+        "--seed-mu",
+        "0.1",
+        "--mu",
+        "0.1",
+        "--average",
+        "20",
+        "--json",
+        "--output",
+        dir.join("o").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["seeds_tried"].as_u64(), Some(9), "{v}");
+    let ids: Vec<&str> = v["orbits"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| o["id"].as_str().unwrap())
+        .collect();
+    let settled = v["settled"].as_array().unwrap();
+    assert_eq!(settled.len(), 3, "one per start: {v}");
+    let mut settled_on_one = 0;
+    for s in settled {
+        assert_eq!(s["seed_mu"].as_f64(), Some(0.1), "{s}");
+        let id = s["id"]
+            .as_str()
+            .expect("each settled run leads to an orbit");
+        assert!(ids.contains(&id), "{id} not in {ids:?}");
+        if s["class"] == "period-1" {
+            // A run the feedback settled ends near an orbit that feedback holds.
+            let all = v["orbits"].as_array().unwrap();
+            let orbit = all.iter().find(|o| o["id"] == id).unwrap();
+            assert_eq!(orbit["stability"][0]["Ok"]["verdict"], "stable", "{orbit}");
+            settled_on_one += 1;
+        }
+    }
+    assert!(settled_on_one >= 2, "{v}");
+    std::fs::remove_dir_all(dir).ok();
+}

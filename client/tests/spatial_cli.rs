@@ -366,18 +366,25 @@ fn orbits_finds_the_cycle_the_feedback_settles_on_and_it_is_neutral_without_it()
         "0.5",
         "--seed-duration",
         "100",
+        "--seeds",
+        "2",
         "--json",
     ]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
-    let found: Vec<_> = v.as_array().unwrap().iter().collect();
+    let found: Vec<_> = v["settled"].as_array().unwrap().iter().collect();
     assert_eq!(
         found.len(),
         2,
         "the preset's μ = 1 and --seed-mu 0.5: {out}"
     );
+    // Two close returns of the μ = 0 run seed Newton too, as on the planar arm; every seed
+    // that converges finds the one cycle.
+    assert_eq!(v["seeds_tried"].as_u64(), Some(4), "{out}");
+    assert_eq!(v["orbits"].as_array().unwrap().len(), 1, "{out}");
     for f in found {
+        assert_eq!(f["id"].as_str(), Some("A"), "{f}");
         let orbit = &f["orbit"]["Ok"];
         assert!(orbit["residual"].as_f64().unwrap() < 1e-9, "{f}");
         // The null space's four directions are elliptic at μ = 0: eight multipliers on the unit
@@ -405,6 +412,8 @@ fn orbits_finds_the_cycle_the_feedback_settles_on_and_it_is_neutral_without_it()
         "0:1:0.5",
         "--average",
         "40",
+        "--seeds",
+        "0",
         "--json",
         "--output",
         dir.to_str().unwrap(),
@@ -412,7 +421,7 @@ fn orbits_finds_the_cycle_the_feedback_settles_on_and_it_is_neutral_without_it()
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
-    let orbits = v.as_array().unwrap();
+    let orbits = v["orbits"].as_array().unwrap();
     assert_eq!(orbits.len(), 1, "both seeds settle on one cycle: {out}");
     let verdicts: Vec<(f64, &str, f64)> = orbits[0]["stability"]
         .as_array()
@@ -466,6 +475,8 @@ fn orbits_says_the_panda_preset_is_captured_fast() {
         "0:0.25:0.25",
         "--average",
         "20",
+        "--seeds",
+        "0",
         "--json",
         "--output",
         tmp("orbits-damped").to_str().unwrap(),
@@ -475,7 +486,7 @@ fn orbits_says_the_panda_preset_is_captured_fast() {
     assert!(o.status.success(), "{err}");
     assert!(err.contains("task.ramp = 1 s is left out"), "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
-    let orbit = &v.as_array().unwrap()[0];
+    let orbit = &v["orbits"][0];
     let rho = orbit["multipliers"]
         .as_array()
         .unwrap()

@@ -57,18 +57,6 @@ impl ScanModelArgs {
             None => parse_range(default_mu).map_err(anyhow::Error::msg),
         }
     }
-
-    /// The validated base config (μ = 0 unless the file sets it) and the μ values to scan.
-    pub fn load(&self, default_mu: &str) -> Result<(Config, Vec<f64>)> {
-        let mus = self.mus(default_mu)?;
-        let cfg = self.setup.load_with_mu(None)?;
-        for &mu in &mus {
-            let mut c = cfg.clone();
-            c.feedback.mu = mu;
-            c.validate()?;
-        }
-        Ok((cfg, mus))
-    }
 }
 
 /// Parses `START:END:STEP` into start, start + step, … up to END (inclusive, to rounding), or a
@@ -245,20 +233,6 @@ impl StartArgs {
             vec![base_q0]
         }
     }
-
-    /// One validated planar config per start (`base` already carries the model flags).
-    pub fn configs(&self, base: &Config, q0_given: bool) -> Result<Vec<Config>> {
-        self.postures(base.q0(), !q0_given && base.n() == 3)
-            .into_iter()
-            .map(|q0| {
-                let mut c = base.clone();
-                c.sim.q0 = Some(q0);
-                c.validate()?;
-                check_config(&c)?;
-                Ok(c)
-            })
-            .collect()
-    }
 }
 
 /// Checks what the analyses need beyond a valid config: the circle reachable from the start, and
@@ -334,6 +308,9 @@ pub fn lambda_plot_marks(mu_max: f64) -> (Vec<crate::plot::Band>, Vec<crate::plo
 
 /// Tells the user which files a command wrote.
 pub fn print_written(files: &[std::path::PathBuf]) {
+    if files.is_empty() {
+        return;
+    }
     let list: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
     println!("wrote {}", list.join(", "));
 }

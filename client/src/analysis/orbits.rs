@@ -2,10 +2,12 @@
 //! stroboscopic map, their Floquet multipliers, and the μ-window in which Pyragas feedback
 //! stabilises each of them (λ_max starting on the orbit with its own history).
 //!
-//! Newton needs seeds near an orbit. Two kinds are used: the closest returns |x_(k+1) − x_k| of a
-//! μ = 0 run from each start (the classic close-return method), and the end states of feedback runs
-//! at the `--seed-mu` gains that settled on a period-1 orbit (the feedback is non-invasive, so those
-//! are orbits of the μ = 0 loop up to the discretisation error, and Newton polishes them).
+//! Newton needs seeds near an orbit. Two kinds are used, on every arm: the closest returns
+//! |x_(k+1) − x_k| of a μ = 0 run from each start (the classic close-return method), and the end
+//! states of runs from each start at the seeding gains (`--seed-mu` and the set-up's own μ). The
+//! feedback is non-invasive, so a run it settled ends near an orbit of the μ = 0 loop, and Newton
+//! polishes it; a run that had not settled is tried all the same (Newton fails or finds another
+//! orbit), and the report says what each seeding run became and which orbit it led to.
 
 use super::parallel::{jobs, run_all};
 use super::{fmt_list, ScanModelArgs, StartArgs};
@@ -18,7 +20,6 @@ use control::analysis::{
     close_returns, ClassifyConfig, OrbitCatalog, OrbitStability, PeriodicOrbit, RunSpec,
     StabilitySpec, Verdict,
 };
-use control::config::ModelKind;
 use plotters::style::RGBColor;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -29,10 +30,11 @@ pub struct OrbitsCmd {
     pub model: ScanModelArgs,
     #[command(flatten)]
     pub starts: StartArgs,
-    /// Close returns of each start's μ = 0 run tried as Newton seeds.
+    /// Close returns of each start's μ = 0 run tried as Newton seeds (0: none).
     #[arg(long, default_value_t = 8)]
     pub seeds: usize,
-    /// Feedback gains whose period-1 end states are also tried as seeds (comma-separated).
+    /// Feedback gains whose runs' end states are also tried as seeds, with the set-up's own μ
+    /// when it is > 0 (comma-separated).
     #[arg(long = "seed-mu", value_parser = parse_list, default_value = "0.1,0.2")]
     pub seed_mu: FloatList,
     /// Simulated time of each seeding run (s).
@@ -47,7 +49,8 @@ pub struct OrbitsCmd {
     /// Worker threads (default: every core).
     #[arg(long)]
     pub jobs: Option<usize>,
-    /// Output prefix: writes PREFIX.png and PREFIX.svg (λ_max on each orbit against μ).
+    /// Output prefix: writes PREFIX.png and PREFIX.svg (λ_max on each orbit against μ; with a
+    /// scan: always on the planar arm, on a robot with --mu).
     #[arg(long, default_value = "orbits")]
     pub output: PathBuf,
     /// Print the orbits and their stability as JSON.
@@ -78,6 +81,8 @@ pub struct OrbitReport {
 struct Report {
     seeds_tried: usize,
     seeds_converged: usize,
+    /// Each settled run's seed and the orbit it led to.
+    settled: Vec<SeededOrbit>,
     orbits: Vec<OrbitReport>,
 }
 
@@ -175,138 +180,269 @@ fn fmt_windows(w: &[[f64; 2]]) -> String {
         .join(", ")
 }
 
-/// A seeding run: the closest returns of a μ = 0 run, or where a feedback run settled.
+/// A seeding run from one start: the closest returns of its μ = 0 run, or where its run at a
+/// seeding gain ended.
 enum Seeding {
     CloseReturns(Subject),
-    Settled(Subject),
+    Settled(usize, Subject),
 }
 
-pub fn run(args: OrbitsCmd) -> Result<()> {
-    if let Some(mut cfg) = crate::spatial::load(&args.model.setup, None)? {
-        cfg.task.ramp = periodic_path(cfg.task.ramp);
-        return spatial(&args, &Subject::robot(cfg)?);
-    }
-    let (mut base, mus) = args.model.load("0:3:0.1")?;
-    base.task.ramp = periodic_path(base.task.ramp);
-    if base.arm.model != ModelKind::Fixed {
+/// A Newton seed: a state (q, q̇) at t = kT, and for a settled run's end state, which run.
+struct Seed {
+    point: Vec<f64>,
+    settled: Option<(usize, f64, String)>,
+}
+
+/// The checked study: the set-up (its path at full speed), the starts, the seeding gains, the
+/// μ scanned on each orbit (none: no scan) and the runs' specs.
+struct Plan {
+    base: Subject,
+    starts: Vec<Subject>,
+    gains: Vec<f64>,
+    mus: Vec<f64>,
+    spec: StabilitySpec,
+    seeding: RunSpec,
+}
+
+fn plan(args: &OrbitsCmd) -> Result<Plan> {
+    let mut base = Subject::load(&args.model.setup, None)?;
+    base.full_speed_path();
+    if base.floating() {
         bail!("orbits needs the fixed-base model (--model fixed): the floating base's attitude drifts, so its motion never closes after one period");
     }
-    if (base.tau() - base.task.period).abs() > 1e-9 {
-        bail!(
-            "orbits needs τ = T (feedback.tau = {} s, task.period = {} s): only then does the feedback vanish on period-T orbits",
-            base.tau(),
-            base.task.period
-        );
+    let (period, (tau, _)) = (base.period(), base.tau_and_t_on());
+    if (tau - period).abs() > 1e-9 {
+        bail!("orbits needs τ = T (feedback.tau = {tau} s, task.period = {period} s): only then does the feedback vanish on period-T orbits");
     }
     if args.seeds > 1000 {
         bail!("--seeds {}: at most 1000", args.seeds);
     }
-    for &m in &args.seed_mu.0 {
-        if !(m.is_finite() && m > 0.0 && m <= 100.0) {
-            bail!("--seed-mu {m}: each gain must be in (0, 100]");
+    // The set-up's own gain seeds too, first (a robot's preset runs at the gain it was tuned for).
+    let mut gains = args.seed_mu.0.clone();
+    if base.mu() > 0.0 && !gains.contains(&base.mu()) {
+        gains.insert(0, base.mu());
+    }
+    for &m in &gains {
+        if !(m.is_finite() && (0.0..=100.0).contains(&m)) {
+            bail!("--seed-mu {m}: each gain must be in [0, 100]");
         }
     }
-    if !(args.seed_duration.is_finite() && args.seed_duration > 40.0) {
+    let d = args.seed_duration;
+    if !(d.is_finite() && d >= 2.0 * period && d <= 1e6) {
         bail!(
-            "--seed-duration {}: must be more than 40 s",
-            args.seed_duration
+            "--seed-duration {d}: must be at least two task periods ({} s) and at most 1e6 s",
+            2.0 * period
         );
     }
-    let spec = stability_spec(&args, base.task.period)?;
-    let starts = args.starts.configs(&base, args.model.setup.q0.is_some())?;
-    let threads = jobs(args.jobs);
-
-    // 1. Seeds.
-    let mut seeding = Vec::new();
-    for s in &starts {
-        let mut c = s.clone();
-        c.feedback.mu = 0.0;
-        seeding.push(Seeding::CloseReturns(Subject::planar(c)));
-        for &m in &args.seed_mu.0 {
-            let mut c = s.clone();
-            c.feedback.mu = m;
-            c.validate()?;
-            seeding.push(Seeding::Settled(Subject::planar(c)));
-        }
+    let periods = (d / period).round();
+    let mus = scanned_mus(args, &base)?;
+    for &mu in &mus {
+        let mut c = base.clone();
+        c.set_mu(mu);
+        c.check()?;
     }
-    let run_spec = RunSpec {
-        duration: args.seed_duration,
-        transient: 20.0,
-        lyapunov: None,
-        classify: ClassifyConfig::default(),
-    };
-    let nseeds = args.seeds;
-    let seeds: Vec<Vec<Vec<f64>>> = run_all(&seeding, threads, "seeding runs", |s| match s {
+    Ok(Plan {
+        starts: base.starts(&args.starts, args.model.setup.q0.is_some())?,
+        gains,
+        mus,
+        spec: stability_spec(args, period)?,
+        // A whole number of periods, so that the end state lies on the section t = kT.
+        seeding: RunSpec {
+            duration: periods * period,
+            // What the section became is read after the first 20 s (half a short run).
+            transient: (periods * period / 2.0).min(20.0),
+            lyapunov: None,
+            classify: ClassifyConfig::default(),
+        },
+        base,
+    })
+}
+
+/// `--mu`, else on the planar arm the paper's range 0:3:0.1; a robot's orbits are only scanned
+/// when `--mu` asks (each cell is a 110 s Benettin run and an Arnoldi spectrum of a
+/// 14 000-number history: minutes for a whole range).
+fn scanned_mus(args: &OrbitsCmd, base: &Subject) -> Result<Vec<f64>> {
+    match &args.model.mu {
+        Some(r) => Ok(r.0.clone()),
+        None if base.dims() == 2 => args.model.mus("0:3:0.1"),
+        None => Ok(Vec::new()),
+    }
+}
+
+/// What one seeding run gives: the closest returns of a μ = 0 run, or a run's end state.
+fn seeds(run: &Seeding, spec: &RunSpec, count: usize) -> Vec<Seed> {
+    match run {
         Seeding::CloseReturns(arm) => arm
-            .analyse(&run_spec)
+            .analyse(spec)
             .map(|a| {
-                close_returns(&a.section, nseeds)
+                close_returns(&a.section, count)
                     .into_iter()
-                    .map(|i| a.section.point(i).to_vec())
+                    .map(|i| Seed {
+                        point: a.section.point(i).to_vec(),
+                        settled: None,
+                    })
                     .collect()
             })
             .unwrap_or_default(),
-        Seeding::Settled(arm) => arm
-            .analyse(&run_spec)
-            .ok()
-            .filter(|a| a.classification.motion.period() == Some(1))
-            .map(|a| vec![a.final_coords])
-            .unwrap_or_default(),
-    })?;
-    let seeds: Vec<Vec<f64>> = seeds.into_iter().flatten().collect();
+        Seeding::Settled(start, arm) => match arm.analyse(spec) {
+            Ok(a) => vec![Seed {
+                point: a.final_coords,
+                settled: Some((*start, arm.mu(), a.classification.motion.label())),
+            }],
+            Err(e) => {
+                eprintln!("orbits: start {}, seed μ = {}: {e:#}", start + 1, arm.mu());
+                Vec::new()
+            }
+        },
+    }
+}
+
+pub fn run(args: OrbitsCmd) -> Result<()> {
+    let plan = plan(&args)?;
+    let threads = jobs(args.jobs);
+
+    // 1. Seeds: each start's μ = 0 close returns, then its end state at each seeding gain.
+    let mut seeding = Vec::new();
+    for (i, s) in plan.starts.iter().enumerate() {
+        if args.seeds > 0 {
+            let mut c = s.clone();
+            c.set_mu(0.0);
+            seeding.push(Seeding::CloseReturns(c));
+        }
+        for &m in &plan.gains {
+            let mut c = s.clone();
+            c.set_mu(m);
+            seeding.push(Seeding::Settled(i, c));
+        }
+    }
+    let seeds: Vec<Seed> = run_all(&seeding, threads, "seeding runs", |r| {
+        seeds(r, &plan.seeding, args.seeds)
+    })?
+    .into_iter()
+    .flatten()
+    .collect();
 
     // 2. Newton from every seed; 3. distinct orbits in seed order.
-    let n = base.n();
-    let arm = Subject::planar(base.clone());
-    let found: Vec<Option<PeriodicOrbit>> =
-        run_all(&seeds, threads, "Newton", |x| arm.find_orbit(x).ok())?;
-    let converged = found.iter().filter(|o| o.is_some()).count();
+    let arm = &plan.base;
+    let found: Vec<Result<PeriodicOrbit, String>> = run_all(&seeds, threads, "Newton", |s| {
+        arm.find_orbit(&s.point).map_err(|e| format!("{e:#}"))
+    })?;
+    let converged = found.iter().filter(|o| o.is_ok()).count();
+    let n = arm.n();
     let mut catalog = OrbitCatalog::new(2 * n, n, 1e-6);
     let mut orbits: Vec<PeriodicOrbit> = Vec::new();
-    for o in found.into_iter().flatten() {
-        if catalog.find_or_insert(&o.coords()).1 {
-            orbits.push(o);
+    let mut settled = Vec::new();
+    for (seed, o) in seeds.iter().zip(found) {
+        let id = o.as_ref().ok().map(|o| {
+            let (i, new) = catalog.find_or_insert(&o.coords());
+            if new {
+                orbits.push(o.clone());
+            }
+            orbit_name(i)
+        });
+        if let Some((start, seed_mu, class)) = &seed.settled {
+            settled.push(SeededOrbit {
+                start: start + 1,
+                seed_mu: *seed_mu,
+                class: class.clone(),
+                seed_residual: arm.period_map_residual(&seed.point)?,
+                floquet_exponent: o.as_ref().ok().map(|o| o.floquet_exponent(arm.period())),
+                id,
+                orbit: o,
+            });
         }
     }
 
-    // 4. Stability of each orbit at each μ.
+    // 4. Stability of each orbit at each scanned μ.
+    let mus = &plan.mus;
     let cells: Vec<(usize, f64)> = (0..orbits.len())
         .flat_map(|i| mus.iter().map(move |m| (i, *m)))
         .collect();
-    let stab = stability(&arm, &orbits, &cells, threads, &spec)?;
-    let reports = reports(orbits, &mus, stab, base.task.period);
-    let files = plot(&args.output, &reports, &mus, &spec, true)?;
+    let stab = stability(arm, &orbits, &cells, threads, &plan.spec)?;
+    let reports = reports(orbits, mus, stab, arm.period());
+    let files = match mus.is_empty() {
+        true => Vec::new(),
+        false => plot(&args.output, &reports, mus, &plan.spec, arm.dims() == 2)?,
+    };
+    let report = Report {
+        seeds_tried: seeds.len(),
+        seeds_converged: converged,
+        settled,
+        orbits: reports,
+    };
     if args.json {
-        let r = Report {
-            seeds_tried: seeds.len(),
-            seeds_converged: converged,
-            orbits: reports,
-        };
-        println!("{}", serde_json::to_string_pretty(&r)?);
+        println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    println!(
-        "chaosd period-T orbits (μ = 0, fixed base): {} seeds, {} converged, {} distinct orbits",
-        seeds.len(),
-        converged,
-        reports.len()
-    );
-    print_reports(&reports, &mus, &spec);
+    print_report(&report, &plan);
+    print_reports(&report.orbits, mus, &plan.spec);
     super::print_written(&files);
     Ok(())
 }
 
-/// The stability runs' window (`--settle`, `--average`), checked against the task period.
-/// The orbits of the periodic loop: a path that starts from rest (`task.ramp`) is a start-up
-/// transient, and a period map from t = 0 through the ramp has fixed points that are not the
-/// cycle's. The path runs at full speed from t = 0 here (said on stderr).
-fn periodic_path(ramp: f64) -> f64 {
-    if ramp > 0.0 {
-        eprintln!("task.ramp = {ramp} s is left out: the orbits are those of the full-speed path");
+/// The seeds and what each settled run found, as text.
+fn print_report(r: &Report, plan: &Plan) {
+    let arm = &plan.base;
+    println!(
+        "period-T orbits of {} at μ = 0 (T = {} s): {} seeds (from {} start{}: the closest returns of μ = 0 runs, and the end states of {} s runs with feedback from t = {} s), {} converged, {} distinct orbits",
+        arm.describe(),
+        arm.period(),
+        r.seeds_tried,
+        plan.starts.len(),
+        if plan.starts.len() == 1 { "" } else { "s" },
+        plan.seeding.duration,
+        arm.tau_and_t_on().1,
+        r.seeds_converged,
+        r.orbits.len()
+    );
+    for o in &r.settled {
+        let what = match &o.orbit {
+            Ok(orb) => format!(
+                "{}; orbit {}",
+                newton_line(orb),
+                o.id.as_deref().unwrap_or("?")
+            ),
+            Err(e) => format!("no orbit: {e}"),
+        };
+        let start = match plan.starts.len() {
+            1 => String::new(),
+            _ => format!("start {}, ", o.start),
+        };
+        println!(
+            "  {start}seed μ = {} (section from {} s: {}): |Φ_T(x) − x| = {:.2e} at the seed; {what}",
+            o.seed_mu, plan.seeding.transient, o.class, o.seed_residual
+        );
     }
-    0.0
+    if plan.mus.is_empty() {
+        println!("(give --mu to measure each orbit's stability over μ)");
+    }
 }
 
+/// Newton's result and what the multipliers at μ = 0 say.
+fn newton_line(orb: &PeriodicOrbit) -> String {
+    let on_circle = orb
+        .multipliers
+        .iter()
+        .filter(|m| (m[0].hypot(m[1]) - 1.0).abs() < UNIT_CIRCLE)
+        .count();
+    let rho = orb.max_multiplier();
+    let verdict = if rho > 1.0 + UNIT_CIRCLE {
+        "unstable without the feedback"
+    } else if rho >= 1.0 - UNIT_CIRCLE {
+        "neutral without the feedback: nothing pulls the self-motion onto it"
+    } else {
+        "stable without the feedback"
+    };
+    format!(
+        "Newton converged in {} iterations (residual {:.1e}); largest Floquet multiplier |ρ| = {rho:.4}, {on_circle} of {} on the unit circle (±{UNIT_CIRCLE}): {verdict}",
+        orb.iterations,
+        orb.residual,
+        orb.multipliers.len(),
+    )
+}
+
+/// The stability runs' window (`--settle`, `--average`), checked against the task period.
+/// The stability runs' window (`--settle`, `--average`), checked against the task period.
 fn stability_spec(args: &OrbitsCmd, period: f64) -> Result<StabilitySpec> {
     let spec = StabilitySpec {
         settle: args.settle,
@@ -349,6 +485,9 @@ fn print_reports(reports: &[OrbitReport], mus: &[f64], spec: &StabilitySpec) {
                 .collect::<Vec<_>>()
                 .join("  ")
         );
+        if mus.is_empty() {
+            continue;
+        }
         println!("  stable for μ in {}", fmt_windows(&r.stable_windows));
         if let Some([mu, rate]) = r.fastest {
             let pace = if rate < 0.0 {
@@ -368,6 +507,9 @@ fn print_reports(reports: &[OrbitReport], mus: &[f64], spec: &StabilitySpec) {
         for (m, s) in mus.iter().zip(&r.stability) {
             println!("  {}", stability_row(*m, s));
         }
+    }
+    if mus.is_empty() || reports.is_empty() {
+        return;
     }
     println!(
         "\n(rates in 1/s. λ Floquet = ln|ρ₁|/T from the leading multipliers of the delayed loop's \
@@ -545,148 +687,24 @@ fn stability(
     })
 }
 
-/// One seed of `orbits` on a robot: where the loop with feedback gain `seed_mu` ended (at a
+/// One settled seed: where the loop from start `start` with feedback gain `seed_mu` ended (at a
 /// multiple of T), and the μ = 0 period-T orbit Newton's method found from there.
 #[derive(Serialize)]
 pub struct SeededOrbit {
+    /// The start (from 1).
+    pub start: usize,
     pub seed_mu: f64,
+    /// What the seeding run's section (from 20 s on, or half a shorter run) became
+    /// (`period-1` when it settled).
+    pub class: String,
     /// |Φ_T(x) − x| at the seed, with the feedback off: how far the seed already was from a
     /// period-T orbit.
     pub seed_residual: f64,
     pub orbit: Result<PeriodicOrbit, String>,
+    /// The orbit's name in the catalog (`A`, `B`, …).
+    pub id: Option<String>,
     /// ln|largest multiplier| / T at μ = 0 (1/s): > 0, unstable without the feedback.
     pub floquet_exponent: Option<f64>,
-}
-
-/// For each gain, the loop run `duration` s (rounded to whole periods), then the μ = 0
-/// loop's period-T orbit from the end state.
-fn settled_orbits(arm: &Subject, gains: &[f64], duration: f64) -> Result<Vec<SeededOrbit>> {
-    let period = arm.period();
-    let (tau, _) = arm.tau_and_t_on();
-    if (tau - period).abs() > 1e-9 {
-        bail!("orbits needs τ = T (feedback.tau = {tau} s, task.period = {period} s): only then does the feedback vanish on period-T orbits");
-    }
-    let mut out = Vec::new();
-    for &mu in gains {
-        let mut a = arm.clone();
-        a.set_mu(mu);
-        let seed = a.end_state((duration / period).round() as u64)?;
-        let orbit = arm.find_orbit(&seed).map_err(|e| format!("{e:#}"));
-        out.push(SeededOrbit {
-            seed_mu: mu,
-            seed_residual: arm.period_map_residual(&seed)?,
-            floquet_exponent: orbit.as_ref().ok().map(|o| o.floquet_exponent(period)),
-            orbit,
-        });
-    }
-    Ok(out)
-}
-
-/// A spatial robot: the orbit each seeding gain's run settles on, found again at μ = 0, and its
-/// Floquet multipliers there; with `--mu`, each distinct orbit's λ_max over μ as for the planar
-/// arm (the same stability run, table and figure).
-fn spatial(args: &OrbitsCmd, arm: &Subject) -> Result<()> {
-    let period = arm.period();
-    let scan = match &args.model.mu {
-        Some(m) => Some((m.0.clone(), stability_spec(args, period)?)),
-        None => None,
-    };
-    if !(args.seed_duration.is_finite() && args.seed_duration >= period) {
-        bail!(
-            "--seed-duration {}: must be at least one period ({period} s)",
-            args.seed_duration,
-        );
-    }
-    let mut gains = args.seed_mu.0.clone();
-    if arm.mu() > 0.0 && !gains.contains(&arm.mu()) {
-        gains.insert(0, arm.mu());
-    }
-    for &m in &gains {
-        if !(m.is_finite() && (0.0..=100.0).contains(&m)) {
-            bail!("--seed-mu {m}: each gain must be in [0, 100]");
-        }
-    }
-    let found = settled_orbits(arm, &gains, args.seed_duration)?;
-    let reports = match &scan {
-        Some((mus, spec)) => Some(spatial_scan(args, arm, &found, mus, spec)?),
-        None => None,
-    };
-    let files = match (&reports, &scan) {
-        (Some(r), Some((mus, spec))) => plot(&args.output, r, mus, spec, false)?,
-        _ => Vec::new(),
-    };
-    if args.json {
-        match reports {
-            Some(r) => println!("{}", serde_json::to_string_pretty(&r)?),
-            None => println!("{}", serde_json::to_string_pretty(&found)?),
-        }
-        return Ok(());
-    }
-    println!(
-        "period-T orbits of {} at μ = 0 (T = {period} s), seeded by {} s runs with feedback from t = {} s:",
-        arm.describe(),
-        args.seed_duration,
-        arm.tau_and_t_on().1
-    );
-    for o in &found {
-        let what = match &o.orbit {
-            Ok(orb) => {
-                let on_circle = orb
-                    .multipliers
-                    .iter()
-                    .filter(|m| (m[0].hypot(m[1]) - 1.0).abs() < UNIT_CIRCLE)
-                    .count();
-                let rho = orb.max_multiplier();
-                let verdict = if rho > 1.0 + UNIT_CIRCLE {
-                    "unstable without the feedback"
-                } else if rho >= 1.0 - UNIT_CIRCLE {
-                    "neutral without the feedback: nothing pulls the self-motion onto it"
-                } else {
-                    "stable without the feedback"
-                };
-                format!(
-                    "Newton converged in {} iterations (residual {:.1e}); largest Floquet multiplier |ρ| = {rho:.4}, {on_circle} of {} on the unit circle (±{UNIT_CIRCLE}): {verdict}",
-                    orb.iterations,
-                    orb.residual,
-                    orb.multipliers.len(),
-                )
-            }
-            Err(e) => format!("no orbit: {e}"),
-        };
-        println!(
-            "  seed μ = {}: |Φ_T(x) − x| = {:.2e} at the seed; {what}",
-            o.seed_mu, o.seed_residual
-        );
-    }
-    if let (Some(reports), Some((mus, spec))) = (reports, scan) {
-        println!("\n{} distinct orbits, λ_max over μ on each:", reports.len());
-        print_reports(&reports, &mus, &spec);
-        super::print_written(&files);
-    }
-    Ok(())
-}
-
-/// The distinct orbits the seeds found, each with its λ_max at every μ of `mus` (in parallel).
-fn spatial_scan(
-    args: &OrbitsCmd,
-    arm: &Subject,
-    found: &[SeededOrbit],
-    mus: &[f64],
-    spec: &StabilitySpec,
-) -> Result<Vec<OrbitReport>> {
-    let n = arm.n();
-    let mut catalog = OrbitCatalog::new(2 * n, n, 1e-6);
-    let mut orbits: Vec<PeriodicOrbit> = Vec::new();
-    for o in found.iter().filter_map(|o| o.orbit.as_ref().ok()) {
-        if catalog.find_or_insert(&o.coords()).1 {
-            orbits.push(o.clone());
-        }
-    }
-    let cells: Vec<(usize, f64)> = (0..orbits.len())
-        .flat_map(|i| mus.iter().map(move |m| (i, *m)))
-        .collect();
-    let stab = stability(arm, &orbits, &cells, jobs(args.jobs), spec)?;
-    Ok(reports(orbits, mus, stab, arm.period()))
 }
 
 /// Each orbit with its stability at every μ (`stab`: orbit-major, μ inner) and its name.

@@ -318,6 +318,15 @@ impl System {
         }
     }
 
+    /// How long the path takes to come up to full speed from rest (s; 0: at full speed from
+    /// t = 0), to change in place.
+    pub fn task_ramp_mut(&mut self) -> &mut f64 {
+        match self {
+            System::Planar(c) => &mut c.task.ramp,
+            System::Spatial(s) => &mut s.config.task.ramp,
+        }
+    }
+
     /// Moves the task's centre: [`Self::obstacle_dims`] numbers (x, y on the planar arm; x, y,
     /// z in a robot's base frame).
     pub fn set_task_center(&mut self, c: &[f64]) -> Result<(), ConfigError> {
