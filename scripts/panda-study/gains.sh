@@ -14,7 +14,8 @@ $ctl config --preset panda-paper > "$out/panda.toml"
 # row ALPHA NULL_DAMPING: one line of the table.
 row() {
   local name="alpha${1}_kd${2}"
-  sed -e "s/^alpha = .*/alpha = $1/" -e "s/^null_damping = .*/null_damping = $2/" \
+  # `null_damping` is left out of the printed file while it is 0: added after [law], not substituted.
+  sed -e "s/^alpha = .*/alpha = $1/" -e "/^null_damping = /d" -e "/^\[law\]/a null_damping = $2" \
     "$out/panda.toml" > "$out/$name.toml"
   $ctl orbits --config "$out/$name.toml" --seed-mu 1 --seed-duration 120 --mu 0:1.5:0.25 \
     --average 40 --output "$out/$name" > "$out/$name.txt" 2>&1 || true

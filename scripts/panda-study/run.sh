@@ -9,11 +9,13 @@ mkdir -p "$out"
 ctl=target/release/chaosctl
 $ctl config --preset panda-paper > "$out/panda.toml"
 
-# variant NAME 'sed expressions' : writes $out/NAME.toml from the preset.
+# variant NAME 'sed expressions' : writes $out/NAME.toml from the preset. A key the printed file
+# leaves out (a zero `null_damping`) is added after its section's header, not substituted.
 variant() {
   sed -e "$2" "$out/panda.toml" > "$out/$1.toml"
 }
-common='s/^enabled = true/enabled = false/; s/^t_on = 60.0/t_on = 0.0/'
+# The safety filter off (its section's `enabled` only: [feedback] has one too), the feedback on from t = 0.
+common='/^\[safety\]/,/^\[/ s/^enabled = true/enabled = false/; s/^t_on = 60.0/t_on = 0.0/'
 variant pure        "$common; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 0.0/"
 variant pyragas     "$common; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 3.0/; s/^projection = .*/projection = \"full\"/"
 variant pyragas-ns  "$common; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 3.0/"
@@ -22,7 +24,7 @@ variant both        "$common"
 variant both-full   "$common; s/^projection = .*/projection = \"full\"/"
 variant both-mu3    "$common; s/^mu = 1.0/mu = 3.0/"
 variant manip       "$common; s/^secondary = .*/secondary = \"manipulability\"/; s/^alpha = 20.0/alpha = 5.0/"
-variant damping     "$common; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 0.0/; s/^secondary = .*/secondary = \"none\"/; s/^null_damping = 0.0/null_damping = 2.0/"
+variant damping     "$common; s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 0.0/; s/^secondary = .*/secondary = \"none\"/; /^null_damping = /d; /^\[law\]/a null_damping = 2.0"
 variant barrier     "s/^alpha = 20.0/alpha = 0.0/; s/^mu = 1.0/mu = 0.0/"
 variant barrier-ns  "s/^alpha = 20.0/alpha = 0.0/; s/^t_on = 60.0/t_on = 0.0/"
 variant pose        "$common; s/^kind = \"position\"/kind = \"pose\"/"
@@ -35,7 +37,7 @@ printf '| variant | residual before → final (rad/s) | drift / period (rad) | m
 for v in pure pyragas pyragas-ns centring both both-full both-mu3 manip damping barrier barrier-ns pose pose-pure offaxis offaxis-pure preset; do
   $ctl simulate --config "$out/$v.toml" --json > "$out/$v.json"
   lam=$($ctl lyapunov --config "$out/$v.toml" --duration 150 --window 50:150 \
-        | sed -n 's/^λ_max = \([^ ]*\) ± \([^ ]*\) .*/\1 ± \2/p')
+        | sed -n 's/^ *λ_max *\([^ ]*\) ± \([^ ]*\) .*/\1 ± \2/p')
   python3 - "$out/$v.json" "$v" "$lam" >> "$out/table.md" <<'PY'
 import json, sys
 d = json.load(open(sys.argv[1])); v = sys.argv[2]; lam = sys.argv[3]
