@@ -29,8 +29,7 @@ case $robot in
     ready="0.0 -0.5 0.0 0.7 0.0 1.2 0.0"
     lo="-6.2832 -2.0590 -6.2832 -0.1920 -6.2832 -1.6930 -6.2832"
     hi="6.2832 2.0944 6.2832 3.9270 6.2832 3.1416 6.2832"
-    sed -e 's/^secondary = "centring"/secondary = "centring"\nnull_damping = 0.0/' \
-      examples/own-urdf/xarm7.toml > "$out/panda.toml" ;;
+    cp examples/own-urdf/xarm7.toml "$out/panda.toml" ;;
   *) echo "ROBOT=$robot: panda or xarm7" >&2; exit 2 ;;
 esac
 
@@ -53,30 +52,28 @@ draw() {
 # is the first limit broken (acceleration-at-start: only in the first 0.1 s), or slow60 /
 # slow120, or ok.
 one() {
-  local cfg=$1 i=$2 q0 qd0 t60 t120
+  local cfg=$1 i=$2 q0 qd0 j60 j120 j0
   read -r q0 qd0 <<< "$(draw "$i")"
-  field() { grep -o "$1" <<< "$2" | head -1 | awk "{print \$$3}"; }
-  if ! t60=$($ctl simulate --config "$cfg" --q0="$q0" --qd0="$qd0" --safety off --t-on 0 --duration 60 --transient 0 2>&1); then
+  run() { $ctl simulate --config "$cfg" --q0="$q0" --qd0="$qd0" --safety off --t-on 0 --duration "$1" --transient 0 --json; }
+  if ! j60=$(run 60 2>/dev/null); then
     echo "$i refused"; return
   fi
-  t120=$($ctl simulate --config "$cfg" --q0="$q0" --qd0="$qd0" --safety off --t-on 0 --duration 120 --transient 0)
-  local r60 r120 sp ac je mg
-  r60=$(field 'final [0-9.e+-]* rad/s' "$t60" 2)
-  r120=$(field 'final [0-9.e+-]* rad/s' "$t120" 2)
-  sp=$(field '([0-9.]*% of the limit)' "$t120" 1 | tr -d '(%')
-  ac=$(field 'max [0-9.]*% of the acceleration' "$t120" 2 | tr -d '%')
-  je=$(field '[0-9.]*% of the jerk' "$t120" 1 | tr -d '%')
-  mg=$(field 'min [0-9.e+-]* rad to a position limit' "$t120" 2)
+  j120=$(run 120)
   # The acceleration peak of the first 0.1 s alone: the hand starts at rest on a moving path.
-  local ac0 v
-  ac0=$(field 'max [0-9.]*% of the acceleration' \
-    "$($ctl simulate --config "$cfg" --q0="$q0" --qd0="$qd0" --safety off --t-on 0 --duration 0.1 --transient 0)" 2 | tr -d '%')
-  v=$(awk -v a="$r60" -v b="$r120" -v s="$sp" -v c="$ac" -v c0="$ac0" -v j="$je" -v m="$mg" 'BEGIN {
-    if (m <= 0) print "position"; else if (s > 100) print "speed";
-    else if (c > 100 && c == c0) print "acceleration-at-start"; else if (c > 100) print "acceleration";
-    else if (j > 100) print "jerk"; else if (a > 1e-3) print "slow60"; else if (b > 1e-6) print "slow120";
-    else print "ok" }')
-  echo "$i $v $r60 $r120 $sp $ac $je $mg"
+  j0=$(run 0.1)
+  python3 - "$i" "$j60" "$j120" "$j0" <<'PY'
+import json, sys
+i, a, b, z = sys.argv[1], *(json.loads(x) for x in sys.argv[2:])
+r60, r120 = a["period_residual_final"], b["period_residual_final"]
+sp, ac, je = (100 * b[k] for k in ("max_speed_ratio", "max_accel_ratio", "max_jerk_ratio"))
+ac0, mg = 100 * z["max_accel_ratio"], b["min_joint_margin"]
+slow = lambda r, tol: r is None or r > tol
+v = ("position" if mg <= 0 else "speed" if sp > 100
+     else "acceleration-at-start" if ac > 100 and ac == ac0 else "acceleration" if ac > 100
+     else "jerk" if je > 100 else "slow60" if slow(r60, 1e-3) else "slow120" if slow(r120, 1e-6)
+     else "ok")
+print(i, v, r60, r120, f"{sp:.1f}", f"{ac:.1f}", f"{je:.1f}", mg)
+PY
 }
 export -f draw one
 export ctl kind ready lo hi
@@ -84,7 +81,10 @@ export ctl kind ready lo hi
 variant() {
   local ramp=${4:-0} speed=${5:-0} name="a$1_kd$2_mu$3_ramp${4:-0}_speed${5:-0}" cfg
   cfg="$out/$name.toml"
-  sed -e "s/^alpha = .*/alpha = $1/" -e "s/^null_damping = .*/null_damping = $2\nnull_speed = $speed/" \
+  # A zero null_damping or null_speed is left out of the printed file: both are added after
+  # [law], not substituted.
+  sed -e "s/^alpha = .*/alpha = $1/" -e "/^null_damping = /d" -e "/^null_speed = /d" \
+    -e "/^\[law\]/a null_damping = $2\nnull_speed = $speed" \
     -e "s/^mu = .*/mu = $3/" -e "s/^period = 2.0/period = 2.0\nramp = $ramp/" \
     "$out/panda.toml" > "$cfg"
   seq 1 "$n" | xargs -P 2 -I{} bash -c "one '$cfg' {}" | sort -n > "$out/$name.txt"
@@ -105,9 +105,9 @@ variant() {
 filtered() {
   local i=$1 q0 qd0 out
   read -r q0 qd0 <<< "$(draw "$i")"
-  out=$($ctl simulate --preset panda --q0="$q0" --qd0="$qd0" --safety on --duration 120 --transient 0 2>&1) \
+  out=$($ctl simulate --preset panda --q0="$q0" --qd0="$qd0" --safety on --duration 120 --transient 0 --json 2>/dev/null) \
     || { echo "$i refused"; return; }
-  echo "$i $(grep -o 'active [0-9.]* s' <<< "$out" | awk '{print $2}')"
+  echo "$i $(python3 -c 'import json, sys; print(json.load(sys.stdin)["safety_active_time"])' <<< "$out")"
 }
 export -f filtered
 if [ "${FILTER:-off}" = on ]; then
