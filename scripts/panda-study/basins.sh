@@ -17,7 +17,7 @@ n=${2:-100}
 robot=${ROBOT:-panda}
 out=${3:-out/$robot-basins-$kind}
 mkdir -p "$out"
-ctl=$PWD/target/release/chaosctl
+ctl=${CHAOSD_BIN:-$PWD/target/release}/chaosctl
 # The arm's ready pose and joint box, and its set-up with the paper's recipe to vary.
 case $robot in
   panda)

@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 out=${1:-out/panda-gains}
 mkdir -p "$out"
-ctl=target/release/chaosctl
+ctl=${CHAOSD_BIN:-target/release}/chaosctl
 $ctl config --preset panda-paper > "$out/panda.toml"
 
 # row ALPHA NULL_DAMPING: one line of the table.

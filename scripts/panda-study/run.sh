@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # The Panda study of docs/panda-study.md: every row of its table, from `chaosctl config --preset
-# panda-paper` (the paper's recipe) with one change per variant. Usage: scripts/panda-study/run.sh [out-dir]
+# panda-paper` (the paper's recipe) with one change per variant. Usage: [TABLE_ONLY=1] [CHAOSD_BIN=DIR]
+# scripts/panda-study/run.sh [out-dir]
 # Needs a release build (cargo build --release -p client). About a minute on one core.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 out=${1:-out/panda-study}
 mkdir -p "$out"
-ctl=target/release/chaosctl
+ctl=${CHAOSD_BIN:-target/release}/chaosctl
 $ctl config --preset panda-paper > "$out/panda.toml"
 
 # variant NAME 'sed expressions' : writes $out/NAME.toml from the preset. A key the printed file
@@ -47,6 +48,8 @@ print(f"| {v} | {f(d['period_residual_before'])} → {f(d['period_residual_final
 PY
 done
 cat "$out/table.md"
+# TABLE_ONLY=1: the table alone (tests/tests/study_tables.rs holds the book's to it).
+[ "${TABLE_ONLY:-0}" = 1 ] && exit 0
 
 # The μ sweeps (with centring: the preset without the filter and with feedback from t = 0;
 # without: the pyragas-ns variant) and the arm figure of the preset.

@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 out=${1:-out/panda-starts}
 mkdir -p "$out"
-ctl=target/release/chaosctl
+ctl=${CHAOSD_BIN:-target/release}/chaosctl
 $ctl config --preset panda-paper > "$out/panda.toml"
 
 # The i-th start: the ready pose plus a uniform draw in [−0.5, 0.5) per joint.
