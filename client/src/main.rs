@@ -12,7 +12,6 @@ mod plot;
 mod robot;
 mod setup;
 mod simulate;
-mod spatial;
 mod subject;
 mod traps;
 

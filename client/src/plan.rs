@@ -52,10 +52,10 @@ pub struct PlanCmd {
 }
 
 pub fn run(a: &PlanCmd) -> Result<()> {
-    if let Some(cfg) = crate::spatial::load(&a.setup, None)? {
-        return spatial(a, cfg);
-    }
-    let mut cfg = a.setup.load_with_mu(None)?;
+    let mut cfg = match a.setup.load(None)? {
+        control::System::Spatial(s) => return spatial(a, s.config),
+        control::System::Planar(c) => c,
+    };
     for (i, o) in a.obstacles.iter().enumerate() {
         let [x, y, r] = o.0[..] else {
             bail!("--obstacle {:?}: expected X,Y,RADIUS (three numbers)", o.0);

@@ -6,9 +6,10 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use control::config::spatial::{SpatialConfig, SphereEntry};
+use control::config::spatial::{is_spatial, SpatialConfig, SphereEntry};
 use control::config::{ModelKind, ObstacleConfig, ProjectionKind};
-use control::Config;
+use control::system::SpatialSystem;
+use control::{Config, System};
 use std::path::PathBuf;
 
 /// The model and initial-state flags every offline command shares (all but `--mu`, which is one
@@ -105,55 +106,77 @@ fn parse_projection(s: &str) -> Result<ProjectionKind, String> {
 }
 
 impl SetupArgs {
-    /// The config file or preset (default `paper`), before the flags.
-    fn base(&self) -> Result<Config> {
-        let cfg = match (&self.config, &self.preset) {
+    /// The set-up the file or preset names (default `paper`), before the flags; a robot's chain
+    /// is loaded here, once.
+    fn base(&self) -> Result<System> {
+        let spatial = |config: SpatialConfig| -> Result<System> {
+            let r = &config.robot;
+            let chain = rt::robot::load(&r.description, r.base.as_deref(), r.tip.as_deref())?;
+            Ok(System::Spatial(Box::new(SpatialSystem { config, chain })))
+        };
+        match (&self.config, &self.preset) {
             (Some(path), _) => {
                 let text = std::fs::read_to_string(path)
                     .with_context(|| format!("cannot read config file {}", path.display()))?;
-                Config::from_toml_str(&text).with_context(|| format!("in {}", path.display()))?
+                let within = || format!("in {}", path.display());
+                if is_spatial(&text) {
+                    spatial(SpatialConfig::from_toml(&text).with_context(within)?)
+                } else {
+                    Ok(System::Planar(
+                        Config::from_toml_str(&text).with_context(within)?,
+                    ))
+                }
             }
-            (None, Some(p)) => Config::preset(p)?,
-            (None, None) => Config::preset("paper")?,
-        };
-        Ok(cfg)
+            (None, Some(p)) => match SpatialConfig::preset(p) {
+                Some(c) => spatial(c),
+                None => Ok(System::Planar(Config::preset(p)?)),
+            },
+            (None, None) => Ok(System::Planar(Config::preset("paper")?)),
+        }
     }
 
-    /// The config with the flags applied (and `mu`, when given), validated.
-    pub fn load_with_mu(&self, mu: Option<f64>) -> Result<Config> {
-        let mut cfg = self.base()?;
+    /// The set-up with the flags applied (and `mu`, when given), validated: the same flags mean
+    /// the same on every arm (`--model` is the planar arm's base alone).
+    pub fn load(&self, mu: Option<f64>) -> Result<System> {
+        let mut s = self.base()?;
+        match (&mut s, self.model) {
+            (System::Planar(c), Some(m)) => c.arm.model = m,
+            (System::Spatial(_), Some(_)) => bail!(
+                "--model applies to the planar arm; a spatial robot is given by [robot] in its config"
+            ),
+            _ => {}
+        }
+        let f = s.feedback_section_mut();
         if let Some(v) = mu {
-            cfg.feedback.mu = v;
+            f.mu = v;
         }
         if let Some(v) = self.tau {
-            cfg.feedback.tau = Some(v);
-            if v > cfg.feedback.capacity() && v.is_finite() {
-                cfg.feedback.max_tau = Some(v);
+            f.tau = Some(v);
+            if v > f.capacity() && v.is_finite() {
+                f.max_tau = Some(v);
             }
         }
         if let Some(v) = self.t_on {
-            cfg.feedback.t_on = v;
-        }
-        if let Some(v) = self.dt {
-            cfg.sim.dt = v;
-        }
-        if let Some(v) = &self.q0 {
-            cfg.sim.q0 = Some(v.0.clone());
-        }
-        if let Some(v) = &self.qd0 {
-            cfg.sim.qd0 = Some(v.0.clone());
-        }
-        if let Some(m) = self.model {
-            cfg.arm.model = m;
-        }
-        if let Some(on) = self.safety {
-            cfg.safety.enabled = on;
+            f.t_on = v;
         }
         if let Some(p) = self.projection {
-            cfg.feedback.projection = p;
+            f.projection = p;
         }
-        cfg.validate()?;
-        Ok(cfg)
+        let sim = s.sim_section_mut();
+        if let Some(v) = self.dt {
+            sim.dt = v;
+        }
+        if let Some(v) = &self.q0 {
+            sim.q0 = Some(v.0.clone());
+        }
+        if let Some(v) = &self.qd0 {
+            sim.qd0 = Some(v.0.clone());
+        }
+        if let Some(on) = self.safety {
+            s.safety_section_mut().enabled = on;
+        }
+        s.validate()?;
+        Ok(s)
     }
 }
 

@@ -12,14 +12,12 @@ use control::analysis::{
     analyse_flow, find_orbit_of, orbit_stability_of, stroboscopic_map, ArmFlow, NewtonConfig,
     OrbitStability, PeriodicOrbit, RunAnalysis, RunSpec, StabilitySpec,
 };
-use control::config::spatial::SpatialConfig;
 use control::config::{LawSection, ModelKind};
 use control::monitor::run::{watch_sim, Edit, Watched};
 use control::monitor::MonitorSettings;
 use control::sim::ClosedLoopLaw;
 use control::steer::Blocked;
-use control::system::SpatialSystem;
-use control::{with_dof, with_task_rows, ArmState, Config, Simulation, System, VecN};
+use control::{with_dof, with_task_rows, ArmState, Simulation, System, VecN};
 
 /// The set-up an offline command studies: the daemon's own [`System`], with the offline
 /// commands' runs and checks. A few hundred copies at most, built once per study.
@@ -32,25 +30,8 @@ impl Subject {
     /// The set-up the flags name (`--preset`, `--config` and the model flags), `mu` over the
     /// file's when given. A robot's chain is loaded here, once.
     pub fn load(setup: &SetupArgs, mu: Option<f64>) -> Result<Self> {
-        match crate::spatial::load(setup, mu)? {
-            Some(cfg) => Self::robot(cfg),
-            None => Ok(Self::planar(setup.load_with_mu(mu)?)),
-        }
-    }
-
-    /// The paper's planar arm from its config.
-    pub fn planar(cfg: Config) -> Self {
-        Self {
-            system: System::Planar(cfg),
-        }
-    }
-
-    /// A robot's set-up with its chain loaded (checked by [`Self::check`], not here).
-    pub fn robot(config: SpatialConfig) -> Result<Self> {
-        let r = &config.robot;
-        let chain = rt::robot::load(&r.description, r.base.as_deref(), r.tip.as_deref())?;
         Ok(Self {
-            system: System::Spatial(Box::new(SpatialSystem { config, chain })),
+            system: setup.load(mu)?,
         })
     }
 
