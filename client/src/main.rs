@@ -207,17 +207,9 @@ fn main() -> ExitCode {
                 rt::robot::parse(&text).with_context(|| format!("in {}", path.display()))
             })
             .map(|s| print!("{}", s.to_toml())),
-        Command::Config { preset, .. } => {
-            match control::config::spatial::SpatialConfig::preset(&preset) {
-                Some(c) => {
-                    print!("{}", c.to_toml());
-                    Ok(())
-                }
-                None => control::Config::preset(&preset)
-                    .map(|c| print!("{}", c.to_toml_string()))
-                    .map_err(Into::into),
-            }
-        }
+        Command::Config { preset, .. } => rt::robot::preset(&preset)
+            .map(|s| print!("{}", s.to_toml()))
+            .map_err(Into::into),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
