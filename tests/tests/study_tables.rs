@@ -74,6 +74,15 @@ fn book_rows(header: &str) -> Vec<Vec<String>> {
         .collect()
 }
 
+/// The rows of the table a script printed, its header (starting `header`) left out.
+fn printed_rows(printed: &str, header: &str) -> Vec<Vec<String>> {
+    printed
+        .lines()
+        .filter(|l| l.starts_with("| ") && !l.starts_with(header))
+        .map(cells)
+        .collect()
+}
+
 /// The first number in a cell (`20`, `1 (\`panda-paper\`)`).
 fn number(cell: &str) -> f64 {
     cell.split_whitespace().next().unwrap().parse().unwrap()
@@ -83,11 +92,7 @@ fn number(cell: &str) -> f64 {
 fn the_study_table_is_what_run_sh_prints() {
     let Some(python) = python_dir() else { return };
     let printed = script("run.sh", &python, &[("TABLE_ONLY", "1")]);
-    let rows: Vec<Vec<String>> = printed
-        .lines()
-        .filter(|l| l.starts_with("| ") && !l.starts_with("| variant"))
-        .map(cells)
-        .collect();
+    let rows = printed_rows(&printed, "| variant");
     let book = book_rows("| variant | residual before → final");
     assert_eq!(rows.len(), book.len(), "{printed}");
     for (fresh, book) in rows.iter().zip(&book) {
@@ -102,11 +107,7 @@ fn the_study_table_is_what_run_sh_prints() {
 fn the_starts_table_is_what_starts_sh_prints() {
     let Some(python) = python_dir() else { return };
     let printed = script("starts.sh", &python, &[]);
-    let rows: Vec<Vec<String>> = printed
-        .lines()
-        .filter(|l| l.starts_with("| ") && !l.starts_with("| α"))
-        .map(cells)
-        .collect();
+    let rows = printed_rows(&printed, "| α");
     let book = book_rows("| α | k_d | μ | residual ≤ 1e-3 within limits");
     assert_eq!(rows.len(), book.len(), "{printed}");
     for (fresh, book) in rows.iter().zip(&book) {
