@@ -100,7 +100,8 @@ pub fn watch_sim<const N: usize, L: ClosedLoopLaw<N>>(
     edits: &[Edit],
 ) -> Watched {
     let longest = edits.iter().map(|e| e.block.core().tau).fold(0.0, f64::max);
-    sim.reserve_delay(longest);
+    let sized = sim.reserve_delay(longest);
+    debug_assert!(sized, "watch_sim takes a simulation that has not stepped");
     let mut monitor = ChaosMonitor::new(settings, sim.law.core().tau);
     let mut pending = edits.iter().peekable();
     let (mut edges, mut trace, mut effort, mut diverged) = (Vec::new(), Vec::new(), 0.0, false);
