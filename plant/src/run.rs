@@ -520,12 +520,17 @@ impl Loop<'_> {
         self.last_command_at = Some(at);
         self.late_since_command = 0;
         self.current = Some(cmd);
+        // Any answer in time ends a run of late cycles, a HOLD or a brake as much as a RUN: the
+        // controller is there and says what it wants. Counting on across them, cycles late
+        // seconds apart while the daemon was in FAULT added up to "20 in a row", the plant braked for
+        // lateness, and the daemon's HOLD (which clears a device's stop) never reached the
+        // device, so the daemon held for ever waiting for states without the stop.
+        self.late_run = 0;
+        self.late_braking = false;
+        self.timed_out = false;
         if cmd.mode == Mode::Run as u32 && cmd.state_seq == want {
             self.record_round_trip(&cmd, at);
             self.c.answered_in_time += 1;
-            self.late_run = 0;
-            self.late_braking = false;
-            self.timed_out = false;
         }
         let wanted = self.wanted();
         self.apply(plant, wanted)
