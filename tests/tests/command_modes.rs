@@ -8,17 +8,16 @@ use std::path::Path;
 use std::process::{Command, Output};
 use tests::*;
 
-/// `chaosd demo` on the Panda's set-up with a daemon that holds after 500 ms without states, not
-/// 20: these runs judge tracking and the feedback, and each host stall of 20 ms (two in one
-/// 14 s run) held the arm and restarted the delay line, which the tracking RMS over the run
-/// and the residual's fall then measured instead. Holding is tested on its own.
-fn demo_without_stall_holds(dir: &Path, out: &Path, args: &[&str]) -> Output {
+/// `chaosd demo` on one of the Panda's presets (`panda`, `panda-paper`) with a daemon that holds
+/// after 500 ms without states, not 20: these runs judge tracking and the feedback, and each
+/// host stall of 20 ms (two in one 14 s run) held the arm and restarted the delay line, which
+/// the tracking RMS over the run and the residual's fall then measured instead. Holding is
+/// tested on its own.
+fn demo_without_stall_holds(dir: &Path, preset: &str, out: &Path, args: &[&str]) -> Output {
     let cfg = dir.join("panda.toml");
-    let text = format!(
-        "{}\n[daemon]\nhold_after = 500\n",
-        control::config::spatial::PANDA_PAPER
-    );
-    std::fs::write(&cfg, text).unwrap();
+    let mut c = control::config::spatial::SpatialConfig::preset(preset).unwrap();
+    c.daemon = Some(toml::from_str("hold_after = 500").unwrap());
+    std::fs::write(&cfg, c.to_toml()).unwrap();
     Command::new(bin("chaosd"))
         .args(["demo", "--details", "--config", cfg.to_str().unwrap()])
         .args(args)
@@ -42,6 +41,7 @@ fn torque_mode_tracks_on_the_rigid_body_plant_and_the_feedback_still_works() {
     let out = dir.path().join("out");
     let o = demo_without_stall_holds(
         dir.path(),
+        "panda-paper",
         &out,
         &[
             "--mode",
@@ -201,9 +201,16 @@ fn with_the_limiter_the_same_run_keeps_the_device_running_and_tracks() {
 }
 
 /// Issue 24's target: position mode through the UDP bridge and chaosd-fakebot, with the
-/// limiter on, runs a minute without one reflex error; the delayed feedback still makes the
-/// self-motion periodic. The VM's stalls make the device miss answers and brake now and then:
-/// the stream must stay continuous across them.
+/// limiter on, runs a minute without one reflex error, tracks, and the delayed feedback makes
+/// the self-motion periodic (issue 42: the monitor says so). The VM's stalls make the device
+/// miss answers and brake now and then: the stream must stay continuous across them.
+///
+/// It runs the `panda` preset, the set-up a user runs. The paper's (`panda-paper`) is chaotic
+/// by design for its first 20 s here, and live, timing noise picks which chaotic orbit it
+/// follows: one CI run wandered to 98 % of joint 2's acceleration limit, the safety filter
+/// rightly left the null space for 39 ticks and the tracking RMS was 3 mm. That is the filter
+/// doing its job on a lottery the test cannot fix; the `panda` preset's self-motion is
+/// periodic from the start and stays at half the limits.
 #[test]
 fn position_mode_through_udp_runs_a_minute_without_a_reflex() {
     let _g = serial();
@@ -211,6 +218,7 @@ fn position_mode_through_udp_runs_a_minute_without_a_reflex() {
     let out = dir.path().join("out");
     let o = demo_without_stall_holds(
         dir.path(),
+        "panda",
         &out,
         &["--mode", "position", "--bridge", "udp", "--duration", "60"],
     );
@@ -222,9 +230,19 @@ fn position_mode_through_udp_runs_a_minute_without_a_reflex() {
     assert_eq!(s["device_stops"], 0, "{s}");
     assert_eq!(s["counters"]["faults"], 0, "{s}");
     assert_tracks(&[&s], 2e-3);
-    let before = s["period_residual_before"].as_f64().unwrap();
+    // The feedback is on from the start: the residual falls from the first period's.
+    let start = s["period_residual_start"].as_f64().unwrap();
     let after = s["period_residual_after"].as_f64().unwrap();
-    assert!(after * 10.0 <= before, "{before} → {after}");
+    assert!(after * 10.0 <= start && after < 1e-2, "{start} → {after}");
+    assert_eq!(
+        s["chaos"]["evidence"]["verdict"], "periodic",
+        "{}",
+        s["chaos"]
+    );
+    // The law itself stays inside the limits: the filter acts on at most 1 % of the ticks.
+    let ticks = s["counters"]["ticks"].as_f64().unwrap();
+    let filtered = s["counters"]["safety_active"].as_f64().unwrap();
+    assert!(filtered <= 0.01 * ticks, "{filtered} of {ticks} ticks: {s}");
 }
 
 #[test]
