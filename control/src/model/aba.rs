@@ -11,6 +11,7 @@ impl<const N: usize> Model<N> {
     /// q̈ from the joint torques τ: the q̈ for which [`Model::rnea`] gives back τ.
     #[inline]
     pub fn aba(&self, q: &VecN<N>, qd: &VecN<N>, tau: &VecN<N>) -> VecN<N> {
+        let sines = self.sines(q);
         let mut pose = super::Pose::IDENTITY;
         let mut s = [Vector6::zeros(); N];
         let mut c = [Vector6::zeros(); N];
@@ -18,7 +19,7 @@ impl<const N: usize> Model<N> {
         let mut pa = [Vector6::zeros(); N];
         let mut v = Motion::ZERO;
         for i in 0..N {
-            pose = self.body_pose(i, &pose, q[i]);
+            pose = self.body_pose(i, &pose, q[i], sines[i]);
             let fr = &pose;
             let si = Motion::axis(self.prismatic[i], &fr.rot.column(2).into_owned(), &fr.pos);
             let vj = si.scaled(qd[i]);

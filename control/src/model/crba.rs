@@ -21,36 +21,32 @@ impl<const N: usize> Model<N> {
     /// ```
     #[inline]
     pub fn mass_matrix(&self, q: &VecN<N>) -> SMatrix<f64, N, N> {
-        // Forward: each joint's axis (as a 6-vector column of S) and body inertia, base frame.
-        let mut axes = SMatrix::<f64, 6, N>::zeros();
+        // Forward: each joint's axis (the column S_i) and body inertia, base frame.
+        let sines = self.sines(q);
+        let mut axes = [Motion::ZERO; N];
         let mut bodies = [Inertia::default(); N];
         let mut pose = Pose::IDENTITY;
         for i in 0..N {
-            pose = self.body_pose(i, &pose, q[i]);
-            let s = Motion::axis(
+            pose = self.body_pose(i, &pose, q[i], sines[i]);
+            axes[i] = Motion::axis(
                 self.prismatic[i],
                 &pose.rot.column(2).into_owned(),
                 &pose.pos,
             );
-            axes.set_column(i, &s.to_vector());
             bodies[i] = Inertia::of(&self.body[i], &pose);
         }
-        // Backward: column i is Sᵀ·(I_i^c S_i). Its entries below the diagonal would need the
-        // composite of a later body; they are taken from the upper triangle at the end.
+        // Backward: M_ki = S_k · (I_i^c S_i) for k ≤ i, and M_ik the same. An entry below the
+        // diagonal would need the composite of a later body, so only the upper triangle is
+        // computed (28 of 49 products on the Panda).
         let mut m = SMatrix::<f64, N, N>::zeros();
         let mut composite = Inertia::default();
         for i in (0..N).rev() {
             composite.add(&bodies[i]);
-            let s = Motion {
-                w: axes.fixed_view::<3, 1>(0, i).into_owned(),
-                v: axes.fixed_view::<3, 1>(3, i).into_owned(),
-            };
-            let f = composite.apply(&s).to_vector();
-            m.set_column(i, &axes.tr_mul(&f));
-        }
-        for i in 0..N {
-            for k in i + 1..N {
-                m[(k, i)] = m[(i, k)];
+            let f = composite.apply(&axes[i]);
+            for k in 0..=i {
+                let v = axes[k].power(&f);
+                m[(k, i)] = v;
+                m[(i, k)] = v;
             }
         }
         m

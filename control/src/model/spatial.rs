@@ -85,6 +85,20 @@ impl Motion {
         self.w.dot(&f.n) + self.v.dot(&f.f)
     }
 
+    /// [`Motion::dot`] summed as one 6-vector, term after term from the angular part on (the
+    /// order of nalgebra's `dot` and `tr_mul`, so that results stay the same to the bit).
+    #[inline(always)]
+    pub fn power(&self, f: &Force) -> f64 {
+        let mut r = 0.0;
+        r += self.w.x * f.n.x;
+        r += self.w.y * f.n.y;
+        r += self.w.z * f.n.z;
+        r += self.v.x * f.f.x;
+        r += self.v.y * f.f.y;
+        r += self.v.z * f.f.z;
+        r
+    }
+
     #[inline(always)]
     pub fn to_vector(self) -> Vector6<f64> {
         Vector6::new(self.w.x, self.w.y, self.w.z, self.v.x, self.v.y, self.v.z)
