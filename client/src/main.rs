@@ -10,6 +10,7 @@ mod plan;
 mod plan_map;
 mod plot;
 mod robot;
+mod robot_fit;
 mod setup;
 mod simulate;
 mod subject;
@@ -82,7 +83,7 @@ enum Command {
     },
     /// What an MCAP recording holds; with --csv, its per-tick rows as CSV.
     Export(export::ExportArgs),
-    /// Robot models from URDF: `robot show ROBOT`, `robot eval ROBOT --q …`.
+    /// Robot models from URDF: `robot show ROBOT`, `robot eval ROBOT --q …`, `robot fit-radii`.
     Robot(robot::RobotCmd),
     /// Print a preset as a TOML config file to start from, or a file of yours checked and
     /// written in today's form (a planar file in the older `[arm]`/`[control]` form comes out

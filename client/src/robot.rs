@@ -41,6 +41,31 @@ enum Action {
         #[arg(long)]
         json: bool,
     },
+    /// Capsule radii that enclose the robot's collision geometry, for `robot.link_radii`:
+    /// MuJoCo loads the model's meshes and measures each link about chaosd's segment
+    /// (chaosd-mujoco-judge, built by scripts/mujoco-setup; docs/mujoco.md).
+    FitRadii {
+        #[command(flatten)]
+        which: Which,
+        /// The model with the collision geometry (URDF or MJCF; its joints named as the chain's),
+        /// e.g. out/mujoco/panda.urdf, example-robot-data's Panda with its meshes.
+        #[arg(long = "mujoco-model", value_name = "MODEL")]
+        model: std::path::PathBuf,
+        /// The tool point in the tip link's frame, x,y,z (m): where the last capsule ends, as
+        /// robot.tool.
+        #[arg(long, allow_hyphen_values = true)]
+        tool: Option<String>,
+        /// The pose to measure at, a comma list (default: each joint mid-range). The radii are
+        /// the same at every pose, but for geometry on joints that are not the chain's.
+        #[arg(long, allow_hyphen_values = true)]
+        q: Option<String>,
+        /// Added to each radius before it is rounded up to the millimetre (m).
+        #[arg(long, default_value_t = 0.0)]
+        margin: f64,
+        /// One JSON object: link_radii (rounded), fitted (exact), bodies.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(clap::Args, Debug)]
@@ -71,6 +96,29 @@ impl Which {
 
 pub fn run(cmd: RobotCmd) -> anyhow::Result<()> {
     match cmd.action {
+        Action::FitRadii {
+            which,
+            model,
+            tool,
+            q,
+            margin,
+            json,
+        } => {
+            let chain = which.load()?;
+            let n = chain.dof();
+            let q = match q {
+                Some(text) => parse_list("--q", &text, n, "one per joint")?,
+                None => chain.joints.iter().map(mid_range).collect(),
+            };
+            let tool = match tool {
+                Some(text) => {
+                    let t = parse_list("--tool", &text, 3, "x,y,z")?;
+                    [t[0], t[1], t[2]]
+                }
+                None => [0.0; 3],
+            };
+            crate::robot_fit::run(&chain, &model, &q, tool, margin, json)
+        }
         Action::Show { which } => {
             let chain = which.load()?;
             print!("{}", describe(&chain, &which.robot));
@@ -104,6 +152,16 @@ pub fn run(cmd: RobotCmd) -> anyhow::Result<()> {
             }
             Ok(())
         }
+    }
+}
+
+/// The middle of a joint's range, or 0 where it has no finite range.
+fn mid_range(j: &ChainJoint) -> f64 {
+    let (lo, hi) = (j.limits.lower, j.limits.upper);
+    if lo.is_finite() && hi.is_finite() {
+        0.5 * (lo + hi)
+    } else {
+        0.0
     }
 }
 

@@ -252,6 +252,93 @@ fn an_obstacle_study_judged_by_mujoco_names_where_capsules_and_meshes_disagree()
     assert!(num(6) > 0.0 && num(10) < 0.0, "{csv}");
 }
 
+/// `chaosctl robot fit-radii`, then the study above with the radii it gives: each capsule now
+/// holds its link's mesh (link 5's is 0.27 m about a segment of no length: the wrist, where the
+/// forearm's housing hangs), and MuJoCo sees the meshes stay as clear as the capsules.
+#[test]
+fn capsules_fitted_to_the_meshes_keep_them_clear_where_the_filter_says_so() {
+    let Some(model) = mujoco() else { return };
+    let dir = TempDir::new(&unique_namespace("mujoco-fit"));
+    let fit = |q: &str| -> Value {
+        let o = Command::new(bin("chaosctl"))
+            .args([
+                "robot",
+                "fit-radii",
+                "panda",
+                "--tool",
+                "0,0,0.1034",
+                "--json",
+            ])
+            .arg(format!("--q={q}"))
+            .arg("--mujoco-model")
+            .arg(&model)
+            .output()
+            .unwrap();
+        let out = String::from_utf8_lossy(&o.stdout).to_string();
+        assert!(
+            o.status.success(),
+            "{out}{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        serde_json::from_str(&out).unwrap()
+    };
+    let a = fit("0,-0.785,0,-2.356,0,1.571,0.785");
+    let b = fit("0.5,0.2,-0.7,-1.2,1.1,2.5,-0.4");
+    let nums = |v: &Value, k: &str| -> Vec<f64> {
+        v[k].as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    // Each capsule is rigid with its link: the same radii at every pose.
+    for (x, y) in nums(&a, "fitted").iter().zip(nums(&b, "fitted")) {
+        assert!((x - y).abs() < 1e-9, "{a}\n{b}");
+    }
+    let radii = nums(&a, "link_radii");
+    assert_eq!(radii.len(), 7, "{a}");
+    for (r, f) in radii.iter().zip(nums(&a, "fitted")) {
+        assert!(*r >= f && *r < f + 1e-3 + 1e-12, "{a}");
+    }
+    // The preset's 0.07 m for link 5 is what let its mesh touch.
+    assert!(radii[4] > 0.2, "{a}");
+    let preset = Command::new(bin("chaosctl"))
+        .args(["config", "--preset", "panda-paper"])
+        .output()
+        .unwrap();
+    let list: Vec<String> = radii.iter().map(|r| format!("{r}")).collect();
+    let cfg: String = String::from_utf8(preset.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| match l.starts_with("link_radii") {
+            true => format!("link_radii = [{}]\n", list.join(", ")),
+            false => format!("{l}\n"),
+        })
+        .collect();
+    let path = dir.path().join("fitted.toml");
+    std::fs::write(&path, cfg).unwrap();
+    let o = Command::new(bin("chaosctl"))
+        .args(["obstacles", "--config", path.to_str().unwrap()])
+        .args(["--obstacle", "0.45,0.25,0.45,0.08", "--starts", "1"])
+        .args(["--mu", "0", "--safety", "on", "--duration", "4"])
+        .args(["--rms-from", "1", "--section-from", "1", "--jobs", "1"])
+        .arg("--output")
+        .arg(dir.path().join("obs"))
+        .arg("--mujoco-judge")
+        .arg(&model)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{out}");
+    assert!(out.contains("disagreements: none"), "{out}");
+    let csv = std::fs::read_to_string(dir.path().join("obs-mujoco.csv")).unwrap();
+    let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+    // Judged, no contact, and the meshes at least as clear as the capsules' 0.02 m.
+    assert_eq!(row[5], "true", "{csv}");
+    assert_eq!(row[6].parse::<f64>().unwrap(), 0.0, "{csv}");
+    assert!(row[10].parse::<f64>().unwrap() >= 0.02 - 1e-4, "{csv}");
+}
+
 /// Refusals that need no MuJoCo: the planar arm has no mass model, and an engine's name is
 /// checked.
 #[test]
@@ -300,4 +387,29 @@ fn mujoco_is_refused_with_the_reason_where_it_cannot_run() {
         "0/2",
     ]);
     assert!(err.contains("does not shard"), "{err}");
+    // The fit: a model that is not there, a pose of the wrong length, a negative margin.
+    for (extra, says) in [
+        (
+            &["--mujoco-model", "/no/such/panda.urdf"][..],
+            "--mujoco-model /no/such/panda.urdf: no such file",
+        ),
+        (
+            &["--mujoco-model", "robots/panda.urdf", "--q", "1,2"][..],
+            "--q has 2 entries; expected 7",
+        ),
+        (
+            &["--mujoco-model", "robots/panda.urdf", "--margin=-0.1"][..],
+            "--margin -0.1: a length in [0, 1] m",
+        ),
+    ] {
+        let o = Command::new(bin("chaosctl"))
+            .args(["robot", "fit-radii", "panda"])
+            .args(extra)
+            .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(says) && !err.contains("panicked"), "{err}");
+    }
 }

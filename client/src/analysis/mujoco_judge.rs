@@ -41,10 +41,11 @@ pub struct Verdict {
 }
 
 impl MujocoJudge {
-    /// Finds `chaosd-mujoco-judge` beside this program and checks the model file.
-    pub fn new(model: &Path) -> Result<Self> {
+    /// Finds `chaosd-mujoco-judge` beside this program and checks the model file (given by the
+    /// option `flag`, which errors name).
+    pub fn new(model: &Path, flag: &str) -> Result<Self> {
         if !model.is_file() {
-            bail!("--mujoco-judge {}: no such file", model.display());
+            bail!("{flag} {}: no such file", model.display());
         }
         let exe = std::env::current_exe()
             .ok()
@@ -52,7 +53,7 @@ impl MujocoJudge {
             .filter(|p| p.is_file())
             .ok_or_else(|| {
                 anyhow!(
-                    "--mujoco-judge needs chaosd-mujoco-judge beside chaosctl: scripts/mujoco-setup \
+                    "{flag} needs chaosd-mujoco-judge beside chaosctl: scripts/mujoco-setup \
                      builds it (docs/mujoco.md)"
                 )
             })?;
@@ -103,6 +104,48 @@ impl MujocoJudge {
             first_pair: v["first_pair"].as_str().map(str::to_string),
             smallest_distance: v["smallest_distance_m"].as_f64(),
         })
+    }
+}
+
+/// One link's fitted capsule, as the judge reports it ([`MujocoJudge::fit`]).
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+pub struct LinkFit {
+    pub radius: f64,
+    pub bodies: Vec<String>,
+    pub geoms: usize,
+    pub points: usize,
+}
+
+impl MujocoJudge {
+    /// The capsule radii that enclose the model's geometry about chaosd's segments: `points`
+    /// are the segments' end points (each joint's origin, then the tool point; base frame) at
+    /// the pose `q` of `chain`'s joints.
+    pub fn fit(&self, chain: &Chain, q: &[f64], points: &[[f64; 3]]) -> Result<Vec<LinkFit>> {
+        let mut cmd = Command::new(&self.exe);
+        cmd.arg("--model").arg(&self.model).arg("--joints").arg(
+            chain
+                .joints
+                .iter()
+                .map(|j| j.name.as_str())
+                .collect::<Vec<_>>()
+                .join(","),
+        );
+        for [x, y, z] in points {
+            cmd.arg(format!("--point={x:e},{y:e},{z:e}"));
+        }
+        let pose: Vec<String> = std::iter::once(0.0)
+            .chain(q.iter().copied())
+            .map(|v| format!("{v:e}"))
+            .collect();
+        let file = Scratch::new(&(pose.join(" ") + "\n"))?;
+        let out = cmd
+            .stdin(std::fs::File::open(&file.0)?)
+            .output()
+            .with_context(|| format!("cannot run {}", self.exe.display()))?;
+        if !out.status.success() {
+            bail!("{}", String::from_utf8_lossy(&out.stderr).trim());
+        }
+        serde_json::from_slice(&out.stdout).context("the judge's fit")
     }
 }
 

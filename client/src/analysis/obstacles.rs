@@ -277,7 +277,7 @@ fn run_judged(args: &ObstaclesCmd, plan: &Plan, model: &Path, threads: usize) ->
     if plan.cells.iter().any(|c| c.arm.system().planar().is_some()) {
         bail!("--mujoco-judge judges a robot's URDF: the paper's planar arm has no MuJoCo model");
     }
-    let judge = MujocoJudge::new(model)?;
+    let judge = MujocoJudge::new(model, "--mujoco-judge")?;
     let started = Instant::now();
     let work = |c: &Cell| obstacle_cells::run_judged(c, &plan.window, &judge);
     let (results, verdicts) = run_all(&plan.cells, threads, "obstacles", work)?

@@ -2,6 +2,10 @@
 //! standard input (one sample a line: `t q1 … qN`), as one JSON object on standard output (the
 //! plant summary's `contacts`). `chaosctl obstacles --mujoco-judge MODEL` runs it per run.
 //!
+//! With `--point` (chaosd's capsule end points, one per joint and the tool point), it fits the
+//! capsules to the model's geometry instead ([`plant::mujoco::fit`]), at the first sample's
+//! pose: `chaosctl robot fit-radii` runs it.
+//!
 //! Built only with the `mujoco` feature, against the MuJoCo library (docs/mujoco.md).
 
 use anyhow::{bail, Context, Result};
@@ -31,6 +35,22 @@ struct Args {
     /// Where a URDF's `package://NAME/` paths point: NAME=DIR; repeat for several.
     #[arg(long = "package", value_name = "NAME=DIR")]
     packages: Vec<String>,
+    /// Fit the capsules instead: chaosd's capsule end points X,Y,Z (m, base frame) at the first
+    /// sample's pose, each joint's origin in order and then the tool point.
+    #[arg(long = "point", value_name = "X,Y,Z", conflicts_with = "spheres")]
+    points: Vec<String>,
+}
+
+fn point(text: &str) -> Result<[f64; 3]> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("--point {text:?}: expected three numbers X,Y,Z"))?;
+    match v.as_slice() {
+        &[x, y, z] if v.iter().all(|x| x.is_finite()) => Ok([x, y, z]),
+        _ => bail!("--point {text:?}: expected three finite numbers X,Y,Z"),
+    }
 }
 
 fn sphere(text: &str) -> Result<([f64; 3], f64)> {
@@ -80,6 +100,19 @@ fn run(args: &Args) -> Result<String> {
         .map(|p| package(p))
         .collect::<Result<_>>()?;
     let n = args.joints.len();
+    if !args.points.is_empty() {
+        let points = args
+            .points
+            .iter()
+            .map(|p| point(p))
+            .collect::<Result<Vec<_>>>()?;
+        let Some(line) = std::io::stdin().lock().lines().next() else {
+            bail!("no pose on standard input (a line `t q1 … qN`)");
+        };
+        let (_, q) = sample(&line.context("cannot read the pose")?, n, 1)?;
+        let links = plant::mujoco::fit::fit(&args.model, &packages, &args.joints, &q, &points)?;
+        return Ok(serde_json::to_string(&links)?);
+    }
     let mut replay = None;
     for (i, line) in std::io::stdin().lock().lines().enumerate() {
         let line = line.context("cannot read the trajectory")?;

@@ -21,6 +21,7 @@
 //! and pairs of the arm's bodies that touch in the start pose never collide ([`load`]).
 //! Only this module and `chaosd-plant-mujoco` link MuJoCo (feature `mujoco`).
 
+pub mod fit;
 pub mod judge;
 pub mod load;
 pub mod replay;
