@@ -5,33 +5,31 @@
 //! lets the housing touch an obstacle while the filter reports clearance (MuJoCo saw it on the
 //! Panda, docs/mujoco.md). This asks MuJoCo, which has loaded the meshes, for the radius about
 //! each of chaosd's segments that encloses every vertex of the link (`plant::mujoco::fit`), and
-//! prints it as a config line. The segments are chaosd's own: its forward kinematics give their
-//! end points, so the radii are for exactly the capsules the filter sees.
+//! prints it as a config line. The segments are chaosd's own: the end points come from the arm the
+//! filter uses (`SpatialArm::capsule_positions`), so the radii are for exactly its capsules.
 
 use crate::analysis::mujoco_judge::{LinkFit, MujocoJudge};
 use anyhow::{bail, Result};
-use control::model::{Chain, JointKind, Pose};
-use nalgebra::{Matrix3, Vector3};
+use control::arm::spatial::{SpatialArm, SpatialKinematics};
+use control::basics::{MAX_JOINTS, MIN_JOINTS};
+use control::model::Chain;
+use nalgebra::{SVector, Vector3};
 use std::path::Path;
 
 /// The end points of chaosd's capsules at `q`: each joint's origin, then the tool point (`tool`
-/// in the tip link's frame), in the base frame.
-pub fn capsule_points(chain: &Chain, q: &[f64], tool: [f64; 3]) -> Vec<[f64; 3]> {
-    let mut pose = Pose::IDENTITY;
-    let mut out = Vec::with_capacity(q.len() + 1);
-    for (j, &qi) in chain.joints.iter().zip(q) {
-        pose = pose.then(&j.placement);
-        if j.kind == JointKind::Prismatic {
-            pose.pos += pose.rot.column(2) * qi;
-        } else {
-            let (s, c) = qi.sin_cos();
-            pose.rot *= Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
-        }
-        out.push(pose.pos.into());
+/// in the tip link's frame), in the base frame, from the arm the filter itself uses.
+pub fn capsule_points(chain: &Chain, q: &[f64], tool: [f64; 3]) -> Result<Vec<[f64; 3]>> {
+    let n = chain.dof();
+    if !(MIN_JOINTS..=MAX_JOINTS).contains(&n) || q.len() != n {
+        bail!("{} joint angles for a chain of {n} joints ({MIN_JOINTS} to {MAX_JOINTS} are supported)", q.len());
     }
-    let tip = pose.then(&chain.tip_placement);
-    out.push(tip.apply(&Vector3::from(tool)).into());
-    out
+    control::with_dof!(n, N => {
+        let mut arm = SpatialArm::new(chain.model::<N>()?);
+        arm.tool = Vector3::from(tool);
+        let mut k = SpatialKinematics::<N>::default();
+        arm.kinematics(&SVector::from_column_slice(q), &SVector::zeros(), &mut k);
+        Ok(arm.capsule_positions(&k)[..=N].iter().map(|p| [p.x, p.y, p.z]).collect())
+    })
 }
 
 /// Fits and prints: a line per link, then `link_radii = […]`, each rounded up to the
@@ -48,7 +46,7 @@ pub fn run(
         bail!("--margin {margin}: a length in [0, 1] m");
     }
     let judge = MujocoJudge::new(model, "--mujoco-model")?;
-    let links = judge.fit(chain, q, &capsule_points(chain, q, tool))?;
+    let links = judge.fit(chain, q, &capsule_points(chain, q, tool)?)?;
     let radii: Vec<f64> = links
         .iter()
         .map(|l| ((l.radius + margin) * 1000.0).ceil() / 1000.0)
