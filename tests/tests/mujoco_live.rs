@@ -214,6 +214,28 @@ fn a_live_obstacle_edit_moves_mujocos_spheres() {
     assert_eq!(c["obstacle_contact_periods"], 0, "{c}");
 }
 
+/// The study's first start on `setup` (`--preset P` or `--config F`), a sphere the elbow's
+/// self-motion sweeps through, the filter on, 4 s, judged by MuJoCo over `model`: what it
+/// printed and its `-mujoco.csv`.
+fn judged_study(dir: &Path, setup: &[&str], model: &Path) -> (String, String) {
+    let o = Command::new(bin("chaosctl"))
+        .arg("obstacles")
+        .args(setup)
+        .args(["--obstacle", "0.45,0.25,0.45,0.08", "--starts", "1"])
+        .args(["--mu", "0", "--safety", "on", "--duration", "4"])
+        .args(["--rms-from", "1", "--section-from", "1", "--jobs", "1"])
+        .arg("--output")
+        .arg(dir.join("obs"))
+        .arg("--mujoco-judge")
+        .arg(model)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{out}");
+    let csv = std::fs::read_to_string(dir.join("obs-mujoco.csv")).unwrap();
+    (out, csv)
+}
+
 /// The Panda's obstacle study with MuJoCo judging: a sphere the elbow's self-motion sweeps
 /// through (docs/analysis.md's study), the filter on, from the ready pose. chaosd's capsules
 /// keep their 0.02 m (the filter's bound), and MuJoCo, posing the same joints in
@@ -223,26 +245,12 @@ fn a_live_obstacle_edit_moves_mujocos_spheres() {
 fn an_obstacle_study_judged_by_mujoco_names_where_capsules_and_meshes_disagree() {
     let Some(model) = mujoco() else { return };
     let dir = TempDir::new(&unique_namespace("mujoco-judge"));
-    let prefix = dir.path().join("obs");
-    let o = Command::new(bin("chaosctl"))
-        .args(["obstacles", "--preset", "panda-paper"])
-        .args(["--obstacle", "0.45,0.25,0.45,0.08", "--starts", "1"])
-        .args(["--mu", "0", "--safety", "on", "--duration", "4"])
-        .args(["--rms-from", "1", "--section-from", "1", "--jobs", "1"])
-        .arg("--output")
-        .arg(&prefix)
-        .arg("--mujoco-judge")
-        .arg(&model)
-        .output()
-        .unwrap();
-    let out = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{out}");
+    let (out, csv) = judged_study(dir.path(), &["--preset", "panda-paper"], &model);
     assert!(
         out.contains("disagreements: 1 of 1 judged run(s) kept the capsules clear"),
         "{out}"
     );
     assert!(out.contains("panda_link5"), "{out}");
-    let csv = std::fs::read_to_string(dir.path().join("obs-mujoco.csv")).unwrap();
     let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
     // capsules_clear, capsule clearance ≥ 0.02 m (the filter held), judged, contact time > 0,
     // and a negative smallest distance (penetration).
@@ -302,6 +310,24 @@ fn capsules_fitted_to_the_meshes_keep_them_clear_where_the_filter_says_so() {
     }
     // The preset's 0.07 m for link 5 is what let its mesh touch.
     assert!(radii[4] > 0.2, "{a}");
+    // A model without collision geometry has nothing to fit: refused, not all zeros.
+    let o = Command::new(bin("chaosctl"))
+        .args([
+            "robot",
+            "fit-radii",
+            "panda",
+            "--mujoco-model",
+            "robots/panda.urdf",
+        ])
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("no collision geometry on the arm's links"),
+        "{err}"
+    );
     let preset = Command::new(bin("chaosctl"))
         .args(["config", "--preset", "panda-paper"])
         .output()
@@ -317,21 +343,8 @@ fn capsules_fitted_to_the_meshes_keep_them_clear_where_the_filter_says_so() {
         .collect();
     let path = dir.path().join("fitted.toml");
     std::fs::write(&path, cfg).unwrap();
-    let o = Command::new(bin("chaosctl"))
-        .args(["obstacles", "--config", path.to_str().unwrap()])
-        .args(["--obstacle", "0.45,0.25,0.45,0.08", "--starts", "1"])
-        .args(["--mu", "0", "--safety", "on", "--duration", "4"])
-        .args(["--rms-from", "1", "--section-from", "1", "--jobs", "1"])
-        .arg("--output")
-        .arg(dir.path().join("obs"))
-        .arg("--mujoco-judge")
-        .arg(&model)
-        .output()
-        .unwrap();
-    let out = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{out}");
+    let (out, csv) = judged_study(dir.path(), &["--config", path.to_str().unwrap()], &model);
     assert!(out.contains("disagreements: none"), "{out}");
-    let csv = std::fs::read_to_string(dir.path().join("obs-mujoco.csv")).unwrap();
     let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
     // Judged, no contact, and the meshes at least as clear as the capsules' 0.02 m.
     assert_eq!(row[5], "true", "{csv}");
@@ -400,6 +413,10 @@ fn mujoco_is_refused_with_the_reason_where_it_cannot_run() {
         (
             &["--mujoco-model", "robots/panda.urdf", "--margin=-0.1"][..],
             "--margin -0.1: a length in [0, 1] m",
+        ),
+        (
+            &["--mujoco-model", "robots/panda.urdf", "--tool=0,0,11"][..],
+            "at most 10 m from the tip link's origin",
         ),
     ] {
         let o = Command::new(bin("chaosctl"))

@@ -66,36 +66,22 @@ impl MujocoJudge {
     /// Judges `samples` (each `t, q1 … qN`, flat) of a run of `cfg` on `chain`.
     pub fn judge(&self, cfg: &SpatialConfig, chain: &Chain, samples: &[f64]) -> Result<Verdict> {
         let n = chain.dof();
-        let mut cmd = Command::new(&self.exe);
-        cmd.arg("--model").arg(&self.model).arg("--joints").arg(
-            chain
-                .joints
-                .iter()
-                .map(|j| j.name.as_str())
-                .collect::<Vec<_>>()
-                .join(","),
-        );
-        for o in &cfg.obstacles {
-            let [x, y, z] = o.center;
-            cmd.arg("--sphere").arg(format!("{x},{y},{z},{}", o.radius));
-        }
-        // The trajectory goes in as a file, not a pipe: chaosctl keeps SIGPIPE's default (for
-        // `| head`), and a judge that fails early would otherwise end chaosctl with it.
+        let spheres: Vec<String> = cfg
+            .obstacles
+            .iter()
+            .map(|o| {
+                let [x, y, z] = o.center;
+                format!("--sphere={x},{y},{z},{}", o.radius)
+            })
+            .collect();
         let mut text = String::with_capacity(samples.len() * 12);
         for row in samples.chunks_exact(n + 1) {
             let line: Vec<String> = row.iter().map(|v| format!("{v:e}")).collect();
             text.push_str(&line.join(" "));
             text.push('\n');
         }
-        let file = Scratch::new(&text)?;
-        let out = cmd
-            .stdin(std::fs::File::open(&file.0)?)
-            .output()
-            .with_context(|| format!("cannot run {}", self.exe.display()))?;
-        if !out.status.success() {
-            bail!("{}", String::from_utf8_lossy(&out.stderr).trim());
-        }
-        let v: Value = serde_json::from_slice(&out.stdout).context("the judge's answer")?;
+        let out = self.run(chain, &spheres, &text)?;
+        let v: Value = serde_json::from_slice(&out).context("the judge's answer")?;
         Ok(Verdict {
             judged: v["judged"].as_bool().unwrap_or(false),
             contact_samples: v["obstacle_contact_periods"].as_u64().unwrap_or(0),
@@ -121,31 +107,38 @@ impl MujocoJudge {
     /// are the segments' end points (each joint's origin, then the tool point; base frame) at
     /// the pose `q` of `chain`'s joints.
     pub fn fit(&self, chain: &Chain, q: &[f64], points: &[[f64; 3]]) -> Result<Vec<LinkFit>> {
-        let mut cmd = Command::new(&self.exe);
-        cmd.arg("--model").arg(&self.model).arg("--joints").arg(
-            chain
-                .joints
-                .iter()
-                .map(|j| j.name.as_str())
-                .collect::<Vec<_>>()
-                .join(","),
-        );
-        for [x, y, z] in points {
-            cmd.arg(format!("--point={x:e},{y:e},{z:e}"));
-        }
+        let points: Vec<String> = points
+            .iter()
+            .map(|[x, y, z]| format!("--point={x:e},{y:e},{z:e}"))
+            .collect();
         let pose: Vec<String> = std::iter::once(0.0)
             .chain(q.iter().copied())
             .map(|v| format!("{v:e}"))
             .collect();
-        let file = Scratch::new(&(pose.join(" ") + "\n"))?;
-        let out = cmd
+        let out = self.run(chain, &points, &(pose.join(" ") + "\n"))?;
+        serde_json::from_slice(&out).context("the judge's fit")
+    }
+
+    /// Runs the judge on `chain`'s joints with `args`, `input` on its standard input; its
+    /// standard output, or its error line.
+    fn run(&self, chain: &Chain, args: &[String], input: &str) -> Result<Vec<u8>> {
+        let joints: Vec<&str> = chain.joints.iter().map(|j| j.name.as_str()).collect();
+        // The input goes in as a file, not a pipe: chaosctl keeps SIGPIPE's default (for
+        // `| head`), and a judge that fails early would otherwise end chaosctl with it.
+        let file = Scratch::new(input)?;
+        let out = Command::new(&self.exe)
+            .arg("--model")
+            .arg(&self.model)
+            .arg("--joints")
+            .arg(joints.join(","))
+            .args(args)
             .stdin(std::fs::File::open(&file.0)?)
             .output()
             .with_context(|| format!("cannot run {}", self.exe.display()))?;
         if !out.status.success() {
             bail!("{}", String::from_utf8_lossy(&out.stderr).trim());
         }
-        serde_json::from_slice(&out.stdout).context("the judge's fit")
+        Ok(out.stdout)
     }
 }
 

@@ -27,6 +27,7 @@ use super::load::{self, Source};
 use anyhow::{bail, Result};
 use mujoco_rs::mujoco_c::{mjData, mjModel, mj_kinematics, mjtObj};
 use mujoco_rs::prelude::*;
+use nalgebra::Vector3;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -190,20 +191,12 @@ fn geom_points(m: &mjModel, d: &mjData, g: usize, mut visit: impl FnMut([f64; 3]
     }
 }
 
-/// The distance from `p` to the segment [a, b].
+/// The distance from `p` to the segment [a, b], by the filter's own closest point
+/// ([`control::secondary::spatial::segment_parameter`]).
 fn segment_distance(a: &[f64; 3], b: &[f64; 3], p: &[f64; 3]) -> f64 {
-    let e: [f64; 3] = std::array::from_fn(|i| b[i] - a[i]);
-    let w: [f64; 3] = std::array::from_fn(|i| p[i] - a[i]);
-    let l2: f64 = e.iter().map(|x| x * x).sum();
-    let t = if l2 > 0.0 {
-        (w.iter().zip(&e).map(|(x, y)| x * y).sum::<f64>() / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (0..3)
-        .map(|i| (w[i] - t * e[i]).powi(2))
-        .sum::<f64>()
-        .sqrt()
+    let (a, b, p) = (Vector3::from(*a), Vector3::from(*b), Vector3::from(*p));
+    let t = control::secondary::spatial::segment_parameter(&a, &b, &p);
+    (p - (a + (b - a) * t)).norm()
 }
 
 #[cfg(test)]
