@@ -113,6 +113,10 @@ pub fn run(cmd: RobotCmd) -> anyhow::Result<()> {
             let tool = match tool {
                 Some(text) => {
                     let t = parse_list("--tool", &text, 3, "x,y,z")?;
+                    let max = control::config::spatial::MAX_TOOL_M;
+                    if t.iter().map(|v| v * v).sum::<f64>().sqrt() > max {
+                        bail!("--tool {text}: at most {max} m from the tip link's origin");
+                    }
                     [t[0], t[1], t[2]]
                 }
                 None => [0.0; 3],

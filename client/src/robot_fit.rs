@@ -47,6 +47,20 @@ pub fn run(
     }
     let judge = MujocoJudge::new(model, "--mujoco-model")?;
     let links = judge.fit(chain, q, &capsule_points(chain, q, tool)?)?;
+    if links.iter().all(|l| l.geoms == 0) {
+        bail!(
+            "{}: no collision geometry on the arm's links, nothing to fit (a URDF's <collision> \
+             elements; robots/*.urdf have none, example-robot-data's meshes do)",
+            model.display()
+        );
+    }
+    for (j, l) in links.iter().enumerate().filter(|(_, l)| l.geoms == 0) {
+        eprintln!(
+            "chaosctl: warning: link {} ({}) has no collision geometry: its radius 0 is a bare segment",
+            j + 1,
+            l.bodies.join(", ")
+        );
+    }
     let radii: Vec<f64> = links
         .iter()
         .map(|l| ((l.radius + margin) * 1000.0).ceil() / 1000.0)
@@ -68,22 +82,33 @@ pub fn run(
 
 fn table(chain: &Chain, links: &[LinkFit], margin: f64) -> String {
     let n = chain.joints.len();
+    let spans: Vec<String> = (0..links.len())
+        .map(|j| {
+            let to = if j + 1 < n {
+                chain.joints[j + 1].name.as_str()
+            } else {
+                "tool point"
+            };
+            format!("{} → {to}", chain.joints[j].name)
+        })
+        .collect();
+    let w = spans
+        .iter()
+        .map(|s| s.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(9);
     let mut out = format!(
         "capsules fitted to {}'s collision geometry in MuJoCo (margin {margin} m):\n\
-         link  from → to                      radius (m)  geoms  points  bodies\n",
-        chain.robot
+         link  {:<w$}  radius (m)  geoms  points  bodies\n",
+        chain.robot, "from → to"
     );
-    for (j, l) in links.iter().enumerate() {
-        let to = if j + 1 < n {
-            chain.joints[j + 1].name.as_str()
-        } else {
-            "tool point"
-        };
-        let span = format!("{} → {to}", chain.joints[j].name);
-        let empty = if l.geoms == 0 { "  (no geometry)" } else { "" };
+    for (j, (l, span)) in links.iter().zip(&spans).enumerate() {
+        let pad = w - span.chars().count();
         out.push_str(&format!(
-            "{:>4}  {span:<30} {:>10.4}  {:>5}  {:>6}  {}{empty}\n",
+            "{:>4}  {span}{:pad$}  {:>10.4}  {:>5}  {:>6}  {}\n",
             j + 1,
+            "",
             l.radius,
             l.geoms,
             l.points,

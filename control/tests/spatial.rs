@@ -388,6 +388,9 @@ fn the_panda_preset_builds_and_bad_keys_are_named() {
         &|c| c.robot.link_radii = Some(vec![0.1; 3]),
         "robot.link_radii",
     );
+    // Finite but no arm's: the last capsule's length overflowed to infinity.
+    bad(&|c| c.robot.tool = [1e308, 0.0, 0.0], "robot.tool");
+    bad(&|c| c.robot.tool = [0.0, 0.0, 10.5], "at most 10 m");
     // Accepted by their types, refused as runs: the planar arm's sampled-loop rules, the delay
     // line's bound and the arm's reach.
     bad(&|c| c.sim.dt = 0.5, "law.kv");

@@ -362,8 +362,12 @@ impl SpatialConfig {
             .map_err(|e| invalid("robot.description", &self.robot.description, &e.to_string()))?;
         let mut arm = SpatialArm::new(model);
         arm.tool = Vec3::from(self.robot.tool);
-        if !arm.tool.iter().all(|v| v.is_finite()) {
-            return Err(invalid("robot.tool", self.robot.tool, "3 finite numbers"));
+        if !(arm.tool.iter().all(|v| v.is_finite()) && arm.tool.norm() <= MAX_TOOL_M) {
+            return Err(invalid(
+                "robot.tool",
+                self.robot.tool,
+                &format!("3 finite numbers, at most {MAX_TOOL_M} m from the tip link's origin"),
+            ));
         }
         let radii = match &self.robot.link_radii {
             Some(r) => Self::per_joint("robot.link_radii", r, N)?,
@@ -480,6 +484,10 @@ fn check_reach<const N: usize>(
 
 /// Names accepted by [`SpatialConfig::preset`].
 pub const SPATIAL_PRESETS: &[&str] = &["panda", "panda-paper"];
+
+/// The farthest a tool point may sit from its tip link (m): past it the last capsule and the
+/// tool's lever are no arm's (a 1e308 m tool overflowed the capsule's length to infinity).
+pub const MAX_TOOL_M: f64 = 10.0;
 
 /// The paper's recipe on the Panda (docs/panda-study.md), preset `panda-paper`: a 0.15 m circle
 /// in the vertical plane in front of the Panda, position task, joint-limit centring α = 20,
