@@ -32,6 +32,7 @@ pub mod steer;
 pub mod system;
 pub mod task;
 pub mod tick_law;
+pub mod tune;
 
 pub use arm::{ArmModel, FixedArm, FloatingArm, Jac, Kinematics, Vec2, VecN};
 pub use basics::{ConfigError, MAX_JOINTS, MIN_JOINTS};

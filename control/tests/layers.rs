@@ -44,7 +44,10 @@ const FLOORS: &[(&str, &[&str])] = &[
         &["config"],
     ),
     ("the whole set-up: either arm from one file", &["system"]),
-    ("monitor and planner", &["monitor", "plan"]),
+    (
+        "monitor, planner and the gain from the model",
+        &["monitor", "plan", "tune"],
+    ),
     ("the loop through a command interface", &["commanded"]),
 ];
 

@@ -8,6 +8,7 @@ pub mod angle;
 pub mod dof;
 pub mod error;
 pub mod flags;
+pub mod number;
 
 pub use angle::wrap_angle;
 pub use dof::{MAX_JOINTS, MIN_JOINTS};

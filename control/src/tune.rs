@@ -1,0 +1,443 @@
+//! The Pyragas gain chosen from the model (docs/monitor.md, "The gain from the model").
+//!
+//! The speed-gradient law ([`crate::adapt`]) finds a gain by trying: it raises μ while the motion
+//! is not periodic, so it learns only from the plant, slowly, and on an arm it was not calibrated
+//! for it can sweep past every gain that works. The daemon has a model of its arm, so it can ask
+//! the question directly. The feedback vanishes on a period-T orbit, so the cycles it can make
+//! stable are the period-T orbits of the loop without it; on such an orbit the loop with the
+//! feedback is a delay equation whose leading Floquet multiplier ρ₁(μ) says whether the arm
+//! converges onto the cycle at gain μ (|ρ₁| < 1) and how fast ([`crate::analysis::floquet`]).
+//! So: find the cycle the set-up settles on (Newton's method on the period map, seeded from where
+//! the arm is or from a run of the set-up), compute |ρ₁(μ)| over the gains it allows, and take
+//! the smallest: the fastest convergence the model promises.
+//!
+//! |ρ₁(μ)| is not convex (two multipliers trade places as μ grows), so a coarse grid over
+//! [0, max_mu] finds the best neighbourhood and a golden-section search refines within it: the
+//! chosen gain is the analysis's minimum, not a grid step.
+//!
+//! This allocates and takes from a fraction of a second (the planar arm) to seconds (a 7-joint
+//! arm): the daemon runs it on a thread of its own, never on the loop, and the offline
+//! `chaosctl tune` calls the same function.
+
+use crate::analysis::{
+    delay_multipliers, find_orbit_of, period_steps, FloquetSpec, NewtonConfig, OrbitError,
+    PeriodicOrbit,
+};
+use crate::basics::number::short;
+use crate::sim::{ArmState, ClosedLoopLaw, Simulation};
+use crate::system::System;
+use serde::Serialize;
+
+/// How the gain is searched for.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct TuneSpec {
+    /// The largest gain considered (`feedback.max_mu`).
+    pub max_mu: f64,
+    /// Gains of the coarse grid over (0, max_mu]; μ = 0 is always tried too.
+    pub grid: usize,
+    /// Golden-section steps around the best grid gain.
+    pub refine: usize,
+    /// The most periods a seeding run lasts (it stops once settled); Newton's method starts
+    /// from its closest return.
+    pub settle_periods: u64,
+    /// The gain of the first seeding run (the second runs at `max_mu`).
+    pub seed_mu: f64,
+}
+
+impl TuneSpec {
+    /// The search a set-up asks for: up to its `max_mu` (or the default bound), seeded at its own
+    /// gain when that is positive, else at half the bound.
+    pub fn of(system: &System) -> Self {
+        let fb = system.feedback();
+        let max_mu = fb
+            .auto
+            .map_or(crate::adapt::DEFAULT_MAX_MU.max(fb.mu), |a| a.max_mu);
+        let seed_mu = if fb.mu > 0.0 && fb.mu <= max_mu {
+            fb.mu
+        } else {
+            0.5 * max_mu
+        };
+        Self {
+            max_mu,
+            grid: 8,
+            refine: 6,
+            settle_periods: 300,
+            seed_mu,
+        }
+    }
+
+    fn check(&self) -> Result<(), TuneError> {
+        let ok = self.max_mu.is_finite()
+            && self.max_mu > 0.0
+            && self.seed_mu.is_finite()
+            && self.seed_mu >= 0.0
+            && (1..=64).contains(&self.grid)
+            && self.refine <= 64
+            && self.settle_periods <= 10_000;
+        if ok {
+            Ok(())
+        } else {
+            Err(TuneError::Invalid(format!(
+                "gain search: max_mu = {} must be finite and > 0, seed_mu = {} ≥ 0, 1 ≤ grid = {} ≤ 64, \
+                 refine = {} ≤ 64, settle_periods = {} ≤ 10000",
+                self.max_mu, self.seed_mu, self.grid, self.refine, self.settle_periods
+            )))
+        }
+    }
+}
+
+/// The leading multiplier at one gain.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct GainPoint {
+    pub mu: f64,
+    /// |ρ₁|: how much of an offset from the cycle is left after one period.
+    pub multiplier: f64,
+    /// ln|ρ₁| / T (1/s): < 0 converges.
+    pub rate: f64,
+    /// Whether Arnoldi's method converged (always at μ = 0, where the map is finite).
+    pub converged: bool,
+}
+
+/// Where Newton's method started.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum Seed {
+    /// The state the caller gave (the daemon: the arm's newest return, at a whole period).
+    Given,
+    /// The closest return of a run of the set-up from its start at this gain.
+    Settled { mu: f64 },
+}
+
+/// The gain the model recommends, and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GainChoice {
+    pub mu: f64,
+    /// |ρ₁| at `mu`.
+    pub multiplier: f64,
+    /// ln|ρ₁| / T at `mu` (1/s).
+    pub rate: f64,
+    /// The task period T (s).
+    pub period: f64,
+    pub seed: Seed,
+    /// The cycle the gain makes stable (its point at t = kT; its μ = 0 multipliers).
+    pub orbit: PeriodicOrbit,
+    /// Every gain tried, by μ.
+    pub scanned: Vec<GainPoint>,
+}
+
+impl GainChoice {
+    /// One line: the gain, how fast it converges and against what.
+    ///
+    /// ```
+    /// use control::tune::{GainChoice, GainPoint, Seed};
+    /// use control::analysis::PeriodicOrbit;
+    /// let p = |mu: f64, m: f64| GainPoint { mu, multiplier: m, rate: m.ln(), converged: true };
+    /// let c = GainChoice {
+    ///     mu: 0.2, multiplier: 0.5, rate: 0.5f64.ln(), period: 1.0, seed: Seed::Given,
+    ///     orbit: PeriodicOrbit { q: vec![0.0; 3], qd: vec![0.0; 3], residual: 1e-12,
+    ///                            iterations: 3, multipliers: vec![[1.0, 0.0]] },
+    ///     scanned: vec![p(0.0, 1.0), p(0.2, 0.5), p(0.4, 0.9)],
+    /// };
+    /// assert_eq!(c.why(), "μ = 0.2: the cycle converges ×0.5 a period (-0.69/s), \
+    ///     the fastest of 3 gains in [0, 0.4] (×1 at μ = 0)");
+    /// ```
+    pub fn why(&self) -> String {
+        let top = self.scanned.iter().map(|p| p.mu).fold(0.0, f64::max);
+        let at_zero = self
+            .scanned
+            .iter()
+            .find(|p| p.mu == 0.0)
+            .map_or(String::new(), |p| {
+                format!(" (×{} at μ = 0)", short(p.multiplier))
+            });
+        format!(
+            "μ = {}: the cycle converges ×{} a period ({:.2}/s), the fastest of {} gains in [0, {}]{at_zero}",
+            short(self.mu),
+            short(self.multiplier),
+            self.rate,
+            self.scanned.len(),
+            short(top)
+        )
+    }
+}
+
+/// Why no gain could be chosen.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum TuneError {
+    /// The set-up is not one whose gain this can choose (the message says why).
+    #[error("{0}")]
+    Invalid(String),
+    #[error("no period-T cycle found: {0}")]
+    NoCycle(String),
+    #[error(
+        "no gain in [0, {max_mu}] makes the cycle stable: the best, μ = {}, leaves ×{} of an offset a period",
+        short(best.mu),
+        short(best.multiplier)
+    )]
+    NoStableGain { best: GainPoint, max_mu: f64 },
+    #[error("the loop diverged while its multipliers were computed")]
+    Diverged,
+}
+
+/// Arnoldi's settings for the search: the leading pair only, to 1e-5.
+const FLOQUET: FloquetSpec = FloquetSpec {
+    count: 2,
+    max_krylov: 80,
+    tol: 1e-5,
+    fd_step: 1e-6,
+};
+
+/// The gain with the fastest convergence onto the cycle the set-up settles on, by the model.
+/// `seed` is (q, q̇) at a whole number of periods (the daemon's newest return), tried first.
+///
+/// ```
+/// use control::tune::{choose_gain, TuneSpec};
+/// let system = control::System::preset("paper", &control::system::builtin_robot).unwrap();
+/// let spec = TuneSpec { grid: 4, refine: 2, ..TuneSpec::of(&system) };
+/// let c = choose_gain(&system, None, &spec).unwrap();
+/// assert!(c.multiplier < 1.0 && c.mu > 0.0 && c.mu <= spec.max_mu, "{}", c.why());
+/// ```
+pub fn choose_gain(
+    system: &System,
+    seed: Option<&[f64]>,
+    spec: &TuneSpec,
+) -> Result<GainChoice, TuneError> {
+    spec.check()?;
+    let (fb, period, dt) = (system.feedback(), system.period(), system.sim_section().dt);
+    if !system.feedback_section().enabled {
+        return Err(TuneError::Invalid(
+            "the delayed feedback is off (feedback.enabled = false): there is no gain to choose"
+                .into(),
+        ));
+    }
+    if (fb.tau - period).abs() > 1e-9 * period {
+        return Err(TuneError::Invalid(format!(
+            "τ = {} s differs from the task period T = {period} s: the feedback does not vanish on \
+             a period-T cycle, so no cycle of the arm is the feedback's to stabilise",
+            fb.tau
+        )));
+    }
+    let steps = period_steps(period, dt).map_err(|e| TuneError::Invalid(e.to_string()))?;
+    // Newton's period map runs from t = 0: without the start's ramp, as the arm runs later.
+    let mut steady = system.clone();
+    *steady.task_ramp_mut() = 0.0;
+    crate::with_dof!(system.n(), N => {
+        let search = Search {
+            start: system.tick_law::<N>(),
+            law: steady.tick_law::<N>(),
+            x0: system.initial_state::<N>(),
+            period,
+            dt,
+            steps,
+            spec: *spec,
+        };
+        search.run(seed)
+    })
+}
+
+/// One gain search on one arm's law.
+struct Search<const N: usize, L: ClosedLoopLaw<N>> {
+    /// The law as the set-up starts (the seeding runs).
+    start: L,
+    /// The law at full speed (the period map).
+    law: L,
+    x0: ArmState<N>,
+    period: f64,
+    dt: f64,
+    steps: u64,
+    spec: TuneSpec,
+}
+
+impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
+    fn run(&self, given: Option<&[f64]>) -> Result<GainChoice, TuneError> {
+        if self.law.is_floating() {
+            return Err(TuneError::Invalid(
+                "the floating base's attitude drifts, so its motion has no period-T cycle to \
+                 stabilise: choose μ with `chaosctl sweep`"
+                    .into(),
+            ));
+        }
+        let (orbit, seed) = self.cycle(given)?;
+        let scanned = self.scan(&orbit)?;
+        let best = *scanned
+            .iter()
+            .min_by(|a, b| a.multiplier.total_cmp(&b.multiplier))
+            .expect("the scan has μ = 0 at least");
+        if best.multiplier.is_nan() || best.multiplier >= 1.0 {
+            return Err(TuneError::NoStableGain {
+                best,
+                max_mu: self.spec.max_mu,
+            });
+        }
+        Ok(GainChoice {
+            mu: best.mu,
+            multiplier: best.multiplier,
+            rate: best.rate,
+            period: self.period,
+            seed,
+            orbit,
+            scanned,
+        })
+    }
+
+    /// The period-T cycle: Newton's method from the given state, else from the ends of runs of
+    /// the set-up at the seeding gain and at the bound.
+    fn cycle(&self, given: Option<&[f64]>) -> Result<(PeriodicOrbit, Seed), TuneError> {
+        let mut tried = Vec::new();
+        if let Some(x) = given.and_then(state_of::<N>) {
+            match self.newton(&x) {
+                Ok(o) => return Ok((o, Seed::Given)),
+                Err(e) => tried.push(format!("from the given state: {e}")),
+            }
+        }
+        for mu in [self.spec.seed_mu, self.spec.max_mu] {
+            let failed = match self.settle(mu).map(|x| self.newton(&x)) {
+                Some(Ok(o)) => return Ok((o, Seed::Settled { mu })),
+                Some(Err(e)) => e.to_string(),
+                None => "the run diverged".to_string(),
+            };
+            tried.push(format!(
+                "from the closest return of a run of up to {} s at μ = {}: {failed}",
+                self.spec.settle_periods as f64 * self.period,
+                short(mu)
+            ));
+        }
+        Err(TuneError::NoCycle(tried.join("; ")))
+    }
+
+    fn newton(&self, x: &ArmState<N>) -> Result<PeriodicOrbit, OrbitError> {
+        let cfg = NewtonConfig {
+            tol: 1e-9,
+            ..NewtonConfig::default()
+        };
+        find_orbit_of(&self.law, self.period, self.dt, x, &cfg)
+    }
+
+    /// The closest return of a run of the set-up from its start at gain `mu`: x(kT) with the
+    /// smallest |x(kT) − x((k − 1)T)| over at most `settle_periods` periods, the run stopping
+    /// once a return is within 1e-6 of the one before (settled). None when it diverged first.
+    fn settle(&self, mu: f64) -> Option<ArmState<N>> {
+        let mut law = self.start.clone();
+        let core = law.core_mut();
+        (core.mu, core.t_on, core.feedback, core.auto_mu) = (mu, 0.0, true, None);
+        let tau = law.core().tau;
+        let mut sim = Simulation::of(law, self.dt, self.x0, tau);
+        let (mut last, mut best) = (*sim.state(), None::<(f64, ArmState<N>)>);
+        for _ in 0..self.spec.settle_periods {
+            for _ in 0..self.steps {
+                sim.step();
+            }
+            let x = *sim.state();
+            if !x.is_finite() {
+                break;
+            }
+            let d = ((x.q - last.q).map(crate::basics::wrap_angle).norm_squared()
+                + (x.qd - last.qd).norm_squared())
+            .sqrt();
+            if best.is_none_or(|(b, _)| d < b) {
+                best = Some((d, x));
+            }
+            if d < 1e-6 {
+                break;
+            }
+            last = x;
+        }
+        best.map(|(_, x)| x)
+    }
+
+    /// |ρ₁| on a grid over [0, max_mu], then a golden-section search between the best grid
+    /// gain's neighbours; every gain tried, by μ.
+    fn scan(&self, orbit: &PeriodicOrbit) -> Result<Vec<GainPoint>, TuneError> {
+        let top = self.spec.max_mu;
+        let grid = self.spec.grid;
+        let mut points = vec![self.at(orbit, 0.0)?];
+        for k in 1..=grid {
+            points.push(self.at(orbit, top * k as f64 / grid as f64)?);
+        }
+        let best = (0..points.len())
+            .min_by(|&a, &b| points[a].multiplier.total_cmp(&points[b].multiplier))
+            .unwrap_or(0);
+        let step = top / grid as f64;
+        let (mut a, mut b) = (
+            (points[best].mu - step).max(0.0),
+            (points[best].mu + step).min(top),
+        );
+        // Golden section: keep the inner point with the smaller |ρ₁|.
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+        let (mut fc, mut fd) = (None, None);
+        for _ in 0..self.spec.refine {
+            let pc = match fc {
+                Some(p) => p,
+                None => self.at(orbit, c)?,
+            };
+            let pd = match fd {
+                Some(p) => p,
+                None => self.at(orbit, d)?,
+            };
+            for p in [pc, pd] {
+                if !points.contains(&p) {
+                    points.push(p);
+                }
+            }
+            if pc.multiplier <= pd.multiplier {
+                (b, d, fd) = (d, c, Some(pc));
+                c = b - g * (b - a);
+                fc = None;
+            } else {
+                (a, c, fc) = (c, d, Some(pd));
+                d = a + g * (b - a);
+                fd = None;
+            }
+        }
+        points.sort_by(|x, y| x.mu.total_cmp(&y.mu));
+        points.dedup_by(|x, y| x.mu == y.mu);
+        Ok(points)
+    }
+
+    /// The leading multiplier of the loop at gain `mu` on `orbit`: one period along it with the
+    /// feedback off fills the delay line with the orbit's own history, then the feedback is on.
+    fn at(&self, orbit: &PeriodicOrbit, mu: f64) -> Result<GainPoint, TuneError> {
+        if mu == 0.0 {
+            let m = orbit.max_multiplier();
+            return Ok(GainPoint {
+                mu,
+                multiplier: m,
+                rate: m.ln() / self.period,
+                converged: true,
+            });
+        }
+        let mut law = self.law.clone();
+        let core = law.core_mut();
+        (core.mu, core.t_on, core.feedback, core.auto_mu) = (mu, self.period, true, None);
+        let tau = law.core().tau;
+        let mut sim = Simulation::of(law, self.dt, orbit.state::<N>(), tau);
+        for _ in 0..self.steps {
+            sim.step();
+        }
+        let f = delay_multipliers(&sim, self.steps, &FLOQUET).map_err(|e| match e {
+            crate::analysis::FloquetError::Diverged => TuneError::Diverged,
+            other => TuneError::Invalid(other.to_string()),
+        })?;
+        let m = f.multipliers.first().map_or(f64::NAN, |z| z[0].hypot(z[1]));
+        Ok(GainPoint {
+            mu,
+            multiplier: m,
+            rate: f.exponent,
+            converged: f.converged,
+        })
+    }
+}
+
+/// (q, q̇) from 2N numbers; None for any other length or a non-finite number.
+fn state_of<const N: usize>(x: &[f64]) -> Option<ArmState<N>> {
+    if x.len() != 2 * N || !x.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    Some(ArmState {
+        q: crate::arm::VecN::<N>::from_column_slice(&x[..N]),
+        qd: crate::arm::VecN::<N>::from_column_slice(&x[N..]),
+        phi: 0.0,
+    })
+}
