@@ -306,6 +306,12 @@ const SERIES: &[(&str, &str, &str, Get)] = &[
         |t| t.mu_auto as f64,
     ),
     (
+        "chaosd_mu_model",
+        "gauge",
+        "The gain the daemon chose from its model for mu = \"auto\" (NaN until chosen).",
+        |t| t.mu_model,
+    ),
+    (
         "chaosd_chaos_verdict",
         "gauge",
         "The chaos monitor's verdict: 0 unknown, 1 chaotic, 2 converging, 3 periodic (tau), 4 regular (another period or quasi-periodic).",

@@ -33,6 +33,11 @@ pub struct AutoMu {
     pub gamma: f64,
     /// The bound μ never passes.
     pub max_mu: f64,
+    /// The gain the model recommends ([`crate::tune`]), once the daemon has chosen it: μ leaks
+    /// back towards it (time constant [`LEAK_TIME_S`]) once the residual no longer drives it up,
+    /// and a sweep starts again from it rather than from 0. Never in a config file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub anchor: Option<f64>,
 }
 
 /// The default γ: at the planar arm's chaotic residual of about 5 rad/s, μ grows by 0.0075 per
@@ -46,11 +51,17 @@ pub const REFERENCE_RESIDUAL: f64 = 5.0;
 /// At the reference residual, one period may move μ by at most this share of `max_mu`.
 pub const MAX_SHARE_PER_PERIOD: f64 = 0.1;
 
+/// How fast μ returns to the model's gain once the residual stops driving it up (s): ten
+/// periods of the planar arm, five of the Panda's, so a correction the plant needed outlives a
+/// short calm but not a settled cycle.
+pub const LEAK_TIME_S: f64 = 10.0;
+
 impl Default for AutoMu {
     fn default() -> Self {
         Self {
             gamma: DEFAULT_GAMMA,
             max_mu: DEFAULT_MAX_MU,
+            anchor: None,
         }
     }
 }
@@ -61,35 +72,51 @@ impl AutoMu {
     ///
     /// ```
     /// use control::adapt::AutoMu;
-    /// let a = AutoMu { gamma: 0.5, max_mu: 1.0 };
+    /// let a = AutoMu { gamma: 0.5, max_mu: 1.0, anchor: None };
     /// assert_eq!(a.step(0.0, 2.0, 0.01, 0.3), 0.02); // 0.5 · 2² · 0.01
     /// assert_eq!(a.step(0.99, 2.0, 0.01, 0.3), 1.0); // bounded
     /// assert_eq!(a.step(0.5, 2.0, 0.01, 1.5), 0.5); // the joints are saturated: no growth
+    /// // With the model's gain 0.2, a settled cycle (r = 0) brings μ back down to it.
+    /// let m = AutoMu { anchor: Some(0.2), ..a };
+    /// assert!(m.step(0.5, 0.0, 0.01, 0.3) < 0.5 && m.step(0.5, 0.0, 0.01, 0.3) > 0.2);
+    /// assert_eq!(m.step(0.2, 0.0, 0.01, 0.3), 0.2);
     /// ```
     #[inline]
     pub fn step(&self, mu: f64, r: f64, dt: f64, demand: f64) -> f64 {
         let grow = self.gamma * r * r * dt;
-        if !(grow.is_finite() && demand <= 1.0) {
-            return mu;
-        }
-        (mu + grow).min(self.max_mu)
+        let Some(anchor) = self.anchor else {
+            if !(grow.is_finite() && demand <= 1.0) {
+                return mu;
+            }
+            return (mu + grow).min(self.max_mu);
+        };
+        let grow = if grow.is_finite() && demand <= 1.0 {
+            grow
+        } else {
+            0.0
+        };
+        let leak = (mu - anchor) * (dt / LEAK_TIME_S).min(1.0);
+        (mu + grow - leak).clamp(0.0, self.max_mu)
     }
 
     /// [`Self::step`], and when μ reaches `max_mu` still growing, a new sweep: μ starts again
-    /// from 0 and γ halves (see the module docs). Returns the new μ.
+    /// from the model's gain (0 without one) and γ halves (see the module docs). Returns the
+    /// new μ.
     ///
     /// ```
     /// use control::adapt::AutoMu;
-    /// let mut a = AutoMu { gamma: 0.5, max_mu: 1.0 };
+    /// let mut a = AutoMu { gamma: 0.5, max_mu: 1.0, anchor: None };
     /// assert_eq!(a.advance(0.99, 2.0, 0.01, 0.3), 0.0);
     /// assert_eq!(a.gamma, 0.25);
+    /// let mut a = AutoMu { gamma: 0.5, max_mu: 1.0, anchor: Some(0.3) };
+    /// assert_eq!(a.advance(0.99, 2.0, 0.01, 0.3), 0.3);
     /// ```
     #[inline]
     pub fn advance(&mut self, mu: f64, r: f64, dt: f64, demand: f64) -> f64 {
         let next = self.step(mu, r, dt, demand);
         if next >= self.max_mu && next > mu {
             self.gamma *= 0.5;
-            return 0.0;
+            return self.anchor.unwrap_or(0.0);
         }
         next
     }
@@ -102,7 +129,7 @@ impl AutoMu {
     /// ```
     /// use control::adapt::AutoMu;
     /// assert!(AutoMu::default().check(1.0).is_ok());
-    /// let e = AutoMu { gamma: 0.1, max_mu: 1.0 }.check(1.0).unwrap_err().to_string();
+    /// let e = AutoMu { gamma: 0.1, max_mu: 1.0, anchor: None }.check(1.0).unwrap_err().to_string();
     /// assert!(e.contains("at most 4.0e-3"), "{e}");
     /// ```
     pub fn check(&self, tau: f64) -> Result<(), crate::basics::ConfigError> {
@@ -254,6 +281,7 @@ pub fn auto_from_toml(
     Ok(Some(AutoMu {
         gamma: gamma.unwrap_or(DEFAULT_GAMMA),
         max_mu: max_mu.unwrap_or(DEFAULT_MAX_MU),
+        anchor: None,
     }))
 }
 
@@ -294,6 +322,7 @@ mod tests {
         let a = AutoMu {
             gamma: 0.2,
             max_mu: 3.0,
+            anchor: None,
         };
         assert_eq!(a.step(0.1, 0.0, 0.001, 0.0), 0.1);
         let one = a.step(0.0, 1.0, 0.001, 0.0);
@@ -315,7 +344,8 @@ mod tests {
             assert!(
                 AutoMu {
                     gamma: g,
-                    max_mu: m
+                    max_mu: m,
+                    anchor: None,
                 }
                 .check(1.0)
                 .is_err(),
@@ -326,6 +356,7 @@ mod tests {
         let a = AutoMu {
             gamma: 0.006,
             max_mu: 1.0,
+            anchor: None,
         };
         assert!(a.check(1.0).is_err() && a.check(0.5).is_ok());
     }

@@ -106,7 +106,8 @@ fn auto_in_a_config_file_parses_round_trips_and_refuses_bad_gains() {
         c.feedback.auto,
         Some(AutoMu {
             gamma: 1e-4,
-            max_mu: 0.3
+            max_mu: 0.3,
+            anchor: None,
         })
     );
     assert_eq!(c.feedback.mu, 0.0);

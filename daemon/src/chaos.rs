@@ -26,6 +26,9 @@ pub struct ChaosWatch {
     /// Verdict changes so far, and the first [`HISTORY`] of them.
     pub edges: u64,
     pub history: Vec<Edge>,
+    /// The next parameter block only hands over the gain the model chose (`crate::gains`):
+    /// the same system at another gain, as `mu = "auto"` moves it anyway, so the window goes on.
+    gain_only: bool,
 }
 
 impl ChaosWatch {
@@ -37,13 +40,17 @@ impl ChaosWatch {
             mu: 0.0,
             edges: 0,
             history: Vec::with_capacity(HISTORY),
+            gain_only: false,
         }
     }
 
     /// One tick's record (see the module docs for when the window restarts).
     pub fn observe(&mut self, r: &TickRecord, mu_auto: bool) {
         let run = r.mode == Mode::Run;
-        let edited = matches!(r.applied, Some(Applied::Params));
+        let mut edited = matches!(r.applied, Some(Applied::Params));
+        if edited && self.gain_only {
+            (edited, self.gain_only) = (false, false);
+        }
         if (run && !self.running) || edited {
             self.monitor.restart(r.t, r.tau);
         }
@@ -72,6 +79,11 @@ impl ChaosWatch {
             describe(&e.evidence),
             crate::number::short(r.mu)
         );
+    }
+
+    /// The next parameter block is the model's gain only (see the field).
+    pub fn gain_only(&mut self) {
+        self.gain_only = true;
     }
 
     pub fn evidence(&self) -> &Evidence {
@@ -112,6 +124,7 @@ impl ChaosWatch {
             mu: self.mu,
             edges: self.edges,
             history: self.history.clone(),
+            model_gain: None,
         }
     }
 }

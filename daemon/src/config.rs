@@ -407,6 +407,9 @@ impl DaemonSetup {
     /// Adopts a saved live state: its system settings, with this file's `[daemon]` and `[plant]`.
     pub fn resume_from(&mut self, live: crate::persist::LiveState) -> Result<(), ConfigError> {
         let mut system = live.system.to_system()?;
+        if let Some(g) = &live.gain {
+            g.restore(&mut system);
+        }
         let (daemon, plant) = self.system.tables();
         let (d, p) = system.tables_mut();
         (*d, *p) = (daemon.clone(), plant.clone());

@@ -38,12 +38,39 @@ impl Reporter {
         let t = self.last.map_or(self.t_start, |r| r.t);
         let q_now = self.last_state.map(|s| s.q[..self.system.n()].to_vec());
         self.deadlock.edited(&self.system, t, q_now);
+        self.gains.edited(&self.system, crate::gains::Why::Edit);
         self.limits.set_limits(*self.system.param_block().safety());
         if let Some(log) = self.replay.as_mut() {
             log.committed(&self.system);
         }
         self.save_live_state();
         Ok(answer)
+    }
+
+    /// Hands the gain the model chose to the loop (see `gains`): not an edit, so neither the
+    /// planner nor the monitor starts over. Tried again on the next pass while the loop has
+    /// not taken the previous block.
+    pub(crate) fn adopt_gain(&mut self, t: f64) {
+        let Some(c) = self.gains.poll(t) else {
+            return;
+        };
+        let Some(new) = crate::gains::with_gain(&self.system, c.choice.mu) else {
+            return;
+        };
+        if self
+            .params_tx
+            .try_send(LoopRequest::Params(new.param_block()))
+            .is_err()
+        {
+            return;
+        }
+        self.system = new;
+        self.chaos.gain_only();
+        self.gains.handed_over(t);
+        if let Some(log) = self.replay.as_mut() {
+            log.committed(&self.system);
+        }
+        self.save_live_state();
     }
 
     /// The law's settings as `status` and a change's answer show them.
@@ -170,6 +197,7 @@ impl Reporter {
             "blocked": self.deadlock.blocked.as_ref().map(|b| b.to_json()),
             "plan": self.deadlock.plan_json(),
             "chaos": self.chaos.to_json(self.mu_auto()),
+            "gains": self.gains.to_json(),
             "joint_limits": self.limits.seen(),
             "limit_breaches": self.limits.seen().breaches(),
         });

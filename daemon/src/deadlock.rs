@@ -128,7 +128,7 @@ impl Deadlock {
     pub fn new(system: &System, loop_core: Option<usize>) -> Self {
         let planner = has_planner(system)
             .then(|| {
-                Planner::spawn(loop_core)
+                crate::planner::spawn(loop_core)
                     .map_err(|e| tracing::warn!("cannot start the cycle planner: {e}"))
                     .ok()
             })

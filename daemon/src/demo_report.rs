@@ -191,14 +191,17 @@ fn chaos(d: &DaemonSummary) -> String {
         .map(|e| format!("{} at {:.0} s", e.to.name(), e.t))
         .collect();
     format!(
-        "{} ({}){}",
+        "{} ({}){}{}",
         c.evidence.verdict.name(),
         crate::chaos::describe(&c.evidence),
         if path.is_empty() {
             String::new()
         } else {
             format!("; {}", path.join(" → "))
-        }
+        },
+        c.model_gain
+            .as_ref()
+            .map_or(String::new(), |w| format!("; the gain from the model: {w}"))
     )
 }
 

@@ -16,6 +16,7 @@ pub mod controller;
 pub mod deadlock;
 pub mod demo_report;
 pub mod foxglove;
+pub mod gains;
 pub mod guard;
 pub mod handshake;
 pub mod ipc;
@@ -45,6 +46,7 @@ pub mod trigger;
 pub mod view;
 pub mod watchdog;
 pub mod window;
+pub mod worker;
 
 const _: () = assert!(
     control::MAX_JOINTS == protocol::MAX_JOINTS,

@@ -35,6 +35,36 @@ pub struct LiveState {
     /// wins (see [`adopt`]). Absent in states saved before this existed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub file: Option<String>,
+    /// With `mu = "auto"`: where the adaptation had taken μ, and the model's gain it was
+    /// anchored on (the file says only "auto"). Absent in states saved before this existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gain: Option<SavedGain>,
+}
+
+/// An adapting gain as it stood.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SavedGain {
+    pub mu: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<f64>,
+}
+
+impl SavedGain {
+    /// `system` (adapting μ) with this gain, bounded by its `max_mu`; unchanged for a fixed
+    /// gain or a value that is not a gain (a hand-edited file), which the adaptation starts
+    /// afresh from instead.
+    pub fn restore(&self, system: &mut System) {
+        let gain = |v: f64| v.is_finite() && v >= 0.0;
+        let f = system.feedback_section_mut();
+        let Some(auto) = f.auto.as_mut() else {
+            return;
+        };
+        if gain(self.mu) {
+            f.mu = self.mu.min(auto.max_mu);
+        }
+        auto.anchor = self.model.filter(|m| gain(*m)).map(|m| m.min(auto.max_mu));
+    }
 }
 
 /// The saved set-up: the config file's text as [`System::to_toml`] writes it, without its
@@ -192,6 +222,10 @@ mod tests {
             fault: Some("joint 2 rate".into()),
             system: SavedSystem::of(&System::Planar(system)).unwrap(),
             file: Some("0123456789abcdef".into()),
+            gain: Some(SavedGain {
+                mu: 0.21,
+                model: Some(0.19),
+            }),
         };
         save(&dir, &s).unwrap();
         assert_eq!(load(&dir, 3).unwrap(), Some(s));
@@ -223,6 +257,7 @@ mod tests {
             fault: Some("joint 2 rate".into()),
             system: SavedSystem::of(&System::Planar(live.clone())).unwrap(),
             file: Some(fingerprint(&file)),
+            gain: None,
         };
         // The same file: the live change is resumed.
         let (s, why) = adopt(saved.clone(), &file).unwrap();
@@ -244,6 +279,37 @@ mod tests {
             ..saved
         };
         assert_eq!(mu_kv(&adopt(old, &edited).unwrap().0).0, 1.3);
+    }
+
+    #[test]
+    fn an_adapting_gain_and_its_anchor_survive_a_restart() {
+        let mut auto = System::preset("paper", &rt::robot::resolve).unwrap();
+        auto.schedule_feedback(control::adapt::MuSetting::Auto, 0.0);
+        let g = SavedGain {
+            mu: 0.27,
+            model: Some(0.23),
+        };
+        let mut back = auto.clone();
+        g.restore(&mut back);
+        let fb = back.feedback();
+        assert_eq!((fb.mu, fb.auto.unwrap().anchor), (0.27, Some(0.23)));
+        // Bounded by max_mu; a value that is no gain is not adopted.
+        let mut back = auto.clone();
+        SavedGain {
+            mu: 9.0,
+            model: Some(f64::NAN),
+        }
+        .restore(&mut back);
+        let fb = back.feedback();
+        assert_eq!(
+            (fb.mu, fb.auto.unwrap().anchor),
+            (fb.auto.unwrap().max_mu, None)
+        );
+        // A fixed gain is the file's: left as it is.
+        let fixed = System::preset("paper", &rt::robot::resolve).unwrap();
+        let mut back = fixed.clone();
+        g.restore(&mut back);
+        assert_eq!(back, fixed);
     }
 
     /// States saved by the daemon of November 2026, when the planar set-up was kept in its
@@ -284,6 +350,7 @@ mod tests {
             fault: None,
             system: SavedSystem::of(&panda).unwrap(),
             file: Some(fingerprint(&panda)),
+            gain: None,
         };
         save(&dir, &s).unwrap();
         let back = load(&dir, 7).unwrap().unwrap();

@@ -1,16 +1,10 @@
-//! The cycle planner's own thread.
-//!
-//! Planning a clean cycle takes milliseconds and allocates, so neither the loop nor the
-//! reporter (which answers `chaosctl` and drains tick records every millisecond) may do it.
-//! This thread, off the loop's core, takes jobs, always the newest one (an edit supersedes the
-//! plan under way for the one before), and hands back what it found. The reporter turns that
-//! into a `Copy` handover for the loop ([`crate::deadlock`]).
+//! The cycle planner's jobs, on a thread of their own ([`crate::worker`]): planning a clean
+//! cycle takes milliseconds and allocates. The reporter turns a finished plan into a `Copy`
+//! handover for the loop ([`crate::deadlock`]).
 
+use crate::worker::Worker;
 use control::plan::{plan_arm, Planned};
 use control::System;
-use crossbeam::channel::{unbounded, Receiver, RecvTimeoutError, Sender};
-use std::thread::JoinHandle;
-use std::time::Duration;
 
 /// Why a plan was asked for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -59,82 +53,28 @@ pub struct Done {
     pub took: std::time::Duration,
 }
 
-/// The planner thread and its two channels. Dropping it ends the thread.
-pub struct Planner {
-    tx: Option<Sender<Job>>,
-    rx: Receiver<Done>,
-    handle: Option<JoinHandle<()>>,
-}
+/// The planner thread ([`crate::worker`]): jobs in, [`Done`] out.
+pub type Planner = Worker<Job, Done>;
 
-impl Planner {
-    /// Starts the thread, kept off `loop_core`.
-    pub fn spawn(loop_core: Option<usize>) -> std::io::Result<Self> {
-        let (tx, jobs) = unbounded::<Job>();
-        let (done_tx, rx) = unbounded::<Done>();
-        let handle = std::thread::Builder::new()
-            .name("chaosd-plan".into())
-            .spawn(move || {
-                rt::setup::avoid_core(loop_core);
-                serve(&jobs, &done_tx);
-            })?;
-        Ok(Self {
-            tx: Some(tx),
-            rx,
-            handle: Some(handle),
-        })
-    }
-
-    /// Queues a job (never blocks).
-    pub fn submit(&self, job: Job) {
-        if let Some(tx) = &self.tx {
-            let _ = tx.send(job);
-        }
-    }
-
-    /// A finished job, if one is ready (never blocks).
-    pub fn try_done(&self) -> Option<Done> {
-        self.rx.try_recv().ok()
-    }
-}
-
-impl Drop for Planner {
-    fn drop(&mut self) {
-        self.tx = None; // the thread sees the channel close and returns
-        if let Some(h) = self.handle.take() {
-            let _ = h.join();
-        }
-    }
-}
-
-/// Plans the newest job of each batch until the job channel closes.
-fn serve(jobs: &Receiver<Job>, done: &Sender<Done>) {
-    loop {
-        let mut job = match jobs.recv_timeout(Duration::from_millis(100)) {
-            Ok(j) => j,
-            Err(RecvTimeoutError::Timeout) => continue,
-            Err(RecvTimeoutError::Disconnected) => return,
-        };
-        while let Ok(newer) = jobs.try_recv() {
-            job = newer;
-        }
+/// Starts the planner's thread, kept off `loop_core`.
+pub fn spawn(loop_core: Option<usize>) -> std::io::Result<Planner> {
+    Worker::spawn("chaosd-plan", loop_core, |job: Job| {
         let started = std::time::Instant::now();
         let result = job.plan();
-        let answer = Done {
+        Done {
             generation: job.generation,
             why: job.why,
             result,
             took: started.elapsed(),
-        };
-        if done.send(answer).is_err() {
-            return;
         }
-    }
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use control::plan::PlanOutcome;
+    use std::time::Duration;
 
     fn job(generation: u64, obstacles: &[(f64, f64, f64)]) -> Job {
         let mut config = control::Config::preset("demo").unwrap();
@@ -166,7 +106,7 @@ mod tests {
 
     #[test]
     fn the_thread_plans_off_the_caller_and_ends_when_dropped() {
-        let p = Planner::spawn(None).unwrap();
+        let p = spawn(None).unwrap();
         p.submit(job(1, &[]));
         let d = wait(&p);
         assert_eq!(d.generation, 1);

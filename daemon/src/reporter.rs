@@ -95,6 +95,8 @@ pub struct Reporter {
     pub(crate) deadlock: crate::deadlock::Deadlock,
     /// Whether the self-motion is chaotic, converging or periodic (see `chaos`).
     pub(crate) chaos: crate::chaos::ChaosWatch,
+    /// `mu = "auto"`: the gain from the model (see `gains`).
+    pub(crate) gains: crate::gains::GainTuning,
     /// The Foxglove live view (`[daemon] foxglove`), if served.
     pub(crate) live: Option<crate::foxglove::Live>,
 }
@@ -122,8 +124,11 @@ impl Reporter {
         let chaos =
             crate::chaos::ChaosWatch::new(daemon.monitor(), system.feedback().tau, system.n());
         let live = crate::foxglove::Live::start(&system, &daemon)?;
+        let mut gains = crate::gains::GainTuning::new(daemon.core);
+        gains.edited(&system, crate::gains::Why::Start);
         Ok(Self {
             live,
+            gains,
             deadlock,
             chaos,
             limits,
@@ -215,6 +220,14 @@ impl Reporter {
             fault: self.fault.map(|(t, f)| format!("at t = {t:.3} s: {f}")),
             system,
             file: self.file_fingerprint.clone(),
+            gain: self
+                .system
+                .feedback()
+                .auto
+                .map(|a| crate::persist::SavedGain {
+                    mu: self.last.map_or(self.system.feedback().mu, |r| r.mu),
+                    model: a.anchor,
+                }),
         };
         match crate::persist::save(&self.daemon.output_dir, &state) {
             Ok(()) => self.save_error_said = false,
@@ -252,6 +265,7 @@ impl Reporter {
             self.saved_at = None;
         }
         self.deadlock.observe(r, &self.system);
+        self.gains.observe(r, self.system.period(), self.system.n());
         if self.daemon.monitor {
             self.chaos.observe(r, self.mu_auto());
         }
@@ -402,6 +416,7 @@ impl Reporter {
         t.blocked = self.deadlock.code();
         t.steering = u32::from(self.deadlock.steering());
         self.chaos.fill(&mut t, self.mu_auto());
+        t.mu_model = self.gains.mu_model();
         t.interface = self.saturations.mode.code();
         t.device = self.device;
         for kind in control::command::LimitKind::ALL {
@@ -493,6 +508,7 @@ impl Reporter {
             let t = self.last.map_or(self.t_start, |r| r.t);
             self.deadlock
                 .poll(&self.system, t, &self.params_tx, self.replay.as_mut());
+            self.adopt_gain(t);
             let now = Instant::now();
             if now >= next_tel {
                 if let Some(t) = self.telemetry() {
@@ -631,7 +647,10 @@ impl Reporter {
             first_device_stop: self.first_device_stop.clone(),
             blocked_entered: self.deadlock.entered,
             first_blocked: self.deadlock.first.clone(),
-            chaos: self.chaos.summary(),
+            chaos: crate::telemetry::ChaosSummary {
+                model_gain: self.gains.chosen.as_ref().map(|c| c.choice.why()),
+                ..self.chaos.summary()
+            },
             time_in_safety_zone_s: self.safety_ticks as f64 / self.daemon.rate_hz,
             files: Vec::new(),
         };

@@ -160,6 +160,9 @@ pub struct ChaosSummary {
     pub mu: f64,
     pub edges: u64,
     pub history: Vec<control::monitor::Edge>,
+    /// With `mu = "auto"`: the gain the model chose, and why (`crate::gains`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_gain: Option<String>,
 }
 
 /// Name of the JSON summary in the output directory.

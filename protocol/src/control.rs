@@ -195,7 +195,7 @@ pub const LIMIT_BREACH_KINDS: [&str; 5] = ["position", "speed", "acceleration", 
 
 /// One telemetry sample, published by the daemon at `daemon.telemetry_hz`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("chaosd::TelemetrySample.v8")]
+#[type_name("chaosd::TelemetrySample.v9")]
 #[repr(C)]
 pub struct TelemetrySample {
     pub seq: u64,
@@ -271,6 +271,9 @@ pub struct TelemetrySample {
     /// limit, states past a speed limit, commands past an acceleration, a jerk and an effort
     /// limit.
     pub limit_breaches: [u64; 5],
+    /// The gain the daemon chose from its model for `mu = "auto"` (NaN until it has
+    /// chosen one, and without "auto").
+    pub mu_model: f64,
 }
 
 /// Control service settings: one daemon serves; several clients may ask at once, one request
@@ -386,7 +389,7 @@ mod tests {
     fn telemetry_layout_is_pinned() {
         use core::mem::{align_of, offset_of, size_of};
         assert_eq!(MAX_JOINTS, 12);
-        assert_eq!(size_of::<TelemetrySample>(), 640);
+        assert_eq!(size_of::<TelemetrySample>(), 648);
         assert_eq!(align_of::<TelemetrySample>(), 8);
         assert_eq!(offset_of!(TelemetrySample, phi), 168);
         assert_eq!(offset_of!(TelemetrySample, q), 176);
@@ -403,7 +406,7 @@ mod tests {
         // SAFETY: type_name only returns the string set by #[type_name].
         assert_eq!(
             unsafe { <TelemetrySample as ZeroCopySend>::type_name() },
-            "chaosd::TelemetrySample.v8"
+            "chaosd::TelemetrySample.v9"
         );
     }
 }

@@ -153,10 +153,16 @@ impl LawCore {
 
     /// After a new parameter block: an adapting gain goes on from `mu` (the gain before the
     /// change) rather than from the block's start, so an edit does not throw the adaptation away;
-    /// never past the block's `max_mu`, which the adaptation itself never passes.
-    pub fn carry_adapted_mu(&mut self, mu: f64) {
+    /// never past the block's `max_mu`, which the adaptation itself never passes. A block that
+    /// brings a new gain from the model (an anchor other than `anchor`, the one before) starts
+    /// from that gain: it is the point of the block ([`crate::adapt::AutoMu::anchor`]).
+    pub fn carry_adapted_mu(&mut self, mu: f64, anchor: Option<f64>) {
         if let Some(a) = self.auto_mu {
-            self.mu = mu.min(a.max_mu);
+            let from = match a.anchor {
+                Some(m) if Some(m) != anchor => m,
+                _ => mu,
+            };
+            self.mu = from.min(a.max_mu);
         }
     }
 }

@@ -96,6 +96,11 @@ impl Default for MonitorSettings {
 /// chaos gives 1–10. So 2e-2 is far from both.
 pub const PERIODIC_RESIDUAL: f64 = 2e-2;
 
+/// Once periodic, the verdict stays so while the residual is below this many times the
+/// threshold: a settled live arm's residual wanders about the threshold with timing noise (up
+/// to 2.5e-2 seen on the planar arm), and the verdict must not flap with it; chaos is 40× above.
+pub const LEAVE_PERIODIC: f64 = 5.0;
+
 /// Returns the Lyapunov estimate uses (the newest ones: a converging arm must not be judged by
 /// the chaos it left long ago).
 pub const LYAP_WINDOW: usize = 32;
@@ -268,7 +273,8 @@ impl ChaosMonitor {
 
     /// Measures the evidence and applies the rule:
     /// 1. fewer than [`MIN_PERIODS`] periods: unknown;
-    /// 2. the last period's mean residual below `periodic_residual`: periodic;
+    /// 2. the last period's mean residual below `periodic_residual`, or below
+    ///    [`LEAVE_PERIODIC`] times it while the verdict is periodic: periodic;
     /// 3. converging, when the residual fell in each of the last [`TREND`] periods, by
     ///    [`CONVERGING_RATE`] a period or faster, and λ is not positive; or fell in each of the
     ///    last [`LONG_FALL`] periods; or falls while λ is negative (chaos has runs of a few
@@ -292,7 +298,10 @@ impl ChaosMonitor {
             || (trend < 1.0 && lambda < -LAMBDA_TOL);
         let candidate = if e.periods < MIN_PERIODS {
             Verdict::Unknown
-        } else if e.residual < self.settings.periodic_residual {
+        } else if e.residual < self.settings.periodic_residual
+            || (e.verdict == Verdict::Periodic
+                && e.residual < LEAVE_PERIODIC * self.settings.periodic_residual)
+        {
             Verdict::Periodic
         } else if converging {
             Verdict::Converging
@@ -414,6 +423,29 @@ mod tests {
         assert_eq!(m.evidence().verdict, Verdict::Periodic);
         let trend = edges[0].evidence.residual_trend.unwrap();
         assert!((trend - 0.6).abs() < 1e-6, "{trend}");
+    }
+
+    #[test]
+    fn a_periodic_verdict_does_not_flap_with_a_residual_about_the_threshold() {
+        let mut m = ChaosMonitor::new(MonitorSettings::default(), 1.0);
+        let mut edges = Vec::new();
+        // One return a period (t = k), the residual 1e-3, then wandering about 2e-2, then chaos.
+        let residual = |k: usize| match k {
+            0..20 => 1e-3,
+            20..60 => [0.015, 0.025, 0.03, 0.018][k % 4],
+            _ => 2.0,
+        };
+        for k in 0..70 {
+            let x = [0.1 * (k as f64 * 0.7).sin()];
+            edges.extend(m.push(k as f64, &x, &x, residual(k), residual(k)));
+        }
+        let seen: Vec<(Verdict, f64)> = edges.iter().map(|e| (e.to, e.t)).collect();
+        assert_eq!(seen[0].0, Verdict::Periodic, "{seen:?}");
+        assert_eq!(seen.len(), 2, "{seen:?}");
+        assert!(
+            seen[1].0 != Verdict::Periodic && seen[1].1 > 60.0,
+            "{seen:?}"
+        );
     }
 
     #[test]

@@ -69,10 +69,11 @@ pub trait ClosedLoopLaw<const N: usize>: Clone {
     /// unchanged) for a block of another kind of arm or task.
     fn take_block(&mut self, block: ParamBlock) -> bool {
         let (mu, steering) = (self.core().mu, self.steering());
+        let anchor = self.core().auto_mu.and_then(|a| a.anchor);
         if !self.set_block(block) {
             return false;
         }
-        self.core_mut().carry_adapted_mu(mu);
+        self.core_mut().carry_adapted_mu(mu, anchor);
         self.set_steering(steering);
         true
     }

@@ -1,0 +1,267 @@
+//! `mu = "auto"`: the daemon chooses its Pyragas gain from its own model ([`control::tune`]).
+//!
+//! At start and after every committed edit, a thread of its own ([`crate::worker`], off the
+//! loop's core) finds the cycle the set-up settles on and the gain that makes it converge
+//! fastest; the reporter hands that gain to the loop as a parameter block (the loop only ever
+//! does a `try_recv`, so nothing waits on a lock), with the speed-gradient law anchored on it
+//! ([`control::adapt::AutoMu::anchor`]): the plant then corrects from the measured residual,
+//! above the model's gain while the motion is not periodic and back to it once it is. The
+//! model's answer is a starting point, not a verdict: the monitor still judges the arm.
+//!
+//! The search is seeded with the arm's own state at the newest whole period of controller
+//! time (the task's phase 0), so after an edit it looks for the cycle near where the arm is.
+
+use crate::telemetry::TickRecord;
+use crate::worker::Worker;
+use control::tune::{choose_gain, GainChoice, TuneError, TuneSpec};
+use control::System;
+use std::time::Duration;
+
+/// Why a choice was asked for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Why {
+    Start,
+    Edit,
+}
+
+/// One search: the running set-up, seeded with (q, q̇) at a whole period when there is one.
+pub struct Job {
+    pub generation: u64,
+    pub why: Why,
+    pub system: System,
+    pub seed: Option<Vec<f64>>,
+}
+
+/// A finished search.
+pub struct Done {
+    pub generation: u64,
+    pub why: Why,
+    pub result: Result<GainChoice, TuneError>,
+    pub took: Duration,
+}
+
+/// The gain in use, and how it was found.
+#[derive(Clone, Debug)]
+pub struct Chosen {
+    pub choice: GainChoice,
+    pub why: Why,
+    pub took: Duration,
+    /// Controller time at which it was handed to the loop (s).
+    pub t: f64,
+}
+
+/// The search's thread (started on the first job), its newest answer and the arm's newest
+/// return at the task's phase 0.
+pub struct GainTuning {
+    worker: Option<Worker<Job, Done>>,
+    loop_core: Option<usize>,
+    generation: u64,
+    /// A search is under way for the current generation.
+    pub searching: Option<Why>,
+    /// An answer not yet handed over (the loop had not taken the previous block).
+    pub waiting: Option<Chosen>,
+    pub chosen: Option<Chosen>,
+    pub error: Option<String>,
+    /// (period index, q and q̇) of the newest state at or just after a whole period.
+    phase_zero: Option<(i64, Vec<f64>)>,
+}
+
+impl GainTuning {
+    pub fn new(loop_core: Option<usize>) -> Self {
+        Self {
+            worker: None,
+            loop_core,
+            generation: 0,
+            searching: None,
+            waiting: None,
+            chosen: None,
+            error: None,
+            phase_zero: None,
+        }
+    }
+
+    /// The set-up changed (or the daemon started): a search for it when μ is "auto"; any
+    /// answer under way is for another set-up and will be dropped.
+    pub fn edited(&mut self, system: &System, why: Why) {
+        self.generation += 1;
+        self.waiting = None;
+        self.searching = None;
+        if system.feedback().auto.is_none() {
+            self.chosen = None;
+            self.error = None;
+            return;
+        }
+        if self.worker.is_none() {
+            match Worker::spawn("chaosd-tune", self.loop_core, search) {
+                Ok(w) => self.worker = Some(w),
+                Err(e) => {
+                    self.error = Some(format!("cannot start the gain search's thread: {e}"));
+                    return;
+                }
+            }
+        }
+        let seed = self.phase_zero.as_ref().map(|(_, x)| x.clone());
+        if let Some(w) = &self.worker {
+            w.submit(Job {
+                generation: self.generation,
+                why,
+                system: system.clone(),
+                seed,
+            });
+            self.searching = Some(why);
+        }
+    }
+
+    /// Keeps the newest state the law ran on at the task's phase 0 (a whole period of
+    /// controller time), the search's seed.
+    pub fn observe(&mut self, r: &TickRecord, period: f64, n: usize) {
+        let Some(s) = r.state.as_ref().filter(|_| r.ran_law && period > 0.0) else {
+            return;
+        };
+        let k = (r.t / period).floor() as i64;
+        if self.phase_zero.as_ref().is_some_and(|(at, _)| *at == k) {
+            return;
+        }
+        let x: Vec<f64> = s.q[..n].iter().chain(&s.qd[..n]).copied().collect();
+        self.phase_zero = Some((k, x));
+    }
+
+    /// A choice for the current set-up to hand to the loop, if one is ready (never blocks).
+    /// Failures are kept for `status` and said once in the log.
+    pub fn poll(&mut self, t: f64) -> Option<Chosen> {
+        while let Some(done) = self.worker.as_ref().and_then(Worker::try_done) {
+            if done.generation != self.generation {
+                continue;
+            }
+            self.searching = None;
+            match done.result {
+                Ok(choice) => {
+                    self.error = None;
+                    self.waiting = Some(Chosen {
+                        choice,
+                        why: done.why,
+                        took: done.took,
+                        t,
+                    });
+                }
+                Err(e) => {
+                    tracing::warn!(
+                        "mu = \"auto\": no gain from the model ({e}); the speed-gradient law \
+                         adapts μ alone"
+                    );
+                    self.error = Some(e.to_string());
+                }
+            }
+        }
+        self.waiting.clone()
+    }
+
+    /// The loop took the chosen gain at controller time `t`.
+    pub fn handed_over(&mut self, t: f64) {
+        if let Some(mut c) = self.waiting.take() {
+            c.t = t;
+            tracing::info!(
+                "mu = \"auto\": the gain from the model, {} (searched in {:.1} s)",
+                c.choice.why(),
+                c.took.as_secs_f64()
+            );
+            self.chosen = Some(c);
+        }
+    }
+
+    /// The model's gain for telemetry (NaN until there is one).
+    pub fn mu_model(&self) -> f64 {
+        self.chosen.as_ref().map_or(f64::NAN, |c| c.choice.mu)
+    }
+
+    /// `status`'s `gains` object: what was chosen, why, and every gain tried.
+    pub fn to_json(&self) -> serde_json::Value {
+        let chosen = self.chosen.as_ref().map(|c| {
+            serde_json::json!({
+                "mu": c.choice.mu,
+                "multiplier": c.choice.multiplier,
+                "rate_per_second": c.choice.rate,
+                "period": c.choice.period,
+                "why": c.choice.why(),
+                "asked_at": c.why,
+                "adopted_at_t": c.t,
+                "took_s": c.took.as_secs_f64(),
+                "seed": c.choice.seed,
+                "cycle": {"q": c.choice.orbit.q, "qd": c.choice.orbit.qd,
+                          "residual": c.choice.orbit.residual},
+                "scanned": c.choice.scanned,
+            })
+        });
+        serde_json::json!({
+            "searching": self.searching,
+            "chosen": chosen,
+            "error": self.error,
+        })
+    }
+}
+
+fn search(job: Job) -> Done {
+    let started = std::time::Instant::now();
+    let spec = TuneSpec::of(&job.system);
+    let result = choose_gain(&job.system, job.seed.as_deref(), &spec);
+    Done {
+        generation: job.generation,
+        why: job.why,
+        result,
+        took: started.elapsed(),
+    }
+}
+
+/// `system` with the chosen gain: μ starts there and the adaptation is anchored on it.
+pub fn with_gain(system: &System, mu: f64) -> Option<System> {
+    let mut s = system.clone();
+    let f = s.feedback_section_mut();
+    let auto = f.auto.as_mut()?;
+    auto.anchor = Some(mu);
+    f.mu = mu;
+    Some(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wait(g: &mut GainTuning) -> Chosen {
+        for _ in 0..2000 {
+            if let Some(c) = g.poll(0.0) {
+                return c;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        panic!("no answer in 10 s: {:?}", g.error);
+    }
+
+    #[test]
+    fn the_search_runs_off_the_caller_and_an_edit_drops_the_answer_under_way() {
+        let mut system = System::preset("paper", &control::system::builtin_robot).unwrap();
+        let mut g = GainTuning::new(None);
+        g.edited(&system, Why::Start); // a fixed gain: nothing to search
+        assert!(g.searching.is_none() && g.worker.is_none());
+        system.schedule_feedback(control::adapt::MuSetting::Auto, 0.0);
+        g.edited(&system, Why::Start);
+        g.edited(&system, Why::Edit); // supersedes the first
+        let c = wait(&mut g);
+        assert_eq!(c.why, Why::Edit);
+        assert!(c.choice.multiplier < 1.0, "{}", c.choice.why());
+        g.handed_over(3.0);
+        assert_eq!(g.mu_model(), c.choice.mu);
+        assert_eq!(g.to_json()["chosen"]["adopted_at_t"], 3.0);
+        let s = with_gain(&system, c.choice.mu).unwrap();
+        let auto = s.feedback().auto.unwrap();
+        assert_eq!(
+            (s.feedback().mu, auto.anchor),
+            (c.choice.mu, Some(c.choice.mu))
+        );
+        // Back to a fixed gain: no model gain, and no search.
+        let fixed = System::preset("paper", &control::system::builtin_robot).unwrap();
+        g.edited(&fixed, Why::Edit);
+        assert!(g.mu_model().is_nan() && g.searching.is_none());
+        assert!(with_gain(&fixed, 0.1).is_none());
+    }
+}
