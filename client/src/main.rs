@@ -48,6 +48,9 @@ enum Command {
     Poincare(analysis::poincare::PoincareCmd),
     /// Period-T orbits by Newton's method, Floquet multipliers, and their stability against μ.
     Orbits(analysis::orbits::OrbitsCmd),
+    /// The Pyragas gain the daemon chooses from its model for mu = "auto": the cycle, the delayed
+    /// loop's leading Floquet multiplier at every gain tried, and the fastest (--json).
+    Tune(analysis::tune::TuneCmd),
     /// Which starts end on a stabilised orbit and which stay chaotic, over starts × μ.
     Basins(analysis::basins_map::BasinsCmd),
     /// The daemon's chaos monitor against the offline λ_max over starts × μ (a confusion table
@@ -190,6 +193,7 @@ fn main() -> ExitCode {
         Command::Sweep(a) => analysis::sweep::run(a),
         Command::Poincare(a) => analysis::poincare::run(a),
         Command::Orbits(a) => analysis::orbits::run(a),
+        Command::Tune(a) => analysis::tune::run(a),
         Command::Basins(a) => analysis::basins::run(a),
         Command::Monitor(a) => analysis::monitor::run(a),
         Command::Figures(a) => analysis::figures::run(a),

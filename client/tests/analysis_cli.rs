@@ -441,3 +441,53 @@ fn orbits_names_the_orbit_each_settled_run_led_to() {
     assert!(settled_on_one >= 2, "{v}");
     std::fs::remove_dir_all(dir).ok();
 }
+
+#[test]
+fn tune_shows_the_gain_the_daemon_would_choose_and_refuses_what_has_no_cycle() {
+    let out = chaosctl(&[
+        "tune", "--preset", "demo", "--grid", "4", "--refine", "3", "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (mu, m) = (v["mu"].as_f64().unwrap(), v["multiplier"].as_f64().unwrap());
+    assert!(mu > 0.0 && mu <= 0.4 && m < 1.0, "{v}");
+    let scanned = v["scanned"].as_array().unwrap();
+    assert!(scanned.len() >= 6, "{v}");
+    for p in scanned {
+        assert!(
+            m <= p["multiplier"].as_f64().unwrap(),
+            "{p} beats the choice {v}"
+        );
+    }
+    assert!(v["why"].as_str().unwrap().contains("the fastest of"), "{v}");
+    assert_eq!(v["orbit"]["q"].as_array().unwrap().len(), 3);
+    // The table marks the choice.
+    let out = chaosctl(&["tune", "--preset", "demo", "--grid", "2", "--refine", "0"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains("\nchosen    μ = "),
+        "{text}"
+    );
+    assert_eq!(
+        text.lines().filter(|l| l.starts_with('*')).count(),
+        1,
+        "{text}"
+    );
+    refused(&["tune", "--preset", "paper-floating"], &["floating base"]);
+    refused(
+        &["tune", "--preset", "paper", "--seed", "1,2"],
+        &["6 numbers"],
+    );
+    refused(
+        &["tune", "--preset", "paper", "--max-mu", "-1"],
+        &["max_mu"],
+    );
+    refused(
+        &["tune", "--preset", "paper", "--tau", "0.7"],
+        &["differs from the task period"],
+    );
+}

@@ -23,6 +23,7 @@ pub mod parallel;
 pub mod poincare;
 pub mod shard;
 pub mod sweep;
+pub mod tune;
 
 use crate::setup::{parse_list, FloatList, SetupArgs};
 use anyhow::{bail, Result};
