@@ -67,22 +67,23 @@ impl TuneSpec {
     }
 
     fn check(&self) -> Result<(), TuneError> {
-        let ok = self.max_mu.is_finite()
-            && self.max_mu > 0.0
-            && self.seed_mu.is_finite()
-            && self.seed_mu >= 0.0
-            && (1..=64).contains(&self.grid)
-            && self.refine <= 64
-            && self.settle_periods <= 10_000;
-        if ok {
-            Ok(())
+        let bad = if !(self.max_mu.is_finite() && self.max_mu > 0.0 && self.max_mu <= 100.0) {
+            format!("max_mu = {} must be in (0, 100]", short(self.max_mu))
+        } else if !(self.seed_mu.is_finite() && self.seed_mu >= 0.0) {
+            format!("the seeding gain {} must be ≥ 0", self.seed_mu)
+        } else if !(1..=64).contains(&self.grid) {
+            format!("grid = {} must be 1 to 64 gains", self.grid)
+        } else if self.refine > 64 {
+            format!("refine = {} must be at most 64 steps", self.refine)
+        } else if self.settle_periods > 10_000 {
+            format!(
+                "settle_periods = {} must be at most 10000",
+                self.settle_periods
+            )
         } else {
-            Err(TuneError::Invalid(format!(
-                "gain search: max_mu = {} must be finite and > 0, seed_mu = {} ≥ 0, 1 ≤ grid = {} ≤ 64, \
-                 refine = {} ≤ 64, settle_periods = {} ≤ 10000",
-                self.max_mu, self.seed_mu, self.grid, self.refine, self.settle_periods
-            )))
-        }
+            return Ok(());
+        };
+        Err(TuneError::Invalid(format!("gain search: {bad}")))
     }
 }
 
@@ -171,7 +172,8 @@ pub enum TuneError {
     #[error("no period-T cycle found: {0}")]
     NoCycle(String),
     #[error(
-        "no gain in [0, {max_mu}] makes the cycle stable: the best, μ = {}, leaves ×{} of an offset a period",
+        "no gain in [0, {}] makes the cycle stable: the best, μ = {}, leaves ×{} of an offset a period",
+        short(*max_mu),
         short(best.mu),
         short(best.multiplier)
     )]
