@@ -49,7 +49,8 @@ enum Command {
     /// Period-T orbits by Newton's method, Floquet multipliers, and their stability against μ.
     Orbits(analysis::orbits::OrbitsCmd),
     /// The Pyragas gain the daemon chooses from its model for mu = "auto": the cycle, the delayed
-    /// loop's leading Floquet multiplier at every gain tried, and the fastest (--json).
+    /// loop's leading Floquet multiplier at every gain tried, the fastest, and the smallest gain
+    /// with 80 % of its rate, the choice (--json).
     Tune(analysis::tune::TuneCmd),
     /// Which starts end on a stabilised orbit and which stay chaotic, over starts × μ.
     Basins(analysis::basins_map::BasinsCmd),

@@ -457,13 +457,20 @@ fn tune_shows_the_gain_the_daemon_would_choose_and_refuses_what_has_no_cycle() {
     assert!(mu > 0.0 && mu <= 0.4 && m < 1.0, "{v}");
     let scanned = v["scanned"].as_array().unwrap();
     assert!(scanned.len() >= 6, "{v}");
+    // The fastest is the best of the scan; the choice keeps 80 % of its rate.
+    let fastest = v["fastest"]["multiplier"].as_f64().unwrap();
     for p in scanned {
         assert!(
-            m <= p["multiplier"].as_f64().unwrap(),
-            "{p} beats the choice {v}"
+            fastest <= p["multiplier"].as_f64().unwrap(),
+            "{p} beats the fastest {v}"
         );
     }
-    assert!(v["why"].as_str().unwrap().contains("the fastest of"), "{v}");
+    let rate = |x: &serde_json::Value| x.as_f64().unwrap();
+    assert!(rate(&v["rate"]) <= 0.8 * rate(&v["fastest"]["rate"]), "{v}");
+    assert!(
+        v["why"].as_str().unwrap().contains("of the fastest rate"),
+        "{v}"
+    );
     assert_eq!(v["orbit"]["q"].as_array().unwrap().len(), 3);
     // The table marks the choice.
     let out = chaosctl(&["tune", "--preset", "demo", "--grid", "2", "--refine", "0"]);

@@ -9,10 +9,18 @@
 //! converges onto the cycle at gain μ (|ρ₁| < 1) and how fast ([`crate::analysis::floquet`]).
 //! So: find the cycle the set-up settles on (Newton's method on the period map, seeded from where
 //! the arm is or from a run of the set-up), compute |ρ₁(μ)| over the gains it allows, and take
-//! the smallest: the fastest convergence the model promises.
+//! the smallest gain that converges nearly as fast as the fastest ([`KNEE`]).
+//!
+//! Why not the fastest itself: |ρ₁| says how fast an arm *near* the cycle converges, not from how
+//! far it is caught. Its minimum is a broad plateau (on the planar arm, −0.29 to −0.32 /s from
+//! μ = 0.15 to 0.27), and at its far end the cycle's basin collapses: at fixed μ = 0.23, the
+//! fastest, 6 of 8 chaotic starts were still chaotic after 600 s, while μ = 0.1 caught 8 of 8
+//! (`chaosctl monitor`, docs/monitor.md). The smallest gain on the plateau keeps nearly all of
+//! the rate and the most of the basin.
 //!
 //! |ρ₁(μ)| is not convex (two multipliers trade places as μ grows), so a coarse grid over
-//! [0, max_mu] finds the best neighbourhood and a golden-section search refines within it: the
+//! (0, max_mu], geometric so that a generous bound does not step over the small gains, finds the
+//! best neighbourhood and a golden-section search refines within it: the
 //! chosen gain is the analysis's minimum, not a grid step.
 //!
 //! This allocates and takes from a fraction of a second (the planar arm) to seconds (a 7-joint
@@ -27,6 +35,17 @@ use crate::basics::number::short;
 use crate::sim::{ArmState, ClosedLoopLaw, Simulation};
 use crate::system::System;
 use serde::Serialize;
+
+/// The smallest gain on the search's grid (1/s): below it the feedback's time constant is
+/// longer than a minute of running, too slow to be the fastest convergence.
+pub const SMALLEST_GRID_GAIN: f64 = 0.02;
+
+/// The chosen gain is the smallest whose rate ln|ρ₁|/T is at least this share of the fastest
+/// rate found (see the module docs).
+pub const KNEE: f64 = 0.8;
+
+/// Bisection steps that place the knee between two gains of the scan.
+const KNEE_STEPS: usize = 5;
 
 /// How the gain is searched for.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -64,6 +83,34 @@ impl TuneSpec {
             settle_periods: 300,
             seed_mu,
         }
+    }
+
+    /// The coarse grid's gains, rising to `max_mu`: geometric from the smaller of
+    /// [`SMALLEST_GRID_GAIN`] and `max_mu / grid`, so that a generous bound still looks closely
+    /// at the small gains where the best one usually is (a linear grid up to 100 stepped over
+    /// the paper's valley at 0.23 and settled on 1.8).
+    ///
+    /// ```
+    /// # use control::tune::TuneSpec;
+    /// # let spec = TuneSpec { max_mu: 100.0, grid: 8, refine: 6, settle_periods: 300, seed_mu: 1.0 };
+    /// let g = spec.grid_gains();
+    /// assert_eq!(g.len(), 8);
+    /// assert!((g[0] - 0.02).abs() < 1e-12 && g[7] == 100.0);
+    /// assert!(g.iter().any(|&mu| (0.1..0.5).contains(&mu)));
+    /// ```
+    pub fn grid_gains(&self) -> Vec<f64> {
+        let top = self.max_mu;
+        if self.grid == 1 {
+            return vec![top];
+        }
+        let low = SMALLEST_GRID_GAIN.min(top / self.grid as f64);
+        let last = (self.grid - 1) as f64;
+        (0..self.grid)
+            .map(|k| match k {
+                k if k + 1 == self.grid => top,
+                k => low * (top / low).powf(k as f64 / last),
+            })
+            .collect()
     }
 
     fn check(&self) -> Result<(), TuneError> {
@@ -112,6 +159,7 @@ pub enum Seed {
 /// The gain the model recommends, and why.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct GainChoice {
+    /// The smallest gain with [`KNEE`] of the fastest rate.
     pub mu: f64,
     /// |ρ₁| at `mu`.
     pub multiplier: f64,
@@ -124,6 +172,8 @@ pub struct GainChoice {
     pub orbit: PeriodicOrbit,
     /// Every gain tried, by μ.
     pub scanned: Vec<GainPoint>,
+    /// The gain that converges fastest (its |ρ₁| the smallest found).
+    pub fastest: GainPoint,
 }
 
 impl GainChoice {
@@ -137,10 +187,12 @@ impl GainChoice {
     ///     mu: 0.2, multiplier: 0.5, rate: 0.5f64.ln(), period: 1.0, seed: Seed::Given,
     ///     orbit: PeriodicOrbit { q: vec![0.0; 3], qd: vec![0.0; 3], residual: 1e-12,
     ///                            iterations: 3, multipliers: vec![[1.0, 0.0]] },
-    ///     scanned: vec![p(0.0, 1.0), p(0.2, 0.5), p(0.4, 0.9)],
+    ///     scanned: vec![p(0.0, 1.0), p(0.2, 0.5), p(0.3, 0.45), p(0.4, 0.9)],
+    ///     fastest: p(0.3, 0.45),
     /// };
     /// assert_eq!(c.why(), "μ = 0.2: the cycle converges ×0.5 a period (-0.69/s), \
-    ///     the fastest of 3 gains in [0, 0.4] (×1 at μ = 0)");
+    ///     the smallest of 4 gains in [0, 0.4] with 80 % of the fastest rate \
+    ///     (μ = 0.3: ×0.45, -0.80/s; ×1 at μ = 0)");
     /// ```
     pub fn why(&self) -> String {
         let top = self.scanned.iter().map(|p| p.mu).fold(0.0, f64::max);
@@ -149,15 +201,21 @@ impl GainChoice {
             .iter()
             .find(|p| p.mu == 0.0)
             .map_or(String::new(), |p| {
-                format!(" (×{} at μ = 0)", short(p.multiplier))
+                format!("; ×{} at μ = 0", short(p.multiplier))
             });
+        let f = &self.fastest;
         format!(
-            "μ = {}: the cycle converges ×{} a period ({:.2}/s), the fastest of {} gains in [0, {}]{at_zero}",
+            "μ = {}: the cycle converges ×{} a period ({:.2}/s), the smallest of {} gains in \
+             [0, {}] with {:.0} % of the fastest rate (μ = {}: ×{}, {:.2}/s{at_zero})",
             short(self.mu),
             short(self.multiplier),
             self.rate,
             self.scanned.len(),
-            short(top)
+            short(top),
+            100.0 * KNEE,
+            short(f.mu),
+            short(f.multiplier),
+            f.rate
         )
     }
 }
@@ -190,8 +248,8 @@ const FLOQUET: FloquetSpec = FloquetSpec {
     fd_step: 1e-6,
 };
 
-/// The gain with the fastest convergence onto the cycle the set-up settles on, by the model.
-/// `seed` is (q, q̇) at a whole number of periods (the daemon's newest return), tried first.
+/// The gain for the cycle the set-up settles on, by the model: the smallest that converges onto
+/// it with [`KNEE`] of the fastest rate (see the module docs). `seed` is (q, q̇) at a whole number of periods (the daemon's newest return), tried first.
 ///
 /// ```
 /// use control::tune::{choose_gain, TuneSpec};
@@ -238,6 +296,14 @@ pub fn choose_gain(
     })
 }
 
+/// Where Newton's method starts, in the order tried: the caller's state (the arm's own), then
+/// runs of the set-up at the seeding gain and at the bound.
+#[derive(Clone, Copy)]
+enum Source {
+    Given,
+    Settle(f64),
+}
+
 /// One gain search on one arm's law.
 struct Search<const N: usize, L: ClosedLoopLaw<N>> {
     /// The law as the set-up starts (the seeding runs).
@@ -260,52 +326,80 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
                     .into(),
             ));
         }
-        let (orbit, seed) = self.cycle(given)?;
-        let scanned = self.scan(&orbit)?;
-        let best = *scanned
-            .iter()
-            .min_by(|a, b| a.multiplier.total_cmp(&b.multiplier))
-            .expect("the scan has μ = 0 at least");
-        if best.multiplier.is_nan() || best.multiplier >= 1.0 {
-            return Err(TuneError::NoStableGain {
-                best,
-                max_mu: self.spec.max_mu,
+        let mut tried = Vec::new();
+        let mut unstable = None::<GainPoint>;
+        let (seed_mu, top) = (self.spec.seed_mu, self.spec.max_mu);
+        let settles = [Source::Settle(seed_mu)]
+            .into_iter()
+            .chain((top != seed_mu).then_some(Source::Settle(top)));
+        for source in std::iter::once(Source::Given).chain(settles) {
+            let (orbit, seed) = match self.cycle(source, given) {
+                Some(Ok(found)) => found,
+                Some(Err(e)) => {
+                    tried.push(e);
+                    continue;
+                }
+                None => continue,
+            };
+            let mut scanned = self.scan(&orbit)?;
+            let fastest = fastest(&scanned);
+            if fastest.multiplier.is_nan() || fastest.multiplier >= 1.0 {
+                // A cycle no gain makes stable (the arm near another one): the next source.
+                if unstable.is_none_or(|u| fastest.multiplier < u.multiplier) {
+                    unstable = Some(fastest);
+                }
+                continue;
+            }
+            let knee = self.knee(&orbit, &mut scanned, fastest)?;
+            return Ok(GainChoice {
+                mu: knee.mu,
+                multiplier: knee.multiplier,
+                rate: knee.rate,
+                period: self.period,
+                seed,
+                orbit,
+                scanned,
+                fastest,
             });
         }
-        Ok(GainChoice {
-            mu: best.mu,
-            multiplier: best.multiplier,
-            rate: best.rate,
-            period: self.period,
-            seed,
-            orbit,
-            scanned,
-        })
+        match unstable {
+            Some(best) => Err(TuneError::NoStableGain {
+                best,
+                max_mu: self.spec.max_mu,
+            }),
+            None => Err(TuneError::NoCycle(tried.join("; "))),
+        }
     }
 
-    /// The period-T cycle: Newton's method from the given state, else from the ends of runs of
-    /// the set-up at the seeding gain and at the bound.
-    fn cycle(&self, given: Option<&[f64]>) -> Result<(PeriodicOrbit, Seed), TuneError> {
-        let mut tried = Vec::new();
-        if let Some(x) = given.and_then(state_of::<N>) {
-            match self.newton(&x) {
-                Ok(o) => return Ok((o, Seed::Given)),
-                Err(e) => tried.push(format!("from the given state: {e}")),
+    /// A period-T cycle by Newton's method from `source`: the given state, or the closest return
+    /// of a run of the set-up at a gain. None when there is no given state to start from.
+    fn cycle(
+        &self,
+        source: Source,
+        given: Option<&[f64]>,
+    ) -> Option<Result<(PeriodicOrbit, Seed), String>> {
+        match source {
+            Source::Given => {
+                let x = given.and_then(state_of::<N>)?;
+                Some(
+                    self.newton(&x)
+                        .map(|o| (o, Seed::Given))
+                        .map_err(|e| format!("from the given state: {e}")),
+                )
+            }
+            Source::Settle(mu) => {
+                let found = match self.settle(mu).map(|x| self.newton(&x)) {
+                    Some(Ok(o)) => return Some(Ok((o, Seed::Settled { mu }))),
+                    Some(Err(e)) => e.to_string(),
+                    None => "the run diverged".to_string(),
+                };
+                Some(Err(format!(
+                    "from the closest return of a run of up to {} s at μ = {}: {found}",
+                    self.spec.settle_periods as f64 * self.period,
+                    short(mu)
+                )))
             }
         }
-        for mu in [self.spec.seed_mu, self.spec.max_mu] {
-            let failed = match self.settle(mu).map(|x| self.newton(&x)) {
-                Some(Ok(o)) => return Ok((o, Seed::Settled { mu })),
-                Some(Err(e)) => e.to_string(),
-                None => "the run diverged".to_string(),
-            };
-            tried.push(format!(
-                "from the closest return of a run of up to {} s at μ = {}: {failed}",
-                self.spec.settle_periods as f64 * self.period,
-                short(mu)
-            ));
-        }
-        Err(TuneError::NoCycle(tried.join("; ")))
     }
 
     fn newton(&self, x: &ArmState<N>) -> Result<PeriodicOrbit, OrbitError> {
@@ -348,22 +442,19 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
         best.map(|(_, x)| x)
     }
 
-    /// |ρ₁| on a grid over [0, max_mu], then a golden-section search between the best grid
-    /// gain's neighbours; every gain tried, by μ.
+    /// |ρ₁| at μ = 0 and on the grid ([`TuneSpec::grid_gains`]), then a golden-section search
+    /// between the best grid gain's neighbours; every gain tried, by μ.
     fn scan(&self, orbit: &PeriodicOrbit) -> Result<Vec<GainPoint>, TuneError> {
-        let top = self.spec.max_mu;
-        let grid = self.spec.grid;
         let mut points = vec![self.at(orbit, 0.0)?];
-        for k in 1..=grid {
-            points.push(self.at(orbit, top * k as f64 / grid as f64)?);
+        for mu in self.spec.grid_gains() {
+            points.push(self.at(orbit, mu)?);
         }
         let best = (0..points.len())
             .min_by(|&a, &b| points[a].multiplier.total_cmp(&points[b].multiplier))
             .unwrap_or(0);
-        let step = top / grid as f64;
         let (mut a, mut b) = (
-            (points[best].mu - step).max(0.0),
-            (points[best].mu + step).min(top),
+            points[best.saturating_sub(1)].mu,
+            points[(best + 1).min(points.len() - 1)].mu,
         );
         // Golden section: keep the inner point with the smaller |ρ₁|.
         let g = 0.5 * (5f64.sqrt() - 1.0);
@@ -398,6 +489,34 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
         Ok(points)
     }
 
+    /// The smallest positive gain whose rate is at least [`KNEE`] of `fastest`'s: the first such
+    /// gain of the scan, moved down by bisection towards the scanned gain below it. The gains
+    /// tried join `scanned`.
+    fn knee(
+        &self,
+        orbit: &PeriodicOrbit,
+        scanned: &mut Vec<GainPoint>,
+        fastest: GainPoint,
+    ) -> Result<GainPoint, TuneError> {
+        let target = KNEE * fastest.rate;
+        let good = |p: &GainPoint| p.mu > 0.0 && p.rate <= target;
+        let Some(i) = scanned.iter().position(good) else {
+            return Ok(fastest);
+        };
+        let (mut low, mut high) = (scanned[i.saturating_sub(1)].mu, scanned[i]);
+        for _ in 0..KNEE_STEPS {
+            let p = self.at(orbit, 0.5 * (low + high.mu))?;
+            scanned.push(p);
+            if good(&p) {
+                high = p;
+            } else {
+                low = p.mu;
+            }
+        }
+        scanned.sort_by(|x, y| x.mu.total_cmp(&y.mu));
+        Ok(high)
+    }
+
     /// The leading multiplier of the loop at gain `mu` on `orbit`: one period along it with the
     /// feedback off fills the delay line with the orbit's own history, then the feedback is on.
     fn at(&self, orbit: &PeriodicOrbit, mu: f64) -> Result<GainPoint, TuneError> {
@@ -430,6 +549,14 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
             converged: f.converged,
         })
     }
+}
+
+/// The scanned gain with the smallest |ρ₁|.
+fn fastest(scanned: &[GainPoint]) -> GainPoint {
+    *scanned
+        .iter()
+        .min_by(|a, b| a.multiplier.total_cmp(&b.multiplier))
+        .expect("the scan has μ = 0 at least")
 }
 
 /// (q, q̇) from 2N numbers; None for any other length or a non-finite number.

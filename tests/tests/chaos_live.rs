@@ -71,7 +71,10 @@ fn the_daemon_says_periodic_with_feedback_and_chaotic_without_and_adapts_mu_live
         v["gains"]
     );
     assert!(
-        chosen["why"].as_str().unwrap().contains("the fastest of"),
+        chosen["why"]
+            .as_str()
+            .unwrap()
+            .contains("of the fastest rate"),
         "{chosen}"
     );
     assert_eq!(chosen["asked_at"], "edit");

@@ -17,7 +17,7 @@ pub struct TuneCmd {
     /// The largest gain considered (default: the set-up's max_mu, else chaosd's bound).
     #[arg(long = "max-mu", allow_hyphen_values = true)]
     pub max_mu: Option<f64>,
-    /// Gains on the coarse grid over (0, max_mu].
+    /// Gains on the coarse grid over (0, max_mu], geometric from 0.02.
     #[arg(long, default_value_t = 8)]
     pub grid: usize,
     /// Golden-section steps around the best grid gain.
@@ -67,7 +67,8 @@ fn json(c: &GainChoice) -> serde_json::Value {
     v
 }
 
-/// The cycle, every gain tried (the chosen one marked) and the choice in one line.
+/// The cycle, every gain tried (the chosen one marked `*`, the fastest `f`) and the choice in
+/// one line.
 fn table(c: &GainChoice) -> String {
     let mut out = format!(
         "cycle     q = ({}) at t = kT, Newton residual {:.1e}, at μ = 0 {}\n\n",
@@ -77,7 +78,11 @@ fn table(c: &GainChoice) -> String {
     );
     out.push_str("        μ    |ρ₁| a period    rate (1/s)\n");
     for p in &c.scanned {
-        let mark = if p.mu == c.mu { "*" } else { " " };
+        let mark = match p.mu {
+            mu if mu == c.mu => "*",
+            mu if mu == c.fastest.mu => "f",
+            _ => " ",
+        };
         let unsure = if p.converged {
             ""
         } else {
