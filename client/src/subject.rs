@@ -268,6 +268,7 @@ impl Subject {
             duration,
             settings,
             edits,
+            model: self.system(),
         })
     }
 
@@ -495,6 +496,8 @@ struct Watch<'a> {
     duration: f64,
     settings: MonitorSettings,
     edits: &'a [Edit],
+    /// The set-up the loop runs: with `mu = "auto"` the gain comes from it, as in the daemon.
+    model: &'a control::System,
 }
 
 impl LoopVisitor for Watch<'_> {
@@ -509,6 +512,7 @@ impl LoopVisitor for Watch<'_> {
             self.duration,
             self.settings,
             self.edits,
+            Some(self.model),
         ))
     }
 }

@@ -84,6 +84,19 @@ fn auto_mu_finds_a_stabilising_gain_from_every_start_and_after_an_edit() {
             w.last
         );
         assert!(w.mu_final > 0.0 && w.effort.is_finite());
+        // As in the daemon: the model's gain at the start and for the edited set-up after the
+        // edit, and μ ends within the correction's band around the newest one.
+        assert_eq!(w.model.len(), 2, "{q0:?}: {:?}", w.model);
+        let after = &w.model[1];
+        let mu = after
+            .mu
+            .unwrap_or_else(|| panic!("{q0:?}: {:?}", after.error));
+        assert!(after.t >= 300.0, "{q0:?}: {after:?}");
+        assert!(
+            (w.mu_final / mu - 1.0).abs() <= control::adapt::BAND + 1e-12,
+            "{q0:?}: μ ended at {} against the model's {mu}",
+            w.mu_final
+        );
     }
 }
 

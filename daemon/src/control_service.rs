@@ -51,10 +51,10 @@ impl Reporter {
     /// planner nor the monitor starts over. Tried again on the next pass while the loop has
     /// not taken the previous block.
     pub(crate) fn adopt_gain(&mut self, t: f64) {
-        let Some(c) = self.gains.poll(t) else {
+        let Some(c) = self.gains.poll() else {
             return;
         };
-        let Some(new) = crate::gains::with_gain(&self.system, c.choice.mu) else {
+        let Some(new) = self.system.with_model_gain(c.choice.mu) else {
             return;
         };
         if self

@@ -47,7 +47,7 @@ pub struct Chosen {
     pub choice: GainChoice,
     pub why: Why,
     pub took: Duration,
-    /// Controller time at which it was handed to the loop (s).
+    /// Controller time at which it was handed to the loop (s); NaN while it waits.
     pub t: f64,
 }
 
@@ -129,7 +129,7 @@ impl GainTuning {
 
     /// A choice for the current set-up to hand to the loop, if one is ready (never blocks).
     /// Failures are kept for `status` and said once in the log.
-    pub fn poll(&mut self, t: f64) -> Option<Chosen> {
+    pub fn poll(&mut self) -> Option<Chosen> {
         while let Some(done) = self.worker.as_ref().and_then(Worker::try_done) {
             if done.generation != self.generation {
                 continue;
@@ -142,7 +142,7 @@ impl GainTuning {
                         choice,
                         why: done.why,
                         took: done.took,
-                        t,
+                        t: f64::NAN,
                     });
                 }
                 Err(e) => {
@@ -213,23 +213,13 @@ fn search(job: Job) -> Done {
     }
 }
 
-/// `system` with the chosen gain: μ starts there and the adaptation is anchored on it.
-pub fn with_gain(system: &System, mu: f64) -> Option<System> {
-    let mut s = system.clone();
-    let f = s.feedback_section_mut();
-    let auto = f.auto.as_mut()?;
-    auto.anchor = Some(mu);
-    f.mu = mu;
-    Some(s)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn wait(g: &mut GainTuning) -> Chosen {
         for _ in 0..2000 {
-            if let Some(c) = g.poll(0.0) {
+            if let Some(c) = g.poll() {
                 return c;
             }
             std::thread::sleep(Duration::from_millis(5));
@@ -252,7 +242,7 @@ mod tests {
         g.handed_over(3.0);
         assert_eq!(g.mu_model(), c.choice.mu);
         assert_eq!(g.to_json()["chosen"]["adopted_at_t"], 3.0);
-        let s = with_gain(&system, c.choice.mu).unwrap();
+        let s = system.with_model_gain(c.choice.mu).unwrap();
         let auto = s.feedback().auto.unwrap();
         assert_eq!(
             (s.feedback().mu, auto.anchor),
@@ -262,6 +252,6 @@ mod tests {
         let fixed = System::preset("paper", &control::system::builtin_robot).unwrap();
         g.edited(&fixed, Why::Edit);
         assert!(g.mu_model().is_nan() && g.searching.is_none());
-        assert!(with_gain(&fixed, 0.1).is_none());
+        assert!(fixed.with_model_gain(0.1).is_none());
     }
 }

@@ -5,11 +5,13 @@
 //! reference the book trusts), once in the plain simulation with the daemon's own monitor
 //! ([`control::monitor`]) watching, fed what the daemon's reporter feeds it. Then each start runs
 //! with `mu = "auto"`, and again with a task edit and an obstacle edit half-way, as a live
-//! `chaosctl set` would make them. The report is a confusion table (offline verdict × monitor
-//! verdict) with the monitor's detection delay, and auto-μ against the smallest fixed μ that
-//! stabilises the same start (time to periodic, final μ, control effort ∫|Pyragas term|²).
+//! `chaosctl set` would make them; as in the daemon, auto takes its gain from the model at the
+//! start and after the edit ([`control::tune`]). The report is a confusion table (offline
+//! verdict × monitor verdict) with the monitor's detection delay, and auto-μ against the best
+//! fixed μ the analysis finds for the same start and against the smallest fixed μ of the sweep
+//! that stabilises it (time to periodic, final μ, control effort ∫|Pyragas term|²).
 
-use super::monitor_cells::{AutoCell, EditKind, FixedCell, Offline};
+use super::monitor_cells::{AutoCell, BestFixed, EditKind, FixedCell, Offline};
 use super::parallel::{jobs, run_all};
 use super::{ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
 use crate::subject::Subject;
@@ -53,14 +55,18 @@ pub struct MonitorCmd {
 enum Job {
     Fixed(usize, Subject),
     Auto(usize, Subject, EditKind, Vec<Edit>),
+    /// The start at the best fixed gain of the analysis (the auto set-up, μ fixed there).
+    Best(usize, Subject),
 }
 
 enum Done {
     Fixed(FixedCell),
     Auto(AutoCell),
+    Best(BestFixed),
 }
 
 pub fn run(args: MonitorCmd) -> Result<()> {
+    crate::plot::make_room(&args.output)?;
     let base = Subject::load(&args.model.setup, None)?;
     let mus = args.model.mus(default_mus(&base))?;
     let starts = base.starts(&args.starts, args.model.setup.q0.is_some())?;
@@ -81,11 +87,12 @@ pub fn run(args: MonitorCmd) -> Result<()> {
                 .with_context(|| format!("μ = {mu}, start {}", i + 1))?;
             work.push(Job::Fixed(i, c));
         }
-        // `mu = "auto"` starts from 0, as in a file.
+        // `mu = "auto"` as in a file: from 0 until the model's gain is in (at once here).
         let mut c = s.clone();
         c.set_mu(0.0);
         c.feedback_mut().auto = Some(auto);
         c.check().with_context(|| format!("start {}", i + 1))?;
+        work.push(Job::Best(i, c.clone()));
         for edit in EditKind::ALL {
             match edits(&c, edit, duration) {
                 Ok(Some(e)) => work.push(Job::Auto(i, c.clone(), edit, e)),
@@ -101,12 +108,14 @@ pub fn run(args: MonitorCmd) -> Result<()> {
             let w = c.watch(2.0 * duration, settings, e)?;
             Ok(Done::Auto(auto_cell(*i, *kind, e.first().map(|e| e.t), w)))
         }
+        Job::Best(i, c) => best_fixed(*i, c, 2.0 * duration, settings).map(Done::Best),
     })?;
-    let (mut fixed_cells, mut auto_cells) = (Vec::new(), Vec::new());
+    let (mut fixed_cells, mut auto_cells, mut best) = (Vec::new(), Vec::new(), Vec::new());
     for d in done {
         match d? {
             Done::Fixed(f) => fixed_cells.push(f),
             Done::Auto(a) => auto_cells.push(a),
+            Done::Best(b) => best.push(b),
         }
     }
     let report = super::monitor_report::Report::new(
@@ -114,6 +123,7 @@ pub fn run(args: MonitorCmd) -> Result<()> {
         starts.iter().map(Subject::q0).collect(),
         fixed_cells,
         auto_cells,
+        best,
         auto,
         settings,
         duration,
@@ -182,6 +192,40 @@ fn auto_settings(args: &MonitorCmd, base: &Subject, tau: f64) -> Result<AutoMu> 
     Ok(a)
 }
 
+/// `c` (μ = "auto") at the gain the model chooses for it from its start, fixed, for `duration` s.
+fn best_fixed(
+    start: usize,
+    c: &Subject,
+    duration: f64,
+    settings: MonitorSettings,
+) -> Result<BestFixed> {
+    let system = c.system();
+    let spec = control::tune::TuneSpec::of(system);
+    let mu = control::tune::choose_gain(system, None, &spec)
+        .map(|g| g.mu)
+        .map_err(|e| e.to_string());
+    let Ok(m) = mu else {
+        return Ok(BestFixed {
+            start,
+            mu,
+            verdict: Verdict::Unknown,
+            periodic_at: None,
+            effort: 0.0,
+        });
+    };
+    let mut fixed = c.clone();
+    fixed.set_mu(m);
+    fixed.feedback_mut().auto = None;
+    let w = fixed.watch(duration, settings, &[])?;
+    Ok(BestFixed {
+        start,
+        mu,
+        verdict: w.last.verdict,
+        periodic_at: w.settled_at,
+        effort: w.effort,
+    })
+}
+
 /// A fixed-μ run of `c`: the offline λ_max (a run that yields none is labelled failed) and the
 /// monitor's verdict on the same loop.
 fn fixed(
@@ -246,6 +290,12 @@ fn auto_cell(start: usize, edit: EditKind, edit_at: Option<f64>, w: Watched) -> 
         mu_final: w.mu_final,
         mu_at_edit,
         effort: w.effort,
+        first_verdict: w
+            .edges
+            .iter()
+            .find(|e| e.to != Verdict::Unknown)
+            .map(|e| (e.to, e.t)),
+        model: w.model,
         trace: w.trace,
     }
 }

@@ -69,6 +69,22 @@ pub struct AutoCell {
     /// μ just before the edit.
     pub mu_at_edit: Option<f64>,
     pub effort: f64,
+    /// The first verdict and when it came (s).
+    pub first_verdict: Option<(Verdict, f64)>,
+    /// The gains the model chose, at the start and after the edit (as the daemon would).
+    pub model: Vec<control::monitor::run::ModelChoice>,
     #[serde(skip)]
     pub trace: Vec<control::monitor::run::PeriodPoint>,
+}
+
+/// A start run at the best fixed gain the analysis finds for it (`control::tune`): what
+/// `mu = "auto"` is measured against.
+#[derive(Clone, Debug, Serialize)]
+pub struct BestFixed {
+    pub start: usize,
+    /// The gain, or why the analysis found none.
+    pub mu: Result<f64, String>,
+    pub verdict: Verdict,
+    pub periodic_at: Option<f64>,
+    pub effort: f64,
 }

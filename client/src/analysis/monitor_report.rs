@@ -2,7 +2,7 @@
 //! the figure; as text, JSON and CSV.
 
 use super::fmt_list;
-use super::monitor_cells::{AutoCell, EditKind, FixedCell, Offline};
+use super::monitor_cells::{AutoCell, BestFixed, EditKind, FixedCell, Offline};
 use crate::plot::{Chart, Figure, Panel, Series, Style, DARK, PALETTE};
 use anyhow::{Context, Result};
 use control::adapt::AutoMu;
@@ -25,7 +25,8 @@ const VERDICTS: [Verdict; 5] = [
     Verdict::Unknown,
 ];
 
-/// Auto-μ on one start against the smallest fixed μ that stabilises it.
+/// Auto-μ on one start against the best fixed μ of the analysis and the smallest fixed μ of the
+/// sweep that stabilises it.
 #[derive(Clone, Debug, Serialize)]
 pub struct Comparison {
     pub start: usize,
@@ -34,6 +35,11 @@ pub struct Comparison {
     pub auto_periodic_at: Option<f64>,
     pub auto_mu_final: f64,
     pub auto_effort: f64,
+    /// The auto run's first verdict and when it came (s).
+    pub auto_first_verdict: Option<(Verdict, f64)>,
+    /// The best fixed gain the analysis finds for the start (`chaosctl tune`), and that gain
+    /// run fixed.
+    pub best_fixed: Option<BestFixed>,
     /// The smallest μ of the sweep the monitor saw end periodic (offline not chaotic).
     pub smallest_fixed_mu: Option<f64>,
     pub fixed_periodic_at: Option<f64>,
@@ -47,6 +53,8 @@ pub struct EditRun {
     pub edit: EditKind,
     pub periodic_before_edit: bool,
     pub mu_at_edit: Option<f64>,
+    /// The gain the model chose for the edited set-up.
+    pub model_mu_after_edit: Option<f64>,
     pub verdict: Verdict,
     /// Seconds from the edit until the verdict was periodic again.
     pub periodic_after_s: Option<f64>,
@@ -101,6 +109,7 @@ impl Report {
         starts: Vec<Vec<f64>>,
         cells: Vec<FixedCell>,
         auto_runs: Vec<AutoCell>,
+        best: Vec<BestFixed>,
         auto: AutoMu,
         monitor: MonitorSettings,
         duration_s: f64,
@@ -144,7 +153,7 @@ impl Report {
             delay_max_periods: delays.last().copied(),
             settled_median_periods: settled.get(settled.len() / 2).copied(),
             settled_max_periods: settled.last().copied(),
-            comparisons: comparisons(&cells, &auto_runs, &starts, tau),
+            comparisons: comparisons(&cells, &auto_runs, &best, &starts, tau),
             edits: edit_runs(&auto_runs),
             confusion,
             cells,
@@ -210,18 +219,35 @@ impl Report {
             show(self.settled_max_periods)
         );
         println!(
-            "auto-μ (γ = {}, max_mu = {}) against the smallest fixed μ that stabilises each start:",
+            "auto-μ (γ = {}, max_mu = {}, the gain from the model) against the best fixed μ of the \
+             analysis and the smallest fixed μ of the sweep that stabilises each start:",
             self.auto.gamma, self.auto.max_mu
         );
+        let one = |v: Option<f64>| v.map_or("n/a".into(), |x| format!("{x:.1}"));
         for c in &self.comparisons {
+            let first = c.auto_first_verdict.map_or("no verdict".into(), |(v, t)| {
+                format!("{} at {t:.1} s", v.name())
+            });
+            let best = match &c.best_fixed {
+                Some(b @ BestFixed { mu: Ok(m), .. }) => format!(
+                    "best μ = {m:.3} ({} at {} s, effort {:.1})",
+                    b.verdict.name(),
+                    one(b.periodic_at),
+                    b.effort
+                ),
+                Some(BestFixed { mu: Err(e), .. }) => format!("no best μ: {e}"),
+                None => "no best μ".into(),
+            };
             println!(
-                "  start ({}): auto {} at {} s, μ → {:.3}, effort {:.1} | fixed μ = {} periodic at {} s, effort {}",
+                "  start ({}): auto first {first}, {} at {} s, μ → {:.3}, effort {:.1} | {best} | \
+                 smallest fixed μ = {} periodic at {} s, effort {}",
                 fmt_list(&c.q0),
                 c.auto_verdict.name(),
-                show(c.auto_periodic_at),
+                one(c.auto_periodic_at),
                 c.auto_mu_final,
                 c.auto_effort,
-                c.smallest_fixed_mu.map_or("none".into(), |m| format!("{m}")),
+                c.smallest_fixed_mu
+                    .map_or("none".into(), |m| format!("{m}")),
                 show(c.fixed_periodic_at),
                 c.fixed_effort.map_or("n/a".into(), |e| format!("{e:.1}")),
             );
@@ -229,11 +255,13 @@ impl Report {
         println!("\nauto-μ after an edit half-way:");
         for e in &self.edits {
             println!(
-                "  start {} {:?}: periodic before: {}, μ at edit {}, then {} {} s after, μ → {:.3}",
+                "  start {} {:?}: periodic before: {}, μ at edit {}, model's μ after {}, then {} {} s \
+                 after, μ → {:.3}",
                 e.start + 1,
                 e.edit,
                 e.periodic_before_edit,
                 e.mu_at_edit.map_or("n/a".into(), |m| format!("{m:.3}")),
+                e.model_mu_after_edit.map_or("n/a".into(), |m| format!("{m:.3}")),
                 e.verdict.name(),
                 show(e.periodic_after_s),
                 e.mu_final
@@ -355,6 +383,7 @@ impl Report {
 fn comparisons(
     cells: &[FixedCell],
     autos: &[AutoCell],
+    best_fixed: &[BestFixed],
     starts: &[Vec<f64>],
     tau: f64,
 ) -> Vec<Comparison> {
@@ -374,6 +403,8 @@ fn comparisons(
                 auto_periodic_at: a.periodic_at,
                 auto_mu_final: a.mu_final,
                 auto_effort: a.effort,
+                auto_first_verdict: a.first_verdict,
+                best_fixed: best_fixed.iter().find(|b| b.start == a.start).cloned(),
                 smallest_fixed_mu: best.map(|c| c.mu),
                 fixed_periodic_at: best.and_then(|c| c.settled_periods).map(|p| p * tau),
                 fixed_effort: best.map(|c| c.effort),
@@ -394,6 +425,7 @@ fn edit_runs(autos: &[AutoCell]) -> Vec<EditRun> {
                 edit: a.edit,
                 periodic_before_edit: before.is_some_and(|p| p.verdict == Verdict::Periodic),
                 mu_at_edit: a.mu_at_edit,
+                model_mu_after_edit: a.model.iter().find(|m| m.t >= at).and_then(|m| m.mu),
                 verdict: a.verdict,
                 periodic_after_s: a.periodic_at.filter(|t| *t >= at).map(|t| t - at),
                 mu_final: a.mu_final,

@@ -3,22 +3,29 @@
 //! The daemon feeds its monitor from the reporter thread with the states the law ran on and the
 //! law's residuals; here the simulation feeds the same numbers, every step, into the same
 //! [`ChaosMonitor`]. Edits at given times change the law's parameters mid-run, as `chaosctl set`
-//! does, and restart the monitor's window, as the daemon does.
+//! does, and restart the monitor's window, as the daemon does. With `mu = "auto"` the gain comes
+//! from the model at the start and after every edit, seeded as the daemon seeds it
+//! ([`crate::tune`]); here it is taken at once, where the daemon takes it when its search thread
+//! answers (0.5 s on the planar arm, about 8 s on the Panda).
 
 use super::{ChaosMonitor, Edge, Evidence, MonitorSettings, Verdict};
 use crate::basics::ConfigError;
 use crate::law::ParamBlock;
 use crate::sim::{ClosedLoopLaw, LoopFeedback, Simulation};
 use crate::system::System;
+use crate::tune::{choose_gain, TuneSpec};
 use crate::with_dof;
 use serde::Serialize;
+use std::sync::Arc;
 
 /// A change to the law at a time, as a live `chaosctl set` would make it: the whole parameter
 /// block of the edited set-up, swapped in as the daemon swaps one.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Edit {
     pub t: f64,
     pub block: ParamBlock,
+    /// The edited set-up (the model the gain is chosen from after the edit).
+    pub system: Arc<System>,
 }
 
 impl Edit {
@@ -50,6 +57,7 @@ impl Edit {
         Ok(Self {
             t,
             block: s.param_block(),
+            system: Arc::new(s),
         })
     }
 }
@@ -76,28 +84,44 @@ pub struct Watched {
     pub settled_at: Option<f64>,
     /// The run stopped early: the state was no longer finite.
     pub diverged: bool,
+    /// The gains the model chose (`mu = "auto"`: at the start and after each edit).
+    pub model: Vec<ModelChoice>,
+}
+
+/// A gain the model chose during a watched run, or why it chose none.
+#[derive(Clone, Debug, Serialize)]
+pub struct ModelChoice {
+    pub t: f64,
+    pub mu: Option<f64>,
+    /// |ρ₁| a period at `mu`, and the rate (1/s) it promises.
+    pub multiplier: Option<f64>,
+    pub rate: Option<f64>,
+    pub error: Option<String>,
 }
 
 /// Runs `system` as the daemon's law for `duration` s with the monitor watching; `edits`
-/// sorted by time.
+/// sorted by time. With `mu = "auto"` the gain comes from the model, as in the daemon.
 pub fn watch(system: &System, duration: f64, settings: MonitorSettings, edits: &[Edit]) -> Watched {
     with_dof!(system.n(), N => {
         let law = system.tick_law::<N>();
         let (dt, x0) = (system.sim_section().dt, system.initial_state::<N>());
         let mut sim = Simulation::of(law, dt, x0, system.feedback().max_tau);
-        watch_sim(&mut sim, duration, settings, edits)
+        watch_sim(&mut sim, duration, settings, edits, Some(system))
     })
 }
 
 /// Runs `sim` (not yet stepped) for `duration` s with the monitor watching. Each edit's block
 /// is swapped in before the first step at or after its time, as the daemon swaps one
 /// ([`ClosedLoopLaw::take_block`]), and the monitor's window restarts with the block's τ, as
-/// the daemon's does. An edit whose block is for another arm is not made.
+/// the daemon's does. An edit whose block is for another arm is not made. `model` is the set-up
+/// `sim` runs: when its μ is "auto", the gain is chosen from it at the start and from each
+/// edit's set-up after the edit (None: the speed-gradient law alone).
 pub fn watch_sim<const N: usize, L: ClosedLoopLaw<N>>(
     sim: &mut Simulation<N, L>,
     duration: f64,
     settings: MonitorSettings,
     edits: &[Edit],
+    model: Option<&System>,
 ) -> Watched {
     let longest = edits.iter().map(|e| e.block.core().tau).fold(0.0, f64::max);
     let sized = sim.reserve_delay(longest);
@@ -106,14 +130,28 @@ pub fn watch_sim<const N: usize, L: ClosedLoopLaw<N>>(
     let mut pending = edits.iter().peekable();
     let (mut edges, mut trace, mut effort, mut diverged) = (Vec::new(), Vec::new(), 0.0, false);
     let (dt, steps) = (sim.dt(), (duration / sim.dt()).round() as u64);
+    let mut gains = model.map(|s| ModelGains::new(s.clone()));
+    if let Some(g) = gains.as_mut() {
+        g.choose(sim, None);
+    }
     for _ in 0..steps {
         let t = sim.time();
-        let mut edited = false;
+        let mut edited = None;
         while let Some(e) = pending.next_if(|e| e.t <= t) {
-            edited |= sim.law.take_block(e.block);
+            if sim.law.take_block(e.block) {
+                edited = Some(e);
+            }
         }
-        if edited {
+        if let Some(e) = edited {
             monitor.restart(t, sim.law.core().tau);
+            if let Some(g) = gains.as_mut() {
+                g.system = (*e.system).clone();
+                let seed = g.phase_zero.clone();
+                g.choose(sim, seed.as_ref().map(|(_, x)| x.as_slice()));
+            }
+        }
+        if let Some(g) = gains.as_mut() {
+            g.observe(sim);
         }
         let LoopFeedback { mu, projection, .. } = sim.law.loop_feedback();
         let x = *sim.state();
@@ -150,5 +188,73 @@ pub fn watch_sim<const N: usize, L: ClosedLoopLaw<N>>(
         effort,
         settled_at,
         diverged,
+        model: gains.map_or_else(Vec::new, |g| g.choices),
+    }
+}
+
+/// The daemon's gain search ([`crate::tune`]) on a watched run.
+struct ModelGains {
+    system: System,
+    /// (period index, q and q̇) of the newest state at a whole period: the seed after an edit.
+    phase_zero: Option<(i64, Vec<f64>)>,
+    choices: Vec<ModelChoice>,
+}
+
+impl ModelGains {
+    fn new(system: System) -> Self {
+        Self {
+            system,
+            phase_zero: None,
+            choices: Vec::new(),
+        }
+    }
+
+    fn observe<const N: usize, L: ClosedLoopLaw<N>>(&mut self, sim: &Simulation<N, L>) {
+        let period = self.system.period();
+        let k = (sim.time() / period).floor() as i64;
+        if self.phase_zero.as_ref().is_some_and(|(at, _)| *at == k) {
+            return;
+        }
+        let x = sim.state();
+        let coords = x.q.iter().chain(x.qd.iter()).copied().collect();
+        self.phase_zero = Some((k, coords));
+    }
+
+    /// For `mu = "auto"`: the gain from the model, swapped in as the daemon's reporter hands it
+    /// to the loop (a block, not an edit: the monitor goes on).
+    fn choose<const N: usize, L: ClosedLoopLaw<N>>(
+        &mut self,
+        sim: &mut Simulation<N, L>,
+        seed: Option<&[f64]>,
+    ) {
+        if self.system.feedback().auto.is_none() {
+            return;
+        }
+        let t = sim.time();
+        let spec = TuneSpec::of(&self.system);
+        let choice = match choose_gain(&self.system, seed, &spec) {
+            Ok(c) => c,
+            Err(e) => {
+                self.choices.push(ModelChoice {
+                    t,
+                    mu: None,
+                    multiplier: None,
+                    rate: None,
+                    error: Some(e.to_string()),
+                });
+                return;
+            }
+        };
+        if let Some(s) = self.system.with_model_gain(choice.mu) {
+            sim.law.take_block(s.param_block());
+            self.system = s;
+        }
+        self.choices.push(ModelChoice {
+            t,
+            mu: Some(choice.mu),
+            multiplier: Some(choice.multiplier),
+            rate: Some(choice.rate),
+            error: None,
+        });
     }
 }

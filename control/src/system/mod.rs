@@ -250,6 +250,27 @@ impl System {
         f.enabled = true;
     }
 
+    /// This set-up with a gain from the model ([`crate::tune`]) for `mu = "auto"`: μ starts at
+    /// `mu` and the speed-gradient law is anchored on it ([`crate::adapt::AutoMu::anchor`]).
+    /// None when μ is not "auto" (a fixed gain is the user's, not the model's).
+    ///
+    /// ```
+    /// use control::{adapt::MuSetting, System};
+    /// let mut s = System::preset("paper", &control::system::builtin_robot).unwrap();
+    /// assert!(s.with_model_gain(0.2).is_none());
+    /// s.schedule_feedback(MuSetting::Auto, 0.0);
+    /// let g = s.with_model_gain(0.2).unwrap();
+    /// assert_eq!((g.feedback().mu, g.feedback().auto.unwrap().anchor), (0.2, Some(0.2)));
+    /// ```
+    pub fn with_model_gain(&self, mu: f64) -> Option<System> {
+        let mut s = self.clone();
+        let f = s.feedback_section_mut();
+        let auto = f.auto.as_mut()?;
+        auto.anchor = Some(mu);
+        f.mu = mu;
+        Some(s)
+    }
+
     /// The file's `[feedback]`, one section for every arm.
     pub fn feedback_section(&self) -> &FeedbackSection {
         match self {
