@@ -158,6 +158,16 @@ fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow!("drawing failed: {e:?}")
 }
 
+/// Makes the directory an output prefix writes into, so that a long run does not end in "No
+/// such file or directory" with its results lost: the commands call it before they compute.
+pub fn make_room(prefix: &Path) -> Result<()> {
+    if let Some(dir) = prefix.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create directory {}", dir.display()))?;
+    }
+    Ok(())
+}
+
 /// `prefix` + `.ext` (appended, so a prefix such as `out/mu0.2_time` keeps its dots).
 pub fn with_ext(prefix: &Path, ext: &str) -> PathBuf {
     let mut s = prefix.as_os_str().to_owned();
@@ -180,10 +190,7 @@ impl Figure {
     /// Writes `prefix.png` and `prefix.svg`; returns their paths.
     pub fn save(&self, prefix: &Path) -> Result<Vec<PathBuf>> {
         fonts()?;
-        if let Some(dir) = prefix.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("cannot create directory {}", dir.display()))?;
-        }
+        make_room(prefix)?;
         let (w, h) = self.size();
         let png_path = with_ext(prefix, "png");
         let svg_path = with_ext(prefix, "svg");

@@ -107,6 +107,7 @@ fn run_end(c: &Subject, spec: &RunSpec) -> Result<RunEnd, String> {
 }
 
 pub fn run(args: BasinsCmd) -> Result<()> {
+    crate::plot::make_room(&args.output)?;
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
     let work = |c: &Subject| run_end(c, &plan.spec);

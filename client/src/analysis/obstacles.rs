@@ -247,6 +247,7 @@ fn grid(plan: &Plan) -> Grid {
 }
 
 pub fn run(args: ObstaclesCmd) -> Result<()> {
+    crate::plot::make_room(&args.output)?;
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
     if let Some(model) = &args.mujoco_judge {

@@ -46,6 +46,7 @@ struct Report<'a> {
 }
 
 pub fn run(args: PoincareCmd) -> Result<()> {
+    crate::plot::make_room(&args.output)?;
     let subject = Subject::load(&args.model.setup, args.model.mu)?;
     subject.check()?;
     super::check_run_window(args.duration, args.transient)?;

@@ -117,6 +117,7 @@ fn grid(plan: &Plan) -> Grid {
 }
 
 pub fn run(args: SweepCmd) -> Result<()> {
+    crate::plot::make_room(&args.output)?;
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
     let work = |(i, c): &(usize, Subject)| row(*i, c, &plan.spec);
