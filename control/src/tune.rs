@@ -304,6 +304,10 @@ enum Source {
     Settle(f64),
 }
 
+/// Why one source gave no cycle (the search goes on to the next; all of them make
+/// [`TuneError::NoCycle`]).
+struct NotFound(String);
+
 /// One gain search on one arm's law.
 struct Search<const N: usize, L: ClosedLoopLaw<N>> {
     /// The law as the set-up starts (the seeding runs).
@@ -335,8 +339,8 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
         for source in std::iter::once(Source::Given).chain(settles) {
             let (orbit, seed) = match self.cycle(source, given) {
                 Some(Ok(found)) => found,
-                Some(Err(e)) => {
-                    tried.push(e);
+                Some(Err(NotFound(why))) => {
+                    tried.push(why);
                     continue;
                 }
                 None => continue,
@@ -377,14 +381,14 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
         &self,
         source: Source,
         given: Option<&[f64]>,
-    ) -> Option<Result<(PeriodicOrbit, Seed), String>> {
+    ) -> Option<Result<(PeriodicOrbit, Seed), NotFound>> {
         match source {
             Source::Given => {
                 let x = given.and_then(state_of::<N>)?;
                 Some(
                     self.newton(&x)
                         .map(|o| (o, Seed::Given))
-                        .map_err(|e| format!("from the given state: {e}")),
+                        .map_err(|e| NotFound(format!("from the given state: {e}"))),
                 )
             }
             Source::Settle(mu) => {
@@ -393,11 +397,11 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
                     Some(Err(e)) => e.to_string(),
                     None => "the run diverged".to_string(),
                 };
-                Some(Err(format!(
+                Some(Err(NotFound(format!(
                     "from the closest return of a run of up to {} s at μ = {}: {found}",
                     self.spec.settle_periods as f64 * self.period,
                     short(mu)
-                )))
+                ))))
             }
         }
     }
