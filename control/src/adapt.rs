@@ -107,7 +107,13 @@ impl AutoMu {
         };
         let leak = (mu - anchor) * (dt / LEAK_TIME_S).min(1.0);
         let (low, high) = (anchor * (1.0 - BAND), anchor * (1.0 + BAND));
-        (mu + grow - leak).clamp(low, high).clamp(0.0, self.max_mu)
+        // `max`/`min` rather than `clamp`: this runs on the tick, and `clamp` panics on a NaN
+        // or inverted bound (the same result for every valid one).
+        (mu + grow - leak)
+            .max(low)
+            .min(high)
+            .max(0.0)
+            .min(self.max_mu)
     }
 
     /// [`Self::step`], and when μ reaches `max_mu` still growing, a new sweep: μ starts again
@@ -341,6 +347,26 @@ mod tests {
         assert!((two / one - 4.0).abs() < 1e-12);
         assert_eq!(a.step(0.3, f64::NAN, 0.001, 0.0), 0.3);
         assert_eq!(a.step(0.3, 1.0, 0.001, f64::NAN), 0.3);
+    }
+
+    /// The step runs on the tick: an anchor or bound that validation would refuse (a NaN, a
+    /// negative gain, an inverted band) gives a gain in [0, max_mu], never a panic.
+    #[test]
+    fn an_anchored_step_never_panics_and_stays_in_range() {
+        for anchor in [f64::NAN, -0.2, 0.0, f64::INFINITY, 0.2] {
+            for mu in [f64::NAN, -1.0, 0.0, 0.25, 5.0] {
+                let a = AutoMu {
+                    gamma: 3e-4,
+                    max_mu: 0.4,
+                    anchor: Some(anchor),
+                };
+                let next = a.step(mu, 2.0, 0.001, 0.3);
+                assert!(
+                    (0.0..=0.4).contains(&next),
+                    "anchor {anchor}, μ {mu}: {next}"
+                );
+            }
+        }
     }
 
     #[test]
