@@ -133,6 +133,10 @@ enum Cmd {
         /// SCHED_FIFO priority for latency and jitter, 1..=98 [default: the daemon's].
         #[arg(long, value_parser = clap::value_parser!(u8).range(1..=98))]
         priority: Option<u8>,
+        /// Leave pinocchio out of `compute` (its rows then say so); CI does, as the C++
+        /// harness's first build takes minutes.
+        #[arg(long = "no-pinocchio")]
+        no_pinocchio: bool,
     },
     /// The real daemon and plant for N seconds while faults are injected (kill -9, SIGSTOP, a
     /// CPU hog, a rogue publisher, request bursts); prints a verdict table and exits non-zero if
@@ -332,6 +336,7 @@ fn all(
     quick: bool,
     out: &Path,
     priority: Option<u8>,
+    pinocchio: &pinocchio_run::Source,
     command: &str,
     book: Option<&book::Book>,
 ) -> Result<Output> {
@@ -346,18 +351,7 @@ fn all(
         ("latency", latency::run(&lat, out, command)),
         ("jitter", jitter::run(&jit, out, command)),
         ("e2e", e2e::run(&e2e::Options::new(quick), out, command)),
-        (
-            "compute",
-            compute::run(
-                quick,
-                0,
-                &pinocchio_run::Source::Now {
-                    venv: pinocchio_run::DEFAULT_VENV.into(),
-                },
-                out,
-                command,
-            ),
-        ),
+        ("compute", compute::run(quick, 0, pinocchio, out, command)),
     ];
     let mut text = String::new();
     let mut tables = Vec::new();
@@ -466,7 +460,19 @@ fn main() -> ExitCode {
             quick,
             out,
         ),
-        Cmd::All { priority } => all(quick, out, *priority, &command, book.as_ref()),
+        Cmd::All {
+            priority,
+            no_pinocchio,
+        } => {
+            let pinocchio = if *no_pinocchio {
+                pinocchio_run::Source::Off
+            } else {
+                pinocchio_run::Source::Now {
+                    venv: pinocchio_run::DEFAULT_VENV.into(),
+                }
+            };
+            all(quick, out, *priority, &pinocchio, &command, book.as_ref())
+        }
         Cmd::Soak(a) => soak::run(
             &soak::schedule::Options {
                 seconds: a.seconds,
