@@ -85,6 +85,46 @@ fn windows_outside_the_run_are_refused() {
     );
 }
 
+/// A run shorter than a default transient (figures 20 s, poincare 100 s) is not refused over a
+/// flag the user did not pass: the section starts half-way, as `simulate`'s does.
+#[test]
+fn a_short_duration_alone_runs_with_the_transient_halved() {
+    let dir = scratch("short");
+    let figures = dir.join("figures");
+    let out = chaosctl(&[
+        "figures",
+        "--preset",
+        "panda",
+        "--duration",
+        "10",
+        "--output-dir",
+        figures.to_str().unwrap(),
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(figures.join("mu0.25_residual.png").is_file(), "{text}");
+    let prefix = dir.join("section");
+    let out = chaosctl(&[
+        "poincare",
+        "--duration",
+        "60",
+        "--output",
+        prefix.to_str().unwrap(),
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("t = kT from 30 to 60 s"), "{text}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn wrong_initial_states_and_unreachable_tasks_are_refused() {
     refused(&["lyapunov", "--q0", "1,2"], &["sim.q0", "3 entries"]);

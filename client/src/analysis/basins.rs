@@ -57,22 +57,22 @@ fn plan(args: &BasinsCmd) -> Result<Plan> {
 
 /// The run of every cell: the section from `--transient`, long enough to classify.
 fn spec(args: &BasinsCmd, base: &Subject) -> Result<RunSpec> {
-    super::check_run_window(args.duration, args.transient)?;
+    super::check_run_window(args.duration, args.transient())?;
     let spec = RunSpec {
         duration: args.duration,
-        transient: args.transient,
+        transient: args.transient(),
         lyapunov: None,
         classify: args.classify.config()?,
     };
     let period = base.period();
     spec.validate(period, base.dt())?;
     let points =
-        (args.duration / period + 1e-9).floor() - (args.transient / period - 1e-9).ceil() + 1.0;
+        (args.duration / period + 1e-9).floor() - (args.transient() / period - 1e-9).ceil() + 1.0;
     if points < spec.classify.min_points as f64 {
         bail!(
             "--duration {} with --transient {}: the section would have {points} points, and classifying it needs at least {}",
             args.duration,
-            args.transient,
+            args.transient(),
             spec.classify.min_points
         );
     }

@@ -57,9 +57,9 @@ pub struct BasinsCmd {
     /// Simulated time per run (s).
     #[arg(long, default_value_t = 300.0)]
     pub duration: f64,
-    /// The section is classified from this time on (s).
-    #[arg(long, default_value_t = 100.0)]
-    pub transient: f64,
+    /// The section is classified from this time on (s) [default: 100, or half a shorter run].
+    #[arg(long)]
+    pub transient: Option<f64>,
     #[command(flatten)]
     pub classify: ClassifyArgs,
     /// Worker threads (default: every core).
@@ -75,6 +75,13 @@ pub struct BasinsCmd {
     /// PREFIX.shard-I-of-N.json; `chaosctl merge` makes the map from all N.
     #[arg(long, value_parser = shard::parse_shard, value_name = "I/N")]
     pub shard: Option<Shard>,
+}
+
+impl BasinsCmd {
+    /// `--transient`, or its default ([`super::transient_or`]).
+    pub fn transient(&self) -> f64 {
+        super::transient_or(self.transient, 100.0, self.duration)
+    }
 }
 
 /// What the map needs from one run; a shard file carries exactly this per grid point.
@@ -238,7 +245,7 @@ fn print_map(args: &BasinsCmd, fixed: &[f64], mus: &[f64], cells: &[Cell]) {
         "chaosd basins: {name} varied (rows), μ (columns); the other coordinates from ({}); {} s runs, section from {} s",
         fmt_list(fixed),
         args.duration,
-        args.transient
+        args.transient()
     );
     println!("  A, B, …: settled on period-1 orbit A, B, … (lower case: still converging)   2-9: period p");
     println!("  ~: quasi-periodic   #: irregular (chaotic)   !: failed");
@@ -361,7 +368,7 @@ fn plot(
         title: format!(
             "end state after {} s (section from {} s); other start coordinates ({})",
             args.duration,
-            args.transient,
+            args.transient(),
             fmt_list(fixed)
         ),
         x_label: "Pyragas gain μ (1/s)".into(),

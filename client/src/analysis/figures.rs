@@ -27,9 +27,10 @@ pub struct FiguresCmd {
     /// Simulated time (s).
     #[arg(long, default_value_t = 300.0)]
     pub duration: f64,
-    /// The Poincaré section and the statistics start here (s).
-    #[arg(long, default_value_t = 20.0)]
-    pub transient: f64,
+    /// The Poincaré section and the statistics start here (s) [default: 20, or half a shorter
+    /// run].
+    #[arg(long)]
+    pub transient: Option<f64>,
     /// Seconds shown in the phase portraits, START:END (default: the last 20 s).
     #[arg(long = "phase-window", value_parser = super::parse_window)]
     pub phase_window: Option<[f64; 2]>,
@@ -42,6 +43,13 @@ pub struct FiguresCmd {
     /// _residual, each as .png and .svg.
     #[arg(long)]
     pub name: Option<String>,
+}
+
+impl FiguresCmd {
+    /// `--transient`, or its default ([`super::transient_or`]).
+    pub fn transient(&self) -> f64 {
+        super::transient_or(self.transient, 20.0, self.duration)
+    }
 }
 
 /// A run sampled densely for plotting.
@@ -260,7 +268,7 @@ pub fn run(args: FiguresCmd) -> Result<()> {
     let run = TraceRun {
         duration: args.duration,
         stride: stride(subject.dt()),
-        transient: args.transient,
+        transient: args.transient(),
     };
     let tr = subject.run_loop(run)?;
     let f = subject.feedback();
@@ -275,7 +283,7 @@ pub fn run(args: FiguresCmd) -> Result<()> {
     };
     let phase = args
         .phase_window
-        .unwrap_or([(args.duration - 20.0).max(args.transient), args.duration]);
+        .unwrap_or([(args.duration - 20.0).max(args.transient()), args.duration]);
     if phase[0] < 0.0 || phase[1] > args.duration + 1e-9 {
         bail!(
             "--phase-window {}:{}: must lie inside the run, 0:{}",
@@ -306,10 +314,10 @@ fn check_transient(args: &FiguresCmd) -> Result<()> {
             args.duration
         );
     }
-    if !(args.transient >= 0.0 && args.transient < args.duration) {
+    if !(args.transient() >= 0.0 && args.transient() < args.duration) {
         bail!(
             "--transient {}: must be in [0, --duration = {})",
-            args.transient,
+            args.transient(),
             args.duration
         );
     }

@@ -260,6 +260,17 @@ pub fn fmt_num(v: f64) -> String {
     s.replace('-', "m")
 }
 
+/// `--transient` as given, else its default, which a run no longer than it halves to half the
+/// run (as `simulate` does): a short `--duration` alone is never refused over a flag the user did
+/// not pass.
+pub fn transient_or(given: Option<f64>, default: f64, duration: f64) -> f64 {
+    given.unwrap_or(if default < duration {
+        default
+    } else {
+        duration / 2.0
+    })
+}
+
 /// Checks `--duration` and `--transient`: the section needs points after the transient.
 pub fn check_run_window(duration: f64, transient: f64) -> Result<()> {
     if !(duration.is_finite() && duration > 0.0) {
@@ -319,6 +330,17 @@ pub fn print_written(files: &[std::path::PathBuf]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_default_transient_halves_for_a_short_run_and_a_given_one_never_changes() {
+        assert_eq!(transient_or(None, 100.0, 300.0), 100.0);
+        assert_eq!(transient_or(None, 20.0, 20.0), 10.0);
+        assert_eq!(transient_or(None, 100.0, 60.0), 30.0);
+        // Given: checked by check_run_window, never changed here.
+        assert_eq!(transient_or(Some(30.0), 100.0, 20.0), 30.0);
+        assert!(check_run_window(20.0, transient_or(Some(30.0), 100.0, 20.0)).is_err());
+        assert!(check_run_window(20.0, transient_or(None, 100.0, 20.0)).is_ok());
+    }
 
     #[test]
     fn ranges_parse_and_reject() {

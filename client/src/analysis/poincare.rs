@@ -21,9 +21,9 @@ pub struct PoincareCmd {
     /// Simulated time (s).
     #[arg(long, default_value_t = 300.0)]
     pub duration: f64,
-    /// The section records t = kT from here on (s).
-    #[arg(long, default_value_t = 100.0)]
-    pub transient: f64,
+    /// The section records t = kT from here on (s) [default: 100, or half a shorter run].
+    #[arg(long)]
+    pub transient: Option<f64>,
     #[command(flatten)]
     pub classify: ClassifyArgs,
     /// Output prefix: writes PREFIX.csv, PREFIX.png and PREFIX.svg.
@@ -32,6 +32,13 @@ pub struct PoincareCmd {
     /// Print the classification as JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+impl PoincareCmd {
+    /// `--transient`, or its default ([`super::transient_or`]).
+    pub fn transient(&self) -> f64 {
+        super::transient_or(self.transient, 100.0, self.duration)
+    }
 }
 
 #[derive(Serialize)]
@@ -49,10 +56,10 @@ pub fn run(args: PoincareCmd) -> Result<()> {
     crate::plot::make_room(&args.output)?;
     let subject = Subject::load(&args.model.setup, args.model.mu)?;
     subject.check()?;
-    super::check_run_window(args.duration, args.transient)?;
+    super::check_run_window(args.duration, args.transient())?;
     let spec = RunSpec {
         duration: args.duration,
-        transient: args.transient,
+        transient: args.transient(),
         lyapunov: None,
         classify: args.classify.config()?,
     };
