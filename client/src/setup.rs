@@ -191,9 +191,7 @@ pub fn set_sim_duration(
             bail!("--duration {d}: must be a finite number of seconds > 0");
         }
         sim.duration = d;
-        if transient.is_none() && sim.transient > d {
-            sim.transient = d / 2.0;
-        }
+        sim.transient = crate::analysis::transient_or(transient, sim.transient, d);
     }
     if let Some(t) = transient {
         sim.transient = t;

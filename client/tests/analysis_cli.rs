@@ -90,37 +90,26 @@ fn windows_outside_the_run_are_refused() {
 #[test]
 fn a_short_duration_alone_runs_with_the_transient_halved() {
     let dir = scratch("short");
-    let figures = dir.join("figures");
-    let out = chaosctl(&[
+    let ran = |args: &[&str]| {
+        let out = chaosctl(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{args:?}: {err}");
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let (figures, prefix) = (dir.join("figures"), dir.join("section"));
+    let f = figures.to_str().unwrap();
+    let text = ran(&[
         "figures",
         "--preset",
         "panda",
         "--duration",
         "10",
         "--output-dir",
-        figures.to_str().unwrap(),
+        f,
     ]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     assert!(figures.join("mu0.25_residual.png").is_file(), "{text}");
-    let prefix = dir.join("section");
-    let out = chaosctl(&[
-        "poincare",
-        "--duration",
-        "60",
-        "--output",
-        prefix.to_str().unwrap(),
-    ]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let p = prefix.to_str().unwrap();
+    let text = ran(&["poincare", "--duration", "60", "--output", p]);
     assert!(text.contains("t = kT from 30 to 60 s"), "{text}");
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -261,8 +261,8 @@ pub fn fmt_num(v: f64) -> String {
 }
 
 /// `--transient` as given, else its default, which a run no longer than it halves to half the
-/// run (as `simulate` does): a short `--duration` alone is never refused over a flag the user did
-/// not pass.
+/// run: a short `--duration` alone is never refused over a flag the user did not pass (every
+/// command with a transient, `simulate`'s `[sim]` included).
 pub fn transient_or(given: Option<f64>, default: f64, duration: f64) -> f64 {
     given.unwrap_or(if default < duration {
         default
