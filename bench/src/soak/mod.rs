@@ -549,7 +549,10 @@ impl Soak {
 
     fn burst(&mut self, f: &Fault, before: &Status, e: &mut Episode) -> Result<()> {
         let mut rng = Rng::new(f.seed);
-        let (mut answered, mut sets, mut last_mu) = (0usize, 0u64, None);
+        // The μ values the last batch with an accepted `set` carried: six clients are in flight
+        // at once, and the daemon may serve them in any order, so the one it applied last is
+        // any of them (never one from an earlier batch: a batch waits for all its answers).
+        let (mut answered, mut sets, mut last_mus) = (0usize, 0u64, Vec::<f64>::new());
         let t = Instant::now();
         let mut left = f.requests;
         while left > 0 {
@@ -564,19 +567,23 @@ impl Soak {
                 .collect();
             let refs: Vec<(Op, &str)> = reqs.iter().map(|(o, a)| (*o, a.as_str())).collect();
             let answers = self.ctl.batch(&self.node, &refs, ANSWER_LIMIT);
+            let mut batch_mus = Vec::new();
             for ((op, args), a) in reqs.iter().zip(answers) {
                 match a {
                     Some(Ok(_)) => {
                         answered += 1;
                         if *op == Op::Set {
                             sets += 1;
-                            last_mu = args.strip_prefix("mu ").and_then(|v| v.parse::<f64>().ok());
+                            batch_mus.extend(set_mu(args));
                         }
                     }
                     // "try again": the loop had not taken the previous change; still an answer.
                     Some(Err(_)) => answered += 1,
                     None => {}
                 }
+            }
+            if !batch_mus.is_empty() {
+                last_mus = batch_mus;
             }
             self.observe(None)?;
         }
@@ -585,14 +592,12 @@ impl Soak {
             e.detected = Some(t.elapsed());
         }
         e.note(&format!(
-            "{answered}/{} answered, {sets} sets accepted",
-            f.requests
+            "{answered}/{} answered, {sets} sets accepted; the last batch of them asked μ ∈ {:?}",
+            f.requests, last_mus
         ));
         let applied = before.params_applied;
-        let r = self.wait_run(|s| {
-            s.params_applied == applied + sets
-                && last_mu.is_none_or(|m| s.mu.is_some_and(|x| (x - m).abs() < 1e-9))
-        })?;
+        let r =
+            self.wait_run(|s| s.params_applied == applied + sets && mu_is_one_of(s.mu, &last_mus))?;
         e.recovered = r.map(|at| at - end);
         Ok(())
     }
@@ -675,6 +680,17 @@ fn resources_csv(t0: Instant, roles: &[&Role]) -> String {
         }
     }
     out
+}
+
+/// The μ a burst's `set mu X` asked for.
+fn set_mu(args: &str) -> Option<f64> {
+    args.strip_prefix("mu ")?.trim().parse().ok()
+}
+
+/// Whether the daemon's μ is one the last batch of accepted sets asked for (any μ when the
+/// burst accepted none).
+fn mu_is_one_of(mu: Option<f64>, asked: &[f64]) -> bool {
+    asked.is_empty() || mu.is_some_and(|x| asked.iter().any(|m| (x - m).abs() < 1e-9))
 }
 
 fn read_json(p: &Path) -> Result<serde_json::Value> {
@@ -822,4 +838,22 @@ fn drive(s: &mut Soak, plan: &[Fault]) -> Result<()> {
         bail!("the system was not in RUN at the end");
     }
     s.finish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_burst_accepts_the_mu_of_any_set_in_its_last_batch_and_no_other() {
+        assert_eq!(set_mu("mu 0.252"), Some(0.252));
+        assert_eq!(set_mu("tau 1.0"), None);
+        assert_eq!(set_mu("mu x"), None);
+        let asked = [0.252, 0.113];
+        assert!(mu_is_one_of(Some(0.113), &asked));
+        assert!(mu_is_one_of(Some(0.252), &asked));
+        assert!(!mu_is_one_of(Some(0.2), &asked));
+        assert!(!mu_is_one_of(None, &asked));
+        assert!(mu_is_one_of(None, &[]));
+    }
 }
