@@ -180,6 +180,17 @@ impl SetupArgs {
     }
 }
 
+/// `--transient` as given, else its default, which a run no longer than it halves to half the
+/// run: a short `--duration` alone is never refused over a flag the user did not pass (every
+/// command with a transient, `simulate`'s `[sim]` included).
+pub fn transient_or(given: Option<f64>, default: f64, duration: f64) -> f64 {
+    given.unwrap_or(if default < duration {
+        default
+    } else {
+        duration / 2.0
+    })
+}
+
 /// `--duration` and `--transient` on any arm's `[sim]` (the caller checks the whole set-up).
 pub fn set_sim_duration(
     sim: &mut control::config::SimSection,
@@ -191,7 +202,7 @@ pub fn set_sim_duration(
             bail!("--duration {d}: must be a finite number of seconds > 0");
         }
         sim.duration = d;
-        sim.transient = crate::analysis::transient_or(transient, sim.transient, d);
+        sim.transient = transient_or(transient, sim.transient, d);
     }
     if let Some(t) = transient {
         sim.transient = t;

@@ -46,9 +46,9 @@ pub struct FiguresCmd {
 }
 
 impl FiguresCmd {
-    /// `--transient`, or its default ([`super::transient_or`]).
+    /// `--transient`, or its default ([`crate::setup::transient_or`]).
     pub fn transient(&self) -> f64 {
-        super::transient_or(self.transient, 20.0, self.duration)
+        crate::setup::transient_or(self.transient, 20.0, self.duration)
     }
 }
 

@@ -260,17 +260,6 @@ pub fn fmt_num(v: f64) -> String {
     s.replace('-', "m")
 }
 
-/// `--transient` as given, else its default, which a run no longer than it halves to half the
-/// run: a short `--duration` alone is never refused over a flag the user did not pass (every
-/// command with a transient, `simulate`'s `[sim]` included).
-pub fn transient_or(given: Option<f64>, default: f64, duration: f64) -> f64 {
-    given.unwrap_or(if default < duration {
-        default
-    } else {
-        duration / 2.0
-    })
-}
-
 /// Checks `--duration` and `--transient`: the section needs points after the transient.
 pub fn check_run_window(duration: f64, transient: f64) -> Result<()> {
     if !(duration.is_finite() && duration > 0.0) {
@@ -330,6 +319,7 @@ pub fn print_written(files: &[std::path::PathBuf]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::setup::transient_or;
 
     #[test]
     fn a_default_transient_halves_for_a_short_run_and_a_given_one_never_changes() {

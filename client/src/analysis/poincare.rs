@@ -35,9 +35,9 @@ pub struct PoincareCmd {
 }
 
 impl PoincareCmd {
-    /// `--transient`, or its default ([`super::transient_or`]).
+    /// `--transient`, or its default ([`crate::setup::transient_or`]).
     pub fn transient(&self) -> f64 {
-        super::transient_or(self.transient, 100.0, self.duration)
+        crate::setup::transient_or(self.transient, 100.0, self.duration)
     }
 }
 
