@@ -49,8 +49,8 @@ pub fn command<const N: usize>(
             phi: x.phi + out.base_rate * h,
         };
         let d1 = delayed(t + h - tau);
-        let next = law.evaluate(t + h, &predicted, &d1, scratch);
-        qddd = (next.qdd - u) / h;
+        let (next, _) = law.acceleration(t + h, &predicted, &d1, scratch);
+        qddd = (next - u) / h;
         if !qddd.iter().all(|v| v.is_finite()) {
             qddd = VecN::<N>::zeros();
         }

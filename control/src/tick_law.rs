@@ -78,6 +78,42 @@ impl<const N: usize> TickLaw<N> {
         }
     }
 
+    /// [`Self::evaluate`]'s (q̈, φ̇) alone, bit for bit, without the output's diagnostics: the
+    /// first-order hold's second point and an integrator's inner stages read nothing else.
+    #[inline]
+    pub fn acceleration(
+        &self,
+        t: f64,
+        x: &ArmState<N>,
+        delayed: &VecN<N>,
+        scratch: &mut LawScratch<N>,
+    ) -> (VecN<N>, f64) {
+        match self {
+            TickLaw::Planar { model, params } => law::acceleration(
+                params,
+                model,
+                t,
+                x.phi,
+                &x.q,
+                &x.qd,
+                delayed,
+                &mut scratch.planar,
+            ),
+            TickLaw::Spatial { arm, params } => {
+                let k = &mut scratch.spatial;
+                let qdd = match params.task.kind {
+                    TaskKind::Position => {
+                        spatial_law::acceleration::<N, 3>(params, arm, t, &x.q, &x.qd, delayed, k)
+                    }
+                    TaskKind::Pose => {
+                        spatial_law::acceleration::<N, 6>(params, arm, t, &x.q, &x.qd, delayed, k)
+                    }
+                };
+                (qdd, 0.0)
+            }
+        }
+    }
+
     /// φ̇ for the state (the planar floating base turns; every other arm has a fixed base).
     #[inline]
     pub fn base_rate(&self, x: &ArmState<N>) -> f64 {
@@ -207,6 +243,16 @@ impl<const N: usize> crate::sim::ClosedLoopLaw<N> for TickLaw<N> {
         scratch: &mut LawScratch<N>,
     ) -> ControlOutput<N> {
         TickLaw::evaluate(self, t, x, delayed, scratch)
+    }
+    #[inline]
+    fn acceleration(
+        &self,
+        t: f64,
+        x: &ArmState<N>,
+        delayed: &VecN<N>,
+        scratch: &mut LawScratch<N>,
+    ) -> (VecN<N>, f64) {
+        TickLaw::acceleration(self, t, x, delayed, scratch)
     }
     fn core(&self) -> &LawCore {
         TickLaw::core(self)

@@ -303,3 +303,26 @@ pub fn evaluate<const N: usize>(
     };
     pipeline::evaluate(&mut side, t, q, qd, qd_delayed)
 }
+
+/// [`evaluate`]'s (q̈, φ̇) alone, bit for bit, without the output's diagnostics
+/// ([`pipeline::acceleration`]).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub fn acceleration<const N: usize>(
+    params: &LawParams,
+    model: &ArmModel<N>,
+    t: f64,
+    phi: f64,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+    qd_delayed: &VecN<N>,
+    kin: &mut Kinematics<N>,
+) -> (VecN<N>, f64) {
+    let mut side = PlanarSide {
+        params,
+        model,
+        phi,
+        kin,
+    };
+    pipeline::acceleration(&mut side, t, q, qd, qd_delayed)
+}

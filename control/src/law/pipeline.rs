@@ -123,6 +123,78 @@ pub fn evaluate<const N: usize, const M: usize>(
     qd: &VecN<N>,
     qd_delayed: &VecN<N>,
 ) -> ControlOutput<N> {
+    let c = command(arm, t, q, qd, qd_delayed);
+    let g = arm.gains(t);
+    let mut flag = c.flag;
+    let (clearance, in_zone) = arm.clearance();
+    if in_zone {
+        flag |= flags::IN_SAFETY_ZONE;
+    }
+    let rows = &c.rows;
+    let tracking_error = rows.position_error;
+    if tracking_error.is_nan() || tracking_error > g.track_loss {
+        flag |= flags::TRACK_LOST;
+    }
+    flag |= arm.task_flags(rows);
+    let (j, diff) = (&rows.j, c.diff);
+    ControlOutput {
+        qdd: c.qdd,
+        p: rows.p,
+        p_desired: rows.p_desired,
+        tracking_error,
+        orientation_error: rows.orientation_error,
+        sigma_min: c.smin,
+        damping: c.lambda,
+        secondary_value: c.secondary_value,
+        period_residual: diff.norm(),
+        null_residual: (diff - c.jpinv * (j * diff)).norm(),
+        clearance,
+        joint_margin: g.safety.joint_margin(q),
+        demand: c.demand,
+        base_rate: arm.base_rate(),
+        flags: flag,
+    }
+}
+
+/// The command alone, (q̈, φ̇): [`evaluate`] without the output's diagnostics (clearance,
+/// residuals, joint margin, flags), for the evaluations whose output nobody reads: an RK4
+/// step's inner stages and the first-order hold's second point. q̈ is [`evaluate`]'s bit for
+/// bit, as the diagnostics never feed it; on the Panda with four spheres they are about a
+/// tenth of an evaluation.
+#[inline]
+pub fn acceleration<const N: usize, const M: usize>(
+    arm: &mut impl ArmSide<N, M>,
+    t: f64,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+    qd_delayed: &VecN<N>,
+) -> (VecN<N>, f64) {
+    let c = command(arm, t, q, qd, qd_delayed);
+    (c.qdd, arm.base_rate())
+}
+
+/// What the law commands at one state and what it met on the way, before the diagnostics.
+struct Commanded<const N: usize, const M: usize> {
+    rows: TaskRows<N, M>,
+    jpinv: SMatrix<f64, N, M>,
+    smin: f64,
+    lambda: f64,
+    diff: VecN<N>,
+    secondary_value: f64,
+    qdd: VecN<N>,
+    demand: f64,
+    flag: u32,
+}
+
+/// The law's steps up to the finite, filtered q̈.
+#[inline(always)]
+fn command<const N: usize, const M: usize>(
+    arm: &mut impl ArmSide<N, M>,
+    t: f64,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+    qd_delayed: &VecN<N>,
+) -> Commanded<N, M> {
     let rows = arm.task(t, q, qd);
     let j = &rows.j;
     let (secondary_value, eta) = if arm.steering() {
@@ -170,34 +242,19 @@ pub fn evaluate<const N: usize, const M: usize>(
         qdd = f.qdd;
         flag |= f.flags;
     }
-    let (clearance, in_zone) = arm.clearance();
-    if in_zone {
-        flag |= flags::IN_SAFETY_ZONE;
-    }
-    let tracking_error = rows.position_error;
-    if tracking_error.is_nan() || tracking_error > g.track_loss {
-        flag |= flags::TRACK_LOST;
-    }
-    flag |= arm.task_flags(&rows);
     if !qdd.iter().all(|v| v.is_finite()) {
         qdd = VecN::<N>::zeros();
         flag |= flags::NONFINITE;
     }
-    ControlOutput {
-        qdd,
-        p: rows.p,
-        p_desired: rows.p_desired,
-        tracking_error,
-        orientation_error: rows.orientation_error,
-        sigma_min: smin,
-        damping: lambda,
+    Commanded {
+        rows,
+        jpinv,
+        smin,
+        lambda,
+        diff,
         secondary_value,
-        period_residual: diff.norm(),
-        null_residual: (diff - jpinv * (j * diff)).norm(),
-        clearance,
-        joint_margin: g.safety.joint_margin(q),
+        qdd,
         demand,
-        base_rate: arm.base_rate(),
-        flags: flag,
+        flag,
     }
 }

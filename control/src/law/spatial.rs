@@ -251,6 +251,27 @@ pub fn evaluate<const N: usize, const M: usize>(
     super::pipeline::evaluate::<N, M>(&mut side, t, q, qd, qd_delayed)
 }
 
+/// [`evaluate`]'s q̈ alone, bit for bit, without the output's diagnostics
+/// ([`super::pipeline::acceleration`]).
+#[inline]
+pub fn acceleration<const N: usize, const M: usize>(
+    params: &SpatialParams,
+    arm: &SpatialArm<N>,
+    t: f64,
+    q: &VecN<N>,
+    qd: &VecN<N>,
+    qd_delayed: &VecN<N>,
+    kin: &mut SpatialKinematics<N>,
+) -> VecN<N> {
+    let mut side = SpatialSide {
+        params,
+        arm,
+        kin,
+        eta: VecN::<N>::zeros(),
+    };
+    super::pipeline::acceleration::<N, M>(&mut side, t, q, qd, qd_delayed).0
+}
+
 /// With null-space damping k_d the secondary task's pull α N η − k_d q̇_N (N = I − J⁺J) is a
 /// velocity servo: it drives the self-motion towards the speed v = α N η / k_d. Far from the
 /// task's optimum v is large (a start near a joint limit asks several rad/s of the centring

@@ -30,6 +30,19 @@ pub trait ClosedLoopLaw<const N: usize>: Clone {
         scratch: &mut Self::Scratch,
     ) -> ControlOutput<N>;
 
+    /// [`Self::evaluate`]'s (q̈, φ̇) alone, bit for bit: what an integrator's inner stages need,
+    /// without the diagnostics nobody reads there.
+    fn acceleration(
+        &self,
+        t: f64,
+        x: &ArmState<N>,
+        delayed: &VecN<N>,
+        scratch: &mut Self::Scratch,
+    ) -> (VecN<N>, f64) {
+        let out = self.evaluate(t, x, delayed, scratch);
+        (out.qdd, out.base_rate)
+    }
+
     /// The gains, feedback and limits every arm's law has.
     fn core(&self) -> &LawCore;
     fn core_mut(&mut self) -> &mut LawCore;
@@ -100,6 +113,17 @@ impl<const N: usize> ClosedLoopLaw<N> for PlanarLaw<N> {
         let (m, p) = (&self.model, &self.params);
         law::evaluate(p, m, t, x.phi, &x.q, &x.qd, delayed, kin)
     }
+    #[inline]
+    fn acceleration(
+        &self,
+        t: f64,
+        x: &ArmState<N>,
+        delayed: &VecN<N>,
+        kin: &mut Kinematics<N>,
+    ) -> (VecN<N>, f64) {
+        let (m, p) = (&self.model, &self.params);
+        law::acceleration(p, m, t, x.phi, &x.q, &x.qd, delayed, kin)
+    }
     fn core(&self) -> &LawCore {
         &self.params.core
     }
@@ -151,6 +175,18 @@ impl<const N: usize, const M: usize> ClosedLoopLaw<N> for SpatialLaw<N, M> {
     ) -> ControlOutput<N> {
         let (arm, p) = (&self.arm, &self.params);
         law::spatial::evaluate::<N, M>(p, arm, t, &x.q, &x.qd, delayed, kin)
+    }
+    #[inline]
+    fn acceleration(
+        &self,
+        t: f64,
+        x: &ArmState<N>,
+        delayed: &VecN<N>,
+        kin: &mut SpatialKinematics<N>,
+    ) -> (VecN<N>, f64) {
+        let (arm, p) = (&self.arm, &self.params);
+        let qdd = law::spatial::acceleration::<N, M>(p, arm, t, &x.q, &x.qd, delayed, kin);
+        (qdd, 0.0)
     }
     fn core(&self) -> &LawCore {
         &self.params.core

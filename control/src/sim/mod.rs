@@ -165,11 +165,15 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Simulation<N, L> {
         self.state = rk4_step(&self.state, dt, |c, x| {
             let s = (k + c) * dt;
             let delayed = delay.sample(k + c - tau_steps);
-            let out = law.evaluate(s, x, &delayed, scratch);
-            if first.is_none() {
+            // Only the first stage's output is returned: the others need q̈ alone.
+            let (qdd, base_rate) = if first.is_none() {
+                let out = law.evaluate(s, x, &delayed, scratch);
                 first = Some(out);
-            }
-            plant_derivative(x, &out.qdd, out.base_rate)
+                (out.qdd, out.base_rate)
+            } else {
+                law.acceleration(s, x, &delayed, scratch)
+            };
+            plant_derivative(x, &qdd, base_rate)
         });
         self.step_index += 1;
         let out = first.expect("rk4 evaluates stage 1");
