@@ -22,6 +22,7 @@ pub mod config;
 pub mod dual_qp;
 pub mod policy;
 pub mod rows;
+pub mod screen;
 pub mod solve;
 
 use crate::arm::point::{PointMotion, Points as PointsOf};

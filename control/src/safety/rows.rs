@@ -401,13 +401,15 @@ pub fn any_ball_missed<const N: usize>(
     if balls.is_empty() {
         return false;
     }
-    let mut image = [Vector3::zeros(); MAX_JOINTS + 1];
-    for (im, pt) in image.iter_mut().zip(points).take(N + 1) {
-        *im = pt.jac * qdd;
-    }
+    let image = super::screen::images(points, qdd);
+    // A pair the link's bound clears cannot miss its row: only the others are computed.
+    let bounds = super::screen::link_bounds(points, &image, (p.k0, p.k1));
     for o in balls.as_slice() {
         for j in 0..N {
             let reach = o.radius + link_radii[j] + p.clearance;
+            if bounds[j].clears(&o.center, reach, p.k0) {
+                continue;
+            }
             let foot = segment_foot(&points[j], &points[j + 1], o.center, reach, p.gains());
             if foot.is_some_and(|f| misses(f.b, f.applied(&image[j], &image[j + 1]))) {
                 return true;
