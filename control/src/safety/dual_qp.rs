@@ -109,10 +109,11 @@ pub fn solve<const N: usize>(a: &[VecN<N>], h: &[f64]) -> Outcome<N> {
         let mut worst = 0.0;
         for k in 0..a.len() {
             let s = a[k].dot(&x) - h[k];
-            let norm = a[k].norm();
             if s >= -TOL * (1.0 + h[k].abs()) {
                 continue;
             }
+            // Only a violated row's length is needed (a square root each, every round).
+            let norm = a[k].norm();
             if norm <= 1e-12 {
                 return Outcome::Infeasible;
             }
