@@ -278,10 +278,11 @@ fn three_arms_nobody_tuned_for_track_in_every_mode_inside_every_limit() {
 /// Each of `runs` of `arm` (6 s demos) tracks to 1 mm RMS without a fault or a state or command
 /// outside a limit.
 ///
-/// A run whose loop the host stalled for 2 ms or more (a sleep that woke that late) and that
-/// missed the tracking bound runs once more, and must meet it then: through the UDP bridge such
-/// a stall makes the device miss cycles and brake, and each brake restarts the stream (seen
-/// once in a full run: 371 missed device cycles, 3 brakes, 1.2 cm; 0.33 mm alone). Limits and
+/// A run whose loop the host stalled for a period or more (a sleep that woke 1 ms late or
+/// later) and that missed the tracking bound runs once more, and must meet it then: through the
+/// UDP bridge such a stall makes the device miss cycles and brake, and each brake restarts the
+/// stream (seen in full runs: 371 missed device cycles, 3 brakes, 1.2 cm, after stalls over
+/// 2 ms; 67 missed cycles, 1 brake, 3.6 mm, after a 1.96 ms stall; 0.33 mm alone). Limits and
 /// faults are judged on every run, stalled or not.
 fn tracks_inside_every_limit(arm: &Arm, runs: &[&[&str]], dir: &Path) {
     let rms_max = 1e-3;
@@ -308,7 +309,7 @@ fn tracks_inside_every_limit(arm: &Arm, runs: &[&[&str]], dir: &Path) {
             );
             let rms = s["tracking_rms_m"].as_f64().unwrap();
             let stall_ns = s["counters"]["late_wakes"]["max_ns"].as_u64().unwrap_or(0);
-            if rms > rms_max && stall_ns >= 2_000_000 && attempt == 1 {
+            if rms > rms_max && stall_ns >= 1_000_000 && attempt == 1 {
                 eprintln!(
                     "{what}: tracking RMS {rms:.2e} m after a {stall_ns} ns host stall: once more"
                 );
