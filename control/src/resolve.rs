@@ -99,20 +99,46 @@ pub fn damped_pinv_m<const N: usize, const M: usize>(
     threshold: f64,
     lambda_max: f64,
 ) -> (SMatrix<f64, N, M>, f64, f64) {
+    damped_pinv_deciding(j, threshold, lambda_max, true)
+}
+
+/// [`damped_pinv_m`], where σ_min may be wanted only to decide the damping (`smin_wanted`
+/// false, the law's command alone): for a 3-row task whose JJᵀ = A has det(A)/Σ(principal 2×2
+/// minors) ≥ (1.01 ε)², a lower bound of its smallest eigenvalue (λ₁ = det/(λ₂λ₃) and λ₂λ₃ is
+/// one of the minors' terms), σ_min is surely above the threshold, λ = 0, and the eigenvalue
+/// itself (an `acos` and a `cos`) is not computed: σ_min comes back NaN. J⁺ and λ are
+/// [`damped_pinv_m`]'s bit for bit either way.
+///
+/// ```
+/// use nalgebra::SMatrix;
+/// let j = SMatrix::<f64, 3, 7>::from_fn(|r, c| if r == c { 2.0 } else { 0.0 });
+/// let (p, smin, l) = control::resolve::damped_pinv_deciding(&j, 0.05, 0.05, false);
+/// assert!(smin.is_nan() && l == 0.0); // far from singular: only the decision was made
+/// assert_eq!(p, control::resolve::damped_pinv_m(&j, 0.05, 0.05).0);
+/// ```
+#[inline]
+pub fn damped_pinv_deciding<const N: usize, const M: usize>(
+    j: &SMatrix<f64, M, N>,
+    threshold: f64,
+    lambda_max: f64,
+    smin_wanted: bool,
+) -> (SMatrix<f64, N, M>, f64, f64) {
     if M == 2 {
         let j2 = Jac::<N>::from_fn(|r, c| j[(r, c)]);
         let (p, s, l) = damped_pinv(&j2, threshold, lambda_max);
         return (SMatrix::from_fn(|r, c| p[(r, c)]), s, l);
     }
     let a = j * j.transpose();
-    let smin = if M == 3 {
-        min_eigenvalue_3(&SMatrix::<f64, 3, 3>::from_fn(|r, c| a[(r, c)]))
+    let a3 = || SMatrix::<f64, 3, 3>::from_fn(|r, c| a[(r, c)]);
+    let smin = if M == 3 && !smin_wanted && surely_above(&a3(), threshold) {
+        f64::NAN
+    } else if M == 3 {
+        min_eigenvalue_3(&a3()).max(0.0).sqrt()
     } else {
-        min_eigenvalue(a)
-    }
-    .max(0.0)
-    .sqrt();
+        min_eigenvalue(a).max(0.0).sqrt()
+    };
     let mut lambda2 = 0.0;
+    // A NaN σ_min (not computed: surely above) takes no damping, as one above the threshold.
     if smin < threshold {
         let r = smin / threshold;
         lambda2 = (1.0 - r * r) * lambda_max * lambda_max;
@@ -124,6 +150,17 @@ pub fn damped_pinv_m<const N: usize, const M: usize>(
         None => m.try_inverse().map_or_else(SMatrix::zeros, |inv| inv * j),
     };
     (pinv_t.transpose(), smin, lambda2.sqrt())
+}
+
+/// Whether the symmetric positive semi-definite `a`'s smallest eigenvalue is surely above
+/// `threshold`², with a margin of 1 % in σ for the rounding: det(a) / Σ(principal 2×2 minors)
+/// bounds it from below. False when the bound cannot tell (a singular or indefinite `a`, NaN).
+#[inline]
+fn surely_above(a: &SMatrix<f64, 3, 3>, threshold: f64) -> bool {
+    let m = |r: usize, c: usize| a[(r, r)] * a[(c, c)] - a[(r, c)] * a[(c, r)];
+    let minors = m(0, 1) + m(0, 2) + m(1, 2);
+    let det = a.determinant();
+    det > 0.0 && minors > 0.0 && det >= minors * (1.0201 * threshold * threshold)
 }
 
 /// The smallest eigenvalue of a symmetric m×m matrix by cyclic Jacobi rotations: each sweep
@@ -218,4 +255,47 @@ pub fn resolve<const N: usize, const M: usize>(
         qdd -= term * mu;
     }
     qdd
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// On random 3×7 Jacobians, far from singular and within the damping band alike (one row
+    /// scaled down to σ_min around the threshold), deciding without σ_min gives J⁺ and λ bit for
+    /// bit, and skips σ_min only where it is above the threshold; it does skip it where J is well
+    /// conditioned.
+    #[test]
+    fn deciding_the_damping_alone_changes_nothing_and_skips_only_above_the_threshold() {
+        let mut seed = 9u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let (threshold, lambda_max) = (0.05, 0.05);
+        let mut skipped = 0;
+        for k in 0..5000 {
+            let mut j = SMatrix::<f64, 3, 7>::from_fn(|_, _| rnd());
+            let scale = [1.0, 0.1, 0.05, 0.03, 0.01][k % 5] * (1.0 + 0.5 * rnd());
+            for c in 0..7 {
+                j[(2, c)] = j[(1, c)] + scale * j[(2, c)];
+            }
+            let (p, smin, l) = damped_pinv_m(&j, threshold, lambda_max);
+            let (pd, sd, ld) = damped_pinv_deciding(&j, threshold, lambda_max, false);
+            assert_eq!(p, pd, "J⁺ differs at {k}");
+            assert_eq!(l.to_bits(), ld.to_bits(), "λ differs at {k}");
+            if sd.is_nan() {
+                skipped += 1;
+                assert!(
+                    smin >= threshold,
+                    "skipped σ_min = {smin} below the threshold"
+                );
+            } else {
+                assert_eq!(sd.to_bits(), smin.to_bits());
+            }
+        }
+        assert!(skipped > 1000, "σ_min skipped {skipped} times");
+    }
 }

@@ -133,7 +133,14 @@ impl<const N: usize> PlanarSide<'_, N> {
 
 impl<const N: usize> ArmSide<N, 2> for PlanarSide<'_, N> {
     #[inline]
-    fn pinv(&self, j: &Jac<N>, threshold: f64, lambda_max: f64) -> (SMatrix<f64, N, 2>, f64, f64) {
+    fn pinv(
+        &self,
+        j: &Jac<N>,
+        threshold: f64,
+        lambda_max: f64,
+        _smin_wanted: bool,
+    ) -> (SMatrix<f64, N, 2>, f64, f64) {
+        // The 2×2 closed form has σ_min for a square root: no reason to skip it.
         crate::resolve::damped_pinv(j, threshold, lambda_max)
     }
 

@@ -11,7 +11,7 @@
 
 use crate::arm::VecN;
 use crate::basics::flags;
-use crate::resolve::{damped_pinv_m, resolve, ControlOutput, NullTerms, Projection};
+use crate::resolve::{damped_pinv_deciding, resolve, ControlOutput, NullTerms, Projection};
 use crate::safety::{pause_brake, Filtered, SafetyParams};
 use nalgebra::{SMatrix, SVector, Vector3};
 
@@ -52,15 +52,18 @@ pub trait ArmSide<const N: usize, const M: usize> {
     /// Computes the kinematics at (q, q̇) and returns the task's rows at `t`.
     fn task(&mut self, t: f64, q: &VecN<N>, qd: &VecN<N>) -> TaskRows<N, M>;
     /// The damped pseudo-inverse (J⁺, σ_min, λ) of the task's Jacobian; an arm with a closed
-    /// form for its row count may give it (the planar arm's 2×2).
+    /// form for its row count may give it (the planar arm's 2×2). Without `smin_wanted` σ_min
+    /// may come back NaN where it only had to decide the damping
+    /// ([`crate::resolve::damped_pinv_deciding`]); J⁺ and λ are the same.
     #[inline]
     fn pinv(
         &self,
         j: &SMatrix<f64, M, N>,
         threshold: f64,
         lambda_max: f64,
+        smin_wanted: bool,
     ) -> (SMatrix<f64, N, M>, f64, f64) {
-        damped_pinv_m(j, threshold, lambda_max)
+        damped_pinv_deciding(j, threshold, lambda_max, smin_wanted)
     }
     /// A planned cycle is being steered onto: it replaces the secondary task.
     fn steering(&self) -> bool;
@@ -123,7 +126,7 @@ pub fn evaluate<const N: usize, const M: usize>(
     qd: &VecN<N>,
     qd_delayed: &VecN<N>,
 ) -> ControlOutput<N> {
-    let c = command(arm, t, q, qd, qd_delayed);
+    let c = command(arm, t, q, qd, qd_delayed, true);
     let g = arm.gains(t);
     let mut flag = c.flag;
     let (clearance, in_zone) = arm.clearance();
@@ -169,7 +172,7 @@ pub fn acceleration<const N: usize, const M: usize>(
     qd: &VecN<N>,
     qd_delayed: &VecN<N>,
 ) -> (VecN<N>, f64) {
-    let c = command(arm, t, q, qd, qd_delayed);
+    let c = command(arm, t, q, qd, qd_delayed, false);
     (c.qdd, arm.base_rate())
 }
 
@@ -186,7 +189,8 @@ struct Commanded<const N: usize, const M: usize> {
     flag: u32,
 }
 
-/// The law's steps up to the finite, filtered q̈.
+/// The law's steps up to the finite, filtered q̈; σ_min is computed only if `smin_wanted`
+/// (else it may be NaN, [`ArmSide::pinv`]).
 #[inline(always)]
 fn command<const N: usize, const M: usize>(
     arm: &mut impl ArmSide<N, M>,
@@ -194,6 +198,7 @@ fn command<const N: usize, const M: usize>(
     q: &VecN<N>,
     qd: &VecN<N>,
     qd_delayed: &VecN<N>,
+    smin_wanted: bool,
 ) -> Commanded<N, M> {
     let rows = arm.task(t, q, qd);
     let j = &rows.j;
@@ -204,7 +209,7 @@ fn command<const N: usize, const M: usize>(
     };
     let g = arm.gains(t);
     let mut flag = 0u32;
-    let (jpinv, smin, lambda) = arm.pinv(j, g.damping_threshold, g.damping_max);
+    let (jpinv, smin, lambda) = arm.pinv(j, g.damping_threshold, g.damping_max, smin_wanted);
     if lambda > 0.0 {
         flag |= flags::SINGULAR;
     }

@@ -16,6 +16,7 @@ use crate::arm::spatial::Points;
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
+use crate::resolve::damped_pinv_deciding;
 use crate::resolve::damped_pinv_m;
 use crate::resolve::ControlOutput;
 use crate::safety::Filtered;
@@ -106,9 +107,10 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
         j: &SMatrix<f64, M, N>,
         threshold: f64,
         lambda_max: f64,
+        smin_wanted: bool,
     ) -> (SMatrix<f64, N, M>, f64, f64) {
         match &self.params.joint_weights {
-            None => damped_pinv_m(j, threshold, lambda_max),
+            None => damped_pinv_deciding(j, threshold, lambda_max, smin_wanted),
             Some(d) => damped_pinv_weighted(j, d, threshold, lambda_max),
         }
     }
