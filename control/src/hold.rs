@@ -11,7 +11,7 @@
 
 use crate::arm::{ArmModel, VecN};
 use crate::resolve::ControlOutput;
-use crate::sim::{plant_derivative, rk4_step, ArmState};
+use crate::sim::{plant_derivative, rk4_step, ArmState, ClosedLoopLaw};
 use crate::tick_law::{LawScratch, TickLaw};
 
 /// A command for one hold interval.

@@ -11,6 +11,7 @@
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::arm::{ArmModel, Kinematics, VecN};
+use crate::law::pipeline::Output;
 use crate::law::spatial as spatial_law;
 use crate::law::spatial::SpatialParams;
 pub use crate::law::ParamBlock;
@@ -44,76 +45,6 @@ pub struct LawScratch<const N: usize> {
 }
 
 impl<const N: usize> TickLaw<N> {
-    /// The law at time t on state x, with the delayed velocity q̇(t − τ).
-    #[inline]
-    pub fn evaluate(
-        &self,
-        t: f64,
-        x: &ArmState<N>,
-        delayed: &VecN<N>,
-        scratch: &mut LawScratch<N>,
-    ) -> ControlOutput<N> {
-        match self {
-            TickLaw::Planar { model, params } => law::evaluate(
-                params,
-                model,
-                t,
-                x.phi,
-                &x.q,
-                &x.qd,
-                delayed,
-                &mut scratch.planar,
-            ),
-            TickLaw::Spatial { arm, params } => {
-                let k = &mut scratch.spatial;
-                match params.task.kind {
-                    TaskKind::Position => {
-                        spatial_law::evaluate::<N, 3>(params, arm, t, &x.q, &x.qd, delayed, k)
-                    }
-                    TaskKind::Pose => {
-                        spatial_law::evaluate::<N, 6>(params, arm, t, &x.q, &x.qd, delayed, k)
-                    }
-                }
-            }
-        }
-    }
-
-    /// [`Self::evaluate`]'s (q̈, φ̇) alone, bit for bit, without the output's diagnostics: the
-    /// first-order hold's second point and an integrator's inner stages read nothing else.
-    #[inline]
-    pub fn acceleration(
-        &self,
-        t: f64,
-        x: &ArmState<N>,
-        delayed: &VecN<N>,
-        scratch: &mut LawScratch<N>,
-    ) -> (VecN<N>, f64) {
-        match self {
-            TickLaw::Planar { model, params } => law::acceleration(
-                params,
-                model,
-                t,
-                x.phi,
-                &x.q,
-                &x.qd,
-                delayed,
-                &mut scratch.planar,
-            ),
-            TickLaw::Spatial { arm, params } => {
-                let k = &mut scratch.spatial;
-                let qdd = match params.task.kind {
-                    TaskKind::Position => {
-                        spatial_law::acceleration::<N, 3>(params, arm, t, &x.q, &x.qd, delayed, k)
-                    }
-                    TaskKind::Pose => {
-                        spatial_law::acceleration::<N, 6>(params, arm, t, &x.q, &x.qd, delayed, k)
-                    }
-                };
-                (qdd, 0.0)
-            }
-        }
-    }
-
     /// φ̇ for the state (the planar floating base turns; every other arm has a fixed base).
     #[inline]
     pub fn base_rate(&self, x: &ArmState<N>) -> f64 {
@@ -234,25 +165,33 @@ impl<const N: usize> TickLaw<N> {
 impl<const N: usize> crate::sim::ClosedLoopLaw<N> for TickLaw<N> {
     type Scratch = LawScratch<N>;
 
+    /// The one place a tick asks which arm it drives.
     #[inline]
-    fn evaluate(
+    fn run<O: Output<N>>(
         &self,
         t: f64,
         x: &ArmState<N>,
         delayed: &VecN<N>,
         scratch: &mut LawScratch<N>,
-    ) -> ControlOutput<N> {
-        TickLaw::evaluate(self, t, x, delayed, scratch)
-    }
-    #[inline]
-    fn acceleration(
-        &self,
-        t: f64,
-        x: &ArmState<N>,
-        delayed: &VecN<N>,
-        scratch: &mut LawScratch<N>,
-    ) -> (VecN<N>, f64) {
-        TickLaw::acceleration(self, t, x, delayed, scratch)
+        out: O,
+    ) -> O::Value {
+        match self {
+            TickLaw::Planar { model, params } => {
+                let state = (x.phi, &x.q, &x.qd);
+                law::run(params, model, t, state, delayed, &mut scratch.planar, out)
+            }
+            TickLaw::Spatial { arm, params } => {
+                let (k, state) = (&mut scratch.spatial, (&x.q, &x.qd));
+                match params.task.kind {
+                    TaskKind::Position => {
+                        spatial_law::run::<N, 3, O>(params, arm, t, state, delayed, k, out)
+                    }
+                    TaskKind::Pose => {
+                        spatial_law::run::<N, 6, O>(params, arm, t, state, delayed, k, out)
+                    }
+                }
+            }
+        }
     }
     fn core(&self) -> &LawCore {
         TickLaw::core(self)

@@ -3,7 +3,7 @@
 //! kind of arm, with and without obstacles, with the safety filter binding or not: the
 //! diagnostics it skips never feed the command.
 
-use control::sim::{ArmState, Simulation};
+use control::sim::{ArmState, ClosedLoopLaw, Simulation};
 
 use control::system::builtin_robot;
 use control::tick_law::LawScratch;

@@ -4,6 +4,7 @@
 use control::adapt::AutoMu;
 use control::monitor::run::{watch, Edit, PeriodPoint};
 use control::monitor::{MonitorSettings, Verdict};
+use control::sim::ClosedLoopLaw;
 use control::{Config, System};
 
 fn paper(q0: [f64; 3], mu: f64) -> System {

@@ -302,34 +302,26 @@ pub fn evaluate<const N: usize>(
     qd_delayed: &VecN<N>,
     kin: &mut Kinematics<N>,
 ) -> ControlOutput<N> {
-    let mut side = PlanarSide {
-        params,
-        model,
-        phi,
-        kin,
-    };
-    pipeline::evaluate(&mut side, t, q, qd, qd_delayed)
+    let x = (phi, q, qd);
+    run(params, model, t, x, qd_delayed, kin, pipeline::Full)
 }
 
-/// [`evaluate`]'s (q̈, φ̇) alone, bit for bit, without the output's diagnostics
-/// ([`pipeline::acceleration`]).
+/// [`evaluate`], or what else `out` asks for ([`pipeline::Output`]); `x` is (φ, q, q̇).
 #[inline]
-#[allow(clippy::too_many_arguments)]
-pub fn acceleration<const N: usize>(
+pub fn run<const N: usize, O: pipeline::Output<N>>(
     params: &LawParams,
     model: &ArmModel<N>,
     t: f64,
-    phi: f64,
-    q: &VecN<N>,
-    qd: &VecN<N>,
+    (phi, q, qd): (f64, &VecN<N>, &VecN<N>),
     qd_delayed: &VecN<N>,
     kin: &mut Kinematics<N>,
-) -> (VecN<N>, f64) {
+    out: O,
+) -> O::Value {
     let mut side = PlanarSide {
         params,
         model,
         phi,
         kin,
     };
-    pipeline::acceleration(&mut side, t, q, qd, qd_delayed)
+    pipeline::run(&mut side, t, q, qd, qd_delayed, out)
 }

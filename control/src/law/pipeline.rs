@@ -117,67 +117,109 @@ pub trait ArmSide<const N: usize, const M: usize> {
     }
 }
 
-/// Evaluates the law on `arm` at time `t` for state (q, q̇) with delayed velocity q̇(t − τ).
-#[inline]
-pub fn evaluate<const N: usize, const M: usize>(
-    arm: &mut impl ArmSide<N, M>,
-    t: f64,
-    q: &VecN<N>,
-    qd: &VecN<N>,
-    qd_delayed: &VecN<N>,
-) -> ControlOutput<N> {
-    let c = command(arm, t, q, qd, qd_delayed, true);
-    let g = arm.gains(t);
-    let mut flag = c.flag;
-    let (clearance, in_zone) = arm.clearance();
-    if in_zone {
-        flag |= flags::IN_SAFETY_ZONE;
-    }
-    let rows = &c.rows;
-    let tracking_error = rows.position_error;
-    if tracking_error.is_nan() || tracking_error > g.track_loss {
-        flag |= flags::TRACK_LOST;
-    }
-    flag |= arm.task_flags(rows);
-    let (j, diff) = (&rows.j, c.diff);
-    ControlOutput {
-        qdd: c.qdd,
-        p: rows.p,
-        p_desired: rows.p_desired,
-        tracking_error,
-        orientation_error: rows.orientation_error,
-        sigma_min: c.smin,
-        damping: c.lambda,
-        secondary_value: c.secondary_value,
-        period_residual: diff.norm(),
-        null_residual: (diff - c.jpinv * (j * diff)).norm(),
-        clearance,
-        joint_margin: g.safety.joint_margin(q),
-        demand: c.demand,
-        base_rate: arm.base_rate(),
-        flags: flag,
+/// What a caller reads of one evaluation: the whole [`ControlOutput`] ([`Full`]) or the command
+/// alone ([`Command`]). One [`run`] serves both, so the two can never compute different q̈.
+pub trait Output<const N: usize>: Copy {
+    type Value;
+    /// Whether σ_min is wanted (only the full output reports it; [`ArmSide::pinv`]).
+    const SMIN: bool;
+    /// What the caller reads, from the command and the arm's kinematics at the state.
+    fn finish<const M: usize>(
+        self,
+        arm: &mut impl ArmSide<N, M>,
+        t: f64,
+        q: &VecN<N>,
+        c: Commanded<N, M>,
+    ) -> Self::Value;
+}
+
+/// The whole output: q̈ with the diagnostics (clearance, residuals, joint margin, flags).
+#[derive(Clone, Copy, Debug)]
+pub struct Full;
+
+/// The command alone, (q̈, φ̇), for the evaluations whose diagnostics nobody reads: an RK4 step's
+/// inner stages and the first-order hold's second point. q̈ is [`Full`]'s bit for bit, as the
+/// diagnostics never feed it; on the Panda with four spheres they are about a tenth of an
+/// evaluation.
+#[derive(Clone, Copy, Debug)]
+pub struct Command;
+
+impl<const N: usize> Output<N> for Full {
+    type Value = ControlOutput<N>;
+    const SMIN: bool = true;
+    #[inline(always)]
+    fn finish<const M: usize>(
+        self,
+        arm: &mut impl ArmSide<N, M>,
+        t: f64,
+        q: &VecN<N>,
+        c: Commanded<N, M>,
+    ) -> ControlOutput<N> {
+        let g = arm.gains(t);
+        let mut flag = c.flag;
+        let (clearance, in_zone) = arm.clearance();
+        if in_zone {
+            flag |= flags::IN_SAFETY_ZONE;
+        }
+        let rows = &c.rows;
+        let tracking_error = rows.position_error;
+        if tracking_error.is_nan() || tracking_error > g.track_loss {
+            flag |= flags::TRACK_LOST;
+        }
+        flag |= arm.task_flags(rows);
+        let (j, diff) = (&rows.j, c.diff);
+        ControlOutput {
+            qdd: c.qdd,
+            p: rows.p,
+            p_desired: rows.p_desired,
+            tracking_error,
+            orientation_error: rows.orientation_error,
+            sigma_min: c.smin,
+            damping: c.lambda,
+            secondary_value: c.secondary_value,
+            period_residual: diff.norm(),
+            null_residual: (diff - c.jpinv * (j * diff)).norm(),
+            clearance,
+            joint_margin: g.safety.joint_margin(q),
+            demand: c.demand,
+            base_rate: arm.base_rate(),
+            flags: flag,
+        }
     }
 }
 
-/// The command alone, (q̈, φ̇): [`evaluate`] without the output's diagnostics (clearance,
-/// residuals, joint margin, flags), for the evaluations whose output nobody reads: an RK4
-/// step's inner stages and the first-order hold's second point. q̈ is [`evaluate`]'s bit for
-/// bit, as the diagnostics never feed it; on the Panda with four spheres they are about a
-/// tenth of an evaluation.
+impl<const N: usize> Output<N> for Command {
+    type Value = (VecN<N>, f64);
+    const SMIN: bool = false;
+    #[inline(always)]
+    fn finish<const M: usize>(
+        self,
+        arm: &mut impl ArmSide<N, M>,
+        _t: f64,
+        _q: &VecN<N>,
+        c: Commanded<N, M>,
+    ) -> (VecN<N>, f64) {
+        (c.qdd, arm.base_rate())
+    }
+}
+
+/// Runs the law on `arm` at time `t` for state (q, q̇) with delayed velocity q̇(t − τ), and
+/// returns what `out` asks for.
 #[inline]
-pub fn acceleration<const N: usize, const M: usize>(
+pub fn run<const N: usize, const M: usize, O: Output<N>>(
     arm: &mut impl ArmSide<N, M>,
     t: f64,
     q: &VecN<N>,
     qd: &VecN<N>,
     qd_delayed: &VecN<N>,
-) -> (VecN<N>, f64) {
-    let c = command(arm, t, q, qd, qd_delayed, false);
-    (c.qdd, arm.base_rate())
+    out: O,
+) -> O::Value {
+    let c = command(arm, t, q, qd, qd_delayed, O::SMIN);
+    out.finish(arm, t, q, c)
 }
 
 /// What the law commands at one state and what it met on the way, before the diagnostics.
-struct Commanded<const N: usize, const M: usize> {
+pub struct Commanded<const N: usize, const M: usize> {
     rows: TaskRows<N, M>,
     jpinv: SMatrix<f64, N, M>,
     smin: f64,

@@ -9,7 +9,7 @@
 //! compare it with the Pyragas term.
 
 use super::metric::damped_pinv_weighted;
-use super::pipeline::{ArmSide, Gains, TaskRows};
+use super::pipeline::{ArmSide, Full, Gains, Output, TaskRows};
 use super::LawCore;
 use super::Secondary;
 use crate::arm::spatial::Points;
@@ -234,7 +234,6 @@ impl<const N: usize> SpatialSide<'_, N> {
 /// Evaluates the law at time t for state (q, q̇) with delayed velocity q̇(t − τ); `M` must be
 /// the task's row count (3: position, 6: pose). `kin` is scratch.
 #[inline]
-#[allow(clippy::too_many_arguments)]
 pub fn evaluate<const N: usize, const M: usize>(
     params: &SpatialParams,
     arm: &SpatialArm<N>,
@@ -244,34 +243,27 @@ pub fn evaluate<const N: usize, const M: usize>(
     qd_delayed: &VecN<N>,
     kin: &mut SpatialKinematics<N>,
 ) -> ControlOutput<N> {
-    let mut side = SpatialSide {
-        params,
-        arm,
-        kin,
-        eta: VecN::<N>::zeros(),
-    };
-    super::pipeline::evaluate::<N, M>(&mut side, t, q, qd, qd_delayed)
+    run::<N, M, _>(params, arm, t, (q, qd), qd_delayed, kin, Full)
 }
 
-/// [`evaluate`]'s q̈ alone, bit for bit, without the output's diagnostics
-/// ([`super::pipeline::acceleration`]).
+/// [`evaluate`], or what else `out` asks for ([`super::pipeline::Output`]).
 #[inline]
-pub fn acceleration<const N: usize, const M: usize>(
+pub fn run<const N: usize, const M: usize, O: Output<N>>(
     params: &SpatialParams,
     arm: &SpatialArm<N>,
     t: f64,
-    q: &VecN<N>,
-    qd: &VecN<N>,
+    (q, qd): (&VecN<N>, &VecN<N>),
     qd_delayed: &VecN<N>,
     kin: &mut SpatialKinematics<N>,
-) -> VecN<N> {
+    out: O,
+) -> O::Value {
     let mut side = SpatialSide {
         params,
         arm,
         kin,
         eta: VecN::<N>::zeros(),
     };
-    super::pipeline::acceleration::<N, M>(&mut side, t, q, qd, qd_delayed).0
+    super::pipeline::run::<N, M, O>(&mut side, t, q, qd, qd_delayed, out)
 }
 
 /// With null-space damping k_d the secondary task's pull α N η − k_d q̇_N (N = I − J⁺J) is a

@@ -10,6 +10,7 @@
 use super::{ArmState, StatsSetup};
 use crate::arm::spatial::{SpatialArm, SpatialKinematics};
 use crate::arm::{ArmModel, Kinematics, VecN};
+use crate::law::pipeline::{Command, Full, Output};
 use crate::law::spatial::SpatialParams;
 pub use crate::law::LoopFeedback;
 use crate::law::{self, LawCore, LawParams, ParamBlock};
@@ -21,17 +22,32 @@ pub trait ClosedLoopLaw<const N: usize>: Clone {
     /// The law's scratch (kinematics), kept by the simulation so that a step never allocates.
     type Scratch: Clone + Default + std::fmt::Debug;
 
-    /// The law at time `t` on state `x`, with the delayed velocity q̇(t − τ).
+    /// The law at time `t` on state `x`, with the delayed velocity q̇(t − τ): what `out` asks
+    /// for ([`Output`]), the whole output or the command alone.
+    fn run<O: Output<N>>(
+        &self,
+        t: f64,
+        x: &ArmState<N>,
+        delayed: &VecN<N>,
+        scratch: &mut Self::Scratch,
+        out: O,
+    ) -> O::Value;
+
+    /// [`Self::run`]'s whole output.
+    #[inline]
     fn evaluate(
         &self,
         t: f64,
         x: &ArmState<N>,
         delayed: &VecN<N>,
         scratch: &mut Self::Scratch,
-    ) -> ControlOutput<N>;
+    ) -> ControlOutput<N> {
+        self.run(t, x, delayed, scratch, Full)
+    }
 
     /// [`Self::evaluate`]'s (q̈, φ̇) alone, bit for bit: what an integrator's inner stages need,
     /// without the diagnostics nobody reads there.
+    #[inline]
     fn acceleration(
         &self,
         t: f64,
@@ -39,8 +55,7 @@ pub trait ClosedLoopLaw<const N: usize>: Clone {
         delayed: &VecN<N>,
         scratch: &mut Self::Scratch,
     ) -> (VecN<N>, f64) {
-        let out = self.evaluate(t, x, delayed, scratch);
-        (out.qdd, out.base_rate)
+        self.run(t, x, delayed, scratch, Command)
     }
 
     /// The gains, feedback and limits every arm's law has.
@@ -103,26 +118,16 @@ impl<const N: usize> ClosedLoopLaw<N> for PlanarLaw<N> {
     type Scratch = Kinematics<N>;
 
     #[inline]
-    fn evaluate(
+    fn run<O: Output<N>>(
         &self,
         t: f64,
         x: &ArmState<N>,
         delayed: &VecN<N>,
         kin: &mut Kinematics<N>,
-    ) -> ControlOutput<N> {
+        out: O,
+    ) -> O::Value {
         let (m, p) = (&self.model, &self.params);
-        law::evaluate(p, m, t, x.phi, &x.q, &x.qd, delayed, kin)
-    }
-    #[inline]
-    fn acceleration(
-        &self,
-        t: f64,
-        x: &ArmState<N>,
-        delayed: &VecN<N>,
-        kin: &mut Kinematics<N>,
-    ) -> (VecN<N>, f64) {
-        let (m, p) = (&self.model, &self.params);
-        law::acceleration(p, m, t, x.phi, &x.q, &x.qd, delayed, kin)
+        law::run(p, m, t, (x.phi, &x.q, &x.qd), delayed, kin, out)
     }
     fn core(&self) -> &LawCore {
         &self.params.core
@@ -166,27 +171,16 @@ impl<const N: usize, const M: usize> ClosedLoopLaw<N> for SpatialLaw<N, M> {
     type Scratch = SpatialKinematics<N>;
 
     #[inline]
-    fn evaluate(
+    fn run<O: Output<N>>(
         &self,
         t: f64,
         x: &ArmState<N>,
         delayed: &VecN<N>,
         kin: &mut SpatialKinematics<N>,
-    ) -> ControlOutput<N> {
+        out: O,
+    ) -> O::Value {
         let (arm, p) = (&self.arm, &self.params);
-        law::spatial::evaluate::<N, M>(p, arm, t, &x.q, &x.qd, delayed, kin)
-    }
-    #[inline]
-    fn acceleration(
-        &self,
-        t: f64,
-        x: &ArmState<N>,
-        delayed: &VecN<N>,
-        kin: &mut SpatialKinematics<N>,
-    ) -> (VecN<N>, f64) {
-        let (arm, p) = (&self.arm, &self.params);
-        let qdd = law::spatial::acceleration::<N, M>(p, arm, t, &x.q, &x.qd, delayed, kin);
-        (qdd, 0.0)
+        law::spatial::run::<N, M, O>(p, arm, t, (&x.q, &x.qd), delayed, kin, out)
     }
     fn core(&self) -> &LawCore {
         &self.params.core

@@ -15,7 +15,7 @@ use crate::config::spatial::SpatialConfig;
 use crate::config::{Config, FeedbackSection, LawSection};
 use crate::model::Chain;
 use crate::safety::SafetySection;
-use crate::sim::ArmState;
+use crate::sim::{ArmState, ClosedLoopLaw};
 use crate::tick_law::{ParamBlock, TickLaw};
 
 mod drawing;
