@@ -4,8 +4,8 @@
 use crate::setup::{parse_list, FloatList, SetupArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use control::config::ObstacleConfig;
-use control::plan::{plan_config_with, PlanOutcome, PlanSettings, Planned};
+use control::config::obstacles::OBSTACLE_MARGIN;
+use control::plan::{plan_arm_with, PlanOutcome, PlanSettings, Planned};
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -52,43 +52,46 @@ pub struct PlanCmd {
 }
 
 pub fn run(a: &PlanCmd) -> Result<()> {
-    let mut cfg = match a.setup.load(None)? {
-        control::System::Spatial(s) => return spatial(a, s.config),
-        control::System::Planar(c) => c,
-    };
+    let mut system = a.setup.load(None)?;
+    let dims = system.obstacle_dims();
     for (i, o) in a.obstacles.iter().enumerate() {
-        let [x, y, r] = o.0[..] else {
-            bail!("--obstacle {:?}: expected X,Y,RADIUS (three numbers)", o.0);
-        };
-        let entry = ObstacleConfig::disc(x, y, r);
-        entry.validate(&format!("--obstacle #{}", i + 1))?;
-        cfg.control.obstacles.push(entry);
+        if o.0.len() != dims + 1 {
+            let form = ["X,Y,RADIUS (three numbers)", "X,Y,Z,RADIUS (four numbers)"][dims - 2];
+            bail!("--obstacle {:?}: expected {form}", o.0);
+        }
+        let r = o.0[dims];
+        system
+            .add_obstacle(&o.0[..dims], r, OBSTACLE_MARGIN)
+            .with_context(|| format!("--obstacle #{}", i + 1))?;
     }
-    cfg.validate()?;
+    // Checks the file against the arm (the obstacles too) before planning.
+    system.validate()?;
     let settings = settings(a)?;
     if let Some(prefix) = &a.map {
-        let radii = a
-            .map_radii
-            .as_ref()
-            .map_or(vec![0.1, 0.2, 0.3], |r| r.0.clone());
+        let (radii, cells) = match dims {
+            2 => (vec![0.1, 0.2, 0.3], 25),
+            _ => (vec![0.06, 0.1], 13),
+        };
         let spec = crate::plan_map::MapSpec {
-            radii: &radii,
-            cells: a.map_cells.unwrap_or(25),
+            radii: &a.map_radii.as_ref().map_or(radii, |r| r.0.clone()),
+            cells: a.map_cells.unwrap_or(cells),
             at: a.map_at,
             offset: a.map_offset,
             threads: a.jobs,
         };
-        let line = crate::plan_map::planar(&cfg, &settings, &spec, prefix)?;
-        println!("{line}");
+        println!(
+            "{}",
+            crate::plan_map::of(&system, &settings, &spec, prefix)?
+        );
         return Ok(());
     }
-    let q0 = cfg.initial_state::<3>().q;
-    // What the daemon does: the grid search, the refinement against the filter, a detour when
-    // the arm cannot reach the cycle tracking.
+    let q0 = system.start_coords(false);
+    // What the daemon does: the search, the refinement against the filter, a detour when the
+    // arm cannot reach the cycle tracking.
     let started = std::time::Instant::now();
-    let planned = plan_config_with(&cfg, 0.0, Some([q0[0], q0[1], q0[2]]), &settings)
+    let planned = plan_arm_with(&system, 0.0, Some(&q0), None, &settings)
         .map_err(|e| anyhow::anyhow!("chaosctl plan: {e}"))?;
-    report(a, &settings, &planned, started.elapsed(), "grid")
+    report(a, &settings, &planned, started.elapsed(), dims == 3)
 }
 
 /// The settings `--margin` and `--max-rate` ask for, checked.
@@ -110,62 +113,14 @@ fn settings(a: &PlanCmd) -> Result<PlanSettings> {
     Ok(settings)
 }
 
-/// A spatial set-up's plan: the same planner the daemon runs, from the start posture, with
-/// `--obstacle X,Y,Z,RADIUS` spheres besides the config's.
-fn spatial(a: &PlanCmd, mut cfg: control::config::spatial::SpatialConfig) -> Result<()> {
-    for o in &a.obstacles {
-        let [x, y, z, r] = o.0[..] else {
-            bail!(
-                "--obstacle {:?}: a spatial robot's is X,Y,Z,RADIUS (four numbers)",
-                o.0
-            );
-        };
-        cfg.obstacles
-            .push(control::config::spatial::SphereEntry::of([x, y, z, r]));
-    }
-    let settings = settings(a)?;
-    let chain = rt::robot::load(
-        &cfg.robot.description,
-        cfg.robot.base.as_deref(),
-        cfg.robot.tip.as_deref(),
-    )?;
-    let q0 = cfg.sim.start().to_vec();
-    let system = control::system::SpatialSystem { config: cfg, chain };
-    // Checks the file against the robot (the spheres too) before planning.
-    control::System::Spatial(Box::new(system.clone())).validate()?;
-    if let Some(prefix) = &a.map {
-        let radii = a
-            .map_radii
-            .as_ref()
-            .map_or(vec![0.06, 0.1], |r| r.0.clone());
-        let spec = crate::plan_map::MapSpec {
-            radii: &radii,
-            cells: a.map_cells.unwrap_or(13),
-            at: a.map_at,
-            offset: a.map_offset,
-            threads: a.jobs,
-        };
-        println!(
-            "{}",
-            crate::plan_map::spatial(&system, &settings, &spec, prefix)?
-        );
-        return Ok(());
-    }
-    let started = std::time::Instant::now();
-    let planned =
-        control::plan::spatial::plan_system_with(&system, 0.0, Some(&q0), None, &settings)
-            .map_err(|e| anyhow::anyhow!("chaosctl plan: {e}"))?;
-    report(a, &settings, &planned, started.elapsed(), "starts")
-}
-
-/// Prints a plan that took `took` (and writes `--csv`): words, or JSON with `--json`. `search`
-/// is how the planner looked: `grid` (planar) or `starts` (spatial).
+/// Prints a plan that took `took` (and writes `--csv`): words, or JSON with `--json`.
+/// `spatial`: the planner searched from starts (a robot's), not over a grid (the planar arm's).
 fn report(
     a: &PlanCmd,
     s: &PlanSettings,
     planned: &Planned,
     took: std::time::Duration,
-    search: &str,
+    spatial: bool,
 ) -> Result<()> {
     let (outcome, ms) = (&planned.outcome, took.as_secs_f64() * 1e3);
     let loose = planned.limits_only;
@@ -180,7 +135,6 @@ fn report(
         }
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
     }
-    let spatial = search == "starts";
     if a.json {
         println!("{}", json(outcome, s, ms, loose, spatial));
     } else {

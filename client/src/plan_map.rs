@@ -21,7 +21,7 @@ use control::plan::{detour, PlanOutcome, PlanSettings};
 use control::steer::CycleTable;
 use control::system::SpatialSystem;
 use control::task::{Path as TaskPath, Vec3};
-use control::{with_dof, Config};
+use control::{with_dof, Config, System};
 use plotters::style::RGBColor;
 use std::path::Path;
 use std::time::Instant;
@@ -220,8 +220,17 @@ fn spaced(lo: f64, hi: f64, n: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The map of either arm's set-up: the planar arm's plane, or a robot's slice
+/// ([`MapSpec::offset`]); the two planners behind [`control::plan::plan_arm`] draw it.
+pub fn of(system: &System, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> Result<String> {
+    match system {
+        System::Planar(cfg) => planar(cfg, s, spec, prefix),
+        System::Spatial(sys) => spatial(sys, s, spec, prefix),
+    }
+}
+
 /// The planar arm's map of `cfg`.
-pub fn planar(cfg: &Config, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> Result<String> {
+fn planar(cfg: &Config, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> Result<String> {
     check_spec(spec)?;
     let arm = PlanarMap {
         cfg,
@@ -237,12 +246,7 @@ pub fn planar(cfg: &Config, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> 
 }
 
 /// A robot's map of `sys`, on the slice `spec.offset` from the path's plane.
-pub fn spatial(
-    sys: &SpatialSystem,
-    s: &PlanSettings,
-    spec: &MapSpec,
-    prefix: &Path,
-) -> Result<String> {
+fn spatial(sys: &SpatialSystem, s: &PlanSettings, spec: &MapSpec, prefix: &Path) -> Result<String> {
     check_spec(spec)?;
     if !(spec.offset.is_finite() && spec.offset.abs() <= 2.0) {
         bail!(

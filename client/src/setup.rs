@@ -6,8 +6,8 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use control::config::spatial::{is_spatial, SpatialConfig, SphereEntry};
-use control::config::{ModelKind, ObstacleConfig, ProjectionKind};
+use control::config::spatial::{is_spatial, SpatialConfig};
+use control::config::{ModelKind, ProjectionKind};
 use control::system::SpatialSystem;
 use control::{Config, System};
 use std::path::PathBuf;
@@ -222,56 +222,29 @@ pub struct ObstacleArgs {
 }
 
 impl ObstacleArgs {
-    /// Puts the given obstacles into `cfg` (validated by the caller's `Config::validate`).
-    pub fn apply(&self, cfg: &mut Config) -> Result<()> {
+    /// Puts the given obstacles into `system` in place of its own (none given: unchanged), each
+    /// checked as a file's entry is, then the whole set-up checked.
+    pub fn apply(&self, system: &mut System) -> Result<()> {
         if self.obstacles.is_empty() {
             return Ok(());
         }
-        cfg.control.obstacles = self
-            .obstacles
-            .iter()
-            .map(|o| match o.0.as_slice() {
-                &[x, y, r] => Ok(ObstacleConfig {
-                    center: [x, y],
-                    radius: r,
-                    margin: 0.1,
-                }),
-                &[x, y, r, m] => Ok(ObstacleConfig {
-                    center: [x, y],
-                    radius: r,
-                    margin: m,
-                }),
-                v => bail!("--obstacle {v:?}: expected X,Y,R or X,Y,R,MARGIN"),
-            })
-            .collect::<Result<_>>()?;
-        cfg.validate()?;
-        Ok(())
-    }
-
-    /// Puts the given spheres into a robot's `cfg` (checked against its chain by the caller).
-    pub fn apply_spatial(&self, cfg: &mut SpatialConfig) -> Result<()> {
-        if self.obstacles.is_empty() {
-            return Ok(());
+        let dims = system.obstacle_dims();
+        let form = match dims {
+            2 => "X,Y,R or X,Y,R,MARGIN",
+            _ => "a sphere X,Y,Z,R or X,Y,Z,R,MARGIN on a robot",
+        };
+        system.clear_obstacles();
+        for o in &self.obstacles {
+            let v = o.0.as_slice();
+            if !(dims + 1..=dims + 2).contains(&v.len()) {
+                bail!("--obstacle {v:?}: expected {form}");
+            }
+            let margin = v.get(dims + 1).copied();
+            let margin = margin.unwrap_or(control::config::obstacles::OBSTACLE_MARGIN);
+            system
+                .add_obstacle(&v[..dims], v[dims], margin)
+                .with_context(|| format!("--obstacle {v:?}"))?;
         }
-        cfg.obstacles = self
-            .obstacles
-            .iter()
-            .map(|o| match o.0.as_slice() {
-                &[x, y, z, r] => Ok(SphereEntry {
-                    center: [x, y, z],
-                    radius: r,
-                    margin: 0.1,
-                }),
-                &[x, y, z, r, m] => Ok(SphereEntry {
-                    center: [x, y, z],
-                    radius: r,
-                    margin: m,
-                }),
-                v => bail!(
-                    "--obstacle {v:?}: a robot's obstacle is a sphere X,Y,Z,R or X,Y,Z,R,MARGIN"
-                ),
-            })
-            .collect::<Result<_>>()?;
-        Ok(())
+        Ok(system.validate()?)
     }
 }

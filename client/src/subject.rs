@@ -85,17 +85,7 @@ impl Subject {
 
     /// The start's angles q(0), or with `rate` its rates q̇(0).
     pub fn start_coords(&self, rate: bool) -> Vec<f64> {
-        match (&self.system, rate) {
-            (System::Planar(c), false) => c.q0(),
-            (System::Planar(c), true) => c.qd0(),
-            (System::Spatial(s), false) => s.config.sim.start().to_vec(),
-            (System::Spatial(s), true) => s
-                .config
-                .sim
-                .qd0
-                .clone()
-                .unwrap_or_else(|| vec![0.0; s.chain.dof()]),
-        }
+        self.system.start_coords(rate)
     }
 
     /// One checked set-up per start of `args` (the paper's three on a 3-link planar arm unless
@@ -138,10 +128,7 @@ impl Subject {
     /// left out is at most half the run. (A robot's whole set-up is checked when it is built.)
     pub fn set_duration(&mut self, duration: Option<f64>, transient: Option<f64>) -> Result<()> {
         crate::setup::set_sim_duration(self.system.sim_section_mut(), duration, transient)?;
-        if let System::Planar(c) = &self.system {
-            c.validate()?;
-        }
-        Ok(())
+        Ok(self.system.validate()?)
     }
 
     /// The `[sim]` run's duration and the transient its statistics skip (s).
@@ -157,10 +144,7 @@ impl Subject {
 
     /// `"planar"`, or the robot's description.
     pub fn name(&self) -> String {
-        match &self.system {
-            System::Planar(_) => control::config::planar_file::PLANAR_ROBOT.into(),
-            System::Spatial(s) => s.config.robot.description.clone(),
-        }
+        self.system.robot_name()
     }
 
     /// The planar arm's base model; None for a robot.
@@ -170,10 +154,7 @@ impl Subject {
 
     /// The task's rows and path: `position circle` (the planar arm's is always a position).
     pub fn task_name(&self) -> String {
-        match &self.system {
-            System::Planar(c) => format!("position {}", c.task.path),
-            System::Spatial(s) => format!("{} {}", s.config.task.kind, s.config.task.path),
-        }
+        self.system.task_name()
     }
 
     /// The joint count.
@@ -210,10 +191,7 @@ impl Subject {
     /// Replaces the file's obstacles by the `--obstacle` flags, when there are any (discs
     /// X,Y,R on a planar arm, spheres X,Y,Z,R on a robot), checked against the set-up.
     pub fn set_obstacles(&mut self, args: &crate::setup::ObstacleArgs) -> Result<()> {
-        match &mut self.system {
-            System::Planar(c) => args.apply(c),
-            System::Spatial(s) => args.apply_spatial(&mut s.config),
-        }
+        args.apply(&mut self.system)
     }
 
     /// Whether this is the paper's 3-link planar arm (whose sweep has the paper's three starts).
@@ -223,32 +201,13 @@ impl Subject {
 
     /// One line for a figure's title.
     pub fn describe(&self) -> String {
-        match &self.system {
-            System::Planar(c) => format!(
-                "planar {}-link arm, {:?} secondary task",
-                c.n(),
-                c.control.secondary
-            ),
-            System::Spatial(s) => s.config.describe(),
-        }
+        self.system.title()
     }
 
     /// Checks what a run needs beyond a valid file: the planar circle reachable from the start,
     /// a robot's start one angle per joint, and the period a whole number of steps.
     pub fn check(&self) -> Result<()> {
-        match &self.system {
-            System::Planar(c) => {
-                c.validate()?;
-                crate::analysis::check_config(c)
-            }
-            System::Spatial(s) => {
-                let (c, chain) = (&s.config, &s.chain);
-                with_dof!(chain.dof(), N => c.setup::<N>(chain).map(|_| ()))?;
-                c.task_kind()?;
-                control::analysis::period_steps(c.task.period, c.sim.dt)?;
-                Ok(())
-            }
-        }
+        Ok(self.system.check_run()?)
     }
 
     /// One analysed run (λ_max with `spec.lyapunov`, the section's class, the run's summary).

@@ -231,7 +231,8 @@ fn bad_spatial_input_is_one_line_and_exit_2() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("obstacles[0].radius")
+        err.contains("--obstacle [0.3, 0.0, 0.5, -1.0]")
+            && err.contains("obstacle.radius")
             && !err.contains("start")
             && err.trim().lines().count() == 1,
         "{err}"

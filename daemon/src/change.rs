@@ -85,12 +85,8 @@ mod tests {
     fn a_set_answers_with_the_keys_it_changed() {
         let old = System::preset("demo", &control::system::builtin_robot).unwrap();
         let mut new = old.clone();
-        if let System::Planar(c) = &mut new {
-            c.feedback.mu = 0.5;
-            c.control
-                .obstacles
-                .push(control::config::ObstacleConfig::disc(0.9, 1.1, 0.15));
-        }
+        new.feedback_section_mut().mu = 0.5;
+        new.add_obstacle(&[0.9, 1.1], 0.15, 0.1).unwrap();
         let text = describe(&old, &new);
         assert!(text.contains("feedback.mu: "), "{text}");
         assert!(text.contains(" → 0.5"), "{text}");

@@ -28,8 +28,7 @@ pub mod tune;
 use crate::setup::{parse_list, FloatList, SetupArgs};
 use anyhow::{bail, Result};
 use clap::Args;
-use control::analysis::{check_reachable, period_steps, ClassifyConfig, LyapunovSpec, RunSpec};
-use control::{with_dof, Config};
+use control::analysis::{ClassifyConfig, LyapunovSpec, RunSpec};
 use std::f64::consts::FRAC_PI_2;
 
 /// Values parsed from one `START:END:STEP` argument.
@@ -234,16 +233,6 @@ impl StartArgs {
             vec![base_q0]
         }
     }
-}
-
-/// Checks what the analyses need beyond a valid config: the circle reachable from the start, and
-/// the task period a whole number of steps (for the stroboscopic section).
-pub fn check_config(cfg: &Config) -> Result<()> {
-    period_steps(cfg.task.period, cfg.sim.dt)?;
-    with_dof!(cfg.n(), N => {
-        check_reachable(&cfg.model::<N>(), &cfg.law_params(), &cfg.initial_state::<N>())?;
-    });
-    Ok(())
 }
 
 /// "a, b, c" with 3 decimals.

@@ -32,6 +32,8 @@ pub enum AnalysisError {
     Diverged { t: f64 },
     #[error(transparent)]
     Lyapunov(#[from] LyapunovError),
+    #[error(transparent)]
+    Config(#[from] crate::basics::ConfigError),
 }
 
 /// How to estimate λ_max during a run.

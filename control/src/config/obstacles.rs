@@ -30,8 +30,10 @@ pub type ObstacleConfig = ObstacleEntry<2>;
 pub type SphereEntry = ObstacleEntry<3>;
 
 /// The potential's margin when an entry gives none (m).
+pub const OBSTACLE_MARGIN: f64 = 0.1;
+
 fn default_margin() -> f64 {
-    0.1
+    OBSTACLE_MARGIN
 }
 
 /// The largest radius and margin an entry may give (m).

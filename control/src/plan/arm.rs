@@ -2,7 +2,7 @@
 //! simulate` both come through here, so an offline run answers a trap as the daemon does.
 
 use super::spatial::plan_system_with;
-use super::{plan_config, PlanSettings, Planned};
+use super::{PlanSettings, Planned};
 use crate::steer::SpatialSteer;
 use crate::steer::{Cycle, Steer, Steering};
 use crate::system::System;
@@ -32,17 +32,30 @@ pub fn plan_arm(
     q_now: Option<&[f64]>,
     following: Option<&Steering>,
 ) -> Result<Planned, super::PlanError> {
+    plan_arm_with(system, t0, q_now, following, &PlanSettings::default())
+}
+
+/// [`plan_arm`] with settings of one's own for the first try (`chaosctl plan --margin`): the
+/// one entry point to both planners (a grid over the planar arm's self-motion, a search from
+/// starts on a URDF chain).
+pub fn plan_arm_with(
+    system: &System,
+    t0: f64,
+    q_now: Option<&[f64]>,
+    following: Option<&Steering>,
+    settings: &PlanSettings,
+) -> Result<Planned, super::PlanError> {
     match system {
         System::Planar(c) => {
             let q3 = q_now.filter(|q| q.len() >= 3).map(|q| [q[0], q[1], q[2]]);
-            plan_config(c, t0, q3)
+            super::plan_config_with(c, t0, q3, settings)
         }
         System::Spatial(s) => {
             let following = match following {
                 Some(Steering::Spatial(f)) => Some(&f.cycle),
                 _ => None,
             };
-            plan_system_with(s, t0, q_now, following, &PlanSettings::default())
+            plan_system_with(s, t0, q_now, following, settings)
         }
     }
 }

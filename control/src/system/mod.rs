@@ -21,6 +21,7 @@ use crate::tick_law::{ParamBlock, TickLaw};
 mod drawing;
 mod obstacles;
 mod robot;
+mod run;
 pub use drawing::{Drawing, Posed};
 pub use obstacles::ObstacleRow;
 

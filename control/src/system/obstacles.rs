@@ -99,6 +99,14 @@ impl System {
         Ok(())
     }
 
+    /// Removes every obstacle (a client's `--obstacle` flags replace the file's).
+    pub fn clear_obstacles(&mut self) {
+        match self {
+            System::Planar(c) => c.control.obstacles.clear(),
+            System::Spatial(s) => s.config.obstacles.clear(),
+        }
+    }
+
     /// Removes the obstacle at `index` (0-based; the caller has checked it against
     /// [`Self::obstacle_rows`]).
     pub fn remove_obstacle(&mut self, index: usize) {
