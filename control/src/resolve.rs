@@ -267,13 +267,7 @@ mod tests {
     /// conditioned.
     #[test]
     fn deciding_the_damping_alone_changes_nothing_and_skips_only_above_the_threshold() {
-        let mut seed = 9u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rnd = crate::basics::test_rng::uniform(9u64);
         let (threshold, lambda_max) = (0.05, 0.05);
         let mut skipped = 0;
         for k in 0..5000 {

@@ -9,6 +9,8 @@ pub mod dof;
 pub mod error;
 pub mod flags;
 pub mod number;
+#[cfg(test)]
+pub(crate) mod test_rng;
 
 pub use angle::wrap_angle;
 pub use dof::{MAX_JOINTS, MIN_JOINTS};

@@ -436,13 +436,7 @@ mod tests {
     #[test]
     fn a_step_and_a_ramp_together_stay_inside_the_jerk_limit() {
         let (l, dt) = (panda_limits(), 1e-3);
-        let mut seed = 7u64;
-        let mut uniform = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut uniform = crate::basics::test_rng::uniform(7);
         let (qs, sat) = drive(20_000, |_, m| {
             let mut qdd = VecN::<7>::zeros();
             let mut qddd = VecN::<7>::zeros();

@@ -221,11 +221,7 @@ mod tests {
     fn agrees_with_a_brute_force_projection_on_random_problems() {
         // Random feasible problems in 4-D: the answer meets every row and no feasible point
         // of a dense random sample is closer to the origin.
-        let mut seed = 12345u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rnd = crate::basics::test_rng::uniform(12345u64);
         for _ in 0..200 {
             let m = 6;
             let rows: Vec<VecN<4>> = (0..m).map(|_| VecN::<4>::from_fn(|_, _| rnd())).collect();

@@ -482,11 +482,7 @@ mod tests {
     /// segment (end A, interior, end B), so the check and the rows judge alike.
     #[test]
     fn a_foot_applied_to_images_is_its_normal_applied() {
-        let mut seed = 7u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rnd = crate::basics::test_rng::uniform(7u64);
         let g = BarrierGains {
             k0: 100.0,
             k1: 20.0,

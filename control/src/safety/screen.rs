@@ -133,13 +133,7 @@ mod tests {
             k1: 20.0,
             push_out_speed: 0.1,
         };
-        let mut seed = 0x5eed_u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rnd = crate::basics::test_rng::uniform(0x5eed_u64);
         let (mut cleared, mut far, mut far_cleared, mut slack_min) = (0, 0, 0, f64::INFINITY);
         let mut kin = SpatialKinematics::default();
         for k in 0..4000 {
