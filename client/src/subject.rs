@@ -17,7 +17,7 @@ use control::monitor::run::{watch_sim, Edit, Watched};
 use control::monitor::MonitorSettings;
 use control::sim::ClosedLoopLaw;
 use control::steer::Blocked;
-use control::{with_dof, with_task_rows, ArmState, Simulation, System, VecN};
+use control::{with_dof, ArmState, Simulation, System, VecN};
 
 /// The set-up an offline command studies: the daemon's own [`System`], with the offline
 /// commands' runs and checks. A few hundred copies at most, built once per study.
@@ -251,41 +251,29 @@ impl Subject {
     }
 
     fn run_with<V: LoopVisitor>(&self, visitor: V, plan: Plan) -> Result<V::Out> {
-        let start = |blocked| Start {
-            subject: self,
-            blocked,
+        let system = &self.system;
+        let steered = match plan {
+            Plan::Never => false,
+            Plan::Robot => system.chain().is_some(),
+            Plan::Every => true,
         };
-        match &self.system {
-            System::Planar(c) => with_dof!(c.n(), N => {
-                let x0 = c.initial_state::<N>();
-                let (p, blocked, capacity) = match plan {
-                    Plan::Every => {
-                        let (p, blocked) = control::plan::law_params_planned(c);
-                        (p, blocked, c.feedback.capacity())
-                    }
-                    _ => {
-                        let p = c.law_params();
-                        (p, None, p.core.tau)
-                    }
-                };
-                let sim = Simulation::new(c.model::<N>(), p, c.sim.dt, x0, capacity);
-                visitor.visit(sim, start(blocked))
-            }),
-            System::Spatial(s) => {
-                let (c, chain) = (&s.config, &s.chain);
-                let kind = c.task_kind()?;
-                with_dof!(chain.dof(), N => {
-                    let (s, blocked) = match plan {
-                        Plan::Never => (c.setup::<N>(chain)?, None),
-                        _ => control::plan::setup_planned::<N>(c, chain)?,
-                    };
-                    if let Some(b) = &blocked {
-                        eprintln!("safety.plan: no clean cycle, running without steering: {}", b.reason);
-                    }
-                    with_task_rows!(kind, |M| visitor.visit(s.simulation::<M>(), start(blocked)))
-                })
+        with_dof!(system.n(), N => {
+            let (law, blocked) = match steered {
+                true => control::plan::planned_law::<N>(system),
+                false => (system.tick_law::<N>(), None),
+            };
+            // The daemon's delay line holds the longest τ a live change may ask; an analysis's
+            // holds exactly τ (the Lyapunov pair renormalises the whole history).
+            let capacity = match plan {
+                Plan::Every => system.feedback().max_tau,
+                _ => law.core().tau,
+            };
+            if let (Some(b), Plan::Robot) = (&blocked, plan) {
+                eprintln!("safety.plan: no clean cycle, running without steering: {}", b.reason);
             }
-        }
+            let sim = Simulation::of(law, system.sim_section().dt, system.initial_state::<N>(), capacity);
+            visitor.visit(sim, Start { subject: self, blocked })
+        })
     }
 
     /// The smallest margin of the obstacles' safety zones (m; +∞ without obstacles).

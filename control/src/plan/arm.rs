@@ -2,10 +2,12 @@
 //! simulate` both come through here, so an offline run answers a trap as the daemon does.
 
 use super::spatial::plan_system_with;
-use super::{PlanSettings, Planned};
+use super::{PlanOutcome, PlanSettings, Planned};
+use crate::steer::Blocked;
 use crate::steer::SpatialSteer;
 use crate::steer::{Cycle, Steer, Steering};
 use crate::system::System;
+use crate::tick_law::TickLaw;
 
 /// Whether the set-up steers onto its planned cycle now (`safety.plan`: the filter on, an arm
 /// with a planner and, for `auto`, an obstacle), and the pull's frequency (Hz).
@@ -57,6 +59,26 @@ pub fn plan_arm_with(
             };
             plan_system_with(s, t0, q_now, following, settings)
         }
+    }
+}
+
+/// The law a run of `system` starts with: its [`TickLaw`], steered onto a clean cycle planned from
+/// the start posture when `safety.plan` asks, and why there is none when the planner found
+/// none (the law then runs unsteered, as the daemon's does). A planner that cannot run (an arm
+/// without one) leaves the law unsteered and says nothing, as the daemon does.
+pub fn planned_law<const N: usize>(system: &System) -> (TickLaw<N>, Option<Blocked>) {
+    let mut law = system.tick_law::<N>();
+    if !plan_asked(system).0 {
+        return (law, None);
+    }
+    let q0 = system.start_coords(false);
+    match plan_arm(system, 0.0, Some(&q0), None).map(|p| p.outcome) {
+        Ok(PlanOutcome::Found(c)) => {
+            law.set_steer(steering_of(system, &c).ok());
+            (law, None)
+        }
+        Ok(PlanOutcome::Blocked(b)) => (law, Some(b)),
+        Err(_) => (law, None),
     }
 }
 

@@ -39,7 +39,7 @@ pub enum PlanError {
     #[error(transparent)]
     Steer(#[from] SteerError),
 }
-pub use arm::{has_planner, plan_arm, plan_arm_with, plan_asked, steering_of};
+pub use arm::{has_planner, plan_arm, plan_arm_with, plan_asked, planned_law, steering_of};
 pub use setup::{law_params_planned, setup_planned};
 
 /// How finely the planner searches, and with what margins.
