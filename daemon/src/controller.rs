@@ -9,7 +9,7 @@ use crate::guard::{FaultReason, Guard};
 use control::command::{Command, MotionGenerator};
 use control::hold;
 use control::tick_law::{LawScratch, ParamBlock, TickLaw};
-use control::{ArmState, ControlOutput, DelayLine, LawParams, VecN};
+use control::{ArmState, ControlOutput, DelayLine, VecN};
 use protocol::{CommandSample, Mode, StateSample};
 use serde::Serialize;
 
@@ -291,11 +291,6 @@ impl<const N: usize> Controller<N> {
     /// The law this controller runs.
     pub fn law(&self) -> &TickLaw<N> {
         &self.law
-    }
-
-    /// The planar law's parameters (None when the arm is a spatial one).
-    pub fn params(&self) -> Option<&LawParams> {
-        self.law.planar_params()
     }
 
     /// Swaps in a validated parameter block (at a tick boundary; no allocation). A block for
@@ -935,7 +930,7 @@ mod tests {
         let t0 = 1_000_000_000u64;
         for k in 0..6000u64 {
             if k == 4470 {
-                let mut p = *c.params().unwrap();
+                let mut p = *c.law().planar_params().unwrap();
                 let mut o = control::secondary::ObstacleSet::new();
                 o.push(control::config::ObstacleConfig::disc(1.5, 2.0, 0.2).to_ball())
                     .unwrap();
@@ -972,7 +967,7 @@ mod tests {
         let mut plant_clearance = f64::INFINITY;
         let mut kin = control::Kinematics::<3>::default();
         model.kinematics(0.0, &x.q, &x.qd, &mut kin);
-        let obstacles = c.params().unwrap().obstacles;
+        let obstacles = c.law().planar_params().unwrap().obstacles;
         plant_clearance = plant_clearance.min(control::secondary::clearance(&kin, &obstacles).0);
         assert!(
             plant_clearance >= clearance - 1e-3,
@@ -1226,7 +1221,7 @@ mod tests {
     #[test]
     fn history_restarts_after_a_hold_and_long_gaps_are_not_filled_with_old_rates() {
         let mut c = controller();
-        let mut p = *c.params().unwrap();
+        let mut p = *c.law().planar_params().unwrap();
         p.core.mu = 1.0;
         p.core.t_on = 0.0;
         c.set_params(ParamBlock::Planar(p));
@@ -1272,7 +1267,7 @@ mod tests {
             let mut first_fault = None;
             for k in 0..1500u64 {
                 if k == 700 {
-                    let mut p = *c.params().unwrap();
+                    let mut p = *c.law().planar_params().unwrap();
                     p.core.safety.qdd_max = [1e-6; control::MAX_JOINTS];
                     c.set_params(ParamBlock::Planar(p));
                     if before == Before::Braked {
@@ -1320,7 +1315,7 @@ mod tests {
         let t0 = 1_000_000_000u64;
         let mut s = state(0, t0);
         s.qd[1] = 60.0;
-        let mut p = *c.params().unwrap();
+        let mut p = *c.law().planar_params().unwrap();
         p.core.safety.qd_max = [20.0; control::MAX_JOINTS];
         c.set_params(ParamBlock::Planar(p));
         let mut tripped_at = None;

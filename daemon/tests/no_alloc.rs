@@ -222,7 +222,7 @@ fn the_clock_loops_tick_allocates_only_iceoryx2s_loan() {
         requests: &params_rx,
     };
     let mut sched = rt::clock::Schedule::new(1_000_000, monotonic_ns());
-    let params = *c.params().unwrap();
+    let params = *c.law().planar_params().unwrap();
     // Warm up: the first sends set up connections (and allocate for that).
     for _ in 0..50 {
         plant_pub.send_copy(state(seq, monotonic_ns(), 9)).unwrap();
@@ -331,7 +331,7 @@ fn state_triggered_path(fast_lane: bool) {
         end_ns: None,
     };
     let mut c = controller("paper");
-    let params = *c.params().unwrap();
+    let params = *c.law().planar_params().unwrap();
     let mut between = |c: &mut Controller<3>| daemon::tick::take_request(c, &params_rx);
     let mut l = StateLoop::new(&ports, timing);
     // Warm up: the first sends set up connections (and allocate for that).
