@@ -21,6 +21,7 @@ use crate::arm::VecN;
 use crate::basics::flags;
 use crate::basics::MAX_JOINTS;
 use crate::secondary::MAX_OBSTACLES;
+use arrayvec::ArrayVec;
 use nalgebra::SMatrix;
 
 /// Most rows one problem of an N-joint arm has: every link (N of them) against every obstacle,
@@ -192,42 +193,36 @@ fn clamped<const N: usize>(
 
 /// Rows a·δ ≥ b − a·q̈_nom, stored on the stack for the QP.
 ///
-/// The store is [`ROW_BLOCKS`] blocks of N rows, so an arm's buffer is sized by its own joint
-/// count: sized by the largest arm instead, a 7-joint arm zeroed 216 rows (17 KB) on every
-/// evaluation where the filter binds, which cost the Panda's tick about a microsecond.
+/// The stores have the largest arm's capacity but are not initialised past the rows they hold
+/// (`ArrayVec`): an arm takes at most [`ROW_BLOCKS`] blocks of its own N rows, and an empty store
+/// costs nothing to make. Zeroed arrays sized by the arm cost the Panda's binding filter two
+/// 126-row memsets (8 KB each) per evaluation; sized by the largest arm, about a microsecond.
 struct Rows<const N: usize> {
-    a: [[VecN<N>; N]; ROW_BLOCKS],
-    h: [[f64; N]; ROW_BLOCKS],
-    m: usize,
+    a: ArrayVec<VecN<N>, MAX_ROWS>,
+    h: ArrayVec<f64, MAX_ROWS>,
 }
 
 impl<const N: usize> Rows<N> {
-    /// A zero row as a constant: `VecN::zeros()` fills a store of them by copying one at a time.
-    const ZERO: VecN<N> = VecN::from_array_storage(nalgebra::ArrayStorage([[0.0; N]; 1]));
-
     fn empty() -> Self {
         Self {
-            a: [[Self::ZERO; N]; ROW_BLOCKS],
-            h: [[0.0; N]; ROW_BLOCKS],
-            m: 0,
+            a: ArrayVec::new(),
+            h: ArrayVec::new(),
         }
     }
 
     /// The rows held.
     fn a(&self) -> &[VecN<N>] {
-        &self.a.as_flattened()[..self.m]
+        &self.a
     }
 
     fn h(&self) -> &[f64] {
-        &self.h.as_flattened()[..self.m]
+        &self.h
     }
 
     fn push(&mut self, a: VecN<N>, h: f64) {
-        let k = self.m;
-        if k < ROW_BLOCKS * N {
-            self.a.as_flattened_mut()[k] = a;
-            self.h.as_flattened_mut()[k] = h;
-            self.m += 1;
+        if self.a.len() < ROW_BLOCKS * N {
+            self.a.push(a);
+            self.h.push(h);
         }
     }
 
@@ -298,7 +293,7 @@ impl<const N: usize> Rows<N> {
         let mut d = VecN::<N>::zeros();
         for _ in 0..MAX_SWEEPS {
             let mut moved = 0.0f64;
-            for k in 0..self.m {
+            for k in 0..rows.len() {
                 let a = &rows[k];
                 let aa = a.norm_squared();
                 if aa < 1e-24 {
