@@ -481,9 +481,6 @@ impl LoopVisitor for Analyse<'_> {
 impl std::fmt::Display for Subject {
     /// The fingerprint text of a shard's grid: the whole configuration (a chain's numbers too).
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match &self.system {
-            System::Planar(c) => write!(f, "{c:?}"),
-            System::Spatial(s) => write!(f, "{:?} {:?}", s.config, s.chain),
-        }
+        f.write_str(&self.system.fingerprint_text())
     }
 }

@@ -80,4 +80,14 @@ impl System {
             System::Spatial(s) => s.config.describe(),
         }
     }
+
+    /// The whole set-up as text, every number exact (Debug prints the shortest round-trip form):
+    /// equal text, equal set-up. A sharded study's grid carries it so that shards of different
+    /// set-ups are never merged; the form is kept as it was, so older shards still match.
+    pub fn fingerprint_text(&self) -> String {
+        match self {
+            System::Planar(c) => format!("{c:?}"),
+            System::Spatial(s) => format!("{:?} {:?}", s.config, s.chain),
+        }
+    }
 }
