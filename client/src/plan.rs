@@ -56,7 +56,10 @@ pub fn run(a: &PlanCmd) -> Result<()> {
     let dims = system.obstacle_dims();
     for (i, o) in a.obstacles.iter().enumerate() {
         if o.0.len() != dims + 1 {
-            let form = ["X,Y,RADIUS (three numbers)", "X,Y,Z,RADIUS (four numbers)"][dims - 2];
+            let form = match dims {
+                2 => "X,Y,RADIUS (three numbers)",
+                _ => "X,Y,Z,RADIUS (four numbers)",
+            };
             bail!("--obstacle {:?}: expected {form}", o.0);
         }
         let r = o.0[dims];

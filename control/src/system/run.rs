@@ -30,8 +30,10 @@ impl System {
     }
 
     /// Checks what a run needs beyond a valid file: the set-up valid against its arm, the
-    /// period a whole number of steps, and on the planar arm the circle within reach of the
-    /// start (a URDF chain's task is checked when its set-up is built).
+    /// period a whole number of steps, and on the planar arm the circle within reach of joint 1
+    /// where the start puts it (the floating base's reach moves with the base, so the file's
+    /// own check, [`Self::validate`], covers only the fixed base; a URDF chain's task is
+    /// checked when its set-up is built).
     ///
     /// ```
     /// let mut s = control::System::preset("paper", &control::system::builtin_robot).unwrap();
