@@ -54,6 +54,10 @@ enum Command {
     Tune(analysis::tune::TuneCmd),
     /// Which starts end on a stabilised orbit and which stay chaotic, over starts × μ.
     Basins(analysis::basins_map::BasinsCmd),
+    /// From how many random starts (near the set-up's start, or across the joint box) the arm
+    /// becomes periodic inside every position, speed, acceleration and jerk limit, and the first
+    /// rule each other start broke (CSV, JSON; sharded like sweep).
+    Starts(analysis::starts::StartsCmd),
     /// The daemon's chaos monitor against the offline λ_max over starts × μ (a confusion table
     /// and its detection delay), and mu = "auto" against fixed μ and after edits (JSON, CSV, plot).
     Monitor(analysis::monitor::MonitorCmd),
@@ -70,7 +74,7 @@ enum Command {
     /// a URDF robot: cycles relaxed from several starts): its smallest clearance and the planning
     /// time, or why there is none (--json, --csv).
     Plan(plan::PlanCmd),
-    /// Put the shard files of one sharded sweep, basins or obstacles run back together: checks
+    /// Put the shard files of one sharded sweep, basins, obstacles or starts run back together: checks
     /// that every grid point is there exactly once (naming any missing one) and writes exactly
     /// the unsharded result.
     Merge(MergeArgs),
@@ -141,6 +145,10 @@ fn merge(m: MergeArgs) -> anyhow::Result<()> {
             (a.shard, a.output) = (None, out);
             analysis::obstacles::merge(a, files)
         }
+        Command::Starts(mut a) => {
+            (a.shard, a.output) = (None, out);
+            analysis::starts::merge(a, files)
+        }
         _ => anyhow::bail!("{first}: its recorded command has no shards"),
     }
 }
@@ -196,6 +204,7 @@ fn main() -> ExitCode {
         Command::Orbits(a) => analysis::orbits::run(a),
         Command::Tune(a) => analysis::tune::run(a),
         Command::Basins(a) => analysis::basins::run(a),
+        Command::Starts(a) => analysis::starts::run(a),
         Command::Monitor(a) => analysis::monitor::run(a),
         Command::Figures(a) => analysis::figures::run(a),
         Command::Obstacles(a) => analysis::obstacles::run(a),

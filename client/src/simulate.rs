@@ -6,7 +6,7 @@ use crate::traps::{OfflineTraps, TrapEvent};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use control::config::{ModelKind, ProjectionKind};
-use control::sim::{run_steering, ClosedLoopLaw};
+use control::sim::{run_steering_at, ClosedLoopLaw};
 use control::{ArmState, Simulation, Summary};
 use serde::Serialize;
 use std::io::Write;
@@ -100,21 +100,32 @@ pub fn run_subject(
     subject: &Subject,
     each: impl FnMut(&Visited<'_>) -> Result<()>,
 ) -> Result<Report> {
-    subject.run_as_daemon(SimulateRun { each })
+    Ok(run_subject_at(subject, &[], each)?.0)
+}
+
+/// [`run_subject`], with the summary a run to each of `ends` (s, at most the set-up's
+/// duration) would give, from the one run.
+pub fn run_subject_at(
+    subject: &Subject,
+    ends: &[f64],
+    each: impl FnMut(&Visited<'_>) -> Result<()>,
+) -> Result<(Report, Vec<Summary>)> {
+    subject.run_as_daemon(SimulateRun { each, ends })
 }
 
 /// [`run_subject`]'s visitor: the run, the trap watch and the report.
-struct SimulateRun<F> {
+struct SimulateRun<'a, F> {
     each: F,
+    ends: &'a [f64],
 }
 
-impl<F: FnMut(&Visited<'_>) -> Result<()>> LoopVisitor for SimulateRun<F> {
-    type Out = Report;
+impl<F: FnMut(&Visited<'_>) -> Result<()>> LoopVisitor for SimulateRun<'_, F> {
+    type Out = (Report, Vec<Summary>);
     fn visit<const N: usize, L: ClosedLoopLaw<N>>(
         mut self,
         mut sim: Simulation<N, L>,
         start: Start<'_>,
-    ) -> Result<Report> {
+    ) -> Result<Self::Out> {
         let subject = start.subject;
         let (duration, transient) = subject.duration();
         let steps = (duration / sim.dt()).round() as u64;
@@ -135,7 +146,13 @@ impl<F: FnMut(&Visited<'_>) -> Result<()>> LoopVisitor for SimulateRun<F> {
             traps.blocked_at_start(b);
         }
         let (mut k, mut failed) = (0u64, None);
-        let summary = run_steering(&mut sim, duration, transient, |t, x, out| {
+        if let Some(end) = self.ends.iter().find(|&&e| !(e > 0.0 && e <= duration)) {
+            bail!("a summary at {end} s of a {duration} s run: it must lie in (0, {duration}]");
+        }
+        let ends: Vec<f64> = std::iter::once(duration)
+            .chain(self.ends.iter().copied())
+            .collect();
+        let mut summaries = run_steering_at(&mut sim, &ends, transient, |t, x, out| {
             if failed.is_none() {
                 let law = LawView {
                     p: out.p,
@@ -161,7 +178,8 @@ impl<F: FnMut(&Visited<'_>) -> Result<()>> LoopVisitor for SimulateRun<F> {
         (self.each)(&visited(steps, sim.time(), &x, None))?;
         let (tau, t_on) = subject.tau_and_t_on();
         let law = subject.law();
-        Ok(Report {
+        let summary = summaries.remove(0);
+        let report = Report {
             robot: subject.name(),
             model: subject.base_model(),
             n: N,
@@ -182,7 +200,8 @@ impl<F: FnMut(&Visited<'_>) -> Result<()>> LoopVisitor for SimulateRun<F> {
             plan,
             traps: traps.events,
             summary,
-        })
+        };
+        Ok((report, summaries))
     }
 }
 

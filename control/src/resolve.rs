@@ -267,7 +267,7 @@ mod tests {
     /// conditioned.
     #[test]
     fn deciding_the_damping_alone_changes_nothing_and_skips_only_above_the_threshold() {
-        let mut rnd = crate::basics::test_rng::uniform(9u64);
+        let mut rnd = crate::basics::rng::uniform(9u64);
         let (threshold, lambda_max) = (0.05, 0.05);
         let mut skipped = 0;
         for k in 0..5000 {

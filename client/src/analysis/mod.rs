@@ -1,5 +1,5 @@
 //! The offline chaos-analysis commands: `lyapunov`, `sweep`, `poincare`, `orbits`, `basins`,
-//! `figures`, `obstacles` and `arm-figure`.
+//! `starts`, `figures`, `obstacles` and `arm-figure`.
 //!
 //! The math lives in `control::analysis`; this module turns flags into validated run specs,
 //! spreads independent runs over the cores, prints, writes CSV/JSON and plots. Every input is
@@ -22,6 +22,7 @@ pub mod orbits;
 pub mod parallel;
 pub mod poincare;
 pub mod shard;
+pub mod starts;
 pub mod sweep;
 pub mod tune;
 

@@ -219,8 +219,8 @@ pub fn load(paths: &[PathBuf]) -> Result<Vec<Loaded>> {
             .with_context(|| format!("cannot read {}", path.display()))?;
         let f: File<serde_json::Value> = serde_json::from_str(&text).map_err(|e| {
             anyhow!(
-                "{}: not a chaosctl shard file ({e}); shard files are written by sweep, basins or \
-                 obstacles with --shard I/N",
+                "{}: not a chaosctl shard file ({e}); shard files are written by sweep, basins, \
+                 obstacles or starts with --shard I/N",
                 path.display()
             )
         })?;

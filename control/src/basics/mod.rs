@@ -9,8 +9,7 @@ pub mod dof;
 pub mod error;
 pub mod flags;
 pub mod number;
-#[cfg(test)]
-pub(crate) mod test_rng;
+pub mod rng;
 
 pub use angle::wrap_angle;
 pub use dof::{MAX_JOINTS, MIN_JOINTS};

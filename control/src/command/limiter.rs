@@ -436,7 +436,7 @@ mod tests {
     #[test]
     fn a_step_and_a_ramp_together_stay_inside_the_jerk_limit() {
         let (l, dt) = (panda_limits(), 1e-3);
-        let mut uniform = crate::basics::test_rng::uniform(7);
+        let mut uniform = crate::basics::rng::uniform(7);
         let (qs, sat) = drive(20_000, |_, m| {
             let mut qdd = VecN::<7>::zeros();
             let mut qddd = VecN::<7>::zeros();

@@ -221,7 +221,7 @@ mod tests {
     fn agrees_with_a_brute_force_projection_on_random_problems() {
         // Random feasible problems in 4-D: the answer meets every row and no feasible point
         // of a dense random sample is closer to the origin.
-        let mut rnd = crate::basics::test_rng::uniform(12345u64);
+        let mut rnd = crate::basics::rng::uniform(12345u64);
         for _ in 0..200 {
             let m = 6;
             let rows: Vec<VecN<4>> = (0..m).map(|_| VecN::<4>::from_fn(|_, _| rnd())).collect();

@@ -482,7 +482,7 @@ mod tests {
     /// segment (end A, interior, end B), so the check and the rows judge alike.
     #[test]
     fn a_foot_applied_to_images_is_its_normal_applied() {
-        let mut rnd = crate::basics::test_rng::uniform(7u64);
+        let mut rnd = crate::basics::rng::uniform(7u64);
         let g = BarrierGains {
             k0: 100.0,
             k1: 20.0,

@@ -133,7 +133,7 @@ mod tests {
             k1: 20.0,
             push_out_speed: 0.1,
         };
-        let mut rnd = crate::basics::test_rng::uniform(0x5eed_u64);
+        let mut rnd = crate::basics::rng::uniform(0x5eed_u64);
         let (mut cleared, mut far, mut far_cleared, mut slack_min) = (0, 0, 0, f64::INFINITY);
         let mut kin = SpatialKinematics::default();
         for k in 0..4000 {

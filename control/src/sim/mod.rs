@@ -202,28 +202,55 @@ pub fn run_steering<const N: usize, L: ClosedLoopLaw<N>>(
     sim: &mut Simulation<N, L>,
     duration: f64,
     transient: f64,
-    mut each: impl FnMut(f64, &ArmState<N>, &ControlOutput<N>) -> Option<Steering>,
+    each: impl FnMut(f64, &ArmState<N>, &ControlOutput<N>) -> Option<Steering>,
 ) -> Summary {
+    let mut summaries = run_steering_at(sim, &[duration], transient, each);
+    summaries.remove(0)
+}
+
+/// [`run_steering`] for the longest of `ends` (s), with the summary a run of each of them
+/// would give: its last ten periods, its peaks and its margins over its own steps. One run
+/// answers "where is it at 60 s, and at 120 s?" as two runs would, the longer one's first
+/// steps being the shorter one's.
+pub fn run_steering_at<const N: usize, L: ClosedLoopLaw<N>>(
+    sim: &mut Simulation<N, L>,
+    ends: &[f64],
+    transient: f64,
+    mut each: impl FnMut(f64, &ArmState<N>, &ControlOutput<N>) -> Option<Steering>,
+) -> Vec<Summary> {
     let setup = sim.law.stats_setup();
-    let mut stats = RunStats::of(setup, sim.dt(), duration, transient, sim.state());
-    let steps = (duration / sim.dt()).round() as u64;
-    let mut finite = true;
+    let (dt, x0) = (sim.dt(), *sim.state());
+    let mut stats: Vec<RunStats<N>> = ends
+        .iter()
+        .map(|&end| RunStats::of(setup, dt, end, transient, &x0))
+        .collect();
+    let ends: Vec<u64> = ends.iter().map(|end| (end / dt).round() as u64).collect();
+    let steps = ends.iter().copied().max().unwrap_or(0);
+    let mut diverged_at = None;
     for _ in 0..steps {
         let (k, t, x) = (sim.step_index(), sim.time(), *sim.state());
         let out = sim.step();
         if let Some(steer) = each(t, &x, &out) {
             sim.law.set_steering(Some(steer));
         }
-        stats.record(k, &x, &out);
+        for (s, &end) in stats.iter_mut().zip(&ends) {
+            if k < end {
+                s.record(k, &x, &out);
+            }
+        }
         if !sim.state().is_finite() {
-            finite = false;
+            diverged_at = Some(k);
             break;
         }
     }
-    Summary {
-        finite,
-        ..stats.summary()
-    }
+    stats
+        .iter()
+        .zip(&ends)
+        .map(|(s, &end)| Summary {
+            finite: diverged_at.is_none_or(|k| k >= end),
+            ..s.summary()
+        })
+        .collect()
 }
 
 /// Windowed statistics of a run, accumulated step by step without allocation.
@@ -684,6 +711,21 @@ mod tests {
             base_rate: 0.0,
             flags,
         }
+    }
+
+    #[test]
+    fn one_run_summarises_each_end_as_a_run_of_that_length_would() {
+        let cfg = Config::preset("demo").unwrap();
+        let sim = || {
+            let law = cfg.tick_law::<3>();
+            Simulation::of(law, 1e-3, cfg.initial_state::<3>(), 1.0)
+        };
+        let at = run_steering_at(&mut sim(), &[0.1, 3.0, 5.0], 1.0, |_, _, _| None);
+        for (end, got) in [0.1, 3.0, 5.0].into_iter().zip(&at) {
+            let alone = run_steering(&mut sim(), end, 1.0, |_, _, _| None);
+            assert_eq!(&alone, got, "end {end}");
+        }
+        assert!(at[1].period_residual_final.is_some() && at[1] != at[2]);
     }
 
     #[test]
