@@ -40,6 +40,11 @@ impl Subject {
         &self.system
     }
 
+    /// The whole set-up, to change (checked again by whatever runs it).
+    pub fn system_mut(&mut self) -> &mut System {
+        &mut self.system
+    }
+
     /// The Pyragas gain μ (1/s).
     pub fn mu(&self) -> f64 {
         self.feedback().mu

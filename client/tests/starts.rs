@@ -189,3 +189,64 @@ fn bad_flags_are_refused_with_the_reason() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("no position limits"), "{err}");
 }
+
+#[test]
+fn a_robot_runs_through_its_command_interface_and_a_dynamic_arm() {
+    let dir = scratch("plant");
+    let out = dir.join("torque");
+    let json = ok(&[
+        "starts",
+        "--preset",
+        "panda",
+        "--plant",
+        "rigid-body",
+        "--mode",
+        "torque",
+        "--count",
+        "2",
+        "--check",
+        "6:1",
+        "--output",
+        s(&out),
+        "--json",
+    ]);
+    let json: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(json["run"].as_u64(), Some(2), "{json}");
+    for row in json["starts"].as_array().unwrap() {
+        let r = row["residuals"][0].as_f64().unwrap();
+        assert!(r.is_finite() && r > 0.0, "{row}");
+        assert!(row["margin"].as_f64().unwrap() > 0.0, "{row}");
+    }
+    for (args, needle) in [
+        (
+            &["--preset", "demo", "--plant", "rigid-body"][..],
+            "no mass model",
+        ),
+        (
+            &["--preset", "panda", "--mode", "torque"],
+            "--mode is the command interface",
+        ),
+        (
+            &[
+                "--preset",
+                "panda",
+                "--plant",
+                "rigid-body",
+                "--mode",
+                "sideways",
+            ],
+            "sideways",
+        ),
+    ] {
+        let mut all = vec!["starts"];
+        all.extend(args);
+        let out = chaosctl(&all);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{all:?}: {err}");
+        assert!(
+            err.contains(needle) && !err.contains("panicked"),
+            "{all:?}: {err}"
+        );
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

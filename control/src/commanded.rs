@@ -12,8 +12,9 @@ use crate::basics::ConfigError;
 use crate::command::{CommandMode, LimitKind, LIMIT_KINDS};
 use crate::delay::DelayLine;
 use crate::hold;
-use crate::rigid_body::{Device, RigidBodyConfig};
-use crate::sim::ArmState;
+use crate::resolve::ControlOutput;
+use crate::rigid_body::{Device, Measured, RigidBodyConfig};
+use crate::sim::{ArmState, ClosedLoopLaw, RunStats, Summary};
 use crate::system::System;
 use crate::tick_law::LawScratch;
 
@@ -48,6 +49,24 @@ pub fn run<const N: usize>(
     duration: f64,
     transient: f64,
 ) -> Result<CommandedRun, ConfigError> {
+    let (run, _) = run_at::<N>(system, plant, dt, substeps, duration, transient, &[])?;
+    Ok(run)
+}
+
+/// [`run`], with the summary of the plant's own motion up to each of `ends` (s, at most
+/// `duration`), as [`crate::sim::run_steering_at`] gives the law's own model's: the measured
+/// state's speeds, residual and distance to the position limits, the arm's own tracking
+/// error, and the law's commanded q̈ against the acceleration and jerk limits. So a study
+/// judges a run on the plant by the same rules as a run on the model.
+pub fn run_at<const N: usize>(
+    system: &System,
+    plant: &RigidBodyConfig,
+    dt: f64,
+    substeps: u32,
+    duration: f64,
+    transient: f64,
+    ends: &[f64],
+) -> Result<(CommandedRun, Vec<Summary>), ConfigError> {
     let System::Spatial(s) = system else {
         return Err(ConfigError::Spatial(
             "command interfaces need a robot model: use a [robot] set-up".into(),
@@ -92,6 +111,7 @@ pub fn run<const N: usize>(
         reference_lag: 0.0,
     };
     let (mut tracked, mut before, mut after) = (0u64, 0u64, 0u64);
+    let mut stats = Judged::new(&law, dt, transient, ends, &x0);
     for k in 0..steps {
         let t = k as f64 * dt;
         let m = device.measure();
@@ -115,6 +135,7 @@ pub fn run<const N: usize>(
         device.advance(dt, substeps);
         // The arm's own error (the law's is its reference's in position and velocity modes).
         let e = (arm_model.tool_position(&m.q) - o.p_desired).norm();
+        stats.record(k, &m, &o, e);
         if t >= transient {
             out.tracking_rms += e * e;
             out.tracking_max = out.tracking_max.max(e);
@@ -140,5 +161,67 @@ pub fn run<const N: usize>(
         out.saturations[kind as usize] = gen.saturations.total(kind);
     }
     out.plant_torque_saturations = device.arm.torque_saturations;
-    Ok(out)
+    Ok((out, stats.summaries()))
+}
+
+/// [`run_at`]'s summaries: one [`RunStats`] per end, fed the plant's measured state.
+struct Judged<const N: usize> {
+    stats: Vec<RunStats<N>>,
+    ends: Vec<u64>,
+    safety: crate::safety::SafetyParams,
+    diverged_at: Option<u64>,
+}
+
+impl<const N: usize> Judged<N> {
+    fn new(
+        law: &crate::tick_law::TickLaw<N>,
+        dt: f64,
+        transient: f64,
+        ends: &[f64],
+        x0: &ArmState<N>,
+    ) -> Self {
+        let setup = law.stats_setup();
+        Self {
+            stats: ends
+                .iter()
+                .map(|&end| RunStats::of(setup, dt, end, transient, x0))
+                .collect(),
+            ends: ends.iter().map(|end| (end / dt).round() as u64).collect(),
+            safety: law.core().safety,
+            diverged_at: None,
+        }
+    }
+
+    /// Step `k`: the measured state, the law's output and the arm's own tracking error.
+    fn record(&mut self, k: u64, m: &Measured<N>, o: &ControlOutput<N>, error: f64) {
+        let x = ArmState {
+            q: m.q,
+            qd: m.qd,
+            phi: 0.0,
+        };
+        if self.diverged_at.is_none() && !x.is_finite() {
+            self.diverged_at = Some(k);
+        }
+        let judged = ControlOutput {
+            tracking_error: error,
+            joint_margin: self.safety.joint_margin(&m.q),
+            ..*o
+        };
+        for (s, &end) in self.stats.iter_mut().zip(&self.ends) {
+            if k < end {
+                s.record(k, &x, &judged);
+            }
+        }
+    }
+
+    fn summaries(&self) -> Vec<Summary> {
+        self.stats
+            .iter()
+            .zip(&self.ends)
+            .map(|(s, &end)| Summary {
+                finite: self.diverged_at.is_none_or(|k| k >= end),
+                ..s.summary()
+            })
+            .collect()
+    }
 }

@@ -108,3 +108,28 @@ fn a_mode_the_arm_cannot_run_is_refused_by_name() {
         "{e}"
     );
 }
+
+#[test]
+fn the_summaries_judge_the_plants_own_motion() {
+    // Torque mode on a plant 20 % heavier than the model: the summaries are of the measured
+    // arm, so its tracking error is the run's own, and a shorter end is a shorter run's.
+    let plant = RigidBodyConfig {
+        mass_scale: 1.2,
+        ..Default::default()
+    };
+    let system = panda(CommandMode::Torque);
+    let (r, at) =
+        control::commanded::run_at::<7>(&system, &plant, 1e-3, 4, 12.0, 10.0, &[11.0, 12.0])
+            .unwrap();
+    let whole = &at[1];
+    assert_eq!(whole.duration, 12.0);
+    assert!(whole.finite && at[0].finite);
+    assert_eq!(whole.max_tracking_error, r.tracking_max);
+    assert!((whole.rms_tracking_error - r.tracking_rms).abs() <= 1e-15 * r.tracking_rms);
+    // The mismatch shows: not the model's microns.
+    assert!(whole.max_tracking_error > 1e-6, "{whole:?}");
+    assert!(at[0].max_tracking_error <= whole.max_tracking_error);
+    assert!(whole.min_joint_margin.is_some_and(|m| m > 0.0));
+    assert!(whole.max_speed_ratio > 0.0 && whole.max_speed_ratio < 1.0);
+    assert!(whole.max_accel_ratio > 0.0);
+}

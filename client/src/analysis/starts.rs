@@ -15,6 +15,8 @@ use crate::setup::ModelArgs;
 use crate::subject::Subject;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
+use control::command::CommandMode;
+use control::rigid_body::RigidBodyConfig;
 use control::Summary;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -51,6 +53,16 @@ pub struct StartsCmd {
     /// at the start": the hand at rest on a moving path), not as the self-motion's.
     #[arg(long, default_value_t = 0.1)]
     pub start_window: f64,
+    /// What the starts run against: law (the law's own model, as `simulate` runs it) or
+    /// rigid-body (the command interface of the file's `[command]` and the dynamic arm of its
+    /// `[plant.rigid_body]`: friction, payload, mass scale, sensor noise; at `daemon.rate_hz`
+    /// with `plant.substeps`), judged on the arm's measured motion. Robots only.
+    #[arg(long, value_enum, default_value_t = Against::Law)]
+    pub plant: Against,
+    /// With --plant rigid-body: the command interface, acceleration, position, velocity or
+    /// torque [default: the file's `command.mode`].
+    #[arg(long, value_parser = parse_mode)]
+    pub mode: Option<CommandMode>,
     /// Worker threads (default: every core).
     #[arg(long)]
     pub jobs: Option<usize>,
@@ -71,6 +83,17 @@ pub struct StartsCmd {
 pub enum Draw {
     Near,
     Box,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Against {
+    Law,
+    RigidBody,
+}
+
+fn parse_mode(s: &str) -> Result<CommandMode, String> {
+    CommandMode::parse(s).map_err(|e| e.to_string())
 }
 
 /// `--check T:TOL`.
@@ -119,6 +142,15 @@ struct Plan {
     starts: Vec<(Vec<f64>, Vec<f64>)>,
     cells: Vec<Result<Subject, String>>,
     duration: f64,
+    plant: Option<Plant>,
+}
+
+/// `--plant rigid-body`: the dynamic arm, the period and the substeps the live pair would use.
+#[derive(Clone, Debug)]
+struct Plant {
+    config: RigidBodyConfig,
+    dt: f64,
+    substeps: u32,
 }
 
 fn plan(args: &StartsCmd) -> Result<Plan> {
@@ -126,6 +158,7 @@ fn plan(args: &StartsCmd) -> Result<Plan> {
     let mut base = Subject::load(&args.model.setup, args.model.mu)?;
     let duration = args.checks.iter().map(|c| c.at).fold(0.0, f64::max);
     base.set_duration(Some(duration), Some(0.0))?;
+    let plant = plant(args, &mut base)?;
     let boxes = joint_box(&base, args)?;
     let rates = args.rates.unwrap_or(match args.draw {
         Draw::Near => 0.1,
@@ -147,7 +180,50 @@ fn plan(args: &StartsCmd) -> Result<Plan> {
         starts,
         cells,
         duration,
+        plant,
     })
+}
+
+/// The dynamic arm of `--plant rigid-body` from the file's tables, checked by one tick of the
+/// loop (the interface, its limits and the plant's physics), with `--mode` set on the robot.
+fn plant(args: &StartsCmd, base: &mut Subject) -> Result<Option<Plant>> {
+    if args.plant == Against::Law {
+        if args.mode.is_some() {
+            bail!("--mode is the command interface of --plant rigid-body; the law's own model takes accelerations");
+        }
+        return Ok(None);
+    }
+    let Some(robot) = base.system_mut().robot_mut() else {
+        bail!("--plant rigid-body: the paper's planar arm has no mass model; use a robot (e.g. --preset panda)");
+    };
+    if let Some(mode) = args.mode {
+        robot.config.command.mode = mode;
+    }
+    let (daemon, plant) = base.system().tables();
+    let key =
+        |table: &Option<toml::Table>, key: &str| table.as_ref().and_then(|t| t.get(key).cloned());
+    let rate = key(daemon, "rate_hz")
+        .and_then(|v| v.as_float())
+        .unwrap_or(1000.0);
+    let substeps = key(plant, "substeps")
+        .and_then(|v| v.as_integer())
+        .unwrap_or(4);
+    let config: RigidBodyConfig = match key(plant, "rigid_body") {
+        Some(v) => v.try_into().context("in [plant.rigid_body]")?,
+        None => RigidBodyConfig::default(),
+    };
+    let Ok(substeps) = u32::try_from(substeps) else {
+        bail!("plant.substeps = {substeps}: a whole number of substeps ≥ 1");
+    };
+    let p = Plant {
+        config,
+        dt: 1.0 / rate,
+        substeps,
+    };
+    control::with_dof!(base.n(), N => {
+        control::commanded::run_at::<N>(base.system(), &p.config, p.dt, p.substeps, p.dt, 0.0, &[])?;
+    });
+    Ok(Some(p))
 }
 
 fn check_args(args: &StartsCmd) -> Result<()> {
@@ -202,13 +278,28 @@ fn draw(seed: u64, k: u64, boxes: &[(f64, f64)], rates: f64) -> (Vec<f64>, Vec<f
 }
 
 /// Runs one start to the latest check, with the summaries at the start window and each check.
-fn run_start(cell: &Result<Subject, String>, args: &StartsCmd) -> Result<StartEnd, String> {
+fn run_start(
+    cell: &Result<Subject, String>,
+    args: &StartsCmd,
+    plant: Option<&Plant>,
+) -> Result<StartEnd, String> {
     let subject = cell.as_ref().map_err(Clone::clone)?;
     let mut ends = vec![args.start_window];
     ends.extend(args.checks.iter().map(|c| c.at));
-    let (report, at) = crate::simulate::run_subject_at(subject, &ends, |_| Ok(()))
-        .map_err(|e| format!("{e:#}"))?;
-    Ok(start_end(&report.summary, &at))
+    let Some(p) = plant else {
+        let (report, at) = crate::simulate::run_subject_at(subject, &ends, |_| Ok(()))
+            .map_err(|e| format!("{e:#}"))?;
+        return Ok(start_end(&report.summary, &at));
+    };
+    let (duration, _) = subject.duration();
+    ends.push(duration);
+    let system = subject.system();
+    let (_, mut at) = control::with_dof!(subject.n(), N => {
+        control::commanded::run_at::<N>(system, &p.config, p.dt, p.substeps, duration, 0.0, &ends)
+    })
+    .map_err(|e| e.to_string())?;
+    let whole = at.pop().expect("the run's own end");
+    Ok(start_end(&whole, &at))
 }
 
 fn start_end(whole: &Summary, at: &[Summary]) -> StartEnd {
@@ -256,8 +347,8 @@ pub fn verdict(end: &StartEnd, checks: &[Check]) -> String {
 /// The grid a shard file names: the draw, the run and every start's whole set-up.
 fn grid(args: &StartsCmd, plan: &Plan) -> shard::Grid {
     let head = format!(
-        "{:?} {} {} {:?} {}",
-        args.draw, args.seed, args.start_window, args.checks, plan.base
+        "{:?} {} {} {:?} {:?} {}",
+        args.draw, args.seed, args.start_window, args.checks, plan.plant, plan.base
     );
     let parts = std::iter::once(head).chain(plan.cells.iter().map(|c| match c {
         Ok(s) => format!("{s}"),
@@ -272,7 +363,7 @@ fn grid(args: &StartsCmd, plan: &Plan) -> shard::Grid {
 pub fn run(args: StartsCmd) -> Result<()> {
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
-    let work = |c: &Result<Subject, String>| run_start(c, &args);
+    let work = |c: &Result<Subject, String>| run_start(c, &args, plan.plant.as_ref());
     if let Some(s) = args.shard {
         shard::run_shard(
             &grid(&args, &plan),
