@@ -13,7 +13,7 @@ use crate::command::{CommandMode, LimitKind, LIMIT_KINDS};
 use crate::delay::DelayLine;
 use crate::hold;
 use crate::resolve::ControlOutput;
-use crate::rigid_body::{Device, Measured, RigidBodyConfig};
+use crate::rigid_body::{Device, RigidBodyConfig};
 use crate::sim::{ArmState, ClosedLoopLaw, RunStats, Summary};
 use crate::system::System;
 use crate::tick_law::LawScratch;
@@ -54,10 +54,10 @@ pub fn run<const N: usize>(
 }
 
 /// [`run`], with the summary of the plant's own motion up to each of `ends` (s, at most
-/// `duration`), as [`crate::sim::run_steering_at`] gives the law's own model's: the measured
-/// state's speeds, residual and distance to the position limits, the arm's own tracking
-/// error, and the law's commanded q̈ against the acceleration and jerk limits. So a study
-/// judges a run on the plant by the same rules as a run on the model.
+/// `duration`), as [`crate::sim::run_steering_at`] gives the law's own model's: the arm's true
+/// speeds, residual and distance to the position limits (not the sensors' noisy reading of
+/// them), its own tracking error, and the law's commanded q̈ against the acceleration and jerk
+/// limits. So a study judges a run on the plant by the same rules as a run on the model.
 pub fn run_at<const N: usize>(
     system: &System,
     plant: &RigidBodyConfig,
@@ -115,6 +115,13 @@ pub fn run_at<const N: usize>(
     for k in 0..steps {
         let t = k as f64 * dt;
         let m = device.measure();
+        // The arm itself at the same instant, not the sensors' reading of it (noise, encoder
+        // steps): what the summaries judge.
+        let truth = ArmState {
+            q: device.arm.state.q,
+            qd: device.arm.state.qd,
+            phi: 0.0,
+        };
         let (q, qd) = gen.law_state(&m.q, &m.qd);
         let x = ArmState { q, qd, phi: 0.0 };
         delay.push(x.qd);
@@ -135,7 +142,10 @@ pub fn run_at<const N: usize>(
         device.advance(dt, substeps);
         // The arm's own error (the law's is its reference's in position and velocity modes).
         let e = (arm_model.tool_position(&m.q) - o.p_desired).norm();
-        stats.record(k, &m, &o, e);
+        if stats.wanted() {
+            let e = (arm_model.tool_position(&truth.q) - o.p_desired).norm();
+            stats.record(k, &truth, &o, e);
+        }
         if t >= transient {
             out.tracking_rms += e * e;
             out.tracking_max = out.tracking_max.max(e);
@@ -192,24 +202,24 @@ impl<const N: usize> Judged<N> {
         }
     }
 
-    /// Step `k`: the measured state, the law's output and the arm's own tracking error.
-    fn record(&mut self, k: u64, m: &Measured<N>, o: &ControlOutput<N>, error: f64) {
-        let x = ArmState {
-            q: m.q,
-            qd: m.qd,
-            phi: 0.0,
-        };
+    /// Whether any summary was asked for ([`run`] asks none, and pays nothing for them).
+    fn wanted(&self) -> bool {
+        !self.stats.is_empty()
+    }
+
+    /// Step `k`: the arm's state, the law's output and the arm's own tracking error.
+    fn record(&mut self, k: u64, x: &ArmState<N>, o: &ControlOutput<N>, error: f64) {
         if self.diverged_at.is_none() && !x.is_finite() {
             self.diverged_at = Some(k);
         }
         let judged = ControlOutput {
             tracking_error: error,
-            joint_margin: self.safety.joint_margin(&m.q),
+            joint_margin: self.safety.joint_margin(&x.q),
             ..*o
         };
         for (s, &end) in self.stats.iter_mut().zip(&self.ends) {
             if k < end {
-                s.record(k, &x, &judged);
+                s.record(k, x, &judged);
             }
         }
     }

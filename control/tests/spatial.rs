@@ -312,7 +312,8 @@ fn the_panda_preset_is_periodic_fast_inside_every_limit() {
 
 #[test]
 fn the_speed_cap_keeps_a_far_start_inside_the_acceleration_limits() {
-    // Start 15 of scripts/panda-study/basins.sh box: the joints far from mid-range, where the
+    // Start 15 of the first box draw of scripts/panda-study/basins.sh (awk's, 2026-12-01; the
+    // study now draws with `chaosctl starts`): the joints far from mid-range, where the
     // centring pull α∇c asks more than the Panda's acceleration limits on the first ticks.
     // Capped at 1 rad/s (law.null_speed, the preset's) it asks less than 60 %, and the arm still
     // becomes periodic inside every limit.

@@ -1,15 +1,19 @@
 #!/usr/bin/env bash
-# The basin study of docs/panda-study.md: N random starts (a fixed draw), the law alone (filter
-# off, feedback from t = 0), for the preset and the variants of the gain study. A start succeeds
-# when its period residual is ≤ 1e-3 rad/s over 40-60 s and ≤ 1e-6 over 100-120 s, and every
-# joint stays inside its position, speed, acceleration and jerk limits for all 120 s. Starts
-# whose circle is out of reach are refused by the config check and left out.
-# Usage: [ROBOT=panda|xarm7] [VARIANTS=all|new] [FILTER=on] scripts/panda-study/basins.sh [near|box] [N] [out-dir]
+# The basin study of docs/panda-study.md, made with `chaosctl starts`: N random starts (seed 1,
+# the same on every machine), the law alone (filter off, feedback from t = 0), for the preset
+# and the variants of the gain study. A start succeeds when its period residual is ≤ 1e-3 rad/s
+# over 40-60 s and ≤ 1e-6 over 100-120 s, and every joint stays inside its position, speed,
+# acceleration and jerk limits for all 120 s. Starts whose circle is out of reach are refused by
+# the config check and left out.
+# Usage: [ROBOT=panda|xarm7] [VARIANTS=all|new] [FILTER=on] [PLANT=torque] scripts/panda-study/basins.sh [near|box] [N] [out-dir]
 #   near: each joint within ±0.5 rad of the ready pose, rates within ±0.1 rad/s;
 #   box:  anywhere in the joint box (10 % in from each limit), rates within ±0.2 rad/s.
 # The last variants start the path from rest (task.ramp = 1 s); the ones with null_speed cap the
 # centring pull's velocity (law.null_speed), the `panda` preset. VARIANTS=new runs the α = 160 rows.
-# Needs a release build. About a minute per variant for N = 100 on 2 cores.
+# FILTER=on: the `panda` preset as shipped (safety filter on): on how many starts the filter acts.
+# PLANT=torque: the `panda` preset in torque mode against the rigid-body arm, exact, 20 % heavier
+# with 1 kg at the tip, and that with friction and sensor noise too.
+# Needs a release build (cargo build --release -p client). About 15 s per row for N = 100 on 2 cores.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 kind=${1:-near}
@@ -18,65 +22,34 @@ robot=${ROBOT:-panda}
 out=${3:-out/$robot-basins-$kind}
 mkdir -p "$out"
 ctl=${CHAOSD_BIN:-$PWD/target/release}/chaosctl
-# The arm's ready pose and joint box, and its set-up with the paper's recipe to vary.
 case $robot in
-  panda)
-    ready="0.0 -0.785 0.0 -2.356 0.0 1.571 0.785"
-    lo="-2.8973 -1.7628 -2.8973 -3.0718 -2.8973 -0.0175 -2.8973"
-    hi="2.8973 1.7628 2.8973 -0.0698 2.8973 3.7525 2.8973"
-    $ctl config --preset panda-paper > "$out/panda.toml" ;;
-  xarm7)
-    ready="0.0 -0.5 0.0 0.7 0.0 1.2 0.0"
-    lo="-6.2832 -2.0590 -6.2832 -0.1920 -6.2832 -1.6930 -6.2832"
-    hi="6.2832 2.0944 6.2832 3.9270 6.2832 3.1416 6.2832"
-    cp examples/own-urdf/xarm7.toml "$out/panda.toml" ;;
+  panda) $ctl config --preset panda-paper > "$out/base.toml" ;;
+  xarm7) cp examples/own-urdf/xarm7.toml "$out/base.toml" ;;
   *) echo "ROBOT=$robot: panda or xarm7" >&2; exit 2 ;;
 esac
 
-# draw I: "q0 qd0" of start I (awk's generator, seeded by I).
-draw() {
-  awk -v s="$1" -v kind="$kind" -v ready="$ready" -v low="$lo" -v high="$hi" 'BEGIN {
-    srand(s * 104729 + 17);
-    split(ready, r, " "); split(low, lo, " "); split(high, hi, " ");
-    q = ""; qd = "";
-    for (j = 1; j <= 7; j++) {
-      if (kind == "box") { m = 0.1 * (hi[j] - lo[j]); v = lo[j] + m + rand() * (hi[j] - lo[j] - 2 * m); w = 0.2 }
-      else { v = r[j] + rand() - 0.5; w = 0.1 }
-      q = q (j > 1 ? "," : "") sprintf("%.4f", v);
-      qd = qd (j > 1 ? "," : "") sprintf("%.4f", w * (2 * rand() - 1));
-    }
-    print q, qd }'
+# study NAME CONFIG [FLAGS…]: the starts of this draw from CONFIG, into $out/NAME.csv.
+study() {
+  local name=$1 cfg=$2
+  shift 2
+  $ctl starts --config "$cfg" --draw "$kind" --count "$n" --seed 1 --output "$out/$name" "$@" > "$out/$name.txt"
 }
 
-# one CFG I: a line "I verdict residual60 residual120 speed% accel% jerk% margin". The verdict
-# is the first limit broken (acceleration-at-start: only in the first 0.1 s), or slow60 /
-# slow120, or ok.
-one() {
-  local cfg=$1 i=$2 q0 qd0 j60 j120 j0
-  read -r q0 qd0 <<< "$(draw "$i")"
-  run() { $ctl simulate --config "$cfg" --q0="$q0" --qd0="$qd0" --safety off --t-on 0 --duration "$1" --transient 0 --json; }
-  if ! j60=$(run 60 2>/dev/null); then
-    echo "$i refused"; return
-  fi
-  j120=$(run 120)
-  # The acceleration peak of the first 0.1 s alone: the hand starts at rest on a moving path.
-  j0=$(run 0.1)
-  python3 - "$i" "$j60" "$j120" "$j0" <<'PY'
-import json, sys
-i, a, b, z = sys.argv[1], *(json.loads(x) for x in sys.argv[2:])
-r60, r120 = a["period_residual_final"], b["period_residual_final"]
-sp, ac, je = (100 * b[k] for k in ("max_speed_ratio", "max_accel_ratio", "max_jerk_ratio"))
-ac0, mg = 100 * z["max_accel_ratio"], b["min_joint_margin"]
-slow = lambda r, tol: r is None or r > tol
-v = ("position" if mg <= 0 else "speed" if sp > 100
-     else "acceleration-at-start" if ac > 100 and ac == ac0 else "acceleration" if ac > 100
-     else "jerk" if je > 100 else "slow60" if slow(r60, 1e-3) else "slow120" if slow(r120, 1e-6)
-     else "ok")
-print(i, v, r60, r120, f"{sp:.1f}", f"{ac:.1f}", f"{je:.1f}", mg)
-PY
+# row CSV: "periodic of run | the same but for the start's acceleration | failures" from the
+# verdicts (column 2) and, for the starts whose only fault is the first 0.1 s's acceleration,
+# their residual columns.
+row() {
+  awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
+    $2 == "refused" { next }
+    { run++ }
+    $2 == "periodic" { ok++; next }
+    { fail[$2]++ }
+    $2 == "acceleration at the start" && $col["residual_60s"] <= 1e-3 && $col["residual_120s"] <= 1e-6 { late++ }
+    END {
+      f = ""; for (k in fail) f = f (f == "" ? "" : ", ") k " " fail[k];
+      printf "%d of %d | %d of %d | %s", ok, run, ok + late, run, (f == "" ? "none" : f)
+    }' "$1"
 }
-export -f draw one
-export ctl kind ready lo hi
 
 variant() {
   local ramp=${4:-0} speed=${5:-0} name="a$1_kd$2_mu$3_ramp${4:-0}_speed${5:-0}" cfg
@@ -86,36 +59,38 @@ variant() {
   sed -e "s/^alpha = .*/alpha = $1/" -e "/^null_damping = /d" -e "/^null_speed = /d" \
     -e "/^\[law\]/a null_damping = $2\nnull_speed = $speed" \
     -e "s/^mu = .*/mu = $3/" -e "s/^period = 2.0/period = 2.0\nramp = $ramp/" \
-    "$out/panda.toml" > "$cfg"
-  seq 1 "$n" | xargs -P 2 -I{} bash -c "one '$cfg' {}" | sort -n > "$out/$name.txt"
-  local total ok
-  total=$(grep -vc refused "$out/$name.txt" || true)
-  ok=$(grep -c ' ok ' "$out/$name.txt" || true)
-  # Also counted: the starts whose only fault is the first 0.1 s's acceleration.
-  local late
-  late=$(awk '$2 == "acceleration-at-start" && $3 <= 1e-3 && $4 <= 1e-6 { c++ } END { print c + 0 }' "$out/$name.txt")
-  local fails
-  fails=$(awk '$2 != "ok" && $2 != "refused" { c[$2]++ } END { for (k in c) printf "%s %d, ", k, c[k] }' "$out/$name.txt")
-  printf '| %s | %s | %s | %s | %s | %d of %d | %d of %d | %s |\n' "$1" "$2" "$3" "$ramp" "$speed" "$ok" "$total" \
-    "$((ok + late))" "$total" "${fails%, }"
+    "$out/base.toml" > "$cfg"
+  study "$name" "$cfg" --safety off --t-on 0
+  printf '| %s | %s | %s | %s | %s | %s |\n' "$1" "$2" "$3" "$ramp" "$speed" "$(row "$out/$name.csv")"
 }
 
-# FILTER=on: the `panda` preset as shipped (safety filter on) from the same starts, 120 s each:
-# on how many starts, and on how many for more than 1 % of the ticks, the filter acts.
-filtered() {
-  local i=$1 q0 qd0 out
-  read -r q0 qd0 <<< "$(draw "$i")"
-  out=$($ctl simulate --preset panda --q0="$q0" --qd0="$qd0" --safety on --duration 120 --transient 0 --json 2>/dev/null) \
-    || { echo "$i refused"; return; }
-  echo "$i $(python3 -c 'import json, sys; print(json.load(sys.stdin)["safety_active_time"])' <<< "$out")"
-}
-export -f filtered
 if [ "${FILTER:-off}" = on ]; then
   [ "$robot" = panda ] || { echo "FILTER=on runs the panda preset" >&2; exit 2; }
-  seq 1 "$n" | xargs -P 2 -I{} bash -c "filtered {}" | sort -n > "$out/filter.txt"
-  awk '$2 != "refused" { n++; if ($2 > 0) any++; if ($2 > 1.2) over++ }
-    END { printf "filter on: %d starts; it acts on %d, on more than 1 %% of the ticks on %d\n", n, any, over }' \
-    "$out/filter.txt"
+  $ctl config --preset panda > "$out/panda.toml"
+  study filter "$out/panda.toml"
+  awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
+    $2 != "refused" { run++; a = $col["filter_active"]; if (a > 0) any++; if (a > 0.01) over++; if ($2 == "periodic") ok++ }
+    END { printf "filter on: %d starts, periodic inside every limit %d; the filter acts on %d, on more than 1 %% of the run on %d\n", run, ok, any, over }' \
+    "$out/filter.csv"
+  exit 0
+fi
+
+if [ "${PLANT:-}" = torque ]; then
+  [ "$robot" = panda ] || { echo "PLANT=torque runs the panda preset" >&2; exit 2; }
+  $ctl config --preset panda > "$out/panda.toml"
+  echo "| plant | periodic inside every limit | the same, but for the first 0.1 s's acceleration | failures |"
+  echo "|---|---|---|---|"
+  for plant in exact heavy heavy-friction-noise; do
+    cfg="$out/torque-$plant.toml"
+    cp "$out/panda.toml" "$cfg"
+    case $plant in
+      heavy) printf '\n[plant.rigid_body]\nmass_scale = 1.2\npayload = 1.0\n' >> "$cfg" ;;
+      heavy-friction-noise)
+        printf '\n[plant.rigid_body]\nmass_scale = 1.2\npayload = 1.0\nviscous = [0.1, 0.1, 0.1, 0.1, 0.05, 0.05, 0.05]\ncoulomb = [0.3, 0.3, 0.3, 0.3, 0.2, 0.2, 0.2]\nnoise_q = 1e-5\nnoise_qd = 1e-3\nnoise_tau = 0.05\n' >> "$cfg" ;;
+    esac
+    study "torque-$plant" "$cfg" --safety off --t-on 0 --plant rigid-body --mode torque
+    printf '| %s | %s |\n' "$plant" "$(row "$out/torque-$plant.csv")"
+  done
   exit 0
 fi
 

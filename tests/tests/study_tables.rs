@@ -8,7 +8,8 @@
 //! and every start count must hold (to one start); on this machine the rows are the book's to the
 //! digit, and a row that differs only in digits (another CPU's libm, in a chaotic run) is named.
 //! The scripts read JSON with Python: skipped, saying so, without `CHAOSD_PYTHON`; CI sets it and
-//! `CHAOSD_REQUIRE_PYTHON=1`.
+//! `CHAOSD_REQUIRE_PYTHON=1`. `basins.sh` runs `chaosctl starts` and needs no Python: its rows of
+//! the preset are checked everywhere.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -162,5 +163,49 @@ fn the_starts_table_is_what_starts_sh_prints() {
         if fresh[3..] != book[3..] {
             eprintln!("{fresh:?}, the book {book:?} (one start at a limit's edge)");
         }
+    }
+}
+
+/// The preset's rows near the ready pose (`VARIANTS=new scripts/panda-study/basins.sh near`,
+/// `chaosctl starts` underneath: no Python) against the book's table of the preset, each count
+/// of periodic starts within one of the book's.
+#[test]
+fn the_presets_basin_rows_are_what_basins_sh_prints() {
+    let out = tests::TempDir::new(&format!("study-basins-{}", std::process::id()));
+    let o = Command::new("bash")
+        .arg(root().join("scripts/panda-study/basins.sh"))
+        .args(["near", "100"])
+        .arg(out.path())
+        .env("CHAOSD_BIN", tests::bin("chaosctl").parent().unwrap())
+        .env("VARIANTS", "new")
+        .output()
+        .unwrap();
+    let printed = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        o.status.success(),
+        "basins.sh: {}\n{printed}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let rows = printed_rows(&printed, "| α");
+    let book: Vec<_> = book_rows("| starts | α | k_d | μ | `null_speed` (rad/s) | periodic")
+        .into_iter()
+        .filter(|r| r[0] == "near the pose")
+        .collect();
+    assert_eq!(rows.len(), book.len(), "{printed}");
+    for (fresh, book) in rows.iter().zip(&book) {
+        for k in 0..3 {
+            assert_eq!(
+                number(&fresh[k]),
+                number(&book[k + 1]),
+                "{fresh:?} {book:?}"
+            );
+        }
+        let speed = |c: &str| if c == "—" { 0.0 } else { number(c) };
+        assert_eq!(number(&fresh[4]), speed(&book[4]), "{fresh:?} {book:?}");
+        let (f, b) = (number(&fresh[5]), number(&book[5]));
+        assert!(
+            (f - b).abs() <= 1.0,
+            "{fresh:?} against the book's {book:?}"
+        );
     }
 }

@@ -157,7 +157,8 @@ impl SpatialConfig {
         if name == "panda" {
             // λ = −0.745 /s on the cycle by its Floquet multipliers; periodic inside every
             // position, speed, acceleration and jerk limit from 100 of 100 starts near the
-            // ready pose and 77 of 99 across the joint box (scripts/panda-study/basins.sh).
+            // ready pose and 71 of 98 across the joint box (`chaosctl starts`,
+            // scripts/panda-study/basins.sh).
             c.law.alpha = 160.0;
             c.law.null_damping = 8.0;
             // Far from mid-range the pull asks several rad/s; capped, the first ticks stay
