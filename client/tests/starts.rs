@@ -69,7 +69,10 @@ fn every_row_is_the_simulate_run_of_its_start_and_shards_merge_to_it() {
         format!("--q0={}", list("q")),
         format!("--qd0={}", list("qd")),
     );
+    // The statistics skip the tracking check's 10 s (the default), as the study's do; only the
+    // tracking numbers depend on it.
     let simulate = |duration: &str| -> serde_json::Value {
+        let transient = if duration == "0.1" { "0" } else { "10" };
         let args = [
             "simulate",
             "--preset",
@@ -81,7 +84,7 @@ fn every_row_is_the_simulate_run_of_its_start_and_shards_merge_to_it() {
             "--duration",
             duration,
             "--transient",
-            "0",
+            transient,
             "--json",
         ];
         serde_json::from_str(&ok(&args)).unwrap()
@@ -95,12 +98,14 @@ fn every_row_is_the_simulate_run_of_its_start_and_shards_merge_to_it() {
     assert_eq!(at("accel_ratio"), num(&second["max_accel_ratio"]));
     assert_eq!(at("jerk_ratio"), num(&second["max_jerk_ratio"]));
     assert_eq!(at("min_joint_margin"), num(&second["min_joint_margin"]));
+    assert_eq!(at("tracking_max"), num(&second["max_tracking_error"]));
     assert_eq!(at("accel_ratio_start"), num(&start["max_accel_ratio"]));
     // The verdict follows from the numbers: inside every limit, so the residuals decide.
     let inside = ["speed_ratio", "accel_ratio", "jerk_ratio"]
         .iter()
         .all(|k| at(k) <= 1.0)
-        && at("min_joint_margin") > 0.0;
+        && at("min_joint_margin") > 0.0
+        && at("tracking_max") <= 5e-3;
     let want = match (at("residual_24s") <= 1e-1, at("residual_40s") <= 1e-3) {
         _ if !inside => None,
         (false, _) => Some("slow at 24 s"),
@@ -168,6 +173,7 @@ fn bad_flags_are_refused_with_the_reason() {
         (&["--count", "0"][..], "--count 0"),
         (&["--check", "0:1e-3"], "expected T:TOL"),
         (&["--check", "60"], "expected T:TOL"),
+        (&["--tracking", "200:1e-3"], "before the run ends"),
         (&["--margin", "0.7"], "--margin"),
         (&["--rates", "-1"], "--rates"),
         (&["--start-window", "0"], "--start-window"),
@@ -248,5 +254,13 @@ fn a_robot_runs_through_its_command_interface_and_a_dynamic_arm() {
             "{all:?}: {err}"
         );
     }
+    // The plant's own table is read as the live plant reads it, and a bad value named.
+    let cfg = dir.join("bad.toml");
+    let panda = ok(&["config", "--preset", "panda"]);
+    std::fs::write(&cfg, format!("{panda}\n[plant]\nsubsteps = 0\n")).unwrap();
+    let out = chaosctl(&["starts", "--config", s(&cfg), "--plant", "rigid-body"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("plant.substeps"), "{err}");
     std::fs::remove_dir_all(dir).ok();
 }

@@ -37,14 +37,14 @@ study() {
 
 # row CSV: "periodic of run | the same but for the start's acceleration | failures" from the
 # verdicts (column 2) and, for the starts whose only fault is the first 0.1 s's acceleration,
-# their residual columns.
+# their residual and tracking columns.
 row() {
   awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
     $2 == "refused" { next }
     { run++ }
     $2 == "periodic" { ok++; next }
     { fail[$2]++ }
-    $2 == "acceleration at the start" && $col["residual_60s"] <= 1e-3 && $col["residual_120s"] <= 1e-6 { late++ }
+    $2 == "acceleration at the start" && $col["residual_60s"] <= 1e-3 && $col["residual_120s"] <= 1e-6 && $col["tracking_max"] <= 5e-3 { late++ }
     END {
       f = ""; for (k in fail) f = f (f == "" ? "" : ", ") k " " fail[k];
       printf "%d of %d | %d of %d | %s", ok, run, ok + late, run, (f == "" ? "none" : f)

@@ -49,6 +49,11 @@ pub struct StartsCmd {
     /// most TOL rad/s. Repeat it; each run lasts the latest T.
     #[arg(long = "check", value_parser = parse_check, default_values = ["60:1e-3", "120:1e-6"])]
     pub checks: Vec<Check>,
+    /// The tracking check T:TOL: from T s on the tool stays within TOL m of its path. A start
+    /// on a cycle the law cannot track on (a damped pseudo-inverse near a singular posture)
+    /// fails it, however periodic [default: 10:5e-3, or from half a shorter run].
+    #[arg(long, value_parser = parse_check)]
+    pub tracking: Option<Check>,
     /// An acceleration peak inside the first this many seconds is named apart ("acceleration
     /// at the start": the hand at rest on a moving path), not as the self-motion's.
     #[arg(long, default_value_t = 0.1)]
@@ -56,7 +61,8 @@ pub struct StartsCmd {
     /// What the starts run against: law (the law's own model, as `simulate` runs it) or
     /// rigid-body (the command interface of the file's `[command]` and the dynamic arm of its
     /// `[plant.rigid_body]`: friction, payload, mass scale, sensor noise; at `daemon.rate_hz`
-    /// with `plant.substeps`), judged on the arm's measured motion. Robots only.
+    /// with `plant.substeps`), judged on the arm's own motion (its true state, not the
+    /// sensors' reading of it). Robots only.
     #[arg(long, value_enum, default_value_t = Against::Law)]
     pub plant: Against,
     /// With --plant rigid-body: the command interface, acceleration, position, velocity or
@@ -129,6 +135,8 @@ pub struct StartEnd {
     /// The acceleration peak of the first `--start-window` seconds alone.
     pub accel_start: f64,
     pub jerk: f64,
+    /// The largest tracking error from the tracking check's time on (m).
+    pub tracking: f64,
     /// The smallest distance to a position limit (rad; ≤ 0: at or past it).
     pub margin: Option<f64>,
     /// The fraction of the run's time the safety filter changed the command.
@@ -142,6 +150,7 @@ struct Plan {
     starts: Vec<(Vec<f64>, Vec<f64>)>,
     cells: Vec<Result<Subject, String>>,
     duration: f64,
+    tracking: Check,
     plant: Option<Plant>,
 }
 
@@ -157,7 +166,18 @@ fn plan(args: &StartsCmd) -> Result<Plan> {
     check_args(args)?;
     let mut base = Subject::load(&args.model.setup, args.model.mu)?;
     let duration = args.checks.iter().map(|c| c.at).fold(0.0, f64::max);
-    base.set_duration(Some(duration), Some(0.0))?;
+    let tracking = args.tracking.unwrap_or(Check {
+        at: (duration / 2.0).min(10.0),
+        tol: 5e-3,
+    });
+    if tracking.at >= duration {
+        bail!(
+            "--tracking {}:{}: the check's time must come before the run ends at {duration} s",
+            tracking.at,
+            tracking.tol
+        );
+    }
+    base.set_duration(Some(duration), Some(tracking.at))?;
     let plant = plant(args, &mut base)?;
     let boxes = joint_box(&base, args)?;
     let rates = args.rates.unwrap_or(match args.draw {
@@ -180,6 +200,7 @@ fn plan(args: &StartsCmd) -> Result<Plan> {
         starts,
         cells,
         duration,
+        tracking,
         plant,
     })
 }
@@ -202,18 +223,24 @@ fn plant(args: &StartsCmd, base: &mut Subject) -> Result<Option<Plant>> {
     let (daemon, plant) = base.system().tables();
     let key =
         |table: &Option<toml::Table>, key: &str| table.as_ref().and_then(|t| t.get(key).cloned());
-    let rate = key(daemon, "rate_hz")
-        .and_then(|v| v.as_float())
-        .unwrap_or(1000.0);
-    let substeps = key(plant, "substeps")
-        .and_then(|v| v.as_integer())
-        .unwrap_or(4);
+    let number = |v: toml::Value| v.as_float().or(v.as_integer().map(|i| i as f64));
+    let rate = match key(daemon, "rate_hz") {
+        None => 1000.0,
+        Some(v) => number(v)
+            .filter(|r| r.is_finite() && *r > 0.0)
+            .context("daemon.rate_hz: a number of ticks per second > 0")?,
+    };
+    let substeps = match key(plant, "substeps") {
+        None => 4,
+        Some(v) => v
+            .as_integer()
+            .and_then(|n| u32::try_from(n).ok())
+            .filter(|&n| n >= 1)
+            .context("plant.substeps: a whole number of substeps ≥ 1")?,
+    };
     let config: RigidBodyConfig = match key(plant, "rigid_body") {
         Some(v) => v.try_into().context("in [plant.rigid_body]")?,
         None => RigidBodyConfig::default(),
-    };
-    let Ok(substeps) = u32::try_from(substeps) else {
-        bail!("plant.substeps = {substeps}: a whole number of substeps ≥ 1");
     };
     let p = Plant {
         config,
@@ -291,11 +318,11 @@ fn run_start(
             .map_err(|e| format!("{e:#}"))?;
         return Ok(start_end(&report.summary, &at));
     };
-    let (duration, _) = subject.duration();
+    let (duration, transient) = subject.duration();
     ends.push(duration);
     let system = subject.system();
     let (_, mut at) = control::with_dof!(subject.n(), N => {
-        control::commanded::run_at::<N>(system, &p.config, p.dt, p.substeps, duration, 0.0, &ends)
+        control::commanded::run_at::<N>(system, &p.config, p.dt, p.substeps, duration, transient, &ends)
     })
     .map_err(|e| e.to_string())?;
     let whole = at.pop().expect("the run's own end");
@@ -309,6 +336,7 @@ fn start_end(whole: &Summary, at: &[Summary]) -> StartEnd {
         accel: whole.max_accel_ratio,
         accel_start: at[0].max_accel_ratio,
         jerk: whole.max_jerk_ratio,
+        tracking: whole.max_tracking_error,
         margin: whole.min_joint_margin,
         filter_active: whole.safety_active_time / whole.duration,
         finite: whole.finite,
@@ -316,7 +344,7 @@ fn start_end(whole: &Summary, at: &[Summary]) -> StartEnd {
 }
 
 /// The first rule a start broke, or "periodic".
-pub fn verdict(end: &StartEnd, checks: &[Check]) -> String {
+pub fn verdict(end: &StartEnd, tracking: Check, checks: &[Check]) -> String {
     let over = |v: f64| v > 1.0;
     if !end.finite {
         return "diverged".into();
@@ -336,6 +364,9 @@ pub fn verdict(end: &StartEnd, checks: &[Check]) -> String {
     if over(end.jerk) {
         return "jerk".into();
     }
+    if end.tracking.is_nan() || end.tracking > tracking.tol {
+        return "tracking".into();
+    }
     for (c, r) in checks.iter().zip(&end.residuals) {
         if r.is_none_or(|r| r > c.tol) {
             return format!("slow at {} s", c.at);
@@ -347,8 +378,8 @@ pub fn verdict(end: &StartEnd, checks: &[Check]) -> String {
 /// The grid a shard file names: the draw, the run and every start's whole set-up.
 fn grid(args: &StartsCmd, plan: &Plan) -> shard::Grid {
     let head = format!(
-        "{:?} {} {} {:?} {:?} {}",
-        args.draw, args.seed, args.start_window, args.checks, plan.plant, plan.base
+        "{:?} {} {} {:?} {:?} {:?} {}",
+        args.draw, args.seed, args.start_window, args.checks, args.tracking, plan.plant, plan.base
     );
     let parts = std::iter::once(head).chain(plan.cells.iter().map(|c| match c {
         Ok(s) => format!("{s}"),
@@ -393,6 +424,9 @@ struct Found<'a> {
     draw: Draw,
     seed: u64,
     duration: f64,
+    /// The tracking check: within `tracking_tol` m of the path from `tracking_from` s on.
+    tracking_from: f64,
+    tracking_tol: f64,
     /// Starts run (the refused ones left out) and how many became periodic inside every limit.
     run: usize,
     periodic: usize,
@@ -424,7 +458,7 @@ fn finish(args: &StartsCmd, plan: &Plan, ends: &[Result<StartEnd, String>]) -> R
             q0,
             qd0,
             verdict: match end {
-                Ok(e) => verdict(e, &args.checks),
+                Ok(e) => verdict(e, plan.tracking, &args.checks),
                 Err(_) => "refused".into(),
             },
             end: end.as_ref().ok(),
@@ -457,6 +491,8 @@ fn tally<'a>(args: &StartsCmd, plan: &Plan, starts: Vec<Row<'a>>) -> Found<'a> {
         draw: args.draw,
         seed: args.seed,
         duration: plan.duration,
+        tracking_from: plan.tracking.at,
+        tracking_tol: plan.tracking.tol,
         run: ran().count(),
         periodic: ran().filter(|r| r.verdict == "periodic").count(),
         filter_over_1_percent: ran()
@@ -487,7 +523,10 @@ fn print_table(f: &Found) {
             ),
         }
     );
-    println!("periodic inside every limit: {} of {}", f.periodic, f.run);
+    println!(
+        "periodic inside every limit, tracking within {} m from {} s: {} of {}",
+        f.tracking_tol, f.tracking_from, f.periodic, f.run
+    );
     for (v, n) in &f.failures {
         println!("  {v}: {n}");
     }
@@ -526,6 +565,7 @@ fn write_csv(args: &StartsCmd, f: &Found) -> Result<()> {
             "accel_ratio",
             "accel_ratio_start",
             "jerk_ratio",
+            "tracking_max",
             "min_joint_margin",
             "filter_active",
         ]
@@ -541,10 +581,10 @@ fn write_csv(args: &StartsCmd, f: &Found) -> Result<()> {
         match r.end {
             Some(e) => {
                 cells.extend(e.residuals.iter().map(|&v| opt(v)));
-                cells.extend([e.speed, e.accel, e.accel_start, e.jerk].map(num));
+                cells.extend([e.speed, e.accel, e.accel_start, e.jerk, e.tracking].map(num));
                 cells.extend([opt(e.margin), num(e.filter_active)]);
             }
-            None => cells.extend(std::iter::repeat_n(String::new(), args.checks.len() + 6)),
+            None => cells.extend(std::iter::repeat_n(String::new(), args.checks.len() + 7)),
         }
         writeln!(out, "{}", cells.join(","))?;
     }
@@ -563,6 +603,7 @@ mod tests {
             accel: 0.6,
             accel_start: 0.2,
             jerk: 0.3,
+            tracking: 1e-4,
             margin: Some(0.1),
             filter_active: 0.0,
             finite: true,
@@ -579,18 +620,24 @@ mod tests {
             tol: 1e-6,
         },
     ];
+    const TRACKING: Check = Check {
+        at: 10.0,
+        tol: 5e-3,
+    };
 
     #[test]
     fn the_verdict_names_the_first_rule_broken() {
-        assert_eq!(verdict(&end(), &CHECKS), "periodic");
+        assert_eq!(verdict(&end(), TRACKING, &CHECKS), "periodic");
         let with = |f: fn(&mut StartEnd)| {
             let mut e = end();
             f(&mut e);
-            verdict(&e, &CHECKS)
+            verdict(&e, TRACKING, &CHECKS)
         };
         assert_eq!(with(|e| e.residuals[1] = Some(2e-6)), "slow at 120 s");
         assert_eq!(with(|e| e.residuals[0] = None), "slow at 60 s");
-        assert_eq!(with(|e| e.jerk = 1.01), "jerk");
+        assert_eq!(with(|e| e.tracking = 0.04), "tracking");
+        assert_eq!(with(|e| e.tracking = f64::NAN), "tracking");
+        assert_eq!(with(|e| (e.jerk, e.tracking) = (1.01, 0.04)), "jerk");
         assert_eq!(with(|e| e.accel = 1.2), "acceleration");
         assert_eq!(
             with(|e| (e.accel, e.accel_start) = (1.2, 1.2)),
