@@ -1,35 +1,18 @@
 //! The analysis commands end to end through the built `chaosctl`: bad input is a clear error with
 //! exit code 2 (never a panic), and small real runs produce their files.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn chaosctl(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chaosctl"))
-        .args(args)
-        .output()
-        .expect("run chaosctl")
-}
+use common::chaosctl;
+use std::path::PathBuf;
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("chaosctl-analysis-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("analysis", name)
 }
 
 /// Fails with exit code 2 and a message containing every `needle`, and does not panic.
 fn refused(args: &[&str], needles: &[&str]) {
-    let out = chaosctl(args);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(
-        out.status.code(),
-        Some(2),
-        "{args:?} should fail with 2; stderr: {err}"
-    );
-    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
-    for n in needles {
-        assert!(err.contains(n), "{args:?}: {n:?} missing from: {err}");
-    }
+    common::refused(args, needles);
 }
 
 #[test]

@@ -3,43 +3,13 @@
 //! the files come in; a missing shard is named, and a shard given twice or from another grid is
 //! refused.
 
+mod common;
+
+use common::{ok, refused, s};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn chaosctl(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chaosctl"))
-        .args(args)
-        .output()
-        .expect("run chaosctl")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = chaosctl(args);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{args:?} failed: {err}");
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// Fails with exit code 2 and a message containing every `needle`, without a panic.
-fn refused(args: &[&str], needles: &[&str]) -> String {
-    let out = chaosctl(args);
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
-    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
-    for n in needles {
-        assert!(err.contains(n), "{args:?}: {n:?} missing from: {err}");
-    }
-    err
-}
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("chaosctl-shards-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
+    common::scratch("shards", name)
 }
 
 /// Runs `scan` unsharded and as `n` shards, merges the shards (in reverse order), and checks

@@ -2,31 +2,13 @@
 //! simulate` makes from that start (the same numbers at every check), the verdicts follow the
 //! rows, the shards merge to the unsharded CSV byte for byte, and bad flags are refused.
 
+mod common;
+
+use common::{ok, refused, s};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn chaosctl(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chaosctl"))
-        .args(args)
-        .output()
-        .expect("run chaosctl")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = chaosctl(args);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{args:?} failed: {err}");
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("chaosctl-starts-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
+    common::scratch("starts", name)
 }
 
 /// The CSV as (header, rows), each row its cells.
@@ -181,19 +163,13 @@ fn bad_flags_are_refused_with_the_reason() {
     ] {
         let mut all = vec!["starts", "--preset", "panda"];
         all.extend(args);
-        let out = chaosctl(&all);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "{all:?}: {err}");
-        assert!(
-            err.contains(needle) && !err.contains("panicked"),
-            "{all:?}: {err}"
-        );
+        refused(&all, &[needle]);
     }
     // The planar arm has no position limits to draw a box between.
-    let out = chaosctl(&["starts", "--preset", "demo", "--draw", "box"]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains("no position limits"), "{err}");
+    refused(
+        &["starts", "--preset", "demo", "--draw", "box"],
+        &["no position limits"],
+    );
 }
 
 #[test]
@@ -246,21 +222,15 @@ fn a_robot_runs_through_its_command_interface_and_a_dynamic_arm() {
     ] {
         let mut all = vec!["starts"];
         all.extend(args);
-        let out = chaosctl(&all);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "{all:?}: {err}");
-        assert!(
-            err.contains(needle) && !err.contains("panicked"),
-            "{all:?}: {err}"
-        );
+        refused(&all, &[needle]);
     }
     // The plant's own table is read as the live plant reads it, and a bad value named.
     let cfg = dir.join("bad.toml");
     let panda = ok(&["config", "--preset", "panda"]);
     std::fs::write(&cfg, format!("{panda}\n[plant]\nsubsteps = 0\n")).unwrap();
-    let out = chaosctl(&["starts", "--config", s(&cfg), "--plant", "rigid-body"]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains("plant.substeps"), "{err}");
+    refused(
+        &["starts", "--config", s(&cfg), "--plant", "rigid-body"],
+        &["plant.substeps"],
+    );
     std::fs::remove_dir_all(dir).ok();
 }

@@ -11,7 +11,7 @@
 //! and a robot's are made, sharded and merged by the same code.
 
 use super::basins_map::{coord_name, finish, BasinsCmd, MapBase, RunEnd};
-use super::parallel::{jobs, run_all};
+use super::parallel::jobs;
 use super::shard::{self, Loaded};
 use crate::subject::Subject;
 use anyhow::{bail, Context, Result};
@@ -111,18 +111,12 @@ pub fn run(args: BasinsCmd) -> Result<()> {
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
     let work = |c: &Subject| run_end(c, &plan.spec);
-    if let Some(s) = args.shard {
-        shard::run_shard(
-            &grid(&args, &plan),
-            s,
-            &plan.cells,
-            &args.output,
-            threads,
-            work,
-        )?;
+    let grid = || grid(&args, &plan);
+    let (items, out) = (&plan.cells, &args.output);
+    let Some(runs) = shard::run_or_shard("basins", args.shard, grid, items, out, threads, work)?
+    else {
         return Ok(());
-    }
-    let runs = run_all(&plan.cells, threads, "basins", work)?;
+    };
     let base = plan.map_base(&args);
     finish(&args, &base, &runs)
 }

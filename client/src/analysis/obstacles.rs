@@ -254,12 +254,14 @@ pub fn run(args: ObstaclesCmd) -> Result<()> {
         return run_judged(&args, &plan, model, threads);
     }
     let work = |c: &Cell| obstacle_cells::run(c, &plan.window);
-    if let Some(s) = args.shard {
-        shard::run_shard(&grid(&plan), s, &plan.cells, &args.output, threads, work)?;
-        return Ok(());
-    }
     let started = Instant::now();
-    let results = run_all(&plan.cells, threads, "obstacles", work)?;
+    let grid = || grid(&plan);
+    let (items, out) = (&plan.cells, &args.output);
+    let what = "obstacles";
+    let Some(results) = shard::run_or_shard(what, args.shard, grid, items, out, threads, work)?
+    else {
+        return Ok(());
+    };
     let verdicts = vec![None; results.len()];
     finish(
         &args,

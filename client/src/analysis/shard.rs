@@ -181,6 +181,28 @@ pub fn run_shard<T: Sync, R: Send + Serialize + DeserializeOwned + Debug>(
     Ok(path)
 }
 
+/// A scan's points (`what` names it on the progress bar), run whole (`Some`, every result in
+/// grid order) or as shard `shard` (`None`: this shard's file is written and the scan's own
+/// finishing waits for `chaosctl merge`). The grid is built only for a shard, where it names
+/// the file's points.
+pub fn run_or_shard<T: Sync, R: Send + Serialize + DeserializeOwned + Debug>(
+    what: &str,
+    shard: Option<Shard>,
+    grid: impl FnOnce() -> Grid,
+    items: &[T],
+    prefix: &Path,
+    jobs: usize,
+    f: impl Fn(&T) -> R + Sync,
+) -> Result<Option<Vec<R>>> {
+    match shard {
+        Some(s) => {
+            run_shard(&grid(), s, items, prefix, jobs, f)?;
+            Ok(None)
+        }
+        None => run_all(items, jobs, what, f).map(Some),
+    }
+}
+
 /// Refuses a result that does not come back from JSON as it went in (a NaN or an infinity
 /// becomes `null`). Debug prints every float in its shortest exact form, so equal Debug text
 /// means equal values.

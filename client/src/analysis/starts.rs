@@ -9,7 +9,7 @@
 //! depends on the seed and k only, so a larger `--count` adds starts and keeps the earlier ones,
 //! and a shard (`--shard I/N`, merged by `chaosctl merge`) holds exactly the unsharded rows.
 
-use super::parallel::{jobs, run_all};
+use super::parallel::jobs;
 use super::shard::{self, Loaded, Shard};
 use crate::setup::ModelArgs;
 use crate::subject::Subject;
@@ -395,18 +395,12 @@ pub fn run(args: StartsCmd) -> Result<()> {
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
     let work = |c: &Result<Subject, String>| run_start(c, &args, plan.plant.as_ref());
-    if let Some(s) = args.shard {
-        shard::run_shard(
-            &grid(&args, &plan),
-            s,
-            &plan.cells,
-            &args.output,
-            threads,
-            work,
-        )?;
+    let grid = || grid(&args, &plan);
+    let (items, out) = (&plan.cells, &args.output);
+    let Some(ends) = shard::run_or_shard("starts", args.shard, grid, items, out, threads, work)?
+    else {
         return Ok(());
-    }
-    let ends = run_all(&plan.cells, threads, "starts", work)?;
+    };
     finish(&args, &plan, &ends)
 }
 

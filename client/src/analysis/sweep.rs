@@ -5,7 +5,7 @@
 //! Every cell is one [`Subject::analyse`] run, so the planar arm and a robot fill the same row
 //! from the same statistics, and a sharded sweep of either merges the same way.
 
-use super::parallel::{jobs, run_all};
+use super::parallel::jobs;
 use super::shard::{self, Grid, Loaded, Shard};
 use super::{fmt_list, ClassifyArgs, LyapunovArgs, ScanModelArgs, StartArgs};
 use crate::plot::{Chart, Figure, Panel, Series, Style, DARK, PALETTE};
@@ -121,12 +121,13 @@ pub fn run(args: SweepCmd) -> Result<()> {
     let plan = plan(&args)?;
     let threads = jobs(args.jobs);
     let work = |(i, c): &(usize, Subject)| row(*i, c, &plan.spec);
-    if let Some(s) = args.shard {
-        shard::run_shard(&grid(&plan), s, &plan.items, &args.output, threads, work)?;
-        return Ok(());
-    }
     let t0 = Instant::now();
-    let rows = run_all(&plan.items, threads, "sweep", work)?;
+    let grid = || grid(&plan);
+    let (items, out) = (&plan.items, &args.output);
+    let Some(rows) = shard::run_or_shard("sweep", args.shard, grid, items, out, threads, work)?
+    else {
+        return Ok(());
+    };
     finish(
         &args,
         &plan,
