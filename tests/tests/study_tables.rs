@@ -33,14 +33,20 @@ fn python_dir() -> Option<PathBuf> {
 
 /// Runs `scripts/panda-study/NAME` into a fresh directory; its standard output.
 fn script(name: &str, python: &Path, env: &[(&str, &str)]) -> String {
+    script_with(name, &[], Some(python), env)
+}
+
+/// [`script`] with `args` before the output directory, and `python` first on the PATH if given.
+fn script_with(name: &str, args: &[&str], python: Option<&Path>, env: &[(&str, &str)]) -> String {
     let out = tests::TempDir::new(&format!("study-{name}-{}", std::process::id()));
-    let path = format!(
-        "{}:{}",
-        python.display(),
-        std::env::var("PATH").unwrap_or_default()
-    );
+    let path = std::env::var("PATH").unwrap_or_default();
+    let path = match python {
+        Some(p) => format!("{}:{path}", p.display()),
+        None => path,
+    };
     let o = Command::new("bash")
         .arg(root().join("scripts/panda-study").join(name))
+        .args(args)
         .arg(out.path())
         .env("CHAOSD_BIN", tests::bin("chaosctl").parent().unwrap())
         .env("PATH", path)
@@ -171,21 +177,7 @@ fn the_starts_table_is_what_starts_sh_prints() {
 /// of periodic starts within one of the book's.
 #[test]
 fn the_presets_basin_rows_are_what_basins_sh_prints() {
-    let out = tests::TempDir::new(&format!("study-basins-{}", std::process::id()));
-    let o = Command::new("bash")
-        .arg(root().join("scripts/panda-study/basins.sh"))
-        .args(["near", "100"])
-        .arg(out.path())
-        .env("CHAOSD_BIN", tests::bin("chaosctl").parent().unwrap())
-        .env("VARIANTS", "new")
-        .output()
-        .unwrap();
-    let printed = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert!(
-        o.status.success(),
-        "basins.sh: {}\n{printed}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let printed = script_with("basins.sh", &["near", "100"], None, &[("VARIANTS", "new")]);
     let rows = printed_rows(&printed, "| α");
     let book: Vec<_> = book_rows("| starts | α | k_d | μ | `null_speed` (rad/s) | periodic")
         .into_iter()
