@@ -67,6 +67,10 @@ pub fn run_at<const N: usize>(
     transient: f64,
     ends: &[f64],
 ) -> Result<(CommandedRun, Vec<Summary>), ConfigError> {
+    if let Some(&end) = ends.iter().find(|&&e| !(e > 0.0 && e <= duration)) {
+        let expected = format!("a time in (0, {duration}] s: the run lasts {duration} s");
+        return Err(crate::basics::invalid("a summary's end", end, &expected));
+    }
     let System::Spatial(s) = system else {
         return Err(ConfigError::Spatial(
             "command interfaces need a robot model: use a [robot] set-up".into(),
@@ -174,7 +178,7 @@ pub fn run_at<const N: usize>(
     Ok((out, stats.summaries()))
 }
 
-/// [`run_at`]'s summaries: one [`RunStats`] per end, fed the plant's measured state.
+/// [`run_at`]'s summaries: one [`RunStats`] per end, fed the arm's true state.
 struct Judged<const N: usize> {
     stats: Vec<RunStats<N>>,
     ends: Vec<u64>,

@@ -132,4 +132,8 @@ fn the_summaries_judge_the_plants_own_motion() {
     assert!(whole.min_joint_margin.is_some_and(|m| m > 0.0));
     assert!(whole.max_speed_ratio > 0.0 && whole.max_speed_ratio < 1.0);
     assert!(whole.max_accel_ratio > 0.0);
+    // An end past the run is refused, not summarised short.
+    let e =
+        control::commanded::run_at::<7>(&system, &plant, 1e-3, 4, 1.0, 0.0, &[2.0]).unwrap_err();
+    assert!(e.to_string().contains("summary's end"), "{e}");
 }
