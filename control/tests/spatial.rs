@@ -398,6 +398,7 @@ fn the_panda_preset_builds_and_bad_keys_are_named() {
     bad(&|c| c.law.kp = 1e12, "law.kp");
     bad(&|c| c.task.period = 0.01, "task.period");
     bad(&|c| c.feedback.tau = Some(1e9), "feedback.tau");
+    bad(&|c| c.sim.duration = 1e12, "sim.duration");
     bad(&|c| c.task.radius = 5.0, "task.radius");
     assert!(SpatialConfig::from_toml("[robot]\ndescription = \"panda\"\nwheels = 4\n").is_err());
     assert!(SpatialConfig::preset("paper").is_none());

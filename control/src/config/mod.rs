@@ -492,7 +492,7 @@ impl Config {
 
         let s = &self.sim;
         range("sim.dt", s.dt, 1e-5, 0.1)?;
-        positive("sim.duration", s.duration, 1e7)?;
+        positive("sim.duration", s.duration, sim::MAX_DURATION)?;
         range("sim.transient", s.transient, 0.0, s.duration)?;
         self.feedback.validate(s.dt, self.task.period)?;
         for (name, v) in [("sim.q0", &s.q0), ("sim.qd0", &s.qd0)] {

@@ -7,6 +7,10 @@
 use crate::basics::ConfigError;
 use serde::{Deserialize, Serialize};
 
+/// The longest run a file may ask for (s): four months of simulated time, far beyond any
+/// study, short of a run that would never end.
+pub const MAX_DURATION: f64 = 1e7;
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SimSection {

@@ -213,6 +213,10 @@ impl SpatialConfig {
         positive("task.period", self.task.period)?;
         positive("sim.dt", self.sim.dt)?;
         positive("sim.duration", self.sim.duration)?;
+        if self.sim.duration > super::sim::MAX_DURATION {
+            let most = format!("at most {} s", super::sim::MAX_DURATION);
+            return Err(invalid("sim.duration", self.sim.duration, &most));
+        }
         non_negative("sim.transient", self.sim.transient)?;
         self.sim.check_robot()?;
         self.law.check_robot()?;
