@@ -205,8 +205,9 @@ fn plan(args: &StartsCmd) -> Result<Plan> {
     })
 }
 
-/// The dynamic arm of `--plant rigid-body` from the file's tables, checked by one tick of the
-/// loop (the interface, its limits and the plant's physics), with `--mode` set on the robot.
+/// The dynamic arm of `--plant rigid-body` from the file's `[daemon]` and `[plant]` tables, read
+/// and checked as the live processes read them, then by one tick of the loop (the interface, its
+/// limits and the plant's physics), with `--mode` set on the robot.
 fn plant(args: &StartsCmd, base: &mut Subject) -> Result<Option<Plant>> {
     if args.plant == Against::Law {
         if args.mode.is_some() {
@@ -220,32 +221,13 @@ fn plant(args: &StartsCmd, base: &mut Subject) -> Result<Option<Plant>> {
     if let Some(mode) = args.mode {
         robot.config.command.mode = mode;
     }
-    let (daemon, plant) = base.system().tables();
-    let key =
-        |table: &Option<toml::Table>, key: &str| table.as_ref().and_then(|t| t.get(key).cloned());
-    let number = |v: toml::Value| v.as_float().or(v.as_integer().map(|i| i as f64));
-    let rate = match key(daemon, "rate_hz") {
-        None => 1000.0,
-        Some(v) => number(v)
-            .filter(|r| r.is_finite() && *r > 0.0)
-            .context("daemon.rate_hz: a number of ticks per second > 0")?,
-    };
-    let substeps = match key(plant, "substeps") {
-        None => 4,
-        Some(v) => v
-            .as_integer()
-            .and_then(|n| u32::try_from(n).ok())
-            .filter(|&n| n >= 1)
-            .context("plant.substeps: a whole number of substeps ≥ 1")?,
-    };
-    let config: RigidBodyConfig = match key(plant, "rigid_body") {
-        Some(v) => v.try_into().context("in [plant.rigid_body]")?,
-        None => RigidBodyConfig::default(),
-    };
+    // The two tables as the live daemon and plant read and check them.
+    let daemon = daemon::config::DaemonSetup::from_system(base.system().clone())?.daemon;
+    let plant = plant::PlantConfig::from_table(base.system().tables().1.as_ref())?;
     let p = Plant {
-        config,
-        dt: 1.0 / rate,
-        substeps,
+        config: plant.rigid_body,
+        dt: 1.0 / daemon.rate_hz,
+        substeps: plant.substeps,
     };
     control::with_dof!(base.n(), N => {
         control::commanded::run_at::<N>(base.system(), &p.config, p.dt, p.substeps, p.dt, 0.0, &[])?;
