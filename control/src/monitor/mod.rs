@@ -7,7 +7,11 @@
 //!   and its trend (the per-period factor over the last few periods: below 1 it decays, and its
 //!   rate is the leading Floquet multiplier);
 //! - a **finite-time Lyapunov estimate** from the once-per-period returns of (q, q̇), a
-//!   stroboscopic Poincaré map, by Rosenstein's method over a sliding window ([`rosenstein`]);
+//!   stroboscopic Poincaré map, by Rosenstein's method over a sliding window ([`rosenstein`]).
+//!   Twelve returns are twelve periods; until they are there, the same map is read at
+//!   [`PHASES`] phases of the path, each phase's samples paired only with their own phase and
+//!   followed a whole period at a time, so that five periods hold enough pairs and the first
+//!   verdict comes within eight;
 //! - the **0–1 test's K** on a scalar self-motion coordinate sampled at the returns
 //!   ([`zero_one`]).
 //!
@@ -101,9 +105,23 @@ pub const PERIODIC_RESIDUAL: f64 = 2e-2;
 /// to 2.5e-2 seen on the planar arm), and the verdict must not flap with it; chaos is 40× above.
 pub const LEAVE_PERIODIC: f64 = 5.0;
 
-/// Returns the Lyapunov estimate uses (the newest ones: a converging arm must not be judged by
-/// the chaos it left long ago).
+/// Returns the 0–1 test's window holds at the least.
 pub const LYAP_WINDOW: usize = 32;
+/// Samples a period the Lyapunov estimate takes: the stroboscopic map at eight phases of the
+/// path instead of one, so that a few periods hold enough pairs.
+pub const PHASES: usize = 8;
+/// Periods of samples the Lyapunov estimate uses (the newest ones: a converging arm must not be
+/// judged by the chaos it left long ago).
+pub const LYAP_PERIODS: usize = rosenstein::MIN_RETURNS;
+/// How the Lyapunov estimate pairs its samples: a neighbour at the same phase at least a period
+/// away, followed period by period for three periods; no estimate before five periods.
+pub const SAMPLING: rosenstein::Sampling = rosenstein::Sampling {
+    phases: PHASES,
+    apart: PHASES,
+    horizon: 2,
+    stride: PHASES,
+    min_samples: 4 * PHASES,
+};
 /// Periods the residual trend is measured over.
 pub const TREND: usize = 4;
 /// A residual falling this many periods in a row converges whatever λ says (the Lyapunov
@@ -157,6 +175,9 @@ pub struct ChaosMonitor {
     settings: MonitorSettings,
     tau: f64,
     next_return: Option<f64>,
+    next_sample: Option<f64>,
+    /// The states at [`PHASES`] phases a period, newest [`LYAP_PERIODS`] periods.
+    samples: VecDeque<Return>,
     /// The current period's sums: full residual, null-space residual, ticks.
     acc: (f64, f64, u64),
     returns: VecDeque<Return>,
@@ -176,6 +197,8 @@ impl ChaosMonitor {
             settings,
             tau,
             next_return: None,
+            next_sample: None,
+            samples: VecDeque::with_capacity(PHASES * LYAP_PERIODS + 1),
             acc: (0.0, 0.0, 0),
             returns: VecDeque::with_capacity(w + 1),
             residuals: VecDeque::with_capacity(LONG_FALL + 2),
@@ -183,7 +206,7 @@ impl ChaosMonitor {
             evidence: Evidence::default(),
             scratch_phi: Vec::with_capacity(w),
             scratch_k: Vec::with_capacity(2 * w),
-            scratch_returns: Vec::with_capacity(LYAP_WINDOW),
+            scratch_returns: Vec::with_capacity(PHASES * LYAP_PERIODS),
         }
     }
 
@@ -199,6 +222,8 @@ impl ChaosMonitor {
             settings: self.settings,
             tau,
             next_return: None,
+            next_sample: None,
+            samples: std::mem::take(&mut self.samples),
             acc: (0.0, 0.0, 0),
             returns: std::mem::take(&mut self.returns),
             residuals: std::mem::take(&mut self.residuals),
@@ -217,6 +242,7 @@ impl ChaosMonitor {
             scratch_returns: std::mem::take(&mut self.scratch_returns),
         };
         self.returns.clear();
+        self.samples.clear();
         self.residuals.clear();
     }
 
@@ -244,6 +270,7 @@ impl ChaosMonitor {
             self.acc.1 += null;
             self.acc.2 += 1;
         }
+        self.sample(t, q, qd);
         if t < next {
             return None;
         }
@@ -257,11 +284,26 @@ impl ChaosMonitor {
         self.judge(t)
     }
 
+    /// Takes a sample at each of the [`PHASES`] phases of a period. A gap that skips a phase (a
+    /// stall, a pause, ticks sparser than τ/8) starts the samples again from this tick: the
+    /// estimate pairs samples by their index's phase, which a skipped phase would shift.
+    fn sample(&mut self, t: f64, q: &[f64], qd: &[f64]) {
+        let step = self.tau / PHASES as f64;
+        let next = *self.next_sample.get_or_insert(t);
+        if t < next {
+            return;
+        }
+        if t - next >= step {
+            self.samples.clear();
+            self.next_sample = Some(t + step);
+        } else {
+            self.next_sample = Some(next + step);
+        }
+        push_bounded(&mut self.samples, state(q, qd), PHASES * LYAP_PERIODS);
+    }
+
     fn record(&mut self, q: &[f64], qd: &[f64]) {
-        let mut x: Return = [0.0; 2 * MAX_JOINTS];
-        let n = q.len().min(MAX_JOINTS);
-        x[..n].copy_from_slice(&q[..n]);
-        x[MAX_JOINTS..MAX_JOINTS + n].copy_from_slice(&qd[..n]);
+        let x = state(q, qd);
         push_bounded(&mut self.returns, x, self.settings.window.max(LYAP_WINDOW));
         let (full, null, ticks) = std::mem::take(&mut self.acc);
         let ticks = ticks.max(1) as f64;
@@ -339,18 +381,37 @@ impl ChaosMonitor {
                 (old > 0.0).then(|| (new / old).powf(1.0 / TREND as f64))
             })
             .flatten();
-        let newest = self.returns.len().saturating_sub(LYAP_WINDOW);
+        // Until the window holds enough once-a-period returns, the samples at every phase.
+        let early = self.returns.len() < rosenstein::MIN_RETURNS;
         self.scratch_returns.clear();
-        self.scratch_returns
-            .extend(self.returns.iter().skip(newest));
-        self.evidence.lambda =
-            rosenstein::lyapunov_per_step(&self.scratch_returns).map(|l| l / self.tau);
+        if early {
+            self.scratch_returns.extend(self.samples.iter());
+        } else {
+            let newest = self.returns.len().saturating_sub(LYAP_WINDOW);
+            self.scratch_returns
+                .extend(self.returns.iter().skip(newest));
+        }
+        let lambda = if early {
+            rosenstein::lyapunov_per_sample(&self.scratch_returns, &SAMPLING)
+        } else {
+            rosenstein::lyapunov_per_step(&self.scratch_returns)
+        };
+        self.evidence.lambda = lambda.map(|l| l / self.tau);
         self.scratch_phi.clear();
         self.scratch_phi
             .extend(self.returns.iter().map(self_motion_coordinate));
         self.evidence.window = self.scratch_phi.len();
         self.evidence.k = zero_one::k_statistic(&self.scratch_phi, &mut self.scratch_k);
     }
+}
+
+/// q and q̇, zero-padded to the largest arm.
+fn state(q: &[f64], qd: &[f64]) -> Return {
+    let mut x: Return = [0.0; 2 * MAX_JOINTS];
+    let n = q.len().min(MAX_JOINTS);
+    x[..n].copy_from_slice(&q[..n]);
+    x[MAX_JOINTS..MAX_JOINTS + n].copy_from_slice(&qd[..n]);
+    x
 }
 
 /// A generic scalar of the posture at a return. At a return the hand is at the same point of
@@ -446,6 +507,36 @@ mod tests {
             seen[1].0 != Verdict::Periodic && seen[1].1 > 60.0,
             "{seen:?}"
         );
+    }
+
+    /// The logistic map's orbit as the posture, `ticks` ticks a period (the posture a smooth
+    /// picture of the iterate at each phase), from the tick `skip` on every second tick lost.
+    fn ticked(ticks: usize, periods: usize, skip: usize) -> ChaosMonitor {
+        let mut m = ChaosMonitor::new(MonitorSettings::default(), 1.0);
+        let mut x = 0.2;
+        for k in 0..periods {
+            for j in (0..ticks).filter(|j| k * ticks + j < skip || j % 2 == 0) {
+                let phase = j as f64 / ticks as f64;
+                let q = [x * (1.0 + phase), x * x];
+                m.push(k as f64 + phase, &q, &[0.0, 0.0], 1.0, 1.0);
+            }
+            x = 3.99 * x * (1.0 - x);
+        }
+        m
+    }
+
+    #[test]
+    fn chaos_is_told_within_eight_periods_from_samples_at_every_phase() {
+        let m = ticked(16, 8, usize::MAX);
+        let e = m.evidence();
+        assert_eq!(e.verdict, Verdict::Chaotic, "{e:?}");
+        assert!(e.lambda.unwrap() > 0.3, "{e:?}");
+        // Ticks too sparse for eight phases (a skipped phase restarts the samples): no λ until
+        // twelve once-a-period returns are there.
+        let e = *ticked(8, 8, 8).evidence();
+        assert_eq!((e.verdict, e.lambda), (Verdict::Unknown, None), "{e:?}");
+        let e = *ticked(8, 14, 8).evidence();
+        assert_eq!(e.verdict, Verdict::Chaotic, "{e:?}");
     }
 
     #[test]
