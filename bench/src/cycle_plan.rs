@@ -141,7 +141,7 @@ fn panda_job(spheres: Balls, at: f64) -> Result<Job> {
     cfg.safety.plan = control::safety::policy::PlanMode::On;
     let chain = resolve("panda", None, None)?;
     let (start, _) = control::plan::setup_planned::<7>(&cfg, &chain)?;
-    let mut sim = control::sim::spatial::SpatialSimulation::<7, 3>::spatial(
+    let mut sim = control::sim::Simulation::spatial(
         start.arm,
         start.params,
         start.dt,

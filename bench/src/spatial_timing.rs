@@ -15,7 +15,7 @@ use control::law::spatial as law;
 use control::model::{builtin, Chain};
 use control::resolve::damped_pinv_m;
 use control::safety;
-use control::sim::spatial::SpatialSimulation;
+use control::sim::Simulation;
 use control::tick_law::TickLaw;
 use control::{ArmState, Config};
 use daemon::controller::{Controller, ControllerSettings};
@@ -44,7 +44,7 @@ fn setup() -> Result<SpatialSetup<7>> {
 
 /// States of the preset's run before its feedback (every 37th step of 50 s).
 fn states(s: &SpatialSetup<7>, n: usize) -> Vec<ArmState<7>> {
-    let mut sim = SpatialSimulation::<7, 3>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
+    let mut sim = Simulation::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
     let mut out = Vec::with_capacity(n);
     while out.len() < n {
         for _ in 0..37 {
@@ -207,7 +207,7 @@ pub fn section(quick: bool) -> Result<String> {
         ),
         &filter,
     );
-    let mut sim = SpatialSimulation::<7, 3>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
+    let mut sim = Simulation::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
     let rk4 = crate::timing::per_call(batches, batch / 4, |_| {
         black_box(sim.step());
     });
@@ -221,7 +221,7 @@ pub fn section(quick: bool) -> Result<String> {
         settings(),
     );
     let n = if quick { 1500 } else { 10_000 };
-    let mut run = SpatialSimulation::<7, 3>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
+    let mut run = Simulation::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
     let pxs: Vec<_> = (0..n)
         .map(|_| {
             run.step();
@@ -246,7 +246,7 @@ pub fn section(quick: bool) -> Result<String> {
     // 300 s of the preset's simulation, best of 3 (1 in --quick).
     let mut best = f64::INFINITY;
     for _ in 0..if quick { 1 } else { 3 } {
-        let mut sim = SpatialSimulation::<7, 3>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
+        let mut sim = Simulation::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
         let t0 = Instant::now();
         for _ in 0..300_000 {
             black_box(sim.step());

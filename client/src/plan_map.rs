@@ -288,16 +288,13 @@ fn refuse_own(reason: &str) -> Result<()> {
 /// steering, as from its start).
 fn path_and_posture(sys: &SpatialSystem, at: f64) -> Result<(TaskPath, Vec<f64>)> {
     let (cfg, chain) = (&sys.config, &sys.chain);
-    let kind = cfg.task_kind()?;
     with_dof!(chain.dof(), N => {
         let s = cfg.setup::<N>(chain)?;
         let path = s.params.task.path;
         let mut q: Vec<f64> = s.q0.iter().copied().collect();
         if at > 0.0 {
-            control::with_task_rows!(kind, |M| {
-                let mut sim = s.simulation::<M>();
-                control::sim::spatial::run(&mut sim, at, 0.0, |_, x, _| q = x.q.iter().copied().collect());
-            });
+            let mut sim = s.simulation();
+            control::sim::run(&mut sim, at, 0.0, |_, x, _| q = x.q.iter().copied().collect());
         }
         Ok((path, q))
     })

@@ -18,7 +18,7 @@ pub use crate::law::ParamBlock;
 use crate::law::{self, LawCore, LawParams};
 use crate::resolve::ControlOutput;
 use crate::safety::SafetyParams;
-use crate::sim::ArmState;
+use crate::sim::{ArmState, Simulation};
 use crate::task::pose::TaskKind;
 
 /// The arm model and the parameters of its law, as one `Copy` block.
@@ -157,6 +157,38 @@ impl<const N: usize> TickLaw<N> {
             TickLaw::Planar { params, .. } => Some(params),
             TickLaw::Spatial { .. } => None,
         }
+    }
+}
+
+impl<const N: usize> Simulation<N, TickLaw<N>> {
+    /// The planar arm `model` under `params` from `initial`. `max_tau` fixes the delay-line
+    /// capacity; `params.tau` may later change up to it.
+    pub fn new(
+        model: ArmModel<N>,
+        params: LawParams,
+        dt: f64,
+        initial: ArmState<N>,
+        max_tau: f64,
+    ) -> Self {
+        Self::of(TickLaw::Planar { model, params }, dt, initial, max_tau)
+    }
+
+    /// The URDF chain `arm` under `params` from (`q0`, `qd0`); `max_tau` fixes the delay-line
+    /// capacity.
+    pub fn spatial(
+        arm: SpatialArm<N>,
+        params: SpatialParams,
+        dt: f64,
+        q0: VecN<N>,
+        qd0: VecN<N>,
+        max_tau: f64,
+    ) -> Self {
+        let initial = ArmState {
+            q: q0,
+            qd: qd0,
+            phi: 0.0,
+        };
+        Self::of(TickLaw::Spatial { arm, params }, dt, initial, max_tau)
     }
 }
 

@@ -6,7 +6,7 @@ use control::resolve::damped_pinv;
 use control::{with_dof, ArmState, Config, Kinematics, RunStats, Simulation, VecN};
 use proptest::prelude::*;
 
-fn sim3(cfg: &Config) -> Simulation<3> {
+fn sim3(cfg: &Config) -> Simulation<3, control::tick_law::TickLaw<3>> {
     Simulation::new(
         cfg.model::<3>(),
         cfg.law_params(),
@@ -179,7 +179,7 @@ fn pyragas_term_vanishes_on_a_period_tau_orbit() {
     );
     let x: ArmState<3> = *sim.state();
     let mut strong = sim.clone();
-    strong.law.params.core.mu = 3.0;
+    strong.law.core_mut().mu = 3.0;
     for _ in 0..1000 {
         sim.step();
         strong.step();

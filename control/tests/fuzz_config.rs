@@ -117,7 +117,7 @@ proptest! {
                 cfg.safety.enabled = true;
                 prop_assume!(cfg.validate().is_ok());
                 with_dof!(cfg.n(), N => {
-                    let mut sim = Simulation::<N>::new(cfg.model::<N>(), cfg.law_params(), cfg.sim.dt, cfg.initial_state(), cfg.feedback.capacity());
+                    let mut sim = Simulation::new(cfg.model::<N>(), cfg.law_params(), cfg.sim.dt, cfg.initial_state(), cfg.feedback.capacity());
                     for _ in 0..200 {
                         let o = sim.step();
                         prop_assert!(o.qdd.iter().all(|v| v.is_finite()), "{doc}");

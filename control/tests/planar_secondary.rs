@@ -32,8 +32,8 @@ fn paper(secondary: &str) -> Result<Config, control::ConfigError> {
 
 /// Runs 2 s and returns the last secondary value and the final q.
 fn run(cfg: &Config) -> (f64, Vec<f64>) {
-    let mut sim = Simulation::<3>::new(
-        cfg.model(),
+    let mut sim = Simulation::new(
+        cfg.model::<3>(),
         cfg.law_params(),
         cfg.sim.dt,
         cfg.initial_state(),

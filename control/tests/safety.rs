@@ -259,8 +259,7 @@ struct Outcome {
 fn run<const N: usize>(cfg: &Config, duration: f64) -> Outcome {
     let x0 = cfg.initial_state::<N>();
     let p = cfg.law_params();
-    let mut sim =
-        Simulation::<N>::new(cfg.model::<N>(), p, cfg.sim.dt, x0, cfg.feedback.capacity());
+    let mut sim = Simulation::new(cfg.model::<N>(), p, cfg.sim.dt, x0, cfg.feedback.capacity());
     let mut stats = RunStats::<N>::new(&p, cfg.sim.dt, duration, 20.0, &x0);
     let steps = (duration / cfg.sim.dt).round() as u64;
     let mut out = Outcome {
@@ -418,7 +417,7 @@ fn an_obstacle_that_appears_on_a_link_pushes_it_out_at_a_bounded_acceleration() 
     let x0 = cfg.initial_state::<3>();
     let mut p = cfg.law_params();
     let dt = cfg.sim.dt;
-    let mut sim = Simulation::<3>::new(cfg.model::<3>(), p, dt, x0, 2.0);
+    let mut sim = Simulation::new(cfg.model::<3>(), p, dt, x0, 2.0);
     for _ in 0..2000 {
         sim.step();
     }
@@ -428,7 +427,7 @@ fn an_obstacle_that_appears_on_a_link_pushes_it_out_at_a_bounded_acceleration() 
     cfg.model::<3>().kinematics(0.0, &x.q, &x.qd, &mut kin);
     let mid = (kin.points[1] + kin.points[2]) / 2.0;
     p.obstacles = obstacles(&[(mid.x, mid.y, 0.1)]);
-    sim.law.params = p;
+    assert!(sim.law.set(control::law::ParamBlock::Planar(p)));
     let (mut worst_acc, mut worst_jump, mut out_at, mut prev_qd) = (0.0f64, 0.0f64, None, x.qd);
     for k in 0..3000 {
         let o = sim.step();

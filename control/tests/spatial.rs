@@ -13,8 +13,8 @@ use control::secondary::spatial::centring;
 use control::secondary::spatial::manipulability;
 use control::secondary::spatial::potential;
 use control::secondary::spatial::*;
-use control::sim::spatial::run;
-use control::sim::spatial::*;
+use control::sim::run;
+use control::sim::Simulation;
 use control::task::pose::*;
 use control::task::{Path, Shape, Vec3};
 use nalgebra::{Rotation3, SMatrix, SVector};
@@ -249,10 +249,8 @@ fn the_panda_tracks_its_circle_in_position_and_pose() {
         let (p, q0) = panda_params(&arm, kind);
         let mut qd0 = V7::zeros();
         qd0[0] = 0.1;
-        let s = control::with_task_rows!(kind, |M| {
-            let mut sim = SpatialSimulation::<7, M>::spatial(arm, p, 0.001, q0, qd0, 2.0);
-            run(&mut sim, 20.0, 5.0, |_, _, _| {})
-        });
+        let mut sim = Simulation::spatial(arm, p, 0.001, q0, qd0, 2.0);
+        let s = run(&mut sim, 20.0, 5.0, |_, _, _| {});
         assert!(s.finite && s.max_tracking_error < 1e-6, "{kind:?}: {s:?}");
         assert!(s.max_orientation_error < 1e-6, "{kind:?}: {s:?}");
     }
@@ -267,7 +265,7 @@ fn centring_with_projected_feedback_makes_the_self_motion_periodic() {
     let summary = |alpha: f64, mu: f64| {
         let (mut p, q0) = panda_params(&arm, TaskKind::Position);
         (p.core.alpha, p.core.mu) = (alpha, mu);
-        let mut sim = SpatialSimulation::<7, 3>::spatial(arm, p, 0.001, q0, qd0, 2.0);
+        let mut sim = Simulation::spatial(arm, p, 0.001, q0, qd0, 2.0);
         run(&mut sim, 150.0, 5.0, |_, _, _| {})
     };
     let both = summary(20.0, 3.0);
@@ -297,7 +295,7 @@ fn the_panda_preset_is_periodic_fast_inside_every_limit() {
         cfg.safety.enabled = false;
         cfg.feedback.t_on = 0.0;
         let s = cfg.setup::<7>(&chain).unwrap();
-        let mut sim = SpatialSimulation::<7, 3>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
+        let mut sim = Simulation::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
         run(&mut sim, 40.0, 5.0, |_, _, _| {})
     };
     let panda = summary("panda");
@@ -330,7 +328,7 @@ fn the_speed_cap_keeps_a_far_start_inside_the_acceleration_limits() {
             -0.1563, 0.0009, -0.0341, -0.1401, -0.0457, -0.0637, -0.1334,
         ]);
         let s = cfg.setup::<7>(&chain).unwrap();
-        let mut sim = SpatialSimulation::<7, 3>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
+        let mut sim = Simulation::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
         run(&mut sim, 60.0, 0.0, |_, _, _| {})
     };
     let uncapped = summary(0.0);

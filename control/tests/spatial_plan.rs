@@ -8,8 +8,8 @@ use control::config::spatial::SphereEntry;
 use control::model::{builtin, Chain};
 use control::plan::spatial::plan_system;
 use control::plan::PlanOutcome;
-use control::sim::spatial::run;
-use control::sim::spatial::SpatialSimulation;
+use control::sim::run;
+use control::sim::Simulation;
 use control::steer::Cycle;
 use control::steer::SpatialSteer;
 use control::system::SpatialSystem;
@@ -44,8 +44,7 @@ fn simulate(c: &SpatialConfig) -> Outcome {
     let (set, blocked) = control::plan::setup_planned::<7>(c, &chain()).unwrap();
     assert!(blocked.is_none(), "{blocked:?}");
     let p = set.params;
-    let mut sim =
-        SpatialSimulation::<7, 3>::spatial(set.arm, p, set.dt, set.q0, set.qd0, p.core.tau);
+    let mut sim = Simulation::spatial(set.arm, p, set.dt, set.q0, set.qd0, p.core.tau);
     let (mut sq, mut n) = (0.0, 0u64);
     let s = run(&mut sim, 40.0, 20.0, |t, _, o| {
         if t >= 20.0 {

@@ -13,11 +13,12 @@ use super::lyapunov::{
 };
 use crate::arm::{ArmModel, VecN};
 use crate::law::LawParams;
-use crate::sim::{ArmState, ClosedLoopLaw, PlanarLaw, RunStats, Simulation};
+use crate::sim::{ArmState, ClosedLoopLaw, RunStats, Simulation};
+use crate::tick_law::TickLaw;
 
 /// One closed-loop trajectory of any arm's law, optionally recording run statistics on the way.
 #[derive(Clone, Debug)]
-pub struct ArmFlow<const N: usize, L: ClosedLoopLaw<N> = PlanarLaw<N>> {
+pub struct ArmFlow<const N: usize, L: ClosedLoopLaw<N> = TickLaw<N>> {
     sim: Simulation<N, L>,
     /// The delay history is part of the state (feedback on with μ ≠ 0).
     delay_state: bool,

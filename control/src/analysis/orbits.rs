@@ -33,7 +33,8 @@ use super::run::period_steps;
 use crate::arm::{ArmModel, VecN};
 use crate::basics::wrap_angle;
 use crate::law::LawParams;
-use crate::sim::{ArmState, ClosedLoopLaw, PlanarLaw, Simulation};
+use crate::sim::{ArmState, ClosedLoopLaw, Simulation};
+use crate::tick_law::TickLaw;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -214,7 +215,7 @@ pub fn monodromy<const N: usize>(
     x: &ArmState<N>,
     h: f64,
 ) -> DMatrix<f64> {
-    let law = PlanarLaw {
+    let law = TickLaw::Planar {
         model: *model,
         params: *params,
     };
@@ -248,7 +249,7 @@ pub fn find_orbit<const N: usize>(
     seed: &ArmState<N>,
     cfg: &NewtonConfig,
 ) -> Result<PeriodicOrbit, OrbitError> {
-    let law = PlanarLaw {
+    let law = TickLaw::Planar {
         model: *model,
         params: *params,
     };
@@ -468,7 +469,7 @@ pub fn orbit_stability<const N: usize>(
     orbit: &PeriodicOrbit,
     spec: &StabilitySpec,
 ) -> Result<OrbitStability, OrbitError> {
-    let law = PlanarLaw {
+    let law = TickLaw::Planar {
         model: *model,
         params: *params,
     };

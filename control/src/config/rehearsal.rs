@@ -13,7 +13,6 @@
 use crate::basics::{ConfigError, PhysicsError};
 use crate::config::spatial::{SpatialConfig, SpatialSetup};
 use crate::model::Chain;
-use crate::sim::spatial::SpatialSimulation;
 
 /// Path periods rehearsed.
 pub const REHEARSAL_PERIODS: f64 = 2.0;
@@ -76,31 +75,26 @@ impl SpatialConfig {
             t: 0.0,
             span,
         };
-        crate::with_task_rows!(self.task_kind()?, |M| {
-            let p = setup.params;
-            let mut sim = SpatialSimulation::<N, M>::spatial(
-                setup.arm, p, setup.dt, setup.q0, setup.qd0, p.core.tau,
-            );
-            for _ in 0..steps {
-                let (t, x) = (sim.time(), *sim.state());
-                let out = sim.step();
-                if !(x.is_finite() && out.qdd.iter().all(|v| v.is_finite())) {
-                    break;
-                }
-                let tau = model.rnea(&x.q, &x.qd, &out.qdd);
-                for i in 0..N {
-                    if tau[i].abs() / limits[i] > peak.share() {
-                        peak = EffortPeak {
-                            joint: i,
-                            torque: tau[i].abs(),
-                            limit: limits[i],
-                            t,
-                            span,
-                        };
-                    }
+        let mut sim = setup.simulation();
+        for _ in 0..steps {
+            let (t, x) = (sim.time(), *sim.state());
+            let out = sim.step();
+            if !(x.is_finite() && out.qdd.iter().all(|v| v.is_finite())) {
+                break;
+            }
+            let tau = model.rnea(&x.q, &x.qd, &out.qdd);
+            for i in 0..N {
+                if tau[i].abs() / limits[i] > peak.share() {
+                    peak = EffortPeak {
+                        joint: i,
+                        torque: tau[i].abs(),
+                        limit: limits[i],
+                        t,
+                        span,
+                    };
                 }
             }
-        });
+        }
         Ok(peak)
     }
 

@@ -133,13 +133,10 @@ pub struct SpatialSetup<const N: usize> {
 }
 
 impl<const N: usize> SpatialSetup<N> {
-    /// The set-up's closed loop for a task of `M` rows (see [`crate::with_task_rows`]), from its
-    /// start, its delay line sized for its own τ.
-    pub fn simulation<const M: usize>(&self) -> crate::sim::spatial::SpatialSimulation<N, M> {
+    /// The set-up's closed loop from its start, its delay line sized for its own τ.
+    pub fn simulation(&self) -> crate::sim::Simulation<N, crate::tick_law::TickLaw<N>> {
         let p = self.params;
-        crate::sim::spatial::SpatialSimulation::<N, M>::spatial(
-            self.arm, p, self.dt, self.q0, self.qd0, p.core.tau,
-        )
+        crate::sim::Simulation::spatial(self.arm, p, self.dt, self.q0, self.qd0, p.core.tau)
     }
 }
 

@@ -1,19 +1,17 @@
 //! What a closed loop needs of its law, whichever arm it drives, so that one [`super::Simulation`],
 //! one Lyapunov trajectory and one monitored run serve the planar arm and every URDF chain.
 //!
-//! A law here is an arm model with its parameter block: the planar closed form with
-//! [`LawParams`] ([`PlanarLaw`]), a URDF chain with [`SpatialParams`] for a task of `M` rows
-//! ([`SpatialLaw`]), or the daemon's [`crate::tick_law::TickLaw`], which holds either. The
-//! simulation steps all of them with the same integrator, delay line and adaptation, so a
-//! number that differs between two arms differs because of the arm, never because of the loop.
+//! The law every simulation steps is the daemon's own [`crate::tick_law::TickLaw`], which holds
+//! either arm (the paper's planar closed form, or a URDF chain for a task of 3 or 6 rows); a
+//! user's own law (`examples/`) implements this trait too. One integrator, one delay line and
+//! one adaptation for all of them, so a number that differs between two arms differs because
+//! of the arm, never because of the loop, and an offline run is the daemon's law to the bit.
 
 use super::{ArmState, StatsSetup};
-use crate::arm::spatial::{SpatialArm, SpatialKinematics};
-use crate::arm::{ArmModel, Kinematics, VecN};
+use crate::arm::VecN;
 use crate::law::pipeline::{Command, Full, Output};
-use crate::law::spatial::SpatialParams;
 pub use crate::law::LoopFeedback;
-use crate::law::{self, LawCore, LawParams, ParamBlock};
+use crate::law::{LawCore, ParamBlock};
 use crate::resolve::ControlOutput;
 use crate::steer::Steering;
 
@@ -103,108 +101,6 @@ pub trait ClosedLoopLaw<const N: usize>: Clone {
         }
         self.core_mut().carry_adapted_mu(mu, anchor);
         self.set_steering(steering);
-        true
-    }
-}
-
-/// The paper's planar arm (fixed or floating base) under [`crate::law::evaluate`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PlanarLaw<const N: usize> {
-    pub model: ArmModel<N>,
-    pub params: LawParams,
-}
-
-impl<const N: usize> ClosedLoopLaw<N> for PlanarLaw<N> {
-    type Scratch = Kinematics<N>;
-
-    #[inline]
-    fn run<O: Output<N>>(
-        &self,
-        t: f64,
-        x: &ArmState<N>,
-        delayed: &VecN<N>,
-        kin: &mut Kinematics<N>,
-        out: O,
-    ) -> O::Value {
-        let (m, p) = (&self.model, &self.params);
-        law::run(p, m, t, (x.phi, &x.q, &x.qd), delayed, kin, out)
-    }
-    fn core(&self) -> &LawCore {
-        &self.params.core
-    }
-    fn core_mut(&mut self) -> &mut LawCore {
-        &mut self.params.core
-    }
-    fn is_floating(&self) -> bool {
-        self.model.is_floating()
-    }
-    fn stats_setup(&self) -> StatsSetup {
-        StatsSetup::planar(&self.params)
-    }
-    fn set_steering(&mut self, steering: Option<Steering>) {
-        self.params.steer = match steering {
-            Some(Steering::Planar(s)) => Some(s),
-            _ => None,
-        };
-    }
-    fn steering(&self) -> Option<Steering> {
-        self.params.steer.map(Steering::Planar)
-    }
-    fn set_block(&mut self, block: ParamBlock) -> bool {
-        match block {
-            ParamBlock::Planar(p) => self.params = p,
-            ParamBlock::Spatial(_) => return false,
-        }
-        true
-    }
-}
-
-/// A URDF chain under [`crate::law::spatial::evaluate`] for a task of `M` rows (3: position, 6:
-/// pose); `M` is static so that the task's size costs nothing per step.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SpatialLaw<const N: usize, const M: usize> {
-    pub arm: SpatialArm<N>,
-    pub params: SpatialParams,
-}
-
-impl<const N: usize, const M: usize> ClosedLoopLaw<N> for SpatialLaw<N, M> {
-    type Scratch = SpatialKinematics<N>;
-
-    #[inline]
-    fn run<O: Output<N>>(
-        &self,
-        t: f64,
-        x: &ArmState<N>,
-        delayed: &VecN<N>,
-        kin: &mut SpatialKinematics<N>,
-        out: O,
-    ) -> O::Value {
-        let (arm, p) = (&self.arm, &self.params);
-        law::spatial::run::<N, M, O>(p, arm, t, (&x.q, &x.qd), delayed, kin, out)
-    }
-    fn core(&self) -> &LawCore {
-        &self.params.core
-    }
-    fn core_mut(&mut self) -> &mut LawCore {
-        &mut self.params.core
-    }
-    fn stats_setup(&self) -> StatsSetup {
-        StatsSetup::spatial(&self.params)
-    }
-    fn set_steering(&mut self, steering: Option<Steering>) {
-        self.params.steer = match steering {
-            Some(Steering::Spatial(s)) => Some(s),
-            _ => None,
-        };
-    }
-    fn steering(&self) -> Option<Steering> {
-        self.params.steer.map(Steering::Spatial)
-    }
-    fn set_block(&mut self, block: ParamBlock) -> bool {
-        match block {
-            ParamBlock::Spatial(p) if p.task.kind.rows() == M => self.params = p,
-            _ => return false,
-        }
         true
     }
 }

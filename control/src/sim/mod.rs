@@ -8,11 +8,10 @@
 //! run is reproducible from its config alone.
 
 pub mod law;
-pub mod spatial;
 
-pub use law::{ClosedLoopLaw, LoopFeedback, PlanarLaw, SpatialLaw};
+pub use law::{ClosedLoopLaw, LoopFeedback};
 
-use crate::arm::{ArmModel, VecN};
+use crate::arm::VecN;
 use crate::basics::flags;
 use crate::delay::DelayLine;
 use crate::law::LawParams;
@@ -77,11 +76,12 @@ pub fn plant_derivative<const N: usize>(
     }
 }
 
-/// A closed-loop simulation of any arm's law ([`ClosedLoopLaw`]): the planar arm by default,
-/// a URDF chain as [`spatial::SpatialSimulation`], the daemon's [`crate::tick_law::TickLaw`] as
-/// it stands. Owns its delay line (sized once) and scratch; `step` allocates nothing.
+/// A closed-loop simulation of any arm's law ([`ClosedLoopLaw`]): the daemon's
+/// [`crate::tick_law::TickLaw`] (its constructors `new` for the planar arm and `spatial` for a
+/// URDF chain are there), or a user's own law. Owns its delay line (sized once) and scratch;
+/// `step` allocates nothing.
 #[derive(Clone, Debug)]
-pub struct Simulation<const N: usize, L: ClosedLoopLaw<N> = PlanarLaw<N>> {
+pub struct Simulation<const N: usize, L: ClosedLoopLaw<N>> {
     /// The arm and its law's parameters; a change takes effect at the next step.
     pub law: L,
     dt: f64,
@@ -89,20 +89,6 @@ pub struct Simulation<const N: usize, L: ClosedLoopLaw<N> = PlanarLaw<N>> {
     step_index: u64,
     state: ArmState<N>,
     scratch: L::Scratch,
-}
-
-impl<const N: usize> Simulation<N> {
-    /// The planar arm `model` under `params` from `initial`. `max_tau` fixes the delay-line
-    /// capacity; `params.tau` may later change up to it.
-    pub fn new(
-        model: ArmModel<N>,
-        params: LawParams,
-        dt: f64,
-        initial: ArmState<N>,
-        max_tau: f64,
-    ) -> Self {
-        Self::of(PlanarLaw { model, params }, dt, initial, max_tau)
-    }
 }
 
 impl<const N: usize, L: ClosedLoopLaw<N>> Simulation<N, L> {
@@ -420,6 +406,11 @@ pub struct StatsSetup {
 }
 
 impl StatsSetup {
+    /// A spatial law's: its path's period, its feedback, its spheres and its filter.
+    pub fn spatial(p: &crate::law::spatial::SpatialParams) -> Self {
+        Self::of(&p.core, p.task.path.period, !p.spheres.is_empty())
+    }
+
     /// The planar law's.
     pub fn planar(params: &LawParams) -> Self {
         Self::of(

@@ -3,7 +3,7 @@
 //! since a `#[global_allocator]` applies to the whole binary).
 
 use control::config::spatial::SpatialConfig;
-use control::sim::spatial::SpatialSimulation;
+use control::sim::Simulation;
 use rt::alloc_count::{allocations, Counting};
 
 #[global_allocator]
@@ -26,7 +26,7 @@ fn the_panda_step_with_the_posture_task_allocates_nothing() {
     cfg.feedback.t_on = 0.5;
     let chain = rt::robot::load("panda", None, None).unwrap();
     let s = cfg.setup::<7>(&chain).unwrap();
-    let mut sim = SpatialSimulation::<7, 3>::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
+    let mut sim = Simulation::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
     let n = allocations(|| {
         for _ in 0..1500 {
             std::hint::black_box(sim.step());

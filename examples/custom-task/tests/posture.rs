@@ -3,7 +3,7 @@
 //! well; and a config naming a task nobody registered is refused by name.
 
 use control::config::spatial::SpatialConfig;
-use control::sim::spatial::run;
+use control::sim::run;
 
 const CONFIG: &str = include_str!("../panda-posture.toml");
 
@@ -22,7 +22,7 @@ fn run_with(secondary: &str) -> (f64, f64) {
     cfg.law.secondary = secondary.into();
     let chain = rt::robot::load("panda", None, None).unwrap();
     let s = cfg.setup::<7>(&chain).unwrap();
-    let mut sim = s.simulation::<3>();
+    let mut sim = s.simulation();
     let ready = nalgebra::SVector::<f64, 7>::from_column_slice(custom_task::PANDA_READY.q_ref);
     let (mut sum, mut n) = (0.0, 0u32);
     let summary = run(&mut sim, 40.0, 5.0, |t, x, _| {

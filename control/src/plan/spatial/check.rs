@@ -12,7 +12,7 @@ use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
 use crate::plan::PlanSettings;
 use crate::safety::rows::segment_row;
-use crate::sim::spatial::SpatialSimulation;
+use crate::sim::Simulation;
 use crate::steer::CycleTable;
 
 /// Spline samples per span between two phases.
@@ -113,7 +113,7 @@ impl<const N: usize> SpatialProblem<N> {
             Ok(table) => {
                 self.check_spline(&table, &mut v);
                 if v.worst.is_none() {
-                    self.check_law::<M>(&rows, &mut v);
+                    self.check_law(&rows, &mut v);
                 }
             }
             Err(_) => v.note(Fault::Path, f64::INFINITY, self.t0),
@@ -126,7 +126,7 @@ impl<const N: usize> SpatialProblem<N> {
     /// on the way: the barrier of the hand's own link, which no posture moves, can brake the
     /// hand a little where the path swings fast past a sphere. Without the delayed feedback,
     /// which vanishes on the cycle but not on the start's made-up history.
-    fn check_law<const M: usize>(&self, rows: &[[f64; N]], v: &mut Verdict) {
+    fn check_law(&self, rows: &[[f64; N]], v: &mut Verdict) {
         let period = self.law.task.path.period;
         let wide: Vec<Vec<f64>> = rows.iter().map(|r| r.to_vec()).collect();
         let cycle = self.cycle_of(&wide, v);
@@ -142,8 +142,7 @@ impl<const N: usize> SpatialProblem<N> {
             VecN::<N>::from_fn(|i, _| s.q[i]),
             VecN::<N>::from_fn(|i, _| s.qd[i]),
         );
-        let mut sim =
-            SpatialSimulation::<N, M>::spatial(self.arm, law, self.dt, q0, qd0, law.core.tau);
+        let mut sim = Simulation::spatial(self.arm, law, self.dt, q0, qd0, law.core.tau);
         let mut kin = SpatialKinematics::<N>::default();
         for _ in 0..(period / self.dt).ceil() as u64 {
             let t = sim.time();
