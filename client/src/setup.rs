@@ -6,10 +6,8 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use control::config::spatial::{is_spatial, SpatialConfig};
 use control::config::{ModelKind, ProjectionKind};
-use control::system::SpatialSystem;
-use control::{Config, System};
+use control::System;
 use std::path::PathBuf;
 
 /// The model and initial-state flags every offline command shares (all but `--mu`, which is one
@@ -109,29 +107,15 @@ impl SetupArgs {
     /// The set-up the file or preset names (default `paper`), before the flags; a robot's chain
     /// is loaded here, once.
     fn base(&self) -> Result<System> {
-        let spatial = |config: SpatialConfig| -> Result<System> {
-            let r = &config.robot;
-            let chain = rt::robot::load(&r.description, r.base.as_deref(), r.tip.as_deref())?;
-            Ok(System::Spatial(Box::new(SpatialSystem { config, chain })))
-        };
+        let resolve = &rt::robot::resolve;
         match (&self.config, &self.preset) {
             (Some(path), _) => {
                 let text = std::fs::read_to_string(path)
                     .with_context(|| format!("cannot read config file {}", path.display()))?;
-                let within = || format!("in {}", path.display());
-                if is_spatial(&text) {
-                    spatial(SpatialConfig::from_toml(&text).with_context(within)?)
-                } else {
-                    Ok(System::Planar(
-                        Config::from_toml_str(&text).with_context(within)?,
-                    ))
-                }
+                System::read(&text, resolve).with_context(|| format!("in {}", path.display()))
             }
-            (None, Some(p)) => match SpatialConfig::preset(p) {
-                Some(c) => spatial(c),
-                None => Ok(System::Planar(Config::preset(p)?)),
-            },
-            (None, None) => Ok(System::Planar(Config::preset("paper")?)),
+            (None, Some(p)) => Ok(System::named(p, resolve)?),
+            (None, None) => Ok(System::named("paper", resolve)?),
         }
     }
 

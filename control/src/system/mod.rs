@@ -81,19 +81,44 @@ impl System {
         if !is_spatial(text) {
             return Ok(System::Planar(Config::parse(text)?));
         }
-        Self::spatial(SpatialConfig::from_toml(text)?, resolve)
+        let s = Self::read(text, resolve)?;
+        s.validate()?;
+        Ok(s)
     }
 
-    /// A built-in set-up: the planar presets and the spatial `panda`.
+    /// [`Self::parse`] without the validation, for a caller that changes the set-up first (a
+    /// command's flags) and validates what it runs. The chain a `[robot]` names is loaded here.
+    pub fn read(text: &str, resolve: Resolve) -> Result<Self, ConfigError> {
+        if !is_spatial(text) {
+            return Ok(System::Planar(Config::from_toml_str(text)?));
+        }
+        Self::with_chain(SpatialConfig::from_toml(text)?, resolve)
+    }
+
+    /// A built-in set-up, validated: the planar presets and the spatial ones (`panda`, …).
     pub fn preset(name: &str, resolve: Resolve) -> Result<Self, ConfigError> {
+        let s = Self::named(name, resolve)?;
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// [`Self::preset`] without the validation (see [`Self::read`]).
+    pub fn named(name: &str, resolve: Resolve) -> Result<Self, ConfigError> {
         match SpatialConfig::preset(name) {
-            Some(c) => Self::spatial(c, resolve),
+            Some(c) => Self::with_chain(c, resolve),
             None => Ok(System::Planar(Config::preset(name)?)),
         }
     }
 
     /// Loads the chain of a spatial file and checks the file against it.
     pub fn spatial(config: SpatialConfig, resolve: Resolve) -> Result<Self, ConfigError> {
+        let s = Self::with_chain(config, resolve)?;
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// A spatial file with the chain its `[robot]` names, not yet checked against it.
+    fn with_chain(config: SpatialConfig, resolve: Resolve) -> Result<Self, ConfigError> {
         let r = &config.robot;
         let chain = resolve(&r.description, r.base.as_deref(), r.tip.as_deref()).map_err(|e| {
             ConfigError::Invalid {
@@ -102,9 +127,7 @@ impl System {
                 expected: e.to_string(),
             }
         })?;
-        let s = System::Spatial(Box::new(SpatialSystem { config, chain }));
-        s.validate()?;
-        Ok(s)
+        Ok(System::Spatial(Box::new(SpatialSystem { config, chain })))
     }
 
     /// The joint count.
