@@ -10,8 +10,8 @@
 //!   stroboscopic Poincaré map, by Rosenstein's method over a sliding window ([`rosenstein`]).
 //!   Twelve returns are twelve periods; until they are there, the same map is read at
 //!   [`PHASES`] phases of the path, each phase's samples paired only with their own phase and
-//!   followed a whole period at a time, so that five periods hold enough pairs and the first
-//!   verdict comes within eight;
+//!   followed a whole period at a time, so that four periods of samples give an estimate and
+//!   the first verdict comes within eight;
 //! - the **0–1 test's K** on a scalar self-motion coordinate sampled at the returns
 //!   ([`zero_one`]).
 //!
@@ -114,7 +114,8 @@ pub const PHASES: usize = 8;
 /// judged by the chaos it left long ago).
 pub const LYAP_PERIODS: usize = rosenstein::MIN_RETURNS;
 /// How the Lyapunov estimate pairs its samples: a neighbour at the same phase at least a period
-/// away, followed period by period for three periods; no estimate before five periods.
+/// away, followed period by period for two periods; no estimate before four periods of samples
+/// (the first verdict, confirmed, then comes at the fifth period).
 pub const SAMPLING: rosenstein::Sampling = rosenstein::Sampling {
     phases: PHASES,
     apart: PHASES,
