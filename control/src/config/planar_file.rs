@@ -172,7 +172,9 @@ pub fn in_legacy_terms(e: ConfigError) -> ConfigError {
         } => ConfigError::Invalid {
             field: to_legacy_key(&field),
             value,
-            expected: expected.replace("[[obstacles]]", "[[control.obstacles]]"),
+            expected: expected
+                .replace("[[obstacles]]", "[[control.obstacles]]")
+                .replace("robot.links", "arm.links"),
         },
         other => other,
     }
