@@ -38,6 +38,10 @@ const BAD: &[(&str, &str)] = &[
         "[[control.obstacles]]\ncenter = [0.0, 1.6]\nradius = -0.1\n",
     ),
     (
+        "older: a start too far out to move",
+        "[sim]\nq0 = [0.0, 1e300, 1.0]\n",
+    ),
+    (
         "planar: misspelt key",
         "[robot]\ndescription = \"planar\"\nlnks = [1.0, 1.0, 1.0]\n",
     ),
@@ -72,6 +76,10 @@ const BAD: &[(&str, &str)] = &[
     (
         "robot: start of the wrong size",
         "[robot]\ndescription = \"panda\"\n[task]\nkind = \"position\"\npath = \"circle\"\nnormal = [0.0, 0.0, 1.0]\nradius = 0.1\nperiod = 2.0\n[sim]\nq0 = [0.0, 0.1]\n",
+    ),
+    (
+        "robot: a start speed too large to be one",
+        "[robot]\ndescription = \"panda\"\n[task]\nkind = \"position\"\npath = \"circle\"\nnormal = [0.0, 0.0, 1.0]\nradius = 0.1\nperiod = 2.0\n[sim]\nq0 = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]\nqd0 = [1e300, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n",
     ),
 ];
 

@@ -499,6 +499,7 @@ impl Config {
             if let Some(v) = v {
                 same_len(name, v, n)?;
                 finite_vec(name, v)?;
+                sim::check_start_size(name, v)?;
             }
         }
         range("sim.phi0", s.phi0, -1e6, 1e6)?;

@@ -87,3 +87,20 @@ impl SimSection {
         Ok(())
     }
 }
+
+/// The largest |q| (rad) or |q̇| (rad/s) a start may give. Far beyond it an angle's step in one
+/// period is lost to rounding (at 1e300 rad, q + q̇·dt == q: the joint could never move), and no
+/// arm turns a joint ten thousand radians a second.
+pub const MAX_START: f64 = 1e4;
+
+/// `sim.q0` or `sim.qd0`, of either arm's file: every entry within ±[`MAX_START`].
+pub(crate) fn check_start_size(field: &str, v: &[f64]) -> Result<(), ConfigError> {
+    if v.iter().all(|x| x.abs() <= MAX_START) {
+        return Ok(());
+    }
+    Err(crate::basics::invalid(
+        field,
+        v,
+        "entries within ±10000 (rad, rad/s): beyond, a step's change is lost to rounding",
+    ))
+}

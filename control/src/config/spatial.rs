@@ -281,6 +281,7 @@ impl SpatialConfig {
                 &format!("{n} finite numbers, one per joint"),
             ));
         }
+        crate::config::sim::check_start_size(field, v)?;
         Ok(SVector::from_fn(|i, _| v.get(i).copied().unwrap_or(0.0)))
     }
 

@@ -105,7 +105,9 @@ pub const PERIODIC_RESIDUAL: f64 = 2e-2;
 /// to 2.5e-2 seen on the planar arm), and the verdict must not flap with it; chaos is 40× above.
 pub const LEAVE_PERIODIC: f64 = 5.0;
 
-/// Returns the 0–1 test's window holds at the least.
+/// Once-a-period returns the Lyapunov estimate uses from the twelfth on (the newest ones: a
+/// converging arm must not be judged by the chaos it left long ago); the 0–1 test's window holds
+/// at least as many.
 pub const LYAP_WINDOW: usize = 32;
 /// Samples a period the Lyapunov estimate takes: the stroboscopic map at eight phases of the
 /// path instead of one, so that a few periods hold enough pairs.
