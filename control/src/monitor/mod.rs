@@ -385,18 +385,14 @@ impl ChaosMonitor {
             })
             .flatten();
         // Until the window holds enough once-a-period returns, the samples at every phase.
-        let early = self.returns.len() < rosenstein::MIN_RETURNS;
         self.scratch_returns.clear();
-        if early {
+        let lambda = if self.returns.len() < rosenstein::MIN_RETURNS {
             self.scratch_returns.extend(self.samples.iter());
+            rosenstein::lyapunov_per_sample(&self.scratch_returns, &SAMPLING)
         } else {
             let newest = self.returns.len().saturating_sub(LYAP_WINDOW);
             self.scratch_returns
                 .extend(self.returns.iter().skip(newest));
-        }
-        let lambda = if early {
-            rosenstein::lyapunov_per_sample(&self.scratch_returns, &SAMPLING)
-        } else {
             rosenstein::lyapunov_per_step(&self.scratch_returns)
         };
         self.evidence.lambda = lambda.map(|l| l / self.tau);
