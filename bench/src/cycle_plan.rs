@@ -121,7 +121,7 @@ pub const PANDA: Arm = Arm {
 fn planar_job(discs: Balls, at: f64) -> Result<Job> {
     let mut cfg = Config::default();
     let (t0, q) = control::plan::posture_at(&cfg, at);
-    cfg.control.obstacles = discs
+    cfg.obstacles = discs
         .iter()
         .map(|b| ObstacleConfig::disc(b[0], b[1], b[3]))
         .collect();

@@ -109,9 +109,7 @@ impl MapArm for PlanarMap<'_> {
 
     fn verdict(&self, c: Vec3, r: f64) -> Result<usize> {
         let mut cfg = self.cfg.clone();
-        cfg.control
-            .obstacles
-            .push(ObstacleConfig::disc(c.x, c.y, r));
+        cfg.obstacles.push(ObstacleConfig::disc(c.x, c.y, r));
         let (at, q) = self.at;
         let p = PlanarProblem::from_config(&cfg, at, Some(q))
             .map_err(|e| anyhow::anyhow!("chaosctl plan --map: {e}"))?;

@@ -54,7 +54,7 @@ fn the_safety_filter_allocates_nothing_on_any_path() {
     let mut arms = vec![];
     for preset in ["paper-obstacle", "paper-floating"] {
         let mut cfg = Config::preset(preset).unwrap();
-        cfg.control.obstacles = vec![
+        cfg.obstacles = vec![
             control::config::ObstacleConfig {
                 center: [0.0, 1.6],
                 radius: 0.25,
@@ -162,7 +162,7 @@ fn steering_along_a_detour_and_onto_the_cycle_allocates_nothing() {
     // The planner allocates (off the loop); the law that runs its detour, the blend and the
     // cycle must not. An arm off its path by the trap: a detour, then the cycle.
     let mut cfg = Config::default();
-    cfg.control.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
+    cfg.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
     cfg.safety.plan = control::safety::policy::PlanMode::On;
     cfg.sim.q0 = Some(vec![0.3, 1.2, 1.0]);
     cfg.sim.qd0 = Some(vec![0.0; 3]);

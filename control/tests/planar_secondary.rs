@@ -69,7 +69,7 @@ fn a_registered_task_and_centring_drive_the_planar_arm() {
     let e = paper("centring").unwrap_err().to_string();
     assert!(e.contains("safety.q_min and safety.q_max"), "{e}");
     let mut cfg = paper("none").unwrap();
-    cfg.control.secondary = control::config::SecondaryKind::Centring;
+    cfg.law.secondary = control::config::SecondaryKind::Centring;
     cfg.safety.q_min = Some(vec![-3.0; 3]);
     cfg.safety.q_max = Some(vec![3.0; 3]);
     cfg.validate().unwrap();

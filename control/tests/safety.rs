@@ -290,7 +290,7 @@ fn run<const N: usize>(cfg: &Config, duration: f64) -> Outcome {
 
 fn obstacle_cfg(list: &[(f64, f64, f64)], mu: f64, q1: f64) -> Config {
     let mut cfg = Config::preset("paper-obstacle").unwrap();
-    cfg.control.obstacles = list
+    cfg.obstacles = list
         .iter()
         .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
         .collect();

@@ -34,9 +34,9 @@ fn a_planar_file_that_leaves_keys_out_means_what_it_meant() {
     // The planar form's own defaults, in both of its spellings.
     for text in ["[law]\nkp = 30.0\n", "[task]\nperiod = 2.0\n"] {
         let c = planar(text).unwrap();
-        assert_eq!(c.control.alpha, 1.0, "{text}");
-        assert_eq!(c.control.secondary, SecondaryKind::Manipulability, "{text}");
-        assert_eq!(c.control.disc_weights(), (2.0, 2.0), "{text}");
+        assert_eq!(c.law.alpha, 1.0, "{text}");
+        assert_eq!(c.law.secondary, SecondaryKind::Manipulability, "{text}");
+        assert_eq!(c.law.disc_weights(), (2.0, 2.0), "{text}");
         assert_eq!(c.sim.transient, 20.0, "{text}");
         let f = &c.feedback;
         assert_eq!(
@@ -47,13 +47,13 @@ fn a_planar_file_that_leaves_keys_out_means_what_it_meant() {
     }
     let older = Config::parse("[arm]\n[control]\nkp = 30.0\n[task]\nperiod = 2.0\n").unwrap();
     assert_eq!(
-        (older.control.alpha, older.tau(), older.sim.transient),
+        (older.law.alpha, older.tau(), older.sim.transient),
         (1.0, 1.0, 20.0)
     );
     // What a file gives it keeps.
     let c = planar("[law]\nalpha = 0.5\nsecondary = \"none\"\n[feedback]\nt_on = 0.0\n").unwrap();
-    assert_eq!((c.control.alpha, c.feedback.t_on), (0.5, 0.0));
-    assert_eq!(c.control.secondary, SecondaryKind::None);
+    assert_eq!((c.law.alpha, c.feedback.t_on), (0.5, 0.0));
+    assert_eq!(c.law.secondary, SecondaryKind::None);
 }
 
 #[test]

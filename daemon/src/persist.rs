@@ -208,14 +208,11 @@ mod tests {
         assert_eq!(load(&dir, 3).unwrap(), None);
         let mut system = Config::preset("demo").unwrap();
         system.feedback.mu = 1.3;
-        system
-            .control
-            .obstacles
-            .push(control::config::ObstacleConfig {
-                center: [0.0, 1.6],
-                radius: 0.2,
-                margin: 0.1,
-            });
+        system.obstacles.push(control::config::ObstacleConfig {
+            center: [0.0, 1.6],
+            radius: 0.2,
+            margin: 0.1,
+        });
         let s = LiveState {
             t: 123.5,
             saved_unix_s: unix_now() + 1e3, // in the future: no time added
@@ -242,7 +239,7 @@ mod tests {
         let System::Planar(c) = s.system.to_system().unwrap() else {
             panic!("a planar state")
         };
-        (c.feedback.mu, c.control.kv)
+        (c.feedback.mu, c.law.kv)
     }
 
     #[test]
@@ -267,7 +264,7 @@ mod tests {
         let System::Planar(c) = &mut edited else {
             unreachable!()
         };
-        c.control.kv = 30.0;
+        c.law.kv = 30.0;
         let (s, why) = adopt(saved.clone(), &edited).unwrap();
         assert!(why.unwrap().contains("changed since"));
         assert_eq!(mu_kv(&s), (file.feedback().mu, 30.0));

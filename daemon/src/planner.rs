@@ -80,7 +80,6 @@ mod tests {
         let mut config = control::Config::preset("demo").unwrap();
         for &(x, y, r) in obstacles {
             config
-                .control
                 .obstacles
                 .push(control::config::ObstacleConfig::disc(x, y, r));
         }

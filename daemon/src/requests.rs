@@ -517,11 +517,11 @@ mod tests {
         )
         .unwrap();
         assert_eq!(
-            (n.feedback.mu, n.tau(), n.control.kp, n.task.center),
+            (n.feedback.mu, n.tau(), n.law.kp, n.task.center),
             (1.5, 1.2, 30.0, [1.0, 1.5])
         );
         assert!(!n.feedback.enabled);
-        assert_eq!(n.control.secondary, SecondaryKind::None);
+        assert_eq!(n.law.secondary, SecondaryKind::None);
         for (args, want) in [
             ("mu -1", "feedback.mu"),
             ("mu 1 kp -5", "law.kp"),
@@ -548,7 +548,7 @@ mod tests {
         let planar = |s: System| s.planar().unwrap().clone();
         let one = apply_obstacle_add(&system(Config::default()), "0 1.6 0.25", 1e-3).unwrap();
         let c = planar(one.clone());
-        assert_eq!(c.control.obstacles.len(), 1);
+        assert_eq!(c.obstacles.len(), 1);
         assert!(apply_obstacle_add(&one, "0 1.6 -1", 1e-3)
             .unwrap_err()
             .contains("obstacle.radius"));

@@ -9,6 +9,7 @@
 
 pub mod command;
 pub mod feedback;
+pub mod file;
 pub mod law;
 pub mod obstacles;
 pub mod planar_file;
@@ -223,20 +224,23 @@ impl From<ProjectionKind> for Projection {
     }
 }
 
-/// The whole file. `[daemon]` and `[plant]` are owned and validated by those programs.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+/// The whole set-up in memory. Files are read and written through [`planar_file`] (the shared
+/// form) and [`file`] (the older one); `[daemon]` and `[plant]` are owned and validated by those
+/// programs.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Config {
     pub arm: ArmConfig,
     pub task: TaskConfig,
-    pub control: LawSection,
+    /// `[law]` (`[control]` in the older form). Its `obstacles` stay empty: they are
+    /// [`Config::obstacles`].
+    pub law: LawSection,
+    /// `[[obstacles]]`: discs in the arm's plane.
+    pub obstacles: Vec<ObstacleConfig>,
     pub feedback: FeedbackSection,
     pub sim: SimSection,
     /// The safety filter and the runaway guard (see `control::safety::config`).
     pub safety: SafetySection,
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub daemon: Option<toml::Table>,
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub plant: Option<toml::Table>,
 }
 
@@ -245,7 +249,8 @@ impl Default for Config {
         Self {
             arm: ArmConfig::default(),
             task: TaskConfig::default(),
-            control: LawSection::planar(),
+            law: LawSection::planar(),
+            obstacles: Vec::new(),
             feedback: FeedbackSection::planar(),
             sim: SimSection::planar(),
             safety: SafetySection::planar(),
@@ -287,12 +292,12 @@ impl Config {
         match name {
             "paper" => {}
             "paper-eq11" => {
-                c.control.kp = 15.0;
-                c.control.kv = 40.0;
+                c.law.kp = 15.0;
+                c.law.kv = 40.0;
             }
             "paper-obstacle" => {
-                c.control.secondary = SecondaryKind::Obstacles;
-                c.control.obstacles = vec![ObstacleConfig {
+                c.law.secondary = SecondaryKind::Obstacles;
+                c.obstacles = vec![ObstacleConfig {
                     center: PAPER_OBSTACLE.0,
                     radius: PAPER_OBSTACLE.1,
                     margin: 0.1,
@@ -344,7 +349,7 @@ impl Config {
             Ok(t) if t.contains_key("robot") => {
                 Err(ConfigError::Spatial("a config with a [robot] table".into()))
             }
-            _ => toml::from_str(text).map_err(|e| ConfigError::Parse(excerpt(&e.to_string()))),
+            _ => file::read_older(text),
         }?;
         // Each shared section as the file gives it, for the planar form's own defaults.
         let given = table.ok();
@@ -354,7 +359,7 @@ impl Config {
         };
         c.feedback.fill_planar_defaults(section(&["feedback"]));
         c.sim.fill_planar_defaults(section(&["sim"]));
-        c.control.fill_planar_defaults(section(&["law", "control"]));
+        c.law.fill_planar_defaults(section(&["law", "control"]));
         c.safety.fill_planar_defaults(section(&["safety"]));
         Ok(c)
     }
@@ -448,8 +453,15 @@ impl Config {
         positive("task.period", self.task.period, 1e4)?;
         check_ramp(self.task.ramp)?;
 
-        let c = &self.control;
+        let c = &self.law;
         c.check_planar()?;
+        if !c.obstacles.is_empty() {
+            return Err(invalid(
+                "law.obstacles",
+                format!("{} entries", c.obstacles.len()),
+                "the obstacles are a top-level [[obstacles]] list",
+            ));
+        }
         range("law.kp", c.kp, 0.0, 1e6)?;
         range("law.kv", c.kv, 0.0, 1e6)?;
         range("law.alpha", c.alpha, -1e3, 1e3)?;
@@ -459,14 +471,14 @@ impl Config {
         positive("law.damping_threshold", c.damping_threshold, 10.0)?;
         positive("law.damping_max", c.damping_max, 10.0)?;
         positive("law.track_loss", c.track_loss, 100.0)?;
-        if c.obstacles.len() > MAX_OBSTACLES {
+        if self.obstacles.len() > MAX_OBSTACLES {
             return Err(invalid(
                 "obstacles",
-                format!("{} obstacles", c.obstacles.len()),
+                format!("{} obstacles", self.obstacles.len()),
                 &format!("at most {MAX_OBSTACLES}"),
             ));
         }
-        for (i, o) in c.obstacles.iter().enumerate() {
+        for (i, o) in self.obstacles.iter().enumerate() {
             o.validate(&format!("obstacles[{i}]"))?;
         }
         if let SecondaryKind::Custom(name) = &c.secondary {
@@ -482,7 +494,7 @@ impl Config {
                 "centring pulls each joint to the middle of its range: give safety.q_min and safety.q_max",
             ));
         }
-        if c.secondary == SecondaryKind::Obstacles && c.obstacles.is_empty() {
+        if c.secondary == SecondaryKind::Obstacles && self.obstacles.is_empty() {
             return Err(invalid(
                 "obstacles",
                 "[]",
@@ -524,7 +536,7 @@ impl Config {
 
     /// The control-law parameter block (the config must be valid).
     pub fn law_params(&self) -> LawParams {
-        let c = &self.control;
+        let c = &self.law;
         LawParams {
             core: LawCore {
                 kp: c.kp,
@@ -551,7 +563,7 @@ impl Config {
                 self.task.period,
             )
             .with_ramp(self.task.ramp),
-            obstacles: c
+            obstacles: self
                 .obstacles
                 .iter()
                 .map(ObstacleConfig::to_ball)
@@ -574,7 +586,7 @@ impl Config {
     pub fn steers_onto_plan(&self) -> bool {
         self.safety.enabled
             && self.has_planner()
-            && self.safety.plan.steers(!self.control.obstacles.is_empty())
+            && self.safety.plan.steers(!self.obstacles.is_empty())
     }
 
     /// The arm model with N joints (N must equal `self.n()`).

@@ -102,12 +102,11 @@ pub(crate) fn read(text: &str) -> Result<Config, ConfigError> {
             "the obstacles are a top-level [[obstacles]] list, as for every robot",
         ));
     }
-    let mut control = f.law;
-    control.obstacles = f.obstacles;
     Ok(Config {
         arm,
         task: f.task,
-        control,
+        law: f.law,
+        obstacles: f.obstacles,
         feedback: f.feedback,
         sim: f.sim,
         safety: f.safety,
@@ -120,7 +119,7 @@ pub(crate) fn read(text: &str) -> Result<Config, ConfigError> {
 pub(crate) fn write(c: &Config) -> String {
     let law = LawSection {
         obstacles: Vec::new(),
-        ..c.control.clone()
+        ..c.law.clone()
     };
     let file = FileOut {
         robot: RobotOut {
@@ -131,7 +130,7 @@ pub(crate) fn write(c: &Config) -> String {
         law,
         feedback: &c.feedback,
         safety: &c.safety,
-        obstacles: &c.control.obstacles,
+        obstacles: &c.obstacles,
         sim: &c.sim,
         daemon: &c.daemon,
         plant: &c.plant,
@@ -211,7 +210,7 @@ mod tests {
     fn the_older_form_still_reads_and_means_the_same() {
         for name in PRESETS {
             let c = Config::preset(name).unwrap();
-            let older = toml::to_string(&c).unwrap();
+            let older = crate::config::file::older_text(&c);
             assert!(older.contains("[arm]") && !older.contains("[robot]"));
             assert_eq!(Config::parse(&older).unwrap(), c, "{name}");
         }

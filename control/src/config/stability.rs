@@ -39,7 +39,7 @@ fn num(x: f64) -> String {
 
 /// Checks `cfg` against a loop of step `dt`; `step` names where dt comes from (for messages).
 pub fn check(cfg: &Config, dt: f64, step: &str) -> Result<(), ConfigError> {
-    let c = &cfg.control;
+    let c = &cfg.law;
     let s = &cfg.safety;
     let barriers = [("safety.k1", s.k1), ("safety.k_rate", s.k_rate)];
     check_sampled(
@@ -163,11 +163,11 @@ mod tests {
         for p in crate::config::PRESETS {
             check(&Config::preset(p).unwrap(), dt, "1 kHz").unwrap();
         }
-        let e = refused(|c| c.control.kv = 3000.0, dt);
+        let e = refused(|c| c.law.kv = 3000.0, dt);
         assert!(e.contains("law.kv") && e.contains("K_v < 1000"), "{e}");
-        let e = refused(|c| (c.control.kp, c.control.kv) = (1e6, 1e6), dt);
+        let e = refused(|c| (c.law.kp, c.law.kv) = (1e6, 1e6), dt);
         assert!(e.contains("law.kv"), "{e}");
-        let e = refused(|c| (c.control.kp, c.control.kv) = (1e5, 50.0), dt);
+        let e = refused(|c| (c.law.kp, c.law.kv) = (1e5, 50.0), dt);
         assert!(
             e.contains("law.kp") && e.contains("K_p < K_v/dt = 50000"),
             "{e}"
@@ -182,7 +182,7 @@ mod tests {
         for huge in [1e308, -1e308, f64::MAX] {
             let e = refused(|c| c.task.center = [huge, huge], dt);
             assert!(e.len() < 400 && e.contains("reaches only"), "{e}");
-            let e = refused(|c| c.control.kv = huge.abs(), dt);
+            let e = refused(|c| c.law.kv = huge.abs(), dt);
             assert!(e.len() < 400 && e.contains("law.kv"), "{e}");
         }
         let e = refused(|c| c.task.center = [0.1, 0.0], dt);
@@ -191,7 +191,7 @@ mod tests {
         assert!(e.contains("safety.k_rate"), "{e}");
         // The limits scale with the rate: kv = 3000 is fine at 10 kHz.
         let mut c = Config::preset("demo").unwrap();
-        c.control.kv = 3000.0;
+        c.law.kv = 3000.0;
         check(&c, 1e-4, "10 kHz").unwrap();
     }
 

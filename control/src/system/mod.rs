@@ -328,14 +328,14 @@ impl System {
     /// The file's `[law]`, one section for every arm.
     pub fn law_section(&self) -> &LawSection {
         match self {
-            System::Planar(c) => &c.control,
+            System::Planar(c) => &c.law,
             System::Spatial(s) => &s.config.law,
         }
     }
 
     pub fn law_section_mut(&mut self) -> &mut LawSection {
         match self {
-            System::Planar(c) => &mut c.control,
+            System::Planar(c) => &mut c.law,
             System::Spatial(s) => &mut s.config.law,
         }
     }
@@ -455,8 +455,8 @@ impl System {
             System::Planar(c) => SafetySummary {
                 enabled: c.safety.enabled,
                 clearance: c.safety.clearance,
-                track_loss: c.control.track_loss,
-                obstacles: c.control.obstacles.len(),
+                track_loss: c.law.track_loss,
+                obstacles: c.obstacles.len(),
                 trap_time: c.safety.trap_time,
                 when_blocked: c.safety.when_blocked,
                 task_period: c.task.period,

@@ -35,7 +35,6 @@ impl System {
         };
         match self {
             System::Planar(c) => c
-                .control
                 .obstacles
                 .iter()
                 .map(|o| row(&o.center, o.radius, o.margin))
@@ -84,7 +83,7 @@ impl System {
                     margin,
                 };
                 o.validate("obstacle")?;
-                c.control.obstacles.push(o);
+                c.obstacles.push(o);
             }
             System::Spatial(s) => {
                 let o = SphereEntry {
@@ -102,7 +101,7 @@ impl System {
     /// Removes every obstacle (a client's `--obstacle` flags replace the file's).
     pub fn clear_obstacles(&mut self) {
         match self {
-            System::Planar(c) => c.control.obstacles.clear(),
+            System::Planar(c) => c.obstacles.clear(),
             System::Spatial(s) => s.config.obstacles.clear(),
         }
     }
@@ -112,7 +111,7 @@ impl System {
     pub fn remove_obstacle(&mut self, index: usize) {
         match self {
             System::Planar(c) => {
-                c.control.obstacles.remove(index);
+                c.obstacles.remove(index);
             }
             System::Spatial(s) => {
                 s.config.obstacles.remove(index);

@@ -77,7 +77,7 @@ impl System {
             System::Planar(c) => format!(
                 "planar {}-link arm, {:?} secondary task",
                 c.n(),
-                c.control.secondary
+                c.law.secondary
             ),
             System::Spatial(s) => s.config.describe(),
         }
@@ -88,7 +88,7 @@ impl System {
     /// set-ups are never merged; the form is kept as it was, so older shards still match.
     pub fn fingerprint_text(&self) -> String {
         match self {
-            System::Planar(c) => format!("{c:?}"),
+            System::Planar(c) => crate::config::file::older_debug(c),
             System::Spatial(s) => format!("{:?} {:?}", s.config, s.chain),
         }
     }
