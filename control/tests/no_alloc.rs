@@ -161,8 +161,10 @@ fn the_panda_step_allocates_nothing_in_position_and_pose_with_obstacles() {
 fn steering_along_a_detour_and_onto_the_cycle_allocates_nothing() {
     // The planner allocates (off the loop); the law that runs its detour, the blend and the
     // cycle must not. An arm off its path by the trap: a detour, then the cycle.
-    let mut cfg = Config::default();
-    cfg.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
+    let mut cfg = Config {
+        obstacles: vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)],
+        ..Config::default()
+    };
     cfg.safety.plan = control::safety::policy::PlanMode::On;
     cfg.sim.q0 = Some(vec![0.3, 1.2, 1.0]);
     cfg.sim.qd0 = Some(vec![0.0; 3]);
