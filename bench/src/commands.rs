@@ -23,8 +23,8 @@ fn panda(mode: CommandMode, pd_hz: f64) -> Result<System> {
     let System::Spatial(sp) = &mut s else {
         return Err(anyhow!("the panda preset is not spatial"));
     };
-    sp.config.command.mode = mode;
-    sp.config.command.pd_bandwidth_hz = pd_hz;
+    sp.own_mut().command.mode = mode;
+    sp.own_mut().command.pd_bandwidth_hz = pd_hz;
     s.schedule_feedback(control::adapt::MuSetting::Fixed(1.0), 20.0);
     Ok(s)
 }

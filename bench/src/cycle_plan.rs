@@ -5,7 +5,7 @@
 //! the arm got to the moment of the edit ([`Arm::job`]); the timing and the table are one.
 
 use anyhow::Result;
-use control::config::spatial::{SpatialConfig, SphereEntry};
+use control::config::spatial::SphereEntry;
 use control::config::{Config, ObstacleConfig};
 use control::plan::{plan_arm, PlanOutcome, Planned};
 use control::steer::Steering;
@@ -121,7 +121,7 @@ pub const PANDA: Arm = Arm {
 fn planar_job(discs: Balls, at: f64) -> Result<Job> {
     let mut cfg = Config::default();
     let (t0, q) = control::plan::posture_at(&cfg, at);
-    cfg.obstacles = discs
+    cfg.planar_mut().expect("the planar arm").obstacles = discs
         .iter()
         .map(|b| ObstacleConfig::disc(b[0], b[1], b[3]))
         .collect();
@@ -137,7 +137,7 @@ fn planar_job(discs: Balls, at: f64) -> Result<Job> {
 /// then with the spheres.
 fn panda_job(spheres: Balls, at: f64) -> Result<Job> {
     let resolve = &control::system::builtin_robot;
-    let mut cfg = SpatialConfig::preset("panda").expect("the panda preset");
+    let mut cfg = Config::robot_preset("panda").expect("the panda preset");
     cfg.safety.plan = control::safety::policy::PlanMode::On;
     let chain = resolve("panda", None, None)?;
     let (start, _) = control::plan::setup_planned::<7>(&cfg, &chain)?;
@@ -152,7 +152,8 @@ fn panda_job(spheres: Balls, at: f64) -> Result<Job> {
     while sim.time() < at {
         sim.step();
     }
-    cfg.obstacles = spheres.iter().copied().map(SphereEntry::of).collect();
+    cfg.spatial_mut().expect("a robot").obstacles =
+        spheres.iter().copied().map(SphereEntry::of).collect();
     let following = start.params.steer.filter(|_| at > 0.0);
     Ok(Job {
         system: System::spatial(cfg, resolve)?,

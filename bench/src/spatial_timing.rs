@@ -8,7 +8,6 @@
 use crate::stats::{fmt_ns, histogram, summary, Bound, Table, Target};
 use anyhow::{anyhow, Result};
 use control::arm::spatial::SpatialKinematics;
-use control::config::spatial::SpatialConfig;
 use control::config::spatial::SpatialSetup;
 use control::config::spatial::SphereEntry;
 use control::law::spatial as law;
@@ -26,18 +25,21 @@ use std::time::Instant;
 /// The preset with four spheres around the arm's workspace, clear of its start.
 fn setup() -> Result<SpatialSetup<7>> {
     let chain = Chain::from_urdf(builtin("panda")?, None, None)?;
-    let mut cfg = SpatialConfig::preset("panda").ok_or_else(|| anyhow!("no panda preset"))?;
+    let mut cfg = Config::robot_preset("panda").ok_or_else(|| anyhow!("no panda preset"))?;
     for c in [
         [0.55, 0.3, 0.3],
         [0.55, -0.3, 0.3],
         [0.0, 0.45, 0.6],
         [0.0, -0.45, 0.6],
     ] {
-        cfg.obstacles.push(SphereEntry {
-            center: c,
-            radius: 0.08,
-            margin: 0.1,
-        });
+        cfg.spatial_mut()
+            .expect("a robot")
+            .obstacles
+            .push(SphereEntry {
+                center: c,
+                radius: 0.08,
+                margin: 0.1,
+            });
     }
     Ok(cfg.setup::<7>(&chain)?)
 }

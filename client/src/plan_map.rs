@@ -94,7 +94,8 @@ impl MapArm for PlanarMap<'_> {
     const HEADER: &'static str = "x,y";
 
     fn axes(&self, spec: &MapSpec) -> MapAxes {
-        let (c, r) = (self.cfg.task.center, self.cfg.task.radius);
+        let task = &self.cfg.planar_part().task;
+        let (c, r) = (task.center, task.radius);
         let n = spec.cells;
         MapAxes {
             xs: spaced(c[0].min(0.0) - r - 0.5, c[0].max(0.0) + r + 0.5, n),
@@ -109,7 +110,10 @@ impl MapArm for PlanarMap<'_> {
 
     fn verdict(&self, c: Vec3, r: f64) -> Result<usize> {
         let mut cfg = self.cfg.clone();
-        cfg.obstacles.push(ObstacleConfig::disc(c.x, c.y, r));
+        cfg.planar_mut()
+            .expect("the planar map holds the planar arm")
+            .obstacles
+            .push(ObstacleConfig::disc(c.x, c.y, r));
         let (at, q) = self.at;
         let p = PlanarProblem::from_config(&cfg, at, Some(q))
             .map_err(|e| anyhow::anyhow!("chaosctl plan --map: {e}"))?;
@@ -186,7 +190,7 @@ impl MapArm for SpatialMap<'_> {
 
     fn verdict(&self, c: Vec3, r: f64) -> Result<usize> {
         let mut with = self.sys.clone();
-        with.config
+        with.own_mut()
             .obstacles
             .push(SphereEntry::of([c.x, c.y, c.z, r]));
         let (at, q) = (self.at.0, &self.at.1);
@@ -448,8 +452,8 @@ mod tests {
 
     /// The paper's recipe, the set-up of the book's plan map (docs/analysis.md).
     fn panda() -> SpatialSystem {
-        let config = control::config::spatial::SpatialConfig::preset("panda-paper").unwrap();
-        let chain = rt::robot::load(&config.robot.description, None, None).unwrap();
+        let config = control::Config::robot_preset("panda-paper").unwrap();
+        let chain = rt::robot::load(&config.spatial_part().robot.description, None, None).unwrap();
         SpatialSystem { config, chain }
     }
 

@@ -124,7 +124,9 @@ impl SetupArgs {
     pub fn load(&self, mu: Option<f64>) -> Result<System> {
         let mut s = self.base()?;
         match (&mut s, self.model) {
-            (System::Planar(c), Some(m)) => c.arm.model = m,
+            (System::Planar(c), Some(m)) => {
+                c.planar_mut().expect("a planar system").arm.model = m
+            }
             (System::Spatial(_), Some(_)) => bail!(
                 "--model applies to the planar arm; a spatial robot is given by [robot] in its config"
             ),

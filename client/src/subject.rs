@@ -154,7 +154,7 @@ impl Subject {
 
     /// The planar arm's base model; None for a robot.
     pub fn base_model(&self) -> Option<ModelKind> {
-        self.system.planar().map(|c| c.arm.model)
+        self.system.planar().map(|c| c.planar_part().arm.model)
     }
 
     /// The task's rows and path: `position circle` (the planar arm's is always a position).

@@ -83,9 +83,9 @@ pub fn run_at<const N: usize>(
     };
     let arm_model = *arm_model;
     let described = s
-        .config
+        .own()
         .command
-        .limits::<N>(&s.chain, &s.config.robot.description)?;
+        .limits::<N>(&s.chain, &s.own().robot.description)?;
     let x0: ArmState<N> = system.initial_state();
     let tau_max = VecN::<N>::from_column_slice(&described.tau);
     let (arm, sensor) = plant.build::<N>(

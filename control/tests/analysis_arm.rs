@@ -258,7 +258,7 @@ fn bad_specs_are_errors_not_panics() {
     s.lyapunov.as_mut().unwrap().renorm = 0.0;
     assert!(run(s).is_err());
     let mut floating = cfg.clone();
-    floating.arm.model = control::config::ModelKind::Floating;
+    floating.planar_mut().unwrap().arm.model = control::config::ModelKind::Floating;
     let o = find_orbit::<3>(
         &floating.model(),
         &floating.law_params(),

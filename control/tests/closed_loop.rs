@@ -108,7 +108,7 @@ fn identical_runs_are_bit_identical() {
 fn singular_and_unreachable_targets_give_finite_commands_and_report_loss() {
     // A circle far outside the workspace: the arm stretches out and sits at the singularity.
     let mut cfg = Config::preset("paper").unwrap();
-    cfg.task.center = [6.0, 0.0];
+    cfg.planar_mut().unwrap().task.center = [6.0, 0.0];
     cfg.sim.q0 = Some(vec![0.0, 0.0, 0.0]); // stretched: exactly singular
     let mut sim = sim3(&cfg);
     let mut seen = 0;
@@ -197,12 +197,12 @@ fn pyragas_term_vanishes_on_a_period_tau_orbit() {
 #[test]
 fn the_planar_arm_traces_a_figure_eight_named_in_its_file() {
     use control::task::Shape;
-    let text = Config::preset("paper").unwrap().to_toml_string();
+    let text = Config::preset("paper").unwrap().to_toml();
     assert!(!text.contains("path ="), "{text}");
     let eight = text.replacen("[task]\n", "[task]\npath = \"eight\"\n", 1);
     let cfg = Config::parse(&eight).unwrap();
-    assert_eq!(cfg.task.path, Shape::Eight);
-    assert!(cfg.to_toml_string().contains("path = \"eight\""));
+    assert_eq!(cfg.planar_part().task.path, Shape::Eight);
+    assert!(cfg.to_toml().contains("path = \"eight\""));
     let mut sim = sim3(&cfg);
     let (mut worst, mut far) = (0.0f64, 0.0f64);
     for k in 0..20_000 {
@@ -210,7 +210,7 @@ fn the_planar_arm_traces_a_figure_eight_named_in_its_file() {
         if k >= 10_000 {
             worst = worst.max(out.tracking_error);
             // The eight's lobes reach r/2 across the centre's line, where a circle reaches r.
-            far = far.max((out.p.y - cfg.task.center[1]).abs());
+            far = far.max((out.p.y - cfg.planar_part().task.center[1]).abs());
         }
     }
     assert!(worst < 1e-6, "tracking error {worst} m after 10 s");

@@ -12,7 +12,7 @@ fn panda(mode: CommandMode) -> System {
     let resolve: control::system::Resolve = &control::system::builtin_robot;
     let mut s = System::preset("panda", resolve).unwrap();
     if let System::Spatial(sp) = &mut s {
-        sp.config.command.mode = mode;
+        sp.own_mut().command.mode = mode;
     }
     // The demo's schedule: μ = 1 from t = 20 s.
     s.schedule_feedback(control::adapt::MuSetting::Fixed(1.0), 20.0);
@@ -90,7 +90,7 @@ fn torque_mode_with_an_unmodelled_kilogram_at_the_tip_stays_within_2_mm() {
 fn a_mode_the_arm_cannot_run_is_refused_by_name() {
     let mut s = panda(CommandMode::Torque);
     if let System::Spatial(sp) = &mut s {
-        sp.config.command.kp = Some(vec![1e6; 7]);
+        sp.own_mut().command.kp = Some(vec![1e6; 7]);
     }
     let e = run::<7>(&s, &RigidBodyConfig::default(), 1e-3, 4, 1.0, 0.0)
         .unwrap_err()
@@ -98,7 +98,7 @@ fn a_mode_the_arm_cannot_run_is_refused_by_name() {
     assert!(e.contains("command.kp") && e.contains("unstable"), "{e}");
     let mut s = panda(CommandMode::Position);
     if let System::Spatial(sp) = &mut s {
-        sp.config.command.limits.velocity = Some(vec![3.0; 7]);
+        sp.own_mut().command.limits.velocity = Some(vec![3.0; 7]);
     }
     let e = run::<7>(&s, &RigidBodyConfig::default(), 1e-3, 4, 1.0, 0.0)
         .unwrap_err()

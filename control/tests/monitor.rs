@@ -133,7 +133,7 @@ fn auto_in_a_config_file_parses_round_trips_and_refuses_bad_gains() {
     );
     assert_eq!(c.feedback.mu, 0.0);
     assert!(c.law_params().core.feedback_active(c.feedback.t_on + 1.0));
-    let again = Config::parse(&c.to_toml_string()).unwrap();
+    let again = Config::parse(&c.to_toml()).unwrap();
     assert_eq!(again.feedback, c.feedback);
     let plain = Config::parse("[feedback]\nmu = 0.2\n").unwrap();
     assert_eq!((plain.feedback.mu, plain.feedback.auto), (0.2, None));
@@ -157,7 +157,7 @@ fn auto_in_a_config_file_parses_round_trips_and_refuses_bad_gains() {
 fn the_spatial_feedback_section_takes_auto_too() {
     let text =
         control::config::spatial::PANDA_PAPER.replace("mu = 1.0", "mu = \"auto\"\nmax_mu = 2.0");
-    let c: control::config::spatial::SpatialConfig = toml::from_str(&text).unwrap();
+    let c = control::Config::from_robot_toml(&text).unwrap();
     assert_eq!(c.feedback.auto.map(|a| a.max_mu), Some(2.0));
     assert_eq!(c.feedback.mu, 0.0);
 }

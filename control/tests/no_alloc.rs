@@ -54,7 +54,7 @@ fn the_safety_filter_allocates_nothing_on_any_path() {
     let mut arms = vec![];
     for preset in ["paper-obstacle", "paper-floating"] {
         let mut cfg = Config::preset(preset).unwrap();
-        cfg.obstacles = vec![
+        cfg.planar_mut().unwrap().obstacles = vec![
             control::config::ObstacleConfig {
                 center: [0.0, 1.6],
                 radius: 0.25,
@@ -75,7 +75,7 @@ fn the_safety_filter_allocates_nothing_on_any_path() {
     ] {
         let mut cfg = arms[0].clone();
         cfg.sim.q0 = Some(vec![0.3; links.len()]);
-        cfg.arm.links = links;
+        cfg.planar_mut().unwrap().arm.links = links;
         arms.push(cfg);
     }
     for mut cfg in arms {
@@ -131,20 +131,23 @@ fn the_robot_models_algorithms_allocate_nothing() {
 
 #[test]
 fn the_panda_step_allocates_nothing_in_position_and_pose_with_obstacles() {
-    use control::config::spatial::SpatialConfig;
     use control::model::{builtin, Chain};
     use control::sim::Simulation;
+    use control::Config;
     let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
     for kind in ["position", "pose"] {
-        let mut cfg = SpatialConfig::preset("panda").unwrap();
-        cfg.task.kind = kind.into();
+        let mut cfg = Config::robot_preset("panda").unwrap();
+        cfg.spatial_mut().unwrap().task.kind = kind.into();
         cfg.feedback.t_on = 0.5;
         // A sphere next to the elbow: the capsule points and rows are built on every step.
-        cfg.obstacles.push(control::config::spatial::SphereEntry {
-            center: [0.25, 0.0, 0.75],
-            radius: 0.05,
-            margin: 0.1,
-        });
+        cfg.spatial_mut()
+            .unwrap()
+            .obstacles
+            .push(control::config::spatial::SphereEntry {
+                center: [0.25, 0.0, 0.75],
+                radius: 0.05,
+                margin: 0.1,
+            });
         cfg.law.secondary = "obstacles".into();
         let s = cfg.setup::<7>(&chain).unwrap();
         let mut sim = Simulation::spatial(s.arm, s.params, s.dt, s.q0, s.qd0, 2.0);
@@ -161,10 +164,9 @@ fn the_panda_step_allocates_nothing_in_position_and_pose_with_obstacles() {
 fn steering_along_a_detour_and_onto_the_cycle_allocates_nothing() {
     // The planner allocates (off the loop); the law that runs its detour, the blend and the
     // cycle must not. An arm off its path by the trap: a detour, then the cycle.
-    let mut cfg = Config {
-        obstacles: vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)],
-        ..Config::default()
-    };
+    let mut cfg = Config::default();
+    cfg.planar_mut().unwrap().obstacles =
+        vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
     cfg.safety.plan = control::safety::policy::PlanMode::On;
     cfg.sim.q0 = Some(vec![0.3, 1.2, 1.0]);
     cfg.sim.qd0 = Some(vec![0.0; 3]);

@@ -24,7 +24,7 @@ static TOWARD_ZERO: TowardZero = TowardZero;
 
 /// The paper's set-up with `law.secondary = secondary`, as a file would say it.
 fn paper(secondary: &str) -> Result<Config, control::ConfigError> {
-    let text = Config::preset("paper").unwrap().to_toml_string();
+    let text = Config::preset("paper").unwrap().to_toml();
     let key = "secondary = \"manipulability\"";
     assert!(text.contains(key));
     Config::parse(&text.replace(key, &format!("secondary = \"{secondary}\"")))

@@ -121,7 +121,7 @@ fn barrier_derivatives_match_finite_differences() {
         check_barrier_derivatives(floating, x, qdd, c);
     }
     let mut cfg = Config::preset("paper").unwrap();
-    cfg.arm.links = vec![0.8, 0.7, 0.6, 0.5, 0.4];
+    cfg.planar_mut().unwrap().arm.links = vec![0.8, 0.7, 0.6, 0.5, 0.4];
     let m5 = cfg.model::<5>();
     let x5 = state::<5>(
         &[0.1, 0.9, -0.7, 1.1, 0.4],
@@ -232,7 +232,7 @@ fn the_filter_keeps_its_promises() {
 
     // Longer arms take the QP path in the null space.
     let mut cfg = Config::preset("paper").unwrap();
-    cfg.arm.links = vec![0.8, 0.7, 0.6, 0.5, 0.4];
+    cfg.planar_mut().unwrap().arm.links = vec![0.8, 0.7, 0.6, 0.5, 0.4];
     let m5 = cfg.model::<5>();
     let mut null_only = 0;
     for _ in 0..1000 {
@@ -290,7 +290,7 @@ fn run<const N: usize>(cfg: &Config, duration: f64) -> Outcome {
 
 fn obstacle_cfg(list: &[(f64, f64, f64)], mu: f64, q1: f64) -> Config {
     let mut cfg = Config::preset("paper-obstacle").unwrap();
-    cfg.obstacles = list
+    cfg.planar_mut().unwrap().obstacles = list
         .iter()
         .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
         .collect();
@@ -383,7 +383,7 @@ fn joint_and_rate_limits_tighter_than_the_free_motion_hold() {
     assert!(o.max_rate <= 10.0 + 1e-3, "rate {}", o.max_rate);
     // The same limits on a 4-link arm (the QP path).
     let mut cfg4 = cfg.clone();
-    cfg4.arm.links = vec![0.8, 0.8, 0.7, 0.7];
+    cfg4.planar_mut().unwrap().arm.links = vec![0.8, 0.8, 0.7, 0.7];
     cfg4.sim.q0 = Some(vec![0.0, 1.2, 1.2, 0.5]);
     cfg4.safety.q_min = Some(vec![f64::NEG_INFINITY, -2.0, -1.8, -1.5]);
     cfg4.safety.q_max = Some(vec![f64::INFINITY, 2.0, 1.9, 1.5]);

@@ -112,7 +112,7 @@ fn a_key_of_one_arms_law_is_refused_by_name_on_the_other() {
 #[test]
 fn each_arm_prints_only_its_own_keys_and_reads_them_back_equal() {
     let c = planar("[law]\nw1 = 3.0\n").unwrap();
-    let text = c.to_toml_string();
+    let text = c.to_toml();
     assert!(
         text.contains("w1 = 3.0") && !text.contains("null_damping"),
         "{text}"

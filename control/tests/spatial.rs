@@ -288,10 +288,10 @@ fn the_panda_preset_is_periodic_fast_inside_every_limit() {
     // periods) take the residual below 1e-6 (`panda-paper` is at about 1 rad/s then), with the
     // jerk and every joint's position, speed and acceleration inside the Panda's limits, filter
     // off.
-    use control::config::spatial::SpatialConfig;
+    use control::Config;
     let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
     let summary = |name: &str| {
-        let mut cfg = SpatialConfig::preset(name).unwrap();
+        let mut cfg = Config::robot_preset(name).unwrap();
         cfg.safety.enabled = false;
         cfg.feedback.t_on = 0.0;
         let s = cfg.setup::<7>(&chain).unwrap();
@@ -315,10 +315,10 @@ fn the_speed_cap_keeps_a_far_start_inside_the_acceleration_limits() {
     // centring pull α∇c asks more than the Panda's acceleration limits on the first ticks.
     // Capped at 1 rad/s (law.null_speed, the preset's) it asks less than 60 %, and the arm still
     // becomes periodic inside every limit.
-    use control::config::spatial::SpatialConfig;
+    use control::Config;
     let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
     let summary = |null_speed: f64| {
-        let mut cfg = SpatialConfig::preset("panda").unwrap();
+        let mut cfg = Config::robot_preset("panda").unwrap();
         cfg.safety.enabled = false;
         cfg.law.null_speed = null_speed;
         cfg.sim.q0 = Some(vec![
@@ -339,7 +339,7 @@ fn the_speed_cap_keeps_a_far_start_inside_the_acceleration_limits() {
     assert!(capped.min_joint_margin.unwrap() > 0.1, "{capped:?}");
     assert!(capped.period_residual_final.unwrap() < 1e-9, "{capped:?}");
     // Without damping there is no velocity to cap: the file says so.
-    let mut cfg = SpatialConfig::preset("panda").unwrap();
+    let mut cfg = Config::robot_preset("panda").unwrap();
     cfg.law.null_damping = 0.0;
     let e = cfg.setup::<7>(&chain).unwrap_err().to_string();
     assert!(e.contains("law.null_speed"), "{e}");
@@ -347,9 +347,9 @@ fn the_speed_cap_keeps_a_far_start_inside_the_acceleration_limits() {
 
 #[test]
 fn the_panda_preset_builds_and_bad_keys_are_named() {
-    use control::config::spatial::SpatialConfig;
+    use control::Config;
     let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
-    let cfg = SpatialConfig::preset("panda").unwrap();
+    let cfg = Config::robot_preset("panda").unwrap();
     let s = cfg.setup::<7>(&chain).unwrap();
     // Limits from the URDF and Franka's acceleration table.
     assert_eq!(s.params.core.safety.qd_max[4], 2.61);
@@ -359,16 +359,25 @@ fn the_panda_preset_builds_and_bad_keys_are_named() {
     let k = kin(&s.arm, &s.q0, &V7::zeros());
     assert!((s.params.task.path.position(0.0) - k.p).norm() < 1e-12);
     // It round-trips through TOML.
-    assert_eq!(SpatialConfig::from_toml(&cfg.to_toml()).unwrap(), cfg);
-    let bad = |edit: &dyn Fn(&mut SpatialConfig), field: &str| {
+    assert_eq!(Config::from_robot_toml(&cfg.to_toml()).unwrap(), cfg);
+    let bad = |edit: &dyn Fn(&mut Config), field: &str| {
         let mut c = cfg.clone();
         edit(&mut c);
         let e = c.setup::<7>(&chain).unwrap_err().to_string();
         assert!(e.contains(field), "{field}: {e}");
     };
-    bad(&|c| c.task.kind = "orbit".into(), "task.kind");
-    bad(&|c| c.task.radius = f64::NAN, "task.radius");
-    bad(&|c| c.task.normal = [0.0; 3], "task.normal");
+    bad(
+        &|c| c.spatial_mut().unwrap().task.kind = "orbit".into(),
+        "task.kind",
+    );
+    bad(
+        &|c| c.spatial_mut().unwrap().task.radius = f64::NAN,
+        "task.radius",
+    );
+    bad(
+        &|c| c.spatial_mut().unwrap().task.normal = [0.0; 3],
+        "task.normal",
+    );
     bad(
         &|c| c.sim.q0.as_mut().and_then(Vec::pop).map(drop).unwrap_or(()),
         "sim.q0",
@@ -378,28 +387,40 @@ fn the_panda_preset_builds_and_bad_keys_are_named() {
     let key = format!("projection = \"{}\"", cfg.feedback.projection);
     let text = cfg.to_toml();
     assert!(text.contains(&key), "{text}");
-    let e = SpatialConfig::from_toml(&text.replace(&key, "projection = \"sideways\""))
+    let e = Config::from_robot_toml(&text.replace(&key, "projection = \"sideways\""))
         .unwrap_err()
         .to_string();
     assert!(e.contains("sideways") && e.contains("null-space"), "{e}");
     bad(&|c| c.safety.velocity_scale = 1.5, "safety.velocity_scale");
     bad(
-        &|c| c.robot.link_radii = Some(vec![0.1; 3]),
+        &|c| c.spatial_mut().unwrap().robot.link_radii = Some(vec![0.1; 3]),
         "robot.link_radii",
     );
     // Finite but no arm's: the last capsule's length overflowed to infinity.
-    bad(&|c| c.robot.tool = [1e308, 0.0, 0.0], "robot.tool");
-    bad(&|c| c.robot.tool = [0.0, 0.0, 10.5], "at most 10 m");
+    bad(
+        &|c| c.spatial_mut().unwrap().robot.tool = [1e308, 0.0, 0.0],
+        "robot.tool",
+    );
+    bad(
+        &|c| c.spatial_mut().unwrap().robot.tool = [0.0, 0.0, 10.5],
+        "at most 10 m",
+    );
     // Accepted by their types, refused as runs: the planar arm's sampled-loop rules, the delay
     // line's bound and the arm's reach.
     bad(&|c| c.sim.dt = 0.5, "law.kv");
     bad(&|c| c.law.kp = 1e12, "law.kp");
-    bad(&|c| c.task.period = 0.01, "task.period");
+    bad(
+        &|c| c.spatial_mut().unwrap().task.period = 0.01,
+        "task.period",
+    );
     bad(&|c| c.feedback.tau = Some(1e9), "feedback.tau");
     bad(&|c| c.sim.duration = 1e12, "sim.duration");
-    bad(&|c| c.task.radius = 5.0, "task.radius");
-    assert!(SpatialConfig::from_toml("[robot]\ndescription = \"panda\"\nwheels = 4\n").is_err());
-    assert!(SpatialConfig::preset("paper").is_none());
+    bad(
+        &|c| c.spatial_mut().unwrap().task.radius = 5.0,
+        "task.radius",
+    );
+    assert!(Config::from_robot_toml("[robot]\ndescription = \"panda\"\nwheels = 4\n").is_err());
+    assert!(Config::robot_preset("paper").is_none());
 }
 
 #[test]

@@ -3,7 +3,6 @@
 //! planned cycle tracks from every start tried, at every μ, with the clearance kept; a path
 //! through a sphere is `Blocked` at once, with the reason.
 
-use control::config::spatial::SpatialConfig;
 use control::config::spatial::SphereEntry;
 use control::model::{builtin, Chain};
 use control::plan::spatial::plan_system;
@@ -13,6 +12,7 @@ use control::sim::Simulation;
 use control::steer::Cycle;
 use control::steer::SpatialSteer;
 use control::system::SpatialSystem;
+use control::Config;
 
 fn chain() -> Chain {
     Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap()
@@ -21,15 +21,15 @@ fn chain() -> Chain {
 /// The paper's recipe on the Panda (`panda-paper`: undamped centring, which these spheres trap)
 /// with `spheres` (x, y, z, r), feedback `mu` from the start, and the start posture kicked by
 /// `kick` rad on joints 1 and 3 (the path follows the start's hand).
-fn config(spheres: &[[f64; 4]], mu: f64, kick: f64, plan: bool) -> SpatialConfig {
-    let mut c = SpatialConfig::preset("panda-paper").unwrap();
+fn config(spheres: &[[f64; 4]], mu: f64, kick: f64, plan: bool) -> Config {
+    let mut c = Config::robot_preset("panda-paper").unwrap();
     c.feedback.mu = mu;
     c.feedback.t_on = 0.0;
     let q0 = c.sim.q0.as_mut().expect("the preset's start");
     q0[0] += kick;
     q0[2] -= kick;
     c.safety.plan = plan.into();
-    c.obstacles = spheres.iter().copied().map(SphereEntry::of).collect();
+    c.spatial_mut().unwrap().obstacles = spheres.iter().copied().map(SphereEntry::of).collect();
     c
 }
 
@@ -40,7 +40,7 @@ struct Outcome {
     steered: bool,
 }
 
-fn simulate(c: &SpatialConfig) -> Outcome {
+fn simulate(c: &Config) -> Outcome {
     let (set, blocked) = control::plan::setup_planned::<7>(c, &chain()).unwrap();
     assert!(blocked.is_none(), "{blocked:?}");
     let p = set.params;

@@ -8,7 +8,7 @@ use control::{Config, RunStats, Simulation, Summary};
 /// The demo's arm, with `obstacles` (x, y, r) and the planner on or off, run for `duration` s.
 fn run(obstacles: &[(f64, f64, f64)], plan: bool, duration: f64) -> (Summary, bool) {
     let mut cfg = Config::preset("demo").unwrap();
-    cfg.obstacles = obstacles
+    cfg.planar_mut().unwrap().obstacles = obstacles
         .iter()
         .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
         .collect();
@@ -59,7 +59,8 @@ fn by_default_it_steers_only_where_there_is_an_obstacle_to_keep_clear_of() {
     let mut cfg = Config::preset("demo").unwrap();
     assert_eq!(cfg.safety.plan, control::safety::policy::PlanMode::Auto);
     assert_eq!(control::plan::law_params_planned(&cfg).0, cfg.law_params());
-    cfg.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
+    cfg.planar_mut().unwrap().obstacles =
+        vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
     assert!(control::plan::law_params_planned(&cfg).0.steer.is_some());
     // The filter off: nothing to steer for.
     cfg.safety.enabled = false;
@@ -67,7 +68,8 @@ fn by_default_it_steers_only_where_there_is_an_obstacle_to_keep_clear_of() {
     // An arm without a planner runs as before with `auto`; `true` is refused there.
     let mut cfg = Config::preset("paper-floating").unwrap();
     cfg.safety.enabled = true;
-    cfg.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
+    cfg.planar_mut().unwrap().obstacles =
+        vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
     cfg.validate().unwrap();
     assert!(control::plan::law_params_planned(&cfg).0.steer.is_none());
 }
@@ -81,7 +83,7 @@ fn plan_takes_true_false_or_auto_in_a_file() {
     ] {
         let c = Config::from_toml_str(&format!("[safety]\nplan = {v}\n")).unwrap();
         assert_eq!(c.safety.plan, mode, "{v}");
-        let back = Config::from_toml_str(&c.to_toml_string()).unwrap();
+        let back = Config::from_toml_str(&c.to_toml()).unwrap();
         assert_eq!(back.safety.plan, mode, "{v} round trip");
     }
     for bad in ["\"sometimes\"", "3"] {
@@ -142,7 +144,8 @@ fn a_new_obstacle_on_the_wrong_side_of_the_arm_gets_a_detour() {
     // arm at 5 s a joint-space detour onto the cycle instead.
     use control::plan::{plan_config, PlanOutcome};
     let mut cfg = Config::default();
-    cfg.obstacles = vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
+    cfg.planar_mut().unwrap().obstacles =
+        vec![control::config::ObstacleConfig::disc(0.9, 1.1, 0.15)];
     let at = |t: f64| match plan_config(&cfg, t, Some(posture_at(t))).unwrap().outcome {
         PlanOutcome::Found(c) => c,
         PlanOutcome::Blocked(b) => panic!("blocked at {t} s: {}", b.reason),
@@ -174,7 +177,7 @@ fn a_new_obstacle_on_the_wrong_side_of_the_arm_gets_a_detour() {
 /// the arm first kept the filter's clearance: a start may begin inside it).
 fn steered_run(obstacles: &[(f64, f64, f64)], q0: [f64; 3], mu: f64) -> (bool, f64, f64) {
     let mut cfg = Config::default();
-    cfg.obstacles = obstacles
+    cfg.planar_mut().unwrap().obstacles = obstacles
         .iter()
         .map(|&(x, y, r)| control::config::ObstacleConfig::disc(x, y, r))
         .collect();

@@ -533,7 +533,7 @@ fn choose_command(
         }
         return Ok(());
     };
-    let command = &mut r.config.command;
+    let command = &mut r.own_mut().command;
     if let Some(m) = mode {
         command.mode = m;
     }

@@ -507,7 +507,9 @@ mod tests {
         assert!(!steered_after_edits(&mut d, &[mu], t, q));
         // An obstacle added (out of the arm's way: the grid's answer is the same): the edit
         // moved the layout, so the daemon cannot tell the arm is free, and takes the detour.
-        cfg.obstacles
+        cfg.planar_mut()
+            .unwrap()
+            .obstacles
             .push(control::config::ObstacleConfig::disc(-1.5, -1.5, 0.1));
         assert!(offered(&cfg), "the case is gone");
         let with_obstacle = System::Planar(cfg.clone());
@@ -545,7 +547,9 @@ mod tests {
             0.0,
             q
         ));
-        cfg.obstacles
+        cfg.planar_mut()
+            .unwrap()
+            .obstacles
             .push(control::config::ObstacleConfig::disc(-1.5, -1.5, 0.1));
         let one = System::Planar(cfg.clone());
         assert!(steered_after_edits(

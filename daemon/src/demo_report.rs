@@ -96,7 +96,7 @@ pub const FAKEBOT_SUMMARY: &str = "fakebot-summary.json";
 fn arm(r: &Run) -> String {
     let s = r.setup;
     let mode = match s.system.robot() {
-        Some(r) => format!(", {} mode", r.config.command.mode),
+        Some(r) => format!(", {} mode", r.own().command.mode),
         None => String::new(),
     };
     format!(

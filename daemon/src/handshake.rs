@@ -164,7 +164,7 @@ mod tests {
         let daemon = describe(&planar("paper"), 1);
         let mut judge = Judge::new("ns", daemon);
         let mut four = Config::preset("paper").unwrap();
-        four.arm.links = vec![1.0; 4];
+        four.planar_mut().unwrap().arm.links = vec![1.0; 4];
         let plant = describe(&System::Planar(four), 7);
         let v = judge.judge(&plant).unwrap();
         assert_eq!(v.plant_id, 7);
@@ -203,7 +203,7 @@ mod tests {
         let System::Spatial(mut short) = panda.clone() else {
             unreachable!("panda is spatial")
         };
-        short.config.robot.tip = Some("panda_link7".into());
+        short.own_mut().robot.tip = Some("panda_link7".into());
         short.chain = rt::robot::load("panda", None, Some("panda_link7")).unwrap();
         let why = judge
             .judge(&describe(&System::Spatial(short), 3))

@@ -208,11 +208,15 @@ mod tests {
         assert_eq!(load(&dir, 3).unwrap(), None);
         let mut system = Config::preset("demo").unwrap();
         system.feedback.mu = 1.3;
-        system.obstacles.push(control::config::ObstacleConfig {
-            center: [0.0, 1.6],
-            radius: 0.2,
-            margin: 0.1,
-        });
+        system
+            .planar_mut()
+            .unwrap()
+            .obstacles
+            .push(control::config::ObstacleConfig {
+                center: [0.0, 1.6],
+                radius: 0.2,
+                margin: 0.1,
+            });
         let s = LiveState {
             t: 123.5,
             saved_unix_s: unix_now() + 1e3, // in the future: no time added

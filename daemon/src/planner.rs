@@ -80,6 +80,8 @@ mod tests {
         let mut config = control::Config::preset("demo").unwrap();
         for &(x, y, r) in obstacles {
             config
+                .planar_mut()
+                .unwrap()
                 .obstacles
                 .push(control::config::ObstacleConfig::disc(x, y, r));
         }

@@ -998,7 +998,7 @@ mod tests {
         let System::Spatial(s) = &mut system else {
             unreachable!()
         };
-        s.config.command.mode = mode;
+        s.own_mut().command.mode = mode;
         let q0 = s.config.sim.start().to_vec();
         let mut log = ReplayLog::create(
             dir,

@@ -517,7 +517,12 @@ mod tests {
         )
         .unwrap();
         assert_eq!(
-            (n.feedback.mu, n.tau(), n.law.kp, n.task.center),
+            (
+                n.feedback.mu,
+                n.tau(),
+                n.law.kp,
+                n.planar_part().task.center
+            ),
             (1.5, 1.2, 30.0, [1.0, 1.5])
         );
         assert!(!n.feedback.enabled);
@@ -548,7 +553,7 @@ mod tests {
         let planar = |s: System| s.planar().unwrap().clone();
         let one = apply_obstacle_add(&system(Config::default()), "0 1.6 0.25", 1e-3).unwrap();
         let c = planar(one.clone());
-        assert_eq!(c.obstacles.len(), 1);
+        assert_eq!(c.planar_part().obstacles.len(), 1);
         assert!(apply_obstacle_add(&one, "0 1.6 -1", 1e-3)
             .unwrap_err()
             .contains("obstacle.radius"));
@@ -601,7 +606,7 @@ mod tests {
     }
 
     /// The robot's file after a change.
-    fn robot(s: System) -> control::config::spatial::SpatialConfig {
+    fn robot(s: System) -> control::Config {
         match s {
             System::Spatial(s) => s.config,
             System::Planar(_) => panic!("the Panda is a robot"),

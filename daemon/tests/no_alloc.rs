@@ -120,19 +120,22 @@ fn adapting_the_gain_on_the_tick_allocates_nothing() {
 
 /// The Panda's controller: the `panda` preset's spatial law behind the same `Controller`.
 fn panda_controller() -> (Controller<7>, [f64; 7]) {
-    use control::config::spatial::SpatialConfig;
     use control::model::{builtin, Chain};
+    use control::Config;
     let chain = Chain::from_urdf(builtin("panda").unwrap(), None, None).unwrap();
-    let mut cfg = SpatialConfig::preset("panda").unwrap();
+    let mut cfg = Config::robot_preset("panda").unwrap();
     cfg.feedback.t_on = 0.5;
     // A sphere beside the forearm: the capsule rows are built on every tick.
-    cfg.obstacles.push(control::config::spatial::SphereEntry {
-        center: [0.45, 0.2, 0.5],
-        radius: 0.05,
-        margin: 0.1,
-    });
+    cfg.spatial_mut()
+        .unwrap()
+        .obstacles
+        .push(control::config::spatial::SphereEntry {
+            center: [0.45, 0.2, 0.5],
+            radius: 0.05,
+            margin: 0.1,
+        });
     // Torque mode: computed torque (RNEA), the joint PD and the limiter run on every tick.
-    cfg.command.mode = control::command::CommandMode::Torque;
+    cfg.spatial_mut().unwrap().command.mode = control::command::CommandMode::Torque;
     let s = cfg.setup::<7>(&chain).unwrap();
     let law = control::tick_law::TickLaw::Spatial {
         arm: s.arm,

@@ -118,7 +118,7 @@ mod tests {
     #[test]
     fn the_description_follows_the_config() {
         let mut c = control::Config::preset("paper").unwrap();
-        c.arm.links = vec![1.0, 0.5, 0.25, 0.125];
+        c.planar_mut().unwrap().arm.links = vec![1.0, 0.5, 0.25, 0.125];
         let d = describe(&System::Planar(c));
         assert_eq!((d.n, d.kind), (4, protocol::handshake::KIND_FIXED));
         assert_eq!(&d.links[..4], &[1.0, 0.5, 0.25, 0.125]);

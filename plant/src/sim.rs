@@ -129,9 +129,9 @@ impl<const N: usize> SimPlant<N> {
             (Dynamics::RigidBody, Some(s)) => {
                 let x = sim.state;
                 let limits = s
-                    .config
+                    .own()
                     .command
-                    .limits::<N>(&s.chain, &s.config.robot.description)?;
+                    .limits::<N>(&s.chain, &s.own().robot.description)?;
                 let tau_max = VecN::<N>::from_column_slice(&limits.tau);
                 let h = period / f64::from(sim.substeps);
                 let (arm, sensor) = cfg.rigid_body.build::<N>(

@@ -109,18 +109,19 @@ pub fn arm_info(system: &System, instance_id: u64) -> protocol::ArmInfo {
             protocol::ArmInfo::chain(instance_id, s.chain.dof(), &id.name, id.fingerprint)
         }
         System::Planar(c) => {
+            let arm = &c.planar_part().arm;
             let masses = c.link_masses();
             let inertias = c.link_inertias();
-            let floating = (c.arm.model == control::config::ModelKind::Floating).then(|| {
+            let floating = (arm.model == control::config::ModelKind::Floating).then(|| {
                 protocol::FloatingBase {
                     link_masses: &masses,
                     link_inertias: &inertias,
-                    base_mass: c.arm.base_mass,
-                    base_inertia: c.arm.base_inertia,
-                    base_offset: c.arm.base_offset,
+                    base_mass: arm.base_mass,
+                    base_inertia: arm.base_inertia,
+                    base_offset: arm.base_offset,
                 }
             });
-            protocol::ArmInfo::new(instance_id, &c.arm.links, floating)
+            protocol::ArmInfo::new(instance_id, &arm.links, floating)
         }
     };
     info.interface = system.command_mode().code();

@@ -15,7 +15,7 @@ use tests::*;
 /// tested on its own.
 fn demo_without_stall_holds(dir: &Path, preset: &str, out: &Path, args: &[&str]) -> Output {
     let cfg = dir.join("panda.toml");
-    let mut c = control::config::spatial::SpatialConfig::preset(preset).unwrap();
+    let mut c = control::Config::robot_preset(preset).unwrap();
     c.daemon = Some(toml::from_str("hold_after = 500").unwrap());
     std::fs::write(&cfg, c.to_toml()).unwrap();
     Command::new(bin("chaosd"))

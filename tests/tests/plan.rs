@@ -271,7 +271,7 @@ fn simulate_json(name: &str, text: &str, duration: &str, transient: &str) -> ser
 /// The demo set-up with `obstacles` (a TOML array) and `safety.plan = plan`, as a user writes
 /// it.
 fn demo_with(obstacles: &str, plan: &str) -> String {
-    let text = control::Config::preset("demo").unwrap().to_toml_string();
+    let text = control::Config::preset("demo").unwrap().to_toml();
     assert!(
         !text.contains("obstacles") && text.contains("plan = \"auto\""),
         "the demo's obstacles or plan moved"

@@ -9,8 +9,8 @@
 //! touch: the disagreement issue 46 asked to find.
 
 use anyhow::{anyhow, bail, Context, Result};
-use control::config::spatial::SpatialConfig;
 use control::model::Chain;
+use control::Config;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -64,9 +64,10 @@ impl MujocoJudge {
     }
 
     /// Judges `samples` (each `t, q1 … qN`, flat) of a run of `cfg` on `chain`.
-    pub fn judge(&self, cfg: &SpatialConfig, chain: &Chain, samples: &[f64]) -> Result<Verdict> {
+    pub fn judge(&self, cfg: &Config, chain: &Chain, samples: &[f64]) -> Result<Verdict> {
         let n = chain.dof();
         let spheres: Vec<String> = cfg
+            .spatial_part()
             .obstacles
             .iter()
             .map(|o| {

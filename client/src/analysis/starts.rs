@@ -219,7 +219,7 @@ fn plant(args: &StartsCmd, base: &mut Subject) -> Result<Option<Plant>> {
         bail!("--plant rigid-body: the paper's planar arm has no mass model; use a robot (e.g. --preset panda)");
     };
     if let Some(mode) = args.mode {
-        robot.config.command.mode = mode;
+        robot.own_mut().command.mode = mode;
     }
     // The two tables as the live daemon and plant read and check them.
     let daemon = daemon::config::DaemonSetup::from_system(base.system().clone())?.daemon;

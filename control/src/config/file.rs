@@ -1,14 +1,20 @@
-//! The planar arm's older file form (`[arm]`, `[control]`, `[[control.obstacles]]`) as its own
-//! type, read and written only at the text boundary.
+//! The file forms as their own types, read and written only at the text boundary: the planar
+//! arm's older form (`[arm]`, `[control]`, `[[control.obstacles]]`) and a robot's file.
+//! (The planar arm's shared form has its own, [`super::planar_file`].)
 //!
-//! Why a separate type: the in-memory [`Config`] is laid out for the program (the obstacles at
-//! the top level, the law's section named `law`), while files and recordings written before keep
-//! the older layout and its exact serde messages ("unknown field `kpp`, expected one of …").
-//! A copy of the older derive keeps both: the text meets this type, the program meets
-//! [`Config`], and the conversions below are the one place the two layouts meet. A sharded grid's
-//! fingerprint is this type's `Debug` text, so older shards keep matching.
+//! Why separate types: the in-memory [`Config`] is laid out for the program (the arm's own
+//! part in [`Robot`], every shared section once), while files and recordings written before keep
+//! their layout and their exact serde messages ("unknown field `kpp`, expected one of …"). The
+//! text meets these types, the program meets [`Config`], and the conversions below are the one
+//! place the layouts meet. A sharded grid's fingerprint is these types' `Debug` text, so older
+//! shards keep matching.
 
-use super::{ArmConfig, Config, FeedbackSection, LawSection, SimSection, TaskConfig};
+use super::command::CommandSection;
+use super::spatial::{RobotSection, TaskSection};
+use super::{
+    ArmConfig, Config, FeedbackSection, LawSection, PlanarRobot, Robot, SimSection, SpatialRobot,
+    SphereEntry, TaskConfig,
+};
 use crate::basics::{excerpt, ConfigError};
 use crate::safety::SafetySection;
 use serde::{Deserialize, Serialize};
@@ -41,15 +47,17 @@ pub(crate) mod older {
 }
 
 impl From<older::Config> for Config {
-    /// `[[control.obstacles]]` become the top-level obstacles.
+    /// `[[control.obstacles]]` become the planar arm's obstacles.
     fn from(f: older::Config) -> Self {
         let mut law = f.control;
         let obstacles = std::mem::take(&mut law.obstacles);
         Config {
-            arm: f.arm,
-            task: f.task,
+            robot: Robot::Planar(PlanarRobot {
+                arm: f.arm,
+                task: f.task,
+                obstacles,
+            }),
             law,
-            obstacles,
             feedback: f.feedback,
             sim: f.sim,
             safety: f.safety,
@@ -61,12 +69,16 @@ impl From<older::Config> for Config {
 
 impl From<&Config> for older::Config {
     /// The obstacles go back under `[control]`.
+    ///
+    /// # Panics
+    /// On a robot's config (it has no older form).
     fn from(c: &Config) -> Self {
+        let p = c.planar_part();
         let mut control = c.law.clone();
-        control.obstacles = c.obstacles.clone();
+        control.obstacles = p.obstacles.clone();
         older::Config {
-            arm: c.arm.clone(),
-            task: c.task.clone(),
+            arm: p.arm.clone(),
+            task: p.task.clone(),
             control,
             feedback: c.feedback.clone(),
             sim: c.sim.clone(),
@@ -102,4 +114,88 @@ pub fn older_text(c: &Config) -> String {
 /// was so that shards written before still match.
 pub fn older_debug(c: &Config) -> String {
     format!("{:?}", older::Config::from(c))
+}
+
+/// A robot's file, field for field (the struct keeps the name it had: serde's messages and the
+/// `Debug` text of a fingerprint name it).
+pub(crate) mod robot {
+    use super::*;
+
+    #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct SpatialConfig {
+        pub robot: RobotSection,
+        pub task: TaskSection,
+        #[serde(default)]
+        pub law: LawSection,
+        #[serde(default)]
+        pub feedback: FeedbackSection,
+        #[serde(default)]
+        pub safety: SafetySection,
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        pub obstacles: Vec<SphereEntry>,
+        #[serde(default)]
+        pub command: CommandSection,
+        pub sim: SimSection,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        pub daemon: Option<toml::Table>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        pub plant: Option<toml::Table>,
+    }
+}
+
+impl From<robot::SpatialConfig> for Config {
+    fn from(f: robot::SpatialConfig) -> Self {
+        Config {
+            robot: Robot::Spatial(Box::new(SpatialRobot {
+                robot: f.robot,
+                task: f.task,
+                obstacles: f.obstacles,
+                command: f.command,
+            })),
+            law: f.law,
+            feedback: f.feedback,
+            sim: f.sim,
+            safety: f.safety,
+            daemon: f.daemon,
+            plant: f.plant,
+        }
+    }
+}
+
+impl From<&Config> for robot::SpatialConfig {
+    /// # Panics
+    /// On the planar arm's config (its files have their own forms).
+    fn from(c: &Config) -> Self {
+        let r = c.spatial_part();
+        robot::SpatialConfig {
+            robot: r.robot.clone(),
+            task: r.task.clone(),
+            law: c.law.clone(),
+            feedback: c.feedback.clone(),
+            safety: c.safety.clone(),
+            obstacles: r.obstacles.clone(),
+            command: r.command.clone(),
+            sim: c.sim.clone(),
+            daemon: c.daemon.clone(),
+            plant: c.plant.clone(),
+        }
+    }
+}
+
+/// Reads a robot's file (no validation: that needs its chain).
+pub(crate) fn read_robot(text: &str) -> Result<Config, ConfigError> {
+    toml::from_str::<robot::SpatialConfig>(text)
+        .map(Config::from)
+        .map_err(|e| super::parse_error(text, &e))
+}
+
+/// A robot's config as its file.
+pub(crate) fn robot_text(c: &Config) -> String {
+    toml::to_string(&robot::SpatialConfig::from(c)).expect("a config serialises")
+}
+
+/// The `Debug` text of a robot's config in its file's layout, for a fingerprint.
+pub fn robot_debug(c: &Config) -> String {
+    format!("{:?}", robot::SpatialConfig::from(c))
 }

@@ -14,6 +14,7 @@ pub mod law;
 pub mod obstacles;
 pub mod planar_file;
 pub mod rehearsal;
+pub mod robot;
 pub mod sim;
 pub mod spatial;
 pub mod stability;
@@ -21,6 +22,7 @@ pub mod stability;
 pub use feedback::{FeedbackSection, MAX_TAU};
 pub use law::LawSection;
 pub use obstacles::{ObstacleConfig, ObstacleEntry, SphereEntry};
+pub use robot::{PlanarRobot, Robot, SpatialRobot};
 pub use sim::SimSection;
 
 use crate::arm::{ArmModel, FixedArm, FloatingArm, VecN};
@@ -224,18 +226,16 @@ impl From<ProjectionKind> for Projection {
     }
 }
 
-/// The whole set-up in memory. Files are read and written through [`planar_file`] (the shared
-/// form) and [`file`] (the older one); `[daemon]` and `[plant]` are owned and validated by those
-/// programs.
+/// The whole set-up in memory, for every arm: what is the arm's own in [`Robot`], every shared
+/// section once. Files are read and written through [`planar_file`] (the planar arm's shared
+/// form), [`file`] (its older form and a robot's file); `[daemon]` and `[plant]` are owned and
+/// validated by those programs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Config {
-    pub arm: ArmConfig,
-    pub task: TaskConfig,
-    /// `[law]` (`[control]` in the older form). Its `obstacles` stay empty: they are
-    /// [`Config::obstacles`].
+    pub robot: Robot,
+    /// `[law]` (`[control]` in the planar arm's older form). Its `obstacles` stay empty: they
+    /// are the robot part's.
     pub law: LawSection,
-    /// `[[obstacles]]`: discs in the arm's plane.
-    pub obstacles: Vec<ObstacleConfig>,
     pub feedback: FeedbackSection,
     pub sim: SimSection,
     /// The safety filter and the runaway guard (see `control::safety::config`).
@@ -247,10 +247,8 @@ pub struct Config {
 impl Default for Config {
     fn default() -> Self {
         Self {
-            arm: ArmConfig::default(),
-            task: TaskConfig::default(),
+            robot: Robot::Planar(PlanarRobot::default()),
             law: LawSection::planar(),
-            obstacles: Vec::new(),
             feedback: FeedbackSection::planar(),
             sim: SimSection::planar(),
             safety: SafetySection::planar(),
@@ -297,14 +295,14 @@ impl Config {
             }
             "paper-obstacle" => {
                 c.law.secondary = SecondaryKind::Obstacles;
-                c.obstacles = vec![ObstacleConfig {
+                c.planar_mut().expect("planar").obstacles = vec![ObstacleConfig {
                     center: PAPER_OBSTACLE.0,
                     radius: PAPER_OBSTACLE.1,
                     margin: 0.1,
                 }];
             }
             "paper-floating" => {
-                c.arm.model = ModelKind::Floating;
+                c.planar_mut().expect("planar").arm.model = ModelKind::Floating;
             }
             "demo" => {
                 // The paper's arm kicked 2 rad/s off its period-1 orbit (the one small μ
@@ -366,12 +364,7 @@ impl Config {
 
     /// τ (s): the file's, or the task's period.
     pub fn tau(&self) -> f64 {
-        self.feedback.tau_for(self.task.period)
-    }
-
-    /// The file in the shared form every arm's file has ([`planar_file`]).
-    pub fn to_toml_string(&self) -> String {
-        planar_file::write(self)
+        self.feedback.tau_for(self.period())
     }
 
     /// Parses and validates; a refusal names the key as the text spells it (`law.kp` in the
@@ -388,13 +381,18 @@ impl Config {
         Ok(c)
     }
 
-    /// Arm size n.
+    /// The planar arm's size n.
+    ///
+    /// # Panics
+    /// This and the methods below (to [`Self::initial_state`]) are the planar arm's (see
+    /// [`Self::planar_part`]); a robot's set-up is asked through [`crate::System`].
     pub fn n(&self) -> usize {
-        self.arm.links.len()
+        self.planar_part().arm.links.len()
     }
 
     pub fn link_masses(&self) -> Vec<f64> {
-        self.arm
+        self.planar_part()
+            .arm
             .link_masses
             .clone()
             .unwrap_or_else(|| vec![1.0; self.n()])
@@ -402,7 +400,8 @@ impl Config {
 
     pub fn link_inertias(&self) -> Vec<f64> {
         let n = self.n();
-        self.arm
+        self.planar_part()
+            .arm
             .link_inertias
             .clone()
             .unwrap_or_else(|| (0..n).map(|j| 0.1 * (n - j) as f64).collect())
@@ -423,23 +422,28 @@ impl Config {
 
     /// Checks every field; the error names the first bad one and its allowed range.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        let Robot::Planar(p) = &self.robot else {
+            return Err(ConfigError::Spatial(
+                "a robot's config (validated against its chain by System)".into(),
+            ));
+        };
         let n = self.n();
         if !(MIN_JOINTS..=MAX_JOINTS).contains(&n) {
             return Err(invalid(
                 "robot.links",
-                &self.arm.links,
+                &p.arm.links,
                 &format!("must list {MIN_JOINTS} to {MAX_JOINTS} link lengths"),
             ));
         }
-        for (i, l) in self.arm.links.iter().enumerate() {
+        for (i, l) in p.arm.links.iter().enumerate() {
             positive(&format!("robot.links[{i}]"), *l, 100.0)?;
         }
-        positive("robot.base_mass", self.arm.base_mass, 1e9)?;
-        positive("robot.base_inertia", self.arm.base_inertia, 1e9)?;
-        range("robot.base_offset", self.arm.base_offset, 0.0, 100.0)?;
+        positive("robot.base_mass", p.arm.base_mass, 1e9)?;
+        positive("robot.base_inertia", p.arm.base_inertia, 1e9)?;
+        range("robot.base_offset", p.arm.base_offset, 0.0, 100.0)?;
         for (name, v) in [
-            ("robot.link_masses", &self.arm.link_masses),
-            ("robot.link_inertias", &self.arm.link_inertias),
+            ("robot.link_masses", &p.arm.link_masses),
+            ("robot.link_inertias", &p.arm.link_inertias),
         ] {
             if let Some(v) = v {
                 same_len(name, v, n)?;
@@ -448,10 +452,10 @@ impl Config {
                 }
             }
         }
-        finite_vec("task.center", &self.task.center)?;
-        positive("task.radius", self.task.radius, 100.0)?;
-        positive("task.period", self.task.period, 1e4)?;
-        check_ramp(self.task.ramp)?;
+        finite_vec("task.center", &p.task.center)?;
+        positive("task.radius", p.task.radius, 100.0)?;
+        positive("task.period", p.task.period, 1e4)?;
+        check_ramp(p.task.ramp)?;
 
         let c = &self.law;
         c.check_planar()?;
@@ -471,14 +475,14 @@ impl Config {
         positive("law.damping_threshold", c.damping_threshold, 10.0)?;
         positive("law.damping_max", c.damping_max, 10.0)?;
         positive("law.track_loss", c.track_loss, 100.0)?;
-        if self.obstacles.len() > MAX_OBSTACLES {
+        if p.obstacles.len() > MAX_OBSTACLES {
             return Err(invalid(
                 "obstacles",
-                format!("{} obstacles", self.obstacles.len()),
+                format!("{} obstacles", p.obstacles.len()),
                 &format!("at most {MAX_OBSTACLES}"),
             ));
         }
-        for (i, o) in self.obstacles.iter().enumerate() {
+        for (i, o) in p.obstacles.iter().enumerate() {
             o.validate(&format!("obstacles[{i}]"))?;
         }
         if let SecondaryKind::Custom(name) = &c.secondary {
@@ -494,7 +498,7 @@ impl Config {
                 "centring pulls each joint to the middle of its range: give safety.q_min and safety.q_max",
             ));
         }
-        if c.secondary == SecondaryKind::Obstacles && self.obstacles.is_empty() {
+        if c.secondary == SecondaryKind::Obstacles && p.obstacles.is_empty() {
             return Err(invalid(
                 "obstacles",
                 "[]",
@@ -506,7 +510,7 @@ impl Config {
         range("sim.dt", s.dt, 1e-5, 0.1)?;
         positive("sim.duration", s.duration, sim::MAX_DURATION)?;
         range("sim.transient", s.transient, 0.0, s.duration)?;
-        self.feedback.validate(s.dt, self.task.period)?;
+        self.feedback.validate(s.dt, p.task.period)?;
         for (name, v) in [("sim.q0", &s.q0), ("sim.qd0", &s.qd0)] {
             if let Some(v) = v {
                 same_len(name, v, n)?;
@@ -536,7 +540,7 @@ impl Config {
 
     /// The control-law parameter block (the config must be valid).
     pub fn law_params(&self) -> LawParams {
-        let c = &self.law;
+        let (c, p) = (&self.law, self.planar_part());
         LawParams {
             core: LawCore {
                 kp: c.kp,
@@ -556,14 +560,9 @@ impl Config {
                 track_loss: c.track_loss,
                 pause: false,
             },
-            task: Path::in_the_plane(
-                self.task.path,
-                self.task.center,
-                self.task.radius,
-                self.task.period,
-            )
-            .with_ramp(self.task.ramp),
-            obstacles: self
+            task: Path::in_the_plane(p.task.path, p.task.center, p.task.radius, p.task.period)
+                .with_ramp(p.task.ramp),
+            obstacles: p
                 .obstacles
                 .iter()
                 .map(ObstacleConfig::to_ball)
@@ -576,32 +575,29 @@ impl Config {
         }
     }
 
-    /// Whether the cycle planner handles this arm: the fixed-base 3-link one.
+    /// Whether a cycle planner handles this arm: on the planar arm, the fixed-base 3-link one;
+    /// every chain.
     pub fn has_planner(&self) -> bool {
-        self.n() == 3 && self.arm.model == ModelKind::Fixed
-    }
-
-    /// Whether the law steers onto a planned clean cycle: the filter on, an arm with a
-    /// planner, and `safety.plan` on (or `auto` with an obstacle).
-    pub fn steers_onto_plan(&self) -> bool {
-        self.safety.enabled
-            && self.has_planner()
-            && self.safety.plan.steers(!self.obstacles.is_empty())
+        match &self.robot {
+            Robot::Planar(p) => p.arm.links.len() == 3 && p.arm.model == ModelKind::Fixed,
+            Robot::Spatial(_) => true,
+        }
     }
 
     /// The arm model with N joints (N must equal `self.n()`).
     pub fn model<const N: usize>(&self) -> ArmModel<N> {
         assert_eq!(N, self.n(), "arm size mismatch");
-        let links = to_array(&self.arm.links);
-        match self.arm.model {
+        let arm = &self.planar_part().arm;
+        let links = to_array(&arm.links);
+        match arm.model {
             ModelKind::Fixed => ArmModel::Fixed(FixedArm::new(links)),
             ModelKind::Floating => ArmModel::Floating(FloatingArm {
                 links,
                 link_masses: to_array(&self.link_masses()),
                 link_inertias: to_array(&self.link_inertias()),
-                base_mass: self.arm.base_mass,
-                base_inertia: self.arm.base_inertia,
-                base_offset: self.arm.base_offset,
+                base_mass: arm.base_mass,
+                base_inertia: arm.base_inertia,
+                base_offset: arm.base_offset,
             }),
         }
     }
@@ -610,7 +606,7 @@ impl Config {
         ArmState {
             q: VecN::<N>::from_column_slice(&self.q0()),
             qd: VecN::<N>::from_column_slice(&self.qd0()),
-            phi: if self.arm.model == ModelKind::Floating {
+            phi: if self.planar_part().arm.model == ModelKind::Floating {
                 self.sim.phi0
             } else {
                 0.0
@@ -699,7 +695,7 @@ mod tests {
     #[test]
     fn round_trips_through_toml() {
         let c = Config::preset("paper-obstacle").unwrap();
-        let back = Config::parse(&c.to_toml_string()).unwrap();
+        let back = Config::parse(&c.to_toml()).unwrap();
         assert_eq!(c, back);
     }
 

@@ -103,10 +103,12 @@ pub(crate) fn read(text: &str) -> Result<Config, ConfigError> {
         ));
     }
     Ok(Config {
-        arm,
-        task: f.task,
+        robot: super::Robot::Planar(super::PlanarRobot {
+            arm,
+            task: f.task,
+            obstacles: f.obstacles,
+        }),
         law: f.law,
-        obstacles: f.obstacles,
         feedback: f.feedback,
         sim: f.sim,
         safety: f.safety,
@@ -117,6 +119,7 @@ pub(crate) fn read(text: &str) -> Result<Config, ConfigError> {
 
 /// Prints `c` in the shared form.
 pub(crate) fn write(c: &Config) -> String {
+    let p = c.planar_part();
     let law = LawSection {
         obstacles: Vec::new(),
         ..c.law.clone()
@@ -124,13 +127,13 @@ pub(crate) fn write(c: &Config) -> String {
     let file = FileOut {
         robot: RobotOut {
             description: PLANAR_ROBOT,
-            arm: &c.arm,
+            arm: &p.arm,
         },
-        task: &c.task,
+        task: &p.task,
         law,
         feedback: &c.feedback,
         safety: &c.safety,
-        obstacles: &c.obstacles,
+        obstacles: &p.obstacles,
         sim: &c.sim,
         daemon: &c.daemon,
         plant: &c.plant,
@@ -188,7 +191,7 @@ mod tests {
     fn every_planar_preset_prints_as_a_robot_and_reads_back_the_same() {
         for name in PRESETS {
             let c = Config::preset(name).unwrap();
-            let text = c.to_toml_string();
+            let text = c.to_toml();
             assert!(
                 text.starts_with("[robot]\ndescription = \"planar\"\n"),
                 "{name}:\n{text}"
@@ -199,7 +202,7 @@ mod tests {
             assert!(!crate::config::spatial::is_spatial(&text), "{name}");
             assert_eq!(Config::parse(&text).unwrap(), c, "{name}:\n{text}");
         }
-        let text = Config::preset("paper-obstacle").unwrap().to_toml_string();
+        let text = Config::preset("paper-obstacle").unwrap().to_toml();
         assert!(
             text.contains("[[obstacles]]\ncenter = [0.0, 1.6]"),
             "{text}"

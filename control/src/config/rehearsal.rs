@@ -11,7 +11,8 @@
 //! self-motion may wander later, and the live limit watch reports what it finds there.
 
 use crate::basics::{ConfigError, PhysicsError};
-use crate::config::spatial::{SpatialConfig, SpatialSetup};
+use crate::config::spatial::SpatialSetup;
+use crate::config::Config;
 use crate::model::Chain;
 
 /// Path periods rehearsed.
@@ -38,7 +39,7 @@ impl EffortPeak {
     }
 }
 
-impl SpatialConfig {
+impl Config {
     /// Runs the law offline from the start for the rehearsal's span and returns the joint
     /// that comes closest to (or furthest past) its effort limit. `N` must be the chain's
     /// joint count.
@@ -52,11 +53,9 @@ impl SpatialConfig {
         &self,
         chain: &Chain,
     ) -> Result<(SpatialSetup<N>, [f64; N]), ConfigError> {
+        let r = self.spatial_part();
         let setup = self.setup::<N>(chain)?;
-        let limits = self
-            .command
-            .limits::<N>(chain, &self.robot.description)?
-            .tau;
+        let limits = r.command.limits::<N>(chain, &r.robot.description)?.tau;
         Ok((setup, limits))
     }
 
@@ -65,7 +64,8 @@ impl SpatialConfig {
         setup: &SpatialSetup<N>,
         limits: &[f64; N],
     ) -> Result<EffortPeak, ConfigError> {
-        let span = (REHEARSAL_PERIODS * self.task.period).max(REHEARSAL_MIN_S);
+        let r = self.spatial_part();
+        let span = (REHEARSAL_PERIODS * r.task.period).max(REHEARSAL_MIN_S);
         let steps = (span / setup.dt).ceil() as u64;
         let model = setup.arm.model;
         let mut peak = EffortPeak {
@@ -131,8 +131,8 @@ mod tests {
     fn panda(mode: CommandMode, torque: Option<Vec<f64>>) -> System {
         let mut s = System::preset("panda", &builtin_robot).unwrap();
         if let System::Spatial(sp) = &mut s {
-            sp.config.command.mode = mode;
-            sp.config.command.limits.torque = torque;
+            sp.own_mut().command.mode = mode;
+            sp.own_mut().command.limits.torque = torque;
         }
         s
     }

@@ -6,7 +6,7 @@
 //! or a URDF path): this crate does no I/O. Limits come from the URDF, and the file may only
 //! tighten them, so a typo cannot loosen what the arm's maker allows.
 
-use super::{FeedbackSection, LawSection, SimSection};
+use super::Config;
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::basics::invalid;
@@ -29,31 +29,6 @@ use serde::{Deserialize, Serialize};
 
 /// The Panda's ready pose, a comfortable start in the middle of its workspace.
 pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SpatialConfig {
-    pub robot: RobotSection,
-    pub task: TaskSection,
-    #[serde(default)]
-    pub law: LawSection,
-    #[serde(default)]
-    pub feedback: FeedbackSection,
-    #[serde(default)]
-    pub safety: crate::safety::SafetySection,
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub obstacles: Vec<SphereEntry>,
-    /// The interface the daemon sends and its limiter (docs/science.md, "Commanding real arms").
-    #[serde(default)]
-    pub command: crate::config::command::CommandSection,
-    pub sim: SimSection,
-    /// The daemon's own table (`chaosd`), passed through untouched as in a planar file.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub daemon: Option<toml::Table>,
-    /// The plant's own table (`chaosd-plant`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub plant: Option<toml::Table>,
-}
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -140,17 +115,17 @@ impl<const N: usize> SpatialSetup<N> {
     }
 }
 
-impl SpatialConfig {
+impl Config {
     /// The built-in spatial presets ([`SPATIAL_PRESETS`]): `panda`, the Panda's working set-up
     /// (docs/panda-study.md, "A set-up that is fast and robust": centring α = 160 with
     /// null-space damping k_d = 8 and the pull's speed capped at 1 rad/s, μ = 0.25 from t = 0,
     /// the path starting from rest over 1 s), and `panda-paper`, the paper's recipe on the same
     /// arm and path (centring α = 20 without damping, μ = 1 from t = 60 s): the chaotic
     /// self-motion the method was made for, and the slow capture the study measured.
-    pub fn preset(name: &str) -> Option<Self> {
+    pub fn robot_preset(name: &str) -> Option<Self> {
         let mut c: Self = SPATIAL_PRESETS
             .contains(&name)
-            .then(|| toml::from_str(PANDA_PAPER).expect("the panda preset parses"))?;
+            .then(|| Self::from_robot_toml(PANDA_PAPER).expect("the panda preset parses"))?;
         if name == "panda" {
             // λ = −0.745 /s on the cycle by its Floquet multipliers; periodic inside every
             // position, speed, acceleration and jerk limit from 100 of 100 starts near the
@@ -164,12 +139,13 @@ impl SpatialConfig {
             c.feedback.mu = 0.25;
             c.feedback.t_on = 0.0;
             // The hand starts at rest: the path comes up to speed over half a period.
-            c.task.ramp = 1.0;
+            *c.task_ramp_mut() = 1.0;
         }
         Some(c)
     }
 
-    pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
+    /// Parses a robot's file (no validation: that needs its chain, [`crate::System`]).
+    pub fn from_robot_toml(text: &str) -> Result<Self, ConfigError> {
         if text.len() > crate::basics::MAX_CONFIG_BYTES {
             return Err(ConfigError::Parse(format!(
                 "the config is {} bytes; at most {} are accepted",
@@ -177,28 +153,26 @@ impl SpatialConfig {
                 crate::basics::MAX_CONFIG_BYTES
             )));
         }
-        toml::from_str(text).map_err(|e| crate::config::parse_error(text, &e))
+        super::file::read_robot(text)
     }
 
     /// One line for titles: robot, task, secondary task, projection.
     pub fn describe(&self) -> String {
+        let r = self.spatial_part();
         format!(
             "{}: {} {} task, {} α = {}, projection {}",
-            self.robot.description,
-            self.task.kind,
-            self.task.path,
+            r.robot.description,
+            r.task.kind,
+            r.task.path,
             self.law.secondary,
             self.law.alpha,
             self.feedback.projection
         )
     }
 
-    pub fn to_toml(&self) -> String {
-        toml::to_string(self).expect("a config serialises")
-    }
-
     pub fn task_kind(&self) -> Result<TaskKind, ConfigError> {
-        match self.task.kind.as_str() {
+        let r = self.spatial_part();
+        match r.task.kind.as_str() {
             "position" => Ok(TaskKind::Position),
             "pose" => Ok(TaskKind::Pose),
             k => Err(invalid("task.kind", k, "\"position\" or \"pose\"")),
@@ -206,8 +180,9 @@ impl SpatialConfig {
     }
 
     fn check(&self) -> Result<(), ConfigError> {
-        positive("task.radius", self.task.radius)?;
-        positive("task.period", self.task.period)?;
+        let r = self.spatial_part();
+        positive("task.radius", r.task.radius)?;
+        positive("task.period", r.task.period)?;
         positive("sim.dt", self.sim.dt)?;
         positive("sim.duration", self.sim.duration)?;
         if self.sim.duration > super::sim::MAX_DURATION {
@@ -239,7 +214,7 @@ impl SpatialConfig {
             ));
         }
         // The planar arm's rules: the same gain may not mean a runaway on one arm and not the other.
-        self.feedback.validate(self.sim.dt, self.task.period)?;
+        self.feedback.validate(self.sim.dt, r.task.period)?;
         positive("law.damping_threshold", self.law.damping_threshold)?;
         positive("law.track_loss", self.law.track_loss)?;
         let step = format!("sim.dt = {} s", self.sim.dt);
@@ -248,7 +223,7 @@ impl SpatialConfig {
                 prefix: "law",
                 kp: self.law.kp,
                 kv: self.law.kv,
-                period: self.task.period,
+                period: r.task.period,
                 barriers: &[],
             },
             self.sim.dt,
@@ -256,14 +231,14 @@ impl SpatialConfig {
         )?;
         self.safety.check_robot()?;
         self.safety.validate_gains()?;
-        if self.obstacles.len() > MAX_SPHERES {
+        if r.obstacles.len() > MAX_SPHERES {
             return Err(invalid(
                 "obstacles",
-                self.obstacles.len(),
+                r.obstacles.len(),
                 &format!("at most {MAX_SPHERES} spheres"),
             ));
         }
-        for (i, o) in self.obstacles.iter().enumerate() {
+        for (i, o) in r.obstacles.iter().enumerate() {
             o.validate(&format!("obstacles[{i}]"))?;
         }
         Ok(())
@@ -293,12 +268,13 @@ impl SpatialConfig {
 
     /// The limits: the URDF's, the published acceleration limits, tightened by the file.
     fn limits(&self, chain: &Chain) -> Result<SafetyParams, ConfigError> {
+        let r = self.spatial_part();
         let n = chain.dof();
         self.safety.validate(n)?;
         let mut s = self.safety.params(n);
         let qdd: [f64; MAX_JOINTS] = match &self.safety.qdd_max {
             Some(v) => v.resolve(n),
-            None if self.robot.description == "panda" && n == 7 => {
+            None if r.robot.description == "panda" && n == 7 => {
                 std::array::from_fn(|i| PANDA_QDD_MAX.get(i).copied().unwrap_or(0.0))
             }
             None => [DEFAULT_QDD_MAX; MAX_JOINTS],
@@ -312,7 +288,7 @@ impl SpatialConfig {
             }
             s.qdd_max[i] = qdd[i];
             // The maker's published jerk limit, else the command interface's default ratio.
-            s.jerk_max[i] = crate::command::MakerTable::for_robot(&self.robot.description, n)
+            s.jerk_max[i] = crate::command::MakerTable::for_robot(&r.robot.description, n)
                 .and_then(|t| t.jerk.get(i).copied())
                 .unwrap_or(crate::command::DEFAULT_JERK_PER_QDD * qdd[i]);
         }
@@ -322,6 +298,7 @@ impl SpatialConfig {
     /// The sampled-loop rules at a control step `dt` other than `sim.dt` (the daemon's period;
     /// `step` names it), with the barrier gains when the filter is on.
     pub fn check_step(&self, chain: &Chain, dt: f64, step: &str) -> Result<(), ConfigError> {
+        let r = self.spatial_part();
         let safety = self.limits(chain)?;
         self.check_command(chain, dt)?;
         let barriers = [("safety.k1", safety.k1), ("safety.k_rate", safety.k_rate)];
@@ -329,7 +306,7 @@ impl SpatialConfig {
             prefix: "law",
             kp: self.law.kp,
             kv: self.law.kv,
-            period: self.task.period,
+            period: r.task.period,
             barriers: if safety.enabled { &barriers } else { &[] },
         };
         crate::config::stability::check_sampled(&g, dt, step)
@@ -342,37 +319,33 @@ impl SpatialConfig {
         chain: &Chain,
         dt: f64,
     ) -> Result<crate::command::MotionGenerator<N>, ConfigError> {
+        let r = self.spatial_part();
         let q0 = SVector::<f64, N>::from_fn(|i, _| self.sim.start().get(i).copied().unwrap_or(0.0));
-        self.command
-            .generator::<N>(chain, &self.robot.description, &q0, dt)
+        r.command
+            .generator::<N>(chain, &r.robot.description, &q0, dt)
     }
 
     fn check_command(&self, chain: &Chain, dt: f64) -> Result<(), ConfigError> {
         crate::with_dof!(chain.dof(), N => self.generator::<N>(chain, dt).map(|_| ()))
     }
 
-    /// Whether the law steers onto a planned clean cycle: the filter on and `safety.plan` on
-    /// (or `auto` with a sphere).
-    pub fn steers_onto_plan(&self) -> bool {
-        self.safety.enabled && self.safety.plan.steers(!self.obstacles.is_empty())
-    }
-
     /// Checks the file against `chain` and builds the run; `N` must be the chain's joint count.
     pub fn setup<const N: usize>(&self, chain: &Chain) -> Result<SpatialSetup<N>, ConfigError> {
+        let r = self.spatial_part();
         self.check()?;
         let model = chain
             .model::<N>()
-            .map_err(|e| invalid("robot.description", &self.robot.description, &e.to_string()))?;
+            .map_err(|e| invalid("robot.description", &r.robot.description, &e.to_string()))?;
         let mut arm = SpatialArm::new(model);
-        arm.tool = Vec3::from(self.robot.tool);
+        arm.tool = Vec3::from(r.robot.tool);
         if !(arm.tool.iter().all(|v| v.is_finite()) && arm.tool.norm() <= MAX_TOOL_M) {
             return Err(invalid(
                 "robot.tool",
-                self.robot.tool,
+                r.robot.tool,
                 &format!("3 finite numbers, at most {MAX_TOOL_M} m from the tip link's origin"),
             ));
         }
-        let radii = match &self.robot.link_radii {
+        let radii = match &r.robot.link_radii {
             Some(r) => Self::per_joint("robot.link_radii", r, N)?,
             None => SVector::repeat(0.05),
         };
@@ -394,19 +367,19 @@ impl SpatialConfig {
         };
         let mut kin = SpatialKinematics::default();
         arm.kinematics(&q0, &qd0, &mut kin);
-        let shape = self.task.path;
-        let normal = Vec3::from(self.task.normal);
+        let shape = r.task.path;
+        let normal = Vec3::from(r.task.normal);
         let probe = Path::new(shape, Vec3::zeros(), normal, 1.0, 1.0)
-            .ok_or_else(|| invalid("task.normal", self.task.normal, "a non-zero vector"))?;
-        let center = match self.task.center {
+            .ok_or_else(|| invalid("task.normal", r.task.normal, "a non-zero vector"))?;
+        let center = match r.task.center {
             Some(c) => Vec3::from(c),
-            None => kin.p - probe.position(0.0) * self.task.radius,
+            None => kin.p - probe.position(0.0) * r.task.radius,
         };
-        crate::config::check_ramp(self.task.ramp)?;
-        let path = Path::new(shape, center, normal, self.task.radius, self.task.period)
-            .ok_or_else(|| invalid("task.normal", self.task.normal, "a non-zero vector"))?
-            .with_ramp(self.task.ramp);
-        let orientation = match self.task.orientation_rpy {
+        crate::config::check_ramp(r.task.ramp)?;
+        let path = Path::new(shape, center, normal, r.task.radius, r.task.period)
+            .ok_or_else(|| invalid("task.normal", r.task.normal, "a non-zero vector"))?
+            .with_ramp(r.task.ramp);
+        let orientation = match r.task.orientation_rpy {
             Some([r, p, y]) => Rotation3::from_euler_angles(r, p, y),
             None => Rotation3::from_matrix_unchecked(kin.rot),
         };
@@ -414,7 +387,7 @@ impl SpatialConfig {
         let safety = self.limits(chain)?;
         self.check_step(chain, self.sim.dt, &format!("sim.dt = {} s", self.sim.dt))?;
         // At most MAX_SPHERES: validated above.
-        let spheres: SphereSet = self.obstacles.iter().map(SphereEntry::to_ball).collect();
+        let spheres: SphereSet = r.obstacles.iter().map(SphereEntry::to_ball).collect();
         let joint_weights = crate::law::metric::weights(&self.law.metric, &safety, chain.dof())?;
         let params = SpatialParams {
             core: LawCore {
@@ -425,7 +398,7 @@ impl SpatialConfig {
                 damping_threshold: self.law.damping_threshold,
                 damping_max: self.law.damping_max,
                 mu: self.feedback.mu,
-                tau: self.feedback.tau_for(self.task.period),
+                tau: self.feedback.tau_for(r.task.period),
                 t_on: self.feedback.t_on,
                 feedback: self.feedback.enabled,
                 projection: self.feedback.projection.into(),
@@ -485,7 +458,7 @@ fn check_reach<const N: usize>(
     Ok(())
 }
 
-/// Names accepted by [`SpatialConfig::preset`].
+/// Names accepted by [`Config::robot_preset`].
 pub const SPATIAL_PRESETS: &[&str] = &["panda", "panda-paper"];
 
 /// The farthest a tool point may sit from its tip link (m): past it the last capsule and the

@@ -47,7 +47,7 @@ pub fn check(cfg: &Config, dt: f64, step: &str) -> Result<(), ConfigError> {
             prefix: "law",
             kp: c.kp,
             kv: c.kv,
-            period: cfg.task.period,
+            period: cfg.period(),
             barriers: if s.enabled { &barriers } else { &[] },
         },
         dt,
@@ -121,15 +121,16 @@ pub fn check_sampled(g: &Sampled, dt: f64, step: &str) -> Result<(), ConfigError
 /// The circle must lie inside the annulus reachable from joint 1 (fixed base; the floating base
 /// moves, and its loss of reach is reported at run time instead).
 fn check_reach(cfg: &Config) -> Result<(), ConfigError> {
-    if cfg.arm.model != ModelKind::Fixed {
+    let p = cfg.planar_part();
+    if p.arm.model != ModelKind::Fixed {
         return Ok(());
     }
-    let l = &cfg.arm.links;
+    let l = &p.arm.links;
     let reach: f64 = l.iter().sum();
     let inner = (2.0 * l.iter().cloned().fold(0.0, f64::max) - reach).max(0.0);
-    let [x, y] = cfg.task.center;
+    let [x, y] = p.task.center;
     let d = x.hypot(y);
-    let r = cfg.task.radius;
+    let r = p.task.radius;
     if d + r >= reach || d - r <= inner {
         return Err(refuse(
             "task.center",
@@ -172,20 +173,20 @@ mod tests {
             e.contains("law.kp") && e.contains("K_p < K_v/dt = 50000"),
             "{e}"
         );
-        let e = refused(|c| c.task.period = 0.01, dt);
+        let e = refused(|c| c.planar_mut().unwrap().task.period = 0.01, dt);
         assert!(e.contains("task.period") && e.contains("0.05 s"), "{e}");
-        let e = refused(|c| c.task.center = [1e5, 1e5], dt);
+        let e = refused(|c| c.planar_mut().unwrap().task.center = [1e5, 1e5], dt);
         assert!(
             e.contains("task.center") && e.contains("reaches only"),
             "{e}"
         );
         for huge in [1e308, -1e308, f64::MAX] {
-            let e = refused(|c| c.task.center = [huge, huge], dt);
+            let e = refused(|c| c.planar_mut().unwrap().task.center = [huge, huge], dt);
             assert!(e.len() < 400 && e.contains("reaches only"), "{e}");
             let e = refused(|c| c.law.kv = huge.abs(), dt);
             assert!(e.len() < 400 && e.contains("law.kv"), "{e}");
         }
-        let e = refused(|c| c.task.center = [0.1, 0.0], dt);
+        let e = refused(|c| c.planar_mut().unwrap().task.center = [0.1, 0.0], dt);
         assert!(e.contains("task.center"), "{e}");
         let e = refused(|c| c.safety.k_rate = 2000.0, dt);
         assert!(e.contains("safety.k_rate"), "{e}");
@@ -222,6 +223,6 @@ mod tests {
             (p.q_max[0], p.q_max[1], p.qd_max[2]),
             (f64::INFINITY, 2.0, 7.0)
         );
-        assert_eq!(Config::parse(&c.to_toml_string()).unwrap(), c);
+        assert_eq!(Config::parse(&c.to_toml()).unwrap(), c);
     }
 }

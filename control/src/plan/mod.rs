@@ -137,9 +137,9 @@ pub fn plan_config_with(
 ) -> Result<Planned, PlanError> {
     // The cycle is one of the periodic loop: the path's start-up ramp is not part of it.
     let periodic;
-    let cfg = if cfg.task.ramp > 0.0 {
+    let cfg = if cfg.planar_part().task.ramp > 0.0 {
         let mut c = cfg.clone();
-        c.task.ramp = 0.0;
+        *c.task_ramp_mut() = 0.0;
         periodic = c;
         &periodic
     } else {
@@ -316,15 +316,16 @@ impl planar::PlanarProblem {
         t0: f64,
         q_now: Option<[f64; 3]>,
     ) -> Result<Self, PlanError> {
-        if cfg.n() != 3 || cfg.arm.model != crate::config::ModelKind::Fixed {
+        let arm = &cfg.planar_part().arm;
+        if cfg.n() != 3 || arm.model != crate::config::ModelKind::Fixed {
             return Err(PlanError::PlanarArm {
                 links: cfg.n(),
-                base: cfg.arm.model,
+                base: arm.model,
             });
         }
         let p = cfg.law_params();
         Ok(Self {
-            links: [cfg.arm.links[0], cfg.arm.links[1], cfg.arm.links[2]],
+            links: [arm.links[0], arm.links[1], arm.links[2]],
             task: p.task,
             obstacles: p.obstacles,
             clearance: p.core.safety.clearance,

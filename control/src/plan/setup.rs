@@ -7,7 +7,7 @@
 //! its steering to callers that hold one arm's parameter block.
 
 use crate::basics::ConfigError;
-use crate::config::spatial::{SpatialConfig, SpatialSetup};
+use crate::config::spatial::SpatialSetup;
 use crate::config::Config;
 use crate::law::LawParams;
 use crate::model::Chain;
@@ -26,11 +26,11 @@ pub fn law_params_planned(cfg: &Config) -> (LawParams, Option<Blocked>) {
     (p, blocked)
 }
 
-/// [`SpatialConfig::setup`] with the steering onto a planned clean cycle when `safety.plan` asks for
+/// [`Config::setup`] with the steering onto a planned clean cycle when `safety.plan` asks for
 /// it (the filter on), planned from the start posture; and why there is none, when the
 /// planner found none (the law then runs without it).
 pub fn setup_planned<const N: usize>(
-    cfg: &SpatialConfig,
+    cfg: &Config,
     chain: &Chain,
 ) -> Result<(SpatialSetup<N>, Option<Blocked>), ConfigError> {
     let mut set = cfg.setup::<N>(chain)?;

@@ -72,7 +72,7 @@ impl System {
                     base: "base".into(),
                     joints: (1..=n).map(|i| format!("joint{i}")).collect(),
                     links: (1..=n).map(|i| format!("link{i}")).collect(),
-                    generated_urdf: Some(planar_urdf(&c.arm.links)),
+                    generated_urdf: Some(planar_urdf(&c.planar_part().arm.links)),
                     geometry: crate::with_dof!(n, N => Box::new(Planar::<N> { model: c.model::<N>() })),
                 }
             }

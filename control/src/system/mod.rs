@@ -1,8 +1,8 @@
 //! What a daemon and a plant run: the paper's planar arm or a URDF chain, from one config file.
 //!
-//! Both processes read the same file and must agree on the arm. A file with a `[robot]` table is
-//! a spatial set-up ([`SpatialConfig`]); any other is the planar one ([`Config`]). This enum is
-//! the one place that tells them apart, so the daemon's loop, its handshake and the plant ask it
+//! Both processes read the same file and must agree on the arm. Every file is one [`Config`];
+//! a robot's also needs its chain loaded, which this enum carries beside it. This enum is the
+//! one place outside the config that tells the arms apart, so the daemon's loop, its handshake and the plant ask it
 //! for what they need (the joint count, the law, the start, the arm's identity) and never parse
 //! a file twice. The robot description itself is read by the caller (`rt::robot`): this crate
 //! does no I/O, so [`System::parse`] takes the chain resolver as an argument.
@@ -11,8 +11,7 @@ use crate::arm::VecN;
 use crate::basics::ConfigError;
 use crate::command::CommandMode;
 use crate::config::spatial::is_spatial;
-use crate::config::spatial::SpatialConfig;
-use crate::config::{Config, FeedbackSection, LawSection};
+use crate::config::{Config, FeedbackSection, LawSection, Robot};
 use crate::model::Chain;
 use crate::safety::SafetySection;
 use crate::sim::{ArmState, ClosedLoopLaw};
@@ -25,10 +24,11 @@ mod run;
 pub use drawing::{Drawing, Posed};
 pub use obstacles::ObstacleRow;
 
-/// The spatial half: the file and the chain its `[robot]` names.
+/// A robot's set-up: its config (always [`crate::config::Robot::Spatial`]) and the chain its
+/// `[robot]` names.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SpatialSystem {
-    pub config: SpatialConfig,
+    pub config: Config,
     pub chain: Chain,
 }
 
@@ -92,7 +92,7 @@ impl System {
         if !is_spatial(text) {
             return Ok(System::Planar(Config::from_toml_str(text)?));
         }
-        Self::with_chain(SpatialConfig::from_toml(text)?, resolve)
+        Self::with_chain(Config::from_robot_toml(text)?, resolve)
     }
 
     /// A built-in set-up, validated: the planar presets and the spatial ones (`panda`, …).
@@ -104,22 +104,26 @@ impl System {
 
     /// [`Self::preset`] without the validation (see [`Self::read`]).
     pub fn named(name: &str, resolve: Resolve) -> Result<Self, ConfigError> {
-        match SpatialConfig::preset(name) {
+        match Config::robot_preset(name) {
             Some(c) => Self::with_chain(c, resolve),
             None => Ok(System::Planar(Config::preset(name)?)),
         }
     }
 
-    /// Loads the chain of a spatial file and checks the file against it.
-    pub fn spatial(config: SpatialConfig, resolve: Resolve) -> Result<Self, ConfigError> {
+    /// Loads the chain of a robot's config and checks the config against it.
+    pub fn spatial(config: Config, resolve: Resolve) -> Result<Self, ConfigError> {
         let s = Self::with_chain(config, resolve)?;
         s.validate()?;
         Ok(s)
     }
 
-    /// A spatial file with the chain its `[robot]` names, not yet checked against it.
-    fn with_chain(config: SpatialConfig, resolve: Resolve) -> Result<Self, ConfigError> {
-        let r = &config.robot;
+    /// A robot's config with the chain its `[robot]` names, not yet checked against it; the
+    /// planar arm's as it is.
+    fn with_chain(config: Config, resolve: Resolve) -> Result<Self, ConfigError> {
+        let Some(robot) = config.spatial() else {
+            return Ok(System::Planar(config));
+        };
+        let r = &robot.robot;
         let chain = resolve(&r.description, r.base.as_deref(), r.tip.as_deref()).map_err(|e| {
             ConfigError::Invalid {
                 field: "robot.description".into(),
@@ -145,6 +149,21 @@ impl System {
         }
     }
 
+    /// The whole config, on every arm.
+    pub fn config(&self) -> &Config {
+        match self {
+            System::Planar(c) => c,
+            System::Spatial(s) => &s.config,
+        }
+    }
+
+    pub fn config_mut(&mut self) -> &mut Config {
+        match self {
+            System::Planar(c) => c,
+            System::Spatial(s) => &mut s.config,
+        }
+    }
+
     /// Validates the whole set-up (for a spatial one, against its chain).
     pub fn validate(&self) -> Result<(), ConfigError> {
         match self {
@@ -154,7 +173,7 @@ impl System {
                 if !(crate::basics::MIN_JOINTS..=crate::basics::MAX_JOINTS).contains(&n) {
                     return Err(ConfigError::Invalid {
                         field: "robot.description".into(),
-                        value: format!("{:?}", s.config.robot.description),
+                        value: format!("{:?}", s.own().robot.description),
                         expected: format!(
                             "a chain of {} to {} joints (this one has {n})",
                             crate::basics::MIN_JOINTS,
@@ -192,7 +211,7 @@ impl System {
     /// both pass.
     pub fn check_motion_effort(&self) -> Result<(), ConfigError> {
         match self {
-            System::Spatial(s) if s.config.command.mode != CommandMode::Acceleration => {
+            System::Spatial(s) if s.own().command.mode != CommandMode::Acceleration => {
                 crate::with_dof!(s.chain.dof(), N => s.config.check_motion_effort::<N>(&s.chain))
             }
             _ => Ok(()),
@@ -297,112 +316,76 @@ impl System {
 
     /// The file's `[feedback]`, one section for every arm.
     pub fn feedback_section(&self) -> &FeedbackSection {
-        match self {
-            System::Planar(c) => &c.feedback,
-            System::Spatial(s) => &s.config.feedback,
-        }
+        &self.config().feedback
     }
 
     pub fn feedback_section_mut(&mut self) -> &mut FeedbackSection {
-        match self {
-            System::Planar(c) => &mut c.feedback,
-            System::Spatial(s) => &mut s.config.feedback,
-        }
+        &mut self.config_mut().feedback
     }
 
     /// The file's `[sim]`, one section for every arm.
     pub fn sim_section(&self) -> &crate::config::SimSection {
-        match self {
-            System::Planar(c) => &c.sim,
-            System::Spatial(s) => &s.config.sim,
-        }
+        &self.config().sim
     }
 
     pub fn sim_section_mut(&mut self) -> &mut crate::config::SimSection {
-        match self {
-            System::Planar(c) => &mut c.sim,
-            System::Spatial(s) => &mut s.config.sim,
-        }
+        &mut self.config_mut().sim
     }
 
     /// The file's `[law]`, one section for every arm.
     pub fn law_section(&self) -> &LawSection {
-        match self {
-            System::Planar(c) => &c.law,
-            System::Spatial(s) => &s.config.law,
-        }
+        &self.config().law
     }
 
     pub fn law_section_mut(&mut self) -> &mut LawSection {
-        match self {
-            System::Planar(c) => &mut c.law,
-            System::Spatial(s) => &mut s.config.law,
-        }
+        &mut self.config_mut().law
     }
 
     /// The file's `[safety]`, one section for every arm.
     pub fn safety_section(&self) -> &SafetySection {
-        match self {
-            System::Planar(c) => &c.safety,
-            System::Spatial(s) => &s.config.safety,
-        }
+        &self.config().safety
     }
 
     pub fn safety_section_mut(&mut self) -> &mut SafetySection {
-        match self {
-            System::Planar(c) => &mut c.safety,
-            System::Spatial(s) => &mut s.config.safety,
-        }
+        &mut self.config_mut().safety
     }
 
     /// The task circle's radius and period T (m, s), to change in place.
     pub fn task_circle_mut(&mut self) -> (&mut f64, &mut f64) {
-        match self {
-            System::Planar(c) => (&mut c.task.radius, &mut c.task.period),
-            System::Spatial(s) => (&mut s.config.task.radius, &mut s.config.task.period),
-        }
+        self.config_mut().task_circle_mut()
     }
 
     /// How long the path takes to come up to full speed from rest (s; 0: at full speed from
     /// t = 0), to change in place.
     pub fn task_ramp_mut(&mut self) -> &mut f64 {
-        match self {
-            System::Planar(c) => &mut c.task.ramp,
-            System::Spatial(s) => &mut s.config.task.ramp,
-        }
+        self.config_mut().task_ramp_mut()
     }
 
     /// Moves the task's centre: [`Self::obstacle_dims`] numbers (x, y on the planar arm; x, y,
     /// z in a robot's base frame).
     pub fn set_task_center(&mut self, c: &[f64]) -> Result<(), ConfigError> {
         let wrong = |d: usize| crate::basics::invalid("task.center", c, &format!("{d} numbers"));
-        match self {
-            System::Planar(p) => p.task.center = c.try_into().map_err(|_| wrong(2))?,
-            System::Spatial(s) => s.config.task.center = Some(c.try_into().map_err(|_| wrong(3))?),
+        match &mut self.config_mut().robot {
+            Robot::Planar(p) => p.task.center = c.try_into().map_err(|_| wrong(2))?,
+            Robot::Spatial(s) => s.task.center = Some(c.try_into().map_err(|_| wrong(3))?),
         }
         Ok(())
     }
 
     /// The task as text: two set-ups with the same key follow the same path.
     pub fn task_key(&self) -> String {
-        match self {
-            System::Planar(c) => format!("{:?}", c.task),
-            System::Spatial(s) => format!("{:?}", s.config.task),
-        }
+        self.config().task_key()
     }
 
     /// The task's period T (s).
     pub fn period(&self) -> f64 {
-        match self {
-            System::Planar(c) => c.task.period,
-            System::Spatial(s) => s.config.task.period,
-        }
+        self.config().period()
     }
 
     pub fn command_mode(&self) -> crate::command::CommandMode {
         match self {
             System::Planar(_) => crate::command::CommandMode::Acceleration,
-            System::Spatial(s) => s.config.command.mode,
+            System::Spatial(s) => s.own().command.mode,
         }
     }
 
@@ -410,7 +393,7 @@ impl System {
     pub fn limiter_on(&self) -> bool {
         match self {
             System::Planar(_) => false,
-            System::Spatial(s) => s.config.command.limiter,
+            System::Spatial(s) => s.own().command.limiter,
         }
     }
 
@@ -451,25 +434,15 @@ impl System {
 
     /// What a report says about the arm's safety settings.
     pub fn safety(&self) -> SafetySummary {
-        match self {
-            System::Planar(c) => SafetySummary {
-                enabled: c.safety.enabled,
-                clearance: c.safety.clearance,
-                track_loss: c.law.track_loss,
-                obstacles: c.obstacles.len(),
-                trap_time: c.safety.trap_time,
-                when_blocked: c.safety.when_blocked,
-                task_period: c.task.period,
-            },
-            System::Spatial(s) => SafetySummary {
-                enabled: s.config.safety.enabled,
-                clearance: s.config.safety.clearance,
-                track_loss: s.config.law.track_loss,
-                obstacles: s.config.obstacles.len(),
-                trap_time: s.config.safety.trap_time,
-                when_blocked: s.config.safety.when_blocked,
-                task_period: s.config.task.period,
-            },
+        let c = self.config();
+        SafetySummary {
+            enabled: c.safety.enabled,
+            clearance: c.safety.clearance,
+            track_loss: c.law.track_loss,
+            obstacles: c.obstacle_count(),
+            trap_time: c.safety.trap_time,
+            when_blocked: c.safety.when_blocked,
+            task_period: c.period(),
         }
     }
 
@@ -480,7 +453,7 @@ impl System {
             System::Planar(c) => format!(
                 "{}-link planar arm, {} base",
                 c.n(),
-                if c.arm.model == crate::config::ModelKind::Floating {
+                if c.planar_part().arm.model == crate::config::ModelKind::Floating {
                     "floating"
                 } else {
                     "fixed"
@@ -492,39 +465,32 @@ impl System {
                 s.chain.base,
                 s.chain.tip,
                 s.chain.dof(),
-                s.config.task.kind
+                s.own().task.kind
             ),
         }
     }
 
     /// The `[daemon]` and `[plant]` tables the file carries for the processes.
     pub fn tables(&self) -> (&Option<toml::Table>, &Option<toml::Table>) {
-        match self {
-            System::Planar(c) => (&c.daemon, &c.plant),
-            System::Spatial(s) => (&s.config.daemon, &s.config.plant),
-        }
+        let c = self.config();
+        (&c.daemon, &c.plant)
     }
 
     pub fn tables_mut(&mut self) -> (&mut Option<toml::Table>, &mut Option<toml::Table>) {
-        match self {
-            System::Planar(c) => (&mut c.daemon, &mut c.plant),
-            System::Spatial(s) => (&mut s.config.daemon, &mut s.config.plant),
-        }
+        let c = self.config_mut();
+        (&mut c.daemon, &mut c.plant)
     }
 
     /// The file again, tables included.
     pub fn to_toml(&self) -> String {
-        match self {
-            System::Planar(c) => c.to_toml_string(),
-            System::Spatial(s) => s.config.to_toml(),
-        }
+        self.config().to_toml()
     }
 
     /// The file's `[task]`, to print or serialise as the file has it.
     pub fn task(&self) -> TaskRef<'_> {
-        match self {
-            System::Planar(c) => TaskRef::Planar(&c.task),
-            System::Spatial(s) => TaskRef::Spatial(&s.config.task),
+        match &self.config().robot {
+            Robot::Planar(p) => TaskRef::Planar(&p.task),
+            Robot::Spatial(s) => TaskRef::Spatial(&s.task),
         }
     }
 
@@ -554,10 +520,21 @@ pub enum TaskRef<'a> {
 }
 
 impl SpatialSystem {
+    /// The robot's own sections (`[robot]`, `[task]`, `[[obstacles]]`, `[command]`).
+    pub fn own(&self) -> &crate::config::SpatialRobot {
+        self.config.spatial_part()
+    }
+
+    pub fn own_mut(&mut self) -> &mut crate::config::SpatialRobot {
+        self.config
+            .spatial_mut()
+            .expect("a robot's set-up holds a robot's config")
+    }
+
     /// Who the arm is: the chain's name and a fingerprint of its numbers.
     pub fn identity(&self) -> Identity {
         let c = &self.chain;
-        let r = &self.config.robot;
+        let r = &self.config.spatial_part().robot;
         // Debug prints every float exactly (shortest round-trip form), so equal text is equal
         // numbers; the description string is left out, so a copy of the URDF elsewhere agrees.
         let text = format!("{:?}|{:?}|{:?}", c, r.tool, r.link_radii);

@@ -7,7 +7,7 @@
 use super::System;
 use crate::basics::ConfigError;
 use crate::config::spatial::SphereEntry;
-use crate::config::ObstacleConfig;
+use crate::config::{ObstacleConfig, Robot};
 
 /// One obstacle as listed: its centre (2 or 3 numbers), radius and margin (m).
 #[derive(Clone, Debug, PartialEq)]
@@ -20,9 +20,9 @@ pub struct ObstacleRow {
 impl System {
     /// How many numbers place an obstacle's centre: 2 (a disc in the plane) or 3 (a sphere).
     pub fn obstacle_dims(&self) -> usize {
-        match self {
-            System::Planar(_) => 2,
-            System::Spatial(_) => 3,
+        match self.config().robot {
+            Robot::Planar(_) => 2,
+            Robot::Spatial(_) => 3,
         }
     }
 
@@ -33,14 +33,13 @@ impl System {
             radius,
             margin,
         };
-        match self {
-            System::Planar(c) => c
+        match &self.config().robot {
+            Robot::Planar(p) => p
                 .obstacles
                 .iter()
                 .map(|o| row(&o.center, o.radius, o.margin))
                 .collect(),
-            System::Spatial(s) => s
-                .config
+            Robot::Spatial(s) => s
                 .obstacles
                 .iter()
                 .map(|o| row(&o.center, o.radius, o.margin))
@@ -75,24 +74,24 @@ impl System {
                 &format!("{dims} numbers on this arm"),
             ));
         }
-        match self {
-            System::Planar(c) => {
+        match &mut self.config_mut().robot {
+            Robot::Planar(p) => {
                 let o = ObstacleConfig {
                     center: [center[0], center[1]],
                     radius,
                     margin,
                 };
                 o.validate("obstacle")?;
-                c.obstacles.push(o);
+                p.obstacles.push(o);
             }
-            System::Spatial(s) => {
+            Robot::Spatial(s) => {
                 let o = SphereEntry {
                     center: [center[0], center[1], center[2]],
                     radius,
                     margin,
                 };
                 o.validate("obstacle")?;
-                s.config.obstacles.push(o);
+                s.obstacles.push(o);
             }
         }
         Ok(())
@@ -100,21 +99,21 @@ impl System {
 
     /// Removes every obstacle (a client's `--obstacle` flags replace the file's).
     pub fn clear_obstacles(&mut self) {
-        match self {
-            System::Planar(c) => c.obstacles.clear(),
-            System::Spatial(s) => s.config.obstacles.clear(),
+        match &mut self.config_mut().robot {
+            Robot::Planar(p) => p.obstacles.clear(),
+            Robot::Spatial(s) => s.obstacles.clear(),
         }
     }
 
     /// Removes the obstacle at `index` (0-based; the caller has checked it against
     /// [`Self::obstacle_rows`]).
     pub fn remove_obstacle(&mut self, index: usize) {
-        match self {
-            System::Planar(c) => {
-                c.obstacles.remove(index);
+        match &mut self.config_mut().robot {
+            Robot::Planar(p) => {
+                p.obstacles.remove(index);
             }
-            System::Spatial(s) => {
-                s.config.obstacles.remove(index);
+            Robot::Spatial(s) => {
+                s.obstacles.remove(index);
             }
         }
     }

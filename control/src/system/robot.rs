@@ -38,9 +38,9 @@ impl System {
     pub fn device_limits<const N: usize>(&self) -> Result<JointLimits<N>, ConfigError> {
         match self.robot() {
             Some(s) => s
-                .config
+                .own()
                 .command
-                .limits::<N>(&s.chain, &s.config.robot.description),
+                .limits::<N>(&s.chain, &s.own().robot.description),
             None => Ok(JointLimits::NONE),
         }
     }

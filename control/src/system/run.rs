@@ -58,7 +58,7 @@ impl System {
     pub fn robot_name(&self) -> String {
         match self {
             System::Planar(_) => crate::config::planar_file::PLANAR_ROBOT.into(),
-            System::Spatial(s) => s.config.robot.description.clone(),
+            System::Spatial(s) => s.own().robot.description.clone(),
         }
     }
 
@@ -66,8 +66,8 @@ impl System {
     /// always a position).
     pub fn task_name(&self) -> String {
         match self {
-            System::Planar(c) => format!("position {}", c.task.path),
-            System::Spatial(s) => format!("{} {}", s.config.task.kind, s.config.task.path),
+            System::Planar(c) => format!("position {}", c.planar_part().task.path),
+            System::Spatial(s) => format!("{} {}", s.own().task.kind, s.own().task.path),
         }
     }
 
@@ -89,7 +89,11 @@ impl System {
     pub fn fingerprint_text(&self) -> String {
         match self {
             System::Planar(c) => crate::config::file::older_debug(c),
-            System::Spatial(s) => format!("{:?} {:?}", s.config, s.chain),
+            System::Spatial(s) => format!(
+                "{} {:?}",
+                crate::config::file::robot_debug(&s.config),
+                s.chain
+            ),
         }
     }
 }

@@ -42,7 +42,7 @@ impl Scene {
         let drawing = system.drawing();
         let urdf = drawing.generated_urdf.clone().or_else(|| {
             let r = system.robot()?;
-            rt::robot::text(&r.config.robot.description).ok()
+            rt::robot::text(&r.own().robot.description).ok()
         });
         let obstacles = system.obstacle_rows().into_iter().map(|o| {
             let z = o.center.get(2).copied().unwrap_or(0.0);

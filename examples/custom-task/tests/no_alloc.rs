@@ -2,8 +2,8 @@
 //! task allocates nothing (a counting global allocator, armed per thread; its own test binary,
 //! since a `#[global_allocator]` applies to the whole binary).
 
-use control::config::spatial::SpatialConfig;
 use control::sim::Simulation;
+use control::Config;
 use rt::alloc_count::{allocations, Counting};
 
 #[global_allocator]
@@ -22,7 +22,7 @@ fn the_counter_sees_allocations() {
 fn the_panda_step_with_the_posture_task_allocates_nothing() {
     control::secondary::custom::register(&[(custom_task::NAME, &custom_task::PANDA_READY)])
         .unwrap();
-    let mut cfg = SpatialConfig::from_toml(include_str!("../panda-posture.toml")).unwrap();
+    let mut cfg = Config::from_robot_toml(include_str!("../panda-posture.toml")).unwrap();
     cfg.feedback.t_on = 0.5;
     let chain = rt::robot::load("panda", None, None).unwrap();
     let s = cfg.setup::<7>(&chain).unwrap();

@@ -2,8 +2,8 @@
 //! the arm nearer its ready posture than the preset's centring task does, and the hand tracks as
 //! well; and a config naming a task nobody registered is refused by name.
 
-use control::config::spatial::SpatialConfig;
 use control::sim::run;
+use control::Config;
 
 const CONFIG: &str = include_str!("../panda-posture.toml");
 
@@ -18,7 +18,7 @@ fn register() {
 
 /// Mean distance from the ready posture over the last 10 s of 40, and the RMS tracking error.
 fn run_with(secondary: &str) -> (f64, f64) {
-    let mut cfg = SpatialConfig::from_toml(CONFIG).unwrap();
+    let mut cfg = Config::from_robot_toml(CONFIG).unwrap();
     cfg.law.secondary = secondary.into();
     let chain = rt::robot::load("panda", None, None).unwrap();
     let s = cfg.setup::<7>(&chain).unwrap();
@@ -55,7 +55,7 @@ fn the_posture_task_keeps_the_arm_nearer_its_ready_posture_and_tracks_as_well() 
 #[test]
 fn a_config_naming_an_unregistered_task_is_refused_with_the_names_it_could_take() {
     register();
-    let mut cfg = SpatialConfig::from_toml(CONFIG).unwrap();
+    let mut cfg = Config::from_robot_toml(CONFIG).unwrap();
     cfg.law.secondary = "elbow-up".into();
     let chain = rt::robot::load("panda", None, None).unwrap();
     let Err(e) = cfg.setup::<7>(&chain) else {

@@ -104,7 +104,7 @@ impl MujocoPlant {
         let n = chain.dof();
         let joints: Vec<String> = chain.joints.iter().map(|j| j.name.clone()).collect();
         let spheres: Vec<([f64; 3], f64)> = s
-            .config
+            .own()
             .obstacles
             .iter()
             .map(|o| (o.center, o.radius))
@@ -114,10 +114,10 @@ impl MujocoPlant {
         let own;
         let source = match &cfg.mujoco.model {
             Some(p) => load::Source::File(p),
-            None => match control::model::builtin(&s.config.robot.description) {
+            None => match control::model::builtin(&s.own().robot.description) {
                 Ok(text) => load::Source::Urdf(text),
                 Err(_) => {
-                    own = std::path::PathBuf::from(&s.config.robot.description);
+                    own = std::path::PathBuf::from(&s.own().robot.description);
                     load::Source::File(&own)
                 }
             },
@@ -135,7 +135,7 @@ impl MujocoPlant {
             );
         }
         let limits = control::with_dof!(n, N => {
-            s.config.command.limits::<N>(chain, &s.config.robot.description)?.tau.to_vec()
+            s.own().command.limits::<N>(chain, &s.own().robot.description)?.tau.to_vec()
         });
         let excluded = built.excluded.len();
         let mut data = MjData::new(built.model);

@@ -1,0 +1,148 @@
+//! What differs between the arms' files, in one enum: the paper's planar arm (closed-form
+//! kinematics, discs in its plane) or a URDF chain (a robot section, a 3-D task, spheres and a
+//! command interface). Everything else in a [`Config`] (law, feedback, safety, sim, the
+//! processes' tables) is written once and means the same on every arm.
+//!
+//! Why an enum and not two config types: a section shared by both arms is then one field, so
+//! a feature added to it lands on every arm, and the one place that asks which arm a file
+//! describes is a `match` on [`Config::robot`].
+
+use super::command::CommandSection;
+use super::spatial::{RobotSection, TaskSection};
+use super::{ArmConfig, Config, ObstacleConfig, SphereEntry, TaskConfig};
+
+/// The arm a config describes and what belongs to that arm alone.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Robot {
+    Planar(PlanarRobot),
+    Spatial(Box<SpatialRobot>),
+}
+
+/// The paper's planar arm: `[robot] description = "planar"` (or the older `[arm]`).
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct PlanarRobot {
+    pub arm: ArmConfig,
+    pub task: TaskConfig,
+    /// `[[obstacles]]`: discs in the arm's plane.
+    pub obstacles: Vec<ObstacleConfig>,
+}
+
+/// A URDF chain: `[robot]` names it (a built-in name or a file), `[task]` is a path in space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpatialRobot {
+    pub robot: RobotSection,
+    pub task: TaskSection,
+    /// `[[obstacles]]`: spheres in the base frame.
+    pub obstacles: Vec<SphereEntry>,
+    /// The interface the daemon sends and its limiter (docs/science.md, "Commanding real arms").
+    pub command: CommandSection,
+}
+
+impl Config {
+    /// The planar arm's own part, or None for a robot.
+    pub fn planar(&self) -> Option<&PlanarRobot> {
+        match &self.robot {
+            Robot::Planar(p) => Some(p),
+            Robot::Spatial(_) => None,
+        }
+    }
+
+    pub fn planar_mut(&mut self) -> Option<&mut PlanarRobot> {
+        match &mut self.robot {
+            Robot::Planar(p) => Some(p),
+            Robot::Spatial(_) => None,
+        }
+    }
+
+    /// A robot's own part, or None for the planar arm.
+    pub fn spatial(&self) -> Option<&SpatialRobot> {
+        match &self.robot {
+            Robot::Spatial(s) => Some(s),
+            Robot::Planar(_) => None,
+        }
+    }
+
+    pub fn spatial_mut(&mut self) -> Option<&mut SpatialRobot> {
+        match &mut self.robot {
+            Robot::Spatial(s) => Some(s),
+            Robot::Planar(_) => None,
+        }
+    }
+
+    /// The planar arm's part, for the methods that only the planar arm has (its closed-form
+    /// model, its law's parameters).
+    ///
+    /// # Panics
+    /// On a robot's config: a caller that holds one asks [`crate::System`], which never calls a
+    /// planar method on it.
+    pub fn planar_part(&self) -> &PlanarRobot {
+        self.planar()
+            .expect("a planar arm's method called on a robot's config")
+    }
+
+    /// A robot's part, for the methods that only a chain has.
+    ///
+    /// # Panics
+    /// On the planar arm's config (see [`Self::planar_part`]).
+    pub fn spatial_part(&self) -> &SpatialRobot {
+        self.spatial()
+            .expect("a robot's method called on the planar arm's config")
+    }
+
+    /// The task's period T (s), on every arm.
+    pub fn period(&self) -> f64 {
+        match &self.robot {
+            Robot::Planar(p) => p.task.period,
+            Robot::Spatial(s) => s.task.period,
+        }
+    }
+
+    /// The task's radius and period (m, s), to change in place.
+    pub fn task_circle_mut(&mut self) -> (&mut f64, &mut f64) {
+        match &mut self.robot {
+            Robot::Planar(p) => (&mut p.task.radius, &mut p.task.period),
+            Robot::Spatial(s) => (&mut s.task.radius, &mut s.task.period),
+        }
+    }
+
+    /// How long the path takes to come up to speed from rest (s), to change in place.
+    pub fn task_ramp_mut(&mut self) -> &mut f64 {
+        match &mut self.robot {
+            Robot::Planar(p) => &mut p.task.ramp,
+            Robot::Spatial(s) => &mut s.task.ramp,
+        }
+    }
+
+    /// The task as text: two set-ups with the same key follow the same path.
+    pub fn task_key(&self) -> String {
+        match &self.robot {
+            Robot::Planar(p) => format!("{:?}", p.task),
+            Robot::Spatial(s) => format!("{:?}", s.task),
+        }
+    }
+
+    /// How many obstacles the set-up has (discs or spheres).
+    pub fn obstacle_count(&self) -> usize {
+        match &self.robot {
+            Robot::Planar(p) => p.obstacles.len(),
+            Robot::Spatial(s) => s.obstacles.len(),
+        }
+    }
+
+    /// Whether the law steers onto a planned clean cycle: the filter on, an arm with a
+    /// planner, and `safety.plan` on (or `auto` with an obstacle).
+    pub fn steers_onto_plan(&self) -> bool {
+        self.safety.enabled
+            && self.has_planner()
+            && self.safety.plan.steers(self.obstacle_count() > 0)
+    }
+
+    /// The file again in the form `chaosctl config` prints: the shared form for the planar arm
+    /// ([`super::planar_file`]), a robot's file for a chain.
+    pub fn to_toml(&self) -> String {
+        match &self.robot {
+            Robot::Planar(_) => super::planar_file::write(self),
+            Robot::Spatial(_) => super::file::robot_text(self),
+        }
+    }
+}
