@@ -362,6 +362,24 @@ impl Config {
         Ok(c)
     }
 
+    /// Reads any arm's file (no validation): a robot's when its `[robot]` names a chain, else
+    /// the planar arm's in either of its forms.
+    ///
+    /// ```
+    /// use control::Config;
+    /// let panda = Config::robot_preset("panda").unwrap();
+    /// assert_eq!(Config::read_any(&panda.to_toml()).unwrap(), panda);
+    /// let paper = Config::preset("paper").unwrap();
+    /// assert_eq!(Config::read_any(&paper.to_toml()).unwrap(), paper);
+    /// ```
+    pub fn read_any(text: &str) -> Result<Self, ConfigError> {
+        if spatial::is_spatial(text) {
+            Self::from_robot_toml(text)
+        } else {
+            Self::from_toml_str(text)
+        }
+    }
+
     /// τ (s): the file's, or the task's period.
     pub fn tau(&self) -> f64 {
         self.feedback.tau_for(self.period())
@@ -542,24 +560,11 @@ impl Config {
     pub fn law_params(&self) -> LawParams {
         let (c, p) = (&self.law, self.planar_part());
         LawParams {
-            core: LawCore {
-                kp: c.kp,
-                kv: c.kv,
-                alpha: c.alpha,
-                // Validation refuses a name no program registered.
-                secondary: c.secondary.task().unwrap_or(Secondary::None),
-                damping_threshold: c.damping_threshold,
-                damping_max: c.damping_max,
-                mu: self.feedback.mu,
-                tau: self.tau(),
-                t_on: self.feedback.t_on,
-                feedback: self.feedback.enabled,
-                projection: self.feedback.projection.into(),
-                auto_mu: self.feedback.auto,
-                safety: self.safety.params(self.n()),
-                track_loss: c.track_loss,
-                pause: false,
-            },
+            // Validation refuses a name no program registered.
+            core: self.law_core(
+                c.secondary.task().unwrap_or(Secondary::None),
+                self.safety.params(self.n()),
+            ),
             task: Path::in_the_plane(p.task.path, p.task.center, p.task.radius, p.task.period)
                 .with_ramp(p.task.ramp),
             obstacles: p
@@ -572,6 +577,29 @@ impl Config {
                 PotentialWeights { w1, w2 }
             },
             steer: None,
+        }
+    }
+
+    /// The part of the law's parameters every arm shares, from the shared sections: the
+    /// secondary task and the limits come from the caller (a robot's from its chain).
+    pub fn law_core(&self, secondary: Secondary, safety: crate::safety::SafetyParams) -> LawCore {
+        let (c, f) = (&self.law, &self.feedback);
+        LawCore {
+            kp: c.kp,
+            kv: c.kv,
+            alpha: c.alpha,
+            secondary,
+            damping_threshold: c.damping_threshold,
+            damping_max: c.damping_max,
+            mu: f.mu,
+            tau: self.tau(),
+            t_on: f.t_on,
+            feedback: f.enabled,
+            projection: f.projection.into(),
+            auto_mu: f.auto,
+            safety,
+            track_loss: c.track_loss,
+            pause: false,
         }
     }
 

@@ -14,7 +14,7 @@ use crate::basics::ConfigError;
 use crate::basics::MAX_JOINTS;
 use crate::command::{DEFAULT_QDD_MAX, PANDA_QDD_MAX};
 use crate::law::spatial::SpatialParams;
-use crate::law::{LawCore, Secondary};
+use crate::law::Secondary;
 use crate::model::Chain;
 use crate::safety::SafetyParams;
 use crate::secondary::spatial::SphereSet;
@@ -390,23 +390,7 @@ impl Config {
         let spheres: SphereSet = r.obstacles.iter().map(SphereEntry::to_ball).collect();
         let joint_weights = crate::law::metric::weights(&self.law.metric, &safety, chain.dof())?;
         let params = SpatialParams {
-            core: LawCore {
-                kp: self.law.kp,
-                kv: self.law.kv,
-                alpha: self.law.alpha,
-                secondary: self.secondary()?,
-                damping_threshold: self.law.damping_threshold,
-                damping_max: self.law.damping_max,
-                mu: self.feedback.mu,
-                tau: self.feedback.tau_for(r.task.period),
-                t_on: self.feedback.t_on,
-                feedback: self.feedback.enabled,
-                projection: self.feedback.projection.into(),
-                auto_mu: self.feedback.auto,
-                safety,
-                track_loss: self.law.track_loss,
-                pause: false,
-            },
+            core: self.law_core(self.secondary()?, safety),
             task: SpatialTask {
                 kind: self.task_kind()?,
                 path,

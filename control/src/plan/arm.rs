@@ -12,18 +12,13 @@ use crate::tick_law::TickLaw;
 /// Whether the set-up steers onto its planned cycle now (`safety.plan`: the filter on, an arm
 /// with a planner and, for `auto`, an obstacle), and the pull's frequency (Hz).
 pub fn plan_asked(system: &System) -> (bool, f64) {
-    match system {
-        System::Planar(c) => (c.steers_onto_plan(), c.safety.plan_hz),
-        System::Spatial(s) => (s.config.steers_onto_plan(), s.config.safety.plan_hz),
-    }
+    let c = system.config();
+    (c.steers_onto_plan(), c.safety.plan_hz)
 }
 
 /// Whether the arm has a cycle planner: the fixed-base 3-link planar arm, or a URDF chain.
 pub fn has_planner(system: &System) -> bool {
-    match system {
-        System::Planar(c) => c.has_planner(),
-        System::Spatial(_) => true,
-    }
+    system.config().has_planner()
 }
 
 /// A cycle for `system` from task time `t0`, near the posture `q_now` when given (else the

@@ -89,10 +89,7 @@ impl System {
     /// [`Self::parse`] without the validation, for a caller that changes the set-up first (a
     /// command's flags) and validates what it runs. The chain a `[robot]` names is loaded here.
     pub fn read(text: &str, resolve: Resolve) -> Result<Self, ConfigError> {
-        if !is_spatial(text) {
-            return Ok(System::Planar(Config::from_toml_str(text)?));
-        }
-        Self::with_chain(Config::from_robot_toml(text)?, resolve)
+        Self::with_chain(Config::read_any(text)?, resolve)
     }
 
     /// A built-in set-up, validated: the planar presets and the spatial ones (`panda`, …).
