@@ -10,10 +10,9 @@
 //! shards keep matching.
 
 use super::command::CommandSection;
-use super::spatial::{RobotSection, TaskSection};
 use super::{
-    ArmConfig, Config, FeedbackSection, LawSection, PlanarRobot, Robot, SimSection, SpatialRobot,
-    SphereEntry, TaskConfig,
+    ArmConfig, Config, FeedbackSection, LawSection, PlanarRobot, Robot, RobotSection, SimSection,
+    SpatialRobot, SphereEntry, TaskConfig, TaskSection,
 };
 use crate::basics::{excerpt, ConfigError};
 use crate::safety::SafetySection;
@@ -198,4 +197,27 @@ pub(crate) fn robot_text(c: &Config) -> String {
 /// The `Debug` text of a robot's config in its file's layout, for a fingerprint.
 pub fn robot_debug(c: &Config) -> String {
     format!("{:?}", robot::SpatialConfig::from(c))
+}
+
+impl Config {
+    /// Parses a robot's file (no validation: that needs its chain, [`crate::System`]).
+    pub fn from_robot_toml(text: &str) -> Result<Self, ConfigError> {
+        if text.len() > crate::basics::MAX_CONFIG_BYTES {
+            return Err(ConfigError::Parse(format!(
+                "the config is {} bytes; at most {} are accepted",
+                text.len(),
+                crate::basics::MAX_CONFIG_BYTES
+            )));
+        }
+        super::file::read_robot(text)
+    }
+
+    /// The file again in the form `chaosctl config` prints: the shared form for the planar arm
+    /// ([`super::planar_file`]), a robot's file for a chain.
+    pub fn to_toml(&self) -> String {
+        match &self.robot {
+            Robot::Planar(_) => super::planar_file::write(self),
+            Robot::Spatial(_) => robot_text(self),
+        }
+    }
 }

@@ -22,7 +22,7 @@ pub mod stability;
 pub use feedback::{FeedbackSection, MAX_TAU};
 pub use law::LawSection;
 pub use obstacles::{ObstacleConfig, ObstacleEntry, SphereEntry};
-pub use robot::{PlanarRobot, Robot, SpatialRobot};
+pub use robot::{PlanarRobot, Robot, RobotSection, SpatialRobot, TaskSection};
 pub use sim::SimSection;
 
 use crate::arm::{ArmModel, FixedArm, FloatingArm, VecN};

@@ -8,8 +8,9 @@
 //! describes is a `match` on [`Config::robot`].
 
 use super::command::CommandSection;
-use super::spatial::{RobotSection, TaskSection};
 use super::{ArmConfig, Config, ObstacleConfig, SphereEntry, TaskConfig};
+use crate::task::Shape;
+use serde::{Deserialize, Serialize};
 
 /// The arm a config describes and what belongs to that arm alone.
 #[derive(Clone, Debug, PartialEq)]
@@ -136,13 +137,43 @@ impl Config {
             && self.has_planner()
             && self.safety.plan.steers(self.obstacle_count() > 0)
     }
+}
 
-    /// The file again in the form `chaosctl config` prints: the shared form for the planar arm
-    /// ([`super::planar_file`]), a robot's file for a chain.
-    pub fn to_toml(&self) -> String {
-        match &self.robot {
-            Robot::Planar(_) => super::planar_file::write(self),
-            Robot::Spatial(_) => super::file::robot_text(self),
-        }
-    }
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotSection {
+    /// A built-in robot's name (`chaosctl robot show panda`) or a URDF file's path.
+    pub description: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tip: Option<String>,
+    /// The tool point in the tip link's frame (m).
+    #[serde(default)]
+    pub tool: [f64; 3],
+    /// Capsule radius per link (m); default 0.05 each.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub link_radii: Option<Vec<f64>>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TaskSection {
+    /// "position" (m = 3) or "pose" (m = 6).
+    pub kind: String,
+    /// The path's shape, as on every arm.
+    pub path: Shape,
+    /// Centre (m, base frame); default: where the tool starts, so the path's start point
+    /// (c + r·u) is one radius above it along u.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub center: Option<[f64; 3]>,
+    pub normal: [f64; 3],
+    pub radius: f64,
+    pub period: f64,
+    /// Pose task: the tool orientation as roll, pitch, yaw (rad); default: the start's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orientation_rpy: Option<[f64; 3]>,
+    /// Seconds over which the path speeds up from rest ([`crate::task::ramp`]); 0: full speed.
+    #[serde(default, skip_serializing_if = "crate::config::is_zero")]
+    pub ramp: f64,
 }

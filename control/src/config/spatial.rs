@@ -22,54 +22,14 @@ use crate::secondary::spatial::MAX_SPHERES;
 use crate::task::pose::SpatialTask;
 use crate::task::pose::TaskKind;
 use crate::task::Path;
-use crate::task::Shape;
 use crate::task::Vec3;
 use nalgebra::{Rotation3, SVector};
-use serde::{Deserialize, Serialize};
 
 /// The Panda's ready pose, a comfortable start in the middle of its workspace.
 pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RobotSection {
-    /// A built-in robot's name (`chaosctl robot show panda`) or a URDF file's path.
-    pub description: String,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub base: Option<String>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub tip: Option<String>,
-    /// The tool point in the tip link's frame (m).
-    #[serde(default)]
-    pub tool: [f64; 3],
-    /// Capsule radius per link (m); default 0.05 each.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub link_radii: Option<Vec<f64>>,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TaskSection {
-    /// "position" (m = 3) or "pose" (m = 6).
-    pub kind: String,
-    /// The path's shape, as on every arm.
-    pub path: Shape,
-    /// Centre (m, base frame); default: where the tool starts, so the path's start point
-    /// (c + r·u) is one radius above it along u.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub center: Option<[f64; 3]>,
-    pub normal: [f64; 3],
-    pub radius: f64,
-    pub period: f64,
-    /// Pose task: the tool orientation as roll, pitch, yaw (rad); default: the start's.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub orientation_rpy: Option<[f64; 3]>,
-    /// Seconds over which the path speeds up from rest ([`crate::task::ramp`]); 0: full speed.
-    #[serde(default, skip_serializing_if = "crate::config::is_zero")]
-    pub ramp: f64,
-}
-
 pub use super::obstacles::SphereEntry;
+pub use super::robot::{RobotSection, TaskSection};
 
 fn positive(field: &str, v: f64) -> Result<(), ConfigError> {
     if v.is_finite() && v > 0.0 {
@@ -142,18 +102,6 @@ impl Config {
             *c.task_ramp_mut() = 1.0;
         }
         Some(c)
-    }
-
-    /// Parses a robot's file (no validation: that needs its chain, [`crate::System`]).
-    pub fn from_robot_toml(text: &str) -> Result<Self, ConfigError> {
-        if text.len() > crate::basics::MAX_CONFIG_BYTES {
-            return Err(ConfigError::Parse(format!(
-                "the config is {} bytes; at most {} are accepted",
-                text.len(),
-                crate::basics::MAX_CONFIG_BYTES
-            )));
-        }
-        super::file::read_robot(text)
     }
 
     /// One line for titles: robot, task, secondary task, projection.

@@ -513,7 +513,7 @@ impl System {
 #[serde(untagged)]
 pub enum TaskRef<'a> {
     Planar(&'a crate::config::TaskConfig),
-    Spatial(&'a crate::config::spatial::TaskSection),
+    Spatial(&'a crate::config::TaskSection),
 }
 
 impl SpatialSystem {
