@@ -139,3 +139,12 @@ fn without_spheres_a_slow_cycle_is_found() {
     // Every joint well inside the Panda's slowest rate limit (2.175 rad/s).
     assert!(c.max_rate > 0.0 && c.max_rate < 2.175, "{}", c.max_rate);
 }
+
+#[test]
+fn a_robot_config_given_to_the_planar_planner_is_refused_not_a_panic() {
+    let panda = Config::robot_preset("panda").unwrap();
+    let e = control::plan::planar::PlanarProblem::from_config(&panda, 0.0, None).unwrap_err();
+    assert!(e.to_string().contains("planar planner"), "{e}");
+    let e = control::plan::plan_config(&panda, 0.0, None).unwrap_err();
+    assert!(e.to_string().contains("spatial robot"), "{e}");
+}

@@ -137,7 +137,7 @@ pub fn plan_config_with(
 ) -> Result<Planned, PlanError> {
     // The cycle is one of the periodic loop: the path's start-up ramp is not part of it.
     let periodic;
-    let cfg = if cfg.planar_part().task.ramp > 0.0 {
+    let cfg = if cfg.planar().is_some_and(|p| p.task.ramp > 0.0) {
         let mut c = cfg.clone();
         *c.task_ramp_mut() = 0.0;
         periodic = c;
@@ -316,7 +316,12 @@ impl planar::PlanarProblem {
         t0: f64,
         q_now: Option<[f64; 3]>,
     ) -> Result<Self, PlanError> {
-        let arm = &cfg.planar_part().arm;
+        let Some(planar) = cfg.planar() else {
+            return Err(PlanError::Config(crate::basics::ConfigError::Spatial(
+                "the config given to the planar planner".into(),
+            )));
+        };
+        let arm = &planar.arm;
         if cfg.n() != 3 || arm.model != crate::config::ModelKind::Fixed {
             return Err(PlanError::PlanarArm {
                 links: cfg.n(),
