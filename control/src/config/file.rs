@@ -105,12 +105,15 @@ pub(crate) fn read_older(text: &str) -> Result<Config, ConfigError> {
 /// assert!(text.contains("[[control.obstacles]]"));
 /// assert_eq!(Config::parse(&text).unwrap(), c);
 /// ```
+///
+/// # Panics
+/// On a robot's config (it has no older form), as [`older_debug`] does.
 pub fn older_text(c: &Config) -> String {
     toml::to_string(&older::Config::from(c)).unwrap_or_default()
 }
 
 /// The `Debug` text of `c` in the older layout: a planar shard grid's fingerprint, kept as it
-/// was so that shards written before still match.
+/// was so that shards written before still match. The planar arm's only (see [`older_text`]).
 pub fn older_debug(c: &Config) -> String {
     format!("{:?}", older::Config::from(c))
 }
@@ -195,6 +198,9 @@ pub(crate) fn robot_text(c: &Config) -> String {
 }
 
 /// The `Debug` text of a robot's config in its file's layout, for a fingerprint.
+///
+/// # Panics
+/// On the planar arm's config ([`older_debug`] is its fingerprint).
 pub fn robot_debug(c: &Config) -> String {
     format!("{:?}", robot::SpatialConfig::from(c))
 }

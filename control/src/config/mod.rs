@@ -228,7 +228,7 @@ impl From<ProjectionKind> for Projection {
 
 /// The whole set-up in memory, for every arm: what is the arm's own in [`Robot`], every shared
 /// section once. Files are read and written through [`planar_file`] (the planar arm's shared
-/// form), [`file`] (its older form and a robot's file); `[daemon]` and `[plant]` are owned and
+/// form), [`file`](mod@file) (its older form and a robot's file); `[daemon]` and `[plant]` are owned and
 /// validated by those programs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Config {

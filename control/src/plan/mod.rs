@@ -238,6 +238,9 @@ impl Unusable {
 /// Where the config's arm is at task time `at` (s), simulated from its start without steering:
 /// the posture a planner asked at that moment starts from. Returns the step's time and the
 /// posture.
+///
+/// # Panics
+/// On a robot's config: the planar arm's only, as [`crate::config::Config::n`] is.
 pub fn posture_at(cfg: &crate::config::Config, at: f64) -> (f64, [f64; 3]) {
     let mut sim = crate::sim::Simulation::new(
         cfg.model::<3>(),

@@ -17,6 +17,9 @@ use crate::system::{SpatialSystem, System};
 /// [`Config::law_params`] with the steering onto a planned clean cycle when `safety.plan` asks
 /// for it (the filter on, the fixed-base 3-link arm), planned from the start posture; and
 /// why there is none, when the planner found none (the law then runs without it).
+///
+/// # Panics
+/// On a robot's config ([`setup_planned`] is a robot's), as [`Config::law_params`] does.
 pub fn law_params_planned(cfg: &Config) -> (LawParams, Option<Blocked>) {
     let mut p = cfg.law_params();
     let (steering, blocked) = planned_steering(&System::Planar(cfg.clone()));
