@@ -62,9 +62,14 @@ enum Action {
         /// Added to each radius before it is rounded up to the millimetre (m).
         #[arg(long, default_value_t = 0.0)]
         margin: f64,
-        /// One JSON object: link_radii (rounded), fitted (exact), bodies.
+        /// One JSON object: link_radii (rounded), fitted (exact), bodies (and capsules).
         #[arg(long)]
         json: bool,
+        /// Fit capsules with end points of their own, along each link's geometry, and print
+        /// them as `[robot] capsules` (far tighter than radii about the joint origins where a
+        /// housing hangs off the joint line).
+        #[arg(long)]
+        capsules: bool,
     },
 }
 
@@ -103,6 +108,7 @@ pub fn run(cmd: RobotCmd) -> anyhow::Result<()> {
             q,
             margin,
             json,
+            capsules,
         } => {
             let chain = which.load()?;
             let n = chain.dof();
@@ -121,7 +127,8 @@ pub fn run(cmd: RobotCmd) -> anyhow::Result<()> {
                 }
                 None => [0.0; 3],
             };
-            crate::robot_fit::run(&chain, &model, &q, tool, margin, json)
+            let out = crate::robot_fit::Output { json, capsules };
+            crate::robot_fit::run(&chain, &model, &q, tool, margin, out)
         }
         Action::Show { which } => {
             let chain = which.load()?;

@@ -1,6 +1,5 @@
 //! The spatial law's pieces against finite differences, and the closed loop on the Panda.
 
-use control::arm::spatial::Points;
 use control::arm::spatial::*;
 use control::law::spatial::*;
 use control::model::{builtin, Chain};
@@ -27,6 +26,35 @@ fn panda(tool: Vec3) -> SpatialArm<7> {
     arm.tool = tool;
     arm.radii = [0.06, 0.06, 0.06, 0.06, 0.05, 0.05, 0.04];
     arm
+}
+
+/// The same arm with capsules of their own: each link's ends off its joint line, in its body's
+/// frame (`robot.capsules`), so a point's motion on its body is checked off the axes too.
+fn panda_own_capsules(tool: Vec3) -> SpatialArm<7> {
+    let mut arm = panda(tool);
+    arm.ends = Some(std::array::from_fn(|j| {
+        let s = j as f64;
+        [
+            Vec3::new(0.03, -0.02 * s, -0.05),
+            Vec3::new(-0.04, 0.05, 0.08 + 0.01 * s),
+        ]
+    }));
+    arm
+}
+
+/// The capsules' end points at `q`, `qd`.
+fn capsule_points(arm: &SpatialArm<7>, q: &V7, qd: &V7) -> CapsulePoints<7> {
+    let k = kin(arm, q, qd);
+    let mut store = CapsulePoints::<7>::default();
+    arm.capsule_points(&k, qd, &mut store);
+    store
+}
+
+fn view(points: &CapsulePoints<7>) -> control::arm::point::Links<'_, 7, 3> {
+    match points {
+        CapsulePoints::Chain(p) => control::arm::point::Links::chain(p),
+        CapsulePoints::Pairs(a, b) => control::arm::point::Links::pairs(a, b),
+    }
 }
 
 fn state(seed: u64) -> (V7, V7) {
@@ -104,17 +132,20 @@ fn manipulability_gradient_matches_finite_differences_for_3_and_6_rows() {
 
 #[test]
 fn centring_and_potential_gradients_match_finite_differences() {
-    let arm = panda(Vec3::new(0.0, 0.0, 0.1));
+    for arm in [
+        panda(Vec3::new(0.0, 0.0, 0.1)),
+        panda_own_capsules(Vec3::new(0.0, 0.0, 0.1)),
+    ] {
+        potential_gradient_matches(&arm);
+    }
+}
+
+fn potential_gradient_matches(arm: &SpatialArm<7>) {
     let (lo, hi) = (
         [-2.9, -1.8, -2.9, -3.1, -2.9, 0.0, -2.9],
         [2.9, 1.8, 2.9, -0.1, 2.9, 3.8, 2.9],
     );
-    let points_at = |q: &V7| {
-        let k = kin(&arm, q, &V7::zeros());
-        let mut p: Points<7> = [Default::default(); control::MAX_JOINTS + 1];
-        arm.capsule_points(&k, &V7::zeros(), &mut p);
-        p
-    };
+    let points_at = |q: &V7| capsule_points(arm, q, &V7::zeros());
     for seed in 0..6 {
         let (q, _) = state(seed);
         let (_, g) = centring(&q, &lo, &hi);
@@ -125,42 +156,51 @@ fn centring_and_potential_gradients_match_finite_differences() {
         let mut spheres = SphereSet::default();
         spheres
             .push(Sphere {
-                center: p[3].pos + Vec3::new(0.05, 0.03, -0.02),
+                center: view(&p).link(3).0.pos + Vec3::new(0.05, 0.03, -0.02),
                 radius: 0.05,
                 margin: 0.1,
             })
             .unwrap();
-        let (h, g) = potential(&arm, &p, &spheres, 2.0);
+        let (h, g) = potential(arm, &view(&p), &spheres, 2.0);
         assert!(h > 0.0);
-        let fd = fd_gradient(|q| potential(&arm, &points_at(q), &spheres, 2.0).0, &q);
+        let fd = fd_gradient(
+            |q| potential(arm, &view(&points_at(q)), &spheres, 2.0).0,
+            &q,
+        );
         assert!((g - fd).norm() < 1e-6 * (1.0 + fd.norm()), "{g} {fd}");
     }
 }
 
 #[test]
 fn capsule_rows_give_the_barrier_second_derivative() {
-    let arm = panda(Vec3::new(0.0, 0.0, 0.1));
+    for arm in [
+        panda(Vec3::new(0.0, 0.0, 0.1)),
+        panda_own_capsules(Vec3::new(0.0, 0.0, 0.1)),
+    ] {
+        assert_eq!(capsule_rows_match(&arm), 48);
+    }
+}
+
+/// Rows of three links against a ball off their middles and ends, against finite differences of
+/// the barrier along a motion; how many were checked.
+fn capsule_rows_match(arm: &SpatialArm<7>) -> usize {
     let g = BarrierGains {
         k0: 100.0,
         k1: 20.0,
         push_out_speed: 0.1,
     };
     let h_of = |q: &V7, qd: &V7, j: usize, c: Vec3| {
-        let k = kin(&arm, q, qd);
-        let mut p: Points<7> = [Default::default(); control::MAX_JOINTS + 1];
-        arm.capsule_points(&k, qd, &mut p);
-        segment_row(&p[j], &p[j + 1], c, 0.1, g).unwrap()
+        let p = capsule_points(arm, q, qd);
+        let (a, b) = view(&p).link(j);
+        segment_row(a, b, c, 0.1, g).unwrap()
     };
     let mut checked = 0;
     for seed in 0..8 {
         let (q, qd) = state(seed);
         let qdd = V7::from_fn(|i, _| 0.3 * (i as f64 - 3.0));
-        let k = kin(&arm, &q, &qd);
+        let k = kin(arm, &q, &qd);
         for j in [1usize, 3, 5] {
-            let (a, b) = (
-                arm.capsule_positions(&k)[j],
-                arm.capsule_positions(&k)[j + 1],
-            );
+            let [a, b] = arm.capsule_segments(&k)[j];
             // Off the middle of the link (interior piece) and off its far end (point piece).
             for c in [
                 (a + b) * 0.5 + Vec3::new(0.2, -0.1, 0.15),
@@ -185,7 +225,7 @@ fn capsule_rows_give_the_barrier_second_derivative() {
             }
         }
     }
-    assert_eq!(checked, 48);
+    checked
 }
 
 #[test]

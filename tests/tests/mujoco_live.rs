@@ -352,6 +352,103 @@ fn capsules_fitted_to_the_meshes_keep_them_clear_where_the_filter_says_so() {
     assert!(row[10].parse::<f64>().unwrap() >= 0.02 - 1e-4, "{csv}");
 }
 
+/// `chaosctl robot fit-radii --capsules`: capsules with end points of their own along each
+/// link's meshes, far thinner where a housing hangs off the joint line (link 5: under 0.12 m
+/// against 0.27 m about the wrist), the same in their links' frames at every pose, and the
+/// study on them: MuJoCo sees the meshes as clear as the capsules.
+#[test]
+fn capsules_of_their_own_hold_the_meshes_tightly_and_keep_them_clear() {
+    let Some(model) = mujoco() else { return };
+    let dir = TempDir::new(&unique_namespace("mujoco-own"));
+    let fit = |q: &str| -> Value {
+        let o = Command::new(bin("chaosctl"))
+            .args(["robot", "fit-radii", "panda", "--tool", "0,0,0.1034"])
+            .args(["--capsules", "--json"])
+            .arg(format!("--q={q}"))
+            .arg("--mujoco-model")
+            .arg(&model)
+            .output()
+            .unwrap();
+        let out = String::from_utf8_lossy(&o.stdout).to_string();
+        assert!(
+            o.status.success(),
+            "{out}{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        serde_json::from_str(&out).unwrap()
+    };
+    let (a, b) = (
+        fit("0,-0.785,0,-2.356,0,1.571,0.785"),
+        fit("0.5,0.2,-0.7,-1.2,1.1,2.5,-0.4"),
+    );
+    let capsules = |v: &Value| -> Vec<(Vec<f64>, Vec<f64>, f64)> {
+        let f = |x: &Value| {
+            x.as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect()
+        };
+        v["capsules"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| (f(&c["a"]), f(&c["b"]), c["radius"].as_f64().unwrap()))
+            .collect()
+    };
+    let (ca, cb) = (capsules(&a), capsules(&b));
+    assert_eq!(ca.len(), 7, "{a}");
+    let fitted: Vec<f64> = a["fitted"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    for (j, (x, y)) in ca.iter().zip(&cb).enumerate() {
+        // Rigid with its link: the same in the link's frame at both poses (to the printing's
+        // 0.1 mm and the radius's millimetre).
+        for k in 0..3 {
+            assert!(
+                (x.0[k] - y.0[k]).abs() < 2e-4 && (x.1[k] - y.1[k]).abs() < 2e-4,
+                "link {j}: {a}
+{b}"
+            );
+        }
+        assert!(
+            (x.2 - y.2).abs() <= 1e-3 + 1e-12,
+            "link {j}: {a}
+{b}"
+        );
+        // On the Panda no capsule of its own is thicker than the one about the joint origins.
+        assert!(x.2 <= fitted[j] + 1e-3 + 1e-4 + 1e-12, "link {j}: {a}");
+    }
+    assert!(ca[4].2 < 0.12, "link 5: {a}");
+    let preset = Command::new(bin("chaosctl"))
+        .args(["config", "--preset", "panda-paper"])
+        .output()
+        .unwrap();
+    let rows: Vec<String> = ca
+        .iter()
+        .map(|(p, q, r)| format!("  {{ a = {p:?}, b = {q:?}, radius = {r} }},"))
+        .collect();
+    let cfg: String = String::from_utf8(preset.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| match l.starts_with("link_radii") {
+            true => format!("capsules = [\n{}\n]\n", rows.join("\n")),
+            false => format!("{l}\n"),
+        })
+        .collect();
+    let path = dir.path().join("own.toml");
+    std::fs::write(&path, cfg).unwrap();
+    let (out, csv) = judged_study(dir.path(), &["--config", path.to_str().unwrap()], &model);
+    assert!(out.contains("disagreements: none"), "{out}");
+    let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+    assert_eq!(row[5], "true", "{csv}");
+    assert_eq!(row[6].parse::<f64>().unwrap(), 0.0, "{csv}");
+    assert!(row[10].parse::<f64>().unwrap() >= 0.02 - 1e-4, "{csv}");
+}
+
 /// Refusals that need no MuJoCo: the planar arm has no mass model, and an engine's name is
 /// checked.
 #[test]

@@ -101,6 +101,17 @@ pub struct LinkFit {
     pub bodies: Vec<String>,
     pub geoms: usize,
     pub points: usize,
+    /// The tighter capsule with end points of its own (base frame), when the link has geometry.
+    #[serde(default)]
+    pub own: Option<OwnCapsule>,
+}
+
+/// A capsule along a link's own geometry, as the judge fits it (base frame at the fit's pose).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Deserialize)]
+pub struct OwnCapsule {
+    pub a: [f64; 3],
+    pub b: [f64; 3],
+    pub radius: f64,
 }
 
 impl MujocoJudge {

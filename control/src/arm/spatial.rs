@@ -6,6 +6,7 @@
 //! pass stores, for each body, its origin, axis, angular velocity, angular acceleration and
 //! origin acceleration at q̈ = 0; any point's motion then follows in O(n) without another pass.
 
+use super::point::Links;
 use crate::basics::MAX_JOINTS;
 use crate::model::{Frames, Model};
 use nalgebra::Vector3;
@@ -24,9 +25,31 @@ pub struct SpatialArm<const N: usize> {
     /// The tool point in the tip frame (the zero vector: the tip link's origin).
     pub tool: Vec3,
     /// Capsule radius of link j, the segment from joint j's origin to joint j+1's (the last
-    /// one to the tool point); 0 for a bare segment.
+    /// one to the tool point), or between [`Self::ends`]; 0 for a bare segment.
     pub radii: [f64; N],
+    /// Link j's capsule ends in body j's frame, where they are the capsule's own
+    /// (`robot.capsules`: a capsule fitted to the link's housing rather than strung between
+    /// joint origins); None: the joint origins.
+    pub ends: Option<[[Vec3; 2]; N]>,
 }
+
+/// Storage for the capsules' end points ([`SpatialArm::capsule_points`]): N + 1 about the joint
+/// origins, two rows of N with ends of their own. It starts as the chain; the second row is
+/// made (and zeroed) only for an arm whose capsules have ends of their own.
+#[derive(Clone, Copy)]
+pub enum CapsulePoints<const N: usize> {
+    Chain(Points<N>),
+    Pairs(Points<N>, Points<N>),
+}
+
+impl<const N: usize> Default for CapsulePoints<N> {
+    fn default() -> Self {
+        Self::Chain([PointMotion::default(); MAX_JOINTS + 1])
+    }
+}
+
+/// Each link's capsule segment (base frame), [`SpatialArm::capsule_segments`].
+pub type Segments = [[Vec3; 2]; MAX_JOINTS];
 
 /// Kinematics at one state, in the base frame.
 #[derive(Clone, Copy, Debug)]
@@ -85,6 +108,7 @@ impl<const N: usize> SpatialArm<N> {
             model,
             tool: Vec3::zeros(),
             radii: [0.0; N],
+            ends: None,
         }
     }
 
@@ -182,24 +206,67 @@ impl<const N: usize> SpatialArm<N> {
         out.drift = kin.acc[body] + wd.cross(&r) + w.cross(&w.cross(&r));
     }
 
-    /// P_0 … P_{N−1} (joint origins, P_j on body j) and P_N (the tool point): link j is the
-    /// capsule from P_j to P_{j+1}.
-    pub fn capsule_points(&self, kin: &SpatialKinematics<N>, qd: &VecN<N>, out: &mut Points<N>) {
-        for j in 0..N {
-            // Joint j's origin does not move with q_j (revolute), so it is a point of body j−1;
-            // on body j it has the same motion and Jacobian columns 0..j−1 (column j is zero).
-            self.point_motion_into(kin, j, kin.origin(j), qd, &mut out[j]);
+    /// The motion of every capsule's ends, in `out`, and the view that pairs them per link:
+    /// about the joint origins, P_0 … P_{N−1} (P_j on body j) and P_N (the tool point), link j
+    /// from P_j to P_{j+1}; with [`Self::ends`], link j's own two ends on body j.
+    pub fn capsule_points<'a>(
+        &self,
+        kin: &SpatialKinematics<N>,
+        qd: &VecN<N>,
+        out: &'a mut CapsulePoints<N>,
+    ) -> Links<'a, N, 3> {
+        match &self.ends {
+            None => {
+                if !matches!(out, CapsulePoints::Chain(_)) {
+                    *out = CapsulePoints::default();
+                }
+                let CapsulePoints::Chain(points) = out else {
+                    unreachable!("made a chain above")
+                };
+                for j in 0..N {
+                    // Joint j's origin does not move with q_j (revolute), so it is a point of
+                    // body j−1; on body j it has the same motion and Jacobian columns 0..j−1
+                    // (column j is zero).
+                    self.point_motion_into(kin, j, kin.origin(j), qd, &mut points[j]);
+                }
+                self.point_motion_into(kin, N - 1, kin.p, qd, &mut points[N]);
+                Links::chain(points)
+            }
+            Some(ends) => {
+                if !matches!(out, CapsulePoints::Pairs(..)) {
+                    let zero = [PointMotion::default(); MAX_JOINTS + 1];
+                    *out = CapsulePoints::Pairs(zero, zero);
+                }
+                let CapsulePoints::Pairs(first, second) = out else {
+                    unreachable!("made pairs above")
+                };
+                for (j, [a, b]) in ends.iter().enumerate() {
+                    let body = &kin.frames.body[j];
+                    self.point_motion_into(kin, j, body.apply(a), qd, &mut first[j]);
+                    self.point_motion_into(kin, j, body.apply(b), qd, &mut second[j]);
+                }
+                Links::pairs(first, second)
+            }
         }
-        self.point_motion_into(kin, N - 1, kin.p, qd, &mut out[N]);
     }
 
-    /// The capsule end points without their motion (clearance, drawing).
-    pub fn capsule_positions(&self, kin: &SpatialKinematics<N>) -> [Vec3; MAX_JOINTS + 1] {
-        let mut out = [Vec3::zeros(); MAX_JOINTS + 1];
-        for j in 0..N {
-            out[j] = kin.origin(j);
+    /// Each link's capsule segment without its motion (clearance, planning, drawing).
+    pub fn capsule_segments(&self, kin: &SpatialKinematics<N>) -> Segments {
+        let mut out = [[Vec3::zeros(); 2]; MAX_JOINTS];
+        match &self.ends {
+            None => {
+                for (j, seg) in out.iter_mut().enumerate().take(N) {
+                    let b = if j + 1 < N { kin.origin(j + 1) } else { kin.p };
+                    *seg = [kin.origin(j), b];
+                }
+            }
+            Some(ends) => {
+                for (j, [a, b]) in ends.iter().enumerate() {
+                    let body = &kin.frames.body[j];
+                    out[j] = [body.apply(a), body.apply(b)];
+                }
+            }
         }
-        out[N] = kin.p;
         out
     }
 }

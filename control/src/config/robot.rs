@@ -154,6 +154,21 @@ pub struct RobotSection {
     /// Capsule radius per link (m); default 0.05 each.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub link_radii: Option<Vec<f64>>,
+    /// Capsules with end points of their own, one per link in order, instead of `link_radii`'s
+    /// about the joint origins (`chaosctl robot fit-radii --capsules` fits them to a model's
+    /// meshes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub capsules: Option<Vec<CapsuleEntry>>,
+}
+
+/// One link's capsule: the segment from `a` to `b` in the link's own frame (the URDF frame of
+/// the joint's child link), and its radius.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CapsuleEntry {
+    pub a: [f64; 3],
+    pub b: [f64; 3],
+    pub radius: f64,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

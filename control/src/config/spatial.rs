@@ -301,6 +301,9 @@ impl Config {
             return Err(invalid("robot.link_radii", radii.as_slice(), "numbers ≥ 0"));
         }
         arm.radii = std::array::from_fn(|i| radii[i]);
+        if let Some(capsules) = &r.robot.capsules {
+            own_capsules(&mut arm, capsules, r.robot.link_radii.is_some())?;
+        }
         let q0 = SVector::<f64, N>::from_column_slice(
             Self::per_joint("sim.q0", self.sim.start(), N)?
                 .as_slice()
@@ -396,6 +399,57 @@ pub const SPATIAL_PRESETS: &[&str] = &["panda", "panda-paper"];
 /// The farthest a tool point may sit from its tip link (m): past it the last capsule and the
 /// tool's lever are no arm's (a 1e308 m tool overflowed the capsule's length to infinity).
 pub const MAX_TOOL_M: f64 = 10.0;
+
+/// `robot.capsules` onto `arm`: one per link, each end at most [`MAX_TOOL_M`] from its link's
+/// origin, radii ≥ 0, and not beside `robot.link_radii` (two radii for one link).
+fn own_capsules<const N: usize>(
+    arm: &mut SpatialArm<N>,
+    capsules: &[super::robot::CapsuleEntry],
+    radii_given: bool,
+) -> Result<(), ConfigError> {
+    const KEY: &str = "robot.capsules";
+    if radii_given {
+        return Err(invalid(
+            KEY,
+            "given",
+            "either robot.link_radii (capsules about the joint origins) or robot.capsules, not both",
+        ));
+    }
+    if capsules.len() != N {
+        return Err(invalid(
+            KEY,
+            capsules.len(),
+            &format!("one capsule per link: {N} for this chain"),
+        ));
+    }
+    let mut ends = [[Vec3::zeros(); 2]; N];
+    for (j, c) in capsules.iter().enumerate() {
+        let near =
+            |p: &[f64; 3]| p.iter().all(|v| v.is_finite()) && Vec3::from(*p).norm() <= MAX_TOOL_M;
+        if !(near(&c.a) && near(&c.b)) {
+            return Err(invalid(
+                &format!("{KEY}[{j}]"),
+                format!("a = {:?}, b = {:?}", c.a, c.b),
+                &format!(
+                    "end points of 3 finite numbers, at most {MAX_TOOL_M} m from the link's origin"
+                ),
+            ));
+        }
+        if !(c.radius.is_finite() && c.radius >= 0.0) {
+            return Err(invalid(
+                &format!("{KEY}[{j}].radius"),
+                c.radius,
+                "a radius ≥ 0 (m)",
+            ));
+        }
+        // The link's URDF frame is body j's turned by `turn` (its axis onto z).
+        let into_body = arm.model.turn[j].transpose();
+        ends[j] = [into_body * Vec3::from(c.a), into_body * Vec3::from(c.b)];
+        arm.radii[j] = c.radius;
+    }
+    arm.ends = Some(ends);
+    Ok(())
+}
 
 /// The paper's recipe on the Panda (docs/panda-study.md), preset `panda-paper`: a 0.15 m circle
 /// in the vertical plane in front of the Panda, position task, joint-limit centring α = 20,

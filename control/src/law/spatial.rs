@@ -12,7 +12,7 @@ use super::metric::damped_pinv_weighted;
 use super::pipeline::{ArmSide, Full, Gains, Output, TaskRows};
 use super::LawCore;
 use super::Secondary;
-use crate::arm::spatial::Points;
+use crate::arm::spatial::CapsulePoints;
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
@@ -190,7 +190,7 @@ impl<const N: usize, const M: usize> ArmSide<N, M> for SpatialSide<'_, N> {
         if p.spheres.is_empty() {
             (f64::INFINITY, false)
         } else {
-            sec::clearance(arm, &arm.capsule_positions(self.kin)[..N + 1], &p.spheres)
+            sec::clearance(arm, &arm.capsule_segments(self.kin), &p.spheres)
         }
     }
 }
@@ -217,9 +217,9 @@ impl<const N: usize> SpatialSide<'_, N> {
                 (c, Some(-g))
             }
             Secondary::Obstacles if !p.spheres.is_empty() => {
-                let mut points: Points<N> = [Default::default(); crate::basics::MAX_JOINTS + 1];
-                arm.capsule_points(kin, qd, &mut points);
-                let (h, g) = sec::potential(arm, &points, &p.spheres, p.weight);
+                let mut store = CapsulePoints::<N>::default();
+                let links = arm.capsule_points(kin, qd, &mut store);
+                let (h, g) = sec::potential(arm, &links, &p.spheres, p.weight);
                 (h, Some(-g))
             }
             Secondary::Obstacles => (0.0, Some(VecN::<N>::zeros())),

@@ -25,8 +25,8 @@ pub mod rows;
 pub mod screen;
 pub mod solve;
 
-use crate::arm::point::{PointMotion, Points as PointsOf};
-use crate::arm::spatial::{SpatialArm, SpatialKinematics};
+use crate::arm::point::{Links, PointMotion, Points as PointsOf};
+use crate::arm::spatial::{CapsulePoints, SpatialArm, SpatialKinematics};
 use crate::arm::{ArmModel, Kinematics, VecN};
 use crate::basics::MAX_JOINTS;
 use crate::secondary::spatial::SphereSet;
@@ -207,18 +207,22 @@ pub fn filter_spatial<const N: usize, const M: usize>(
         return Filtered::unchanged(qdd);
     }
     let (lo, hi) = rows::joint_box(p, q, qd);
-    let mut points: PointsOf<N, 3> = [PointMotion::default(); MAX_JOINTS + 1];
-    if !spheres.is_empty() {
-        arm.capsule_points(kin, qd, &mut points);
-    }
+    let mut store = CapsulePoints::<N>::default();
+    let links = if spheres.is_empty() {
+        match &store {
+            CapsulePoints::Chain(points) | CapsulePoints::Pairs(points, _) => Links::chain(points),
+        }
+    } else {
+        arm.capsule_points(kin, qd, &mut store)
+    };
     // Nothing binds (the common case): one pass over the barriers without their rows.
     if !solve::box_missed((&lo, &hi), qdd)
-        && !rows::any_ball_missed(p, spheres, &arm.radii, &points, qdd, solve::misses)
+        && !rows::any_ball_missed(p, spheres, &arm.radii, &links, qdd, solve::misses)
     {
         return Filtered::unchanged(qdd);
     }
     let visit =
-        |f: &mut dyn FnMut(&VecN<N>, f64)| rows::visit_balls(p, spheres, &arm.radii, &points, f);
+        |f: &mut dyn FnMut(&VecN<N>, f64)| rows::visit_balls(p, spheres, &arm.radii, &links, f);
     solve::smallest_change(&visit, (&lo, &hi), j, jpinv, qdd, &p.qdd_max)
 }
 
@@ -247,7 +251,8 @@ where
     }
     let mut points: PointsOf<N, D> = [PointMotion::default(); MAX_JOINTS + 1];
     fill(&mut points);
+    let links = Links::chain(&points);
     let visit =
-        |f: &mut dyn FnMut(&VecN<N>, f64)| rows::visit_balls(p, balls, link_radii, &points, f);
+        |f: &mut dyn FnMut(&VecN<N>, f64)| rows::visit_balls(p, balls, link_radii, &links, f);
     solve::smallest_change(&visit, (&lo, &hi), j, jpinv, qdd, &p.qdd_max)
 }

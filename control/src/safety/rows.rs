@@ -18,7 +18,7 @@
 //! Each is the formula its arm's reference numbers were computed with.
 
 use super::SafetyParams;
-use crate::arm::point::{PointMotion as Pt, Points as PointsOf};
+use crate::arm::point::{Links, PointMotion as Pt};
 use crate::arm::{ArmModel, Kinematics, Vec2, VecN};
 use crate::basics::MAX_JOINTS;
 use crate::secondary::{Balls, ObstacleSet};
@@ -370,7 +370,7 @@ pub fn visit_balls<const N: usize, const D: usize, F: FnMut(&VecN<N>, f64) + ?Si
     p: &SafetyParams,
     balls: &Balls<D>,
     link_radii: &[f64],
-    points: &PointsOf<N, D>,
+    links: &Links<'_, N, D>,
     f: &mut F,
 ) where
     Geometry: Interior<N, D>,
@@ -378,9 +378,8 @@ pub fn visit_balls<const N: usize, const D: usize, F: FnMut(&VecN<N>, f64) + ?Si
     for o in balls.as_slice() {
         for j in 0..N {
             let reach = o.radius + link_radii[j] + p.clearance;
-            if let Some((_, a, b)) =
-                segment_row(&points[j], &points[j + 1], o.center, reach, p.gains())
-            {
+            let (a, b) = links.link(j);
+            if let Some((_, a, b)) = segment_row(a, b, o.center, reach, p.gains()) {
                 f(&a, b);
             }
         }
@@ -394,24 +393,25 @@ pub fn any_ball_missed<const N: usize>(
     p: &SafetyParams,
     balls: &Balls<3>,
     link_radii: &[f64],
-    points: &PointsOf<N, 3>,
+    links: &Links<'_, N, 3>,
     qdd: &VecN<N>,
     misses: impl Fn(f64, f64) -> bool,
 ) -> bool {
     if balls.is_empty() {
         return false;
     }
-    let image = super::screen::images(points, qdd);
+    let image = super::screen::images(links, qdd);
     // A pair the link's bound clears cannot miss its row: only the others are computed.
-    let bounds = super::screen::link_bounds(points, &image, (p.k0, p.k1));
+    let bounds = super::screen::link_bounds(links, &image, (p.k0, p.k1));
     for o in balls.as_slice() {
         for j in 0..N {
             let reach = o.radius + link_radii[j] + p.clearance;
             if bounds[j].clears(&o.center, reach, p.k0) {
                 continue;
             }
-            let foot = segment_foot(&points[j], &points[j + 1], o.center, reach, p.gains());
-            if foot.is_some_and(|f| misses(f.b, f.applied(&image[j], &image[j + 1]))) {
+            let ((ia, ib), (a, b)) = (links.ends(j), links.link(j));
+            let foot = segment_foot(a, b, o.center, reach, p.gains());
+            if foot.is_some_and(|f| misses(f.b, f.applied(&image[ia], &image[ib]))) {
                 return true;
             }
         }
@@ -460,7 +460,7 @@ pub fn visit<const N: usize, F: FnMut(&VecN<N>, f64) + ?Sized>(
     qd: &VecN<N>,
     f: &mut F,
 ) {
-    visit_balls(p, obstacles, &SEGMENTS, points, f);
+    visit_balls(p, obstacles, &SEGMENTS, &Links::chain(points), f);
     let (lo, hi) = joint_box(p, q, qd);
     for i in 0..N {
         let e = VecN::<N>::from_fn(|r, _| if r == i { 1.0 } else { 0.0 });

@@ -20,7 +20,7 @@
 //! when the bound is negative there: the row is then met by more than the check's tolerance, and
 //! the check's answer is the one it would have computed.
 
-use crate::arm::point::Points as PointsOf;
+use crate::arm::point::Links;
 use crate::arm::VecN;
 use crate::basics::MAX_JOINTS;
 use nalgebra::Vector3;
@@ -44,17 +44,18 @@ impl LinkBound {
     /// end points and the barrier gains (k₀, k₁).
     #[inline]
     pub fn of<const N: usize>(
-        points: &PointsOf<N, 3>,
+        links: &Links<'_, N, 3>,
         image: &[Vector3<f64>],
         j: usize,
         (k0, k1): (f64, f64),
     ) -> Self {
-        let (a, b) = (&points[j], &points[j + 1]);
+        let (ia, ib) = links.ends(j);
+        let (a, b) = links.link(j);
         let e = b.pos - a.pos;
         let l2 = e.norm_squared();
         let speed2 = a.vel.norm_squared().max(b.vel.norm_squared());
         let drift2 = a.drift.norm_squared().max(b.drift.norm_squared());
-        let image2 = image[j].norm_squared().max(image[j + 1].norm_squared());
+        let image2 = image[ia].norm_squared().max(image[ib].norm_squared());
         // A segment of no length has only its end-point piece: no slide, no spin term.
         let spin = if l2 > 0.0 {
             (b.vel - a.vel).norm_squared() / l2
@@ -86,25 +87,25 @@ impl LinkBound {
 
 /// Every link's bound, for an arm of N joints.
 pub fn link_bounds<const N: usize>(
-    points: &PointsOf<N, 3>,
+    links: &Links<'_, N, 3>,
     image: &[Vector3<f64>],
     gains: (f64, f64),
 ) -> [LinkBound; MAX_JOINTS] {
     let mut out = [LinkBound::default(); MAX_JOINTS];
     for (j, b) in out.iter_mut().enumerate().take(N) {
-        *b = LinkBound::of(points, image, j, gains);
+        *b = LinkBound::of(links, image, j, gains);
     }
     out
 }
 
-/// The images J q̈ of the N + 1 points.
+/// The images J q̈ of the links' end points, in [`Links::points`]' order.
 #[inline]
 pub fn images<const N: usize>(
-    points: &PointsOf<N, 3>,
+    links: &Links<'_, N, 3>,
     qdd: &VecN<N>,
-) -> [Vector3<f64>; MAX_JOINTS + 1] {
-    let mut image = [Vector3::zeros(); MAX_JOINTS + 1];
-    for (im, pt) in image.iter_mut().zip(points).take(N + 1) {
+) -> [Vector3<f64>; 2 * MAX_JOINTS] {
+    let mut image = [Vector3::zeros(); 2 * MAX_JOINTS];
+    for (im, pt) in image.iter_mut().zip(links.points()) {
         *im = pt.jac * qdd;
     }
     image
@@ -114,7 +115,7 @@ pub fn images<const N: usize>(
 mod tests {
     use super::*;
     use crate::arm::point::PointMotion;
-    use crate::arm::spatial::{SpatialArm, SpatialKinematics};
+    use crate::arm::spatial::{CapsulePoints, SpatialArm, SpatialKinematics};
     use crate::model::{builtin, Chain};
     use crate::safety::rows::{segment_foot, BarrierGains};
     use crate::safety::solve::misses;
@@ -148,17 +149,18 @@ mod tests {
             let qd = VecN::<7>::from_fn(|_, _| rate * rnd());
             let qdd = VecN::<7>::from_fn(|_, _| acc * rnd());
             arm.kinematics(&q, &qd, &mut kin);
-            let mut points = [PointMotion::default(); MAX_JOINTS + 1];
-            arm.capsule_points(&kin, &qd, &mut points);
-            let image = images(&points, &qdd);
-            let bounds = link_bounds(&points, &image, (g.k0, g.k1));
+            let mut store = CapsulePoints::default();
+            let links = arm.capsule_points(&kin, &qd, &mut store);
+            let image = images(&links, &qdd);
+            let bounds = link_bounds(&links, &image, (g.k0, g.k1));
             let center = Vector3::new(rnd(), rnd(), 0.5 + 0.6 * rnd());
             let reach = 0.05 + 0.1 * rnd().abs();
             for j in 0..7 {
-                let Some(foot) = segment_foot(&points[j], &points[j + 1], center, reach, g) else {
+                let ((a, b), (ia, ib)) = (links.link(j), links.ends(j));
+                let Some(foot) = segment_foot(a, b, center, reach, g) else {
                     continue;
                 };
-                let slack = foot.b - foot.applied(&image[j], &image[j + 1]);
+                let slack = foot.b - foot.applied(&image[ia], &image[ib]);
                 let is_far = foot.h > 0.4 && k % 2 == 0;
                 far += is_far as usize;
                 if bounds[j].clears(&center, reach, g.k0) {
@@ -166,7 +168,7 @@ mod tests {
                     far_cleared += is_far as usize;
                     slack_min = slack_min.min(-slack);
                     assert!(
-                        !misses(foot.b, foot.applied(&image[j], &image[j + 1])) && slack < 0.0,
+                        !misses(foot.b, foot.applied(&image[ia], &image[ib])) && slack < 0.0,
                         "link {j} cleared with slack {slack} at h = {}",
                         foot.h
                     );
@@ -189,9 +191,9 @@ mod tests {
         points[1].pos = Vector3::new(0.1, 0.0, 0.0);
         points[1].vel = Vector3::new(0.0, 1.0, 0.0); // |ė|²/|e|² = 100 /s²
         let image = [Vector3::zeros(); MAX_JOINTS + 1];
-        let b = LinkBound::of(&points, &image, 0, (100.0, 20.0));
+        let b = LinkBound::of(&Links::chain(&points), &image, 0, (100.0, 20.0));
         assert!(!b.clears(&Vector3::new(0.0, 50.0, 0.0), 0.1, 100.0));
-        let slow = LinkBound::of(&points, &image, 0, (300.0, 20.0));
+        let slow = LinkBound::of(&Links::chain(&points), &image, 0, (300.0, 20.0));
         assert!(slow.clears(&Vector3::new(0.0, 50.0, 0.0), 0.1, 300.0));
     }
 }

@@ -104,19 +104,19 @@ impl<const D: usize> FromIterator<Ball<D>> for Balls<D> {
 }
 
 /// Smallest distance from a ball's surface to a link's surface (negative: penetration), and
-/// whether any link is inside a ball's zone r + margin. Link j of `links` runs from `point(j)` to
-/// `point(j + 1)`, a capsule of radius `link_radii[j]` (0: a segment).
+/// whether any link is inside a ball's zone r + margin. Link j of `links` runs between the two
+/// points `ends(j)`, a capsule of radius `link_radii[j]` (0: a segment).
 pub fn clearance<const D: usize>(
     balls: &Balls<D>,
     links: usize,
-    point: impl Fn(usize) -> SVector<f64, D>,
+    ends: impl Fn(usize) -> (SVector<f64, D>, SVector<f64, D>),
     link_radii: &[f64],
 ) -> (f64, bool) {
     let mut min = f64::INFINITY;
     let mut in_zone = false;
     for o in balls.as_slice() {
         for j in 0..links {
-            let (a, b) = (point(j), point(j + 1));
+            let (a, b) = ends(j);
             let d = b - a;
             let l2 = d.norm_squared();
             let t = if l2 > 0.0 {

@@ -99,5 +99,5 @@ pub fn potential<const N: usize>(
 /// whether any part of the arm is inside an obstacle's safety zone r_i + s_i.
 pub fn clearance<const N: usize>(kin: &Kinematics<N>, obstacles: &ObstacleSet) -> (f64, bool) {
     let point = |k: usize| if k < N { kin.points[k] } else { kin.p };
-    balls::clearance(obstacles, N, point, &[0.0; N])
+    balls::clearance(obstacles, N, |j| (point(j), point(j + 1)), &[0.0; N])
 }

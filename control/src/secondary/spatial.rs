@@ -5,7 +5,8 @@
 //! joints ∂J_i/∂q_k is a cross product of columns already in J (below), so it costs O(n²m) and
 //! no second kinematics pass; `tests` check every gradient against finite differences.
 
-use crate::arm::spatial::Points;
+use crate::arm::point::Links;
+use crate::arm::spatial::Segments;
 use crate::arm::spatial::SpatialArm;
 use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
@@ -108,7 +109,7 @@ pub fn segment_parameter(a: &Vec3, b: &Vec3, c: &Vec3) -> f64 {
 /// distance of §8, so its gradient is the closest point's Jacobian along the push direction.
 pub fn potential<const N: usize>(
     arm: &SpatialArm<N>,
-    points: &Points<N>,
+    links: &Links<'_, N, 3>,
     spheres: &SphereSet,
     weight: f64,
 ) -> (f64, VecN<N>) {
@@ -116,7 +117,7 @@ pub fn potential<const N: usize>(
     let mut grad = VecN::<N>::zeros();
     for s in spheres.as_slice() {
         for j in 0..N {
-            let (pa, pb) = (&points[j], &points[j + 1]);
+            let (pa, pb) = links.link(j);
             let t = segment_parameter(&pa.pos, &pb.pos, &s.center);
             let x = pa.pos + (pb.pos - pa.pos) * t;
             let rel = x - s.center;
@@ -138,10 +139,10 @@ pub fn potential<const N: usize>(
 /// whether any capsule is inside a sphere's zone r + margin.
 pub fn clearance<const N: usize>(
     arm: &SpatialArm<N>,
-    points: &[Vec3],
+    segments: &Segments,
     spheres: &SphereSet,
 ) -> (f64, bool) {
-    crate::secondary::balls::clearance(spheres, N, |k| points[k], &arm.radii)
+    crate::secondary::balls::clearance(spheres, N, |j| (segments[j][0], segments[j][1]), &arm.radii)
 }
 
 /// Selects the task rows: the first M of a 6-vector.

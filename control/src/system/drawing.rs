@@ -22,7 +22,8 @@ pub struct Posed {
     /// Each joint's child link frame (the URDF frame) in the world.
     pub links: Vec<Pose>,
     /// The polyline the arm is drawn as, in figures and viewers alike: the base, each joint's
-    /// origin, the tool point (a robot's links are the safety filter's capsules between them).
+    /// origin, the tool point (about these, a robot's capsules unless `robot.capsules` gives
+    /// them ends of their own).
     pub points: Vec<[f64; 3]>,
     /// The tool point.
     pub tip: [f64; 3],
@@ -160,10 +161,10 @@ impl<const N: usize> Geometry for Spatial<N> {
         let mut kin = SpatialKinematics::<N>::default();
         self.arm.kinematics(&qv, &VecN::<N>::zeros(), &mut kin);
         let f = &kin.frames;
-        // The base, then the safety capsules' end points: what the filter keeps clear.
-        let capsules = self.arm.capsule_positions(&kin);
+        // The base, each joint's origin, then the tool point.
         let points = std::iter::once(Vec3::zeros())
-            .chain(capsules[..=N].iter().copied())
+            .chain((0..N).map(|j| kin.origin(j)))
+            .chain(std::iter::once(kin.p))
             .map(|p| [p.x, p.y, p.z])
             .collect();
         Posed {

@@ -41,6 +41,18 @@ pub struct LinkFit {
     /// Geoms measured, and the points (mesh vertices, box corners, …) they gave.
     pub geoms: usize,
     pub points: usize,
+    /// A capsule with end points of its own that holds the same geometry, usually far tighter
+    /// ([`own_capsule`]; world frame at the fit's pose); None for a link without geometry.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub own: Option<OwnCapsule>,
+}
+
+/// A capsule placed along a link's geometry rather than between chaosd's joint origins.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct OwnCapsule {
+    pub a: [f64; 3],
+    pub b: [f64; 3],
+    pub radius: f64,
 }
 
 /// Poses `model` at `q` (chaosd's `joints`) and fits each link's capsule about chaosd's segment
@@ -79,8 +91,11 @@ pub fn fit(
             bodies: Vec::new(),
             geoms: 0,
             points: 0,
+            own: None,
         })
         .collect();
+    let mut held: Vec<Vec<(Vector3<f64>, f64)>> = vec![Vec::new(); n];
+    let points_at = |k: usize| points[k];
     for (b, link) in owner.iter().enumerate() {
         if let Some(j) = *link {
             links[j]
@@ -97,12 +112,95 @@ pub fn fit(
         let mut far = 0.0f64;
         let count = geom_points(m, d, g, |p, pad| {
             far = far.max(segment_distance(&a, &b, &p) + pad);
+            held[j].push((Vector3::from(p), pad));
         });
         links[j].radius = links[j].radius.max(far);
         links[j].geoms += 1;
         links[j].points += count;
     }
+    for (j, (link, points)) in links.iter_mut().zip(&held).enumerate() {
+        // The axis of a stubby link's geometry can fit worse than chaosd's own segment: the
+        // smaller of the two.
+        let along = OwnCapsule {
+            a: points_at(j),
+            b: points_at(j + 1),
+            radius: link.radius,
+        };
+        link.own = own_capsule(points).map(|own| {
+            if volume(&own) <= volume(&along) {
+                own
+            } else {
+                along
+            }
+        });
+    }
     Ok(links)
+}
+
+/// A capsule's volume, π R² (L + 4R/3).
+fn volume(c: &OwnCapsule) -> f64 {
+    let l = (Vector3::from(c.b) - Vector3::from(c.a)).norm();
+    std::f64::consts::PI * c.radius * c.radius * (l + 4.0 / 3.0 * c.radius)
+}
+
+/// Lengths tried for the capsule's radius, as multiples of the thinnest that holds the points
+/// about their axis: a longer segment with a thinner radius, or the reverse.
+const RADIUS_STEPS: usize = 41;
+
+/// The capsule of least volume, among those about the points' principal axis, that holds every
+/// point `p` with its pad `r` (a ball of radius r about p); None without points. For a radius R
+/// the segment's ends are as close together as the points allow: a point at t along the axis and
+/// d from it lies inside once an end is within √((R − r)² − d²) of t. The radius returned is the
+/// exact largest distance from the segment (plus pad), so the capsule holds every point.
+pub fn own_capsule(points: &[(Vector3<f64>, f64)]) -> Option<OwnCapsule> {
+    if points.is_empty() {
+        return None;
+    }
+    let c = points.iter().map(|(p, _)| p).sum::<Vector3<f64>>() / points.len() as f64;
+    let spread: nalgebra::Matrix3<f64> = points
+        .iter()
+        .map(|(p, _)| (p - c) * (p - c).transpose())
+        .sum();
+    let eig = spread.symmetric_eigen();
+    let axis = eig.eigenvectors.column(eig.eigenvalues.imax()).into_owned();
+    let polar: Vec<(f64, f64, f64)> = points
+        .iter()
+        .map(|(p, pad)| {
+            let t = (p - c).dot(&axis);
+            (t, (p - c - axis * t).norm(), *pad)
+        })
+        .collect();
+    let thinnest = polar.iter().map(|&(_, d, r)| d + r).fold(0.0, f64::max);
+    let mut best: Option<(f64, OwnCapsule)> = None;
+    for k in 0..RADIUS_STEPS {
+        let radius = thinnest * (1.0 + 0.05 * k as f64) + 1e-12;
+        let reach = |d: f64, r: f64| ((radius - r).powi(2) - d * d).max(0.0).sqrt();
+        let lo = polar
+            .iter()
+            .map(|&(t, d, r)| t + reach(d, r))
+            .fold(f64::INFINITY, f64::min);
+        let hi = polar
+            .iter()
+            .map(|&(t, d, r)| t - reach(d, r))
+            .fold(f64::NEG_INFINITY, f64::max);
+        let (lo, hi) = if lo <= hi {
+            (lo, hi)
+        } else {
+            ((lo + hi) / 2.0, (lo + hi) / 2.0)
+        };
+        let (a, b) = (c + axis * lo, c + axis * hi);
+        let (a, b) = ([a.x, a.y, a.z], [b.x, b.y, b.z]);
+        let held = points
+            .iter()
+            .map(|(p, pad)| segment_distance(&a, &b, &[p.x, p.y, p.z]) + pad)
+            .fold(0.0, f64::max);
+        let capsule = OwnCapsule { a, b, radius: held };
+        let v = volume(&capsule);
+        if best.as_ref().is_none_or(|(least, _)| v < *least) {
+            best = Some((v, capsule));
+        }
+    }
+    best.map(|(_, capsule)| capsule)
 }
 
 /// Which of chaosd's links carries each body: the link of its joint, or of the nearest body
@@ -201,7 +299,33 @@ fn segment_distance(a: &[f64; 3], b: &[f64; 3], p: &[f64; 3]) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::segment_distance;
+    use super::{own_capsule, segment_distance};
+    use nalgebra::Vector3;
+
+    /// The points of a cylinder of radius 0.05 from z = 0.1 to 0.4 off the origin's axis: the
+    /// capsule holds every point, lies along the cylinder and is far thinner than one about the
+    /// z axis through the origin would be.
+    #[test]
+    fn an_own_capsule_holds_its_points_tightly() {
+        let mut points = Vec::new();
+        for i in 0..40 {
+            let a = i as f64 * std::f64::consts::TAU / 40.0;
+            for z in [0.1, 0.2, 0.3, 0.4] {
+                points.push((Vector3::new(0.2 + 0.05 * a.cos(), 0.05 * a.sin(), z), 0.0));
+            }
+        }
+        points.push((Vector3::new(0.2, 0.0, 0.25), 0.01));
+        let c = own_capsule(&points).unwrap();
+        for (p, pad) in &points {
+            assert!(segment_distance(&c.a, &c.b, &[p.x, p.y, p.z]) + pad <= c.radius + 1e-12);
+        }
+        assert!(c.radius < 0.08, "{c:?}");
+        assert!(
+            (c.a[0] - 0.2).abs() < 1e-9 && (c.b[0] - 0.2).abs() < 1e-9,
+            "{c:?}"
+        );
+        assert!(own_capsule(&[]).is_none());
+    }
 
     #[test]
     fn the_distance_to_a_segment_is_to_its_nearest_point() {

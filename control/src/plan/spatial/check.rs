@@ -6,8 +6,7 @@
 //! not count.
 
 use super::SpatialProblem;
-use crate::arm::spatial::PointMotion;
-use crate::arm::spatial::Points;
+use crate::arm::spatial::CapsulePoints;
 use crate::arm::spatial::SpatialKinematics;
 use crate::arm::spatial::VecN;
 use crate::plan::PlanSettings;
@@ -164,7 +163,7 @@ impl<const N: usize> SpatialProblem<N> {
         let n = table.rows().len();
         let dt = table.period / (n * SAMPLES) as f64;
         let mut kin = SpatialKinematics::<N>::default();
-        let mut points: Points<N> = [PointMotion::default(); crate::basics::MAX_JOINTS + 1];
+        let mut points = CapsulePoints::<N>::default();
         let gains = self.law.core.safety.gains();
         for k in 0..n * SAMPLES {
             let t = table.t0 + k as f64 * dt;
@@ -193,11 +192,12 @@ impl<const N: usize> SpatialProblem<N> {
                     t,
                 );
             }
-            self.arm.capsule_points(&kin, &qd, &mut points);
+            let links = self.arm.capsule_points(&kin, &qd, &mut points);
             for sphere in self.law.spheres.as_slice() {
                 for j in 0..N {
                     let reach = sphere.radius + self.arm.radii[j] + self.law.core.safety.clearance;
-                    let row = segment_row(&points[j], &points[j + 1], sphere.center, reach, gains);
+                    let (a, b) = links.link(j);
+                    let row = segment_row(a, b, sphere.center, reach, gains);
                     if let Some((_, a, b)) = row {
                         v.filter_margin = v.filter_margin.min(a.dot(&qdd) - b);
                     }

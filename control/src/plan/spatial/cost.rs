@@ -36,10 +36,10 @@ impl<const N: usize> SpatialProblem<N> {
     ) -> VecN<N> {
         let mut g = VecN::<N>::zeros();
         let zero = VecN::<N>::zeros();
-        let points = self.arm.capsule_positions(kin);
+        let segments = self.arm.capsule_segments(kin);
         for s in self.law.spheres.as_slice() {
             for j in 0..N {
-                let (a, b) = (points[j], points[j + 1]);
+                let [a, b] = segments[j];
                 let t = segment_parameter(&a, &b, &s.center);
                 let x = a + (b - a) * t;
                 let rel = x - s.center;
@@ -68,7 +68,7 @@ impl<const N: usize> SpatialProblem<N> {
     /// The nearest sphere to any link at a posture whose kinematics `kin` holds (+∞ without
     /// spheres).
     pub fn nearest(&self, kin: &SpatialKinematics<N>) -> Nearest {
-        let points = self.arm.capsule_positions(kin);
+        let segments = self.arm.capsule_segments(kin);
         let mut best = Nearest {
             clearance: f64::INFINITY,
             sphere: 0,
@@ -76,7 +76,7 @@ impl<const N: usize> SpatialProblem<N> {
         };
         for (i, s) in self.law.spheres.as_slice().iter().enumerate() {
             for j in 0..N {
-                let (a, b) = (points[j], points[j + 1]);
+                let [a, b] = segments[j];
                 let x = a + (b - a) * segment_parameter(&a, &b, &s.center);
                 let c = (x - s.center).norm() - s.radius - self.arm.radii[j];
                 if c < best.clearance {
