@@ -422,9 +422,20 @@ fn mujoco_contact(c: &Value) -> String {
         .map_or(String::new(), |d| {
             format!("; smallest distance to an obstacle {d:.3} m")
         });
+    // The filter's clearance is the capsules': where the meshes reach out of them, say so.
+    let outside = match (
+        c["outside_capsules"][0].as_u64(),
+        c["outside_capsules"][1].as_f64(),
+    ) {
+        (Some(link), Some(out)) => format!(
+            "; the meshes reach {out:.3} m out of the capsules (link {link}): the filter's \
+             clearance is not theirs (fit-radii --capsules)"
+        ),
+        _ => String::new(),
+    };
     format!(
         "{} periods touching an obstacle{}, {} touching itself{} ({} arm geoms, MuJoCo's own \
-         geometry; {} pairs touching at the start not counted){distance}",
+         geometry; {} pairs touching at the start not counted){distance}{outside}",
         n("obstacle_contact_periods"),
         first("first_contact_s", "first_pair"),
         n("self_contact_periods"),

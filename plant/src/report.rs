@@ -105,6 +105,12 @@ pub struct ContactReport {
     pub obstacles: usize,
     /// Times a live edit of the daemon's obstacles moved MuJoCo's.
     pub scene_updates: u64,
+    /// How far the model's geometry reaches out of the set-up's capsules (m) on the link where
+    /// it reaches farthest (1-based), measured at the start: the filter keeps the capsules
+    /// clear, so a link whose geometry is outside them can touch where the filter reports
+    /// clearance. None: every link's geometry is inside its capsule (or nothing is judged).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub outside_capsules: Option<(usize, f64)>,
 }
 
 #[derive(Clone, Debug, Serialize)]

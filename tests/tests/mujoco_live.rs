@@ -97,6 +97,12 @@ fn no_contact(p: &Value, s: &Value, report: &str) {
         report.contains("mujoco contact        0 periods touching an obstacle"),
         "{report}"
     );
+    // The preset's capsules are thinner than the meshes (link 5's housing hangs 0.27 m from
+    // its 0.07 m capsule's wrist): said at the start, with the link and how far.
+    let out = &c["outside_capsules"];
+    assert_eq!(out[0], 5, "{c}");
+    assert!((out[1].as_f64().unwrap() - 0.199).abs() < 2e-3, "{c}");
+    assert!(report.contains("out of the capsules (link 5)"), "{report}");
 }
 
 /// The run: computed torque from chaosd's model on MuJoCo's Panda (another model:

@@ -73,7 +73,28 @@ pub fn fit(
             n + 1
         );
     }
-    let built = load::build(Source::File(model), packages, (&[], q), joints, 1e-3)?;
+    let segments: Vec<[[f64; 3]; 2]> = points.windows(2).map(|w| [w[0], w[1]]).collect();
+    fit_segments(load::Source::File(model), packages, joints, q, &segments)
+}
+
+/// [`fit`] about any segment per link (`segments[j]`, base frame at `q`): a set-up's capsules
+/// with end points of their own, too.
+pub fn fit_segments(
+    source: Source<'_>,
+    packages: &BTreeMap<String, PathBuf>,
+    joints: &[String],
+    q: &[f64],
+    segments: &[[[f64; 3]; 2]],
+) -> Result<Vec<LinkFit>> {
+    let n = joints.len();
+    if q.len() != n || segments.len() != n {
+        bail!(
+            "{} joint angles and {} capsule segments for {n} joints",
+            q.len(),
+            segments.len()
+        );
+    }
+    let built = load::build(source, packages, (&[], q), joints, 1e-3)?;
     let mut data = MjData::new(built.model);
     let m: *const mjModel = data.model().ffi();
     // SAFETY: the data owns the model; the addresses come from the model's joint table.
@@ -95,7 +116,6 @@ pub fn fit(
         })
         .collect();
     let mut held: Vec<Vec<(Vector3<f64>, f64)>> = vec![Vec::new(); n];
-    let points_at = |k: usize| points[k];
     for (b, link) in owner.iter().enumerate() {
         if let Some(j) = *link {
             links[j]
@@ -108,7 +128,7 @@ pub fn fit(
         // SAFETY: g < ngeom.
         let body = unsafe { *m.geom_bodyid.add(g) } as usize;
         let Some(j) = owner[body] else { continue };
-        let (a, b) = (points[j], points[j + 1]);
+        let [a, b] = segments[j];
         let mut far = 0.0f64;
         let count = geom_points(m, d, g, |p, pad| {
             far = far.max(segment_distance(&a, &b, &p) + pad);
@@ -122,8 +142,8 @@ pub fn fit(
         // The axis of a stubby link's geometry can fit worse than chaosd's own segment: the
         // smaller of the two.
         let along = OwnCapsule {
-            a: points_at(j),
-            b: points_at(j + 1),
+            a: segments[j][0],
+            b: segments[j][1],
             radius: link.radius,
         };
         link.own = own_capsule(points).map(|own| {

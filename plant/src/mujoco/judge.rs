@@ -107,6 +107,11 @@ impl Judge {
         }
     }
 
+    /// What the start-up measured of the set-up's capsules against the model's geometry.
+    pub fn set_outside_capsules(&mut self, outside: Option<(usize, f64)>) {
+        self.report.outside_capsules = outside;
+    }
+
     pub fn report(&self, m: &mjModel) -> ContactReport {
         let mut r = self.report.clone();
         r.first_pair = self.first.map(|(a, b)| pair_name(m, a, b));

@@ -26,6 +26,7 @@ pub const OBSTACLE_PREFIX: &str = "chaosd_obstacle_";
 pub type Address = (usize, usize);
 
 /// What the model is read from.
+#[derive(Clone, Copy)]
 pub enum Source<'a> {
     /// A URDF or MJCF file.
     File(&'a Path),

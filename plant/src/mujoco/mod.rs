@@ -164,6 +164,7 @@ impl MujocoPlant {
         let start_scene = scene::Spheres::of(&spheres);
         let mut judge = judge::Judge::new(m, built.obstacles.clone(), excluded);
         judge.set_active(start_scene.n);
+        judge.set_outside_capsules(outside_capsules(s, source, cfg, &joints, q0)?);
         // SAFETY: dof_damping has nv entries; the arm's dofs are below nv.
         let built_damping = built
             .arm
@@ -442,4 +443,54 @@ impl Plant for MujocoPlant {
     fn contacts(&self) -> Option<ContactReport> {
         Some(self.judge.report(self.data.model().ffi()))
     }
+}
+
+/// How far the model's geometry reaches out of the set-up's capsules, on the link where it
+/// reaches farthest (1-based, m), if anywhere by more than a millimetre: measured once at the
+/// start pose (a capsule is rigid with its link), and said in the log with the remedy.
+fn outside_capsules(
+    s: &control::system::SpatialSystem,
+    source: load::Source<'_>,
+    cfg: &PlantConfig,
+    joints: &[String],
+    q0: &[f64],
+) -> Result<Option<(usize, f64)>> {
+    let chain = &s.chain;
+    let (segments, radii) = control::with_dof!(chain.dof(), N => {
+        let setup = s.config.setup::<N>(chain)?;
+        let mut k = control::arm::spatial::SpatialKinematics::<N>::default();
+        setup.arm.kinematics(&setup.q0, &control::VecN::<N>::zeros(), &mut k);
+        let all = setup.arm.capsule_segments(&k);
+        let segments: Vec<[[f64; 3]; 2]> = all[..N]
+            .iter()
+            .map(|[a, b]| [[a.x, a.y, a.z], [b.x, b.y, b.z]])
+            .collect();
+        (segments, setup.arm.radii.to_vec())
+    });
+    let fits = fit::fit_segments(
+        source,
+        &cfg.mujoco.packages,
+        joints,
+        &q0[..joints.len()],
+        &segments,
+    )?;
+    let worst = fits
+        .iter()
+        .zip(&radii)
+        .enumerate()
+        .filter(|(_, (f, _))| f.geoms > 0)
+        .map(|(j, (f, r))| (j + 1, f.radius - r))
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    Ok(match worst {
+        Some((link, out)) if out > 1e-3 => {
+            tracing::warn!(
+                "MuJoCo: the model's geometry reaches {out:.3} m out of the set-up's capsule on \
+                 link {link}: the filter keeps the capsules clear, so that link can touch where \
+                 it reports clearance (`chaosctl robot fit-radii ROBOT --mujoco-model MODEL \
+                 --capsules` fits capsules that hold the geometry)"
+            );
+            Some((link, out))
+        }
+        _ => None,
+    })
 }
