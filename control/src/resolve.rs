@@ -145,11 +145,53 @@ pub fn damped_pinv_deciding<const N: usize, const M: usize>(
     }
     let m = a + SMatrix::<f64, M, M>::identity() * lambda2;
     // (JJᵀ + λ²I)⁻¹J, transposed: one triangular solve per column instead of an inverse.
-    let pinv_t = match m.cholesky() {
-        Some(c) => c.solve(j),
+    let solved = if M == 3 {
+        let m3 = SMatrix::<f64, 3, 3>::from_fn(|r, c| m[(r, c)]);
+        let j3 = SMatrix::<f64, 3, N>::from_fn(|r, c| j[(r, c)]);
+        cholesky_solve_3(&m3, &j3).map(|x| SMatrix::<f64, M, N>::from_fn(|r, c| x[(r, c)]))
+    } else {
+        m.cholesky().map(|c| c.solve(j))
+    };
+    let pinv_t = match solved {
+        Some(x) => x,
         None => m.try_inverse().map_or_else(SMatrix::zeros, |inv| inv * j),
     };
     (pinv_t.transpose(), smin, lambda2.sqrt())
+}
+
+/// `m⁻¹ b` for a symmetric positive definite 3×3 `m` by its Cholesky factor, None where
+/// nalgebra's `cholesky()` is None (a zero, negative or NaN pivot). The operations are nalgebra
+/// 0.35's `Cholesky::new` and `solve` in their order, written out for three rows (so the results
+/// are the same to the bit, `cholesky_3_is_nalgebras_to_the_bit`): the generic code's views and
+/// loops were 8 % of a Panda simulation for some 60 flops.
+#[inline]
+fn cholesky_solve_3<const N: usize>(
+    m: &SMatrix<f64, 3, 3>,
+    b: &SMatrix<f64, 3, N>,
+) -> Option<SMatrix<f64, 3, N>> {
+    // nalgebra's pivot: not zero, then `try_sqrt` (not negative, not NaN): together v > 0.
+    let root = |v: f64| (v > 0.0).then(|| v.sqrt());
+    let l00 = root(m[(0, 0)])?;
+    let (l10, l20) = (m[(1, 0)] / l00, m[(2, 0)] / l00);
+    let l11 = root(-l10 * l10 + m[(1, 1)])?;
+    let l21 = (-l10 * l20 + m[(2, 1)]) / l11;
+    let l22 = root(-l21 * l21 + (-l20 * l20 + m[(2, 2)]))?;
+    let mut x = *b;
+    for c in 0..N {
+        // L y = b, then Lᵀ x = y, as nalgebra's axpy and dot compute them.
+        let y0 = x[(0, c)] / l00;
+        let b1 = -y0 * l10 + x[(1, c)];
+        let b2 = -y0 * l20 + x[(2, c)];
+        let y1 = b1 / l11;
+        let y2 = (-y1 * l21 + b2) / l22;
+        let x2 = (y2 - 0.0) / l22;
+        let x1 = (y1 - (0.0 + l21 * x2)) / l11;
+        let x0 = (y0 - ((0.0 + l10 * x1) + l20 * x2)) / l00;
+        x[(0, c)] = x0;
+        x[(1, c)] = x1;
+        x[(2, c)] = x2;
+    }
+    Some(x)
 }
 
 /// Whether the symmetric positive semi-definite `a`'s smallest eigenvalue is surely above
@@ -260,6 +302,46 @@ pub fn resolve<const N: usize, const M: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The written-out 3×3 Cholesky solve against nalgebra's, bit for bit, on J Jᵀ + λ²I of
+    /// random 3×7 Jacobians from well conditioned to nearly singular (one row scaled down to
+    /// 1e-9), undamped and damped, with ±0 and large entries; and None exactly where nalgebra's
+    /// factorisation is None (a singular, an indefinite and a NaN matrix).
+    #[test]
+    fn cholesky_3_is_nalgebras_to_the_bit() {
+        let mut rnd = crate::basics::rng::uniform(0xc401u64);
+        for k in 0..20_000 {
+            let mut j = SMatrix::<f64, 3, 7>::from_fn(|_, _| rnd() * 10f64.powf(2.0 * rnd()));
+            let scale = [1.0, 1e-3, 1e-9][k % 3];
+            for c in 0..7 {
+                j[(2, c)] *= scale;
+            }
+            if k % 7 == 0 {
+                j[(1, 3)] = -0.0;
+            }
+            let lambda2 = [0.0, 2.5e-3, 1e-12][(k / 3) % 3];
+            let m = j * j.transpose() + SMatrix::<f64, 3, 3>::identity() * lambda2;
+            let ours = cholesky_solve_3(&m, &j);
+            let theirs = m.cholesky().map(|c| c.solve(&j));
+            match (ours, theirs) {
+                (Some(a), Some(b)) => {
+                    for (x, y) in a.iter().zip(b.iter()) {
+                        assert_eq!(x.to_bits(), y.to_bits(), "case {k}: {a} vs {b}");
+                    }
+                }
+                (None, None) => {}
+                (a, b) => panic!("case {k}: {a:?} vs {b:?}"),
+            }
+        }
+        let b = SMatrix::<f64, 3, 7>::repeat(1.0);
+        for m in [
+            SMatrix::<f64, 3, 3>::zeros(),
+            SMatrix::<f64, 3, 3>::new(1.0, 2.0, 0.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+            SMatrix::<f64, 3, 3>::repeat(f64::NAN),
+        ] {
+            assert!(cholesky_solve_3(&m, &b).is_none() && m.cholesky().is_none());
+        }
+    }
 
     /// On random 3×7 Jacobians, far from singular and within the damping band alike (one row
     /// scaled down to σ_min around the threshold), deciding without σ_min gives J⁺ and λ bit for
