@@ -273,29 +273,7 @@ fn an_obstacle_study_judged_by_mujoco_names_where_capsules_and_meshes_disagree()
 fn capsules_fitted_to_the_meshes_keep_them_clear_where_the_filter_says_so() {
     let Some(model) = mujoco() else { return };
     let dir = TempDir::new(&unique_namespace("mujoco-fit"));
-    let fit = |q: &str| -> Value {
-        let o = Command::new(bin("chaosctl"))
-            .args([
-                "robot",
-                "fit-radii",
-                "panda",
-                "--tool",
-                "0,0,0.1034",
-                "--json",
-            ])
-            .arg(format!("--q={q}"))
-            .arg("--mujoco-model")
-            .arg(&model)
-            .output()
-            .unwrap();
-        let out = String::from_utf8_lossy(&o.stdout).to_string();
-        assert!(
-            o.status.success(),
-            "{out}{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        serde_json::from_str(&out).unwrap()
-    };
+    let fit = |q: &str| fit_json(&model, q, &[]);
     let a = fit("0,-0.785,0,-2.356,0,1.571,0.785");
     let b = fit("0.5,0.2,-0.7,-1.2,1.1,2.5,-0.4");
     let nums = |v: &Value, k: &str| -> Vec<f64> {
@@ -334,25 +312,59 @@ fn capsules_fitted_to_the_meshes_keep_them_clear_where_the_filter_says_so() {
         err.contains("no collision geometry on the arm's links"),
         "{err}"
     );
+    let list: Vec<String> = radii.iter().map(|r| format!("{r}")).collect();
+    let capsules = format!("link_radii = [{}]", list.join(", "));
+    judged_clear_with(dir.path(), &model, "fitted.toml", &capsules);
+}
+
+/// `chaosctl robot fit-radii panda --json` at the pose `q` (the tool point of the study's
+/// set-up), with `more` flags: its JSON.
+fn fit_json(model: &Path, q: &str, more: &[&str]) -> Value {
+    let o = Command::new(bin("chaosctl"))
+        .args([
+            "robot",
+            "fit-radii",
+            "panda",
+            "--tool",
+            "0,0,0.1034",
+            "--json",
+        ])
+        .args(more)
+        .arg(format!("--q={q}"))
+        .arg("--mujoco-model")
+        .arg(model)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(
+        o.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_str(&out).unwrap()
+}
+
+/// The `panda-paper` preset with its `link_radii` line replaced by `capsules`, and the study's
+/// first start on it judged by MuJoCo: no disagreement, no contact, and the meshes at least as
+/// clear as the capsules' 0.02 m.
+fn judged_clear_with(dir: &Path, model: &Path, name: &str, capsules: &str) {
     let preset = Command::new(bin("chaosctl"))
         .args(["config", "--preset", "panda-paper"])
         .output()
         .unwrap();
-    let list: Vec<String> = radii.iter().map(|r| format!("{r}")).collect();
     let cfg: String = String::from_utf8(preset.stdout)
         .unwrap()
         .lines()
         .map(|l| match l.starts_with("link_radii") {
-            true => format!("link_radii = [{}]\n", list.join(", ")),
+            true => format!("{capsules}\n"),
             false => format!("{l}\n"),
         })
         .collect();
-    let path = dir.path().join("fitted.toml");
+    let path = dir.join(name);
     std::fs::write(&path, cfg).unwrap();
-    let (out, csv) = judged_study(dir.path(), &["--config", path.to_str().unwrap()], &model);
+    let (out, csv) = judged_study(dir, &["--config", path.to_str().unwrap()], model);
     assert!(out.contains("disagreements: none"), "{out}");
     let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
-    // Judged, no contact, and the meshes at least as clear as the capsules' 0.02 m.
     assert_eq!(row[5], "true", "{csv}");
     assert_eq!(row[6].parse::<f64>().unwrap(), 0.0, "{csv}");
     assert!(row[10].parse::<f64>().unwrap() >= 0.02 - 1e-4, "{csv}");
@@ -366,23 +378,7 @@ fn capsules_fitted_to_the_meshes_keep_them_clear_where_the_filter_says_so() {
 fn capsules_of_their_own_hold_the_meshes_tightly_and_keep_them_clear() {
     let Some(model) = mujoco() else { return };
     let dir = TempDir::new(&unique_namespace("mujoco-own"));
-    let fit = |q: &str| -> Value {
-        let o = Command::new(bin("chaosctl"))
-            .args(["robot", "fit-radii", "panda", "--tool", "0,0,0.1034"])
-            .args(["--capsules", "--json"])
-            .arg(format!("--q={q}"))
-            .arg("--mujoco-model")
-            .arg(&model)
-            .output()
-            .unwrap();
-        let out = String::from_utf8_lossy(&o.stdout).to_string();
-        assert!(
-            o.status.success(),
-            "{out}{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        serde_json::from_str(&out).unwrap()
-    };
+    let fit = |q: &str| fit_json(&model, q, &["--capsules"]);
     let (a, b) = (
         fit("0,-0.785,0,-2.356,0,1.571,0.785"),
         fit("0.5,0.2,-0.7,-1.2,1.1,2.5,-0.4"),
@@ -429,30 +425,12 @@ fn capsules_of_their_own_hold_the_meshes_tightly_and_keep_them_clear() {
         assert!(x.2 <= fitted[j] + 1e-3 + 1e-4 + 1e-12, "link {j}: {a}");
     }
     assert!(ca[4].2 < 0.12, "link 5: {a}");
-    let preset = Command::new(bin("chaosctl"))
-        .args(["config", "--preset", "panda-paper"])
-        .output()
-        .unwrap();
     let rows: Vec<String> = ca
         .iter()
         .map(|(p, q, r)| format!("  {{ a = {p:?}, b = {q:?}, radius = {r} }},"))
         .collect();
-    let cfg: String = String::from_utf8(preset.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| match l.starts_with("link_radii") {
-            true => format!("capsules = [\n{}\n]\n", rows.join("\n")),
-            false => format!("{l}\n"),
-        })
-        .collect();
-    let path = dir.path().join("own.toml");
-    std::fs::write(&path, cfg).unwrap();
-    let (out, csv) = judged_study(dir.path(), &["--config", path.to_str().unwrap()], &model);
-    assert!(out.contains("disagreements: none"), "{out}");
-    let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
-    assert_eq!(row[5], "true", "{csv}");
-    assert_eq!(row[6].parse::<f64>().unwrap(), 0.0, "{csv}");
-    assert!(row[10].parse::<f64>().unwrap() >= 0.02 - 1e-4, "{csv}");
+    let capsules = format!("capsules = [\n{}\n]", rows.join("\n"));
+    judged_clear_with(dir.path(), &model, "own.toml", &capsules);
 }
 
 /// Refusals that need no MuJoCo: the planar arm has no mass model, and an engine's name is
