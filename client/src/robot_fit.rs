@@ -127,7 +127,7 @@ pub fn run(
 }
 
 /// The judge's own capsules in each link's URDF frame (what `robot.capsules` reads), radii
-/// rounded up by `up`; a link without geometry keeps a bare segment at its joint origin.
+/// rounded up by `up` (a link without geometry: its joint segment, bare).
 fn own_capsules(
     chain: &Chain,
     q: &[f64],
@@ -140,7 +140,7 @@ fn own_capsules(
         let arm = SpatialArm::new(model);
         let mut k = SpatialKinematics::<N>::default();
         arm.kinematics(&SVector::from_column_slice(q), &SVector::zeros(), &mut k);
-        Ok(links
+        links
             .iter()
             .enumerate()
             .map(|(j, l)| {
@@ -151,29 +151,27 @@ fn own_capsules(
                     // the radius takes up.
                     [x.x, x.y, x.z].map(|v| (v * 1e4).round() / 1e4)
                 };
-                match &l.own {
-                    Some(c) => {
-                        // The fit's axis has no sign: the ends in one order whatever the pose.
-                        let (a, b) = (to(c.a), to(c.b));
-                        let (a, b) = if a.partial_cmp(&b) == Some(std::cmp::Ordering::Greater) {
-                            (b, a)
-                        } else {
-                            (a, b)
-                        };
-                        CapsuleEntry {
-                            a,
-                            b,
-                            radius: up(c.radius + 1e-4),
-                        }
-                    }
-                    None => CapsuleEntry {
-                        a: [0.0; 3],
-                        b: [0.0; 3],
-                        radius: 0.0,
-                    },
-                }
+                let Some(c) = &l.own else {
+                    bail!(
+                        "the judge fitted no capsule of its own to link {} (an older \
+                         chaosd-mujoco-judge: run scripts/mujoco-setup)",
+                        j + 1
+                    );
+                };
+                // The fit's axis has no sign: the ends in one order whatever the pose.
+                let (a, b) = (to(c.a), to(c.b));
+                let (a, b) = if a.partial_cmp(&b) == Some(std::cmp::Ordering::Greater) {
+                    (b, a)
+                } else {
+                    (a, b)
+                };
+                Ok(CapsuleEntry {
+                    a,
+                    b,
+                    radius: up(c.radius + 1e-4),
+                })
             })
-            .collect())
+            .collect()
     })
 }
 

@@ -42,8 +42,8 @@ pub struct LinkFit {
     pub geoms: usize,
     pub points: usize,
     /// A capsule with end points of its own that holds the same geometry, usually far tighter
-    /// ([`own_capsule`]; world frame at the fit's pose); None for a link without geometry.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    /// ([`own_capsule`]; world frame at the fit's pose); a link without geometry keeps its
+    /// segment, bare.
     pub own: Option<OwnCapsule>,
 }
 
@@ -146,12 +146,10 @@ pub fn fit_segments(
             b: segments[j][1],
             radius: link.radius,
         };
-        link.own = own_capsule(points).map(|own| {
-            if volume(&own) <= volume(&along) {
-                own
-            } else {
-                along
-            }
+        // A link without geometry keeps chaosd's segment, bare (radius 0), as with the radii.
+        link.own = Some(match own_capsule(points) {
+            Some(own) if volume(&own) <= volume(&along) => own,
+            _ => along,
         });
     }
     Ok(links)
