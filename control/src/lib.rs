@@ -30,6 +30,7 @@ pub mod secondary;
 pub mod sim;
 pub mod steer;
 pub mod system;
+pub mod target;
 pub mod task;
 pub mod tick_law;
 pub mod tune;

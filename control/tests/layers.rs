@@ -46,7 +46,7 @@ const FLOORS: &[(&str, &[&str])] = &[
     ("the whole set-up: either arm from one file", &["system"]),
     (
         "monitor, planner and the gain from the model",
-        &["monitor", "plan", "tune"],
+        &["monitor", "plan", "target", "tune"],
     ),
     ("the loop through a command interface", &["commanded"]),
 ];

@@ -108,6 +108,55 @@ fn auto_mu_finds_a_stabilising_gain_from_every_start_and_after_an_edit() {
     }
 }
 
+/// `mu = "auto"` steers the arm onto the model's cycle and hands it to the feedback once it
+/// repeats itself (`control::target`): from chaotic starts the monitor's first verdict is
+/// `periodic` and it never changes, and the pull is gone within a few periods. With
+/// `feedback.target = false` the feedback catches the arm alone, as before.
+#[test]
+fn auto_steers_onto_the_models_cycle_and_hands_it_to_the_feedback() {
+    use control::target::{Released, MAX_STEER_PERIODS};
+    for q0 in [[-0.5, 2.0, 1.0], [-0.2, 1.8, 1.4], [0.8, 0.9, 1.8]] {
+        let mut system = paper(q0, 0.0);
+        system.feedback_section_mut().auto = Some(AutoMu::default());
+        system.validate().unwrap();
+        let w = watch(&system, 60.0, MonitorSettings::default(), &[]);
+        let target = w.model[0]
+            .target
+            .as_ref()
+            .unwrap_or_else(|| panic!("{q0:?}: {:?}", w.model));
+        assert_eq!(
+            target.released,
+            Some(Released::OnTheCycle),
+            "{q0:?}: {target:?}"
+        );
+        let released = target.released_at.unwrap();
+        assert!(
+            released < MAX_STEER_PERIODS,
+            "{q0:?}: released at {released} s"
+        );
+        assert!(target.miss.unwrap() < 1e-4, "{q0:?}: {target:?}");
+        // Held by the feedback alone after the release: one verdict, periodic, to the end.
+        assert_eq!(w.edges.len(), 1, "{q0:?}: {:?}", w.edges);
+        assert_eq!(w.edges[0].to, Verdict::Periodic, "{q0:?}");
+        assert!(
+            w.edges[0].t <= 8.0,
+            "{q0:?}: first verdict at {} s",
+            w.edges[0].t
+        );
+        assert!(w.last.residual < 1e-4, "{q0:?}: {:?}", w.last);
+        assert!(w
+            .trace
+            .iter()
+            .all(|p: &PeriodPoint| p.t < released || p.residual < 2e-2));
+    }
+    let mut alone = paper([-0.5, 2.0, 1.0], 0.0);
+    alone.feedback_section_mut().auto = Some(AutoMu::default());
+    alone.feedback_section_mut().target = false;
+    let w = watch(&alone, 20.0, MonitorSettings::default(), &[]);
+    assert!(w.model[0].mu.is_some() && w.model[0].target.is_none());
+    assert_eq!(w.edges.first().map(|e| e.to), Some(Verdict::Chaotic));
+}
+
 #[test]
 fn without_adaptation_the_gain_never_moves() {
     let w = watch(
@@ -135,11 +184,21 @@ fn auto_in_a_config_file_parses_round_trips_and_refuses_bad_gains() {
     assert!(c.law_params().core.feedback_active(c.feedback.t_on + 1.0));
     let again = Config::parse(&c.to_toml()).unwrap();
     assert_eq!(again.feedback, c.feedback);
+    assert!(again.feedback.target && !c.to_toml().contains("target"));
+    // `target = false` is kept and printed; it tunes "auto" only.
+    let off = Config::parse("[feedback]\nmu = \"auto\"\ntarget = false\n").unwrap();
+    assert!(!off.feedback.target && off.to_toml().contains("target = false"));
+    assert_eq!(
+        Config::parse(&off.to_toml()).unwrap().feedback,
+        off.feedback
+    );
     let plain = Config::parse("[feedback]\nmu = 0.2\n").unwrap();
     assert_eq!((plain.feedback.mu, plain.feedback.auto), (0.2, None));
     for (bad, says) in [
         ("mu = \"fast\"", "\"auto\""),
         ("mu = 0.2\ngamma = 1e-4", "gamma"),
+        ("mu = 0.2\ntarget = false", "feedback.target"),
+        ("mu = \"auto\"\ntarget = 1", "target"),
         ("mu = \"auto\"\ngamma = 0.5", "feedback.gamma"),
         ("mu = \"auto\"\ngamma = -1", "feedback.gamma"),
         ("mu = \"auto\"\nmax_mu = 0", "feedback.max_mu"),

@@ -125,6 +125,7 @@ impl ChaosWatch {
             edges: self.edges,
             history: self.history.clone(),
             model_gain: None,
+            target: None,
         }
     }
 }

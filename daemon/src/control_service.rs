@@ -67,10 +67,20 @@ impl Reporter {
         self.system = new;
         self.chaos.gain_only();
         self.gains.handed_over(t);
+        if let Some(Ok(target)) = &c.target {
+            self.deadlock.target(target, t, self.system.period());
+        }
         if let Some(log) = self.replay.as_mut() {
             log.committed(&self.system);
         }
         self.save_live_state();
+    }
+
+    /// `status`'s `gains`: the model's gain and the steering onto its cycle.
+    fn gains_json(&self) -> serde_json::Value {
+        let mut g = self.gains.to_json();
+        g["target"] = self.deadlock.target.to_json();
+        g
     }
 
     /// The law's settings as `status` and a change's answer show them.
@@ -197,7 +207,7 @@ impl Reporter {
             "blocked": self.deadlock.blocked.as_ref().map(|b| b.to_json()),
             "plan": self.deadlock.plan_json(),
             "chaos": self.chaos.to_json(self.mu_auto()),
-            "gains": self.gains.to_json(),
+            "gains": self.gains_json(),
             "joint_limits": self.limits.seen(),
             "limit_breaches": self.limits.seen().breaches(),
         });

@@ -25,11 +25,13 @@
 
 use crate::planner::{Done, Job, Planner, Why};
 use crate::replay::ReplayLog;
+use crate::targeting::{Ended, Targeting};
 use crate::telemetry::{LoopRequest, TickRecord};
 use control::plan::trap::TrapDetector;
 use control::plan::{has_planner, plan_asked, steering_of, PlanOutcome};
 use control::safety::policy::WhenBlocked;
 use control::steer::Steering;
+use control::target::Target;
 use control::System;
 use crossbeam::channel::Sender;
 
@@ -120,6 +122,8 @@ pub struct Deadlock {
     /// Times the daemon became blocked, and the first reason.
     pub entered: u64,
     pub first: Option<String>,
+    /// `mu = "auto"`: the steering onto the model's cycle, which any planner steering ends.
+    pub target: Targeting,
 }
 
 impl Deadlock {
@@ -154,6 +158,7 @@ impl Deadlock {
             holding: false,
             entered: 0,
             first: None,
+            target: Targeting::default(),
         };
         let q0 =
             control::with_dof!(system.n(), N => system.initial_state::<N>().q.as_slice().to_vec());
@@ -181,6 +186,11 @@ impl Deadlock {
     /// remains is seen again after `trap_time`).
     pub fn edited(&mut self, system: &System, t: f64, q_now: Option<Vec<f64>>) {
         self.generation += 1;
+        // The model's cycle was the set-up's before the edit: its own comes with its gain.
+        if self.target.active() {
+            self.target.end(t, Ended::Edited);
+            self.send_steer = Some(None);
+        }
         let layout = Layout::of(system);
         // Until a plan for it comes back: a μ edit right after an obstacle edit drops the
         // obstacle's plan (stale), and its own plan is then the one for the new layout.
@@ -203,6 +213,9 @@ impl Deadlock {
 
     /// One tick record: watches for a trap while the law runs.
     pub fn observe(&mut self, r: &TickRecord, system: &System) {
+        if self.target.observe(r) {
+            self.send_steer = Some(None);
+        }
         let s = system.safety();
         // A hold or a stalled tick knocks the arm on its own (a loaded machine: holds and 20-50
         // ms stalls, the filter then acting on the way back): not a recurring trap.
@@ -304,6 +317,7 @@ impl Deadlock {
                     self.steering_wanted || self.detour_forced(&c, done.why, layout_edited);
                 match steering_of(system, &c) {
                     Ok(steer) if wanted => {
+                        self.target.end(t, Ended::Planner);
                         if let Some(d) = &c.detour {
                             tracing::warn!(
                                 "taking a joint-space detour onto the planned cycle: tracking \
@@ -315,7 +329,7 @@ impl Deadlock {
                         self.send_steer = Some(Some(steer));
                     }
                     Ok(_) => {
-                        if self.steering {
+                        if self.steering && !self.target.active() {
                             self.send_steer = Some(None);
                         }
                     }
@@ -323,6 +337,7 @@ impl Deadlock {
                 }
             }
             PlanOutcome::Blocked(b) => {
+                self.target.end(t, Ended::Planner);
                 self.plan = Some(PlanInfo {
                     generation: done.generation,
                     why: done.why,
@@ -403,7 +418,8 @@ impl Deadlock {
                     Steering::Spatial(_) => None,
                 });
                 self.steering = s.is_some();
-                self.following = s;
+                // The planner plans from the cycle it steers onto, not from the model's.
+                self.following = s.filter(|_| !self.target.active());
                 self.detour = planar
                     .and_then(|s| s.detour)
                     .map(|d| (d.t_start, d.t_arrive));
@@ -418,6 +434,18 @@ impl Deadlock {
                 self.send_hold = None;
             }
         }
+    }
+
+    /// `mu = "auto"`: steers the arm onto the model's cycle (its gain was just handed to the
+    /// loop at controller time `now`), unless a planner's steering has the arm, wants it, or
+    /// the daemon is blocked.
+    pub fn target(&mut self, target: &Target, now: f64, period: f64) {
+        let planner_has_it = self.steering && !self.target.active();
+        if self.steering_wanted || planner_has_it || self.blocked.is_some() {
+            return;
+        }
+        self.send_steer = Some(Some(target.steering));
+        self.target.start(target, now, period);
     }
 
     /// The loop is steering onto a planned cycle.

@@ -191,7 +191,7 @@ fn chaos(d: &DaemonSummary) -> String {
         .map(|e| format!("{} at {:.0} s", e.to.name(), e.t))
         .collect();
     format!(
-        "{} ({}){}{}",
+        "{} ({}){}{}{}",
         c.evidence.verdict.name(),
         crate::chaos::describe(&c.evidence),
         if path.is_empty() {
@@ -199,9 +199,28 @@ fn chaos(d: &DaemonSummary) -> String {
         } else {
             format!("; {}", path.join(" → "))
         },
+        c.target.as_ref().map_or(String::new(), steered),
         c.model_gain
             .as_ref()
             .map_or(String::new(), |w| format!("; the gain from the model: {w}"))
+    )
+}
+
+/// The steering onto the model's cycle, for the chaos line.
+fn steered(t: &crate::targeting::TargetInfo) -> String {
+    use crate::targeting::Ended;
+    use control::target::Released;
+    let how = match t.ended {
+        Some(Ended::Released(Released::OnTheCycle)) => "on it, then held by the feedback",
+        Some(Ended::Released(Released::TimedOut)) => "not settled on it, left to the feedback",
+        Some(Ended::Edited) => "until an edit",
+        Some(Ended::Planner) => "until the planner steered",
+        None => "to the end",
+    };
+    let until = t.ended_at.map_or(String::new(), |e| format!("–{e:.1}"));
+    format!(
+        "; steered onto the model's cycle {:.1}{until} s ({how})",
+        t.since
     )
 }
 

@@ -10,9 +10,15 @@
 //!
 //! The search is seeded with the arm's own state at the newest whole period of controller
 //! time (the task's phase 0), so after an edit it looks for the cycle near where the arm is.
+//!
+//! The same thread makes the steering onto the chosen cycle ([`control::target`]): the reporter
+//! hands it to the loop with the gain, through the deadlock watch that owns the loop's
+//! steering ([`crate::deadlock::Deadlock::target`]), and takes it away once the arm is on the
+//! cycle, so the feedback holds an arm it did not have to wait for.
 
 use crate::telemetry::TickRecord;
 use crate::worker::Worker;
+use control::target::{target, target_wanted, Target, TargetError};
 use control::tune::{choose_gain, GainChoice, TuneError, TuneSpec};
 use control::System;
 use std::time::Duration;
@@ -38,6 +44,9 @@ pub struct Done {
     pub generation: u64,
     pub why: Why,
     pub result: Result<GainChoice, TuneError>,
+    /// The steering onto the chosen cycle, where the set-up wants one
+    /// ([`control::target::target_wanted`]).
+    pub target: Option<Result<Target, TargetError>>,
     pub took: Duration,
 }
 
@@ -49,6 +58,8 @@ pub struct Chosen {
     pub took: Duration,
     /// Controller time at which it was handed to the loop (s); NaN while it waits.
     pub t: f64,
+    /// The steering onto the chosen cycle, or why there is none (None: not wanted).
+    pub target: Option<Result<Target, String>>,
 }
 
 /// The search's thread (started on the first job), its newest answer and the arm's newest
@@ -138,11 +149,19 @@ impl GainTuning {
             match done.result {
                 Ok(choice) => {
                     self.error = None;
+                    let target = done.target.map(|t| t.map_err(|e| e.to_string()));
+                    if let Some(Err(e)) = &target {
+                        tracing::warn!(
+                            "mu = \"auto\": no steering onto the model's cycle ({e}); the \
+                             feedback catches the arm alone"
+                        );
+                    }
                     self.waiting = Some(Chosen {
                         choice,
                         why: done.why,
                         took: done.took,
                         t: f64::NAN,
+                        target,
                     });
                 }
                 Err(e) => {
@@ -188,6 +207,8 @@ impl GainTuning {
                 "adopted_at_t": c.t,
                 "took_s": c.took.as_secs_f64(),
                 "seed": c.choice.seed,
+                "target_error": c.target.as_ref().and_then(|t| t.as_ref().err()),
+                "target_miss": c.target.as_ref().and_then(|t| t.as_ref().ok()).map(|t| t.miss),
                 "cycle": {"q": c.choice.orbit.q, "qd": c.choice.orbit.qd,
                           "residual": c.choice.orbit.residual},
                 "scanned": c.choice.scanned,
@@ -205,10 +226,15 @@ fn search(job: Job) -> Done {
     let started = std::time::Instant::now();
     let spec = TuneSpec::of(&job.system);
     let result = choose_gain(&job.system, job.seed.as_deref(), &spec);
+    let target = match &result {
+        Ok(c) if target_wanted(&job.system) => Some(target(&job.system, &c.orbit)),
+        _ => None,
+    };
     Done {
         generation: job.generation,
         why: job.why,
         result,
+        target,
         took: started.elapsed(),
     }
 }

@@ -39,6 +39,7 @@ pub mod ros2_bag;
 pub mod rotate;
 pub mod saturations;
 pub mod service;
+pub mod targeting;
 pub mod telemetry;
 pub mod tick;
 pub mod tracking;

@@ -649,6 +649,7 @@ impl Reporter {
             first_blocked: self.deadlock.first.clone(),
             chaos: crate::telemetry::ChaosSummary {
                 model_gain: self.gains.chosen.as_ref().map(|c| c.choice.why()),
+                target: self.deadlock.target.last,
                 ..self.chaos.summary()
             },
             time_in_safety_zone_s: self.safety_ticks as f64 / self.daemon.rate_hz,

@@ -163,6 +163,9 @@ pub struct ChaosSummary {
     /// With `mu = "auto"`: the gain the model chose, and why (`crate::gains`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_gain: Option<String>,
+    /// With `mu = "auto"`: the newest steering onto the model's cycle (`crate::targeting`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target: Option<crate::targeting::TargetInfo>,
 }
 
 /// Name of the JSON summary in the output directory.

@@ -100,6 +100,26 @@ fn the_daemon_says_periodic_with_feedback_and_chaotic_without_and_adapts_mu_live
         !kept || (mu - model).abs() < 0.01,
         "μ = {mu}: on the orbit it should stay at the model's {model}"
     );
+    // It also steered the arm onto the model's cycle with the gain, and took the pull away
+    // once the arm repeated itself (control::target): status and the log say so.
+    let (v, _) = poll_status(ns, Duration::from_secs(30), |v| {
+        !v["gains"]["target"]["last"]["ended"].is_null()
+    });
+    let target = &v["gains"]["target"];
+    assert_eq!(
+        target["last"]["ended"],
+        serde_json::json!({"released": "on_the_cycle"}),
+        "{}\n{}",
+        v["gains"],
+        sys.daemon.log()
+    );
+    assert_eq!(target["steering"], false, "{target}");
+    let log = sys.daemon.log();
+    assert!(
+        log.contains("steering the arm onto the model's cycle"),
+        "{log}"
+    );
+    assert!(log.contains("the arm is on the model's cycle"), "{log}");
     let (code, _, err) = ctl(ns, &["set", "gamma", "1"]);
     assert!(code != 0 && err.contains("feedback.gamma"), "{err}");
 

@@ -37,6 +37,9 @@ pub struct Comparison {
     pub auto_effort: f64,
     /// The auto run's first verdict and when it came (s).
     pub auto_first_verdict: Option<(Verdict, f64)>,
+    /// The auto run's steering onto the model's cycle at the start (`control::target`): when
+    /// the pull was taken away and why, or why there was none.
+    pub auto_target: Option<control::monitor::run::TargetRun>,
     /// The best fixed gain the analysis finds for the start (`chaosctl tune`), and that gain
     /// run fixed.
     pub best_fixed: Option<BestFixed>,
@@ -238,9 +241,17 @@ impl Report {
                 Some(BestFixed { mu: Err(e), .. }) => format!("no best μ: {e}"),
                 None => "no best μ".into(),
             };
+            let steered = match &c.auto_target {
+                Some(t) => match (t.released_at, t.released, &t.error) {
+                    (Some(at), Some(why), _) => format!(", steered until {at:.1} s ({why:?})"),
+                    (_, _, Some(e)) => format!(", not steered ({e})"),
+                    _ => ", steered to the end".into(),
+                },
+                None => String::new(),
+            };
             println!(
-                "  start ({}): auto first {first}, {} at {} s, μ → {:.3}, effort {:.1} | {best} | \
-                 smallest fixed μ = {} periodic at {} s, effort {}",
+                "  start ({}): auto first {first}{steered}, {} at {} s, μ → {:.3}, effort {:.1} | \
+                 {best} | smallest fixed μ = {} periodic at {} s, effort {}",
                 fmt_list(&c.q0),
                 c.auto_verdict.name(),
                 one(c.auto_periodic_at),
@@ -404,6 +415,7 @@ fn comparisons(
                 auto_mu_final: a.mu_final,
                 auto_effort: a.effort,
                 auto_first_verdict: a.first_verdict,
+                auto_target: a.model.first().and_then(|m| m.target.clone()),
                 best_fixed: best_fixed.iter().find(|b| b.start == a.start).cloned(),
                 smallest_fixed_mu: best.map(|c| c.mu),
                 fixed_periodic_at: best.and_then(|c| c.settled_periods).map(|p| p * tau),

@@ -16,8 +16,9 @@ pub enum ConfigError {
     },
     #[error("unknown preset {name:?} (known presets: {known})")]
     UnknownPreset { name: String, known: String },
-    /// `feedback.gamma` or `feedback.max_mu` beside a fixed μ: they would silently do nothing.
-    #[error("feedback.gamma and feedback.max_mu tune mu = \"auto\"; with a fixed mu they do nothing: remove them")]
+    /// `feedback.gamma`, `feedback.max_mu` or `feedback.target` beside a fixed μ: they would
+    /// silently do nothing.
+    #[error("feedback.gamma, feedback.max_mu and feedback.target tune mu = \"auto\"; with a fixed mu they do nothing: remove them")]
     AutoTuningWithoutAuto,
     /// A spatial robot's set-up given where only the planar arm runs yet.
     /// The robot's own physics cannot do what the set-up asks (found before the first command).

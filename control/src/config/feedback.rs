@@ -25,6 +25,9 @@ pub struct FeedbackSection {
     pub mu: f64,
     /// `mu = "auto"`: the speed-gradient law adapts μ ([`crate::adapt`]).
     pub auto: Option<AutoMu>,
+    /// `mu = "auto"`: steer the arm onto the cycle the model's gain is for, and hand it to the
+    /// feedback once on it ([`crate::target`]); false: the feedback catches the arm alone.
+    pub target: bool,
     /// Delay τ (s); None: the task's period ([`Self::tau_for`]).
     pub tau: Option<f64>,
     /// Switch-on time t_on (s).
@@ -48,6 +51,8 @@ struct FeedbackToml {
     #[serde(skip_serializing_if = "Option::is_none")]
     max_mu: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
+    target: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     tau: Option<f64>,
     t_on: f64,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -64,10 +69,14 @@ impl Default for FeedbackToml {
 impl TryFrom<FeedbackToml> for FeedbackSection {
     type Error = ConfigError;
     fn try_from(f: FeedbackToml) -> Result<Self, ConfigError> {
+        if f.target.is_some() && !f.mu.is_auto() {
+            return Err(ConfigError::AutoTuningWithoutAuto);
+        }
         Ok(Self {
             enabled: f.enabled,
             mu: f.mu.start(),
             auto: crate::adapt::auto_from_toml(f.mu, f.gamma, f.max_mu)?,
+            target: f.target.unwrap_or(true),
             tau: f.tau,
             t_on: f.t_on,
             max_tau: f.max_tau,
@@ -86,6 +95,7 @@ impl From<FeedbackSection> for FeedbackToml {
             },
             gamma: f.auto.map(|a| a.gamma),
             max_mu: f.auto.map(|a| a.max_mu),
+            target: f.auto.map(|_| f.target).filter(|t| !t),
             tau: f.tau,
             t_on: f.t_on,
             max_tau: f.max_tau,
@@ -101,6 +111,7 @@ impl Default for FeedbackSection {
             enabled: true,
             mu: 0.0,
             auto: None,
+            target: true,
             tau: None,
             t_on: 0.0,
             max_tau: None,

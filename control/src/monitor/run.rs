@@ -13,6 +13,7 @@ use crate::basics::ConfigError;
 use crate::law::ParamBlock;
 use crate::sim::{ClosedLoopLaw, LoopFeedback, Simulation};
 use crate::system::System;
+use crate::target::{target, target_wanted, Release, Released};
 use crate::tune::{choose_gain, TuneSpec};
 use crate::with_dof;
 use serde::Serialize;
@@ -97,6 +98,19 @@ pub struct ModelChoice {
     pub multiplier: Option<f64>,
     pub rate: Option<f64>,
     pub error: Option<String>,
+    /// The arm steered onto the chosen cycle ([`crate::target`]): when the pull was taken
+    /// away and why, or why there was none.
+    pub target: Option<TargetRun>,
+}
+
+/// One steering onto the model's cycle during a watched run.
+#[derive(Clone, Debug, Serialize)]
+pub struct TargetRun {
+    /// The steered law's miss of the cycle (rad).
+    pub miss: Option<f64>,
+    pub released_at: Option<f64>,
+    pub released: Option<Released>,
+    pub error: Option<String>,
 }
 
 /// Runs `system` as the daemon's law for `duration` s with the monitor watching; `edits`
@@ -160,6 +174,10 @@ pub fn watch_sim<const N: usize, L: ClosedLoopLaw<N>>(
             diverged = true;
             break;
         }
+        if let Some(g) = gains.as_mut() {
+            let feedback = out.flags & crate::basics::flags::FEEDBACK_ACTIVE != 0;
+            g.watch_target(sim, out.period_residual, feedback);
+        }
         if out.flags & crate::basics::flags::FEEDBACK_ACTIVE != 0 {
             let r =
                 crate::adapt::AutoMu::residual(projection, out.period_residual, out.null_residual);
@@ -198,6 +216,8 @@ struct ModelGains {
     /// (period index, q and q̇) of the newest state at a whole period: the seed after an edit.
     phase_zero: Option<(i64, Vec<f64>)>,
     choices: Vec<ModelChoice>,
+    /// The steering onto the chosen cycle under way.
+    release: Option<Release>,
 }
 
 impl ModelGains {
@@ -206,6 +226,57 @@ impl ModelGains {
             system,
             phase_zero: None,
             choices: Vec::new(),
+            release: None,
+        }
+    }
+
+    /// Takes the pull away once the steered arm is on its cycle, as the daemon's reporter does.
+    fn watch_target<const N: usize, L: ClosedLoopLaw<N>>(
+        &mut self,
+        sim: &mut Simulation<N, L>,
+        residual: f64,
+        feedback: bool,
+    ) {
+        let Some(r) = self.release.as_mut() else {
+            return;
+        };
+        let t = sim.time();
+        if let Some(why) = r.observe(t, residual, feedback) {
+            sim.law.set_steering(None);
+            self.release = None;
+            if let Some(run) = self.choices.last_mut().and_then(|c| c.target.as_mut()) {
+                (run.released_at, run.released) = (Some(t), Some(why));
+            }
+        }
+    }
+
+    /// The steering onto the chosen cycle, unless the set-up does not want it
+    /// ([`target_wanted`]) or the law already follows a steering.
+    fn target<const N: usize, L: ClosedLoopLaw<N>>(
+        &mut self,
+        sim: &mut Simulation<N, L>,
+        orbit: &crate::analysis::PeriodicOrbit,
+    ) -> Option<TargetRun> {
+        if !target_wanted(&self.system) || sim.law.steering().is_some() {
+            return None;
+        }
+        match target(&self.system, orbit) {
+            Ok(t) => {
+                sim.law.set_steering(Some(t.steering));
+                self.release = Some(Release::new(sim.time(), self.system.period()));
+                Some(TargetRun {
+                    miss: Some(t.miss),
+                    released_at: None,
+                    released: None,
+                    error: None,
+                })
+            }
+            Err(e) => Some(TargetRun {
+                miss: None,
+                released_at: None,
+                released: None,
+                error: Some(e.to_string()),
+            }),
         }
     }
 
@@ -227,6 +298,10 @@ impl ModelGains {
         sim: &mut Simulation<N, L>,
         seed: Option<&[f64]>,
     ) {
+        // The steering onto the cycle of the set-up before an edit is no longer the arm's.
+        if self.release.take().is_some() {
+            sim.law.set_steering(None);
+        }
         if self.system.feedback().auto.is_none() {
             return;
         }
@@ -241,6 +316,7 @@ impl ModelGains {
                     multiplier: None,
                     rate: None,
                     error: Some(e.to_string()),
+                    target: None,
                 });
                 return;
             }
@@ -249,12 +325,14 @@ impl ModelGains {
             sim.law.take_block(s.param_block());
             self.system = s;
         }
+        let target = self.target(sim, &choice.orbit);
         self.choices.push(ModelChoice {
             t,
             mu: Some(choice.mu),
             multiplier: Some(choice.multiplier),
             rate: Some(choice.rate),
             error: None,
+            target,
         });
     }
 }
