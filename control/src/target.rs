@@ -43,6 +43,11 @@ pub const RELEASE_RESIDUAL: f64 = 1e-3;
 /// arm the filter or a plant that is not the model keeps off the cycle).
 pub const MAX_STEER_PERIODS: f64 = 10.0;
 
+/// How often an arm knocked off its cycle after the model's gain came (the monitor calls it
+/// chaotic again) is steered back before the next edit: a plant the steering cannot hold on
+/// the cycle is left to the feedback after that.
+pub const MAX_RETARGETS: u32 = 3;
+
 /// How often the table is corrected against the steered law (see the module docs).
 pub const CORRECTIONS: usize = 3;
 

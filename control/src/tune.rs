@@ -240,6 +240,28 @@ pub enum TuneError {
     Diverged,
 }
 
+/// Periods after which a search that found no cycle to stabilise is tried again, seeded with
+/// the arm's state then: a chaotic arm wanders past other cycles, and Newton's method finds
+/// the one nearest the seed.
+pub const RETRY_PERIODS: i64 = 2;
+
+/// The most such retries after a start or an edit.
+pub const MAX_RETRIES: u32 = 30;
+
+impl TuneError {
+    /// Whether a search from another state of the arm may find what this one did not (a
+    /// cycle, or one a gain makes stable); not for a set-up that has no gain to choose.
+    ///
+    /// ```
+    /// use control::tune::TuneError;
+    /// assert!(TuneError::NoCycle("far".into()).worth_retrying());
+    /// assert!(!TuneError::Invalid("the feedback is off".into()).worth_retrying());
+    /// ```
+    pub fn worth_retrying(&self) -> bool {
+        !matches!(self, TuneError::Invalid(_))
+    }
+}
+
 /// Arnoldi's settings for the search: the leading pair only, to 1e-5.
 const FLOQUET: FloquetSpec = FloquetSpec {
     count: 2,

@@ -44,8 +44,9 @@ impl ChaosWatch {
         }
     }
 
-    /// One tick's record (see the module docs for when the window restarts).
-    pub fn observe(&mut self, r: &TickRecord, mu_auto: bool) {
+    /// One tick's record (see the module docs for when the window restarts); the verdict's
+    /// change, if it changed.
+    pub fn observe(&mut self, r: &TickRecord, mu_auto: bool) -> Option<Edge> {
         let run = r.mode == Mode::Run;
         let mut edited = matches!(r.applied, Some(Applied::Params));
         if edited && self.gain_only {
@@ -56,16 +57,11 @@ impl ChaosWatch {
         }
         self.running = run;
         self.mu = r.mu;
-        let Some(s) = r.state.as_ref().filter(|_| run && r.ran_law) else {
-            return;
-        };
+        let s = r.state.as_ref().filter(|_| run && r.ran_law)?;
         let (q, qd) = (&s.q[..self.n], &s.qd[..self.n]);
-        let Some(e) = self
+        let e = self
             .monitor
-            .push(r.t, q, qd, r.period_residual, r.null_residual)
-        else {
-            return;
-        };
+            .push(r.t, q, qd, r.period_residual, r.null_residual)?;
         self.edges += 1;
         if self.history.len() < HISTORY {
             self.history.push(e);
@@ -79,6 +75,7 @@ impl ChaosWatch {
             describe(&e.evidence),
             crate::number::short(r.mu)
         );
+        Some(e)
     }
 
     /// The next parameter block is the model's gain only (see the field).

@@ -76,6 +76,23 @@ impl Reporter {
         self.save_live_state();
     }
 
+    /// The monitor calls the arm chaotic again after the model's gain came: something (a
+    /// stall, a hold, a push) knocked it off its cycle, so it is steered back, as at the start,
+    /// rather than left to the feedback to catch by chance ([`control::target::MAX_RETARGETS`]
+    /// times until the next edit).
+    pub(crate) fn retarget(&mut self, t: f64) {
+        let Some(Ok(target)) = self.gains.chosen.as_ref().and_then(|c| c.target.clone()) else {
+            return;
+        };
+        if self.deadlock.target.active() || !self.deadlock.target.may_retarget() {
+            return;
+        }
+        tracing::warn!(
+            "mu = \"auto\": the arm left the model's cycle (chaotic at t = {t:.3} s): steering it back"
+        );
+        self.deadlock.target(&target, t, self.system.period());
+    }
+
     /// `status`'s `gains`: the model's gain and the steering onto its cycle.
     fn gains_json(&self) -> serde_json::Value {
         let mut g = self.gains.to_json();

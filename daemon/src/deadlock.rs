@@ -187,6 +187,7 @@ impl Deadlock {
     pub fn edited(&mut self, system: &System, t: f64, q_now: Option<Vec<f64>>) {
         self.generation += 1;
         // The model's cycle was the set-up's before the edit: its own comes with its gain.
+        self.target.edited();
         if self.target.active() {
             self.target.end(t, Ended::Edited);
             self.send_steer = Some(None);

@@ -19,7 +19,7 @@
 use crate::telemetry::TickRecord;
 use crate::worker::Worker;
 use control::target::{target, target_wanted, Target, TargetError};
-use control::tune::{choose_gain, GainChoice, TuneError, TuneSpec};
+use control::tune::{choose_gain, GainChoice, TuneError, TuneSpec, MAX_RETRIES, RETRY_PERIODS};
 use control::System;
 use std::time::Duration;
 
@@ -29,6 +29,9 @@ use std::time::Duration;
 pub enum Why {
     Start,
     Edit,
+    /// The search before found no cycle to stabilise; tried again from where the arm is now
+    /// ([`control::tune::RETRY_PERIODS`]).
+    Retry,
 }
 
 /// One search: the running set-up, seeded with (q, q̇) at a whole period when there is one.
@@ -37,12 +40,15 @@ pub struct Job {
     pub why: Why,
     pub system: System,
     pub seed: Option<Vec<f64>>,
+    /// Retries before this one since the start or the edit.
+    pub tries: u32,
 }
 
 /// A finished search.
 pub struct Done {
     pub generation: u64,
     pub why: Why,
+    pub tries: u32,
     pub result: Result<GainChoice, TuneError>,
     /// The steering onto the chosen cycle, where the set-up wants one
     /// ([`control::target::target_wanted`]).
@@ -76,6 +82,10 @@ pub struct GainTuning {
     pub error: Option<String>,
     /// (period index, q and q̇) of the newest state at or just after a whole period.
     phase_zero: Option<(i64, Vec<f64>)>,
+    /// The set-up searched for, and when to search it again (period index, retries so far)
+    /// after a search that found no cycle to stabilise.
+    system: Option<System>,
+    retry: Option<(i64, u32)>,
 }
 
 impl GainTuning {
@@ -89,6 +99,8 @@ impl GainTuning {
             chosen: None,
             error: None,
             phase_zero: None,
+            system: None,
+            retry: None,
         }
     }
 
@@ -98,11 +110,27 @@ impl GainTuning {
         self.generation += 1;
         self.waiting = None;
         self.searching = None;
+        self.retry = None;
+        self.system = None;
+        // The steering onto the old set-up's cycle is no way back for the new one.
+        if let Some(c) = self.chosen.as_mut() {
+            c.target = None;
+        }
         if system.feedback().auto.is_none() {
             self.chosen = None;
             self.error = None;
             return;
         }
+        self.system = Some(system.clone());
+        self.submit(why, 0);
+    }
+
+    /// Hands the search's thread the set-up (started on the first job), seeded with the
+    /// arm's newest state at a whole period.
+    fn submit(&mut self, why: Why, tries: u32) {
+        let Some(system) = self.system.clone() else {
+            return;
+        };
         if self.worker.is_none() {
             match Worker::spawn("chaosd-tune", self.loop_core, search) {
                 Ok(w) => self.worker = Some(w),
@@ -117,8 +145,9 @@ impl GainTuning {
             w.submit(Job {
                 generation: self.generation,
                 why,
-                system: system.clone(),
+                system,
                 seed,
+                tries,
             });
             self.searching = Some(why);
         }
@@ -136,6 +165,13 @@ impl GainTuning {
         }
         let x: Vec<f64> = s.q[..n].iter().chain(&s.qd[..n]).copied().collect();
         self.phase_zero = Some((k, x));
+        let due = self
+            .retry
+            .filter(|(at, _)| k >= *at && self.searching.is_none());
+        if let Some((_, tries)) = due {
+            self.retry = None;
+            self.submit(Why::Retry, tries);
+        }
     }
 
     /// A choice for the current set-up to hand to the loop, if one is ready (never blocks).
@@ -165,10 +201,22 @@ impl GainTuning {
                     });
                 }
                 Err(e) => {
+                    let again = e.worth_retrying() && done.tries < MAX_RETRIES;
                     tracing::warn!(
                         "mu = \"auto\": no gain from the model ({e}); the speed-gradient law \
-                         adapts μ alone"
+                         adapts μ alone{}",
+                        if again {
+                            format!(
+                                "; searching again from the arm's state in {RETRY_PERIODS} periods"
+                            )
+                        } else {
+                            String::new()
+                        }
                     );
+                    if again {
+                        let now = self.phase_zero.as_ref().map_or(0, |(k, _)| *k);
+                        self.retry = Some((now + RETRY_PERIODS, done.tries + 1));
+                    }
                     self.error = Some(e.to_string());
                 }
             }
@@ -233,6 +281,7 @@ fn search(job: Job) -> Done {
     Done {
         generation: job.generation,
         why: job.why,
+        tries: job.tries,
         result,
         target,
         took: started.elapsed(),

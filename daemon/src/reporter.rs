@@ -267,7 +267,10 @@ impl Reporter {
         self.deadlock.observe(r, &self.system);
         self.gains.observe(r, self.system.period(), self.system.n());
         if self.daemon.monitor {
-            self.chaos.observe(r, self.mu_auto());
+            let edge = self.chaos.observe(r, self.mu_auto());
+            if edge.is_some_and(|e| e.to == control::monitor::Verdict::Chaotic) {
+                self.retarget(r.t);
+            }
         }
         self.lateness.saturating_record(r.lateness_ns.max(1));
         self.window_lateness.saturating_record(r.lateness_ns.max(1));

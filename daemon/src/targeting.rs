@@ -38,9 +38,22 @@ pub struct TargetInfo {
 pub struct Targeting {
     under_way: Option<Release>,
     pub last: Option<TargetInfo>,
+    /// Steerings back onto the cycle since the last edit.
+    pub retargets: u32,
 }
 
 impl Targeting {
+    /// Whether the arm may be steered back onto the cycle once more (counts it).
+    pub fn may_retarget(&mut self) -> bool {
+        self.retargets += 1;
+        self.retargets <= control::target::MAX_RETARGETS
+    }
+
+    /// An edit: the count starts again.
+    pub fn edited(&mut self) {
+        self.retargets = 0;
+    }
+
     pub fn active(&self) -> bool {
         self.under_way.is_some()
     }

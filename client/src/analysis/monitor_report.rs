@@ -37,8 +37,8 @@ pub struct Comparison {
     pub auto_effort: f64,
     /// The auto run's first verdict and when it came (s).
     pub auto_first_verdict: Option<(Verdict, f64)>,
-    /// The auto run's steering onto the model's cycle at the start (`control::target`): when
-    /// the pull was taken away and why, or why there was none.
+    /// The auto run's first steering onto the model's cycle (`control::target`): when it began,
+    /// when the pull was taken away and why, or why there was none.
     pub auto_target: Option<control::monitor::run::TargetRun>,
     /// The best fixed gain the analysis finds for the start (`chaosctl tune`), and that gain
     /// run fixed.
@@ -243,7 +243,9 @@ impl Report {
             };
             let steered = match &c.auto_target {
                 Some(t) => match (t.released_at, t.released, &t.error) {
-                    (Some(at), Some(why), _) => format!(", steered until {at:.1} s ({why:?})"),
+                    (Some(at), Some(why), _) => {
+                        format!(", steered {:.1}–{at:.1} s ({why:?})", t.since)
+                    }
                     (_, _, Some(e)) => format!(", not steered ({e})"),
                     _ => ", steered to the end".into(),
                 },
@@ -415,7 +417,7 @@ fn comparisons(
                 auto_mu_final: a.mu_final,
                 auto_effort: a.effort,
                 auto_first_verdict: a.first_verdict,
-                auto_target: a.model.first().and_then(|m| m.target.clone()),
+                auto_target: a.model.iter().find_map(|m| m.target.clone()),
                 best_fixed: best_fixed.iter().find(|b| b.start == a.start).cloned(),
                 smallest_fixed_mu: best.map(|c| c.mu),
                 fixed_periodic_at: best.and_then(|c| c.settled_periods).map(|p| p * tau),

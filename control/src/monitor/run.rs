@@ -13,8 +13,8 @@ use crate::basics::ConfigError;
 use crate::law::ParamBlock;
 use crate::sim::{ClosedLoopLaw, LoopFeedback, Simulation};
 use crate::system::System;
-use crate::target::{target, target_wanted, Release, Released};
-use crate::tune::{choose_gain, TuneSpec};
+use crate::target::{target, target_wanted, Release, Released, MAX_RETARGETS};
+use crate::tune::{choose_gain, TuneSpec, MAX_RETRIES, RETRY_PERIODS};
 use crate::with_dof;
 use serde::Serialize;
 use std::sync::Arc;
@@ -106,6 +106,8 @@ pub struct ModelChoice {
 /// One steering onto the model's cycle during a watched run.
 #[derive(Clone, Debug, Serialize)]
 pub struct TargetRun {
+    /// When the steering began (s).
+    pub since: f64,
     /// The steered law's miss of the cycle (rad).
     pub miss: Option<f64>,
     pub released_at: Option<f64>,
@@ -146,7 +148,7 @@ pub fn watch_sim<const N: usize, L: ClosedLoopLaw<N>>(
     let (dt, steps) = (sim.dt(), (duration / sim.dt()).round() as u64);
     let mut gains = model.map(|s| ModelGains::new(s.clone()));
     if let Some(g) = gains.as_mut() {
-        g.choose(sim, None);
+        g.choose(sim, None, 0);
     }
     for _ in 0..steps {
         let t = sim.time();
@@ -161,11 +163,15 @@ pub fn watch_sim<const N: usize, L: ClosedLoopLaw<N>>(
             if let Some(g) = gains.as_mut() {
                 g.system = (*e.system).clone();
                 let seed = g.phase_zero.clone();
-                g.choose(sim, seed.as_ref().map(|(_, x)| x.as_slice()));
+                g.choose(sim, seed.as_ref().map(|(_, x)| x.as_slice()), 0);
             }
         }
         if let Some(g) = gains.as_mut() {
             g.observe(sim);
+            if let Some(tries) = g.retry_due() {
+                let seed = g.phase_zero.clone();
+                g.choose(sim, seed.as_ref().map(|(_, x)| x.as_slice()), tries);
+            }
         }
         let LoopFeedback { mu, projection, .. } = sim.law.loop_feedback();
         let x = *sim.state();
@@ -185,7 +191,12 @@ pub fn watch_sim<const N: usize, L: ClosedLoopLaw<N>>(
         }
         let periods = monitor.evidence().periods;
         let (q, qd) = (x.q.as_slice(), x.qd.as_slice());
-        edges.extend(monitor.push(t, q, qd, out.period_residual, out.null_residual));
+        if let Some(e) = monitor.push(t, q, qd, out.period_residual, out.null_residual) {
+            if let (Verdict::Chaotic, Some(g)) = (e.to, gains.as_mut()) {
+                g.retarget(sim);
+            }
+            edges.push(e);
+        }
         let e = monitor.evidence();
         if e.periods != periods {
             trace.push(PeriodPoint {
@@ -218,6 +229,13 @@ struct ModelGains {
     choices: Vec<ModelChoice>,
     /// The steering onto the chosen cycle under way.
     release: Option<Release>,
+    /// A search that found nothing to stabilise, tried again at this period index (the
+    /// retries so far), as the daemon does ([`crate::tune::RETRY_PERIODS`]).
+    retry: Option<(i64, u32)>,
+    /// The steering onto the newest chosen cycle, to steer the arm back when the monitor
+    /// calls it chaotic again, and how often it was ([`crate::target::MAX_RETARGETS`]).
+    steering: Option<crate::steer::Steering>,
+    retargets: u32,
 }
 
 impl ModelGains {
@@ -227,7 +245,31 @@ impl ModelGains {
             phase_zero: None,
             choices: Vec::new(),
             release: None,
+            retry: None,
+            steering: None,
+            retargets: 0,
         }
+    }
+
+    /// The monitor called the arm chaotic: steered back onto the chosen cycle, as the daemon
+    /// does.
+    fn retarget<const N: usize, L: ClosedLoopLaw<N>>(&mut self, sim: &mut Simulation<N, L>) {
+        let Some(steering) = self.steering.filter(|_| self.release.is_none()) else {
+            return;
+        };
+        self.retargets += 1;
+        if self.retargets > MAX_RETARGETS || sim.law.steering().is_some() {
+            return;
+        }
+        sim.law.set_steering(Some(steering));
+        self.release = Some(Release::new(sim.time(), self.system.period()));
+    }
+
+    /// The retries so far, when a retry is due at the newest whole period.
+    fn retry_due(&self) -> Option<u32> {
+        let (at, tries) = self.retry?;
+        let now = self.phase_zero.as_ref()?.0;
+        (now >= at).then_some(tries)
     }
 
     /// Takes the pull away once the steered arm is on its cycle, as the daemon's reporter does.
@@ -263,8 +305,10 @@ impl ModelGains {
         match target(&self.system, orbit) {
             Ok(t) => {
                 sim.law.set_steering(Some(t.steering));
+                self.steering = Some(t.steering);
                 self.release = Some(Release::new(sim.time(), self.system.period()));
                 Some(TargetRun {
+                    since: sim.time(),
                     miss: Some(t.miss),
                     released_at: None,
                     released: None,
@@ -272,6 +316,7 @@ impl ModelGains {
                 })
             }
             Err(e) => Some(TargetRun {
+                since: sim.time(),
                 miss: None,
                 released_at: None,
                 released: None,
@@ -297,7 +342,13 @@ impl ModelGains {
         &mut self,
         sim: &mut Simulation<N, L>,
         seed: Option<&[f64]>,
+        tries: u32,
     ) {
+        self.retry = None;
+        self.steering = None;
+        if tries == 0 {
+            self.retargets = 0;
+        }
         // The steering onto the cycle of the set-up before an edit is no longer the arm's.
         if self.release.take().is_some() {
             sim.law.set_steering(None);
@@ -310,6 +361,10 @@ impl ModelGains {
         let choice = match choose_gain(&self.system, seed, &spec) {
             Ok(c) => c,
             Err(e) => {
+                if e.worth_retrying() && tries < MAX_RETRIES {
+                    let period = (t / self.system.period()).floor() as i64;
+                    self.retry = Some((period + RETRY_PERIODS, tries + 1));
+                }
                 self.choices.push(ModelChoice {
                     t,
                     mu: None,
