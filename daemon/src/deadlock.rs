@@ -214,7 +214,11 @@ impl Deadlock {
 
     /// One tick record: watches for a trap while the law runs.
     pub fn observe(&mut self, r: &TickRecord, system: &System) {
-        if self.target.observe(r) {
+        if r.ran_law
+            && self
+                .target
+                .observe(r.t, r.period_residual, r.feedback_active)
+        {
             self.send_steer = Some(None);
         }
         let s = system.safety();

@@ -6,7 +6,6 @@
 //! This keeps the steering's story: when it began, how closely the steered law follows the
 //! cycle, and when and why the pull went (`status`'s `gains.target`).
 
-use crate::telemetry::TickRecord;
 use control::target::{Release, Released, Target};
 use serde::Serialize;
 
@@ -74,29 +73,28 @@ impl Targeting {
         });
     }
 
-    /// One tick: true when the pull should go now (the arm is on the cycle, or it took too
-    /// long).
-    pub fn observe(&mut self, r: &TickRecord) -> bool {
-        let Some(release) = self.under_way.as_mut().filter(|_| r.ran_law) else {
+    /// One tick the law ran on, at controller time `t`, with its period residual (rad/s) and
+    /// the feedback on or not yet: true when the pull should go now (the arm is on the cycle,
+    /// or it took too long).
+    pub fn observe(&mut self, t: f64, residual: f64, feedback: bool) -> bool {
+        let Some(release) = self.under_way.as_mut() else {
             return false;
         };
-        let Some(why) = release.observe(r.t, r.period_residual, r.feedback_active) else {
+        let Some(why) = release.observe(t, residual, feedback) else {
             return false;
         };
         match why {
             Released::OnTheCycle => tracing::info!(
-                "mu = \"auto\": the arm is on the model's cycle at t = {:.3} s: the pull goes, \
-                 the feedback holds it",
-                r.t
+                "mu = \"auto\": the arm is on the model's cycle at t = {t:.3} s: the pull goes, \
+                 the feedback holds it"
             ),
             Released::TimedOut => tracing::warn!(
-                "mu = \"auto\": the steered arm did not settle on the model's cycle by t = {:.3} s \
+                "mu = \"auto\": the steered arm did not settle on the model's cycle by t = {t:.3} s \
                  (a plant unlike the model, or the filter): the pull goes, the feedback alone \
-                 catches it",
-                r.t
+                 catches it"
             ),
         }
-        self.end(r.t, Ended::Released(why));
+        self.end(t, Ended::Released(why));
         true
     }
 
