@@ -153,17 +153,7 @@ pub fn target_wanted(system: &System) -> bool {
 
 /// The pull onto the cycle through `rows` (one posture per phase from t = 0).
 fn steering_of(system: &System, rows: &[Vec<f64>], period: f64) -> Result<Steering, SteerError> {
-    let c = Cycle {
-        t0: 0.0,
-        period,
-        q: rows.to_vec(),
-        min_clearance: f64::INFINITY,
-        max_rate: 0.0,
-        filter_margin: f64::INFINITY,
-        unreachable: None,
-        arm_off_path: false,
-        detour: None,
-    };
+    let c = Cycle::through(0.0, period, rows.to_vec());
     match system {
         System::Planar(_) => Steer::of(&c, TARGET_CYCLES / period).map(Steering::Planar),
         System::Spatial(_) => SpatialSteer::of(&c, TARGET_CYCLES / period).map(Steering::Spatial),

@@ -1025,19 +1025,13 @@ mod tests {
                 ctl.set_params(system.param_block());
             }
             if k == 250 {
-                let cycle = control::steer::Cycle {
-                    t0: 0.0,
-                    period: 2.0,
-                    q: (0..8)
+                let cycle = control::steer::Cycle::through(
+                    0.0,
+                    2.0,
+                    (0..8)
                         .map(|j| q0.iter().map(|q| q + 0.01 * j as f64).collect())
                         .collect(),
-                    min_clearance: f64::INFINITY,
-                    max_rate: 0.0,
-                    filter_margin: f64::INFINITY,
-                    unreachable: None,
-                    arm_off_path: false,
-                    detour: None,
-                };
+                );
                 let steer = control::steer::SpatialSteer::of(&cycle, 1.0).unwrap();
                 let steering = control::steer::Steering::Spatial(steer);
                 log.steered(Some(&steering));

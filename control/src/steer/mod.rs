@@ -54,6 +54,29 @@ pub struct Cycle {
     pub detour: Option<Box<DetourTable>>,
 }
 
+impl Cycle {
+    /// A cycle through `q` (one posture per phase from task time `t0`) that no planner
+    /// checked: no obstacle clearance, margin, detour or reachability to report.
+    ///
+    /// ```
+    /// let c = control::steer::Cycle::through(0.0, 2.0, vec![vec![0.1; 7]; 8]);
+    /// assert!(c.detour.is_none() && c.min_clearance.is_infinite());
+    /// ```
+    pub fn through(t0: f64, period: f64, q: Vec<Vec<f64>>) -> Self {
+        Self {
+            t0,
+            period,
+            q,
+            min_clearance: f64::INFINITY,
+            max_rate: 0.0,
+            filter_margin: f64::INFINITY,
+            unreachable: None,
+            arm_off_path: false,
+            detour: None,
+        }
+    }
+}
+
 /// Steering onto a planned cycle: a joint PD towards it, projected onto the self-motion, so
 /// tracking is untouched; the Pyragas term then holds the cycle (its period is τ).
 #[derive(Clone, Copy, Debug, PartialEq)]
