@@ -38,7 +38,7 @@ pub struct Targeting {
     under_way: Option<Release>,
     pub last: Option<TargetInfo>,
     /// Steerings back onto the cycle since the last edit.
-    pub retargets: u32,
+    retargets: u32,
 }
 
 impl Targeting {
