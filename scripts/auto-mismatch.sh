@@ -7,7 +7,7 @@
 # model's analysis names for the set-up (the knee it would choose and the fastest), from each
 # start. One row per run: when the chaos monitor first said periodic, the period residual at the
 # end (the monitor's window), the final μ, tracking RMS and the joint-limit counts.
-# Usage: [MASS_SCALE=1.2] [PAYLOAD=1] [DURATION=40] scripts/auto-mismatch.sh [out-dir]
+# Usage: [MASS_SCALE=1.2] [PAYLOAD=1] [DURATION=40] [GAINS="auto 0"] scripts/auto-mismatch.sh [out-dir]
 # Needs a release build (cargo build --release --workspace --bins) and jq. About 45 s a run,
 # 12 runs.
 set -euo pipefail
@@ -27,7 +27,7 @@ starts=(
   "-0.25, -1.0, 0.3, -2.6, -0.3, 1.35, 1.05"
 )
 # The model's knee and fastest gain for this set-up (the daemon's search: docs/monitor.md).
-gains=(auto 0 0.244 0.359)
+read -r -a gains <<< "${GAINS:-auto 0 0.244 0.359}"
 
 printf '| start | μ | first periodic | residual at the end | final μ | tracking RMS | limit breaches |\n'
 printf '|---|---|---|---|---|---|---|\n'
