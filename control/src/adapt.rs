@@ -31,6 +31,10 @@ use serde::{Deserialize, Serialize};
 pub struct AutoMu {
     /// Adaptation gain γ (s/rad²: μ grows by γ·r² per second at residual r rad/s).
     pub gamma: f64,
+    /// Whether γ is the user's (`feedback.gamma`, a live `set gamma`); if not, the model's
+    /// gain brings its own ([`model_gamma`]) and [`DEFAULT_GAMMA`] serves until it comes.
+    #[serde(default)]
+    pub gamma_given: bool,
     /// The bound μ never passes.
     pub max_mu: f64,
     /// The gain the model recommends ([`crate::tune`]), once the daemon has chosen it: μ leaks
@@ -64,10 +68,31 @@ pub const LEAK_TIME_S: f64 = 10.0;
 /// differs from the model by a payload or friction, not for undoing the model's choice.
 pub const BAND: f64 = 0.5;
 
+/// The model's γ for its gain `mu` on a cycle whose joint speed is `speed` (rad/s, the RMS of
+/// |q̇| over a period): a residual that large, a motion that no longer repeats at all, drives μ
+/// to the edge of the [`BAND`] in about [`LEAK_TIME_S`] (μ settles where the growth γ r² meets
+/// the leak (μ − μ_m)/[`LEAK_TIME_S`]). So the correction is scaled to the arm it corrects: the
+/// planar cycle (10.9 rad/s, μ = 0.114) gets 4.8e-5, where the hand-calibrated
+/// [`DEFAULT_GAMMA`] put the band's edge at 4.4 rad/s, and the Panda's slower one (1.06 rad/s,
+/// μ = 0.244) 0.011, where the planar γ moved μ by 5e-3 at its chaotic residual of 1.3 rad/s
+/// and so did not correct at all. None for a speed or gain that is not a positive number.
+///
+/// ```
+/// use control::adapt::{model_gamma, BAND, LEAK_TIME_S};
+/// let g = model_gamma(0.2, 4.0).unwrap();
+/// assert!((g * 16.0 * LEAK_TIME_S - BAND * 0.2).abs() < 1e-15);
+/// assert_eq!(model_gamma(0.2, 0.0), None);
+/// ```
+pub fn model_gamma(mu: f64, speed: f64) -> Option<f64> {
+    let g = BAND * mu / (LEAK_TIME_S * speed * speed);
+    (g.is_finite() && g > 0.0).then_some(g)
+}
+
 impl Default for AutoMu {
     fn default() -> Self {
         Self {
             gamma: DEFAULT_GAMMA,
+            gamma_given: false,
             max_mu: DEFAULT_MAX_MU,
             anchor: None,
         }
@@ -80,7 +105,7 @@ impl AutoMu {
     ///
     /// ```
     /// use control::adapt::AutoMu;
-    /// let a = AutoMu { gamma: 0.5, max_mu: 1.0, anchor: None };
+    /// let a = AutoMu { gamma: 0.5, gamma_given: true, max_mu: 1.0, anchor: None };
     /// assert_eq!(a.step(0.0, 2.0, 0.01, 0.3), 0.02); // 0.5 · 2² · 0.01
     /// assert_eq!(a.step(0.99, 2.0, 0.01, 0.3), 1.0); // bounded
     /// assert_eq!(a.step(0.5, 2.0, 0.01, 1.5), 0.5); // the joints are saturated: no growth
@@ -122,10 +147,10 @@ impl AutoMu {
     ///
     /// ```
     /// use control::adapt::AutoMu;
-    /// let mut a = AutoMu { gamma: 0.5, max_mu: 1.0, anchor: None };
+    /// let mut a = AutoMu { gamma: 0.5, gamma_given: true, max_mu: 1.0, anchor: None };
     /// assert_eq!(a.advance(0.99, 2.0, 0.01, 0.3), 0.0);
     /// assert_eq!(a.gamma, 0.25);
-    /// let mut a = AutoMu { gamma: 0.5, max_mu: 1.0, anchor: Some(0.8) };
+    /// let mut a = AutoMu { gamma: 0.5, gamma_given: true, max_mu: 1.0, anchor: Some(0.8) };
     /// assert_eq!(a.advance(0.99, 2.0, 0.01, 0.3), 0.8);
     /// ```
     #[inline]
@@ -141,12 +166,14 @@ impl AutoMu {
     /// Refuses settings that cannot work: γ must be > 0, `max_mu` in (0, 100], and one period
     /// at the reference residual of 5 rad/s may not move μ by more than a tenth of `max_mu` (a
     /// γ that jumps past the stable range before the orbit can answer). The error names the
-    /// largest γ the period `tau` allows.
+    /// largest γ the period `tau` allows. The bound is for a γ the user gives: the model's
+    /// ([`model_gamma`]) is scaled to its own arm's speed, and keeps a period's move at that
+    /// speed to a twentieth of the model's gain.
     ///
     /// ```
     /// use control::adapt::AutoMu;
     /// assert!(AutoMu::default().check(1.0).is_ok());
-    /// let e = AutoMu { gamma: 0.1, max_mu: 1.0, anchor: None }.check(1.0).unwrap_err().to_string();
+    /// let e = AutoMu { gamma: 0.1, gamma_given: true, max_mu: 1.0, anchor: None }.check(1.0).unwrap_err().to_string();
     /// assert!(e.contains("at most 4.0e-3"), "{e}");
     /// ```
     pub fn check(&self, tau: f64) -> Result<(), crate::basics::ConfigError> {
@@ -156,7 +183,8 @@ impl AutoMu {
             return Err(invalid("feedback.max_mu", self.max_mu, e));
         }
         let largest = MAX_SHARE_PER_PERIOD * self.max_mu / (tau * REFERENCE_RESIDUAL.powi(2));
-        if !(self.gamma.is_finite() && self.gamma > 0.0 && self.gamma <= largest) {
+        let too_big = self.gamma_given && self.gamma > largest;
+        if !(self.gamma.is_finite() && self.gamma > 0.0) || too_big {
             let e = format!(
                 "must be > 0 and at most {largest:.1e} (with max_mu = {} and τ = {tau} s, a residual \
                  of 5 rad/s would move μ by more than a tenth of its range in one period)",
@@ -230,7 +258,7 @@ pub fn set_live(
             *mu = number().map_err(|e| LiveError::NotAGain(Box::new(e)))?;
             *auto = None;
         }
-        ("gamma", Some(a)) => a.gamma = number()?,
+        ("gamma", Some(a)) => (a.gamma, a.gamma_given) = (number()?, true),
         ("max_mu", Some(a)) => a.max_mu = number()?,
         (k, _) => return Err(LiveError::NeedsAuto { key: k.into() }),
     }
@@ -297,6 +325,7 @@ pub fn auto_from_toml(
     }
     Ok(Some(AutoMu {
         gamma: gamma.unwrap_or(DEFAULT_GAMMA),
+        gamma_given: gamma.is_some(),
         max_mu: max_mu.unwrap_or(DEFAULT_MAX_MU),
         anchor: None,
     }))
@@ -338,6 +367,7 @@ mod tests {
     fn grows_with_the_squared_residual_and_stops_at_zero() {
         let a = AutoMu {
             gamma: 0.2,
+            gamma_given: true,
             max_mu: 3.0,
             anchor: None,
         };
@@ -357,6 +387,7 @@ mod tests {
             for mu in [f64::NAN, -1.0, 0.0, 0.25, 5.0] {
                 let a = AutoMu {
                     gamma: 3e-4,
+                    gamma_given: true,
                     max_mu: 0.4,
                     anchor: Some(anchor),
                 };
@@ -381,6 +412,7 @@ mod tests {
             assert!(
                 AutoMu {
                     gamma: g,
+                    gamma_given: true,
                     max_mu: m,
                     anchor: None,
                 }
@@ -392,6 +424,7 @@ mod tests {
         // A shorter period allows a faster gain.
         let a = AutoMu {
             gamma: 0.006,
+            gamma_given: true,
             max_mu: 1.0,
             anchor: None,
         };

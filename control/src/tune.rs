@@ -174,6 +174,11 @@ pub struct GainChoice {
     pub scanned: Vec<GainPoint>,
     /// The gain that converges fastest (its |ρ₁| the smallest found).
     pub fastest: GainPoint,
+    /// The RMS joint speed |q̇| over the cycle (rad/s): the scale of a residual.
+    pub speed: f64,
+    /// The speed-gradient correction's γ for this gain and speed
+    /// ([`crate::adapt::model_gamma`]; [`crate::adapt::DEFAULT_GAMMA`] on a cycle at rest).
+    pub gamma: f64,
 }
 
 impl GainChoice {
@@ -188,11 +193,11 @@ impl GainChoice {
     ///     orbit: PeriodicOrbit { q: vec![0.0; 3], qd: vec![0.0; 3], residual: 1e-12,
     ///                            iterations: 3, multipliers: vec![[1.0, 0.0]] },
     ///     scanned: vec![p(0.0, 1.0), p(0.2, 0.5), p(0.3, 0.45), p(0.4, 0.9)],
-    ///     fastest: p(0.3, 0.45),
+    ///     fastest: p(0.3, 0.45), speed: 2.0, gamma: 2.5e-3,
     /// };
     /// assert_eq!(c.why(), "μ = 0.2: the cycle converges ×0.5 a period (-0.69/s), \
     ///     the smallest of 4 gains in [0, 0.4] with 80 % of the fastest rate \
-    ///     (μ = 0.3: ×0.45, -0.80/s; ×1 at μ = 0)");
+    ///     (μ = 0.3: ×0.45, -0.80/s; ×1 at μ = 0); γ = 0.0025 for the cycle's 2 rad/s");
     /// ```
     pub fn why(&self) -> String {
         let top = self.scanned.iter().map(|p| p.mu).fold(0.0, f64::max);
@@ -206,7 +211,8 @@ impl GainChoice {
         let f = &self.fastest;
         format!(
             "μ = {}: the cycle converges ×{} a period ({:.2}/s), the smallest of {} gains in \
-             [0, {}] with {:.0} % of the fastest rate (μ = {}: ×{}, {:.2}/s{at_zero})",
+             [0, {}] with {:.0} % of the fastest rate (μ = {}: ×{}, {:.2}/s{at_zero}); γ = {} \
+             for the cycle's {} rad/s",
             short(self.mu),
             short(self.multiplier),
             self.rate,
@@ -215,7 +221,9 @@ impl GainChoice {
             100.0 * KNEE,
             short(f.mu),
             short(f.multiplier),
-            f.rate
+            f.rate,
+            short(self.gamma),
+            short(self.speed)
         )
     }
 }
@@ -364,10 +372,7 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
         let mut gains = vec![self.spec.seed_mu, self.spec.max_mu];
         gains.extend(LOWER_SEEDS.iter().map(|share| share * self.spec.seed_mu));
         gains.dedup();
-        let settles = gains
-            .into_iter()
-            .filter(|&mu| mu > 0.0)
-            .map(Source::Settle);
+        let settles = gains.into_iter().filter(|&mu| mu > 0.0).map(Source::Settle);
         for source in std::iter::once(Source::Given).chain(settles) {
             let (orbit, seed) = match self.cycle(source, given) {
                 Some(Ok(found)) => found,
@@ -387,6 +392,9 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
                 continue;
             }
             let knee = self.knee(&orbit, &mut scanned, fastest)?;
+            let speed = self.speed(&orbit);
+            let gamma =
+                crate::adapt::model_gamma(knee.mu, speed).unwrap_or(crate::adapt::DEFAULT_GAMMA);
             return Ok(GainChoice {
                 mu: knee.mu,
                 multiplier: knee.multiplier,
@@ -396,6 +404,8 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
                 orbit,
                 scanned,
                 fastest,
+                speed,
+                gamma,
             });
         }
         match unstable {
@@ -551,6 +561,20 @@ impl<const N: usize, L: ClosedLoopLaw<N>> Search<N, L> {
         }
         scanned.sort_by(|x, y| x.mu.total_cmp(&y.mu));
         Ok(high)
+    }
+
+    /// The RMS of |q̇| over one period along `orbit` (rad/s; the feedback vanishes there).
+    fn speed(&self, orbit: &PeriodicOrbit) -> f64 {
+        let mut law = self.law.clone();
+        law.core_mut().feedback = false;
+        let tau = law.core().tau;
+        let mut sim = Simulation::of(law, self.dt, orbit.state::<N>(), tau);
+        let mut sum = 0.0;
+        for _ in 0..self.steps {
+            sim.step();
+            sum += sim.state().qd.norm_squared();
+        }
+        (sum / self.steps as f64).sqrt()
     }
 
     /// The leading multiplier of the loop at gain `mu` on `orbit`: one period along it with the

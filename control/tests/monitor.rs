@@ -176,6 +176,7 @@ fn auto_in_a_config_file_parses_round_trips_and_refuses_bad_gains() {
         c.feedback.auto,
         Some(AutoMu {
             gamma: 1e-4,
+            gamma_given: true,
             max_mu: 0.3,
             anchor: None,
         })

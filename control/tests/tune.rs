@@ -18,6 +18,10 @@ fn the_planar_gain_is_the_knee_of_the_scan_and_a_run_on_the_cycle_converges_as_p
     let c = choose_gain(&s, None, &spec).unwrap();
     assert!(c.mu > 0.0 && c.mu <= spec.max_mu, "{}", c.why());
     assert!(c.multiplier < 0.9, "{}", c.why());
+    // The cycle sweeps at about 11 rad/s RMS: the model's γ puts the correction's band edge
+    // there ([`control::adapt::model_gamma`]).
+    assert!((5.0..20.0).contains(&c.speed), "{} rad/s", c.speed);
+    assert_eq!(Some(c.gamma), control::adapt::model_gamma(c.mu, c.speed));
     // The fastest is the best of every gain tried; the choice is the smallest gain with KNEE of
     // its rate, below it on the plateau (the paper's: 0.11 against 0.23).
     let target = KNEE * c.fastest.rate;
@@ -89,7 +93,11 @@ fn a_start_whose_first_seeding_runs_miss_gets_a_gain_from_a_smaller_one() {
     let Seed::Settled { mu } = c.seed else {
         panic!("seeded by {:?}", c.seed);
     };
-    assert!(mu < 0.5 * spec.seed_mu + 1e-12, "seeded at μ = {mu}: {}", c.why());
+    assert!(
+        mu < 0.5 * spec.seed_mu + 1e-12,
+        "seeded at μ = {mu}: {}",
+        c.why()
+    );
     assert!(c.multiplier < 0.9 && c.mu > 0.0, "{}", c.why());
 }
 
@@ -141,6 +149,15 @@ fn the_pandas_gain_keeps_most_of_the_fastest_rate_near_its_presets_gain() {
         c.why()
     );
     assert!(matches!(c.seed, Seed::Settled { .. }), "{:?}", c.seed);
+    // The correction's γ is scaled to this arm's cycle, slower than the planar one's, so it is
+    // far above the planar default (which would move μ by 5e-3 at the Panda's chaotic residual).
+    assert!((0.5..2.0).contains(&c.speed), "{} rad/s", c.speed);
+    assert_eq!(Some(c.gamma), control::adapt::model_gamma(c.mu, c.speed));
+    assert!(
+        c.gamma > 10.0 * control::adapt::DEFAULT_GAMMA,
+        "γ = {}",
+        c.gamma
+    );
     // A seed of the wrong length or with a NaN is no seed: the search runs the set-up instead.
     let nan = [f64::NAN; 14];
     let c = choose_gain(&s, Some(&nan), &spec_quick(&s)).unwrap();
@@ -174,4 +191,24 @@ fn set_ups_without_a_cycle_for_the_feedback_are_refused_with_the_reason() {
         choose_gain(&s, None, &bad),
         Err(TuneError::Invalid(_))
     ));
+}
+
+/// γ is the model's unless the file (or a live `set`) gives one: a file that leaves it out
+/// prints without it, so a saved live state or `chaosctl config` does not freeze the stand-in.
+#[test]
+fn the_models_gamma_replaces_the_stand_in_but_never_the_users() {
+    let mut cfg = Config::preset("paper").unwrap();
+    let f = &mut cfg.feedback;
+    control::adapt::set_live("mu", Some("auto"), &mut f.mu, &mut f.auto).unwrap();
+    let s = System::Planar(cfg);
+    assert!(!s.to_toml().contains("gamma"));
+    let model = s.with_model_gain(0.11, 5e-5).unwrap();
+    assert_eq!(model.feedback().auto.unwrap().gamma, 5e-5);
+    assert!(!model.to_toml().contains("gamma"));
+    let mut given = s.clone();
+    let f = given.feedback_section_mut();
+    control::adapt::set_live("gamma", Some("1e-4"), &mut f.mu, &mut f.auto).unwrap();
+    let kept = given.with_model_gain(0.11, 5e-5).unwrap();
+    assert_eq!(kept.feedback().auto.unwrap().gamma, 1e-4);
+    assert!(kept.to_toml().contains("gamma = 0.0001"));
 }

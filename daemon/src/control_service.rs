@@ -54,7 +54,7 @@ impl Reporter {
         let Some(c) = self.gains.poll() else {
             return;
         };
-        let Some(new) = self.system.with_model_gain(c.choice.mu) else {
+        let Some(new) = self.system.with_model_gain(c.choice.mu, c.choice.gamma) else {
             return;
         };
         if self

@@ -317,7 +317,7 @@ mod tests {
         g.handed_over(3.0);
         assert_eq!(g.mu_model(), c.choice.mu);
         assert_eq!(g.to_json()["chosen"]["adopted_at_t"], 3.0);
-        let s = system.with_model_gain(c.choice.mu).unwrap();
+        let s = system.with_model_gain(c.choice.mu, c.choice.gamma).unwrap();
         let auto = s.feedback().auto.unwrap();
         assert_eq!(
             (s.feedback().mu, auto.anchor),
@@ -327,6 +327,6 @@ mod tests {
         let fixed = System::preset("paper", &control::system::builtin_robot).unwrap();
         g.edited(&fixed, Why::Edit);
         assert!(g.mu_model().is_nan() && g.searching.is_none());
-        assert!(fixed.with_model_gain(0.1).is_none());
+        assert!(fixed.with_model_gain(0.1, 1e-3).is_none());
     }
 }

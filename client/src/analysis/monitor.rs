@@ -32,7 +32,7 @@ pub struct MonitorCmd {
     pub lyapunov: LyapunovArgs,
     #[command(flatten)]
     pub classify: ClassifyArgs,
-    /// γ of the auto runs (default: the config's, else chaosd's default).
+    /// γ of the auto runs (default: the config's, else the model's for the gain it chooses).
     #[arg(long)]
     pub gamma: Option<f64>,
     /// max_mu of the auto runs (default: the config's, else chaosd's default).
@@ -186,7 +186,9 @@ fn settings(args: &MonitorCmd) -> Result<MonitorSettings> {
 
 fn auto_settings(args: &MonitorCmd, base: &Subject, tau: f64) -> Result<AutoMu> {
     let mut a = base.feedback().auto.unwrap_or_default();
-    a.gamma = args.gamma.unwrap_or(a.gamma);
+    if let Some(g) = args.gamma {
+        (a.gamma, a.gamma_given) = (g, true);
+    }
     a.max_mu = args.max_mu.unwrap_or(a.max_mu);
     a.check(tau)?;
     Ok(a)

@@ -221,10 +221,14 @@ impl Report {
             show(self.settled_median_periods),
             show(self.settled_max_periods)
         );
+        let gamma = match self.auto.gamma_given {
+            true => format!("γ = {}", self.auto.gamma),
+            false => "γ from the model".into(),
+        };
         println!(
-            "auto-μ (γ = {}, max_mu = {}, the gain from the model) against the best fixed μ of the \
-             analysis and the smallest fixed μ of the sweep that stabilises each start:",
-            self.auto.gamma, self.auto.max_mu
+            "auto-μ ({gamma}, max_mu = {}, the gain from the model) against the best fixed μ of \
+             the analysis and the smallest fixed μ of the sweep that stabilises each start:",
+            self.auto.max_mu
         );
         let one = |v: Option<f64>| v.map_or("n/a".into(), |x| format!("{x:.1}"));
         for c in &self.comparisons {

@@ -93,7 +93,7 @@ impl From<FeedbackSection> for FeedbackToml {
                 Some(_) => MuSetting::Auto,
                 None => MuSetting::Fixed(f.mu),
             },
-            gamma: f.auto.map(|a| a.gamma),
+            gamma: f.auto.filter(|a| a.gamma_given).map(|a| a.gamma),
             max_mu: f.auto.map(|a| a.max_mu),
             target: f.auto.map(|_| f.target).filter(|t| !t),
             tau: f.tau,

@@ -376,7 +376,7 @@ impl ModelGains {
                 return;
             }
         };
-        if let Some(s) = self.system.with_model_gain(choice.mu) {
+        if let Some(s) = self.system.with_model_gain(choice.mu, choice.gamma) {
             sim.law.take_block(s.param_block());
             self.system = s;
         }

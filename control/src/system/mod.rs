@@ -291,22 +291,32 @@ impl System {
     }
 
     /// This set-up with a gain from the model ([`crate::tune`]) for `mu = "auto"`: μ starts at
-    /// `mu` and the speed-gradient law is anchored on it ([`crate::adapt::AutoMu::anchor`]).
-    /// None when μ is not "auto" (a fixed gain is the user's, not the model's).
+    /// `mu` and the speed-gradient law is anchored on it ([`crate::adapt::AutoMu::anchor`]),
+    /// with the model's adaptation gain `gamma` unless the user gave one
+    /// ([`crate::adapt::model_gamma`]). None when μ is not "auto" (a fixed gain is the user's,
+    /// not the model's).
     ///
     /// ```
     /// use control::{adapt::MuSetting, System};
     /// let mut s = System::preset("paper", &control::system::builtin_robot).unwrap();
-    /// assert!(s.with_model_gain(0.2).is_none());
+    /// assert!(s.with_model_gain(0.2, 1e-3).is_none());
     /// s.schedule_feedback(MuSetting::Auto, 0.0);
-    /// let g = s.with_model_gain(0.2).unwrap();
-    /// assert_eq!((g.feedback().mu, g.feedback().auto.unwrap().anchor), (0.2, Some(0.2)));
+    /// let g = s.with_model_gain(0.2, 1e-3).unwrap();
+    /// let a = g.feedback().auto.unwrap();
+    /// assert_eq!((g.feedback().mu, a.anchor, a.gamma), (0.2, Some(0.2), 1e-3));
+    /// // A γ the user set stays theirs.
+    /// let f = s.feedback_section_mut();
+    /// control::adapt::set_live("gamma", Some("2e-4"), &mut f.mu, &mut f.auto).unwrap();
+    /// assert_eq!(s.with_model_gain(0.2, 1e-3).unwrap().feedback().auto.unwrap().gamma, 2e-4);
     /// ```
-    pub fn with_model_gain(&self, mu: f64) -> Option<System> {
+    pub fn with_model_gain(&self, mu: f64, gamma: f64) -> Option<System> {
         let mut s = self.clone();
         let f = s.feedback_section_mut();
         let auto = f.auto.as_mut()?;
         auto.anchor = Some(mu);
+        if !auto.gamma_given {
+            auto.gamma = gamma;
+        }
         f.mu = mu;
         Some(s)
     }
