@@ -250,6 +250,8 @@ impl GainTuning {
                 "multiplier": c.choice.multiplier,
                 "rate_per_second": c.choice.rate,
                 "period": c.choice.period,
+                "gamma": c.choice.gamma,
+                "cycle_speed": c.choice.speed,
                 "why": c.choice.why(),
                 "asked_at": c.why,
                 "adopted_at_t": c.t,
