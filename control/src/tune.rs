@@ -268,6 +268,23 @@ impl TuneError {
     pub fn worth_retrying(&self) -> bool {
         !matches!(self, TuneError::Invalid(_))
     }
+
+    /// When to search again after this error at period index `period`, the `tries`-th retry
+    /// so far: (the period index, the retries then), or None when it is not worth it or the
+    /// retries ran out ([`RETRY_PERIODS`], [`MAX_RETRIES`]). The daemon and the offline
+    /// monitor both ask this.
+    ///
+    /// ```
+    /// use control::tune::{TuneError, MAX_RETRIES, RETRY_PERIODS};
+    /// let far = TuneError::NoCycle("far".into());
+    /// assert_eq!(far.retry(10, 0), Some((10 + RETRY_PERIODS, 1)));
+    /// assert_eq!(far.retry(10, MAX_RETRIES), None);
+    /// assert_eq!(TuneError::Invalid("off".into()).retry(10, 0), None);
+    /// ```
+    pub fn retry(&self, period: i64, tries: u32) -> Option<(i64, u32)> {
+        (self.worth_retrying() && tries < MAX_RETRIES)
+            .then_some((period + RETRY_PERIODS, tries + 1))
+    }
 }
 
 /// Arnoldi's settings for the search: the leading pair only, to 1e-5.

@@ -19,7 +19,7 @@
 use crate::telemetry::TickRecord;
 use crate::worker::Worker;
 use control::target::{target, target_wanted, Target, TargetError};
-use control::tune::{choose_gain, GainChoice, TuneError, TuneSpec, MAX_RETRIES, RETRY_PERIODS};
+use control::tune::{choose_gain, GainChoice, TuneError, TuneSpec, RETRY_PERIODS};
 use control::System;
 use std::time::Duration;
 
@@ -201,11 +201,12 @@ impl GainTuning {
                     });
                 }
                 Err(e) => {
-                    let again = e.worth_retrying() && done.tries < MAX_RETRIES;
+                    let now = self.phase_zero.as_ref().map_or(0, |(k, _)| *k);
+                    let again = e.retry(now, done.tries);
                     tracing::warn!(
                         "mu = \"auto\": no gain from the model ({e}); the speed-gradient law \
                          adapts μ alone{}",
-                        if again {
+                        if again.is_some() {
                             format!(
                                 "; searching again from the arm's state in {RETRY_PERIODS} periods"
                             )
@@ -213,10 +214,7 @@ impl GainTuning {
                             String::new()
                         }
                     );
-                    if again {
-                        let now = self.phase_zero.as_ref().map_or(0, |(k, _)| *k);
-                        self.retry = Some((now + RETRY_PERIODS, done.tries + 1));
-                    }
+                    self.retry = again;
                     self.error = Some(e.to_string());
                 }
             }

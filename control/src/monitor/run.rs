@@ -14,7 +14,7 @@ use crate::law::ParamBlock;
 use crate::sim::{ClosedLoopLaw, LoopFeedback, Simulation};
 use crate::system::System;
 use crate::target::{target, target_wanted, Release, Released, MAX_RETARGETS};
-use crate::tune::{choose_gain, TuneSpec, MAX_RETRIES, RETRY_PERIODS};
+use crate::tune::{choose_gain, TuneSpec};
 use crate::with_dof;
 use serde::Serialize;
 use std::sync::Arc;
@@ -302,27 +302,22 @@ impl ModelGains {
         if !target_wanted(&self.system) || sim.law.steering().is_some() {
             return None;
         }
-        match target(&self.system, orbit) {
+        let (miss, error) = match target(&self.system, orbit) {
             Ok(t) => {
                 sim.law.set_steering(Some(t.steering));
                 self.steering = Some(t.steering);
                 self.release = Some(Release::new(sim.time(), self.system.period()));
-                Some(TargetRun {
-                    since: sim.time(),
-                    miss: Some(t.miss),
-                    released_at: None,
-                    released: None,
-                    error: None,
-                })
+                (Some(t.miss), None)
             }
-            Err(e) => Some(TargetRun {
-                since: sim.time(),
-                miss: None,
-                released_at: None,
-                released: None,
-                error: Some(e.to_string()),
-            }),
-        }
+            Err(e) => (None, Some(e.to_string())),
+        };
+        Some(TargetRun {
+            since: sim.time(),
+            miss,
+            released_at: None,
+            released: None,
+            error,
+        })
     }
 
     fn observe<const N: usize, L: ClosedLoopLaw<N>>(&mut self, sim: &Simulation<N, L>) {
@@ -361,10 +356,7 @@ impl ModelGains {
         let choice = match choose_gain(&self.system, seed, &spec) {
             Ok(c) => c,
             Err(e) => {
-                if e.worth_retrying() && tries < MAX_RETRIES {
-                    let period = (t / self.system.period()).floor() as i64;
-                    self.retry = Some((period + RETRY_PERIODS, tries + 1));
-                }
+                self.retry = e.retry((t / self.system.period()).floor() as i64, tries);
                 self.choices.push(ModelChoice {
                     t,
                     mu: None,
