@@ -57,6 +57,10 @@ pub struct Counters {
     pub faults: u64,
     pub resumes: u64,
     pub holds_entered: u64,
+    /// Times the arm began to brake or hold under a running stream (a device braking on
+    /// missed answers, a brake or a HOLD that reached it): each knocks it off its path and its
+    /// cycle, and what the run measures next is the recovery.
+    pub arm_brakes: u64,
     pub plant_restarts: u64,
     pub overruns: u64,
     pub telemetry_dropped: u64,
@@ -206,6 +210,8 @@ struct TickMemory<const N: usize> {
     last_stamp: u64,
     /// Whether the newest accepted state said the plant was braking on its command timeout.
     was_braked: bool,
+    /// The last state said BRAKING (the arm braking or holding, not following a stream).
+    was_braking: bool,
     last_qd: Option<VecN<N>>,
     missed: u32,
     next_command_seq: u64,
@@ -259,6 +265,7 @@ impl<const N: usize> Controller<N> {
                 last_seq: None,
                 last_stamp: 0,
                 was_braked: false,
+                was_braking: false,
                 last_qd: None,
                 missed: 0,
                 next_command_seq: 0,
@@ -504,10 +511,12 @@ impl<const N: usize> Controller<N> {
                         self.memory.last_gap_reentry = Some(t);
                         self.memory.guard.reenter(t);
                     }
-                    if restarted
-                        || self.memory.last_stamp == 0
-                        || s.has_flags(protocol::flags::BRAKING)
-                    {
+                    let braking = s.has_flags(protocol::flags::BRAKING);
+                    if braking && !self.memory.was_braking && self.memory.last_stamp != 0 {
+                        self.counters.arm_brakes += 1;
+                    }
+                    self.memory.was_braking = braking;
+                    if restarted || self.memory.last_stamp == 0 || braking {
                         // The command stream starts again exactly when the arm's does: a new
                         // plant, or an arm braking or holding (by the device on its own, by a
                         // brake or a hold that reached it), which follows no stream; the first
@@ -1244,6 +1253,27 @@ mod tests {
         // The delay line restarted at the resting state: the Pyragas residual is zero, not
         // |0 − 10| from the rates before the hold.
         assert_eq!(o.output.unwrap().period_residual, 0.0);
+    }
+
+    #[test]
+    fn an_arm_that_begins_to_brake_under_a_running_stream_is_counted_once_per_brake() {
+        let mut c = controller();
+        let t0 = 1_000_000_000u64;
+        let mut s = state(0, t0);
+        // The arm stands on its brakes until the first answer: that is no brake.
+        s.flags |= protocol::flags::BRAKING;
+        for k in 0..300u64 {
+            if k == 3 || k == 200 {
+                s.flags &= !protocol::flags::BRAKING;
+            }
+            if k == 100 || k == 250 {
+                s.flags |= protocol::flags::BRAKING; // braked for 100 and for 50 states
+            }
+            s.seq = k;
+            s.stamp_ns = t0 + k * 1_000_000;
+            c.tick(Some(&s), s.stamp_ns);
+        }
+        assert_eq!(c.counters.arm_brakes, 2);
     }
 
     #[test]

@@ -312,8 +312,9 @@ fn faults(r: &Run) -> Vec<Line> {
     v.push(Line::detail(
         "faults",
         format!(
-            "{} samples rejected ({} invalid, {} stale, {} out of order, {} from the future, {} flagged faulty by the plant); {} holds; {} plant restarts; {} telemetry records dropped",
-            c.rejected(), c.rejected_invalid, c.rejected_stale, c.rejected_out_of_order, c.rejected_future, c.plant_faults, c.holds_entered, c.plant_restarts, c.telemetry_dropped
+            "{} samples rejected ({} invalid, {} stale, {} out of order, {} from the future, {} flagged faulty by the plant); {} holds; {} arm brakes{}; {} plant restarts; {} telemetry records dropped",
+            c.rejected(), c.rejected_invalid, c.rejected_stale, c.rejected_out_of_order, c.rejected_future, c.plant_faults, c.holds_entered,
+            c.arm_brakes, d.last_arm_brake_s.map_or(String::new(), |t| format!(" (the last at t = {t:.1} s)")), c.plant_restarts, c.telemetry_dropped
         ),
     ));
     if c.track_lost + c.out_of_reach + c.nonfinite > 0 {
@@ -509,8 +510,8 @@ fn device(summary: Option<&Value>) -> Vec<Line> {
         Line::detail(
             "device cycles",
             format!(
-                "{} cycles ({} skipped by its own lateness), {} answered in time, {} missed, {} late answers, {} brakes; {} states and {} commands lost (injected)",
-                n("cycles"), n("skipped"), n("answered_in_time"), n("missed"), n("late_answers"), n("brakes"), n("states_lost"), n("commands_lost")
+                "{} cycles ({} skipped by its own lateness), {} answered in time, {} missed, {} late answers, {} brakes{}; {} states and {} commands lost (injected)",
+                n("cycles"), n("skipped"), n("answered_in_time"), n("missed"), n("late_answers"), n("brakes"), brake_times(v), n("states_lost"), n("commands_lost")
             ),
         ),
         Line::detail(
@@ -524,6 +525,15 @@ fn device(summary: Option<&Value>) -> Vec<Line> {
             ),
         ),
     ]
+}
+
+/// When the device braked on missed answers: " (at 5.1 s)", " (first at 5.1 s, last at 57.0 s)".
+fn brake_times(v: &Value) -> String {
+    match (v["first_brake_s"].as_f64(), v["last_brake_s"].as_f64()) {
+        (Some(a), Some(b)) if a == b => format!(" (at {a:.1} s)"),
+        (Some(a), Some(b)) => format!(" (first at {a:.1} s, last at {b:.1} s)"),
+        _ => String::new(),
+    }
 }
 
 /// Only the files that were written: a plant that died writes none of its own.

@@ -65,6 +65,8 @@ pub struct Reporter {
     pub(crate) last_state: Option<StateSample>,
     /// Whether the delayed term was applied the last time the law ran.
     pub(crate) last_feedback_active: bool,
+    /// Controller time of the newest [`crate::controller::Counters::arm_brakes`].
+    last_arm_brake: Option<f64>,
     pub(crate) window_track: (f64, u64),
     pub(crate) window_resid: (f64, u64),
     pub(crate) recording: Option<Recording>,
@@ -168,6 +170,7 @@ impl Reporter {
             last: None,
             last_state: None,
             last_feedback_active: false,
+            last_arm_brake: None,
             window_track: (0.0, 0),
             window_resid: (0.0, 0),
             recording: None,
@@ -247,6 +250,12 @@ impl Reporter {
     }
 
     fn record(&mut self, r: &TickRecord) {
+        if self
+            .last
+            .is_some_and(|l| r.counters.arm_brakes > l.counters.arm_brakes)
+        {
+            self.last_arm_brake = Some(r.t);
+        }
         if let Some(f @ crate::guard::FaultReason::Device { .. }) = r.fault {
             self.device_stops += 1;
             self.first_device_stop
@@ -579,7 +588,7 @@ impl Reporter {
             "[{:7.1} s] {mode} μ={:.2} feedback {}  track {:.1e} m  residual {:.2e} rad/s  late p99 {:.1} µs max {:.1} µs  overruns {}  rejected {}  holds {}  drops {}",
             r.t,
             r.mu,
-            if r.feedback_active { "on " } else { "off" },
+            if self.last_feedback_active { "on " } else { "off" },
             track,
             resid,
             p.p99_us,
@@ -646,6 +655,7 @@ impl Reporter {
             min_clearance_m: self.min_clearance.is_finite().then_some(self.min_clearance),
             joint_limits: self.limits.seen(),
             command: self.saturations,
+            last_arm_brake_s: self.last_arm_brake,
             device_stops: self.device_stops,
             first_device_stop: self.first_device_stop.clone(),
             blocked_entered: self.deadlock.entered,
@@ -675,4 +685,49 @@ pub fn log_started(d: &crate::config::DaemonConfig, rt_report: &rt::setup::RtRep
         d.wait.name(),
         rt_report.one_line()
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::telemetry::TickRecord;
+
+    /// A tick without a state runs no law and so has no feedback flag: the status line must
+    /// still say what the law did on its last run (it said "feedback off" mid-run on the UDP
+    /// bridge, where such ticks are common).
+    #[test]
+    fn the_status_line_says_the_feedback_of_the_last_law_run_not_of_a_tick_without_a_state() {
+        let system = System::preset("paper", &control::system::builtin_robot).unwrap();
+        let (params_tx, _params_rx) = crossbeam::channel::unbounded();
+        let (_rt_tx, rt_rx) = crossbeam::channel::unbounded();
+        let daemon = DaemonConfig {
+            namespace: "reporter-status-line-test".into(),
+            ..DaemonConfig::default()
+        };
+        let mut rep = Reporter::new(system, daemon, params_tx, rt_rx).unwrap();
+        let ran = TickRecord {
+            t: 1.0,
+            ran_law: true,
+            mu: 0.2,
+            feedback_on: true,
+            feedback_active: true,
+            ..TickRecord::blank()
+        };
+        rep.record(&ran);
+        let line = rep.status_line().unwrap();
+        assert!(line.contains("feedback on"), "{line}");
+        rep.record(&TickRecord {
+            t: 1.001,
+            ..TickRecord::blank()
+        });
+        let line = rep.status_line().unwrap();
+        assert!(line.contains("feedback on"), "{line}");
+        rep.record(&TickRecord {
+            feedback_active: false,
+            t: 1.002,
+            ..ran
+        });
+        let line = rep.status_line().unwrap();
+        assert!(line.contains("feedback off"), "{line}");
+    }
 }

@@ -129,6 +129,10 @@ pub struct DaemonSummary {
     pub period_residual_before: Option<f64>,
     /// The same over the last 5 s with the feedback on.
     pub period_residual_after: Option<f64>,
+    /// Controller time (s) the arm last began to brake or hold under a running stream
+    /// (`counters.arm_brakes`): the residual and tracking after it measure a recovery.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub last_arm_brake_s: Option<f64>,
     /// The same over 2-7 s, feedback or not: the reference of a run whose feedback acts from
     /// the start.
     pub period_residual_start: Option<f64>,

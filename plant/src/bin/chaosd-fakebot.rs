@@ -242,6 +242,15 @@ fn run(a: &Args) -> Result<FakebotSummary> {
     Ok(c)
 }
 
+/// " (at 5.112 s)", " (first at 5.112 s, last at 57.020 s)", or nothing without brakes.
+fn brake_times(s: &FakebotSummary) -> String {
+    match (s.first_brake_s, s.last_brake_s) {
+        (Some(a), Some(b)) if a == b => format!(" (at {a:.3} s)"),
+        (Some(a), Some(b)) => format!(" (first at {a:.3} s, last at {b:.3} s)"),
+        _ => String::new(),
+    }
+}
+
 fn main() -> ExitCode {
     let args = Args::parse();
     match run(&args) {
@@ -252,8 +261,8 @@ fn main() -> ExitCode {
                 s.round_trip.one_line()
             );
             eprintln!(
-                "chaosd-fakebot: {} cycles ({} skipped by its own lateness), {} answered in time, {} missed, {} late answers, {} malformed, {} stale; lost {} states and {} commands; {} brakes, {} spikes, {} restarts; {} reflex stops{}",
-                c.cycles, c.skipped, c.answered_in_time, c.missed, c.late_answers, c.malformed, c.stale_session, c.states_lost, c.commands_lost, c.brakes, c.spikes, c.restarts,
+                "chaosd-fakebot: {} cycles ({} skipped by its own lateness), {} answered in time, {} missed, {} late answers, {} malformed, {} stale; lost {} states and {} commands; {} brakes{}, {} spikes, {} restarts; {} reflex stops{}",
+                c.cycles, c.skipped, c.answered_in_time, c.missed, c.late_answers, c.malformed, c.stale_session, c.states_lost, c.commands_lost, c.brakes, brake_times(&s), c.spikes, c.restarts,
                 c.reflex_stops, s.first_reflex.as_ref().map_or(String::new(), |f| format!(", the first {f}"))
             );
             ExitCode::SUCCESS

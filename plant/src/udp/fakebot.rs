@@ -149,6 +149,10 @@ pub struct FakebotSummary {
     pub round_trip: rt::hist::Percentiles,
     /// The first reflex stop: device time (s), joint (1-based, 0: none) and reason.
     pub first_reflex: Option<String>,
+    /// When the first and the last brake on missed answers came (s since the device started):
+    /// a brake knocks the arm off its path and its cycle, and a run judges what follows it.
+    pub first_brake_s: Option<f64>,
+    pub last_brake_s: Option<f64>,
 }
 
 /// xorshift64*: the loss injector's random numbers (deterministic per seed, no allocation).
@@ -233,6 +237,7 @@ pub fn run<const N: usize>(
         spike_until: 0,
         rules: Rules::new(limits, 1.0 / cfg.rate_hz),
         first_reflex: None,
+        brakes_at: None,
     };
     dev.sim.activate()?;
     let period = (1e9 / cfg.rate_hz).round() as u64;
@@ -277,6 +282,8 @@ pub fn run<const N: usize>(
         counters: dev.c,
         round_trip: rt::hist::Percentiles::of(&dev.rtt),
         first_reflex: dev.first_reflex,
+        first_brake_s: dev.brakes_at.map(|(first, _)| first),
+        last_brake_s: dev.brakes_at.map(|(_, last)| last),
     })
 }
 
@@ -313,6 +320,8 @@ struct Device<'a, const N: usize> {
     /// The arm's rules, and the stream it is judging.
     rules: Rules<N>,
     first_reflex: Option<String>,
+    /// (first, last) brake on missed answers, s since the device started.
+    brakes_at: Option<(f64, f64)>,
 }
 
 impl<const N: usize> Device<'_, N> {
@@ -490,6 +499,8 @@ impl<const N: usize> Device<'_, N> {
         if self.s.missed_run >= self.cfg.max_missed && !self.s.braking {
             self.s.braking = true;
             self.c.brakes += 1;
+            let t = monotonic_ns().saturating_sub(self.s.started_ns) as f64 * 1e-9;
+            self.brakes_at = Some((self.brakes_at.map_or(t, |(first, _)| first), t));
             // The stream is broken: when answers come again they start a new one.
             self.rules.restart();
             let _ = self.sim.write(Actuation::Brake);
