@@ -56,7 +56,9 @@ fn the_daemon_says_periodic_with_feedback_and_chaotic_without_and_adapts_mu_live
 
     // mu auto: the daemon chooses the gain from its model on its own thread (well under a
     // second on the planar arm), says why in status, and μ starts from it; the window goes on.
-    let t_set = status(ns)["t"].as_f64().unwrap();
+    let before = status(ns);
+    let t_set = before["t"].as_f64().unwrap();
+    let overruns_at_set = before["counters"]["overruns"].as_u64().unwrap();
     let (code, _, err) = ctl(ns, &["set", "mu", "auto"]);
     assert_eq!(code, 0, "{err}");
     let (v, _) = poll_status(ns, Duration::from_secs(30), |v| {
@@ -106,20 +108,32 @@ fn the_daemon_says_periodic_with_feedback_and_chaotic_without_and_adapts_mu_live
         !v["gains"]["target"]["last"]["ended"].is_null()
     });
     let target = &v["gains"]["target"];
-    assert_eq!(
-        target["last"]["ended"],
-        serde_json::json!({"released": "on_the_cycle"}),
-        "{}\n{}",
-        v["gains"],
-        sys.daemon.log()
-    );
-    assert_eq!(target["steering"], false, "{target}");
+    let ended = &target["last"]["ended"];
     let log = sys.daemon.log();
     assert!(
         log.contains("steering the arm onto the model's cycle"),
         "{log}"
     );
-    assert!(log.contains("the arm is on the model's cycle"), "{log}");
+    assert_eq!(target["steering"], false, "{target}");
+    // A host that takes the loop's core for many periods while the arm is steered (seen: 33 %
+    // steal, 400 skipped periods) keeps the arm from repeating itself to 1e-3 rad/s for a
+    // period, and the steering rightly times out; on a host that lets the loop run, it must
+    // release the arm on the cycle.
+    let skipped = v["counters"]["overruns"].as_u64().unwrap() - overruns_at_set;
+    if ended == &serde_json::json!({"released": "timed_out"}) && skipped >= 100 {
+        eprintln!(
+            "the steering timed out after {skipped} skipped periods: {}",
+            v["gains"]
+        );
+    } else {
+        assert_eq!(
+            ended,
+            &serde_json::json!({"released": "on_the_cycle"}),
+            "{skipped} periods skipped since `set mu auto`: {}\n{log}",
+            v["gains"],
+        );
+        assert!(log.contains("the arm is on the model's cycle"), "{log}");
+    }
     let (code, _, err) = ctl(ns, &["set", "gamma", "1"]);
     assert!(code != 0 && err.contains("feedback.gamma"), "{err}");
 
