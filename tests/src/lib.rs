@@ -349,6 +349,37 @@ pub fn disturbed(summaries: &[&serde_json::Value]) -> bool {
     })
 }
 
+/// Seconds before a run's end in which an arm brake (`counters.arm_brakes`) leaves the last
+/// 5 s measuring the recovery from it: the Panda's self-motion closes in at −0.75 /s, so a kick
+/// of 0.25 rad/s needs about 10 s to be back under 1e-2 and 5 more to leave the window.
+pub const BRAKE_RECOVERY_S: f64 = 15.0;
+
+/// Asserts that the daemon summary `s`'s period residual fell from `start` to its last 5 s'
+/// (`period_residual_after`) by `factor` and to under `max`. A host stall of 20 ms (a HOLD,
+/// a device braking on missed answers) knocks the arm off its cycle; when the newest came in
+/// the last [`BRAKE_RECOVERY_S`] s, the window measures the recovery, which must have begun
+/// (below `start`), and the test says so.
+pub fn assert_residual_falls(s: &serde_json::Value, start: f64, factor: f64, max: f64) {
+    let after = s["period_residual_after"].as_f64().unwrap_or(f64::NAN);
+    let end = s["duration_s"].as_f64().unwrap_or(f64::NAN);
+    let late_brake = s["last_arm_brake_s"]
+        .as_f64()
+        .filter(|&t| t > end - BRAKE_RECOVERY_S);
+    match late_brake {
+        None => assert!(
+            after * factor <= start && after < max,
+            "residual {start} → {after} (asked: {factor}× smaller, under {max}): {s}"
+        ),
+        Some(t) => {
+            eprintln!("the arm braked at t = {t:.1} s of {end:.1}: residual {start} → {after}");
+            assert!(
+                after < start,
+                "residual {start} → {after} after a brake at t = {t}: {s}"
+            );
+        }
+    }
+}
+
 /// Asserts that a live run tracked its path to `bound` (m).
 ///
 /// A loop that the host stalls for 10-20 ms leaves the plant running on its last command, and

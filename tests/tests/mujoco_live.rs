@@ -122,11 +122,7 @@ fn the_method_holds_in_torque_mode_on_mujocos_panda_with_no_contact() {
         .as_f64()
         .or(s["period_residual_start"].as_f64())
         .unwrap();
-    let after = s["period_residual_after"].as_f64().unwrap();
-    assert!(
-        after < 0.1 && before / after >= 10.0,
-        "{before} → {after}: {s}"
-    );
+    assert_residual_falls(&s, before, 10.0, 0.1);
     no_contact(&p, &s, &report);
 }
 

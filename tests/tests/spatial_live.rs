@@ -41,8 +41,8 @@ fn the_panda_demo_runs_daemon_and_plant_inside_the_limits_and_the_feedback_shows
     // still settling onto its cycle, over the last 5 s it is periodic (offline −0.75 /s).
     assert!(s["period_residual_before"].is_null(), "{s}");
     let start = s["period_residual_start"].as_f64().unwrap();
-    let after = s["period_residual_after"].as_f64().unwrap();
-    assert!(start > 1e-3 && after < 0.01 * start, "{start} → {after}");
+    assert!(start > 1e-3, "{start}: {s}");
+    assert_residual_falls(&s, start, 100.0, f64::INFINITY);
     assert!(stdout.contains("from the start"), "{stdout}");
     let limits = &s["joint_limits"];
     assert!(
