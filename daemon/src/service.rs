@@ -217,7 +217,7 @@ fn control_loop<const N: usize>(
         // What the control service sent, taken between ticks (as in the clock loop below).
         let between = |ctl: &mut Controller<N>| crate::tick::take_request(ctl, &params_rx);
         crate::trigger::state_loop(&mut ctl, &ports, timing, between);
-        leave_braking(&mut ctl, &publisher);
+        leave_braking(&mut ctl, &publisher, lane);
         return Ok((rt_report, ctl.counters));
     }
     let phase = d
@@ -253,16 +253,23 @@ fn control_loop<const N: usize>(
             sched.set_deadline(lock.align(sched.deadline(), s.stamp_ns));
         }
     }
-    leave_braking(&mut ctl, &publisher);
+    leave_braking(&mut ctl, &publisher, None);
     Ok((rt_report, ctl.counters))
 }
 
-/// Leaves the plant braking, not coasting on the last acceleration.
+/// Leaves the plant braking, not coasting on the last acceleration. With the fast lane open the
+/// brake goes on it too: a plant that takes its answers from the lane looks at pub-sub only now
+/// and then, and through the UDP bridge the brake then reached the device after the device had
+/// braked on its own for the missed answers (every bridge demo ended with a device brake).
 fn leave_braking<const N: usize>(
     ctl: &mut Controller<N>,
     publisher: &iceoryx2::port::publisher::Publisher<ipc::Service, protocol::CommandSample, ()>,
+    lane: Option<&protocol::board::DaemonLane>,
 ) {
     let brake = ctl.brake_command(monotonic_ns());
+    if let Some(lane) = lane {
+        lane.write(&brake);
+    }
     if let Ok(s) = publisher.loan_uninit() {
         let _ = s.write_payload(brake).send();
     }
